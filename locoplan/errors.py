@@ -1,0 +1,45 @@
+"""Exceptions that the CLI turns into a clear message and an exit code (library code never exits)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class LocoplanError(Exception):
+    """Base class of every error a user can cause. ``exit_code`` is what the CLI returns."""
+
+    exit_code = 2
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with one input: where (file, line, field) and why."""
+
+    file: str
+    field: str
+    message: str
+    line: int | None = None
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}" if self.line else self.file
+        return f"{where}: {self.field}: {self.message}" if self.field else f"{where}: {self.message}"
+
+
+class InputError(LocoplanError):
+    """Invalid input (file, field, value): exit code 2. Carries every problem found, not just the first."""
+
+    exit_code = 2
+
+    def __init__(self, problems: list[Problem] | Problem | str):
+        if isinstance(problems, str):
+            problems = [Problem(file="", field="", message=problems)]
+        elif isinstance(problems, Problem):
+            problems = [problems]
+        self.problems = list(problems)
+        super().__init__("\n".join(str(p) for p in self.problems))
+
+
+class InfeasibleError(LocoplanError):
+    """The request is valid but no plan satisfies it (e.g. a running time below the fastest run): exit code 1."""
+
+    exit_code = 1

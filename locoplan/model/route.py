@@ -1,0 +1,90 @@
+"""Route file schema (SPEC section 1): speed limits, gradients, curves, tunnels, neutral sections."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from .common import RuleViolations, Strict
+
+
+class Schedule(Strict):
+    run_time_s: float = Field(gt=0, description="planned running time [s]")
+    tolerance_s: float = Field(default=0.0, ge=0, description="punctuality window +- [s]")
+
+
+class Section(Strict):
+    from_m: float = Field(ge=0)
+    to_m: float = Field(gt=0)
+
+
+class SpeedLimit(Section):
+    kmh: float = Field(gt=0, le=400, description="speed limit [km/h]")
+
+
+class Gradient(Section):
+    permille: float = Field(ge=-40, le=40, description="gradient [per mille], + = up-grade")
+
+
+class Curve(Section):
+    radius_m: float = Field(ge=100, description="curve radius [m]")
+
+
+class Tunnel(Section):
+    pass
+
+
+class NeutralSection(Section):
+    coast_before_s: float = Field(default=0.0, ge=0)
+    coast_after_s: float = Field(default=0.0, ge=0)
+
+
+def _section_problems(name: str, sections, length_m: float, contiguous: bool) -> list[tuple[tuple, str]]:
+    """Positive lengths, inside [0, length_m], sorted; contiguous lists must also cover [0, length_m] exactly."""
+    out: list[tuple[tuple, str]] = []
+    for i, sec in enumerate(sections):
+        if sec.to_m <= sec.from_m:
+            out.append(((name, i, "to_m"), f"must be greater than from_m ({sec.to_m:g} <= {sec.from_m:g})"))
+        if sec.to_m > length_m + 1e-9:
+            out.append(((name, i, "to_m"), f"{sec.to_m:g} m lies beyond the route's length_m {length_m:g}"))
+    for i in range(1, len(sections)):
+        prev, sec = sections[i - 1], sections[i]
+        if sec.from_m < prev.to_m - 1e-9:
+            out.append(((name, i, "from_m"), f"overlaps the previous section ({sec.from_m:g} < {prev.to_m:g})"))
+        elif contiguous and sec.from_m > prev.to_m + 1e-9:
+            out.append(((name, i, "from_m"), f"gap after the previous section ({prev.to_m:g} .. {sec.from_m:g} m uncovered)"))
+    if contiguous:
+        if not sections:
+            out.append(((name,), "at least one section is required"))
+        else:
+            if abs(sections[0].from_m) > 1e-9:
+                out.append(((name, 0, "from_m"), f"must start at 0 (got {sections[0].from_m:g})"))
+            if abs(sections[-1].to_m - length_m) > 1e-9:
+                out.append(((name, len(sections) - 1, "to_m"), f"must end at length_m {length_m:g} (got {sections[-1].to_m:g})"))
+    return out
+
+
+class Route(Strict):
+    """A route. Positions in metres from the start, in the running direction."""
+
+    schema_: Literal["locoplan/route@1"] = Field(alias="schema")
+    name: str
+    length_m: float = Field(gt=0)
+    schedule: Schedule | None = None
+    speed_limits: list[SpeedLimit]
+    gradients: list[Gradient]
+    curves: list[Curve] = []
+    tunnels: list[Tunnel] = []
+    neutral_sections: list[NeutralSection] = []
+
+    @model_validator(mode="after")
+    def _check_sections(self) -> "Route":
+        problems: list[tuple[tuple, str]] = []
+        problems += _section_problems("speed_limits", self.speed_limits, self.length_m, contiguous=True)
+        problems += _section_problems("gradients", self.gradients, self.length_m, contiguous=True)
+        for name in ("curves", "tunnels", "neutral_sections"):
+            problems += _section_problems(name, getattr(self, name), self.length_m, contiguous=False)
+        if problems:
+            raise RuleViolations(problems)
+        return self

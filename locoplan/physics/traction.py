@@ -1,0 +1,20 @@
+"""Max traction and braking effort from a consist's piecewise-linear curves, and gravity force."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.train import G_MS2
+
+
+def max_force_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray):
+    """Max effort [kN] at ``speed_kmh``, linear between curve points, held flat beyond the ends."""
+    return np.interp(speed_kmh, curve_speed_kmh, curve_force_kn)
+
+
+def gradient_force_kn(gradient_permille, mass_t: float):
+    """Gravity component along the track [kN] on an (equivalent) gradient in per mille (+ = up-grade).
+
+    1 per mille of gradient costs 1 N per kN of weight: F = i * mass_t * g / 1000 [kN].
+    """
+    return np.asarray(gradient_permille, dtype=float) * mass_t * G_MS2 / 1000.0

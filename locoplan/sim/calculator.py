@@ -1,0 +1,310 @@
+"""Batch traction calculator: integrates many plans at once along distance (seed 002 section 1; DESIGN).
+
+Train dynamics in distance form, with e = v^2 / 2 [m^2/s^2]:
+
+    d e / d s = (F - B - R(v) - G(s)) / (M (1 + gamma))
+
+F traction, B braking, R basic resistance, G gravity on the equivalent gradient [kN]; M mass [t];
+gamma the rotating-mass allowance (0 by default). Plans share one condition sequence and differ in
+their switching positions; they are the rows of every array, so one step of the loop below advances
+the whole batch with a handful of numpy calls.
+
+Why it is accurate on a coarse grid:
+- the grid contains every route breakpoint, so each cell has one gradient and one limit, and the
+  cell's gravity term is its exact mean (the work of gravity is exact);
+- a switching point inside a cell splits the cell by fraction, so time and energy are continuous
+  in the switching positions (the optimiser sees a smooth landscape, not 20 m stairs);
+- forces are taken at the cell's extrapolated mid-speed (second order), and time uses
+  dt = 2 ds / (v0 + v1), exact for constant acceleration, including when the train starts or stops;
+- reaching a limit or a braking curve inside a cell is located by intersecting the two straight
+  lines in e(s), and the time of both parts is added exactly;
+- the braking envelope (backward braking curves from every limit drop and from the stop) is
+  plan-independent and integrated once per route with fine sub-steps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import InputError, Problem
+from ..model.route import Route
+from ..model.train import G_MS2, Train
+from ..physics.gradient import equivalent_gradient_permille
+from ..physics.resistance import train_resistance_kn
+from ..physics.traction import gradient_force_kn, max_force_kn
+from .result import CODE, CONDITIONS, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+
+DEFAULT_STEP_M = 50.0
+"""Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
+0.05 % / 0.1 % (tests/test_calculator.py::test_step_convergence; README, 'step size')."""
+
+ENVELOPE_SUBSTEPS = 20
+"""Sub-steps per cell for the braking envelope (computed once per route, so it can afford them)."""
+
+_E_FLOOR = 1e-6  # keeps a stalled plan's arithmetic finite after it has been marked infeasible
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Switches of the train model.
+
+    step_m: grid spacing [m]; strip: average the equivalent gradient (and take the lowest limit)
+    over the train's length instead of a point mass at the head; rotating_mass: gamma, the
+    rotating-mass allowance (inertial mass = M (1 + gamma); 0 = none, as in the seeds).
+    """
+
+    step_m: float = DEFAULT_STEP_M
+    strip: bool = False
+    rotating_mass: float = 0.0
+
+
+def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
+    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode)."""
+    L = route.length_m
+    points = [0.0, L]
+    for sections in (route.speed_limits, route.gradients, route.curves, route.tunnels):
+        for sec in sections:
+            points += [sec.from_m, sec.to_m]
+    for c in route.curves:  # seed 004 claim 6: a short curve is spread over one train length
+        points.append(c.from_m + train.length_m)
+    if options.strip:
+        points += [p + train.length_m for p in list(points)]
+    n = max(1, math.ceil(L / options.step_m - 1e-9))
+    s = np.union1d(np.linspace(0.0, L, n + 1), np.clip(points, 0.0, L))
+    keep = np.concatenate([[True], np.diff(s) > 1e-6])
+    s = s[keep]
+    s[-1] = L
+    return s
+
+
+class TractionCalculator:
+    """Route + train + model options, with everything plan-independent precomputed.
+
+    ``evaluate(conditions, switches_m)`` runs a batch; see its docstring.
+    """
+
+    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None):
+        self.route, self.train = route, train
+        self.options = options or ModelOptions()
+        if self.options.step_m <= 0:
+            raise InputError(Problem("", "step_m", f"must be > 0 (got {self.options.step_m:g})"))
+        s = _grid(route, train, self.options)
+        self._build(s)
+        kinks = self._braking_curve_entries()
+        if kinks.size:  # make every braking-curve entry a node, then rebuild on the finer grid
+            s = np.union1d(s, kinks)
+            s = s[np.concatenate([[True], np.diff(s) > 1e-6])]
+            self._build(s)
+
+    def _build(self, s: np.ndarray) -> None:
+        route, train = self.route, self.train
+        self.s_m = s
+        self.h_m = np.diff(s)
+        mid = 0.5 * (s[1:] + s[:-1])
+        # Cell means: the point gradient is constant in each cell, the strip gradient linear, so the
+        # midpoint value is the exact mean in both modes.
+        self.gradient_permille = equivalent_gradient_permille(route, mid, train.length_m, self.options.strip)
+        self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
+        self.m_eff_t = train.mass_t * (1.0 + self.options.rotating_mass)
+        self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
+        e_cell = (self.limit_kmh / 3.6) ** 2 / 2
+        self.e_limit_cell = e_cell
+        self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
+        self.e_limit_node[-1] = 0.0  # the train stops at the end
+        self.e_envelope, self._entry_m = self._braking_envelope()
+
+    # ----------------------------------------------------------------- route precomputation
+    def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
+        """Static speed limit [km/h] at head positions; in strip mode the lowest under the train."""
+        sl = self.route.speed_limits
+        starts = np.array([x.from_m for x in sl])
+        kmh = np.array([x.kmh for x in sl])
+        idx = np.clip(np.searchsorted(starts, s_m, side="right") - 1, 0, len(sl) - 1)
+        lim = kmh[idx]
+        if self.options.strip:
+            tail = s_m - self.train.length_m
+            for x in sl:  # a rise counts only once the tail has cleared the restriction
+                under = (x.from_m < s_m) & (x.to_m > tail)
+                lim = np.where(under, np.minimum(lim, x.kmh), lim)
+        return lim
+
+    def forces_kn(self, v_ms: np.ndarray, k: int | np.ndarray):
+        """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k``."""
+        v_kmh = v_ms * 3.6
+        return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn),
+                max_force_kn(v_kmh, self.train.brake_speed_kmh, self.train.brake_kn),
+                train_resistance_kn(v_kmh, self.train.resistance_kn) + self.gravity_kn[k])
+
+    def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
+        """Highest e at each node from which max braking still respects every later limit and stops at
+        the end: backward integration (RK2, fine sub-steps) from each limit drop and from the stop.
+
+        Also returns the positions where a braking curve rises through its cell's limit inside a cell
+        (the braking-curve entry points), so that they can be made grid nodes.
+        """
+        e_env = self.e_limit_node.copy()
+        entries = []
+        n_sub = ENVELOPE_SUBSTEPS
+        m = self.m_eff_t
+        for k in range(len(self.h_m) - 1, -1, -1):
+            e = e_env[k + 1]
+            d = self.h_m[k] / n_sub
+            cap = self.e_limit_cell[k]
+            decel = lambda e_: float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+            for i in range(n_sub):
+                e_next = e + d * decel(e + 0.5 * d * decel(e))
+                if e < cap <= e_next and e_next > e:
+                    entries.append(self.s_m[k + 1] - d * (i + (cap - e) / (e_next - e)))
+                e = e_next
+            e_env[k] = min(e_env[k], max(e, 0.0))
+        return e_env, np.array(entries)
+
+    def _braking_curve_entries(self) -> np.ndarray:
+        """Braking-curve entry points strictly inside cells (nodes already there are left out)."""
+        x = self._entry_m
+        if not x.size:
+            return x
+        gap = np.min(np.abs(x[:, None] - self.s_m[None, :]), axis=1)
+        return x[gap > 1e-3]
+
+    @cached_property
+    def fastest_time_s(self) -> float:
+        """Running time of the fastest run (max traction, held at limits, braking as late as allowed)."""
+        res = self.evaluate(("T",), np.zeros((1, 0)))
+        return float(res.running_time_s[0])
+
+    # ----------------------------------------------------------------- plans
+    def condition_fractions(self, conditions: tuple[str, ...], switches_m: np.ndarray) -> np.ndarray:
+        """Share of each cell under each condition, shape (4, n_plans, n_cells).
+
+        Condition j runs from ``starts[j]`` (0 for the first, then the switches) to the next start. A
+        NaN switch means 'never': the previous condition runs on until a braking curve takes over.
+        """
+        n = switches_m.shape[0]
+        starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(switches_m), np.inf, switches_m)], axis=1)
+        ends = np.concatenate([starts[:, 1:], np.full((n, 1), np.inf)], axis=1)
+        s = self.s_m
+        # covered(x) = length of [start_j, end_j) left of x; cell share = difference over the cell
+        cov = np.clip(s[None, None, :] - starts[:, :, None], 0.0, None)
+        with np.errstate(invalid="ignore"):  # inf - inf for 'never' starts, masked right here
+            span = np.where(np.isinf(starts), 0.0, ends - starts)
+        cov = np.minimum(cov, span[:, :, None])
+        share = np.diff(cov, axis=2) / self.h_m  # (n, n_cond, n_cells)
+        frac = np.zeros((4, n, len(self.h_m)))
+        codes = np.array([CODE[c] for c in conditions])
+        for code in range(4):
+            sel = codes == code
+            if sel.any():
+                frac[code] = share[:, sel, :].sum(axis=1)
+        return frac
+
+    def evaluate(self, conditions, switches_m, profile: bool = False) -> BatchResult:
+        """Integrate a batch of plans.
+
+        conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
+        switches_m: (n_plans, len(conditions) - 1) positions [m] where conditions 2.. begin, rising.
+        Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
+        and on request the per-cell profile.
+        """
+        conditions = tuple(conditions)
+        sw = np.atleast_2d(np.asarray(switches_m, dtype=float))
+        if sw.shape[1] != len(conditions) - 1:
+            raise InputError(Problem("", "switches_m", f"expected {len(conditions) - 1} switching points per plan, got {sw.shape[1]}"))
+        bad = [c for c in conditions if c not in CODE]
+        if bad:
+            raise InputError(Problem("", "conditions", f"unknown condition {bad[0]!r} (use T, K, C, B)"))
+        frac = self.condition_fractions(conditions, sw)
+        return self._integrate(frac, profile, sw)
+
+    def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray) -> BatchResult:
+        fT, fK, fC, fB = frac
+        n, n_cells = fT.shape
+        h, m = self.h_m, self.m_eff_t
+        e_env, e_lim_cell = self.e_envelope, self.e_limit_cell
+        e = np.zeros(n)
+        v = np.zeros(n)
+        slope = np.zeros(n)  # previous cell's de/ds, to extrapolate the mid-cell speed
+        t = np.zeros(n)
+        work = np.zeros(n)  # traction work [kJ]
+        reason = np.zeros(n, dtype=np.int8)
+        fail_at = np.full(n, np.nan)
+        if want_profile:
+            t_nodes = np.zeros((n, n_cells + 1))
+            v_nodes = np.zeros((n, n_cells + 1))
+            cond = np.zeros((n, n_cells), dtype=np.int8)
+            trac = np.zeros((n, n_cells))
+            brk = np.zeros((n, n_cells))
+            event = np.full((n, n_cells), np.nan)
+        last = n_cells - 1
+        tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
+        bv, bf = self.train.brake_speed_kmh, self.train.brake_kn
+        ra, rb, rc = self.train.resistance_kn
+        grav = self.gravity_kn
+        for k in range(n_cells):
+            hk = h[k]
+            e_mid = np.maximum(e + 0.5 * hk * slope, 0.0)
+            v_kmh = np.sqrt(2.0 * e_mid) * 3.6
+            f_max = np.interp(v_kmh, tv, tf)
+            b_max = np.interp(v_kmh, bv, bf)
+            load = ra + v_kmh * (rb + rc * v_kmh) + grav[k]
+            hold = np.clip(load, -b_max, f_max)  # cruise: the force that keeps the speed
+            tr = fT[:, k] * f_max + fK[:, k] * np.maximum(hold, 0.0)
+            br = fB[:, k] * b_max - fK[:, k] * np.minimum(hold, 0.0)
+            e_pred = e + hk * (tr - br - load) / m
+            # coasting (or a cruise that cannot hold) above the static limit breaks it
+            over = (e_pred > e_lim_cell[k] * (1 + 1e-9) + 1e-9) & (fC[:, k] + fK[:, k] > 0) & (reason == OK)
+            if over.any():
+                reason[over] = LIMIT_EXCEEDED
+                fail_at[over] = self.s_m[k + 1]
+            c0, c1 = e_env[k], e_env[k + 1]
+            e_new = np.minimum(e_pred, c1)
+            capped = e_pred > c1
+            v_new = np.sqrt(2.0 * np.maximum(e_new, 0.0))
+            # The plan's force acts up to where its straight line in e(s) meets the cap line (a limit
+            # or a braking curve) at fraction phi of the cell; from there the train follows the cap.
+            denom = (e_pred - e) - (c1 - c0)
+            phi = np.where(capped & (denom > 0), (c0 - e) / np.where(denom > 0, denom, 1.0), 1.0)
+            phi = np.clip(phi, 0.0, 1.0)
+            e_phi = e + (e_pred - e) * phi
+            v_phi = np.sqrt(2.0 * np.maximum(e_phi, 0.0))
+            t += 2.0 * hk * (phi / np.maximum(v + v_phi, 1e-9) + (1.0 - phi) / np.maximum(v_phi + v_new, 1e-9))
+            # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking on a curve
+            cap_work = np.where(capped, m * (c1 - e_phi) + load * (1.0 - phi) * hk, 0.0)
+            w_tr = tr * hk * phi + np.maximum(cap_work, 0.0)
+            work += w_tr
+            if k < last:
+                stop = (e_new <= _E_FLOOR) & (reason == OK)
+                if stop.any():
+                    reason[stop] = np.where(fB[stop, k] > 0, STOPPED_SHORT, STALLED)
+                    fail_at[stop] = self.s_m[k + 1]
+                e_new = np.maximum(e_new, _E_FLOOR)
+                v_new = np.sqrt(2.0 * e_new)
+            if want_profile:
+                t_nodes[:, k + 1] = t
+                v_nodes[:, k + 1] = v_new * 3.6
+                trac[:, k] = w_tr / hk
+                brk[:, k] = br * phi + np.maximum(-cap_work, 0.0) / hk
+                dominant = np.argmax(frac[:, :, k], axis=0)
+                on_cap = capped & (phi < 0.5)
+                # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
+                falling = c1 < c0 - 1e-9 * max(c0, 1.0)
+                cond[:, k] = np.where(on_cap, CODE["B"] if falling else CODE["K"], dominant)
+                event[:, k] = np.where(capped & (phi > 0) & (phi < 1), self.s_m[k] + phi * hk, np.nan)
+            slope = (e_new - e) / hk
+            e, v = e_new, v_new
+        profile = None
+        if want_profile:
+            for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
+                x = switches_m[:, j]
+                ok = np.isfinite(x) & (x > 0) & (x < self.s_m[-1])
+                cell = np.clip(np.searchsorted(self.s_m, np.where(ok, x, 0.0), side="right") - 1, 0, n_cells - 1)
+                rows = np.nonzero(ok)[0]
+                event[rows, cell[rows]] = np.where(np.isnan(event[rows, cell[rows]]), x[rows], event[rows, cell[rows]])
+            profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
+        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT), np.nan, t)  # never arrived
+        return BatchResult(running_time_s=t, traction_energy_kwh=work / 3600.0, feasible=reason == OK,
+                           reason_code=reason, failure_m=fail_at, profile=profile)

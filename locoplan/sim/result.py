@@ -1,0 +1,70 @@
+"""Typed results of the batch traction calculator."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+CONDITIONS = ("T", "K", "C", "B")
+"""Condition codes (seed 002): T traction (max effort, held at the limit), K cruise (hold speed),
+C coast (no force), B brake (max braking). Index = code used in arrays."""
+CODE = {c: i for i, c in enumerate(CONDITIONS)}
+
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT = 0, 1, 2, 3
+REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end"}
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Per-plan trajectories on the calculator's distance grid (n_plans rows).
+
+    ``s_m`` (n_nodes,) node positions; ``t_s`` and ``v_kmh`` (n_plans, n_nodes) at the nodes;
+    ``condition`` (n_plans, n_cells) the condition actually applied in each cell (codes into
+    ``CONDITIONS``; a T held at a limit shows as K, braking forced by a braking curve as B);
+    ``traction_kn`` / ``brake_kn`` (n_plans, n_cells) mean forces over each cell.
+    """
+
+    s_m: np.ndarray
+    t_s: np.ndarray
+    v_kmh: np.ndarray
+    condition: np.ndarray
+    traction_kn: np.ndarray
+    brake_kn: np.ndarray
+    limit_kmh: np.ndarray
+    gradient_permille: np.ndarray
+    event_m: np.ndarray | None = None
+
+    """``event_m`` (n_plans, n_cells): where inside a cell the condition changes (a limit or braking
+    curve reached, or a plan's switch), NaN where it does not; used to report exact switching points."""
+
+    def plan(self, i: int) -> "Profile":
+        """The profile of plan ``i`` alone (rows kept 2-D)."""
+        sl = slice(i, i + 1)
+        return Profile(self.s_m, self.t_s[sl], self.v_kmh[sl], self.condition[sl], self.traction_kn[sl],
+                       self.brake_kn[sl], self.limit_kmh, self.gradient_permille,
+                       None if self.event_m is None else self.event_m[sl])
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Per-plan outcome of one batch evaluation (arrays of length n_plans)."""
+
+    running_time_s: np.ndarray
+    traction_energy_kwh: np.ndarray
+    feasible: np.ndarray
+    reason_code: np.ndarray
+    failure_m: np.ndarray
+    profile: Profile | None = None
+
+    def reason(self, i: int) -> str:
+        """Human-readable feasibility verdict of plan ``i``."""
+        code = int(self.reason_code[i])
+        if code == OK:
+            return "ok"
+        where = float(self.failure_m[i])
+        if code == LIMIT_EXCEEDED:
+            return f"limit exceeded at {where:.0f} m"
+        if code == STALLED:
+            return f"stalled at {where:.0f} m"
+        return f"did not stop at the end: came to rest at {where:.0f} m"
