@@ -227,7 +227,11 @@ class TractionCalculator:
         e_env, e_lim_cell = self.e_envelope, self.e_limit_cell
         e = np.zeros(n)
         v = np.zeros(n)
-        slope = np.zeros(n)  # previous cell's de/ds, to extrapolate the mid-cell speed
+        # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
+        # cells use the previous cell's mean slope
+        f0 = self.forces_kn(np.zeros(1), 0)
+        slope = (fT[:, 0] * f0[0] - fB[:, 0] * f0[1] + fK[:, 0] * np.clip(f0[2], -f0[1], f0[0]) - f0[2]) / self.m_eff_t
+        slope = np.maximum(slope, 0.0)
         t = np.zeros(n)
         work = np.zeros(n)  # traction work [kJ]
         reason = np.zeros(n, dtype=np.int8)
@@ -246,7 +250,9 @@ class TractionCalculator:
         grav = self.gravity_kn
         for k in range(n_cells):
             hk = h[k]
-            e_mid = np.maximum(e + 0.5 * hk * slope, 0.0)
+            # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
+            # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
+            e_mid = np.maximum(np.minimum(e + 0.5 * hk * slope, 0.5 * (e + e_env[k + 1])), 0.0)
             v_kmh = np.sqrt(2.0 * e_mid) * 3.6
             f_max = np.interp(v_kmh, tv, tf)
             b_max = np.interp(v_kmh, bv, bf)
