@@ -221,21 +221,23 @@ class TractionCalculator:
         return self._integrate(frac, profile, sw)
 
     def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray) -> BatchResult:
-        fT, fK, fC, fB = frac
-        n, n_cells = fT.shape
+        n, n_cells = frac.shape[1:]
         h, m = self.h_m, self.m_eff_t
-        e_env, e_lim_cell = self.e_envelope, self.e_limit_cell
+        e_env = self.e_envelope
+        # per-cell rows, contiguous, so that each step reads plain vectors
+        fT, fK, fB = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"]))
+        may_exceed = np.ascontiguousarray((frac[CODE["C"]] + frac[CODE["K"]] > 0).T)
+        e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
+        over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
+        stop = np.zeros((n_cells, n), dtype=bool)  # at rest before the end
         e = np.zeros(n)
         v = np.zeros(n)
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
-        f0 = self.forces_kn(np.zeros(1), 0)
-        slope = (fT[:, 0] * f0[0] - fB[:, 0] * f0[1] + fK[:, 0] * np.clip(f0[2], -f0[1], f0[0]) - f0[2]) / self.m_eff_t
-        slope = np.maximum(slope, 0.0)
+        f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
+        slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         t = np.zeros(n)
         work = np.zeros(n)  # traction work [kJ]
-        reason = np.zeros(n, dtype=np.int8)
-        fail_at = np.full(n, np.nan)
         if want_profile:
             t_nodes = np.zeros((n, n_cells + 1))
             v_nodes = np.zeros((n, n_cells + 1))
@@ -250,45 +252,37 @@ class TractionCalculator:
         grav = self.gravity_kn
         for k in range(n_cells):
             hk = h[k]
+            c0, c1 = e_env[k], e_env[k + 1]
             # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
             # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
-            e_mid = np.maximum(np.minimum(e + 0.5 * hk * slope, 0.5 * (e + e_env[k + 1])), 0.0)
-            v_kmh = np.sqrt(2.0 * e_mid) * 3.6
+            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
+            v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
             f_max = np.interp(v_kmh, tv, tf)
             b_max = np.interp(v_kmh, bv, bf)
-            load = ra + v_kmh * (rb + rc * v_kmh) + grav[k]
-            hold = np.clip(load, -b_max, f_max)  # cruise: the force that keeps the speed
-            tr = fT[:, k] * f_max + fK[:, k] * np.maximum(hold, 0.0)
-            br = fB[:, k] * b_max - fK[:, k] * np.minimum(hold, 0.0)
-            e_pred = e + hk * (tr - br - load) / m
-            # coasting (or a cruise that cannot hold) above the static limit breaks it
-            over = (e_pred > e_lim_cell[k] * (1 + 1e-9) + 1e-9) & (fC[:, k] + fK[:, k] > 0) & (reason == OK)
-            if over.any():
-                reason[over] = LIMIT_EXCEEDED
-                fail_at[over] = self.s_m[k + 1]
-            c0, c1 = e_env[k], e_env[k + 1]
-            e_new = np.minimum(e_pred, c1)
+            load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
+            hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
+            tr = fT[k] * f_max + fK[k] * np.maximum(hold, 0.0)
+            br = fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)
+            e_pred = e + (hk / m) * (tr - br - load)
+            over[k] = (e_pred > e_over[k]) & may_exceed[k]
             capped = e_pred > c1
-            v_new = np.sqrt(2.0 * np.maximum(e_new, 0.0))
+            e_new = np.minimum(e_pred, c1)
+            v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
             # The plan's force acts up to where its straight line in e(s) meets the cap line (a limit
             # or a braking curve) at fraction phi of the cell; from there the train follows the cap.
-            denom = (e_pred - e) - (c1 - c0)
-            phi = np.where(capped & (denom > 0), (c0 - e) / np.where(denom > 0, denom, 1.0), 1.0)
-            phi = np.clip(phi, 0.0, 1.0)
+            gap = np.maximum(c0 - e, 0.0)
+            phi = np.where(capped, gap / np.where(capped, e_pred - c1 + gap, 1.0), 1.0)
             e_phi = e + (e_pred - e) * phi
-            v_phi = np.sqrt(2.0 * np.maximum(e_phi, 0.0))
-            t += 2.0 * hk * (phi / np.maximum(v + v_phi, 1e-9) + (1.0 - phi) / np.maximum(v_phi + v_new, 1e-9))
+            v_phi = np.sqrt(np.maximum(e_phi, 0.0) * 2.0)
+            t += (2.0 * hk) * (phi / np.maximum(v + v_phi, 1e-9) + (1.0 - phi) / np.maximum(v_phi + v_new, 1e-9))
             # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking on a curve
             cap_work = np.where(capped, m * (c1 - e_phi) + load * (1.0 - phi) * hk, 0.0)
             w_tr = tr * hk * phi + np.maximum(cap_work, 0.0)
             work += w_tr
             if k < last:
-                stop = (e_new <= _E_FLOOR) & (reason == OK)
-                if stop.any():
-                    reason[stop] = np.where(fB[stop, k] > 0, STOPPED_SHORT, STALLED)
-                    fail_at[stop] = self.s_m[k + 1]
+                stop[k] = e_new <= _E_FLOOR
                 e_new = np.maximum(e_new, _E_FLOOR)
-                v_new = np.sqrt(2.0 * e_new)
+                v_new = np.sqrt(e_new * 2.0)
             if want_profile:
                 t_nodes[:, k + 1] = t
                 v_nodes[:, k + 1] = v_new * 3.6
@@ -302,6 +296,16 @@ class TractionCalculator:
                 event[:, k] = np.where(capped & (phi > 0) & (phi < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk
             e, v = e_new, v_new
+        # the first failure of each plan decides its verdict
+        rows = np.arange(n)
+        first_over = np.where(over.any(axis=0), over.argmax(axis=0), n_cells)
+        first_stop = np.where(stop.any(axis=0), stop.argmax(axis=0), n_cells)
+        first = np.minimum(first_over, first_stop)
+        failed = first < n_cells
+        cell = np.minimum(first, last)
+        reason = np.where(~failed, OK, np.where(first_over <= first_stop, LIMIT_EXCEEDED,
+                                                 np.where(fB[cell, rows] > 0, STOPPED_SHORT, STALLED))).astype(np.int8)
+        fail_at = np.where(failed, self.s_m[cell + 1], np.nan)
         profile = None
         if want_profile:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
