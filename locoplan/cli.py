@@ -64,9 +64,11 @@ def _options(step: float, strip: bool, rotating_mass: float) -> ModelOptions:
 def _describe(model, path: str, stock_dir: Optional[Path]) -> str:
     kind = type(model).__name__
     if kind == "Route":
-        parts = [f"{model.length_m / 1000:g} km", f"{len(model.speed_limits)} speed-limit sections",
-                 f"{len(model.gradients)} gradient sections", f"{len(model.curves)} curves",
-                 f"{len(model.tunnels)} tunnels", f"{len(model.neutral_sections)} neutral sections"]
+        def count(items, noun):
+            return f"{len(items)} {noun}{'' if len(items) == 1 else 's'}"
+        parts = [f"{model.length_m / 1000:g} km", count(model.speed_limits, "speed-limit section"),
+                 count(model.gradients, "gradient section"), count(model.curves, "curve"),
+                 count(model.tunnels, "tunnel"), count(model.neutral_sections, "neutral section")]
         if model.schedule:
             parts.append(f"schedule {model.schedule.run_time_s:g} +- {model.schedule.tolerance_s:g} s")
         return f"route '{model.name}': " + ", ".join(parts)
@@ -98,7 +100,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False)
+                out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False, soft_wrap=True)
         for p in problems:
             err.print(f"[bold red]error:[/] {p}", highlight=False, soft_wrap=True)
     if problems:

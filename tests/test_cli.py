@@ -87,7 +87,7 @@ def test_validate_summaries():
                               "configs/rolling_stock/HXD1.yaml"])
     assert res.exit_code == 0, res.output
     text = " ".join(res.stdout.split())
-    assert "20 km, 9 speed-limit sections, 12 gradient sections, 3 curves, 1 tunnels" in text
+    assert "20 km, 9 speed-limit sections, 12 gradient sections, 3 curves, 1 tunnel," in text
     assert "51 vehicles, 5200 t, train length 635.2 m, max 100 km/h" in text
     assert "locomotive 'HXD1': 200 t, 35.2 m, max 120 km/h" in text
 
