@@ -8,7 +8,7 @@ from scipy.optimize import brentq
 
 from locoplan.model.plan import parse_sequence
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
+from locoplan.sim.result import CODE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
 
 G = 9.81
 
@@ -130,10 +130,18 @@ def test_feasibility_verdicts(freight):
     assert stall.reason_code[0] == STALLED and 4500 < stall.failure_m[0] < 6500
     assert np.isnan(stall.running_time_s[0]) and "stalled" in stall.reason(0)
     # coasting at the 60 km/h limit down the -2 per mille grade after 17500 m: gravity (102 kN) beats
-    # the train's resistance (87 kN at 60 km/h), so the train speeds up through the limit
+    # the train's resistance (87 kN at 60 km/h), so the train speeds up into the limit. By default it is
+    # held there by braking (what a driver or speed supervision does); --strict-limits makes it infeasible.
     assert (5200 * 9.81 * 0.002) > 47.8728 + 60 * (0.2429 + 0.00672 * 60)
-    over = calc.evaluate(*_p("T:0,C:17600,B", route))
+    held = calc.evaluate(*_p("T:0,C:17600,B", route), profile=True)
+    assert held.feasible[0]
+    cells = (held.profile.s_m[:-1] >= 17700) & (held.profile.s_m[1:] <= 18200)
+    assert np.all(held.profile.condition[0, cells] == CODE["K"])  # the executed plan shows the hold
+    assert np.all(held.profile.brake_kn[0, cells] > 0) and np.all(held.profile.traction_kn[0, cells] == 0)
+    strict = TractionCalculator(route, train, ModelOptions(strict_limits=True))
+    over = strict.evaluate(*_p("T:0,C:17600,B", route))
     assert over.reason_code[0] == LIMIT_EXCEEDED and 17600 < over.failure_m[0] <= 19000
+    assert over.traction_energy_kwh[0] == pytest.approx(held.traction_energy_kwh[0], rel=1e-12)
     # full braking from 5 km out: the train comes to rest short of the end
     short = calc.evaluate(*_p("T:0,B:15000", route))
     assert short.reason_code[0] == STOPPED_SHORT and short.failure_m[0] < 20000
@@ -184,3 +192,13 @@ def test_strip_mode_and_rotating_mass_change_the_run(freight):
     heavy = TractionCalculator(route, train, ModelOptions(rotating_mass=0.06)).fastest_time_s
     # a strip train keeps a low limit until its tail clears it, and inertia slows every speed change
     assert strip > base + 1.0 and heavy > base + 1.0
+
+
+def test_limit_exceeded_when_full_braking_cannot_hold(freight):
+    """On a 25 per-mille down-grade gravity on 5200 t (1275 kN) beats the HXD1's 461 kN of braking:
+    even the default 'hold' cannot keep the train under the limit."""
+    route, train = freight
+    steep = route.model_copy(update={"gradients": [route.gradients[0].model_copy(update={"to_m": 20000.0, "permille": -25.0})]})
+    assert 5200 * 9.81 * 0.025 > 461 + 47.8728 + 80 * (0.2429 + 0.00672 * 80)
+    res = TractionCalculator(steep, train).evaluate(("T",), np.zeros((1, 0)))
+    assert res.reason_code[0] == LIMIT_EXCEEDED and "limit exceeded at" in res.reason(0)

@@ -54,12 +54,16 @@ class ModelOptions:
 
     step_m: grid spacing [m]; strip: average the equivalent gradient (and take the lowest limit)
     over the train's length instead of a point mass at the head; rotating_mass: gamma, the
-    rotating-mass allowance (inertial mass = M (1 + gamma); 0 = none, as in the seeds).
+    rotating-mass allowance (inertial mass = M (1 + gamma); 0 = none, as in the seeds);
+    strict_limits: a plan that coasts (or cruises) up to a limit is infeasible, instead of being held
+    at the limit by braking as a driver or speed supervision would (the default). Either way a plan is
+    infeasible where even full braking cannot hold the limit.
     """
 
     step_m: float = DEFAULT_STEP_M
     strip: bool = False
     rotating_mass: float = 0.0
+    strict_limits: bool = False
 
 
 def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
@@ -202,11 +206,13 @@ class TractionCalculator:
                 frac[code] = share[:, sel, :].sum(axis=1)
         return frac
 
-    def evaluate(self, conditions, switches_m, profile: bool = False) -> BatchResult:
+    def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
         switches_m: (n_plans, len(conditions) - 1) positions [m] where conditions 2.. begin, rising.
+        cruise_kmh: optional (n_plans,) cruise speed [km/h]: traction stops at it and cruise holds it
+        (below the limits); coasting is not held to it. Used by the four-stage strategy.
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
         and on request the per-cell profile.
         """
@@ -218,15 +224,23 @@ class TractionCalculator:
         if bad:
             raise InputError(Problem("", "conditions", f"unknown condition {bad[0]!r} (use T, K, C, B)"))
         frac = self.condition_fractions(conditions, sw)
-        return self._integrate(frac, profile, sw)
+        cap = None
+        if cruise_kmh is not None:
+            cap = np.broadcast_to(np.asarray(cruise_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2
+        return self._integrate(frac, profile, sw, cap)
 
-    def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray) -> BatchResult:
+    def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
+                   cruise_e: np.ndarray | None = None) -> BatchResult:
         n, n_cells = frac.shape[1:]
         h, m = self.h_m, self.m_eff_t
         e_env = self.e_envelope
         # per-cell rows, contiguous, so that each step reads plain vectors
         fT, fK, fB = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"]))
-        may_exceed = np.ascontiguousarray((frac[CODE["C"]] + frac[CODE["K"]] > 0).T)
+        # only coasting or a cruise that cannot hold may break a limit; traction is held at it (a cell
+        # that mixes traction in is judged by the next one)
+        may_exceed = np.ascontiguousarray(((frac[CODE["C"]] + frac[CODE["K"]] > 0) & (frac[CODE["T"]] == 0)).T)
+        if cruise_e is not None:  # per plan and cell: the cruise speed caps T and K, not C
+            cruise_cap = np.where(np.ascontiguousarray(frac[CODE["C"]].T) > 0, np.inf, cruise_e[None, :])
         e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
         over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
         stop = np.zeros((n_cells, n), dtype=bool)  # at rest before the end
@@ -246,6 +260,7 @@ class TractionCalculator:
             brk = np.zeros((n, n_cells))
             event = np.full((n, n_cells), np.nan)
         last = n_cells - 1
+        strict = self.options.strict_limits
         tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
         bv, bf = self.train.brake_speed_kmh, self.train.brake_kn
         ra, rb, rc = self.train.resistance_kn
@@ -253,9 +268,11 @@ class TractionCalculator:
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
+            if cruise_e is not None:
+                c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
             # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
-            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
+            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + np.minimum(c1, e_env[k + 1])))
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
             f_max = np.interp(v_kmh, tv, tf)
             b_max = np.interp(v_kmh, bv, bf)
@@ -264,7 +281,8 @@ class TractionCalculator:
             tr = fT[k] * f_max + fK[k] * np.maximum(hold, 0.0)
             br = fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)
             e_pred = e + (hk / m) * (tr - br - load)
-            over[k] = (e_pred > e_over[k]) & may_exceed[k]
+            if strict:  # by default the train is held at the limit by braking instead
+                over[k] = (e_pred > e_over[k]) & may_exceed[k]
             capped = e_pred > c1
             e_new = np.minimum(e_pred, c1)
             v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
@@ -291,8 +309,8 @@ class TractionCalculator:
                 dominant = np.argmax(frac[:, :, k], axis=0)
                 on_cap = capped & (phi < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
-                falling = c1 < c0 - 1e-9 * max(c0, 1.0)
-                cond[:, k] = np.where(on_cap, CODE["B"] if falling else CODE["K"], dominant)
+                falling = c1 < c0 - 1e-9 * np.maximum(c0, 1.0)
+                cond[:, k] = np.where(on_cap, np.where(falling, CODE["B"], CODE["K"]), dominant)
                 event[:, k] = np.where(capped & (phi > 0) & (phi < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk
             e, v = e_new, v_new
@@ -303,7 +321,10 @@ class TractionCalculator:
         first = np.minimum(first_over, first_stop)
         failed = first < n_cells
         cell = np.minimum(first, last)
-        reason = np.where(~failed, OK, np.where(first_over <= first_stop, LIMIT_EXCEEDED,
+        # brought to rest by a braking curve that reaches zero mid-route: no speed is safe there, i.e.
+        # full braking cannot hold the train under a limit further on
+        unholdable = e_env[cell + 1] <= _E_FLOOR
+        reason = np.where(~failed, OK, np.where((first_over <= first_stop) | unholdable, LIMIT_EXCEEDED,
                                                  np.where(fB[cell, rows] > 0, STOPPED_SHORT, STALLED))).astype(np.int8)
         fail_at = np.where(failed, self.s_m[cell + 1], np.nan)
         profile = None

@@ -1,0 +1,95 @@
+"""Seed 002's optimisation problem: switching points of a fixed condition sequence (section 3.2).
+
+Decision vector: the positions [m] where conditions 2.. of the sequence begin (Fig. 8), the final
+braking point excluded (it comes from the stop's braking curve, as in the seed). Fitness (eq. 10-11):
+
+    F = w1 |T - T0| / T0 + w2 |E - E_min| / E_min
+
+Infeasible plans (a limit broken, stalled, stopped short) get an infinite fitness and are replaced by
+the optimiser (step 5). Consecutive switching points keep at least half the train's length apart
+(seed 002 eq. 3, S >= L/2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError, Problem
+from ..sim.calculator import TractionCalculator
+from ..sim.result import BatchResult
+from .base import Evaluation
+
+
+def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: float, w_energy: float):
+    """Seed 002 eq. 10-11: w1 |T - T0| / T0 + w2 |E - E_min| / E_min (dimensionless; arrays welcome)."""
+    return w_time * np.abs(time_s - t0_s) / t0_s + w_energy * np.abs(energy_kwh - e_min_kwh) / e_min_kwh
+
+
+@dataclass
+class SwitchingProblem:
+    """Box-bounded switching-point problem over one calculator; ``evaluate`` takes the whole population.
+
+    objective: "eq10" (seed 002 fitness) or "energy" (traction energy alone [kWh], the energy-saving
+    strategy that ignores the timetable).
+    """
+
+    calc: TractionCalculator
+    conditions: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+    t0_s: float = 1500.0
+    e_min_kwh: float = 1.0
+    weights: tuple[float, float] = (0.5, 0.5)
+    objective: str = "eq10"
+    min_gap_m: float | None = None
+    last: BatchResult | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.lower = np.asarray(self.lower, dtype=float)
+        self.upper = np.asarray(self.upper, dtype=float)
+        self.n_var = len(self.lower)
+        if self.conditions[-1] != "B" or len(self.conditions) != self.n_var + 2:
+            raise InputError(Problem("", "sequence", "the sequence must end with B and have one switching point per condition after the first, the final braking point excluded"))
+        if np.any(self.upper < self.lower):
+            raise InputError(Problem("", "bounds", "a switching point's window is empty (upper < lower)"))
+        if self.min_gap_m is None:
+            self.min_gap_m = self.calc.train.length_m / 2
+        if self.e_min_kwh <= 0:
+            raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {self.e_min_kwh:g})"))
+        self.n_evaluated = 0
+
+    def simulate(self, X: np.ndarray, profile: bool = False) -> BatchResult:
+        """Traction calculation of candidates X (n, n_var): the final braking point is appended as 'auto'."""
+        X = np.atleast_2d(X)
+        sw = np.concatenate([X, np.full((len(X), 1), np.nan)], axis=1)
+        return self.calc.evaluate(self.conditions, sw, profile=profile)
+
+    def fitness(self, res: BatchResult) -> np.ndarray:
+        if self.objective == "energy":
+            f = res.traction_energy_kwh.copy()
+        else:
+            f = fitness_eq10(res.running_time_s, res.traction_energy_kwh, self.t0_s, self.e_min_kwh, *self.weights)
+        return np.where(res.feasible, f, np.inf)
+
+    def evaluate(self, X: np.ndarray) -> Evaluation:
+        res = self.simulate(X)
+        self.n_evaluated += len(res.feasible)
+        self.last = res
+        return Evaluation(fitness=self.fitness(res), feasible=res.feasible.copy())
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """Uniform inside each switching point's window, then repaired (sorted, spaced)."""
+        return self.repair(rng.uniform(self.lower, self.upper, size=(n, self.n_var)))
+
+    def repair(self, X: np.ndarray) -> np.ndarray:
+        """Clip to the windows, sort each row, and push points apart to the minimum spacing."""
+        X = np.sort(np.clip(np.atleast_2d(X).astype(float), self.lower, self.upper), axis=1)
+        gap = self.min_gap_m
+        for j in range(1, self.n_var):  # forward pass, then a backward pass against the upper bounds
+            X[:, j] = np.maximum(X[:, j], X[:, j - 1] + gap)
+        X[:, -1] = np.minimum(X[:, -1], self.upper[-1])
+        for j in range(self.n_var - 2, -1, -1):
+            X[:, j] = np.minimum(X[:, j], X[:, j + 1] - gap)
+        return np.clip(X, self.lower, self.upper)
