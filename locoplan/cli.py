@@ -16,6 +16,7 @@ from .errors import InputError, LocoplanError, Problem
 from .io.load import SCHEMAS, load_route, load_train, read_yaml, resolve_consist_path, stock_dirs_for, validate_data
 from .io.report import to_json, write_output
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
+from .optimize.registry import ALGORITHMS
 from .strategy.strategies import STRATEGIES
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -52,12 +53,12 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     pass
 
 
-def _options(step: float, strip: bool, rotating_mass: float) -> ModelOptions:
+def _options(step: float, strip: bool, rotating_mass: float, strict_limits: bool = False) -> ModelOptions:
     if step <= 0:
         raise InputError(Problem("", "--step", f"must be > 0 m (got {step:g})"))
     if not 0 <= rotating_mass < 1:
         raise InputError(Problem("", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
-    return ModelOptions(step_m=step, strip=strip, rotating_mass=rotating_mass)
+    return ModelOptions(step_m=step, strip=strip, rotating_mass=rotating_mass, strict_limits=strict_limits)
 
 
 # ------------------------------------------------------------------------------------------ validate
@@ -113,12 +114,17 @@ def _summary_table(summary: dict) -> Table:
     table.add_column("quantity", style="bold")
     table.add_column("value")
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({summary['reason']})"
-    rows = [("strategy", summary["strategy"]), ("plan", summary["plan"]), ("feasible", feasible)]
+    rows = [("strategy", summary["strategy"] + (f" ({summary['algorithm']}, seed {summary['seed']})" if summary.get("algorithm") else "")),
+            ("plan", summary["plan"]), ("feasible", feasible)]
     if summary["running_time_s"] is not None:
         rows.append(("running time", f"{summary['running_time_s']:.1f} s"))
     rows.append(("traction energy", f"{summary['traction_energy_kwh']:.2f} kWh"))
     if summary.get("planned_time_s") is not None and summary["punctuality_error_s"] is not None:
         rows.append(("punctuality error", f"{summary['punctuality_error_s']:.1f} s (planned {summary['planned_time_s']:g} s)"))
+    if summary.get("fitness") is not None:
+        rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
+    if summary.get("cruise_kmh"):
+        rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     rows.append(("solve time", f"{summary['solve_time_s']:.3f} s"))
     for k, v in rows:
         table.add_row(k, v)
@@ -135,45 +141,371 @@ def _sequence_table(runs: list[dict]) -> Table:
     return table
 
 
+def _progress(enabled: bool):
+    """A rich progress bar on stderr for optimiser iterations (a no-op callback when disabled)."""
+    from contextlib import contextmanager
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    @contextmanager
+    def cm(label: str, total: int):
+        if not enabled or not err.is_terminal:
+            yield None
+            return
+        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                      TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+            task = bar.add_task(label, total=total, best="-")
+
+            def callback(iteration: int, best: float) -> None:
+                bar.update(task, completed=iteration, best=f"{best:.5f}")
+            yield callback
+    return cm
+
+
+def _weights(text: str) -> tuple[float, float]:
+    try:
+        parts = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(Problem("", "--weights", f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
+    if len(parts) != 2 or min(parts) < 0 or abs(sum(parts) - 1) > 1e-9:
+        raise InputError(Problem("", "--weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {text!r}"))
+    return parts[0], parts[1]
+
+
+def _range(text: str, field: str) -> list[float]:
+    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530'."""
+    try:
+        if ":" in text:
+            a, b, c = (float(x) for x in text.split(":"))
+            if c <= 0 or b < a:
+                raise ValueError
+            n = int(round((b - a) / c))
+            return [round(a + i * c, 10) for i in range(n + 1)]
+        return [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise InputError(Problem("", field, f"expected start:stop:step or a comma list of numbers, got {text!r}")) from None
+
+
+def _names(text: str, field: str) -> list[str]:
+    names = [x.strip() for x in text.split(",") if x.strip()]
+    if not names:
+        raise InputError(Problem("", field, "name at least one"))
+    return names
+
+
+def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, strip: bool, rotating_mass: float,
+          strict_limits: bool):
+    opts = _options(step, strip, rotating_mass, strict_limits)
+    return load_route(route), load_train(consist, stock_dir), opts
+
+
+def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
+    if out_file:
+        write_output(out_file, summary_or_results, profile)
+    if as_json:
+        print(to_json(summary_or_results))
+
+
+def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
+    """Refuse bad output names before any long computation."""
+    from .io.plot import check_plot_path
+
+    if out_file is not None:
+        suffix = out_file.suffix.lower()
+        if suffix not in ((".csv", ".json") if csv_ok else (".json",)):
+            raise InputError(Problem(str(out_file), "--out", f"unknown output type {suffix or '(none)'!r}; use {'.csv or ' if csv_ok else ''}.json"))
+        if not (out_file.parent if str(out_file.parent) else Path(".")).is_dir():
+            raise InputError(Problem(str(out_file), "", f"folder {out_file.parent} does not exist"))
+    if plot is not None:
+        check_plot_path(plot)
+        if not (plot.parent if str(plot.parent) else Path(".")).is_dir():
+            raise InputError(Problem(str(plot), "", f"folder {plot.parent} does not exist"))
+
+
+# Options shared by the commands (typer has no option groups; these keep them identical)
+ROUTE = typer.Argument(..., help="Route YAML file.")
+CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or catalogue name.")
+STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
+JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
+STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
+STRIP = typer.Option(False, "--strip", help="Train as a strip: gradient averaged and lowest limit kept over its length.")
+ROT = typer.Option(0.0, "--rotating-mass", help="Rotating-mass allowance gamma (inertial mass M(1+gamma)).")
+STRICT = typer.Option(False, "--strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
+TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
+WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
+EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy).")
+SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
+ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
+PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
+
+
 @app.command()
 @guarded
-def simulate(route: Path = typer.Argument(..., help="Route YAML file."),
+def simulate(route: Path = ROUTE,
              strategy: Optional[str] = typer.Option(None, "--strategy", help=f"Built-in strategy: {', '.join(STRATEGIES)}."),
              sequence: Optional[str] = typer.Option(None, "--sequence", help='Conditions and switching points, e.g. "T:0,K:2200,C:9000,B" (bare final B: brake where the braking curve begins).'),
-             consist: str = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
-             stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
-             as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
+             consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png or .svg."),
-             step: float = typer.Option(DEFAULT_STEP_M, "--step", help="Integration grid spacing [m]."),
-             strip: bool = typer.Option(False, "--strip", help="Train as a strip: gradient averaged and lowest limit taken over its length."),
-             rotating_mass: float = typer.Option(0.0, "--rotating-mass", help="Rotating-mass allowance gamma (inertial mass M(1+gamma))."),
-             ):
+             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             time_s: Optional[float] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
-    from .simulate import simulate as run_simulation
+    from .runner import make_context, run_sequence, run_strategy
 
     if strategy and sequence:
         raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
-    opts = _options(step, strip, rotating_mass)
-    r = load_route(route)
-    train = load_train(consist, stock_dir)
-    run = run_simulation(r, train, strategy=strategy, sequence=sequence, options=opts)
-    summary = run.summary()
-    if out_file:
-        write_output(out_file, summary, run.result.profile)
+    _check_outputs(out_file, plot)
+    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False)
+    run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
+    summary = run.summary
+    _emit(summary, as_json, out_file, run.result.profile)
     if plot:
         from .io.plot import plot_profiles
 
         plot_profiles(plot, [(summary["strategy"], run.result.profile)],
                       f"{r.name} — {train.name}: {summary['strategy']}, "
                       f"{summary['running_time_s'] or float('nan'):.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
-    if as_json:
-        print(to_json(summary))
-    else:
+    if not as_json:
         out.print(_summary_table(summary))
         out.print(_sequence_table(summary["sequence"]))
     if not summary["feasible"]:
         raise typer.Exit(1)
+
+
+@app.command()
+@guarded
+def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS,
+             seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
+             consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+             out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
+             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+    """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
+    from .optimize.registry import get_algorithm
+    from .runner import make_context, run_strategy
+
+    get_algorithm(algorithm)
+    w = _weights(weights)
+    _check_outputs(out_file, plot)
+    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
+        ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
+                           seed=seed, params_path=str(params) if params else None, callback=cb)
+        if e_min is None:
+            ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
+        run = run_strategy(ctx, "proposed")
+    summary = run.summary
+    summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
+    _emit(summary, as_json, out_file, run.result.profile)
+    if plot:
+        from .io.plot import plot_profiles
+
+        plot_profiles(plot, [("proposed", run.result.profile)],
+                      f"{r.name} — {train.name}: proposed ({algorithm}, seed {seed}), "
+                      f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh",
+                      histories=[(algorithm, run.outcome.history)])
+    if not as_json:
+        out.print(_summary_table(summary))
+        out.print(_sequence_table(summary["sequence"]))
+    if not summary["feasible"]:
+        raise typer.Exit(1)
+
+
+def _iterations(algorithm: str, params: Optional[Path]) -> int:
+    from .optimize.registry import load_optimizer_params
+
+    return int(load_optimizer_params(algorithm, str(params) if params else None).max_iter)
+
+
+def _compare_table(rows: list[dict], title: str) -> Table:
+    table = Table(title=title, title_justify="left")
+    for col, just in (("strategy", "left"), ("condition sequence and switching points [m]", "left"), ("time [s]", "right"),
+                      ("energy [kWh]", "right"), ("|T-T0| [s]", "right"), ("switches", "right"), ("coasting runs", "right"),
+                      ("fitness", "right")):
+        table.add_column(col, justify=just, overflow="fold")
+    for s in rows:
+        seq = s["sequence"]
+        text = "-".join(x["condition"] for x in seq) + "  " + " ".join(f"{x['to_m']:.0f}" for x in seq[:-1])
+        t = "-" if s["running_time_s"] is None else f"{s['running_time_s']:.1f}"
+        late = "-" if s["punctuality_error_s"] is None else f"{s['punctuality_error_s']:.1f}"
+        fit = "-" if s["fitness"] is None else f"{s['fitness']:.4f}"
+        name = s["strategy"] + ("" if s["feasible"] else f" [red](infeasible: {s['reason']})[/]")
+        if s.get("cruise_kmh"):
+            name += f" (cruise {s['cruise_kmh']:g} km/h)"
+        table.add_row(name, text, t, f"{s['traction_energy_kwh']:.2f}", late, str(len(seq) - 1),
+                      str(sum(x["condition"] == "C" for x in seq)), fit)
+    return table
+
+
+def _explain(ctx) -> None:
+    from .strategy.sequence import build_sequence
+
+    seq = build_sequence(ctx.search)
+    t = Table(title="speed-limit sections (seed 002 Fig. 2)", title_justify="left")
+    for col in ("from [m]", "to [m]", "limit [km/h]", "type"):
+        t.add_column(col, justify="right" if col != "type" else "left")
+    for s in seq.limits:
+        t.add_row(f"{s.from_m:.0f}", f"{s.to_m:.0f}", f"{s.kmh:g}", s.kind)
+    out.print(t)
+    t = Table(title="grades (seed 002 step 2: can full traction / coasting hold the limit speed?)", title_justify="left")
+    for col in ("from [m]", "to [m]", "equiv. gradient [‰]", "speed change [km/h]", "type"):
+        t.add_column(col, justify="right" if col != "type" else "left")
+    for g in seq.grades:
+        t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
+    out.print(t)
+    out.print(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}", highlight=False, soft_wrap=True)
+
+
+@app.command()
+@guarded
+def compare(route: Path = ROUTE,
+            strategies: str = typer.Option("time-saving,energy-saving,four-stage,proposed", "--strategies",
+                                           help=f"Comma list of: {', '.join(STRATEGIES)}."),
+            explain: bool = typer.Option(False, "--explain", help="Show the limit and grade classification behind the proposed sequence."),
+            algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED,
+            e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS, consist: str = CONSIST,
+            stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+            out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
+            step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+    """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
+    from .optimize.registry import get_algorithm
+    from .runner import compare as run_compare, make_context
+
+    get_algorithm(algorithm)
+    names = _names(strategies, "--strategies")
+    w = _weights(weights)
+    _check_outputs(out_file, plot, csv_ok=False)
+    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
+                       params_path=str(params) if params else None)
+    if explain and not as_json:
+        _explain(ctx)
+    runs = run_compare(ctx, names)
+    results = {"results": [x.summary for x in runs]}
+    _emit(results, as_json, out_file)
+    if plot:
+        from .io.plot import plot_profiles
+
+        hist = [(x.name, x.outcome.history) for x in runs if x.outcome.history is not None]
+        plot_profiles(plot, [(x.name, x.result.profile) for x in runs], f"{r.name} — {train.name}: strategies",
+                      histories=hist or None)
+    if not as_json:
+        out.print(_compare_table(results["results"], f"{r.name} — {train.name}, T0 = {ctx.t0_s:g} s"))
+
+
+@app.command()
+@guarded
+def sweep(route: Path = ROUTE,
+          weights: Optional[str] = typer.Option(None, "--weights", help="Time weights start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1."),
+          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
+          algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
+          time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
+          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+    """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
+    from .optimize.registry import get_algorithm
+    from .runner import make_context, sweep_times, sweep_weights
+
+    get_algorithm(algorithm)
+    if (weights is None) == (times is None):
+        raise InputError(Problem("", "--weights", "give exactly one of --weights or --times"))
+    values = _range(weights or times, "--weights" if weights else "--times")
+    _check_outputs(out_file, plot, csv_ok=False)
+    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, algorithm=algorithm, seed=seed,
+                       params_path=str(params) if params else None)
+    runs = sweep_weights(ctx, values) if weights else sweep_times(ctx, values)
+    rows = [x.summary for x in runs]
+    if times:
+        base = rows[0]["traction_energy_kwh"]
+        for x in rows:
+            x["energy_reduction_percent"] = round(100 * (1 - x["traction_energy_kwh"] / base), 2)
+    results = {"results": rows}
+    _emit(results, as_json, out_file)
+    if plot:
+        from .io.plot import plot_profiles
+
+        label = (lambda x: f"w_time {x.summary['weights'][0]:g}") if weights else (lambda x: f"T0 {x.summary['planned_time_s']:g} s")
+        plot_profiles(plot, [(label(x), x.result.profile) for x in runs], f"{r.name} — {train.name}: sweep")
+    if not as_json:
+        table = Table(title=f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}", title_justify="left")
+        cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness"]
+        cols += [] if weights else ["energy reduction [%]"]
+        for c in cols:
+            table.add_column(c, justify="right")
+        for x in rows:
+            lead = [f"{x['weights'][0]:g}", f"{x['weights'][1]:g}"] if weights else [f"{x['planned_time_s']:g}"]
+            tail = [] if weights else [f"{x['energy_reduction_percent']:.1f}"]
+            table.add_row(*lead, f"{x['running_time_s']:.1f}", f"{x['traction_energy_kwh']:.2f}",
+                          f"{x['punctuality_error_s']:.1f}", f"{x['fitness']:.4f}" if x["fitness"] is not None else "-", *tail)
+        out.print(table)
+
+
+@app.command()
+@guarded
+def study(route: Path = ROUTE,
+          algorithms: str = typer.Option("issa,ssa,pso", "--algorithms", help="Comma list of optimisers."),
+          runs: int = typer.Option(10, "--runs", help="Independent runs per optimiser (seeds seed .. seed+runs-1)."),
+          time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED, e_min: Optional[float] = EMIN,
+          params_dir: Optional[Path] = typer.Option(None, "--params-dir", help="Folder of <algorithm>.yaml parameter files."),
+          consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
+          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+    """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
+    from dataclasses import replace
+
+    from .optimize.registry import get_algorithm
+    from .runner import make_context, run_strategy, study_table
+
+    algs = _names(algorithms, "--algorithms")
+    for a in algs:
+        get_algorithm(a)
+    w = _weights(weights)
+    _check_outputs(out_file, plot, csv_ok=False)
+    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed)
+    ctx.e_min()
+    results: dict[str, list] = {}
+    for a in algs:
+        pfile = params_dir / f"{a}.yaml" if params_dir else None
+        results[a] = []
+        for i in range(runs):
+            results[a].append(run_strategy(replace(ctx, algorithm=a, seed=seed + i,
+                                                   params_path=str(pfile) if pfile else None), "proposed"))
+    tol = r.schedule.tolerance_s if r.schedule else None
+    rows = study_table(results, tol)
+    data = {"results": [x.summary for a in algs for x in results[a]], "table": rows,
+            "e_min_kwh": round(ctx.e_min(), 2), "planned_time_s": ctx.t0_s}
+    _emit(data, as_json, out_file)
+    if plot:
+        from .io.plot import plot_profiles
+
+        best = [min(results[a], key=lambda x: x.summary["fitness"] if x.summary["fitness"] is not None else np.inf) for a in algs]
+        plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.result.profile) for a, b in zip(algs, best)],
+                      f"{r.name} — {train.name}: best run of each optimiser",
+                      histories=[(a, b.outcome.history) for a, b in zip(algs, best)])
+    if not as_json:
+        table = Table(title=f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh", title_justify="left")
+        for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
+                  "punctual runs", "punctual best E / T / fitness", "mean solve [s]"):
+            table.add_column(c, justify="right" if c != "algorithm" else "left")
+        for x in rows:
+            if not x.get("feasible_runs"):
+                table.add_row(x["algorithm"], *(["-"] * 7))
+                continue
+            pb = x["punctual_best"]
+            table.add_row(x["algorithm"],
+                          f"{x['best']['traction_energy_kwh']:.2f} / {x['best']['running_time_s']:.1f}",
+                          f"{x['worst']['traction_energy_kwh']:.2f} / {x['worst']['running_time_s']:.1f}",
+                          f"{x['mean_traction_energy_kwh']:.2f} / {x['mean_running_time_s']:.1f}",
+                          f"{x['mean_fitness']:.5f} ({x['std_fitness']:.5f})", f"{x['punctual_runs']}/{x['runs']}",
+                          "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
+                          f"{x['mean_solve_time_s']:.2f}")
+        out.print(table)
 
 
 def main() -> None:

@@ -96,11 +96,10 @@ def test_simulate_bad_input_exit_2(root, monkeypatch, tmp_path, args, why):
     assert set(Path(".").iterdir()) == before  # nothing half-written
 
 
-def test_failed_plot_leaves_no_file(root, monkeypatch, tmp_path):
-    """--out succeeds, then --plot fails: the CSV is whole, no stray temporary files remain."""
+def test_bad_plot_name_is_refused_before_anything_is_written(root, monkeypatch, tmp_path):
+    """--out is fine but --plot is not: the command stops before computing, and writes nothing."""
     monkeypatch.chdir(tmp_path)
     route = str(root / "routes/seed000-flat.yaml")
     res = _simulate(route, "--consist", "HXD1-C64-seed000", "--out", "p.csv", "--plot", "p.pdf")
-    assert res.exit_code == 2
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv"]
-    assert (tmp_path / "p.csv").read_text().count("\n") > 10
+    assert res.exit_code == 2 and "use a .png or .svg file name" in res.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -13,12 +13,19 @@ from .report import atomic_write
 COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
 
 
-def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str) -> None:
-    """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
-    equivalent gradient underneath; ``.png`` or ``.svg`` by extension, written atomically."""
+def check_plot_path(path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in (".png", ".svg"):
         raise InputError(Problem(str(path), "--plot", "use a .png or .svg file name"))
+    return path
+
+
+def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str,
+                  histories: list[tuple[str, np.ndarray]] | None = None) -> None:
+    """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
+    equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
+    (best fitness per iteration, Fig. 17); ``.png`` or ``.svg`` by extension, written atomically."""
+    path = check_plot_path(path)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,7 +35,20 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
 
     ref = profiles[0][1]
     s_km = ref.s_m / 1000.0
-    fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    if histories:
+        fig = plt.figure(figsize=(11, 9))
+        grid = fig.add_gridspec(3, 1, height_ratios=[3, 1, 2], hspace=0.35)
+        ax = fig.add_subplot(grid[0])
+        axg = fig.add_subplot(grid[1], sharex=ax)
+        axc = fig.add_subplot(grid[2])
+        for label, hist in histories:
+            axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label)
+        axc.set_xlabel("iteration")
+        axc.set_ylabel("best fitness (eq. 10)")
+        axc.grid(alpha=0.3)
+        axc.legend(fontsize=8)
+    else:
+        fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label="speed limit")
     single = len(profiles) == 1
     for label, prof in profiles:
@@ -36,12 +56,13 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         if single:  # colour the one profile by the condition applied in each cell
             cond = prof.condition[0]
             for code, name in enumerate(CONDITIONS):
-                mask = cond == code
-                if not mask.any():
+                cells = np.flatnonzero(cond == code)
+                if not cells.size:
                     continue
-                seg = np.where(mask, v[1:], np.nan)
-                ax.plot(s_km[1:], seg, color=COND_COLOURS[name], lw=2, label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
-            ax.plot(s_km, v, color="black", lw=0.4, alpha=0.5)
+                # each cell as its own segment from node k to k + 1, separated by NaN
+                xs = np.column_stack([s_km[cells], s_km[cells + 1], np.full(cells.size, np.nan)]).ravel()
+                ys = np.column_stack([v[cells], v[cells + 1], np.full(cells.size, np.nan)]).ravel()
+                ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
         else:
             ax.plot(s_km, v, lw=1.6, label=label)
     ax.set_ylabel("speed [km/h]")
@@ -54,7 +75,8 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     axg.set_ylabel("equiv. gradient [‰]")
     axg.set_xlabel("position [km]")
     axg.grid(alpha=0.3)
-    fig.tight_layout()
+    if not histories:
+        fig.tight_layout()
     fmt = path.suffix.lower().lstrip(".")
     try:
         atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))

@@ -45,6 +45,11 @@ DEFAULT_STEP_M = 50.0
 ENVELOPE_SUBSTEPS = 20
 """Sub-steps per cell for the braking envelope (computed once per route, so it can afford them)."""
 
+try:  # numpy's compiled interp without its Python-level argument checks (a third of its cost here)
+    from numpy._core.multiarray import interp as _interp
+except ImportError:  # pragma: no cover - other numpy layouts
+    _interp = np.interp
+
 _E_FLOOR = 1e-6  # keeps a stalled plan's arithmetic finite after it has been marked infeasible
 
 
@@ -156,13 +161,17 @@ class TractionCalculator:
         m = self.m_eff_t
         for k in range(len(self.h_m) - 1, -1, -1):
             e = e_env[k + 1]
-            d = self.h_m[k] / n_sub
             cap = self.e_limit_cell[k]
+            if e >= cap:  # no braking curve runs through this cell: the limit itself bounds it
+                continue
+            d = self.h_m[k] / n_sub
             decel = lambda e_: float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
             for i in range(n_sub):
                 e_next = e + d * decel(e + 0.5 * d * decel(e))
-                if e < cap <= e_next and e_next > e:
+                if e < cap <= e_next:  # the curve rises through the limit: its entry point
                     entries.append(self.s_m[k + 1] - d * (i + (cap - e) / (e_next - e)))
+                    e = e_next
+                    break
                 e = e_next
             e_env[k] = min(e_env[k], max(e, 0.0))
         return e_env, np.array(entries)
@@ -232,24 +241,32 @@ class TractionCalculator:
     def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
                    cruise_e: np.ndarray | None = None) -> BatchResult:
         n, n_cells = frac.shape[1:]
-        h, m = self.h_m, self.m_eff_t
-        e_env = self.e_envelope
+        m = self.m_eff_t
         # per-cell rows, contiguous, so that each step reads plain vectors
         fT, fK, fB = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"]))
         # only coasting or a cruise that cannot hold may break a limit; traction is held at it (a cell
         # that mixes traction in is judged by the next one)
         may_exceed = np.ascontiguousarray(((frac[CODE["C"]] + frac[CODE["K"]] > 0) & (frac[CODE["T"]] == 0)).T)
+        cruise_cap = None
         if cruise_e is not None:  # per plan and cell: the cruise speed caps T and K, not C
             cruise_cap = np.where(np.ascontiguousarray(frac[CODE["C"]].T) > 0, np.inf, cruise_e[None, :])
-        e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
         over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
         stop = np.zeros((n_cells, n), dtype=bool)  # at rest before the end
-        e = np.zeros(n)
-        v = np.zeros(n)
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
+            t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, slope, cruise_e, cruise_cap,
+                                       want_profile)
+        return self._verdict(over, stop, fB, t, work, prof, switches_m)
+
+    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, slope, cruise_e, cruise_cap, want_profile):
+        """The distance loop: one pass over the cells, every plan advanced at once."""
+        n_cells, n = fT.shape
+        h, m, e_env = self.h_m, self.m_eff_t, self.e_envelope
+        e = np.zeros(n)
+        v = np.zeros(n)
         t = np.zeros(n)
         work = np.zeros(n)  # traction work [kJ]
         if want_profile:
@@ -261,6 +278,7 @@ class TractionCalculator:
             event = np.full((n, n_cells), np.nan)
         last = n_cells - 1
         strict = self.options.strict_limits
+        e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
         tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
         bv, bf = self.train.brake_speed_kmh, self.train.brake_kn
         ra, rb, rc = self.train.resistance_kn
@@ -268,52 +286,70 @@ class TractionCalculator:
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
-            if cruise_e is not None:
-                c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
             # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
-            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + np.minimum(c1, e_env[k + 1])))
+            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
+            if cruise_e is not None:
+                c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
-            f_max = np.interp(v_kmh, tv, tf)
-            b_max = np.interp(v_kmh, bv, bf)
+            f_max = _interp(v_kmh, tv, tf)
+            b_max = _interp(v_kmh, bv, bf)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
-            tr = fT[k] * f_max + fK[k] * np.maximum(hold, 0.0)
-            br = fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)
-            e_pred = e + (hk / m) * (tr - br - load)
+            fk = fK[k]
+            full = fT[k] * f_max
+            tr = full + fk * np.maximum(hold, 0.0)
+            e_pred = e + (hk / m) * (full - fB[k] * b_max + fk * hold - load)
             if strict:  # by default the train is held at the limit by braking instead
                 over[k] = (e_pred > e_over[k]) & may_exceed[k]
             capped = e_pred > c1
             e_new = np.minimum(e_pred, c1)
-            v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
-            # The plan's force acts up to where its straight line in e(s) meets the cap line (a limit
-            # or a braking curve) at fraction phi of the cell; from there the train follows the cap.
-            gap = np.maximum(c0 - e, 0.0)
-            phi = np.where(capped, gap / np.where(capped, e_pred - c1 + gap, 1.0), 1.0)
-            e_phi = e + (e_pred - e) * phi
-            v_phi = np.sqrt(np.maximum(e_phi, 0.0) * 2.0)
-            t += (2.0 * hk) * (phi / np.maximum(v + v_phi, 1e-9) + (1.0 - phi) / np.maximum(v_phi + v_new, 1e-9))
-            # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking on a curve
-            cap_work = np.where(capped, m * (c1 - e_phi) + load * (1.0 - phi) * hk, 0.0)
-            w_tr = tr * hk * phi + np.maximum(cap_work, 0.0)
-            work += w_tr
             if k < last:
                 stop[k] = e_new <= _E_FLOOR
                 e_new = np.maximum(e_new, _E_FLOOR)
                 v_new = np.sqrt(e_new * 2.0)
+            else:
+                v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
+            if capped.any():
+                # The plan's force acts up to where its straight line in e(s) meets the cap line (a
+                # limit or a braking curve) at fraction phi of the cell; then the train follows the cap.
+                gap = np.maximum(c0 - e, 0.0)
+                phi = np.where(capped, gap / (e_pred - c1 + gap), 1.0)
+                one_minus = 1.0 - phi
+                e_phi = e + (e_pred - e) * phi
+                v_phi = np.sqrt(np.maximum(e_phi, 0.0) * 2.0)
+                t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + one_minus / (v_phi + v_new + 1e-12))
+                # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking on a curve
+                cap_work = np.where(capped, m * (c1 - e_phi) + (hk * one_minus) * load, 0.0)
+                w_tr = (tr * hk) * phi + np.maximum(cap_work, 0.0)
+            else:  # no plan meets a cap in this cell: phi = 1 throughout
+                phi, cap_work = 1.0, 0.0
+                t += (2.0 * hk) / (v + v_new + 1e-12)
+                w_tr = tr * hk
+            work += w_tr
             if want_profile:
                 t_nodes[:, k + 1] = t
                 v_nodes[:, k + 1] = v_new * 3.6
                 trac[:, k] = w_tr / hk
-                brk[:, k] = br * phi + np.maximum(-cap_work, 0.0) / hk
+                brk[:, k] = (fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
                 dominant = np.argmax(frac[:, :, k], axis=0)
-                on_cap = capped & (phi < 0.5)
+                on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-9 * np.maximum(c0, 1.0)
                 cond[:, k] = np.where(on_cap, np.where(falling, CODE["B"], CODE["K"]), dominant)
-                event[:, k] = np.where(capped & (phi > 0) & (phi < 1), self.s_m[k] + phi * hk, np.nan)
+                event[:, k] = np.where(capped & (np.asarray(phi) > 0) & (np.asarray(phi) < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk
             e, v = e_new, v_new
+        return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None)
+
+    def _verdict(self, over, stop, fB, t, work, prof, switches_m) -> BatchResult:
+        """Each plan's first failure decides its verdict; assemble the typed result."""
+        n_cells, n = over.shape
+        last = n_cells - 1
+        e_env = self.e_envelope
+        want_profile = prof is not None
+        if want_profile:
+            t_nodes, v_nodes, cond, trac, brk, event = prof
         # the first failure of each plan decides its verdict
         rows = np.arange(n)
         first_over = np.where(over.any(axis=0), over.argmax(axis=0), n_cells)
@@ -332,9 +368,10 @@ class TractionCalculator:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
                 x = switches_m[:, j]
                 ok = np.isfinite(x) & (x > 0) & (x < self.s_m[-1])
-                cell = np.clip(np.searchsorted(self.s_m, np.where(ok, x, 0.0), side="right") - 1, 0, n_cells - 1)
+                in_cell = np.clip(np.searchsorted(self.s_m, np.where(ok, x, 0.0), side="right") - 1, 0, n_cells - 1)
                 rows = np.nonzero(ok)[0]
-                event[rows, cell[rows]] = np.where(np.isnan(event[rows, cell[rows]]), x[rows], event[rows, cell[rows]])
+                at = in_cell[rows]
+                event[rows, at] = np.where(np.isnan(event[rows, at]), x[rows], event[rows, at])
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
         t = np.where((reason == STALLED) | (reason == STOPPED_SHORT), np.nan, t)  # never arrived
         return BatchResult(running_time_s=t, traction_energy_kwh=work / 3600.0, feasible=reason == OK,

@@ -1,0 +1,190 @@
+"""Library entry points behind the commands: simulate, optimize, compare, sweep, study.
+
+Each returns typed results and SPEC summary dicts; nothing here prints or exits.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from .errors import InputError, Problem
+from .model.plan import Plan, parse_sequence, runs_from_profile
+from .model.route import Route
+from .model.train import Train
+from .optimize.problem import fitness_eq10
+from .sim.calculator import ModelOptions, TractionCalculator
+from .sim.result import BatchResult
+from .strategy.strategies import STRATEGIES, StrategyContext, StrategyOutcome, get_strategy
+
+SEARCH_STEP_M = 100.0
+"""Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on
+freight-20km (README), at half the cost. Every reported number is re-simulated on the reporting grid."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    name: str
+    outcome: StrategyOutcome
+    result: BatchResult  # on the reporting grid, with the profile
+    summary: dict
+
+
+def planned_time(route: Route, time_s: float | None) -> float:
+    if time_s is not None:
+        if time_s <= 0:
+            raise InputError(Problem("", "--time", f"must be > 0 s (got {time_s:g})"))
+        return float(time_s)
+    if route.schedule is None:
+        raise InputError(Problem("", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
+    return float(route.schedule.run_time_s)
+
+
+def make_context(route: Route, train: Train, options: ModelOptions | None = None, *, time_s: float | None = None,
+                 e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
+                 seed: int = 1, params_path: str | None = None,
+                 callback: Callable[[int, float], None] | None = None, need_time: bool = True) -> StrategyContext:
+    options = options or ModelOptions()
+    calc = TractionCalculator(route, train, options)
+    search = calc if options.step_m >= SEARCH_STEP_M else TractionCalculator(route, train, replace(options, step_m=SEARCH_STEP_M))
+    t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
+    if e_min_kwh is not None and e_min_kwh <= 0:
+        raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {e_min_kwh:g})"))
+    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback)
+
+
+def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
+    plan = outcome.plan
+    cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
+    return ctx.calc.evaluate(plan.conditions, plan.switches_m, profile=True, cruise_kmh=cruise)
+
+
+def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
+              with_fitness: bool = True) -> dict:
+    """The SPEC's JSON object for one result."""
+    route, train = ctx.calc.route, ctx.calc.train
+    t = float(res.running_time_s[0])
+    e = float(res.traction_energy_kwh[0])
+    t0 = ctx.t0_s
+    prof = res.profile
+    e_min = outcome.e_min_kwh or ctx.e_min_kwh or ctx._e_min_cache.get("e")
+    fit = None
+    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
+        fit = round(float(fitness_eq10(t, e, t0, e_min, *ctx.weights)), 5)
+    tol = route.schedule.tolerance_s if route.schedule else None
+    return {
+        "route": route.name,
+        "consist": train.name,
+        "strategy": name,
+        "algorithm": outcome.algorithm,
+        "seed": ctx.seed if outcome.algorithm else None,
+        "feasible": bool(res.feasible[0]),
+        "reason": res.reason(0),
+        "running_time_s": round(t, 2),
+        "traction_energy_kwh": round(e, 2),
+        "planned_time_s": None if math.isnan(t0) else t0,
+        "punctuality_error_s": None if (math.isnan(t0) or math.isnan(t)) else round(abs(t - t0), 2),
+        "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol),
+        "fitness": fit,
+        "weights": list(ctx.weights) if fit is not None else None,
+        "e_min_kwh": None if not e_min else round(float(e_min), 2),
+        "cruise_kmh": outcome.cruise_kmh,
+        "solve_time_s": round(outcome.solve_time_s, 3),
+        "n_evaluations": outcome.n_evaluations,
+        "plan": outcome.plan.text(),
+        "switching_points_m": [round(x, 1) for x in outcome.plan.starts_m[1:] if not math.isnan(x)],
+        "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, prof.event_m[0]),
+    }
+
+
+def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> RunResult:
+    fn = get_strategy(name)
+    t = time.perf_counter()
+    outcome = fn(ctx)
+    if not outcome.solve_time_s:
+        outcome = replace(outcome, solve_time_s=time.perf_counter() - t)
+    res = _evaluate(ctx, outcome)
+    return RunResult(name, outcome, res, summarize(ctx, name, outcome, res, with_fitness))
+
+
+def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
+    t = time.perf_counter()
+    plan: Plan = parse_sequence(text, ctx.calc.route.length_m)
+    outcome = StrategyOutcome(plan)
+    res = _evaluate(ctx, outcome)
+    outcome = replace(outcome, solve_time_s=time.perf_counter() - t)
+    return RunResult("sequence", outcome, res, summarize(ctx, "sequence", outcome, res))
+
+
+def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
+    unknown = [n for n in names if n not in STRATEGIES]
+    if unknown:
+        raise InputError(Problem("", "--strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
+    if not names:
+        raise InputError(Problem("", "--strategies", "name at least one strategy"))
+    return [run_strategy(ctx, n) for n in names]
+
+
+def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
+    """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
+    out = []
+    for w in w_time:
+        if not 0 <= w <= 1:
+            raise InputError(Problem("", "--weights", f"time weight {w:g} is outside [0, 1]"))
+        sub = replace(ctx, weights=(float(w), 1.0 - float(w)))
+        out.append(run_strategy(sub, "proposed"))
+    return out
+
+
+def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
+    """Seed 002 Table 7: the proposed strategy for each planned running time (E_min fixed)."""
+    ctx.e_min()
+    out = []
+    for t0 in times_s:
+        if t0 <= 0:
+            raise InputError(Problem("", "--times", f"running time {t0:g} s must be > 0"))
+        out.append(run_strategy(replace(ctx, t0_s=float(t0)), "proposed"))
+    return out
+
+
+def study(ctx: StrategyContext, algorithms: list[str], runs: int) -> dict[str, list[RunResult]]:
+    """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed sequence, seeds
+    ctx.seed .. ctx.seed + runs - 1, all against the same E_min."""
+    if runs < 1:
+        raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
+    ctx.e_min()
+    out: dict[str, list[RunResult]] = {}
+    for alg in algorithms:
+        out[alg] = [run_strategy(replace(ctx, algorithm=alg, seed=ctx.seed + i), "proposed") for i in range(runs)]
+    return out
+
+
+def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) -> list[dict]:
+    """Per algorithm: best, worst and mean (by fitness), mean fitness, and the best punctual run."""
+    rows = []
+    for alg, runs in results.items():
+        s = [r.summary for r in runs if r.summary["fitness"] is not None]
+        if not s:
+            rows.append({"algorithm": alg, "runs": len(runs), "feasible_runs": 0})
+            continue
+        f = np.array([x["fitness"] for x in s])
+        best, worst = s[int(np.argmin(f))], s[int(np.argmax(f))]
+        punctual = [x for x in s if tolerance_s is None or x["punctuality_error_s"] <= tolerance_s]
+        pb = min(punctual, key=lambda x: x["fitness"]) if punctual else None
+        rows.append({
+            "algorithm": alg, "runs": len(runs), "feasible_runs": len(s),
+            "best": {k: best[k] for k in ("seed", "running_time_s", "traction_energy_kwh", "fitness")},
+            "worst": {k: worst[k] for k in ("seed", "running_time_s", "traction_energy_kwh", "fitness")},
+            "mean_running_time_s": round(float(np.mean([x["running_time_s"] for x in s])), 2),
+            "mean_traction_energy_kwh": round(float(np.mean([x["traction_energy_kwh"] for x in s])), 2),
+            "mean_fitness": round(float(f.mean()), 5),
+            "std_fitness": round(float(f.std(ddof=1)), 5) if len(f) > 1 else 0.0,
+            "punctual_runs": len(punctual),
+            "punctual_best": None if pb is None else {k: pb[k] for k in ("seed", "running_time_s", "traction_energy_kwh", "fitness")},
+            "mean_solve_time_s": round(float(np.mean([x["solve_time_s"] for x in s])), 2),
+        })
+    return rows
