@@ -9,6 +9,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from . import __version__
@@ -134,7 +135,7 @@ def _summary_table(summary: dict) -> Table:
 def _sequence_table(runs: list[dict]) -> Table:
     table = Table(title="condition sequence", title_justify="left")
     for col in ("condition", "from [m]", "to [m]", "length [m]"):
-        table.add_column(col, justify="right" if col != "condition" else "left")
+        table.add_column(escape(col), justify="right" if col != "condition" else "left")
     names = {"T": "T traction", "K": "K cruise", "C": "C coast", "B": "B brake"}
     for r in runs:
         table.add_row(names[r["condition"]], f"{r['from_m']:.0f}", f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}")
@@ -318,24 +319,33 @@ def _iterations(algorithm: str, params: Optional[Path]) -> int:
     return int(load_optimizer_params(algorithm, str(params) if params else None).max_iter)
 
 
-def _compare_table(rows: list[dict], title: str) -> Table:
-    table = Table(title=title, title_justify="left")
-    for col, just in (("strategy", "left"), ("condition sequence and switching points [m]", "left"), ("time [s]", "right"),
-                      ("energy [kWh]", "right"), ("|T-T0| [s]", "right"), ("switches", "right"), ("coasting runs", "right"),
-                      ("fitness", "right")):
-        table.add_column(col, justify=just, overflow="fold")
+def _compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
+    """Seed 002 Table 8 (each strategy's planned sequence and switching points; the final B begins
+    where the stop's braking curve does) and Table 9 (time and energy, re-simulated at the report grid)."""
+    t8 = Table(title=escape(f"{title}\nTable 8: condition sequences and switching points"), title_justify="left")
+    t8.add_column("strategy")
+    t8.add_column("sequence")
+    t8.add_column(escape("switching points [m]"), overflow="fold")
+    t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
+    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "switches", "coasting", "fitness"):
+        t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
+    base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving"), None)
     for s in rows:
-        seq = s["sequence"]
-        text = "-".join(x["condition"] for x in seq) + "  " + " ".join(f"{x['to_m']:.0f}" for x in seq[:-1])
+        conds = [c.split(":")[0] for c in s["plan"].split(",")]
+        points = list(s["switching_points_m"])
+        if conds[-1] == "B" and len(points) < len(conds) - 1 and s["sequence"]:
+            points.append(s["sequence"][-1]["from_m"])  # where the final braking curve begins
+        seq = "-".join(conds) + (f" (cruise {s['cruise_kmh']:g} km/h)" if s.get("cruise_kmh") else "")
+        t8.add_row(s["strategy"], seq, " ".join(f"{x:.0f}" for x in points) or "-")
         t = "-" if s["running_time_s"] is None else f"{s['running_time_s']:.1f}"
         late = "-" if s["punctuality_error_s"] is None else f"{s['punctuality_error_s']:.1f}"
-        fit = "-" if s["fitness"] is None else f"{s['fitness']:.4f}"
+        if s.get("punctual") is False:
+            late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
+        rel = "-" if not base else f"{100 * (s['traction_energy_kwh'] / base - 1):+.1f} %"
         name = s["strategy"] + ("" if s["feasible"] else f" [red](infeasible: {s['reason']})[/]")
-        if s.get("cruise_kmh"):
-            name += f" (cruise {s['cruise_kmh']:g} km/h)"
-        table.add_row(name, text, t, f"{s['traction_energy_kwh']:.2f}", late, str(len(seq) - 1),
-                      str(sum(x["condition"] == "C" for x in seq)), fit)
-    return table
+        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, str(len(conds) - 1),
+                   str(conds.count("C")), "-" if s["fitness"] is None else f"{s['fitness']:.4f}")
+    return t8, t9
 
 
 def _explain(ctx) -> None:
@@ -344,13 +354,13 @@ def _explain(ctx) -> None:
     seq = build_sequence(ctx.search)
     t = Table(title="speed-limit sections (seed 002 Fig. 2)", title_justify="left")
     for col in ("from [m]", "to [m]", "limit [km/h]", "type"):
-        t.add_column(col, justify="right" if col != "type" else "left")
+        t.add_column(escape(col), justify="right" if col != "type" else "left")
     for s in seq.limits:
         t.add_row(f"{s.from_m:.0f}", f"{s.to_m:.0f}", f"{s.kmh:g}", s.kind)
     out.print(t)
     t = Table(title="grades (seed 002 step 2: can full traction / coasting hold the limit speed?)", title_justify="left")
     for col in ("from [m]", "to [m]", "equiv. gradient [‰]", "speed change [km/h]", "type"):
-        t.add_column(col, justify="right" if col != "type" else "left")
+        t.add_column(escape(col), justify="right" if col != "type" else "left")
     for g in seq.grades:
         t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
     out.print(t)
@@ -392,7 +402,8 @@ def compare(route: Path = ROUTE,
         plot_profiles(plot, [(x.name, x.result.profile) for x in runs], f"{r.name} — {train.name}: strategies",
                       histories=hist or None)
     if not as_json:
-        out.print(_compare_table(results["results"], f"{r.name} — {train.name}, T0 = {ctx.t0_s:g} s"))
+        for table in _compare_tables(results["results"], f"{r.name} — {train.name}, T0 = {ctx.t0_s:g} s"):
+            out.print(table)
 
 
 @app.command()
@@ -435,7 +446,7 @@ def sweep(route: Path = ROUTE,
         cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness"]
         cols += [] if weights else ["energy reduction [%]"]
         for c in cols:
-            table.add_column(c, justify="right")
+            table.add_column(escape(c), justify="right")
         for x in rows:
             lead = [f"{x['weights'][0]:g}", f"{x['weights'][1]:g}"] if weights else [f"{x['planned_time_s']:g}"]
             tail = [] if weights else [f"{x['energy_reduction_percent']:.1f}"]
@@ -464,6 +475,8 @@ def study(route: Path = ROUTE,
     algs = _names(algorithms, "--algorithms")
     for a in algs:
         get_algorithm(a)
+    if runs < 1:
+        raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
     w = _weights(weights)
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
@@ -492,7 +505,7 @@ def study(route: Path = ROUTE,
         table = Table(title=f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh", title_justify="left")
         for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
                   "punctual runs", "punctual best E / T / fitness", "mean solve [s]"):
-            table.add_column(c, justify="right" if c != "algorithm" else "left")
+            table.add_column(escape(c), justify="right" if c != "algorithm" else "left")
         for x in rows:
             if not x.get("feasible_runs"):
                 table.add_row(x["algorithm"], *(["-"] * 7))

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import InputError, Problem
+from .errors import InfeasibleError, InputError, Problem
 from .model.plan import Plan, parse_sequence, runs_from_profile
 from .model.route import Route
 from .model.train import Train
@@ -55,6 +55,14 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if e_min_kwh is not None and e_min_kwh <= 0:
         raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {e_min_kwh:g})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback)
+
+
+def check_time_possible(ctx: StrategyContext) -> None:
+    """A planned time below the fastest run cannot be met by any plan (SPEC: exit 1, say the fastest)."""
+    fastest = ctx.calc.fastest_time_s
+    if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
+        raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
+                              f"{fastest:.1f} s ({ctx.calc.route.name}, {ctx.calc.train.name})")
 
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
@@ -103,6 +111,8 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
 
 def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> RunResult:
     fn = get_strategy(name)
+    if name in ("proposed", "four-stage"):
+        check_time_possible(ctx)
     t = time.perf_counter()
     outcome = fn(ctx)
     if not outcome.solve_time_s:

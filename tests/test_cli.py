@@ -29,6 +29,7 @@ def test_simulate_json_is_one_object_with_the_spec_keys():
     assert data["punctuality_error_s"] == pytest.approx(abs(data["running_time_s"] - 1500), abs=0.01)
     seq = data["sequence"]
     assert seq[0]["condition"] == "T" and seq[0]["from_m"] == 0 and seq[-1]["condition"] == "B"
+    assert "|T-T0|" not in res.stdout
     assert seq[-1]["to_m"] == 20000
     assert all(a["to_m"] == b["from_m"] for a, b in zip(seq, seq[1:]))  # contiguous
     assert all(a["condition"] != b["condition"] for a, b in zip(seq, seq[1:]))  # merged runs
@@ -109,3 +110,13 @@ def test_version_and_help():
     assert runner.invoke(app, ["--version"]).stdout.startswith("locoplan ")
     res = runner.invoke(app, ["--help"])
     assert "simulate" in res.stdout and "validate" in res.stdout
+
+
+def test_seed000_sequence_is_accelerate_cruise_brake():
+    """The fastest run on the seed 000 line: traction to the limit in about 33 m, cruise, and braking
+    over the last ~37 m (the closed-form phases), reported at their exact positions."""
+    data = json.loads(runner.invoke(app, ["simulate", "routes/seed000-flat.yaml", "--consist", "HXD1-C64-seed000",
+                                          "--json"]).stdout)
+    runs = data["sequence"]
+    assert [r["condition"] for r in runs] == ["T", "K", "B"]
+    assert runs[0]["to_m"] == pytest.approx(33.3, abs=0.3) and runs[2]["from_m"] == pytest.approx(1500 - 37.4, abs=0.3)

@@ -335,7 +335,7 @@ class TractionCalculator:
                 dominant = np.argmax(frac[:, :, k], axis=0)
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
-                falling = c1 < c0 - 1e-9 * np.maximum(c0, 1.0)
+                falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node
                 cond[:, k] = np.where(on_cap, np.where(falling, CODE["B"], CODE["K"]), dominant)
                 event[:, k] = np.where(capped & (np.asarray(phi) > 0) & (np.asarray(phi) < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk

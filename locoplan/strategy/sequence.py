@@ -146,7 +146,7 @@ def build_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0, min_run
 
     Runs shorter than ``min_run_m`` (default half the train's length, seed 002 eq. 3) are absorbed.
     Each switching point may move between the midpoints to its neighbours; a switch into a long grade
-    may move back to the previous switch's nominal position (the pre-positioning of Fig. 5).
+    may move back as far as the previous switch may (the pre-positioning of Fig. 5).
     """
     L = calc.route.length_m
     min_run = calc.train.length_m / 2 if min_run_m is None else min_run_m
@@ -187,8 +187,8 @@ def build_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0, min_run
     lower = 0.5 * (edges[:-2] + edges[1:-1])
     upper = 0.5 * (edges[1:-1] + edges[2:])
     for j, x in enumerate(nominal):
-        if x in grade_starts:
-            lower[j] = edges[j] + min_run
+        if x in grade_starts:  # as far back as the previous switch itself may go
+            lower[j] = (lower[j - 1] if j else 0.0) + min_run
     lower = np.maximum(lower, min_run)
     upper = np.minimum(upper, L - min_run)
     return SequencePlan(conditions, nominal, lower, upper, limits, grades)

@@ -1,0 +1,215 @@
+"""Seed 002 end to end: classification and builder on hand-made routes, fitness eq. 10-11, the
+switching-point problem, strategies, determinism, infeasible handling, and the commands."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from locoplan.cli import app
+from locoplan.model.route import Route
+from locoplan.optimize.base import Evaluation
+from locoplan.optimize.problem import SwitchingProblem, fitness_eq10
+from locoplan.optimize.registry import get_algorithm, load_optimizer_params
+from locoplan.runner import make_context, run_strategy
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from locoplan.strategy.sequence import build_sequence, classify_grades, classify_limits
+
+runner = CliRunner()
+
+
+def _route(limits, grades, length=None):
+    """Hand-made route: limits [(to_m, kmh)], grades [(to_m, permille)], contiguous from 0."""
+    def sections(items, key):
+        out, a = [], 0.0
+        for b, val in items:
+            out.append({"from_m": a, "to_m": b, key: val})
+            a = b
+        return out
+    length = length or limits[-1][0]
+    return Route.model_validate({"schema": "locoplan/route@1", "name": "hand-made", "length_m": length,
+                                 "schedule": {"run_time_s": 900, "tolerance_s": 30},
+                                 "speed_limits": sections(limits, "kmh"), "gradients": sections(grades, "permille")})
+
+
+def test_limit_types_one_of_each(freight):
+    _, train = freight
+    route = _route([(2000, 40), (4000, 60), (6000, 50), (8000, 70), (10000, 30)], [(10000, 0.0)])
+    kinds = [s.kind for s in classify_limits(TractionCalculator(route, train))]
+    # 0 < 40 < 60: rising; 40 < 60 > 50: convex (a hump); 60 > 50 < 70: concave (a dip);
+    # 50 < 70 > 30: convex; 70 > 30 > stop: falling
+    assert kinds == ["rising", "convex", "concave", "convex", "falling"]
+
+
+def test_grade_types_one_of_each(freight):
+    """At 80 km/h the HXD1 gives 432 kN: 8.47 N/kN of 5200 t, minus 2.16 N/kN of resistance, holds at
+    most ~6.3 per mille; coasting at 80 km/h holds a down-grade only down to -2.16 per mille."""
+    _, train = freight
+    w = 5200 * 9.81 / 1000
+    assert 432 / w - (47.8728 + 80 * (0.24290 + 0.0067198 * 80)) / w == pytest.approx(6.31, abs=0.01)
+    route = _route([(12000, 80)], [(2000, 0.0), (4000, 12.0), (6000, 1.0), (8000, -6.0), (10000, -1.0), (12000, 5.0)])
+    grades = classify_grades(TractionCalculator(route, train))
+    assert [g.kind for g in grades] == ["ordinary", "long-up", "ordinary", "long-down", "ordinary", "ordinary"]
+    assert grades[1].speed_change_kmh < -2 and grades[3].speed_change_kmh > 2
+
+
+def test_builder_puts_traction_on_long_ups_and_coasting_on_long_downs(freight):
+    _, train = freight
+    route = _route([(12000, 80)], [(2000, 0.0), (4000, 12.0), (6000, 1.0), (8000, -6.0), (10000, -1.0), (12000, 0.0)])
+    calc = TractionCalculator(route, train)
+    seq = build_sequence(calc)
+    starts = np.concatenate([[0.0], seq.nominal_m, [12000.0]])
+    def condition_at(x):
+        j = np.searchsorted(starts, x, side="right") - 1
+        return seq.conditions[j]
+    assert condition_at(3000) == "T" and condition_at(7000) == "C"
+    assert condition_at(500) == "T"  # ordinary grades keep the fastest run's condition: accelerating
+    assert seq.conditions[-1] == "B" and seq.conditions[0] == "T"
+    # the switch into the long down-grade may move back before it (pre-positioning, Fig. 5a)
+    j = list(seq.nominal_m).index(6000.0)
+    assert seq.conditions[j + 1] == "C" and seq.lower_m[j] < 6000.0 - 500
+    assert np.all(seq.lower_m <= seq.nominal_m) and np.all(seq.nominal_m <= seq.upper_m)
+
+
+def test_freight_route_classification_matches_its_design(freight):
+    route, train = freight
+    grades = classify_grades(TractionCalculator(route, train))
+    kinds = {g.from_m: g.kind for g in grades}
+    assert [x for x, k in kinds.items() if k == "long-up"] == [4500, 11500]
+    assert [x for x, k in kinds.items() if k == "long-down"] == [3000, 6500, 9500, 15500]
+
+
+def test_fitness_eq10_by_hand():
+    # w1 |1530-1500|/1500 + w2 |600-500|/500 = 0.5*0.02 + 0.5*0.2
+    assert fitness_eq10(1530.0, 600.0, 1500.0, 500.0, 0.5, 0.5) == pytest.approx(0.11)
+    assert fitness_eq10(np.array([1470.0]), np.array([450.0]), 1500.0, 500.0, 0.3, 0.7)[0] == pytest.approx(0.3 * 0.02 + 0.7 * 0.1)
+
+
+def _problem(freight, strict=False):
+    route, train = freight
+    calc = TractionCalculator(route, train, ModelOptions(step_m=100, strict_limits=strict))
+    seq = build_sequence(calc)
+    return SwitchingProblem(calc, seq.conditions, seq.lower_m, seq.upper_m, t0_s=1500, e_min_kwh=580)
+
+
+def test_problem_repair_keeps_order_spacing_and_windows(freight):
+    prob = _problem(freight)
+    X = prob.repair(np.random.default_rng(3).uniform(0, 20000, (40, prob.n_var)))
+    assert np.all(np.diff(X, axis=1) >= prob.min_gap_m - 1e-9)
+    assert np.all(X >= prob.lower - 1e-9) and np.all(X <= prob.upper + 1e-9)
+
+
+def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
+    """With --strict-limits most random plans break a limit; the optimiser replaces them (seed 002
+    section 3.2 step 5) and returns a feasible best."""
+    prob = _problem(freight, strict=True)
+    ev = prob.evaluate(prob.sample(200, np.random.default_rng(0)))
+    assert isinstance(ev, Evaluation) and 0 < ev.feasible.mean() < 0.5
+    assert np.all(np.isinf(ev.fitness[~ev.feasible])) and np.all(np.isfinite(ev.fitness[ev.feasible]))
+    opt = get_algorithm("issa")()
+    params = load_optimizer_params("issa").model_dump() | {"pop_size": 12, "max_iter": 10}
+    opt.setup(prob, np.random.default_rng(5), **params)
+    res = opt.run()
+    assert res.n_infeasible_replaced > 0 and np.isfinite(res.best_fitness)
+    assert prob.simulate(res.best_x).feasible[0]
+
+
+@pytest.fixture(scope="module")
+def small_ctx(freight, root):
+    route, train = freight
+    return lambda **kw: make_context(route, train, params_path=str(root / "tests/data/optimizers/issa.yaml"),
+                                     e_min_kwh=580.0, **kw)
+
+
+def test_same_seed_same_result_different_seed_differs(small_ctx):
+    a = run_strategy(small_ctx(seed=4), "proposed").summary
+    b = run_strategy(small_ctx(seed=4), "proposed").summary
+    c = run_strategy(small_ctx(seed=5), "proposed").summary
+    assert a["switching_points_m"] == b["switching_points_m"] and a["traction_energy_kwh"] == b["traction_energy_kwh"]
+    assert a["switching_points_m"] != c["switching_points_m"]
+
+
+def test_strategies_physics_order(small_ctx):
+    """Time-saving is fastest and costliest; four-stage is on time; even a small-budget proposed run
+    beats four-stage and time-saving on energy while staying inside the +-30 s window."""
+    ctx = small_ctx(seed=1)
+    ts = run_strategy(ctx, "time-saving").summary
+    fs = run_strategy(ctx, "four-stage").summary
+    pr = run_strategy(ctx, "proposed").summary
+    assert ts["running_time_s"] == pytest.approx(ctx.calc.fastest_time_s, abs=0.01)
+    assert ts["running_time_s"] < fs["running_time_s"] and ts["traction_energy_kwh"] > fs["traction_energy_kwh"]
+    assert fs["punctuality_error_s"] <= 1.5 and fs["cruise_kmh"] > 0
+    assert pr["feasible"] and pr["punctuality_error_s"] <= 30
+    assert pr["traction_energy_kwh"] < fs["traction_energy_kwh"] < ts["traction_energy_kwh"]
+    # reported numbers are re-simulated on the 50 m reporting grid
+    res = ctx.calc.evaluate(tuple(pr["plan"].replace(":", ",").split(",")[::2][:-1]) + ("B",),
+                            np.array([pr["switching_points_m"] + [np.nan]]))
+    assert res.traction_energy_kwh[0] == pytest.approx(pr["traction_energy_kwh"], abs=0.01)
+
+
+def test_time_below_fastest_is_exit_1_with_the_fastest_time(root, monkeypatch):
+    monkeypatch.chdir(root)
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", "1200", "--e-min", "580"])
+    assert res.exit_code == 1
+    assert "below the fastest possible run, 1275.6 s" in res.stderr
+
+
+SMALL = ["--params", "tests/data/optimizers/issa.yaml"]
+
+
+def test_optimize_json(root, monkeypatch):
+    monkeypatch.chdir(root)
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--json", "--seed", "2", *SMALL])
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.stdout)
+    assert d["strategy"] == "proposed" and d["algorithm"] == "issa" and d["seed"] == 2
+    assert d["e_min_kwh"] > 0 and d["fitness"] == pytest.approx(
+        fitness_eq10(d["running_time_s"], d["traction_energy_kwh"], 1500, d["e_min_kwh"], 0.5, 0.5), abs=2e-5)
+    assert len(d["switching_points_m"]) == d["plan"].count(":") - 1
+
+
+def test_compare_explain_and_json(root, monkeypatch, tmp_path):
+    monkeypatch.chdir(root)
+    res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--explain", "--e-min", "580", *SMALL,
+                              "--plot", str(tmp_path / "c.png")], env={"COLUMNS": "160"})
+    assert res.exit_code == 0, res.output
+    for word in ("concave", "convex", "rising", "falling", "long-up", "long-down", "ordinary", "four-stage"):
+        assert word in res.stdout
+    assert (tmp_path / "c.png").stat().st_size > 10000
+    res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--json", "--strategies", "time-saving,four-stage",
+                              "--e-min", "580"])
+    d = json.loads(res.stdout)
+    assert [r["strategy"] for r in d["results"]] == ["time-saving", "four-stage"]
+
+
+def test_sweep_and_study(root, monkeypatch):
+    monkeypatch.chdir(root)
+    res = runner.invoke(app, ["sweep", "routes/freight-20km.yaml", "--times", "1470,1530", "--json", "--e-min", "580", *SMALL])
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)["results"]
+    assert [r["planned_time_s"] for r in rows] == [1470, 1530] and rows[0]["energy_reduction_percent"] == 0
+    res = runner.invoke(app, ["study", "routes/freight-20km.yaml", "--algorithms", "issa,pso", "--runs", "2", "--json",
+                              "--e-min", "580", "--params-dir", "tests/data/optimizers"])
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.stdout)
+    assert [r["algorithm"] for r in d["table"]] == ["issa", "pso"] and len(d["results"]) == 4
+    assert {r["seed"] for r in d["results"]} == {1, 2}
+
+
+@pytest.mark.parametrize("args,why", [
+    (["optimize", "routes/freight-20km.yaml", "--weights", "0.7,0.7"], "--weights: expected two non-negative weights summing to 1"),
+    (["optimize", "routes/freight-20km.yaml", "--algorithm", "ga"], "unknown"),
+    (["optimize", "routes/freight-20km.yaml", "--e-min", "-5"], "--e-min: must be > 0"),
+    (["optimize", "routes/freight-20km.yaml", "--out", "x.txt"], "unknown output type '.txt'"),
+    (["compare", "routes/freight-20km.yaml", "--strategies", "fast"], "unknown strategy 'fast'"),
+    (["sweep", "routes/freight-20km.yaml"], "give exactly one of --weights or --times"),
+    (["sweep", "routes/freight-20km.yaml", "--weights", "0.9:0.1:0.1"], "expected start:stop:step"),
+    (["study", "routes/freight-20km.yaml", "--runs", "0", "--e-min", "580"], "--runs: must be >= 1"),
+    (["optimize", "routes/seed000-flat.yaml", "--consist", "HXD1-C64-seed000"], "has no schedule: give the planned running time with --time"),
+])
+def test_seed002_bad_input_exit_2(root, monkeypatch, args, why):
+    monkeypatch.chdir(root)
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert why in res.stderr
