@@ -237,6 +237,8 @@ WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_en
 EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
 ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
+TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
+WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
 
 
@@ -281,7 +283,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
-             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
@@ -292,7 +295,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
     with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
-                           seed=seed, params_path=str(params) if params else None, callback=cb)
+                           seed=seed, params_path=str(params) if params else None, callback=cb,
+                           tolerance_s=tolerance, window=window)
         if e_min is None:
             ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
         run = run_strategy(ctx, "proposed")
@@ -378,7 +382,8 @@ def compare(route: Path = ROUTE,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
-            step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+            step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .optimize.registry import get_algorithm
     from .runner import compare as run_compare, make_context
@@ -389,7 +394,7 @@ def compare(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
     if explain and not as_json:
         _explain(ctx)
     runs = run_compare(ctx, names)
@@ -415,7 +420,8 @@ def sweep(route: Path = ROUTE,
           time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
-          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, sweep_times, sweep_weights
@@ -427,7 +433,7 @@ def sweep(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
     runs = sweep_weights(ctx, values) if weights else sweep_times(ctx, values)
     rows = [x.summary for x in runs]
     if times:
@@ -465,7 +471,8 @@ def study(route: Path = ROUTE,
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
-          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT):
+          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
     from dataclasses import replace
 
@@ -480,7 +487,8 @@ def study(route: Path = ROUTE,
     w = _weights(weights)
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
-    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed, tolerance_s=tolerance,
+                       window=window)
     ctx.e_min()
     results: dict[str, list] = {}
     for a in algs:
@@ -489,8 +497,7 @@ def study(route: Path = ROUTE,
         for i in range(runs):
             results[a].append(run_strategy(replace(ctx, algorithm=a, seed=seed + i,
                                                    params_path=str(pfile) if pfile else None), "proposed"))
-    tol = r.schedule.tolerance_s if r.schedule else None
-    rows = study_table(results, tol)
+    rows = study_table(results, ctx.tolerance_s if ctx.tolerance_s is not None else (r.schedule.tolerance_s if r.schedule else None))
     data = {"results": [x.summary for a in algs for x in results[a]], "table": rows,
             "e_min_kwh": round(ctx.e_min(), 2), "planned_time_s": ctx.t0_s}
     _emit(data, as_json, out_file)
@@ -519,6 +526,11 @@ def study(route: Path = ROUTE,
                           "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
                           f"{x['mean_solve_time_s']:.2f}")
         out.print(table)
+
+
+from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)
+
+_register_ocp(app)
 
 
 def main() -> None:

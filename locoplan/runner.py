@@ -47,14 +47,23 @@ def planned_time(route: Route, time_s: float | None) -> float:
 def make_context(route: Route, train: Train, options: ModelOptions | None = None, *, time_s: float | None = None,
                  e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
                  seed: int = 1, params_path: str | None = None,
-                 callback: Callable[[int, float], None] | None = None, need_time: bool = True) -> StrategyContext:
+                 callback: Callable[[int, float], None] | None = None, need_time: bool = True,
+                 tolerance_s: float | None = None, window: bool = True) -> StrategyContext:
+    """Calculators (reporting grid and search grid) and the optimisation settings.
+
+    The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
+    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did."""
     options = options or ModelOptions()
     calc = TractionCalculator(route, train, options)
     search = calc if options.step_m >= SEARCH_STEP_M else TractionCalculator(route, train, replace(options, step_m=SEARCH_STEP_M))
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and e_min_kwh <= 0:
         raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {e_min_kwh:g})"))
-    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback)
+    if tolerance_s is not None and tolerance_s < 0:
+        raise InputError(Problem("", "--tolerance", f"must be >= 0 s (got {tolerance_s:g})"))
+    tol = tolerance_s if tolerance_s is not None else (route.schedule.tolerance_s if route.schedule else None)
+    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
+                           tol if window else None)
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
@@ -83,7 +92,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
     fit = None
     if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
         fit = round(float(fitness_eq10(t, e, t0, e_min, *ctx.weights)), 5)
-    tol = route.schedule.tolerance_s if route.schedule else None
+    tol = ctx.tolerance_s if ctx.tolerance_s is not None else (route.schedule.tolerance_s if route.schedule else None)
     return {
         "route": route.name,
         "consist": train.name,

@@ -8,6 +8,11 @@ braking point excluded (it comes from the stop's braking curve, as in the seed).
 Infeasible plans (a limit broken, stalled, stopped short) get an infinite fitness and are replaced by
 the optimiser (step 5). Consecutive switching points keep at least half the train's length apart
 (seed 002 eq. 3, S >= L/2).
+
+The punctuality window of eq. 3, T in T0 +- eps_t, is a constraint handled by ranking (Deb's rule):
+with ``tolerance_s`` set, every plan inside the window ranks before every plan outside it, and plans
+outside rank by how far outside they are. Random replacement would be far too costly here (only a
+few percent of random plans are on time), and the window is not a traction-calculation failure.
 """
 
 from __future__ import annotations
@@ -20,6 +25,10 @@ from ..errors import InputError, Problem
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .base import Evaluation
+
+
+OUTSIDE_WINDOW = 10.0
+"""Fitness offset of a plan outside the punctuality window: above any on-time plan's eq. 10 value."""
 
 
 def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: float, w_energy: float):
@@ -43,6 +52,7 @@ class SwitchingProblem:
     e_min_kwh: float = 1.0
     weights: tuple[float, float] = (0.5, 0.5)
     objective: str = "eq10"
+    tolerance_s: float | None = None
     min_gap_m: float | None = None
     last: BatchResult | None = field(default=None, repr=False)
 
@@ -71,6 +81,9 @@ class SwitchingProblem:
             f = res.traction_energy_kwh.copy()
         else:
             f = fitness_eq10(res.running_time_s, res.traction_energy_kwh, self.t0_s, self.e_min_kwh, *self.weights)
+            if self.tolerance_s is not None:
+                excess = np.abs(res.running_time_s - self.t0_s) - self.tolerance_s
+                f = np.where(excess > 0, OUTSIDE_WINDOW + excess / self.t0_s, f)
         return np.where(res.feasible, f, np.inf)
 
     def evaluate(self, X: np.ndarray) -> Evaluation:

@@ -11,7 +11,7 @@ its switching points and, for four-stage, a cruise speed). The CLI's ``--strateg
 - ``four-stage``: traction to a cruise speed, cruise, coast, brake; cruise speed and coasting point
   searched on a grid so that the train is on time with the least energy.
 - ``proposed``: the sequence builder's sequence (section 2), switching points by ISSA / SSA / PSO
-  minimising eq. 10.
+  minimising eq. 10 inside the punctuality window of eq. 3 (when the context has a tolerance).
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ class StrategyContext:
     seed: int = 1
     params_path: str | None = None
     callback: Callable[[int, float], None] | None = None
+    tolerance_s: float | None = None
     _e_min_cache: dict = field(default_factory=dict)
 
     def rng(self, salt: int = 0) -> np.random.Generator:
@@ -192,7 +193,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     t = time.perf_counter()
     seq = build_sequence(ctx.search)
     problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, t0_s=ctx.t0_s,
-                               e_min_kwh=e_min, weights=ctx.weights)
+                               e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.tolerance_s)
     result = _optimise(ctx, problem, salt=1)
     return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t, e_min_kwh=e_min)

@@ -1,0 +1,189 @@
+"""``locoplan ocp`` and ``locoplan ocp-study``: seed 000's optimal control on the command line.
+
+Thin commands over :mod:`locoplan.ocp.study`; :func:`register` adds them to a typer app (the main
+app in :mod:`locoplan.cli`, or a fresh one in tests).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+
+import typer
+from rich.console import Console
+from rich import box
+from rich.table import Table
+
+from .ocp.study import (
+    DEFAULT_OCP_CONSIST,
+    OBJECTIVES,
+    OCP_METHODS,
+    STAGE2_MODES,
+)
+
+__all__ = ["register"]
+
+
+def _summary_table(s: dict) -> Table:
+    table = Table(title=f"{s['route']}\n{s['consist']}", show_header=False, title_justify="left")
+    table.add_column("quantity", style="bold")
+    table.add_column("value")
+    method = s["algorithm"] + (f" (stage 2: {s['stage2']})" if s["stage2"] else "")
+    nodes = f"{s['control_nodes']} control" + (f" / {s['state_nodes']} state" if s["state_nodes"] else "")
+    if s["algorithm"] == "two-stage":
+        nodes += f" (stage 2: {s['final_control_nodes']} / {s['final_state_nodes']}, {s['segments']} segments)"
+    confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({s['reason']})"
+    rows = [
+        ("method", method), ("nodes", nodes), ("problem", f"{s['length_m']:g} m, {s['gradient_permille']:g} ‰, "
+                                                         f"limit {s['speed_limit_kmh']:g} km/h, force "
+                                                         f"{s['force_bounds_kn'][0]:g}..{s['force_bounds_kn'][1]:g} kN"),
+        ("objective (NLP)", f"{s['objective']:.4f} s" if s["objective"] is not None else "-"),
+        ("exact minimum", f"{s['exact_minimum_s']:.4f} s (gap {s['gap_to_exact_s']:+.4f} s)"),
+        ("re-simulated", "does not arrive" if s["resimulated_running_time_s"] is None
+         else f"{s['resimulated_running_time_s']:.4f} s"),
+        ("max overspeed", f"{s['max_limit_violation_kmh']:.3f} km/h"),
+        ("confirmed", confirmed),
+    ]
+    if s["feasible"]:
+        rows += [("running time", f"{s['running_time_s']:.3f} s"),
+                 ("traction energy", f"{s['traction_energy_kwh']:.3f} kWh")]
+    rows += [("IPOPT", f"{s['status']}, {s['iterations']} iterations"), ("solve time", f"{s['solve_time_s']:.3f} s")]
+    if s.get("force_bounds_note"):
+        rows.append(("note", s["force_bounds_note"]))
+    for k, v in rows:
+        table.add_row(k, v)
+    return table
+
+
+_STUDY_HEADS = ("method", "u / x", "stage 2 u / x", "objective", "re-sim.", "- exact", "solve", "ok",
+                "seed obj.", "seed solve")
+
+
+def _study_tables(study) -> list[Table]:
+    """One compact table per seed table (2: level, 3: 30 per mille); full columns are in --out .md."""
+    tables = []
+    for tab in sorted({r["table"] for r in study.rows}):
+        rows = [r for r in study.rows if r["table"] == tab]
+        grade = rows[0]["gradient_permille"]
+        table = Table(title=f"Seed 000 Table {tab} ({'level' if grade == 0 else format(grade, 'g') + ' ‰'}, exact "
+                            f"minimum {study.exact[tab]:.4f} s): times in s, solve = median of {study.repeats}",
+                      title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
+        for col in _STUDY_HEADS:
+            table.add_column(col, justify="left" if col in ("method", "stage 2 u / x") else "right", no_wrap=True)
+        for r in rows:
+            st2 = f"{r['final_control_nodes']} / {r['final_state_nodes']} ({r['segments']})" if r["algorithm"] == "two-stage" else "-"
+            nodes = f"{r['control_nodes']}" + (f" / {r['state_nodes']}" if r["state_nodes"] else "")
+            gap = "-" if r["gap_to_exact_s"] is None else f"{r['gap_to_exact_s']:+.3f}"
+            resim = "-" if r["resimulated_running_time_s"] is None else f"{r['resimulated_running_time_s']:.3f}"
+            table.add_row(r["label"], nodes, st2, f"{r['objective']:.3f}", resim, gap, f"{r['solve_time_s']:.3f}",
+                          "[green]yes[/]" if r["feasible"] else "[red]no[/]",
+                          f"{r['seed_objective_s']:.2f}" if r.get("seed_objective_s") else "-",
+                          f"{r['seed_solve_time_s']:.2f}" if r.get("seed_solve_time_s") else "-")
+        tables.append(table)
+    return tables
+
+
+def _ratio_table(study) -> Table:
+    pairs = [(p["table"], p["test"]) for p in study.ratios[0]["per_test"]] if study.ratios else []
+    table = Table(title="solve-time reduction of two-stage in per cent: measured here (seed's Tables)",
+                  title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
+    table.add_column("two-stage", no_wrap=True)
+    table.add_column("vs", no_wrap=True)
+    for tab, test in pairs:
+        table.add_column(f"T{tab} test {test}", justify="right", no_wrap=True)
+    for col in ("mean", "seed mean", "seed claim"):
+        table.add_column(col, justify="right", no_wrap=True)
+    for r in study.ratios:
+        cells = [f"{p['percent']:.1f} ({p['seed_percent']:.1f})" for p in r["per_test"]]
+        table.add_row(r["two_stage"], r["versus"].upper(), *cells, f"{r['mean_percent']:.1f}",
+                      f"{r['seed_tables_mean_percent']:.2f}", f"{r['seed_claim_percent']:.2f}")
+    return table
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
+    from .cli import err, guarded, out  # here, not at import time: locoplan.cli imports this module
+    from .io.report import to_json
+
+    methods = ", ".join(OCP_METHODS)
+
+    @app.command("ocp")
+    @guarded
+    def ocp(route: Path = typer.Argument(..., help="Route YAML file (one gradient and one speed limit)."),
+            consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
+            stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
+            objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)} (only 'time' is built)."),
+            method: str = typer.Option("two-stage", "--method", help=f"Transcription: {methods}."),
+            nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
+            state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (two-stage: 2 x nodes, even; gpm: = nodes)."),
+            stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
+            as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
+            out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="Control and state curves, .png or .svg."),
+            ):
+        """Seed 000: minimum running time by optimal control, checked by re-simulation (exit 1 if not confirmed)."""
+        from .io.load import load_route, load_train
+        from .ocp.study import check_options, check_output_path, solve_ocp, write_ocp_output
+
+        check_options(method, nodes, state_nodes, stage2, objective)
+        check_output_path(out_file, "--out", (".csv", ".json"))
+        check_output_path(plot, "--plot", (".png", ".svg"))
+        r = load_route(route)
+        train = load_train(consist, stock_dir)
+        run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
+                        route_file=route)
+        if out_file:
+            write_ocp_output(out_file, run)
+        if plot:
+            from .ocp.plot import plot_run
+
+            plot_run(plot, run)
+        if as_json:
+            print(to_json(run.summary))
+        else:
+            out.print(_summary_table(run.summary))
+        if not run.feasible:
+            err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
+                      f"{run.summary['reason']}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1)
+
+    @app.command("ocp-study")
+    @guarded
+    def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
+                  repeats: int = typer.Option(1, "--repeats", help="Solves per row; the solve time is their median."),
+                  as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
+                  out_file: Optional[Path] = typer.Option(None, "--out", help="Study as .json, .csv (one line per row) or .md."),
+                  plot: Optional[Path] = typer.Option(None, "--plot", help="Control curves and solve times, .png or .svg."),
+                  ):
+        """Seed 000 Tables 2-3: CVP 20/40, GPM 34/48, two-stage 17/24 (hp and the seed's global stage 2)."""
+        from .ocp.study import check_output_path, run_study, write_study_output
+
+        if repeats < 1:
+            from .errors import InputError, Problem
+
+            raise InputError(Problem("ocp-study", "--repeats", f"must be >= 1, got {repeats}"))
+        check_output_path(out_file, "--out", (".json", ".csv", ".md"))
+        check_output_path(plot, "--plot", (".png", ".svg"))
+        with err.status("solving") as status:
+            study = run_study(consist=consist, repeats=repeats, progress=lambda text: status.update(f"solving {text}"))
+        if out_file:
+            write_study_output(out_file, study)
+        if plot:
+            from .ocp.plot import plot_study
+
+            plot_study(plot, study)
+        if as_json:
+            print(to_json(study.to_dict()))
+        else:
+            # the tables need ~120 columns; a pipe reports 80, so widen rather than truncate every cell
+            wide = out if out.width >= 132 else Console(file=sys.stdout, width=132)
+            for table in _study_tables(study):
+                wide.print(table)
+            wide.print(_ratio_table(study))
+            out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
+            for r in study.rows:
+                if not r["feasible"]:
+                    out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {r['reason']}",
+                              highlight=False, soft_wrap=True)

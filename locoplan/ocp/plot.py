@@ -1,0 +1,163 @@
+"""Figures of the optimal-control runs (matplotlib, Agg backend, written atomically).
+
+* :func:`plot_run`: one solution as the seed's Fig. 5/7 (traction / brake force ``F_u`` against time
+  with the force bounds) and Fig. 6/8 (distance ``s`` and speed ``v`` against time with the limit),
+  with the NLP's node values, the re-simulated run and the exact optimum for reference.
+* :func:`plot_study`: the seed-000 study: control curves of CVP, GPM and two-stage for each test (as
+  the seed's Fig. 5/7, node values joined by straight lines) and the measured solve times.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, Problem
+from ..io.report import atomic_write
+
+__all__ = ["plot_run", "plot_study"]
+
+_COLOURS = {"cvp": "#2ca02c", "gpm": "#d62728", "two-stage": "#1f77b4"}
+_GLOBAL = "#9467bd"  # two-stage with the seed's global stage 2
+
+
+def _figure_path(path) -> tuple[Path, str]:
+    path = Path(path)
+    if path.suffix.lower() not in (".png", ".svg"):
+        raise InputError(Problem(str(path), "--plot", "use a .png or .svg file name"))
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(Problem(str(path), "--plot", f"folder {folder} does not exist"))
+    return path, path.suffix.lower().lstrip(".")
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path, fmt: str, plt) -> None:
+    try:
+        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
+    finally:
+        plt.close(fig)
+
+
+def _node_controls(solution) -> tuple[np.ndarray, np.ndarray]:
+    """The NLP's control values and their times (LG points of every segment, or the CVP grid)."""
+    if solution.method == "cvp":
+        return np.asarray(solution.time_s), np.asarray(solution.control_kn)
+    t = np.concatenate([p.times for p in solution.control_pieces])
+    u = np.concatenate([p.values for p in solution.control_pieces])
+    return t, u
+
+
+def plot_run(path, run, title: str | None = None) -> None:
+    """Draw one :class:`~locoplan.ocp.study.OcpRun`: ``F_u`` [kN], ``v`` [m/s] and ``s`` [m] against
+    time [s]. ``.png`` or ``.svg`` by extension, written whole or not at all."""
+    path, fmt = _figure_path(path)
+    plt = _pyplot()
+    p, sol, rs, ex = run.problem, run.solution, run.resimulation, run.exact
+    tf = float(sol.objective_s)
+    t_end = max(run.end_time_s, tf)
+    t = np.linspace(0.0, tf, 4001)
+    fig, (ax_u, ax_v, ax_s) = plt.subplots(3, 1, figsize=(10, 9), sharex=True,
+                                           gridspec_kw={"height_ratios": [3, 2, 2]})
+
+    raw = sol.control_at(t, clip=False)
+    ax_u.axhline(p.f_max_kn, color="black", lw=0.8, ls="--", label=f"bounds {-p.b_max_kn:g} / {p.f_max_kn:g} kN")
+    ax_u.axhline(-p.b_max_kn, color="black", lw=0.8, ls="--")
+    ax_u.plot(t, ex.force_at(t), color="0.55", lw=2.5, alpha=0.6, label=f"exact optimum ({ex.time_s:.3f} s)")
+    tol = 1e-3 * (p.f_max_kn + p.b_max_kn)
+    if np.max(raw) > p.f_max_kn + tol or np.min(raw) < -p.b_max_kn - tol:
+        ax_u.plot(t, raw, color="#ff7f0e", lw=0.8, ls=":", label="interpolant (unclipped)")
+    ax_u.plot(t, sol.control_at(t, clip=True), color=_COLOURS.get(sol.method, "C0"), lw=1.4,
+              label="control driven (clipped)")
+    tn, un = _node_controls(sol)
+    ax_u.plot(tn, un, "o", ms=3, color=_COLOURS.get(sol.method, "C0"), label=f"NLP control values ({sol.control_nodes} parameters)")
+    for b in sol.breakpoints_s:
+        ax_u.axvline(b, color="0.3", lw=0.6, ls="-.")
+    span = p.f_max_kn + p.b_max_kn
+    ax_u.set_ylim(-p.b_max_kn - 0.15 * span, p.f_max_kn + 0.15 * span)
+    ax_u.set_ylabel("F_u [kN]")
+    ax_u.legend(loc="upper right", fontsize=7, ncol=2)
+    ax_u.grid(alpha=0.3)
+
+    ax_v.axhline(p.speed_limit_ms, color="black", lw=0.8, ls="--",
+                 label=f"limit {p.speed_limit_ms:.2f} m/s ({p.speed_limit_kmh:g} km/h)")
+    ax_v.plot(rs.time_s, rs.speed_ms, color="C0", lw=1.4, label="re-simulated")
+    ax_v.plot(sol.time_s, sol.speed_ms, "o", ms=3, color="C1", label="NLP nodes")
+    ax_v.set_ylabel("v [m/s]")
+    ax_v.set_ylim(0.0, p.speed_limit_ms * 1.25)
+    ax_v.legend(loc="lower center", fontsize=7, ncol=3)
+    ax_v.grid(alpha=0.3)
+
+    ax_s.axhline(p.length_m, color="black", lw=0.8, ls="--", label=f"end {p.length_m:g} m")
+    ax_s.plot(rs.time_s, rs.position_m, color="C0", lw=1.4, label="re-simulated")
+    ax_s.plot(sol.time_s, sol.position_m, "o", ms=3, color="C1", label="NLP nodes")
+    ax_s.set_ylabel("s [m]")
+    ax_s.set_xlabel("t [s]")
+    ax_s.set_xlim(0.0, t_end * 1.01)
+    ax_s.legend(loc="lower right", fontsize=7)
+    ax_s.grid(alpha=0.3)
+
+    s = run.summary
+    verdict = "confirmed" if s["feasible"] else "NOT confirmed by re-simulation"
+    head = title or f"{run.route_name} — {run.train_name}"
+    nodes = f"{s['control_nodes']} u / {s['state_nodes']} x nodes" if s["state_nodes"] else f"{s['control_nodes']} u nodes"
+    ax_u.set_title(f"{head}\n{s['algorithm']}{' (' + s['stage2'] + ')' if s['stage2'] else ''}, {nodes}: "
+                   f"objective {sol.objective_s:.3f} s, {verdict}", fontsize=10)
+    fig.tight_layout()
+    _save(fig, path, fmt, plt)
+
+
+def plot_study(path, study) -> None:
+    """Draw a :class:`~locoplan.ocp.study.Study`: for each table the control curves of its first
+    CVP, GPM and two-stage (hp) rows (node values joined by straight lines, as the seed's Fig. 5/7),
+    and the measured median solve times per row (hatched: not confirmed by re-simulation)."""
+    path, fmt = _figure_path(path)
+    plt = _pyplot()
+    tables = sorted({r["table"] for r in study.rows})
+    fig, axes = plt.subplots(2, len(tables), figsize=(6.5 * len(tables), 8), squeeze=False)
+    for j, table in enumerate(tables):
+        ax = axes[0, j]
+        shown = set()
+        for (tab, method, nodes, stage2), run in study.runs.items():
+            if tab != table or method in shown or stage2 == "global":
+                continue
+            shown.add(method)
+            tn, un = _node_controls(run.solution)
+            ax.plot(tn, un, "-o", ms=2.5, lw=1.1, color=_COLOURS[method],
+                    label=f"{run.summary['algorithm']} {nodes} ({run.solution.objective_s:.2f} s"
+                          f"{'' if run.feasible else ', not confirmed'})")
+        p = next(r for (tab, *_), r in study.runs.items() if tab == table).problem
+        ax.axhline(p.f_max_kn, color="black", lw=0.7, ls="--")
+        ax.axhline(-p.b_max_kn, color="black", lw=0.7, ls="--")
+        ax.set_title(f"Table {table}: {p.gradient_permille:g} ‰, exact minimum {study.exact[table]:.3f} s", fontsize=10)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("F_u [kN]")
+        ax.legend(fontsize=7, loc="center right")
+        ax.grid(alpha=0.3)
+
+        ax = axes[1, j]
+        rows = [r for r in study.rows if r["table"] == table]
+        x = np.arange(len(rows))
+        bars = ax.bar(x, [r["solve_time_s"] for r in rows],
+                      color=[_GLOBAL if r["stage2"] == "global" else _COLOURS[r["algorithm"]] for r in rows],
+                      alpha=0.85, edgecolor="black", linewidth=0.5)
+        for bar, r in zip(bars, rows):
+            if not r["feasible"]:
+                bar.set_hatch("///")
+                bar.set_alpha(0.45)
+        ax.set_xticks(x)
+        ax.set_xticklabels([f"{r['label']}\n{r['control_nodes']}" for r in rows], fontsize=7, rotation=30, ha="right")
+        ax.set_ylabel(f"solve time [s] (median of {study.repeats})")
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle("Seed 000 Tables 2-3 reproduced (hatched: objective not confirmed by re-simulation)", fontsize=11)
+    fig.tight_layout()
+    _save(fig, path, fmt, plt)
