@@ -16,7 +16,7 @@ from rich.console import Console
 from rich import box
 from rich.table import Table
 
-from .ocp.study import (
+from .ocp.registry import (
     DEFAULT_OCP_CONSIST,
     OBJECTIVES,
     OCP_METHODS,

@@ -9,8 +9,19 @@ Layers, each using only the ones before it:
 * :mod:`locoplan.ocp.solve`: :func:`solve_min_time` and :func:`resimulate`.
 """
 
-from .problems import MinTimeTrainProblem, davis_resistance_kn, seed000_problem
-from .solve import METHODS, OcpSolution, Resimulation, resimulate, solve_min_time
+import importlib
+
+_LAZY = {"MinTimeTrainProblem": "problems", "davis_resistance_kn": "problems", "seed000_problem": "problems",
+         "METHODS": "solve", "OcpSolution": "solve", "Resimulation": "solve", "resimulate": "solve",
+         "solve_min_time": "solve"}
+
+
+def __getattr__(name: str):
+    """Load the CasADi-backed modules on first use, so that importing the CLI stays light."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(name)
+
 
 __all__ = [
     "METHODS",

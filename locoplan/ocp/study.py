@@ -38,6 +38,7 @@ from ..physics.gradient import curve_gradient_permille, tunnel_gradient_permille
 from ..physics.traction import max_force_kn
 from . import nodes as _nodes
 from .problems import KMH_PER_MS, MinTimeTrainProblem
+from .registry import DEFAULT_OCP_CONSIST, OBJECTIVES, OCP_METHODS, STAGE2_MODES, OcpMethod  # noqa: F401 (re-exported)
 from .solve import OcpSolution, Resimulation, resimulate, solve_min_time
 
 __all__ = [
@@ -79,54 +80,10 @@ LIMIT_TOL_KMH = 0.1
 ARRIVAL_TOL_M = 0.5
 """A re-simulated train that stops within this distance of the end has arrived [m]."""
 
-DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
 SOURCE = "ocp"  # the 'file' of a Problem about a command-line option rather than a file
 
 
-# --------------------------------------------------------------------------------------------------
-# registries
-# --------------------------------------------------------------------------------------------------
 
-
-@dataclass(frozen=True)
-class OcpMethod:
-    """One transcription of the minimum-time problem (see :mod:`locoplan.ocp.solve`).
-
-    ``seed_nodes``: the two control-node counts of the seed's Tables 2-3 (the first is the default).
-    ``has_stage2``: the method reads ``stage2``; ``has_state_nodes``: ``state_nodes`` may be given.
-    """
-
-    key: str
-    label: str
-    seed_nodes: tuple[int, int]
-    description: str
-    has_stage2: bool = False
-    has_state_nodes: bool = False
-
-
-OCP_METHODS: dict[str, OcpMethod] = {
-    "two-stage": OcpMethod("two-stage", "two-stage", (17, 24),
-                           "two-stage adaptive Gauss re-collocation (seed 000): paired control on 2N LG "
-                           "points, then slope-change re-collocation", has_stage2=True, has_state_nodes=True),
-    "gpm": OcpMethod("gpm", "GPM", (34, 48), "classical Gauss pseudospectral method: N LG points for "
-                     "states and control", has_state_nodes=True),
-    "cvp": OcpMethod("cvp", "CVP", (20, 40), "control vector parameterisation: N control values on a "
-                     "uniform grid, piecewise linear, RK4 states"),
-}
-"""Methods by CLI name; the CLI's ``--method`` choices are these keys."""
-
-STAGE2_MODES: dict[str, str] = {
-    "hp": "cut the state mesh at the detected control jumps into segments with movable break points "
-          "(our extension, default)",
-    "global": "re-collocate the control on the same single global LG mesh (the seed's literal stage 2)",
-}
-"""Stage-2 variants of the two-stage method."""
-
-OBJECTIVES: dict[str, str | None] = {
-    "time": "minimum running time (seed 000, eq. 34)",
-    "energy": None,  # planned: seed 001's multi-phase minimum-energy problem
-}
-"""Objectives by CLI name; ``None`` marks one that is planned but not built."""
 
 
 # --------------------------------------------------------------------------------------------------

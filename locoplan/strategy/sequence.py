@@ -146,7 +146,9 @@ def build_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0, min_run
 
     Runs shorter than ``min_run_m`` (default half the train's length, seed 002 eq. 3) are absorbed.
     Each switching point may move between the midpoints to its neighbours; a switch into a long grade
-    may move back as far as the previous switch may (the pre-positioning of Fig. 5).
+    may move back as far as the previous switch may, and not past the grade's start (the
+    pre-positioning of Fig. 5: traction before long up-grades, coasting before long down-grades); the
+    traction on a long up-grade lasts at least over its first half (coasting over the crest is allowed).
     """
     L = calc.route.length_m
     min_run = calc.train.length_m / 2 if min_run_m is None else min_run_m
@@ -183,12 +185,17 @@ def build_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0, min_run
     # windows: halfway to the neighbouring nominal switches; a switch into a long grade may move back
     # to the previous switch (pre-positioning before the grade)
     grade_starts = {g.from_m for g in grades if g.kind != "ordinary"}
+    up_ends = {g.to_m: g for g in grades if g.kind == "long-up"}
     edges = np.concatenate([[0.0], nominal, [L]])
     lower = 0.5 * (edges[:-2] + edges[1:-1])
     upper = 0.5 * (edges[1:-1] + edges[2:])
     for j, x in enumerate(nominal):
-        if x in grade_starts:  # as far back as the previous switch itself may go
+        if x in grade_starts:  # before the grade (Fig. 5), as far back as the previous switch may go
             lower[j] = (lower[j - 1] if j else 0.0) + min_run
+            upper[j] = x
+        if x in up_ends:  # traction covers at least the first half of a long up-grade (no stall)
+            g = up_ends[x]
+            lower[j] = max(lower[j], 0.5 * (g.from_m + g.to_m))
     lower = np.maximum(lower, min_run)
     upper = np.minimum(upper, L - min_run)
     return SequencePlan(conditions, nominal, lower, upper, limits, grades)
