@@ -145,6 +145,7 @@ def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
         raise InputError(Problem("", "--strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
     if not names:
         raise InputError(Problem("", "--strategies", "name at least one strategy"))
+    ctx.e_min()  # first, so that every row's fitness uses the same E_min
     return [run_strategy(ctx, n) for n in names]
 
 

@@ -25,7 +25,7 @@ class Plan:
         return np.array([self.starts_m[1:]], dtype=float)
 
     def text(self) -> str:
-        return ",".join(c if math.isnan(s) else f"{c}:{s:g}" for c, s in zip(self.conditions, self.starts_m))
+        return ",".join(c if math.isnan(s) else f"{c}:{round(s, 1):g}" for c, s in zip(self.conditions, self.starts_m))
 
 
 def parse_sequence(text: str, length_m: float, field: str = "--sequence") -> Plan:
