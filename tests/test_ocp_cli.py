@@ -31,30 +31,11 @@ from locoplan.ocp.study import (
     run_ocp,
     train_problem,
 )
+from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
 
 runner = CliRunner()
-G = 9.81
-LIMIT = 11.1  # m/s
 ROUTES = {"routes/seed000-flat.yaml": 0.0, "routes/seed000-grade30.yaml": 30.0}
 SEED_BEST = {0.0: 141.59, 30.0: 141.75}  # the seed's best two-stage objectives (Tables 2, 3)
-
-
-def _resistance_kn(v):
-    vk = 3.6 * v
-    return (200.0 * (2.23 + 0.0053 * vk + 0.000675 * vk * vk) + 84.0 * (0.92 + 0.0048 * vk + 0.000125 * vk * vk)) * G / 1000.0
-
-
-def _exact(grade, length=1500.0):
-    """(time, accelerate distance, brake distance, cruise force) of the bang-cruise-bang optimum."""
-    m = 284.0
-    grade_kn = m * G * grade / 1000.0
-    acc = lambda v: (532.0 - _resistance_kn(v) - grade_kn) / m  # noqa: E731
-    dec = lambda v: (461.0 + _resistance_kn(v) + grade_kn) / m  # noqa: E731
-    ta = quad(lambda v: 1.0 / acc(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    sa = quad(lambda v: v / acc(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    tb = quad(lambda v: 1.0 / dec(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    sb = quad(lambda v: v / dec(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    return ta + tb + (length - sa - sb) / LIMIT, sa, sb, _resistance_kn(LIMIT) + grade_kn
 
 
 @pytest.fixture(autouse=True)
@@ -107,7 +88,7 @@ def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
     assert data["consist"] == "HXD1-C64 (seed 000)" and data["gradient_permille"] == grade
     assert (data["control_nodes"], data["state_nodes"]) == (17, 34)  # stage 1 as in the seed
     assert data["stages"][0]["control_nodes"] == 17 and data["final_control_nodes"] < 17
-    exact, sa, sb, cruise_kn = _exact(grade)
+    _, sa, _, sb, exact, cruise_kn = seed000_exact(grade)
     assert data["exact_minimum_s"] == pytest.approx(exact, abs=1e-3)
     assert abs(data["objective"] - exact) < 0.02
     assert abs(data["resimulated_running_time_s"] - data["objective"]) < 0.05
@@ -128,7 +109,7 @@ def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
         assert (p.mass_t, p.f_max_kn, p.b_max_kn, p.length_m, p.speed_limit_kmh, p.gradient_permille) == \
             (ref.mass_t, ref.f_max_kn, ref.b_max_kn, ref.length_m, ref.speed_limit_kmh, ref.gradient_permille)
         assert p.resistance_kn == pytest.approx(ref.resistance_kn, rel=1e-12)
-        assert exact_minimum_time(p) == pytest.approx(_exact(grade)[0], abs=1e-6)
+        assert exact_minimum_time(p) == pytest.approx(seed000_exact(grade)[4], abs=1e-6)
     res = _invoke(app, ["ocp", "routes/seed000-flat.yaml", "--method", "cvp", "--nodes", "40"])
     assert res.exit_code == 0, res.output
     assert "confirmed" in res.stdout and "141.507" in res.stdout  # exact minimum shown beside the objective
@@ -136,8 +117,8 @@ def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
 
 def test_exact_minimum_on_a_route_too_short_for_the_limit():
     m = 284.0
-    acc = lambda v: (532.0 - _resistance_kn(v)) / m  # noqa: E731
-    dec = lambda v: (461.0 + _resistance_kn(v)) / m  # noqa: E731
+    acc = lambda v: (532.0 - seed000_resistance_kn(v)) / m  # noqa: E731
+    dec = lambda v: (461.0 + seed000_resistance_kn(v)) / m  # noqa: E731
     dist = lambda f, v: quad(lambda w: w / f(w), 0.0, v, epsabs=1e-13)[0]  # noqa: E731
     v_peak = brentq(lambda v: dist(acc, v) + dist(dec, v) - 60.0, 1.0, LIMIT, xtol=1e-14)
     ref = sum(quad(lambda w, f=f: 1.0 / f(w), 0.0, v_peak, epsabs=1e-13)[0] for f in (acc, dec))
@@ -212,7 +193,7 @@ def test_ocp_study(app, tmp_path):
     for table in (2, 3):
         for method, nodes in SEED000_TABLES[table]:
             assert (table, method, nodes, "hp" if method == "two-stage" else None) in seen
-    exact = {2: _exact(0.0)[0], 3: _exact(30.0)[0]}
+    exact = {2: seed000_exact(0.0)[4], 3: seed000_exact(30.0)[4]}
     for r in rows:
         assert r["gap_to_exact_s"] == pytest.approx(r["objective"] - exact[r["table"]], abs=2e-4)
         assert r["seed_objective_s"] == SEED000_TABLES[r["table"]][r["algorithm"], r["control_nodes"]][0]

@@ -30,37 +30,17 @@ from locoplan.ocp.transcription import (
     solve_cvp,
     solve_gauss,
 )
+from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
 
-G = 9.81
-LIMIT = 11.1  # m/s = 39.96 km/h
 GRADES = (0.0, 30.0)
 RUNS = [("cvp", 20), ("cvp", 40), ("gpm", 34), ("gpm", 48), ("two-stage", 17), ("two-stage", 24)]
 
 
-def _resistance_kn(v):
-    vk = 3.6 * v
-    hxd1 = 200.0 * (2.23 + 0.0053 * vk + 0.000675 * vk * vk)
-    c64 = 84.0 * (0.92 + 0.0048 * vk + 0.000125 * vk * vk)
-    return (hxd1 + c64) * G / 1000.0
-
-
-def _exact_parts(grade):
-    m = 284.0
-    grade_kn = m * G * grade / 1000.0
-    acc = lambda v: (532.0 - _resistance_kn(v) - grade_kn) / m  # noqa: E731
-    dec = lambda v: (461.0 + _resistance_kn(v) + grade_kn) / m  # noqa: E731
-    ta = quad(lambda v: 1.0 / acc(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    sa = quad(lambda v: v / acc(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    tb = quad(lambda v: 1.0 / dec(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    sb = quad(lambda v: v / dec(v), 0.0, LIMIT, epsabs=1e-13)[0]
-    return ta, sa, tb, sb, ta + tb + (1500.0 - sa - sb) / LIMIT
-
-
-EXACT = {g: _exact_parts(g)[-1] for g in GRADES}
+EXACT = {g: seed000_exact(g)[4] for g in GRADES}
 
 
 def test_reference_minimum_times():
-    ta, sa, tb, sb, t = _exact_parts(0.0)
+    ta, sa, tb, sb, t, _ = seed000_exact(0.0)
     assert ta == pytest.approx(5.995, abs=1e-3) and sa == pytest.approx(33.30, abs=1e-2)
     assert tb == pytest.approx(6.748, abs=1e-3) and sb == pytest.approx(37.41, abs=1e-2)
     assert t == pytest.approx(141.507, abs=1e-3)
@@ -85,7 +65,7 @@ def test_seed_problem_matches_table1():
     assert p.mass_t == 284.0 and p.f_max_kn == 532.0 and p.b_max_kn == 461.0 and p.length_m == 1500.0
     assert p.speed_limit_ms == pytest.approx(LIMIT)
     for v in (0.0, 5.0, 11.1):
-        assert p.resistance(v) == pytest.approx(_resistance_kn(v), rel=1e-12)
+        assert p.resistance(v) == pytest.approx(seed000_resistance_kn(v), rel=1e-12)
     assert p.grade_force_kn == pytest.approx(284 * G * 0.03)
 
 
@@ -107,7 +87,7 @@ def test_two_stage_reaches_exact_minimum(runs, grade, nodes):
     assert (s1.control_nodes, s1.state_nodes, s1.segments) == (nodes, 2 * nodes, 1)
     assert sol.state_nodes == 2 * nodes and sol.control_nodes < nodes
     # breakpoints sit on the switches of the exact solution
-    ta, _, tb, _, t = _exact_parts(grade)
+    ta, _, tb, _, t, _ = seed000_exact(grade)
     assert sol.breakpoints_s[0] == pytest.approx(ta, abs=0.05)
     assert sol.breakpoints_s[-1] == pytest.approx(t - tb, abs=0.05)
     assert wall < 1.0
@@ -118,8 +98,8 @@ def test_two_stage_on_a_route_too_short_for_the_limit():
     from scipy.optimize import brentq
 
     m = 284.0
-    acc = lambda v: (532.0 - _resistance_kn(v)) / m  # noqa: E731
-    dec = lambda v: (461.0 + _resistance_kn(v)) / m  # noqa: E731
+    acc = lambda v: (532.0 - seed000_resistance_kn(v)) / m  # noqa: E731
+    dec = lambda v: (461.0 + seed000_resistance_kn(v)) / m  # noqa: E731
     s_of = lambda f, v: quad(lambda w: w / f(w), 0.0, v, epsabs=1e-13)[0]  # noqa: E731
     v_peak = brentq(lambda v: s_of(acc, v) + s_of(dec, v) - 60.0, 1.0, LIMIT, xtol=1e-14)
     exact = sum(quad(lambda w, f=f: 1.0 / f(w), 0.0, v_peak, epsabs=1e-13)[0] for f in (acc, dec))
