@@ -202,3 +202,24 @@ def test_limit_exceeded_when_full_braking_cannot_hold(freight):
     assert 5200 * 9.81 * 0.025 > 461 + 47.8728 + 80 * (0.2429 + 0.00672 * 80)
     res = TractionCalculator(steep, train).evaluate(("T",), np.zeros((1, 0)))
     assert res.reason_code[0] == LIMIT_EXCEEDED and "limit exceeded at" in res.reason(0)
+
+
+def test_neutral_section_cuts_traction_with_its_coasting_margins(freight):
+    """No traction inside a neutral section nor for coast_before_s / coast_after_s around it, the
+    margins taken at the line speed (80 km/h at 10.6 km: 10 s = 222.2 m each side)."""
+    from locoplan.model.route import Route
+    from locoplan.sim.calculator import neutral_spans_m
+
+    route, train = freight
+    ns = Route.model_validate({**route.model_dump(by_alias=True),
+                               "neutral_sections": [{"from_m": 10600, "to_m": 10650, "coast_before_s": 10, "coast_after_s": 10}]})
+    (a, b), = neutral_spans_m(ns)
+    assert a == pytest.approx(10600 - 10 * 80 / 3.6) and b == pytest.approx(10650 + 10 * 80 / 3.6)
+    plain = TractionCalculator(route, train).evaluate(("T",), np.zeros((1, 0)), profile=True)
+    cut = TractionCalculator(ns, train).evaluate(("T",), np.zeros((1, 0)), profile=True)
+    p = cut.profile
+    inside = (p.s_m[:-1] >= a - 1e-6) & (p.s_m[1:] <= b + 1e-6)
+    assert inside.sum() >= 5
+    assert np.all(p.traction_kn[0, inside] == 0) and np.all(p.condition[0, inside] == CODE["C"])
+    assert plain.profile.traction_kn[0, (plain.profile.s_m[:-1] >= a) & (plain.profile.s_m[1:] <= b)].max() > 400
+    assert cut.running_time_s[0] > plain.running_time_s[0] and cut.traction_energy_kwh[0] < plain.traction_energy_kwh[0]

@@ -71,6 +71,25 @@ class ModelOptions:
     strict_limits: bool = False
 
 
+def neutral_spans_m(route: Route) -> list[tuple[float, float]]:
+    """Where traction is cut for each neutral section [m]: the section itself, widened by its
+    ``coast_before_s`` / ``coast_after_s`` converted to distance at the line's speed limit there (a
+    slower train covers less ground in that time, so the span is conservative)."""
+    sl = route.speed_limits
+    starts = np.array([x.from_m for x in sl])
+
+    def limit_ms(x: float) -> float:
+        i = int(np.clip(np.searchsorted(starts, x, side="right") - 1, 0, len(sl) - 1))
+        return sl[i].kmh / 3.6
+
+    spans = []
+    for ns in route.neutral_sections:
+        a = ns.from_m - ns.coast_before_s * limit_ms(ns.from_m)
+        b = ns.to_m + ns.coast_after_s * limit_ms(ns.to_m)
+        spans.append((max(a, 0.0), min(b, route.length_m)))
+    return spans
+
+
 def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
     """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode)."""
     L = route.length_m
@@ -80,6 +99,8 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
             points += [sec.from_m, sec.to_m]
     for c in route.curves:  # seed 004 claim 6: a short curve is spread over one train length
         points.append(c.from_m + train.length_m)
+    for a, b in neutral_spans_m(route):
+        points += [a, b]
     if options.strip:
         points += [p + train.length_m for p in list(points)]
     n = max(1, math.ceil(L / options.step_m - 1e-9))
@@ -120,6 +141,10 @@ class TractionCalculator:
         self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
         self.m_eff_t = train.mass_t * (1.0 + self.options.rotating_mass)
         self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
+        # 1.0 where traction is allowed, 0.0 in neutral sections and their coasting margins
+        self.traction_allowed = np.ones(len(mid))
+        for a, b in neutral_spans_m(route):
+            self.traction_allowed[(mid > a) & (mid < b)] = 0.0
         e_cell = (self.limit_kmh / 3.6) ** 2 / 2
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
@@ -255,6 +280,7 @@ class TractionCalculator:
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
+        f0 *= self.traction_allowed[0]
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
             t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, slope, cruise_e, cruise_cap,
@@ -283,6 +309,7 @@ class TractionCalculator:
         bv, bf = self.train.brake_speed_kmh, self.train.brake_kn
         ra, rb, rc = self.train.resistance_kn
         grav = self.gravity_kn
+        allowed = self.traction_allowed
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
@@ -292,7 +319,7 @@ class TractionCalculator:
             if cruise_e is not None:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
-            f_max = _interp(v_kmh, tv, tf)
+            f_max = _interp(v_kmh, tv, tf) * allowed[k]
             b_max = _interp(v_kmh, bv, bf)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
@@ -333,6 +360,8 @@ class TractionCalculator:
                 trac[:, k] = w_tr / hk
                 brk[:, k] = (fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
                 dominant = np.argmax(frac[:, :, k], axis=0)
+                if not allowed[k]:  # no traction in a neutral section: what was T is coasting
+                    dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node
