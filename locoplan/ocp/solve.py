@@ -30,6 +30,7 @@ import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -78,13 +79,28 @@ class ControlPiece:
     times: np.ndarray
     values: np.ndarray
 
+    @cached_property
+    def _barycentric(self) -> tuple[np.ndarray, np.ndarray]:
+        """Nodes on [-1, 1] and their barycentric weights, computed once (the re-simulation calls the
+        control thousands of times)."""
+        tau_nodes = 2.0 * (self.times - self.t0) / (self.t1 - self.t0) - 1.0
+        return tau_nodes, _nodes.barycentric_weights(tau_nodes)
+
     def __call__(self, t):
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if self.kind == "linear":
             return np.interp(t, self.times, self.values)
-        tau_nodes = 2.0 * (self.times - self.t0) / (self.t1 - self.t0) - 1.0
+        x, lam = self._barycentric
         tau = 2.0 * (t - self.t0) / (self.t1 - self.t0) - 1.0
-        return _nodes.interpolation_matrix(tau_nodes, tau) @ self.values
+        diff = tau[:, None] - x[None, :]
+        exact = diff == 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            terms = lam[None, :] / diff
+            out = (terms @ self.values) / terms.sum(axis=1)  # second barycentric formula
+        hit = exact.any(axis=1)
+        if hit.any():  # at a node the interpolant is the nodal value
+            out[hit] = self.values[exact[hit].argmax(axis=1)]
+        return out
 
 
 @dataclass(frozen=True)
