@@ -9,6 +9,7 @@ two-stage method) must be matched or beaten.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 from pathlib import Path
@@ -16,8 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import typer
-from scipy.integrate import quad
-from scipy.optimize import brentq
 from typer.testing import CliRunner
 
 from locoplan.errors import InputError
@@ -116,14 +115,7 @@ def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
 
 
 def test_exact_minimum_on_a_route_too_short_for_the_limit():
-    m = 284.0
-    acc = lambda v: (532.0 - seed000_resistance_kn(v)) / m  # noqa: E731
-    dec = lambda v: (461.0 + seed000_resistance_kn(v)) / m  # noqa: E731
-    dist = lambda f, v: quad(lambda w: w / f(w), 0.0, v, epsabs=1e-13)[0]  # noqa: E731
-    v_peak = brentq(lambda v: dist(acc, v) + dist(dec, v) - 60.0, 1.0, LIMIT, xtol=1e-14)
-    ref = sum(quad(lambda w, f=f: 1.0 / f(w), 0.0, v_peak, epsabs=1e-13)[0] for f in (acc, dec))
-    import dataclasses
-
+    ref = seed000_exact(0.0, 60.0)[4]
     ex = exact_minimum(dataclasses.replace(seed000_problem(0.0), length_m=60.0))
     assert ex.time_s == pytest.approx(ref, abs=1e-6) and ex.cruise_s == 0.0 and ex.peak_speed_ms < LIMIT
 

@@ -14,7 +14,6 @@ import time
 import casadi as ca
 import numpy as np
 import pytest
-from scipy.integrate import quad
 
 from locoplan.errors import InfeasibleError, InputError, LocoplanError
 from locoplan.ocp import MinTimeTrainProblem, resimulate, seed000_problem, solve_min_time
@@ -95,14 +94,7 @@ def test_two_stage_reaches_exact_minimum(runs, grade, nodes):
 
 def test_two_stage_on_a_route_too_short_for_the_limit():
     """60 m, level (the limit needs ~71 m): full traction, then full brake from the peak speed."""
-    from scipy.optimize import brentq
-
-    m = 284.0
-    acc = lambda v: (532.0 - seed000_resistance_kn(v)) / m  # noqa: E731
-    dec = lambda v: (461.0 + seed000_resistance_kn(v)) / m  # noqa: E731
-    s_of = lambda f, v: quad(lambda w: w / f(w), 0.0, v, epsabs=1e-13)[0]  # noqa: E731
-    v_peak = brentq(lambda v: s_of(acc, v) + s_of(dec, v) - 60.0, 1.0, LIMIT, xtol=1e-14)
-    exact = sum(quad(lambda w, f=f: 1.0 / f(w), 0.0, v_peak, epsabs=1e-13)[0] for f in (acc, dec))
+    exact = seed000_exact(0.0, 60.0)[4]
     problem = dataclasses.replace(seed000_problem(0.0), length_m=60.0)
     sol = solve_min_time(problem, "two-stage", 17)
     assert sol.success and abs(sol.objective_s - exact) < 0.02

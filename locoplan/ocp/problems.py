@@ -3,7 +3,7 @@
 Layer 3 of the optimal-control stack. :class:`MinTimeTrainProblem` only holds numbers and turns them
 into a generic :class:`~locoplan.ocp.transcription.OcpDescription` (dynamics on CasADi symbols,
 bounds, boundary conditions, objective ``t_f``); it never sees a node or a differentiation matrix and
-imports nothing from the rest of locoplan except the error types.
+imports nothing from the rest of locoplan except the error types and g.
 
 Model (seed eq. 1-3, point mass, ideal tractive effort):
 
@@ -23,11 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InfeasibleError, InputError, Problem
+from ..model.train import G_MS2  # one g for the whole project (SPEC: 9.81 m/s^2)
 from .transcription import Guess, OcpDescription
 
 __all__ = ["G_MS2", "KMH_PER_MS", "MinTimeTrainProblem", "davis_resistance_kn", "seed000_problem"]
 
-G_MS2 = 9.81
 KMH_PER_MS = 3.6
 
 

@@ -68,6 +68,12 @@ __all__ = [
 
 #: IPOPT options that silence all solver output.
 IPOPT_QUIET = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"}
+IPOPT_DEFAULTS = {**IPOPT_QUIET, "ipopt.max_iter": 3000, "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7}
+
+
+def _ipopt_solver(name: str, nlp: dict, ipopt_options: dict | None):
+    """A silent IPOPT solver with the tight tolerances every transcription here uses."""
+    return ca.nlpsol(name, "ipopt", nlp, {**IPOPT_DEFAULTS, **(ipopt_options or {})})
 
 
 # --------------------------------------------------------------------------------------------------
@@ -570,11 +576,7 @@ def solve_gauss(
     wv = ca.vertcat(*w_parts)
     gv = ca.vertcat(*g_parts)
     nlp = {"x": wv, "f": objective / ocp.objective_scale, "g": gv}
-    opts = dict(IPOPT_QUIET)
-    opts.update({"ipopt.max_iter": 3000, "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7})
-    if ipopt_options:
-        opts.update(ipopt_options)
-    solver = ca.nlpsol("gpm", "ipopt", nlp, opts)
+    solver = _ipopt_solver("gpm", nlp, ipopt_options)
     build_time = _time.perf_counter() - t_build
 
     lbw_v, ubw_v, w0_v = (np.concatenate(a) for a in (lbw, ubw, w0))
@@ -747,11 +749,7 @@ def solve_cvp(
         objective = objective + _as_column(ocp.mayer(x0, x[:nx], tf), 1, "mayer")
     w = ca.vertcat(tf_s, ca.vec(p_s))
     nlp = {"x": w, "f": objective / ocp.objective_scale, "g": ca.vertcat(*g_parts)}
-    opts = dict(IPOPT_QUIET)
-    opts.update({"ipopt.max_iter": 3000, "ipopt.tol": 1e-10, "ipopt.acceptable_tol": 1e-7})
-    if ipopt_options:
-        opts.update(ipopt_options)
-    solver = ca.nlpsol("cvp", "ipopt", nlp, opts)
+    solver = _ipopt_solver("cvp", nlp, ipopt_options)
     build_time = _time.perf_counter() - t_build
 
     tf_lo, tf_hi = ocp.final_time_bounds

@@ -22,8 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.plan import runs_from_profile
-from ..physics.resistance import train_resistance_kn
-from ..physics.traction import gradient_force_kn, max_force_kn
 from ..sim.calculator import TractionCalculator
 
 
@@ -89,22 +87,19 @@ def classify_limits(calc: TractionCalculator) -> tuple[LimitSection, ...]:
 def speed_change_kmh(calc: TractionCalculator, from_m: float, to_m: float, v0_kmh: float, condition: str,
                      n_steps: int = 200) -> float:
     """Speed change [km/h] over [from_m, to_m] under full traction ('T') or coasting ('C'), starting at
-    ``v0_kmh``, ignoring limits (RK2 in e = v^2/2 on the route's cells; stops at rest)."""
-    train, m = calc.train, calc.m_eff_t
+    ``v0_kmh``, ignoring limits (RK2 in e = v^2/2 on the calculator's cells; stops at rest)."""
     edges = np.linspace(from_m, to_m, n_steps + 1)
-    mids = 0.5 * (edges[1:] + edges[:-1])
-    cells = np.clip(np.searchsorted(calc.s_m, mids, side="right") - 1, 0, len(calc.h_m) - 1)
-    grav = gradient_force_kn(calc.gradient_permille[cells], train.mass_t)
+    cells = np.clip(np.searchsorted(calc.s_m, 0.5 * (edges[1:] + edges[:-1]), side="right") - 1, 0, len(calc.h_m) - 1)
     d = (to_m - from_m) / n_steps
+    traction = 1.0 if condition == "T" else 0.0
 
-    def slope(e, g):
-        v = math.sqrt(2 * max(e, 0.0)) * 3.6
-        f = float(max_force_kn(v, train.traction_speed_kmh, train.traction_kn)) if condition == "T" else 0.0
-        return (f - float(train_resistance_kn(v, train.resistance_kn)) - g) / m
+    def slope(e: float, k: int) -> float:
+        f_max, _, load = calc.forces_kn(math.sqrt(2 * max(e, 0.0)), k)
+        return float(traction * f_max - load) / calc.m_eff_t
 
     e = (v0_kmh / 3.6) ** 2 / 2
-    for g in grav:
-        e = e + d * slope(e + 0.5 * d * slope(e, g), g)
+    for k in cells:
+        e = e + d * slope(e + 0.5 * d * slope(e, k), k)
         if e <= 0:
             return -v0_kmh
     return math.sqrt(2 * e) * 3.6 - v0_kmh
