@@ -43,6 +43,15 @@ def guarded(fn):
     return wrapper
 
 
+def _fail_if(messages: list) -> None:
+    """After every output is written: name each result that failed its job, exit 1 if any did."""
+    messages = [m for m in messages if m]
+    for m in messages:
+        err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
+    if messages:
+        raise typer.Exit(1)
+
+
 def _version(value: bool):
     if value:
         out.print(f"locoplan {__version__}")
@@ -54,12 +63,15 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     pass
 
 
-def _options(step: float, strip: bool, rotating_mass: float, strict_limits: bool = False) -> ModelOptions:
-    if step <= 0:
-        raise InputError(Problem("", "--step", f"must be > 0 m (got {step:g})"))
-    if not 0 <= rotating_mass < 1:
-        raise InputError(Problem("", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
-    return ModelOptions(step_m=step, strip=strip, rotating_mass=rotating_mass, strict_limits=strict_limits)
+def _options(step: float, point_mass: bool, rotating_mass: Optional[float], strict_limits: bool = False,
+             air_brake: Optional[bool] = None) -> ModelOptions:
+    if not 0 < step <= 1000:
+        raise InputError(Problem("<command line>", "--step", f"must be in (0, 1000] m (got {step:g})"))
+    if rotating_mass is not None and not 0 <= rotating_mass < 1:
+        raise InputError(Problem("<command line>", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
+    air = (not point_mass) if air_brake is None else air_brake
+    return ModelOptions(step_m=step, point_mass=point_mass, air_brake=air, rotating_mass=rotating_mass,
+                        strict_limits=strict_limits)
 
 
 # ------------------------------------------------------------------------------------------ validate
@@ -194,9 +206,9 @@ def _names(text: str, field: str) -> list[str]:
     return names
 
 
-def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, strip: bool, rotating_mass: float,
-          strict_limits: bool):
-    opts = _options(step, strip, rotating_mass, strict_limits)
+def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
+          rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
+    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     return load_route(route), load_train(consist, stock_dir), opts
 
 
@@ -229,8 +241,9 @@ CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or 
 STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
 JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
 STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
-STRIP = typer.Option(False, "--strip", help="Train as a strip: gradient averaged and lowest limit kept over its length.")
-ROT = typer.Option(0.0, "--rotating-mass", help="Rotating-mass allowance gamma (inertial mass M(1+gamma)).")
+POINT_MASS = typer.Option(False, "--point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
+AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
+ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
 STRICT = typer.Option(False, "--strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
 TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
@@ -250,7 +263,7 @@ def simulate(route: Path = ROUTE,
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png or .svg."),
-             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              time_s: Optional[float] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
     from .runner import make_context, run_sequence, run_strategy
@@ -258,7 +271,7 @@ def simulate(route: Path = ROUTE,
     if strategy and sequence:
         raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
     _check_outputs(out_file, plot)
-    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
@@ -272,8 +285,10 @@ def simulate(route: Path = ROUTE,
     if not as_json:
         out.print(_summary_table(summary))
         out.print(_sequence_table(summary["sequence"]))
-    if not summary["feasible"]:
-        raise typer.Exit(1)
+    from .runner import schedule_verdict
+
+    # a plan is checked against the window only when a running time was asked for (--time)
+    _fail_if([schedule_verdict(ctx, run, strict=time_s is not None)])
 
 
 @app.command()
@@ -283,7 +298,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
-             step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
     from .optimize.registry import get_algorithm
@@ -292,7 +307,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     get_algorithm(algorithm)
     w = _weights(weights)
     _check_outputs(out_file, plot)
-    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
@@ -313,8 +328,9 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     if not as_json:
         out.print(_summary_table(summary))
         out.print(_sequence_table(summary["sequence"]))
-    if not summary["feasible"]:
-        raise typer.Exit(1)
+    from .runner import schedule_verdict
+
+    _fail_if([schedule_verdict(ctx, run)])
 
 
 def _iterations(algorithm: str, params: Optional[Path]) -> int:
@@ -382,7 +398,7 @@ def compare(route: Path = ROUTE,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
-            step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+            step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .optimize.registry import get_algorithm
@@ -392,7 +408,7 @@ def compare(route: Path = ROUTE,
     names = _names(strategies, "--strategies")
     w = _weights(weights)
     _check_outputs(out_file, plot, csv_ok=False)
-    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
                        params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
     if explain and not as_json:
@@ -409,6 +425,9 @@ def compare(route: Path = ROUTE,
     if not as_json:
         for table in _compare_tables(results["results"], f"{r.name} — {train.name}, T0 = {ctx.t0_s:g} s"):
             out.print(table)
+    from .runner import schedule_verdict
+
+    _fail_if([schedule_verdict(ctx, x) for x in runs])
 
 
 @app.command()
@@ -420,7 +439,7 @@ def sweep(route: Path = ROUTE,
           time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
-          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+          step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
     from .optimize.registry import get_algorithm
@@ -431,7 +450,7 @@ def sweep(route: Path = ROUTE,
         raise InputError(Problem("", "--weights", "give exactly one of --weights or --times"))
     values = _range(weights or times, "--weights" if weights else "--times")
     _check_outputs(out_file, plot, csv_ok=False)
-    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, algorithm=algorithm, seed=seed,
                        params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
     runs = sweep_weights(ctx, values) if weights else sweep_times(ctx, values)
@@ -459,6 +478,9 @@ def sweep(route: Path = ROUTE,
             table.add_row(*lead, f"{x['running_time_s']:.1f}", f"{x['traction_energy_kwh']:.2f}",
                           f"{x['punctuality_error_s']:.1f}", f"{x['fitness']:.4f}" if x["fitness"] is not None else "-", *tail)
         out.print(table)
+    from .runner import schedule_verdict
+
+    _fail_if([schedule_verdict(ctx, x) for x in runs])
 
 
 @app.command()
@@ -471,7 +493,7 @@ def study(route: Path = ROUTE,
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
-          step: float = STEP, strip: bool = STRIP, rotating_mass: float = ROT, strict_limits: bool = STRICT,
+          step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW):
     """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
     from dataclasses import replace
@@ -486,9 +508,12 @@ def study(route: Path = ROUTE,
         raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
     w = _weights(weights)
     _check_outputs(out_file, plot, csv_ok=False)
-    r, train, opts = _load(route, consist, stock_dir, step, strip, rotating_mass, strict_limits)
+    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed, tolerance_s=tolerance,
                        window=window)
+    from .runner import check_time_possible
+
+    check_time_possible(ctx)
     ctx.e_min()
     results: dict[str, list] = {}
     for a in algs:
@@ -497,7 +522,7 @@ def study(route: Path = ROUTE,
         for i in range(runs):
             results[a].append(run_strategy(replace(ctx, algorithm=a, seed=seed + i,
                                                    params_path=str(pfile) if pfile else None), "proposed"))
-    rows = study_table(results, ctx.tolerance_s if ctx.tolerance_s is not None else (r.schedule.tolerance_s if r.schedule else None))
+    rows = study_table(results, ctx.tolerance_s)
     data = {"results": [x.summary for a in algs for x in results[a]], "table": rows,
             "e_min_kwh": round(ctx.e_min(), 2), "planned_time_s": ctx.t0_s}
     _emit(data, as_json, out_file)
@@ -526,6 +551,9 @@ def study(route: Path = ROUTE,
                           "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
                           f"{x['mean_solve_time_s']:.2f}")
         out.print(table)
+    from .runner import schedule_verdict
+
+    _fail_if([schedule_verdict(ctx, x) for a in algs for x in results[a]])
 
 
 from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)

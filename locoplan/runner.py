@@ -19,7 +19,7 @@ from .model.train import Train
 from .optimize.problem import fitness_eq10
 from .sim.calculator import ModelOptions, TractionCalculator
 from .sim.result import BatchResult
-from .strategy.strategies import STRATEGIES, StrategyContext, StrategyOutcome, get_strategy
+from .strategy.strategies import STRATEGIES, TIMETABLED, StrategyContext, StrategyOutcome, get_strategy
 
 SEARCH_STEP_M = 100.0
 """Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on
@@ -34,10 +34,14 @@ class RunResult:
     summary: dict
 
 
+DEFAULT_TOLERANCE_SHARE = 0.01
+"""Punctuality window when neither --tolerance nor the route's schedule gives one: +- 1 % of T0."""
+
+
 def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
-        if time_s <= 0:
-            raise InputError(Problem("", "--time", f"must be > 0 s (got {time_s:g})"))
+        if not (math.isfinite(time_s) and time_s > 0):
+            raise InputError(Problem("<command line>", "--time", f"must be a finite number of seconds > 0 (got {time_s:g})"))
         return float(time_s)
     if route.schedule is None:
         raise InputError(Problem("", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
@@ -57,13 +61,16 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     calc = TractionCalculator(route, train, options)
     search = calc if options.step_m >= SEARCH_STEP_M else TractionCalculator(route, train, replace(options, step_m=SEARCH_STEP_M))
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
-    if e_min_kwh is not None and e_min_kwh <= 0:
-        raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {e_min_kwh:g})"))
-    if tolerance_s is not None and tolerance_s < 0:
-        raise InputError(Problem("", "--tolerance", f"must be >= 0 s (got {tolerance_s:g})"))
-    tol = tolerance_s if tolerance_s is not None else (route.schedule.tolerance_s if route.schedule else None)
+    if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
+        raise InputError(Problem("<command line>", "--e-min", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
+    if tolerance_s is not None and not (math.isfinite(tolerance_s) and tolerance_s >= 0):
+        raise InputError(Problem("<command line>", "--tolerance", f"must be a finite number >= 0 s (got {tolerance_s:g})"))
+    tol = None
+    if not math.isnan(t0):
+        tol = tolerance_s if tolerance_s is not None else (
+            route.schedule.tolerance_s if route.schedule else max(1.0, DEFAULT_TOLERANCE_SHARE * t0))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
-                           tol if window else None)
+                           tol, window)
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
@@ -92,7 +99,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
     fit = None
     if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
         fit = round(float(fitness_eq10(t, e, t0, e_min, *ctx.weights)), 5)
-    tol = ctx.tolerance_s if ctx.tolerance_s is not None else (route.schedule.tolerance_s if route.schedule else None)
+    tol = ctx.tolerance_s
     return {
         "route": route.name,
         "consist": train.name,
@@ -105,7 +112,8 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "traction_energy_kwh": round(e, 2),
         "planned_time_s": None if math.isnan(t0) else t0,
         "punctuality_error_s": None if (math.isnan(t0) or math.isnan(t)) else round(abs(t - t0), 2),
-        "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol),
+        "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
+        "window_s": None if (math.isnan(t0) or tol is None) else [round(t0 - tol, 2), round(t0 + tol, 2)],
         "fitness": fit,
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
@@ -116,6 +124,25 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "switching_points_m": [round(x, 1) for x in outcome.plan.starts_m[1:] if not math.isnan(x)],
         "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, prof.event_m[0]),
     }
+
+
+def schedule_verdict(ctx: StrategyContext, run: RunResult, strict: bool | None = None) -> str | None:
+    """Why a result fails its job, or None: infeasible, or (for a strategy that must keep the timetable,
+    or any plan when ``strict``) outside the window T0 +- tolerance, naming what is reachable."""
+    s = run.summary
+    if not s["feasible"]:
+        return f"{s['strategy']}: no feasible plan ({s['reason']})"
+    must = (run.name in TIMETABLED and ctx.use_window) if strict is None else strict
+    if not must or s["punctual"] is not False:
+        return None
+    lo, hi = s["window_s"]
+    fastest = ctx.calc.fastest_time_s
+    span = run.outcome.time_range_s
+    reach = f"the fastest possible run is {fastest:,.1f} s"
+    if span is not None:
+        reach = f"its plans ran {max(span[0], fastest):,.1f} .. {span[1]:,.1f} s here ({reach})"
+    return (f"{s['strategy']}: running time {s['running_time_s']:,.1f} s misses the window {lo:,.1f} .. {hi:,.1f} s "
+            f"(T0 = {ctx.t0_s:g} s); {reach}")
 
 
 def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> RunResult:

@@ -80,7 +80,7 @@ def _simulate(*args):
     (["routes/seed000-flat.yaml", "--sequence", "T:100,C:500"], "the first condition must start at 0 m"),
     (["routes/seed000-flat.yaml", "--sequence", "T:0,C:1600"], "not before the end of the route (1500 m)"),
     (["routes/seed000-flat.yaml", "--strategy", "fastest"], "unknown strategy 'fastest' (one of:"),
-    (["routes/seed000-flat.yaml", "--step", "0"], "--step: must be > 0 m"),
+    (["routes/seed000-flat.yaml", "--step", "0"], "--step: must be in (0, 1000] m"),
     (["routes/seed000-flat.yaml", "--out", "profile.txt"], "unknown output type '.txt'"),
     (["routes/seed000-flat.yaml", "--plot", "profile.pdf"], "use a .png or .svg file name"),
     (["routes/seed000-flat.yaml", "--out", "no/such/dir/p.csv"], "folder no/such/dir does not exist"),

@@ -72,5 +72,7 @@ def test_force_curves_and_gravity(freight):
     expected = 760 - (47 - 45.47) / (50 - 45.47) * (760 - 691.2)
     assert max_force_kn(47.0, train.traction_speed_kmh, train.traction_kn) == pytest.approx(expected)
     assert max_force_kn(130.0, train.traction_speed_kmh, train.traction_kn) == pytest.approx(288.0)
-    assert max_force_kn(30.0, train.brake_speed_kmh, train.brake_kn) == pytest.approx(461.0)
+    assert max_force_kn(30.0, *train.brake_curve(air=False)) == pytest.approx(461.0)  # the HXD1's electric brake
+    # + 50 loaded C80: braking ratio 0.20 x 100 t x 9.81 x phi_h(30) = 0.322 * 180 / 210, at beta_c = 0.5
+    assert max_force_kn(30.0, train.brake_speed_kmh, train.brake_kn) == pytest.approx(461.0 + 50 * 0.2 * 981 * 0.322 * 180 / 210 * 0.5)
     assert gradient_force_kn(10.0, 5200.0) == pytest.approx(510.12)

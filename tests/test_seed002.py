@@ -17,6 +17,9 @@ from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.sequence import build_sequence, classify_grades, classify_limits
 
 runner = CliRunner()
+SEEDS = ModelOptions.seeds()
+"""Seed 002's own train model (point mass, HXD1 electric brake alone): the builder's classification and
+the strategies' order are checked as the seed states them."""
 
 
 def _route(limits, grades, length=None):
@@ -36,7 +39,7 @@ def _route(limits, grades, length=None):
 def test_limit_types_one_of_each(freight):
     _, train = freight
     route = _route([(2000, 40), (4000, 60), (6000, 50), (8000, 70), (10000, 30)], [(10000, 0.0)])
-    kinds = [s.kind for s in classify_limits(TractionCalculator(route, train))]
+    kinds = [s.kind for s in classify_limits(TractionCalculator(route, train, SEEDS))]
     # 0 < 40 < 60: rising; 40 < 60 > 50: convex (a hump); 60 > 50 < 70: concave (a dip);
     # 50 < 70 > 30: convex; 70 > 30 > stop: falling
     assert kinds == ["rising", "convex", "concave", "convex", "falling"]
@@ -49,7 +52,7 @@ def test_grade_types_one_of_each(freight):
     w = 5200 * 9.81 / 1000
     assert 432 / w - (47.8728 + 80 * (0.24290 + 0.0067198 * 80)) / w == pytest.approx(6.31, abs=0.01)
     route = _route([(12000, 80)], [(2000, 0.0), (4000, 12.0), (6000, 1.0), (8000, -6.0), (10000, -1.0), (12000, 5.0)])
-    grades = classify_grades(TractionCalculator(route, train))
+    grades = classify_grades(TractionCalculator(route, train, SEEDS))
     assert [g.kind for g in grades] == ["ordinary", "long-up", "ordinary", "long-down", "ordinary", "ordinary"]
     assert grades[1].speed_change_kmh < -2 and grades[3].speed_change_kmh > 2
 
@@ -57,7 +60,7 @@ def test_grade_types_one_of_each(freight):
 def test_builder_puts_traction_on_long_ups_and_coasting_on_long_downs(freight):
     _, train = freight
     route = _route([(12000, 80)], [(2000, 0.0), (4000, 12.0), (6000, 1.0), (8000, -6.0), (10000, -1.0), (12000, 0.0)])
-    calc = TractionCalculator(route, train)
+    calc = TractionCalculator(route, train, SEEDS)
     seq = build_sequence(calc)
     starts = np.concatenate([[0.0], seq.nominal_m, [12000.0]])
     def condition_at(x):
@@ -74,7 +77,7 @@ def test_builder_puts_traction_on_long_ups_and_coasting_on_long_downs(freight):
 
 def test_freight_route_classification_matches_its_design(freight):
     route, train = freight
-    grades = classify_grades(TractionCalculator(route, train))
+    grades = classify_grades(TractionCalculator(route, train, SEEDS))
     kinds = {g.from_m: g.kind for g in grades}
     assert [x for x, k in kinds.items() if k == "long-up"] == [4500, 11500]
     assert [x for x, k in kinds.items() if k == "long-down"] == [3000, 6500, 9500, 15500]
@@ -88,7 +91,7 @@ def test_fitness_eq10_by_hand():
 
 def _problem(freight, strict=False):
     route, train = freight
-    calc = TractionCalculator(route, train, ModelOptions(step_m=100, strict_limits=strict))
+    calc = TractionCalculator(route, train, ModelOptions.seeds(step_m=100, strict_limits=strict))
     seq = build_sequence(calc)
     return SwitchingProblem(calc, seq.conditions, seq.lower_m, seq.upper_m, t0_s=1500, e_min_kwh=580)
 
@@ -118,7 +121,7 @@ def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
 @pytest.fixture(scope="module")
 def small_ctx(freight, root):
     route, train = freight
-    return lambda **kw: make_context(route, train, params_path=str(root / "tests/data/optimizers/issa.yaml"),
+    return lambda **kw: make_context(route, train, SEEDS, params_path=str(root / "tests/data/optimizers/issa.yaml"),
                                      e_min_kwh=580.0, **kw)
 
 
@@ -150,13 +153,13 @@ def test_strategies_physics_order(small_ctx):
 
 def test_time_below_fastest_is_exit_1_with_the_fastest_time(root, monkeypatch, freight):
     monkeypatch.chdir(root)
-    fastest = TractionCalculator(*freight).fastest_time_s
+    fastest = TractionCalculator(*freight).fastest_time_s  # the default model, as the command uses
     res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", f"{fastest - 1:.1f}", "--e-min", "580"])
     assert res.exit_code == 1
     assert f"below the fastest possible run, {fastest:.1f} s" in res.stderr
 
 
-SMALL = ["--params", "tests/data/optimizers/issa.yaml"]
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass"]
 
 
 def test_optimize_json(root, monkeypatch):
@@ -179,7 +182,7 @@ def test_compare_explain_and_json(root, monkeypatch, tmp_path):
         assert word in res.stdout
     assert (tmp_path / "c.png").stat().st_size > 10000
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--json", "--strategies", "time-saving,four-stage",
-                              "--e-min", "580"])
+                              "--e-min", "580", "--point-mass"])
     d = json.loads(res.stdout)
     assert [r["strategy"] for r in d["results"]] == ["time-saving", "four-stage"]
 
@@ -191,7 +194,7 @@ def test_sweep_and_study(root, monkeypatch):
     rows = json.loads(res.stdout)["results"]
     assert [r["planned_time_s"] for r in rows] == [1470, 1530] and rows[0]["energy_reduction_percent"] == 0
     res = runner.invoke(app, ["study", "routes/freight-20km.yaml", "--algorithms", "issa,pso", "--runs", "2", "--json",
-                              "--e-min", "580", "--params-dir", "tests/data/optimizers"])
+                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass"])
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     assert [r["algorithm"] for r in d["table"]] == ["issa", "pso"] and len(d["results"]) == 4
@@ -201,7 +204,7 @@ def test_sweep_and_study(root, monkeypatch):
 @pytest.mark.parametrize("args,why", [
     (["optimize", "routes/freight-20km.yaml", "--weights", "0.7,0.7"], "--weights: expected two non-negative weights summing to 1"),
     (["optimize", "routes/freight-20km.yaml", "--algorithm", "ga"], "unknown"),
-    (["optimize", "routes/freight-20km.yaml", "--e-min", "-5"], "--e-min: must be > 0"),
+    (["optimize", "routes/freight-20km.yaml", "--e-min", "-5"], "--e-min: must be a finite number > 0"),
     (["optimize", "routes/freight-20km.yaml", "--out", "x.txt"], "unknown output type '.txt'"),
     (["compare", "routes/freight-20km.yaml", "--strategies", "fast"], "unknown strategy 'fast'"),
     (["sweep", "routes/freight-20km.yaml"], "give exactly one of --weights or --times"),

@@ -12,7 +12,7 @@ from pydantic import BaseModel, ValidationError
 
 from ..errors import InputError, Problem
 from ..model.common import RuleViolations
-from ..model.consist import Consist, Vehicle
+from ..model.consist import PLAUSIBLE, Consist, Vehicle
 from ..model.route import Route
 from ..model.train import Train
 
@@ -38,6 +38,26 @@ def _line_map(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dic
         for i, item in enumerate(node.value):
             out[path + (i,)] = item.start_mark.line + 1
             _line_map(item, path + (i,), out)
+    return out
+
+
+def _duplicate_keys(node: yaml.Node, name: str, path: tuple = ()) -> list[Problem]:
+    """Every key written twice in one mapping (YAML would silently keep the last one)."""
+    out: list[Problem] = []
+    if isinstance(node, yaml.MappingNode):
+        seen: dict = {}
+        for key, value in node.value:
+            k = key.value
+            if k in seen:
+                out.append(Problem(name, field_name(path + (k,)),
+                                   f"duplicate key: written on line {seen[k]} and again on line {key.start_mark.line + 1} "
+                                   "(YAML would silently keep the last; remove one)", key.start_mark.line + 1))
+            else:
+                seen[k] = key.start_mark.line + 1
+            out += _duplicate_keys(value, name, path + (k,))
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            out += _duplicate_keys(item, name, path + (i,))
     return out
 
 
@@ -77,6 +97,9 @@ def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
         raise InputError(Problem(name, "", f"not valid YAML: {what}", line)) from None
     if node is None or data is None:
         raise InputError(Problem(name, "", "file is empty"))
+    duplicates = _duplicate_keys(node, name)
+    if duplicates:
+        raise InputError(duplicates)
     if not isinstance(data, dict):
         raise InputError(Problem(name, "", f"expected a mapping of keys (schema: ..., name: ...), got {type(data).__name__}", 1))
     return data, _line_map(node)
@@ -176,11 +199,13 @@ def stock_dirs_for(consist_path: Path, stock_dir: str | Path | None = None) -> l
     return dirs
 
 
-def _vehicle_index(directory: Path) -> dict[str, Path]:
-    """Vehicle name -> file in a folder; a file's ``name:`` is authoritative, its stem is the fallback."""
+def _vehicle_index(directory: Path) -> tuple[dict[str, Path], dict[str, list[Path]]]:
+    """Vehicle name -> file in a folder (a file's ``name:`` is authoritative, its stem the fallback),
+    and the names that more than one file of the folder declares (ambiguous: which file is meant?)."""
     index: dict[str, Path] = {}
+    declared: dict[str, list[Path]] = {}
     if not directory.is_dir():
-        return index
+        return index, {}
     for file in sorted(directory.glob("*.yaml")):
         index.setdefault(file.stem, file)
         try:
@@ -188,8 +213,10 @@ def _vehicle_index(directory: Path) -> dict[str, Path]:
         except (OSError, yaml.YAMLError, UnicodeDecodeError):
             continue
         if isinstance(data, dict) and isinstance(data.get("name"), str):
-            index[data["name"]] = file
-    return index
+            declared.setdefault(data["name"], []).append(file)
+    for vehicle, files in declared.items():
+        index[vehicle] = files[0]
+    return index, {k: v for k, v in declared.items() if len(v) > 1}
 
 
 def resolve_consist_path(spec: str | Path) -> Path:
@@ -214,15 +241,21 @@ def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) ->
     data, lines = read_yaml(path)
     consist: Consist = validate_data(data, str(path), lines, "locoplan/consist@1")  # type: ignore[assignment]
     dirs = stock_dirs_for(path, stock_dir)
-    indexes = [(d, _vehicle_index(d)) for d in dirs]
+    indexes = [(d, *_vehicle_index(d)) for d in dirs]
     vehicles: dict[str, Vehicle] = {}
     problems: list[Problem] = []
     for i, entry in enumerate(consist.vehicles):
         loc = ("vehicles", i, "type")
-        found = next((idx[entry.type] for _, idx in indexes if entry.type in idx), None)
+        folder = next(((d, idx, dup) for d, idx, dup in indexes if entry.type in idx), None)
+        found = None if folder is None else folder[1][entry.type]
+        if folder is not None and entry.type in folder[2]:
+            files = " and ".join(str(f) for f in folder[2][entry.type])
+            problems.append(Problem(str(path), field_name(loc), f"vehicle type '{entry.type}' is ambiguous: {files} "
+                                    "both declare this name (rename one)", _line_for(lines, loc)))
+            continue
         if found is None:
             looked = ", ".join(str(d) for d in dirs)
-            known = sorted({k for _, idx in indexes for k in idx})
+            known = sorted({k for _, idx, _ in indexes for k in idx})
             close = difflib.get_close_matches(entry.type, known, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             problems.append(Problem(str(path), field_name(loc), f"unknown vehicle type '{entry.type}'{hint} (looked in {looked})",
@@ -242,4 +275,14 @@ def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) ->
         problems.append(Problem(str(path), "vehicles", "the consist has no locomotive", _line_for(lines, ("vehicles",))))
     if problems:
         raise InputError(problems)
-    return Train.from_consist(consist, vehicles)
+    train = Train.from_consist(consist, vehicles)
+    where = _line_for(lines, ("vehicles",))
+    if train.mass_t > PLAUSIBLE["train_mass_t"]:
+        problems.append(Problem(str(path), "vehicles", f"total mass {train.mass_t:,.0f} t is implausible: the heaviest train "
+                                f"ever run weighed 99,734 t (limit {PLAUSIBLE['train_mass_t']:,.0f} t)", where))
+    if train.length_m > PLAUSIBLE["train_length_m"]:
+        problems.append(Problem(str(path), "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
+                                f"train ever run was 7.35 km (limit {PLAUSIBLE['train_length_m']:,.0f} m)", where))
+    if problems:
+        raise InputError(problems)
+    return train

@@ -1,61 +1,126 @@
-"""Vehicle and consist file schemas (SPEC section 1)."""
+"""Vehicle and consist file schemas (SPEC section 1).
+
+Plausibility bounds (``PLAUSIBLE``) keep out numbers no real railway vehicle has (a 1e-9 t locomotive,
+a billion wagons): they are generous, so that any real train passes, and each message says which
+bound was broken and why it exists.
+"""
 
 from __future__ import annotations
 
-from typing import Literal
-
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
 from .common import RuleViolations, Strict
 
+PLAUSIBLE = {
+    "vehicle_mass_t": (1.0, 500.0),  # lightest draisine-class vehicle .. heaviest multi-section locomotive
+    "load_t": 200.0,  # largest payload per wagon (heavy-haul ore cars carry ~120 t)
+    "vehicle_length_m": (2.0, 100.0),
+    "speed_kmh": 600.0,  # fastest wheeled train
+    "force_kn": 3000.0,  # per vehicle: several times any locomotive's starting effort
+    "count": 1000,  # vehicles in one consist entry, and in the whole consist
+    "train_mass_t": 100_000.0,  # the heaviest train ever run (BHP Billiton, 2001) weighed 99,734 t
+    "train_length_m": 8000.0,  # the same train was 7.35 km long
+}
+
 
 class Resistance(Strict):
     """Davis coefficients of the basic resistance w0 = a + b v + c v^2 [N/kN], v in km/h."""
 
-    a: float = Field(ge=0)
-    b: float = Field(ge=0)
-    c: float = Field(ge=0)
+    a: float = Field(ge=0, le=100)
+    b: float = Field(ge=0, le=10)
+    c: float = Field(ge=0, le=1)
 
 
 ForceCurve = list[Annotated[list[float], Field(min_length=2, max_length=2)]]
 """[[speed_kmh, force_kn], ...], linear between points."""
 
 
-def _curve_problems(field: str, curve: ForceCurve | None) -> list[tuple[tuple, str]]:
+def _curve_problems(field: tuple, curve: ForceCurve | None) -> list[tuple[tuple, str]]:
     out: list[tuple[tuple, str]] = []
     if curve is None:
         return out
     if len(curve) < 2:
-        out.append(((field,), "needs at least two [speed_kmh, force_kn] points"))
+        out.append((field, "needs at least two [speed_kmh, force_kn] points"))
     for i, (v, f) in enumerate(curve):
+        if not (v == v and f == f) or v in (float("inf"), float("-inf")) or f in (float("inf"), float("-inf")):
+            out.append((field + (i,), f"speed and force must be finite numbers (got [{v:g}, {f:g}])"))
+            continue
         if v < 0 or f < 0:
-            out.append(((field, i), f"speed and force must be >= 0 (got [{v:g}, {f:g}])"))
+            out.append((field + (i,), f"speed and force must be >= 0 (got [{v:g}, {f:g}])"))
+        if v > PLAUSIBLE["speed_kmh"]:
+            out.append((field + (i,), f"speed {v:g} km/h is implausible (no train runs above {PLAUSIBLE['speed_kmh']:g} km/h)"))
+        if f > PLAUSIBLE["force_kn"]:
+            out.append((field + (i,), f"force {f:g} kN is implausible for one vehicle (limit {PLAUSIBLE['force_kn']:g} kN)"))
         if i and v <= curve[i - 1][0]:
-            out.append(((field, i), f"speeds must increase ({v:g} after {curve[i - 1][0]:g})"))
+            out.append((field + (i,), f"speeds must increase ({v:g} after {curve[i - 1][0]:g})"))
     return out
+
+
+class AirBrake(Strict):
+    """A vehicle's automatic air brake (wagons; locomotives brake electrically, ``brake_kn``).
+
+    Give either ``force_kn``, the vehicle's brake force curve at full brake-cylinder pressure, or
+    ``braking_ratio`` with ``shoe``: the converted braking ratio theta_h (converted brake-shoe force
+    per kN of the loaded vehicle's weight) and the shoe type whose friction coefficient phi_h(v)
+    scales it (TB/T 1407; ``physics.braking``). In service the force is further scaled by the
+    consist's ``service_brake_coefficient`` (beta_c).
+    """
+
+    braking_ratio: float | None = Field(default=None, gt=0, le=1.5,
+                                        description="converted brake-shoe force / loaded weight [-]")
+    shoe: Literal["composite"] = "composite"
+    force_kn: ForceCurve | None = None
+
+    @model_validator(mode="after")
+    def _one_of(self) -> "AirBrake":
+        problems = _curve_problems(("force_kn",), self.force_kn)
+        if (self.braking_ratio is None) == (self.force_kn is None):
+            problems.append(((), "give either braking_ratio (with shoe) or force_kn, not both and not neither"))
+        if problems:
+            raise RuleViolations(problems)
+        return self
 
 
 class Vehicle(Strict):
     schema_: Literal["locoplan/vehicle@1"] = Field(alias="schema")
-    name: str
+    name: str = Field(min_length=1)
     kind: Literal["locomotive", "wagon"]
     mass_t: float = Field(gt=0, description="locomotive mass, or a wagon's tare [t]")
     max_load_t: float | None = Field(default=None, ge=0, description="wagons: largest payload [t]")
     length_m: float = Field(gt=0)
     max_speed_kmh: float = Field(gt=0)
     resistance_n_per_kn: Resistance
+    rotating_mass_factor: float = Field(default=1.0, ge=1.0, le=1.5,
+                                        description="inertial mass / mass (1 = no rotating-mass allowance)")
     traction_kn: ForceCurve | None = None
-    brake_kn: ForceCurve | None = None
+    brake_kn: ForceCurve | None = Field(default=None, description="locomotives: max electric brake [kN] vs km/h")
+    air_brake: AirBrake | None = None
 
     @model_validator(mode="after")
     def _check(self) -> "Vehicle":
-        problems = _curve_problems("traction_kn", self.traction_kn) + _curve_problems("brake_kn", self.brake_kn)
+        problems = _curve_problems(("traction_kn",), self.traction_kn) + _curve_problems(("brake_kn",), self.brake_kn)
+        lo, hi = PLAUSIBLE["vehicle_mass_t"]
+        if not lo <= self.mass_t <= hi:
+            problems.append((("mass_t",), f"{self.mass_t:g} t is implausible for one vehicle (expected {lo:g} .. {hi:g} t)"))
+        lo, hi = PLAUSIBLE["vehicle_length_m"]
+        if not lo <= self.length_m <= hi:
+            problems.append((("length_m",), f"{self.length_m:g} m is implausible for one vehicle (expected {lo:g} .. {hi:g} m)"))
+        if self.max_speed_kmh > PLAUSIBLE["speed_kmh"]:
+            problems.append((("max_speed_kmh",), f"{self.max_speed_kmh:g} km/h is implausible (no train runs above {PLAUSIBLE['speed_kmh']:g} km/h)"))
+        if self.max_load_t is not None and self.max_load_t > PLAUSIBLE["load_t"]:
+            problems.append((("max_load_t",), f"{self.max_load_t:g} t is implausible for one wagon (limit {PLAUSIBLE['load_t']:g} t)"))
         if self.kind == "locomotive":
             for field in ("traction_kn", "brake_kn"):
                 if getattr(self, field) is None:
                     problems.append(((field,), "a locomotive needs its max force curve [[speed_kmh, force_kn], ...]"))
+        else:
+            for field in ("traction_kn", "brake_kn"):
+                if getattr(self, field) is not None:
+                    what = "traction" if field == "traction_kn" else "an electric brake"
+                    hint = "" if field == "traction_kn" else "; a wagon's brake is air_brake: {braking_ratio: ...} or {force_kn: [...]}"
+                    problems.append(((field,), f"a wagon has no {what}{hint}"))
         if problems:
             raise RuleViolations(problems)
         return self
@@ -63,11 +128,28 @@ class Vehicle(Strict):
 
 class ConsistEntry(Strict):
     type: str = Field(min_length=1, description="a vehicle's name")
-    count: int = Field(ge=1)
-    load_t: float = Field(default=0.0, ge=0, description="payload per wagon [t]")
+    count: int = Field(ge=1, le=PLAUSIBLE["count"])
+    load_t: float = Field(default=0.0, ge=0, le=PLAUSIBLE["load_t"], description="payload per wagon [t]")
 
 
 class Consist(Strict):
+    """A train: vehicles in order, and how its brakes are used.
+
+    ``service_brake_coefficient`` is beta_c of the air brake (TB/T 1407): the share of the full
+    brake-cylinder force a service application gives; the planner brakes with the locomotives'
+    electric brake plus the wagons' air brake at this coefficient. ``brake_deceleration_ms2``
+    replaces all of that by a constant deceleration (railtoolkit's ``a_braking``).
+    """
+
     schema_: Literal["locoplan/consist@1"] = Field(alias="schema")
-    name: str
+    name: str = Field(min_length=1)
     vehicles: list[ConsistEntry] = Field(min_length=1)
+    service_brake_coefficient: float = Field(default=0.5, ge=0, le=1)
+    brake_deceleration_ms2: float | None = Field(default=None, gt=0, le=3.0)
+
+    @model_validator(mode="after")
+    def _check(self) -> "Consist":
+        total = sum(e.count for e in self.vehicles)
+        if total > PLAUSIBLE["count"]:
+            raise RuleViolations([(("vehicles",), f"{total} vehicles is implausible for one train (limit {PLAUSIBLE['count']})")])
+        return self

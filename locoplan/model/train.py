@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -14,10 +15,16 @@ G_MS2 = 9.81
 
 @dataclass(frozen=True)
 class Train:
-    """Whole-train quantities. Force curves are summed over locomotives on the union of their speed points.
+    """Whole-train quantities. Force curves are summed over vehicles on the union of their speed points.
 
     ``resistance_kn`` holds (A, B, C) such that the train's basic resistance is A + B v + C v^2 [kN],
     v in km/h: the mass-weighted sum of each vehicle's w0 [N/kN] times its weight [kN] / 1000.
+
+    Braking: ``electric_brake_*`` is the locomotives' electric brake (the part that can return energy);
+    ``air_brake_*`` the wagons' air brakes at the consist's service coefficient beta_c (or, with a
+    constant ``brake_deceleration_ms2``, what it takes on top of the electric brake to reach it).
+    ``brake_curve(air=True)`` is what the planner brakes with.
+    ``inertial_mass_t`` is the sum of mass x rotating-mass factor (= ``mass_t`` when no vehicle gives one).
     """
 
     name: str
@@ -27,21 +34,53 @@ class Train:
     resistance_kn: tuple[float, float, float]
     traction_speed_kmh: np.ndarray
     traction_kn: np.ndarray
-    brake_speed_kmh: np.ndarray
-    brake_kn: np.ndarray
+    electric_brake_speed_kmh: np.ndarray
+    electric_brake_kn: np.ndarray
+    air_brake_speed_kmh: np.ndarray
+    air_brake_kn: np.ndarray
     n_vehicles: int
+    inertial_mass_t: float = 0.0
+
+    def __post_init__(self):
+        if not self.inertial_mass_t:
+            object.__setattr__(self, "inertial_mass_t", self.mass_t)
+
+    def brake_curve(self, air: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(speeds [km/h], max braking force [kN]): electric + air brake, or the electric brake alone."""
+        if not air:
+            return self.electric_brake_speed_kmh, self.electric_brake_kn
+        return self._total_brake
+
+    @property
+    def brake_speed_kmh(self) -> np.ndarray:
+        """Speeds [km/h] of the planner's braking curve (electric + air)."""
+        return self._total_brake[0]
+
+    @property
+    def brake_kn(self) -> np.ndarray:
+        """The planner's max braking force [kN] (electric + air) at ``brake_speed_kmh``."""
+        return self._total_brake[1]
+
+    @cached_property
+    def _total_brake(self) -> tuple[np.ndarray, np.ndarray]:
+        return _sum_curves([(np.column_stack([self.electric_brake_speed_kmh, self.electric_brake_kn]), 1),
+                            (np.column_stack([self.air_brake_speed_kmh, self.air_brake_kn]), 1)])
 
     @classmethod
     def from_consist(cls, consist: Consist, vehicles: dict[str, Vehicle]) -> "Train":
-        mass = length = 0.0
+        from ..physics.braking import air_brake_curve_kn
+
+        mass = inertial = length = 0.0
         coeffs = np.zeros(3)
         n = 0
         vmax = np.inf
         locos: list[tuple[Vehicle, int]] = []
+        air: list[tuple[np.ndarray, int]] = []
         for entry in consist.vehicles:
             veh = vehicles[entry.type]
             m = veh.mass_t + entry.load_t
             mass += entry.count * m
+            inertial += entry.count * m * veh.rotating_mass_factor
             length += entry.count * veh.length_m
             r = veh.resistance_n_per_kn
             coeffs += entry.count * m * G_MS2 / 1000.0 * np.array([r.a, r.b, r.c])
@@ -49,14 +88,30 @@ class Train:
             n += entry.count
             if veh.kind == "locomotive":
                 locos.append((veh, entry.count))
+            if veh.air_brake is not None:
+                ab = veh.air_brake
+                curve = (np.asarray(ab.force_kn, float) if ab.force_kn is not None
+                         else air_brake_curve_kn(ab.braking_ratio, ab.shoe, m, veh.max_speed_kmh))
+                air.append((curve, entry.count))
         tv, tf = _sum_curves([(v.traction_kn, c) for v, c in locos])
-        bv, bf = _sum_curves([(v.brake_kn, c) for v, c in locos])
+        ev, ef = _sum_curves([(v.brake_kn, c) for v, c in locos])
+        av, af = _sum_curves(air)
+        af = af * consist.service_brake_coefficient
+        if consist.brake_deceleration_ms2 is not None:
+            # a constant deceleration (railtoolkit's a_braking): the air brake makes up what the
+            # electric brake does not give towards inertial mass x deceleration
+            total = inertial * consist.brake_deceleration_ms2
+            av = np.unique(np.concatenate([ev, [0.0, float(vmax)]]))
+            af = np.maximum(total - np.interp(av, ev, ef), 0.0)
+        for a in (av, af):
+            a.setflags(write=False)
         return cls(consist.name, mass, length, float(vmax), tuple(float(x) for x in coeffs),
-                   tv, tf, bv, bf, n)
+                   tv, tf, ev, ef, av, af, n, inertial)
 
 
-def _sum_curves(curves: list[tuple[list, int]]) -> tuple[np.ndarray, np.ndarray]:
-    """Sum piecewise-linear force curves [[speed_kmh, force_kn], ...] on the union of their speed points."""
+def _sum_curves(curves: list[tuple[list | np.ndarray, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """Sum piecewise-linear force curves [[speed_kmh, force_kn], ...] on the union of their speed points
+    (each held flat beyond its last point)."""
     if not curves:
         return np.array([0.0, 1.0]), np.zeros(2)
     speeds = np.unique(np.concatenate([np.asarray(c, float)[:, 0] for c, _ in curves]))

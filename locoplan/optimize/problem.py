@@ -69,6 +69,7 @@ class SwitchingProblem:
         if self.e_min_kwh <= 0:
             raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {self.e_min_kwh:g})"))
         self.n_evaluated = 0
+        self.time_range_s: tuple[float, float] | None = None  # shortest / longest feasible time seen [s]
 
     def simulate(self, X: np.ndarray, profile: bool = False) -> BatchResult:
         """Traction calculation of candidates X (n, n_var): the final braking point is appended as 'auto'."""
@@ -90,6 +91,12 @@ class SwitchingProblem:
         res = self.simulate(X)
         self.n_evaluated += len(res.feasible)
         self.last = res
+        if res.feasible.any():
+            t = res.running_time_s[res.feasible]
+            lo, hi = float(t.min()), float(t.max())
+            if self.time_range_s is not None:
+                lo, hi = min(lo, self.time_range_s[0]), max(hi, self.time_range_s[1])
+            self.time_range_s = (lo, hi)
         return Evaluation(fitness=self.fitness(res), feasible=res.feasible.copy())
 
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:

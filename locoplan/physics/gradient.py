@@ -61,21 +61,32 @@ def point_gradient_permille(route: Route, s_m, train_length_m: float | None = No
     return total
 
 
-def strip_gradient_permille(route: Route, s_m, train_length_m: float, resolution_m: float = 1.0):
-    """Equivalent gradient averaged over the train's body [s - L, s] (train as a uniform strip).
+def point_gradient_knots(route: Route) -> tuple[np.ndarray, np.ndarray]:
+    """The point-mass equivalent gradient (curves at 600/R over their own extent) as a step function:
+    knots [m] (every section boundary) and the value on each piece between them [per mille]."""
+    knots = {0.0, float(route.length_m)}
+    for sections in (route.gradients, route.curves, route.tunnels):
+        for sec in sections:
+            knots.update((float(sec.from_m), float(sec.to_m)))
+    x = np.array(sorted(k for k in knots if 0.0 <= k <= route.length_m))
+    return x, point_gradient_permille(route, 0.5 * (x[1:] + x[:-1]))
+
+
+def strip_gradient_permille(route: Route, s_m, train_length_m: float):
+    """Equivalent gradient averaged over the train's body [s - L, s] (train as a uniform strip) [per mille].
 
     A 650 m train on a 600 m curve is not a point: this is the mean of the point-mass equivalent
-    gradient (curves at 600/R over their extent) under the train. Before the start the first
-    section's value is assumed (the train stands in the station). Integrated on a ``resolution_m`` grid.
+    gradient (curves at 600/R over their extent) under the train, computed exactly from the running
+    integral of the step function (piecewise linear between its knots). Before the start the first
+    piece's value is assumed (the train stands in the station), beyond the end the last piece's.
     """
     s = np.asarray(s_m, dtype=float)
-    grid = np.arange(-train_length_m - resolution_m, route.length_m + 2 * resolution_m, resolution_m)
-    pointwise = point_gradient_permille(route, np.clip(grid, 0.0, None))
-    # cumulative integral on cell midpoints; averages come from differences of it
-    cum = np.concatenate([[0.0], np.cumsum(0.5 * (pointwise[1:] + pointwise[:-1]) * resolution_m)])
-    head = np.interp(s, grid, cum)
-    tail = np.interp(s - train_length_m, grid, cum)
-    return (head - tail) / train_length_m
+    x, val = point_gradient_knots(route)
+    cum = np.concatenate([[0.0], np.cumsum(val * np.diff(x))])
+    pad = float(train_length_m) + 1.0
+    xs = np.concatenate([[x[0] - pad], x, [x[-1] + pad]])
+    cs = np.concatenate([[-val[0] * pad], cum, [cum[-1] + val[-1] * pad]])
+    return (np.interp(s, xs, cs) - np.interp(s - train_length_m, xs, cs)) / train_length_m
 
 
 def equivalent_gradient_permille(route: Route, s_m, train_length_m: float, strip: bool = False):

@@ -36,7 +36,7 @@ from ..model.train import G_MS2, Train
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
-from .result import CODE, CONDITIONS, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+from .result import CANNOT_HOLD, CODE, CONDITIONS, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -57,24 +57,41 @@ _E_FLOOR = 1e-6  # keeps a stalled plan's arithmetic finite after it has been ma
 class ModelOptions:
     """Switches of the train model.
 
-    step_m: grid spacing [m]; strip: average the equivalent gradient (and take the lowest limit)
-    over the train's length instead of a point mass at the head; rotating_mass: gamma, the
-    rotating-mass allowance (inertial mass = M (1 + gamma); 0 = none, as in the seeds);
+    step_m: grid spacing [m].
+    point_mass: the seeds' point mass at the head. By default the train is a strip of its real
+    length: the equivalent gradient is averaged over the train, a speed limit holds until the tail
+    has cleared it, and a neutral section cuts traction until the tail has left it.
+    air_brake: brake with the wagons' air brakes (at the consist's service coefficient) on top of the
+    locomotives' electric brake; False = electric brake alone, as the seeds do.
+    rotating_mass: gamma, a uniform rotating-mass allowance (inertial mass = M (1 + gamma)); None =
+    each vehicle's own ``rotating_mass_factor`` (1 when the file gives none, as in the seeds).
     strict_limits: a plan that coasts (or cruises) up to a limit is infeasible, instead of being held
     at the limit by braking as a driver or speed supervision would (the default). Either way a plan is
     infeasible where even full braking cannot hold the limit.
     """
 
     step_m: float = DEFAULT_STEP_M
-    strip: bool = False
-    rotating_mass: float = 0.0
+    point_mass: bool = False
+    air_brake: bool = True
+    rotating_mass: float | None = None
     strict_limits: bool = False
 
+    @property
+    def strip(self) -> bool:
+        """The train-length-aware (strip) model is on."""
+        return not self.point_mass
 
-def neutral_spans_m(route: Route) -> list[tuple[float, float]]:
-    """Where traction is cut for each neutral section [m]: the section itself, widened by its
-    ``coast_before_s`` / ``coast_after_s`` converted to distance at the line's speed limit there (a
-    slower train covers less ground in that time, so the span is conservative)."""
+    @classmethod
+    def seeds(cls, **kw) -> "ModelOptions":
+        """The seeds' train model: point mass, electric brake alone."""
+        return cls(point_mass=True, air_brake=False, **kw)
+
+
+def neutral_spans_m(route: Route, train_length_m: float = 0.0) -> list[tuple[float, float]]:
+    """Head positions where traction is cut for each neutral section [m]: from ``coast_before_s``
+    before the head enters until ``coast_after_s`` after the tail (``train_length_m`` behind the head)
+    has left, the times converted to distance at the line's speed limit there (a slower train covers
+    less ground in that time, so the span is conservative)."""
     sl = route.speed_limits
     starts = np.array([x.from_m for x in sl])
 
@@ -85,7 +102,7 @@ def neutral_spans_m(route: Route) -> list[tuple[float, float]]:
     spans = []
     for ns in route.neutral_sections:
         a = ns.from_m - ns.coast_before_s * limit_ms(ns.from_m)
-        b = ns.to_m + ns.coast_after_s * limit_ms(ns.to_m)
+        b = ns.to_m + train_length_m + ns.coast_after_s * limit_ms(min(ns.to_m + train_length_m, route.length_m))
         spans.append((max(a, 0.0), min(b, route.length_m)))
     return spans
 
@@ -99,7 +116,7 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
             points += [sec.from_m, sec.to_m]
     for c in route.curves:  # seed 004 claim 6: a short curve is spread over one train length
         points.append(c.from_m + train.length_m)
-    for a, b in neutral_spans_m(route):
+    for a, b in neutral_spans_m(route, train.length_m if options.strip else 0.0):
         points += [a, b]
     if options.strip:
         points += [p + train.length_m for p in list(points)]
@@ -120,8 +137,12 @@ class TractionCalculator:
     def __init__(self, route: Route, train: Train, options: ModelOptions | None = None):
         self.route, self.train = route, train
         self.options = options or ModelOptions()
-        if self.options.step_m <= 0:
+        if not self.options.step_m > 0:
             raise InputError(Problem("", "step_m", f"must be > 0 (got {self.options.step_m:g})"))
+        if train.length_m >= route.length_m:
+            raise InputError(Problem("", "route", f"route '{route.name}' ({route.length_m:,.0f} m) is not longer than the "
+                                     f"train '{train.name}' ({train.length_m:,.0f} m): it cannot run from stop to stop"))
+        self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)
         s = _grid(route, train, self.options)
         self._build(s)
         kinks = self._braking_curve_entries()
@@ -139,17 +160,20 @@ class TractionCalculator:
         # midpoint value is the exact mean in both modes.
         self.gradient_permille = equivalent_gradient_permille(route, mid, train.length_m, self.options.strip)
         self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
-        self.m_eff_t = train.mass_t * (1.0 + self.options.rotating_mass)
+        gamma = self.options.rotating_mass
+        self.m_eff_t = train.inertial_mass_t if gamma is None else train.mass_t * (1.0 + gamma)
         self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
         # 1.0 where traction is allowed, 0.0 in neutral sections and their coasting margins
         self.traction_allowed = np.ones(len(mid))
-        for a, b in neutral_spans_m(route):
+        for a, b in neutral_spans_m(route, train.length_m if self.options.strip else 0.0):
             self.traction_allowed[(mid > a) & (mid < b)] = 0.0
         e_cell = (self.limit_kmh / 3.6) ** 2 / 2
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
         self.e_limit_node[-1] = 0.0  # the train stops at the end
         self.e_envelope, self._entry_m = self._braking_envelope()
+        # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
+        self.holds_limit = self.e_envelope[1:] >= e_cell * (1 - 1e-9)
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -170,7 +194,7 @@ class TractionCalculator:
         """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k``."""
         v_kmh = v_ms * 3.6
         return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn),
-                max_force_kn(v_kmh, self.train.brake_speed_kmh, self.train.brake_kn),
+                max_force_kn(v_kmh, self.brake_speed_kmh, self.brake_kn),
                 train_resistance_kn(v_kmh, self.train.resistance_kn) + self.gravity_kn[k])
 
     def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
@@ -277,17 +301,18 @@ class TractionCalculator:
             cruise_cap = np.where(np.ascontiguousarray(frac[CODE["C"]].T) > 0, np.inf, cruise_e[None, :])
         over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
         stop = np.zeros((n_cells, n), dtype=bool)  # at rest before the end
+        nohold = np.zeros((n_cells, n), dtype=bool)  # full braking cannot hold the train at a limit
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
         f0 *= self.traction_allowed[0]
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
-            t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, slope, cruise_e, cruise_cap,
+            t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap,
                                        want_profile)
-        return self._verdict(over, stop, fB, t, work, prof, switches_m)
+        return self._verdict(over, stop, nohold, fB, t, work, prof, switches_m)
 
-    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, slope, cruise_e, cruise_cap, want_profile):
+    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile):
         """The distance loop: one pass over the cells, every plan advanced at once."""
         n_cells, n = fT.shape
         h, m, e_env = self.h_m, self.m_eff_t, self.e_envelope
@@ -306,13 +331,17 @@ class TractionCalculator:
         strict = self.options.strict_limits
         e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
         tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
-        bv, bf = self.train.brake_speed_kmh, self.train.brake_kn
+        bv, bf = self.brake_speed_kmh, self.brake_kn
         ra, rb, rc = self.train.resistance_kn
         grav = self.gravity_kn
         allowed = self.traction_allowed
+        hold_check = self.holds_limit
+        # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
+        e_hold_max = e_env * (1 + 1e-9) + 1e-9
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
+            c1_env = c1
             # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
             # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
             e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
@@ -330,7 +359,27 @@ class TractionCalculator:
             if strict:  # by default the train is held at the limit by braking instead
                 over[k] = (e_pred > e_over[k]) & may_exceed[k]
             capped = e_pred > c1
-            e_new = np.minimum(e_pred, c1)
+            if capped.any():
+                # The plan's force acts up to where its straight line in e(s) meets the cap line (a
+                # limit, a cruise speed or a braking curve) at fraction phi of the cell; then the train
+                # follows the cap, with the force that takes, if the consist has it.
+                gap = np.maximum(c0 - e, 0.0)
+                phi = np.where(capped, gap / (e_pred - c1 + gap), 1.0)
+                one_minus = 1.0 - phi
+                e_phi = e + (e_pred - e) * phi
+                e_new = np.where(capped, c1, e_pred)
+                if hold_check[k] or cruise_e is not None:
+                    # holding a speed (a limit, a cruise speed) on a descent takes braking: no more than
+                    # full braking, else the speed rises past the cap. (A braking curve was built with
+                    # full braking, so it can be followed by construction.)
+                    e_fb = e_phi + (hk * one_minus / m) * (-b_max - load)
+                    slip = capped & (e_fb > c1) & (hold_check[k] | (c1 < c1_env))
+                    if slip.any():
+                        e_new = np.where(slip, e_fb, e_new)
+                        nohold[k] = slip & (e_fb > e_hold_max[k + 1])
+            else:  # no plan meets a cap in this cell: phi = 1 throughout
+                phi = 1.0
+                e_new = e_pred
             if k < last:
                 stop[k] = e_new <= _E_FLOOR
                 e_new = np.maximum(e_new, _E_FLOOR)
@@ -338,19 +387,13 @@ class TractionCalculator:
             else:
                 v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
             if capped.any():
-                # The plan's force acts up to where its straight line in e(s) meets the cap line (a
-                # limit or a braking curve) at fraction phi of the cell; then the train follows the cap.
-                gap = np.maximum(c0 - e, 0.0)
-                phi = np.where(capped, gap / (e_pred - c1 + gap), 1.0)
-                one_minus = 1.0 - phi
-                e_phi = e + (e_pred - e) * phi
                 v_phi = np.sqrt(np.maximum(e_phi, 0.0) * 2.0)
                 t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + one_minus / (v_phi + v_new + 1e-12))
-                # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking on a curve
-                cap_work = np.where(capped, m * (c1 - e_phi) + (hk * one_minus) * load, 0.0)
+                # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking
+                cap_work = np.where(capped, m * (e_new - e_phi) + (hk * one_minus) * load, 0.0)
                 w_tr = (tr * hk) * phi + np.maximum(cap_work, 0.0)
-            else:  # no plan meets a cap in this cell: phi = 1 throughout
-                phi, cap_work = 1.0, 0.0
+            else:
+                cap_work = 0.0
                 t += (2.0 * hk) / (v + v_new + 1e-12)
                 w_tr = tr * hk
             work += w_tr
@@ -371,7 +414,7 @@ class TractionCalculator:
             e, v = e_new, v_new
         return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None)
 
-    def _verdict(self, over, stop, fB, t, work, prof, switches_m) -> BatchResult:
+    def _verdict(self, over, stop, nohold, fB, t, work, prof, switches_m) -> BatchResult:
         """Each plan's first failure decides its verdict; assemble the typed result."""
         n_cells, n = over.shape
         last = n_cells - 1
@@ -379,29 +422,38 @@ class TractionCalculator:
         want_profile = prof is not None
         if want_profile:
             t_nodes, v_nodes, cond, trac, brk, event = prof
-        # the first failure of each plan decides its verdict
         rows = np.arange(n)
-        first_over = np.where(over.any(axis=0), over.argmax(axis=0), n_cells)
-        first_stop = np.where(stop.any(axis=0), stop.argmax(axis=0), n_cells)
-        first = np.minimum(first_over, first_stop)
+
+        def first_of(flags):
+            return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
+
+        first_over, first_stop, first_hold = first_of(over), first_of(stop), first_of(nohold)
+        first = np.minimum(np.minimum(first_over, first_stop), first_hold)
         failed = first < n_cells
         cell = np.minimum(first, last)
         # brought to rest by a braking curve that reaches zero mid-route: no speed is safe there, i.e.
-        # full braking cannot hold the train under a limit further on
-        unholdable = e_env[cell + 1] <= _E_FLOOR
-        reason = np.where(~failed, OK, np.where((first_over <= first_stop) | unholdable, LIMIT_EXCEEDED,
-                                                 np.where(fB[cell, rows] > 0, STOPPED_SHORT, STALLED))).astype(np.int8)
-        fail_at = np.where(failed, self.s_m[cell + 1], np.nan)
+        # full braking cannot slow the train enough for a limit further on
+        unholdable = (first_stop == first) & (e_env[cell + 1] <= _E_FLOOR)
+        cannot_hold = (first_hold == first) | unholdable
+        reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
+                          np.where(first_over == first, LIMIT_EXCEEDED,
+                                   np.where(fB[cell, rows] > 0, STOPPED_SHORT, STALLED)))).astype(np.int8)
+        at_node = np.where(cannot_hold & ~unholdable, cell, cell + 1)
+        fail_at = np.where(failed, self.s_m[at_node], np.nan)
         profile = None
         if want_profile:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
                 x = switches_m[:, j]
                 ok = np.isfinite(x) & (x > 0) & (x < self.s_m[-1])
                 in_cell = np.clip(np.searchsorted(self.s_m, np.where(ok, x, 0.0), side="right") - 1, 0, n_cells - 1)
-                rows = np.nonzero(ok)[0]
-                at = in_cell[rows]
-                event[rows, at] = np.where(np.isnan(event[rows, at]), x[rows], event[rows, at])
+                sel = np.nonzero(ok)[0]
+                at = in_cell[sel]
+                event[sel, at] = np.where(np.isnan(event[sel, at]), x[sel], event[sel, at])
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
-        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT), np.nan, t)  # never arrived
+        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason == CANNOT_HOLD), np.nan, t)  # never arrived
+        lim = self.limit_kmh[cell]
         return BatchResult(running_time_s=t, traction_energy_kwh=work / 3600.0, feasible=reason == OK,
-                           reason_code=reason, failure_m=fail_at, profile=profile)
+                           reason_code=reason, failure_m=fail_at, profile=profile,
+                           failure_limit_kmh=np.where(failed, lim, np.nan),
+                           failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
+                           failure_brake_kn=np.where(failed, max_force_kn(lim, self.brake_speed_kmh, self.brake_kn), np.nan))

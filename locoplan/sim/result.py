@@ -11,8 +11,9 @@ CONDITIONS = ("T", "K", "C", "B")
 C coast (no force), B brake (max braking). Index = code used in arrays."""
 CODE = {c: i for i, c in enumerate(CONDITIONS)}
 
-OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT = 0, 1, 2, 3
-REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end"}
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD = 0, 1, 2, 3, 4
+REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",
+           CANNOT_HOLD: "full braking cannot hold the limit"}
 
 
 @dataclass(frozen=True)
@@ -56,15 +57,24 @@ class BatchResult:
     reason_code: np.ndarray
     failure_m: np.ndarray
     profile: Profile | None = None
+    failure_limit_kmh: np.ndarray | None = None
+    failure_gradient_permille: np.ndarray | None = None
+    failure_brake_kn: np.ndarray | None = None
 
     def reason(self, i: int) -> str:
-        """Human-readable feasibility verdict of plan ``i``."""
+        """Human-readable feasibility verdict of plan ``i``: what failed, where, and the physics of it."""
         code = int(self.reason_code[i])
         if code == OK:
             return "ok"
         where = float(self.failure_m[i])
+        grad = None if self.failure_gradient_permille is None else float(self.failure_gradient_permille[i])
+        on = "" if grad is None else f" on {grad:+.1f} per mille"
+        if code == CANNOT_HOLD:
+            brake = float(self.failure_brake_kn[i]) if self.failure_brake_kn is not None else float("nan")
+            limit = float(self.failure_limit_kmh[i]) if self.failure_limit_kmh is not None else float("nan")
+            return f"full braking ({brake:,.0f} kN) cannot hold {limit:g} km/h{on} at {where:,.0f} m"
         if code == LIMIT_EXCEEDED:
-            return f"limit exceeded at {where:.0f} m"
+            return f"limit exceeded at {where:,.0f} m"
         if code == STALLED:
-            return f"stalled at {where:.0f} m"
-        return f"did not stop at the end: came to rest at {where:.0f} m"
+            return f"stalled at {where:,.0f} m{on}"
+        return f"did not stop at the end: came to rest at {where:,.0f} m"
