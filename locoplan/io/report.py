@@ -67,8 +67,10 @@ def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
     rows = []
     n_cells = len(profile.s_m) - 1
     for k, s in enumerate(profile.s_m):
+        if np.isnan(profile.v_kmh[plan, k]):  # a failed plan's profile ends where it failed
+            break
         c = min(k, n_cells - 1)
-        last = k == n_cells
+        last = k == n_cells or profile.condition[plan, c] < 0
         rows.append({
             "s_m": round(float(s), 3),
             "t_s": round(float(profile.t_s[plan, k]), 4),

@@ -74,6 +74,8 @@ def runs_from_profile(s_m: np.ndarray, condition: np.ndarray, min_run_m: float =
     """
     runs: list[dict] = []
     for k, code in enumerate(condition):
+        if code < 0:  # a failed plan's profile ends where it failed
+            break
         c = CONDITIONS[int(code)]
         a, b = float(s_m[k]), float(s_m[k + 1])
         if runs and runs[-1]["condition"] == c:

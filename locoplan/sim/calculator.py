@@ -449,6 +449,16 @@ class TractionCalculator:
                 sel = np.nonzero(ok)[0]
                 at = in_cell[sel]
                 event[sel, at] = np.where(np.isnan(event[sel, at]), x[sel], event[sel, at])
+            # a failed plan's profile ends where it failed (at rest where it stalled or stopped short;
+            # before the cell where it broke or could not hold a limit): what follows is not a run
+            stopped = (reason == STALLED) | (reason == STOPPED_SHORT)
+            end = np.where(failed, np.where(stopped, cell + 1, np.minimum(first, at_node)), n_cells)
+            for i in np.flatnonzero(failed):
+                t_nodes[i, end[i] + 1:] = np.nan
+                v_nodes[i, end[i] + 1:] = np.nan
+                trac[i, end[i]:] = np.nan
+                brk[i, end[i]:] = np.nan
+                cond[i, end[i]:] = -1
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
         t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason == CANNOT_HOLD), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]

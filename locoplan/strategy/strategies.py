@@ -180,7 +180,8 @@ def four_stage(ctx: StrategyContext) -> StrategyOutcome:
     x_grid = np.arange(L / 2, L - 50.0, 100.0)
     best = span = None
     for v_step, x_step in ((1.0, 100.0), (0.1, 5.0)):
-        if best is not None:
+        if best is not None:  # the refinement runs on the reporting grid: the chosen plan is confirmed there
+            calc = ctx.calc
             v_grid = np.arange(best[0] - v_step * 10, best[0] + v_step * 10.5, v_step)
             x_grid = np.arange(best[1] - x_step * 20, best[1] + x_step * 20.5, x_step)
             v_grid, x_grid = v_grid[(v_grid > 0) & (v_grid <= v_top)], x_grid[(x_grid > 0) & (x_grid < L)]
