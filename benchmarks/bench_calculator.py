@@ -1,9 +1,9 @@
-"""Plan evaluations per second of the batch traction calculator (issue 2 target: >= 2,000 / s on one
-core for batches of 50 plans on routes/freight-20km.yaml), and peak memory.
+"""Plan evaluations per second of the batch traction calculator on routes/freight-20km.yaml, old (the
+numpy loop, ``backend="numpy"``) against new (the compiled numba kernel, the default), for batches of 1,
+10, 50 and 200 plans, and peak memory. Targets (issue 12): >= 20,000 plans/s for batches of 50 and
+>= 5,000 plans/s for single plans, on one core.
 
-    python benchmarks/bench_calculator.py [--repeat 40] [--step 50]
-
-Prints a table; pin to one core with `taskset -c 0` for the one-core figure.
+    taskset -c 0 python benchmarks/bench_calculator.py [--repeat 40] [--step 50]
 """
 
 from __future__ import annotations
@@ -30,25 +30,27 @@ def main() -> None:
     train = load_train(ROOT / "configs/consists/HXD1-C80x50.yaml")
     opts = ModelOptions() if args.step is None else ModelOptions(step_m=args.step)
     t0 = time.perf_counter()
-    calc = TractionCalculator(route, train, opts)
+    calcs = {"old (numpy)": TractionCalculator(route, train, opts, backend="numpy")}
     setup_s = time.perf_counter() - t0
+    calcs["new (numba)"] = TractionCalculator(route, train, opts)
     seq = tuple("TKTCTCKCB")  # seed 002's proposed sequence: 8 switching points
-    rng = np.random.default_rng(0)
-    print(f"route freight-20km, {train.name}, grid {len(calc.h_m)} cells (step {calc.options.step_m:g} m), "
-          f"route set-up {setup_s * 1e3:.0f} ms")
-    print(f"{'batch':>6} {'ms / batch':>11} {'plans / s':>10} {'peak MiB':>9}")
+    print(f"route freight-20km, {train.name}, default train model, grid {len(calcs['old (numpy)'].h_m)} cells "
+          f"(step {opts.step_m:g} m), route set-up {setup_s * 1e3:.0f} ms")
+    print(f"{'batch':>6} {'backend':>12} {'ms / batch':>11} {'plans / s':>10} {'peak MiB':>9}")
     for batch in (1, 10, 50, 200):
-        X = np.sort(rng.uniform(0, route.length_m, (batch, len(seq) - 1)), axis=1)
-        calc.evaluate(seq, X)  # warm-up
-        t0 = time.perf_counter()
-        for _ in range(args.repeat):
+        X = np.sort(np.random.default_rng(batch).uniform(0, route.length_m, (batch, len(seq) - 1)), axis=1)
+        for name, calc in calcs.items():
+            calc.evaluate(seq, X)  # warm-up (and, the first time on a machine, the kernel's compile)
+            repeat = args.repeat * (20 if name.startswith("new") else 1)
+            t0 = time.perf_counter()
+            for _ in range(repeat):
+                calc.evaluate(seq, X)
+            dt = (time.perf_counter() - t0) / repeat
+            tracemalloc.start()
             calc.evaluate(seq, X)
-        dt = (time.perf_counter() - t0) / args.repeat
-        tracemalloc.start()
-        calc.evaluate(seq, X)
-        peak = tracemalloc.get_traced_memory()[1] / 2**20
-        tracemalloc.stop()
-        print(f"{batch:>6} {dt * 1e3:>11.2f} {batch / dt:>10.0f} {peak:>9.2f}")
+            peak = tracemalloc.get_traced_memory()[1] / 2**20
+            tracemalloc.stop()
+            print(f"{batch:>6} {name:>12} {dt * 1e3:>11.3f} {batch / dt:>10.0f} {peak:>9.2f}")
 
 
 if __name__ == "__main__":

@@ -134,7 +134,10 @@ class TractionCalculator:
     ``evaluate(conditions, switches_m)`` runs a batch; see its docstring.
     """
 
-    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None):
+    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, backend: str = "numba"):
+        if backend not in ("numba", "numpy"):
+            raise ValueError(f"backend must be 'numba' or 'numpy', not {backend!r}")
+        self.backend = backend
         self.route, self.train = route, train
         self.options = options or ModelOptions()
         if not self.options.step_m > 0:
@@ -281,11 +284,41 @@ class TractionCalculator:
         bad = [c for c in conditions if c not in CODE]
         if bad:
             raise InputError(Problem("", "conditions", f"unknown condition {bad[0]!r} (use T, K, C, B)"))
-        frac = self.condition_fractions(conditions, sw)
         cap = None
         if cruise_kmh is not None:
-            cap = np.broadcast_to(np.asarray(cruise_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2
+            cap = np.ascontiguousarray(np.broadcast_to(np.asarray(cruise_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2)
+        if self.backend == "numba":
+            return self._run_kernel(conditions, sw, profile, cap)
+        frac = self.condition_fractions(conditions, sw)
         return self._integrate(frac, profile, sw, cap)
+
+    def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
+        """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
+        from .kernel import run_plans
+
+        n, n_cells = sw.shape[0], len(self.h_m)
+        starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
+        ends = np.concatenate([starts[:, 1:], np.full((n, 1), np.inf)], axis=1)
+        # a run that never starts ends nowhere; one after a 'never' start never begins either
+        starts = np.ascontiguousarray(np.maximum.accumulate(starts, axis=1))
+        ends = np.ascontiguousarray(np.maximum(np.minimum(ends, np.inf), starts))
+        codes = np.array([CODE[c] for c in conditions], dtype=np.int64)
+        t = np.empty(n)
+        work = np.empty(n)
+        over_at, stop_at, hold_at, fb_at = (np.empty(n, dtype=np.int64) for _ in range(4))
+        shape_nodes, shape_cells = ((n, n_cells + 1), (n, n_cells)) if want_profile else ((1, 1), (1, 1))
+        t_nodes, v_nodes = np.zeros(shape_nodes), np.zeros(shape_nodes)
+        cond = np.zeros(shape_cells, dtype=np.int8)
+        trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
+        tr = self.train
+        run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
+                  self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn, self.brake_speed_kmh,
+                  self.brake_kn, *map(float, tr.resistance_kn), bool(self.options.strict_limits),
+                  codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n), cruise_e is not None,
+                  want_profile, t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event)
+        never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
+        prof = (t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None
+        return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw)
 
     def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
                    cruise_e: np.ndarray | None = None) -> BatchResult:
@@ -310,7 +343,12 @@ class TractionCalculator:
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
             t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap,
                                        want_profile)
-        return self._verdict(over, stop, nohold, fB, t, work, prof, switches_m)
+        def first_of(flags):
+            return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
+
+        first_stop = first_of(stop)
+        braking_at_stop = fB[np.minimum(first_stop, n_cells - 1), np.arange(n)] > 0
+        return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m)
 
     def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile):
         """The distance loop: one pass over the cells, every plan advanced at once."""
@@ -387,7 +425,9 @@ class TractionCalculator:
             else:
                 v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
             if capped.any():
-                v_phi = np.sqrt(np.maximum(e_phi, 0.0) * 2.0)
+                # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
+                # depend on the others in its batch)
+                v_phi = np.where(capped, np.sqrt(np.maximum(e_phi, 0.0) * 2.0), v_new)
                 t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + one_minus / (v_phi + v_new + 1e-12))
                 # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking
                 cap_work = np.where(capped, m * (e_new - e_phi) + (hk * one_minus) * load, 0.0)
@@ -414,20 +454,18 @@ class TractionCalculator:
             e, v = e_new, v_new
         return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None)
 
-    def _verdict(self, over, stop, nohold, fB, t, work, prof, switches_m) -> BatchResult:
-        """Each plan's first failure decides its verdict; assemble the typed result."""
-        n_cells, n = over.shape
+    def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m) -> BatchResult:
+        """Each plan's first failure decides its verdict; assemble the typed result.
+
+        first_*: (n,) the first cell where the plan broke a limit (strict mode), came to rest, or could not
+        be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest."""
+        n = len(t)
+        n_cells = len(self.h_m)
         last = n_cells - 1
         e_env = self.e_envelope
         want_profile = prof is not None
         if want_profile:
             t_nodes, v_nodes, cond, trac, brk, event = prof
-        rows = np.arange(n)
-
-        def first_of(flags):
-            return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
-
-        first_over, first_stop, first_hold = first_of(over), first_of(stop), first_of(nohold)
         first = np.minimum(np.minimum(first_over, first_stop), first_hold)
         failed = first < n_cells
         cell = np.minimum(first, last)
@@ -437,7 +475,7 @@ class TractionCalculator:
         cannot_hold = (first_hold == first) | unholdable
         reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
                           np.where(first_over == first, LIMIT_EXCEEDED,
-                                   np.where(fB[cell, rows] > 0, STOPPED_SHORT, STALLED)))).astype(np.int8)
+                                   np.where(braking_at_stop, STOPPED_SHORT, STALLED)))).astype(np.int8)
         at_node = np.where(cannot_hold & ~unholdable, cell, cell + 1)
         fail_at = np.where(failed, self.s_m[at_node], np.nan)
         profile = None
