@@ -252,6 +252,7 @@ SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same
 ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
 TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
 WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
+BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
 
 
@@ -264,7 +265,8 @@ def simulate(route: Path = ROUTE,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png or .svg."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             time_s: Optional[float] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO):
+             time_s: Optional[float] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
+             builder: Optional[str] = BUILDER):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
     from .runner import make_context, run_sequence, run_strategy
 
@@ -272,7 +274,8 @@ def simulate(route: Path = ROUTE,
         raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
+                       builder=builder)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     _emit(summary, as_json, out_file, run.result.profile)
@@ -299,7 +302,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
     """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
@@ -311,7 +314,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
-                           tolerance_s=tolerance, window=window)
+                           tolerance_s=tolerance, window=window, builder=builder)
         if e_min is None:
             ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
         run = run_strategy(ctx, "proposed")
@@ -399,7 +402,7 @@ def compare(route: Path = ROUTE,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .optimize.registry import get_algorithm
     from .runner import compare as run_compare, make_context
@@ -410,7 +413,7 @@ def compare(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
     if explain and not as_json:
         _explain(ctx)
     runs = run_compare(ctx, names)
@@ -440,7 +443,7 @@ def sweep(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
     """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, sweep_times, sweep_weights
@@ -452,7 +455,7 @@ def sweep(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
     runs = sweep_weights(ctx, values) if weights else sweep_times(ctx, values)
     rows = [x.summary for x in runs]
     if times:
@@ -494,7 +497,7 @@ def study(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
     """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
     from dataclasses import replace
 
@@ -510,7 +513,7 @@ def study(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed, tolerance_s=tolerance,
-                       window=window)
+                       window=window, builder=builder)
     from .runner import check_time_possible
 
     check_time_possible(ctx)

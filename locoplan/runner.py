@@ -19,7 +19,7 @@ from .model.train import Train
 from .optimize.problem import fitness_eq10
 from .sim.calculator import ModelOptions, TractionCalculator
 from .sim.result import BatchResult
-from .strategy.strategies import STRATEGIES, TIMETABLED, StrategyContext, StrategyOutcome, get_strategy
+from .strategy.strategies import BUILDERS, STRATEGIES, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
 
 SEARCH_STEP_M = 100.0
 """Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on
@@ -52,7 +52,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
-                 tolerance_s: float | None = None, window: bool = True) -> StrategyContext:
+                 tolerance_s: float | None = None, window: bool = True, builder: str | None = None) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
@@ -69,8 +69,12 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if not math.isnan(t0):
         tol = tolerance_s if tolerance_s is not None else (
             route.schedule.tolerance_s if route.schedule else max(1.0, DEFAULT_TOLERANCE_SHARE * t0))
+    if builder is None:  # the seeds' train model goes with seed 002's own builder (their tables)
+        builder = "seed002" if options.point_mass else "general"
+    if builder not in BUILDERS:
+        raise InputError(Problem("<command line>", "--builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
-                           tol, window)
+                           tol, window, builder)
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
@@ -82,9 +86,7 @@ def check_time_possible(ctx: StrategyContext) -> None:
 
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
-    plan = outcome.plan
-    cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
-    return ctx.calc.evaluate(plan.conditions, plan.switches_m, profile=True, cruise_kmh=cruise)
+    return evaluate_outcome(ctx.calc, outcome, profile=True)
 
 
 def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
@@ -118,6 +120,8 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,
+        "cruise_mode": None if outcome.cruise_kmh is None else outcome.cruise_mode,
+        "brake_hold_kmh": outcome.brake_hold_kmh,
         "solve_time_s": round(outcome.solve_time_s, 3),
         "n_evaluations": outcome.n_evaluations,
         "plan": outcome.plan.text(),

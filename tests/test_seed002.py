@@ -121,7 +121,7 @@ def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
 @pytest.fixture(scope="module")
 def small_ctx(freight, root):
     route, train = freight
-    return lambda **kw: make_context(route, train, SEEDS, params_path=str(root / "tests/data/optimizers/issa.yaml"),
+    return lambda **kw: make_context(route, train, SEEDS, builder="seed002", params_path=str(root / "tests/data/optimizers/issa.yaml"),
                                      e_min_kwh=580.0, **kw)
 
 

@@ -105,6 +105,7 @@ class Result:
     history: np.ndarray
     n_evaluations: int
     n_infeasible_replaced: int
+    population: np.ndarray | None = None  # (pop_size, n_var) the final population, best first
 
 
 class NoFeasibleCandidateError(InfeasibleError):
@@ -268,15 +269,17 @@ class Optimizer(ABC):
     # -- setup ------------------------------------------------------------------------------------------
 
     def setup(
-        self, problem: Problem, rng: np.random.Generator, pop_size: int = 50, max_iter: int = 100, **params: Any
+        self, problem: Problem, rng: np.random.Generator, pop_size: int = 50, max_iter: int = 100,
+        x0: np.ndarray | None = None, **params: Any
     ) -> Optimizer:
         """Bind a problem and a random generator, validate parameters and build the initial population.
 
         problem: the ``Problem`` to minimise. rng: source of ALL random numbers (same seed -> same run).
         pop_size, max_iter: population size and number of iterations. params: algorithm parameters
         (see the class's ``Params`` model). Bad parameters raise ``InputError``. The initial population
-        holds only feasible individuals (``sample_feasible``; may raise ``NoFeasibleCandidateError``).
-        Returns ``self`` so calls chain.
+        holds only feasible individuals (``sample_feasible``; may raise ``NoFeasibleCandidateError``);
+        ``x0`` (k, n_var) are candidates known to be good (e.g. a plan built from physics): the feasible
+        ones among them join the initial population first. Returns ``self`` so calls chain.
         """
         # numpy scalars (e.g. from a parameter sweep) are plain numbers here; strict pydantic would refuse them
         params = {k: v.item() if isinstance(v, np.generic) else v for k, v in params.items()}
@@ -300,7 +303,17 @@ class Optimizer(ABC):
         self.best_x = np.full(problem.n_var, np.nan)
         self.best_fitness = math.inf
 
-        X, ev, n_eval = sample_feasible(problem, rng, self.params.pop_size, self.params.max_sample_batches)
+        seeded = np.empty((0, problem.n_var))
+        seeded_f = np.empty(0)
+        if x0 is not None and len(x0):
+            x0 = np.asarray(problem.repair(np.atleast_2d(np.asarray(x0, dtype=float))), dtype=float)
+            ev0 = _evaluate(problem, x0)
+            self.n_evaluations += len(x0)
+            keep = np.flatnonzero(ev0.feasible)[: self.params.pop_size]
+            seeded, seeded_f = x0[keep], ev0.fitness[keep]
+        X, ev, n_eval = sample_feasible(problem, rng, self.params.pop_size - len(seeded), self.params.max_sample_batches)
+        X = np.concatenate([seeded, X])
+        ev = Evaluation(np.concatenate([seeded_f, ev.fitness]), np.ones(len(X), dtype=bool))
         self.n_evaluations += n_eval
         self.X = X
         self.fitness = ev.fitness
@@ -369,6 +382,7 @@ class Optimizer(ABC):
             history=np.asarray(self._history, dtype=float),
             n_evaluations=int(self.n_evaluations),
             n_infeasible_replaced=int(self.n_infeasible_replaced),
+            population=self.X[np.argsort(self.fitness, kind="stable")].copy(),
         )
 
     # -- helpers for subclasses -------------------------------------------------------------------------

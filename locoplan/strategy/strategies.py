@@ -5,19 +5,27 @@ its switching points and, for four-stage, a cruise speed). The CLI's ``--strateg
 ``--strategies`` choices come from ``STRATEGIES``.
 
 - ``time-saving``: the fastest run (Fig. 4).
-- ``energy-saving``: traction and coasting alternate (one traction run to start and one before each
-  long up-grade), switching points chosen by the optimiser for the least traction energy, timetable
-  ignored (Table 8). Its energy is the default E_min of eq. 11.
+- ``energy-saving``: the least traction energy, timetable ignored (Table 8). Its energy is the default
+  E_min of eq. 11.
 - ``four-stage``: traction to a cruise speed, cruise, coast, brake; cruise speed and coasting point
   searched on a grid so that the train is on time with the least energy.
-- ``proposed``: the sequence builder's sequence (section 2), switching points by ISSA / SSA / PSO
-  minimising eq. 10 inside the punctuality window of eq. 3 (when the context has a tolerance).
+- ``proposed``: a condition sequence built from the route, switching points by ISSA / SSA / PSO
+  minimising eq. 10 inside the punctuality window of eq. 3.
+
+Two sequence builders (``StrategyContext.builder``):
+- ``general`` (the default): ``strategy/template.py``, the sequence judged at the speed the train will
+  run, with a cruise speed among the decision variables; energy-saving is the same family searched for
+  energy alone, four-stage may coast from anywhere. Works on any line (issue 8).
+- ``seed002``: seed 002 section 2 to the letter (``strategy/sequence.py``): grades classified at the
+  limit speed, the fastest run's conditions elsewhere; energy-saving alternates traction and coasting;
+  four-stage coasts in the second half. With the seeds' train model (``--point-mass``) it reproduces
+  the seed 002 tables as this project first measured them.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -28,6 +36,7 @@ from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
 from .sequence import build_sequence, classify_grades, fastest_runs
+from .template import Template, build_template, speed_bounds_kmh
 
 
 @dataclass
@@ -46,6 +55,7 @@ class StrategyContext:
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
+    builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
 
     @property
@@ -53,8 +63,8 @@ class StrategyContext:
         """The punctuality window the optimiser ranks by (None with --no-window: eq. 10 alone)."""
         return self.tolerance_s if self.use_window else None
 
-    def rng(self, salt: int = 0) -> np.random.Generator:
-        return np.random.default_rng([self.seed, salt])
+    def rng(self, salt: int = 0, seed: int | None = None) -> np.random.Generator:
+        return np.random.default_rng([self.seed if seed is None else seed, salt])
 
     def e_min(self) -> float:
         """E_min of eq. 11: the user's value, else the energy-saving strategy's energy."""
@@ -62,7 +72,7 @@ class StrategyContext:
             return self.e_min_kwh
         if "e" not in self._e_min_cache:
             out = energy_saving(self)
-            res = self.calc.evaluate(out.plan.conditions, out.plan.switches_m)
+            res = evaluate_outcome(self.calc, out)
             self._e_min_cache["e"] = float(res.traction_energy_kwh[0])
             self._e_min_cache["outcome"] = out
         return self._e_min_cache["e"]
@@ -77,9 +87,20 @@ class StrategyOutcome:
     n_evaluations: int = 0
     solve_time_s: float = 0.0
     e_min_kwh: float | None = None
+    cruise_mode: str = "hold"  # how the calculator treats cruise_kmh (see TractionCalculator.evaluate)
+    brake_hold_kmh: float | None = None  # "regulate": where K holds by braking
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
+
+
+def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile: bool = False):
+    """Simulate a strategy's plan (with its cruise and braking speeds, if any) on ``calc``."""
+    plan = outcome.plan
+    cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
+    brake = None if outcome.brake_hold_kmh is None else [outcome.brake_hold_kmh]
+    return calc.evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
+                         cruise_mode=outcome.cruise_mode, brake_hold_kmh=brake)
 
 
 StrategyFn = Callable[[StrategyContext], StrategyOutcome]
@@ -112,14 +133,32 @@ def _plan(conditions, switches) -> Plan:
 ENERGY_SAVING_ALGORITHM = "issa"
 """The energy-saving baseline is always searched by ISSA (seed 002's own optimiser, which also finds the
 lowest energies here), so that E_min does not change with the --algorithm being studied."""
+E_MIN_SEED = 1
+"""...nor with --seed: its search always starts from this seed, so that fitness values (eq. 10-11) of
+runs with different seeds are comparable."""
+BUILDERS = ("general", "seed002")
 
 
-def _optimise(ctx: StrategyContext, problem: SwitchingProblem, salt: int, algorithm: str | None = None):
+def _optimise(ctx: StrategyContext, problem: SwitchingProblem, salt: int, algorithm: str | None = None,
+              seed: int | None = None, x0: np.ndarray | None = None):
     name = algorithm or ctx.algorithm
     params = load_optimizer_params(name, ctx.params_path if name == ctx.algorithm else None).model_dump()
     opt = get_algorithm(name)()
-    opt.setup(problem, ctx.rng(salt), **params)
+    opt.setup(problem, ctx.rng(salt, seed), x0=x0, **params)
     return opt.run(callback=ctx.callback)
+
+
+def _confirmed(ctx: StrategyContext, problem: SwitchingProblem, result, prefer_best: bool = False) -> np.ndarray:
+    """The best of the optimiser's final population re-simulated on the reporting grid (the search grid
+    is coarser: a plan feasible there may stall or break a limit here): the reported plan is one the
+    reporting grid confirms. ``prefer_best``: keep the search's best if the reporting grid confirms it."""
+    X = result.population if result.population is not None else np.atleast_2d(result.best_x)
+    X = np.concatenate([np.atleast_2d(result.best_x), X])
+    check = replace(problem, calc=ctx.calc)
+    fitness = check.fitness(check.simulate(X))
+    if prefer_best and np.isfinite(fitness[0]):
+        return result.best_x
+    return X[int(np.argmin(fitness))] if np.isfinite(fitness).any() else result.best_x
 
 
 @register("time-saving")
@@ -131,8 +170,9 @@ def time_saving(ctx: StrategyContext) -> StrategyOutcome:
 
 
 def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0):
-    """T, C alternating: traction to start and before each long up-grade, coasting after; windows
-    halfway to the neighbouring nominal switches (a traction run may start well before its grade)."""
+    """Seed 002 builder: T, C alternating: traction to start and before each long up-grade, coasting
+    after; windows halfway to the neighbouring nominal switches (a traction run may start well before
+    its grade)."""
     L, gap = calc.route.length_m, calc.train.length_m / 2
     ups = [g for g in classify_grades(calc, threshold_kmh) if g.kind == "long-up"]
     first_cruise = next((r["from_m"] for r in fastest_runs(calc) if r["condition"] != "T"), L / 4)
@@ -153,35 +193,62 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
     return conditions, nominal, lower, upper
 
 
+def _template_problem(ctx: StrategyContext, tp: Template, **kw) -> SwitchingProblem:
+    lo, hi = tp.bounds()
+    return SwitchingProblem(ctx.search, tp.conditions, lo, hi, cruise_kmh=(tp.v_lo_kmh, tp.v_hi_kmh),
+                            cruise_mode="regulate", fixed_m=tp.fixed_m, **kw)
+
+
+def _template_outcome(problem: SwitchingProblem, x: np.ndarray, **kw) -> StrategyOutcome:
+    sw = problem.switches(x)[0]
+    v, w = (float(a[0]) for a in problem.cruise(x))
+    return StrategyOutcome(_plan(problem.conditions, sw[:-1]), cruise_kmh=round(v, 2), cruise_mode="regulate",
+                           brake_hold_kmh=round(w, 2), **kw)
+
+
 @register("energy-saving")
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 002's energy-saving strategy: the least traction energy with traction and coasting only."""
+    """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
+    energy-saving strategy); general: the general family at any cruise speed in its window."""
     cached = ctx._e_min_cache.get("outcome")
     if cached is not None:
         return cached
     t = time.perf_counter()
-    conditions, _, lower, upper = energy_saving_sequence(ctx.search)
-    problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy")
-    result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM)
-    return StrategyOutcome(_plan(conditions, result.best_x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
-                           n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
+    if ctx.builder == "seed002":
+        conditions, _, lower, upper = energy_saving_sequence(ctx.search)
+        problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy")
+        result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED)
+        x = _confirmed(ctx, problem, result, prefer_best=True)
+        return StrategyOutcome(_plan(conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
+                               n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
+    v_lo, _ = speed_bounds_kmh(ctx.search)
+    tp = build_template(ctx.search, np.inf, v_ref_kmh=v_lo)
+    problem = _template_problem(ctx, tp, objective="energy")
+    result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED,
+                       x0=tp.candidates([v_lo, v_lo + 5.0]))
+    x = _confirmed(ctx, problem, result)
+    return _template_outcome(problem, x, algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
+                             n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
 
 
 @register("four-stage", timetabled=True)
 def four_stage(ctx: StrategyContext) -> StrategyOutcome:
     """Traction to a cruise speed, cruise (re-accelerating where limits or grades pulled it down),
     coast, brake. Cruise speed and coasting point come from a grid search, refined once: the least
-    energy among plans within 1 s of the planned time, else the plan closest to it."""
+    energy among plans within 1 s of the planned time, else the plan closest to it. The seed002 builder
+    coasts in the second half of the route and refines on the search grid, as first measured; the
+    general one may coast from anywhere and refines on the reporting grid (its plan is confirmed there)."""
     t = time.perf_counter()
     calc = ctx.search
     L = calc.route.length_m
     v_top = float(calc.limit_kmh.max())
-    v_grid = np.arange(30.0, v_top + 0.5, 1.0)
-    x_grid = np.arange(L / 2, L - 50.0, 100.0)
+    general = ctx.builder != "seed002"
+    v_grid = np.arange(10.0 if general else 30.0, v_top + 0.5, 1.0)
+    x_grid = np.arange(100.0 if general else L / 2, L - 50.0, 100.0)
     best = span = None
     for v_step, x_step in ((1.0, 100.0), (0.1, 5.0)):
-        if best is not None:  # the refinement runs on the reporting grid: the chosen plan is confirmed there
-            calc = ctx.calc
+        if best is not None:
+            calc = ctx.calc if general else calc
             v_grid = np.arange(best[0] - v_step * 10, best[0] + v_step * 10.5, v_step)
             x_grid = np.arange(best[1] - x_step * 20, best[1] + x_step * 20.5, x_step)
             v_grid, x_grid = v_grid[(v_grid > 0) & (v_grid <= v_top)], x_grid[(x_grid > 0) & (x_grid < L)]
@@ -205,13 +272,22 @@ def four_stage(ctx: StrategyContext) -> StrategyOutcome:
 
 @register("proposed", timetabled=True)
 def proposed(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 002's method: the sequence builder's conditions, switching points minimising eq. 10."""
+    """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
     t = time.perf_counter()
-    seq = build_sequence(ctx.search)
-    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, t0_s=ctx.t0_s,
-                               e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s)
-    result = _optimise(ctx, problem, salt=1)
-    return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
-                           n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t, e_min_kwh=e_min,
-                           time_range_s=problem.time_range_s)
+    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s)
+    if ctx.builder == "seed002":
+        seq = build_sequence(ctx.search)
+        problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
+        result = _optimise(ctx, problem, salt=1)
+        return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
+                               n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
+                               e_min_kwh=e_min, time_range_s=problem.time_range_s)
+    tp = build_template(ctx.search, ctx.t0_s)
+    problem = _template_problem(ctx, tp, **common)
+    v = tp.v_ref_kmh
+    result = _optimise(ctx, problem, salt=1, x0=tp.candidates([v - 4, v - 2, v, v + 2, v + 4, v + 8]))
+    x = _confirmed(ctx, problem, result)
+    return _template_outcome(problem, x, algorithm=ctx.algorithm, history=result.history,
+                             n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
+                             e_min_kwh=e_min, time_range_s=problem.time_range_s)
