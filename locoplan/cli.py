@@ -560,6 +560,10 @@ from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands
 
 _register_ocp(app)
 
+from .cli_import import register as _register_import  # noqa: E402  (locoplan import FORMAT FILES --out DIR)
+
+_register_import(app)
+
 
 def main() -> None:
     app()
