@@ -54,6 +54,10 @@ def check_options(fmt: str, n_sources: int, options: ImportOptions) -> None:
         raise InputError(problems)
 
 
+def _writable(folder: Path) -> bool:
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
 def check_out_dir(out_dir: Path) -> None:
     """The output folder must exist and be writable (nothing is created on a guess)."""
     where = str(out_dir)
@@ -61,7 +65,7 @@ def check_out_dir(out_dir: Path) -> None:
         raise InputError(Problem(where, "--out", "folder does not exist (create it first)"))
     if not out_dir.is_dir():
         raise InputError(Problem(where, "--out", "is a file, not a folder"))
-    if not os.access(out_dir, os.W_OK | os.X_OK):
+    if not _writable(out_dir):
         raise InputError(Problem(where, "--out", "folder is not writable"))
 
 
@@ -82,17 +86,20 @@ def _to_source(item: ImportedFile, problems: list[Problem]) -> list[Problem]:
 
 
 def _validate(tmp: Path, items: list[ImportedFile]) -> None:
-    problems: list[Problem] = []
-    for item in items:
-        try:
-            if item.kind == "consist":
-                load_train(tmp / item.relpath)
-            else:
-                validate_data(yaml.safe_load(item.text), item.relpath, {})
-        except InputError as exc:
-            problems += _to_source(item, exc.problems)
-    if problems:
-        raise InputError(problems)
+    """Routes and vehicles against their schemas; then consists (which load their vehicles), only if
+    every vehicle passed, so that one bad vehicle is reported once, at its source field."""
+    for stage in (("route", "vehicle"), ("consist",)):
+        problems: list[Problem] = []
+        for item in (i for i in items if i.kind in stage):
+            try:
+                if item.kind == "consist":
+                    load_train(tmp / item.relpath)
+                else:
+                    validate_data(yaml.safe_load(item.text), item.relpath, {})
+            except InputError as exc:
+                problems += _to_source(item, exc.problems)
+        if problems:
+            raise InputError(problems)
 
 
 def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOptions) -> ImportReport:
