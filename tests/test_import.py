@@ -293,19 +293,25 @@ def _invoke(args):
     return res
 
 
+def _import_bad(fmt: str, src: Path, text: str, extra: list[str]):
+    """Import one broken source: exit 2, and nothing in the output folder (no temporary folder either)."""
+    src.write_text(text)
+    out = src.parent / "out"
+    out.mkdir()
+    res = _invoke(["import", fmt, str(src), "--out", str(out), *extra])
+    assert res.exit_code == 2, res.output
+    assert list(out.iterdir()) == []
+    return res
+
+
 @pytest.mark.parametrize("name", sorted(TTOBENCH_BAD))
 def test_bad_ttobench_input_names_file_field_and_why(name, tmp_path):
     text, extra, field, why = TTOBENCH_BAD[name]
     src = tmp_path / f"{name}.json"
-    src.write_text(text)
-    out = tmp_path / "out"
-    out.mkdir()
-    res = _invoke(["import", "ttobench", str(src), "--out", str(out), *extra])
-    assert res.exit_code == 2, res.output
+    res = _import_bad("ttobench", src, text, extra)
     where = f"{src}:2: " if name == "malformed" else f"{src}: "
     assert (where + (f"{field}: " if field else "")) in res.stderr, res.stderr
     assert why in res.stderr, res.stderr
-    assert list(out.iterdir()) == []  # nothing written, no temporary folder left
 
 
 GOOD_PATH = """%YAML 1.2
@@ -372,18 +378,13 @@ RAILTOOLKIT_BAD = {
 def test_bad_railtoolkit_input_names_file_field_and_why(name, tmp_path):
     text, extra, field, line, why = RAILTOOLKIT_BAD[name]
     src = tmp_path / f"{name}.yaml"
-    src.write_text(text)
-    out = tmp_path / "out"
-    out.mkdir()
-    res = _invoke(["import", "railtoolkit", str(src), "--out", str(out), *extra])
-    assert res.exit_code == 2, res.output
+    res = _import_bad("railtoolkit", src, text, extra)
     if field.startswith("--"):
         assert f"<command line>: {field}: " in res.stderr, res.stderr
     else:
         where = f"{src}:{line}: " if line else f"{src}"
         assert where in res.stderr and (f": {field}: " in res.stderr if field else True), res.stderr
     assert why in res.stderr, res.stderr
-    assert list(out.iterdir()) == []
 
 
 def test_good_railtoolkit_fixtures_import_and_fully_load_the_wagons(tmp_path):

@@ -16,6 +16,11 @@ from typing import Any, Callable, Protocol
 
 from ...errors import InputError, Problem
 
+MAX_SPEED_KMH = 400.0
+"""The route schema's largest speed limit [km/h]."""
+MAX_GRADIENT_PERMILLE = 40.0
+"""The route schema's steepest gradient [per mille]: steeper than any adhesion railway."""
+
 SAFE_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 """Identifiers that become file names: letters, digits, '_', '-', '.'; no path separators, no leading dot."""
 
@@ -129,6 +134,23 @@ class SourceChecker:
             self.add(loc, f"{what} must be finite (got {value!r})")
             return None
         return float(value)
+
+    def speed_kmh(self, value: Any, loc: tuple, factor: float = 1.0) -> float | None:
+        """A speed limit converted to km/h by ``factor`` and inside the route schema's (0, 400]."""
+        v = self.number(value, loc, "speed limit")
+        if v is not None and not 0 < v * factor <= MAX_SPEED_KMH:
+            self.add(loc, f"speed limit must be > 0 and <= {MAX_SPEED_KMH:g} km/h (got {v * factor:g})")
+            return None
+        return None if v is None else v * factor
+
+    def gradient_permille(self, value: Any, loc: tuple, factor: float = 1.0, what: str = "gradient") -> float | None:
+        """A gradient converted to per mille by ``factor`` and inside the route schema's +-40."""
+        g = self.number(value, loc, what)
+        if g is not None and abs(g * factor) > MAX_GRADIENT_PERMILLE:
+            self.add(loc, f"{what} {g * factor:g} per mille is beyond the route schema's +-{MAX_GRADIENT_PERMILLE:g} "
+                          "(steeper than any adhesion railway)")
+            return None
+        return None if g is None else g * factor
 
     def unit(self, value: Any, loc: tuple, table: dict[str, float], what: str) -> float | None:
         """The factor that converts a value in unit ``value`` to locoplan's unit; unknown units are a problem."""

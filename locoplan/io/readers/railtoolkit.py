@@ -50,8 +50,6 @@ DEFAULT_BRAKING_MS2 = {"freight": 0.225, "passenger": 0.375}
 """TrainRuns.jl's constant braking deceleration when no traction unit gives ``a_braking`` [m/s^2]
 (Bruenger and Dahlhaus 2014, p. 74): passenger when any vehicle is a passenger car or multiple unit."""
 KINDS = {"traction unit": "locomotive", "multiple unit": "locomotive", "freight": "wagon", "passenger": "wagon"}
-MAX_GRADIENT_PERMILLE = 40.0
-MAX_SPEED_KMH = 400.0
 
 
 def davis_coefficients(vehicle_type: str, base: float = 0.0, rolling: float = 0.0, air: float = 0.0,
@@ -145,15 +143,11 @@ class RailtoolkitReader:
                     s.append(None)
                     continue
                 s.append(check.number(row[0], loc + (i, 0), "station s"))
-                vi = check.number(row[1], loc + (i, 1), "speed limit")
-                fi = check.number(row[2], loc + (i, 2), "path resistance f_Rp")
-                if vi is not None and not 0 < vi <= MAX_SPEED_KMH:
-                    check.add(loc + (i, 1), f"speed limit must be > 0 and <= {MAX_SPEED_KMH:g} km/h (got {vi:g})")
-                if fi is not None and abs(fi) > MAX_GRADIENT_PERMILLE and i < len(rows) - 1:
-                    check.add(loc + (i, 2), f"path resistance {fi:g} per mille is beyond the route schema's "
-                              f"+-{MAX_GRADIENT_PERMILLE:g} (steeper than any adhesion railway)")
-                v.append(vi)
-                f.append(fi)
+                v.append(check.speed_kmh(row[1], loc + (i, 1)))
+                if i < len(rows) - 1:
+                    f.append(check.gradient_permille(row[2], loc + (i, 2), what="path resistance f_Rp"))
+                else:  # the path's end: its values are unused
+                    f.append(check.number(row[2], loc + (i, 2), "path resistance f_Rp"))
             increasing(check, s, lambda i: loc + (i, 0), "stations")
             if check.problems:
                 continue

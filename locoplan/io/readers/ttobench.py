@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import InputError, Problem
+from ..load import read_text
 from . import emit
 from .base import Imported, ImportedFile, ImportOptions, SourceChecker, increasing, licence_near
 
@@ -32,21 +33,12 @@ STRAIGHT = {"infinity", "+infinity", "-infinity", "inf", "+inf", "-inf"}
 
 MIN_RADIUS_M = 100.0
 """The route schema's smallest curve radius [m]."""
-MAX_GRADIENT_PERMILLE = 40.0
-MAX_SPEED_KMH = 400.0
 
 
 def load_json(path: Path) -> dict:
     """Parse a JSON file; a missing, unreadable or malformed file raises ``InputError`` (with the line)."""
     name = str(path)
-    if not path.exists():
-        raise InputError(Problem(name, "", "no such file"))
-    if path.is_dir():
-        raise InputError(Problem(name, "", "is a directory, not a file"))
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+    text = read_text(path)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -201,27 +193,13 @@ class TTOBenchReader:
         check.raise_if_any()
         units = lambda key: data[key]["units"]  # noqa: E731  (checked above)
         # values, converted and range-checked against the route schema, naming the source entry
-        limit_kmh = []
-        for i, row in enumerate(limits[1]):
-            v = check.number(row[1], ("speed limits", "values", i, 1), "speed limit")
-            if v is None:
-                continue
-            v *= VELOCITY_UNITS[units("speed limits")["velocity"]]
-            if not 0 < v <= MAX_SPEED_KMH:
-                check.add(("speed limits", "values", i, 1), f"speed limit must be > 0 and <= {MAX_SPEED_KMH:g} km/h (got {v:g})")
-            limit_kmh.append(v)
+        vf = VELOCITY_UNITS[units("speed limits")["velocity"]]
+        limit_kmh = [check.speed_kmh(row[1], ("speed limits", "values", i, 1), vf) for i, row in enumerate(limits[1])]
         grad_permille = [0.0]
         if grads is not None:
-            grad_permille = []
-            for i, row in enumerate(grads[1]):
-                g = check.number(row[1], ("gradients", "values", i, 1), "gradient")
-                if g is None:
-                    continue
-                g *= SLOPE_UNITS[units("gradients")["slope"]]
-                if abs(g) > MAX_GRADIENT_PERMILLE:
-                    check.add(("gradients", "values", i, 1), f"gradient {g:g} per mille is beyond the route schema's "
-                              f"+-{MAX_GRADIENT_PERMILLE:g} (steeper than any adhesion railway)")
-                grad_permille.append(g)
+            gf = SLOPE_UNITS[units("gradients")["slope"]]
+            grad_permille = [check.gradient_permille(row[1], ("gradients", "values", i, 1), gf)
+                             for i, row in enumerate(grads[1])]
         k_start: list[float] = []
         k_end: list[float] = []
         if curv is not None:
