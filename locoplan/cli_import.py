@@ -33,7 +33,7 @@ def register(app: typer.Typer) -> None:
     def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source format ({formats})."),
                 sources: list[Path] = typer.Argument(..., metavar="FILES...", help="Source files (railtoolkit: running-path and/or rolling-stock files, in any order)."),
                 out_dir: Path = typer.Option(..., "--out", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
-                cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h] (e.g. 80 for a freight train on a passenger line)."),
+                cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed in km/h (e.g. 80 for a freight train on a passenger line)."),
                 leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg (1 = first stop to second)."),
                 all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
                 load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),

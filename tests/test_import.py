@@ -434,3 +434,31 @@ def test_out_must_be_a_writable_folder(case, tmp_path, monkeypatch):
 def test_unknown_format_lists_the_known_ones(tmp_path):
     res = _invoke(["import", "osm", str(tmp_path / "x"), "--out", str(tmp_path)])
     assert res.exit_code == 2 and "unknown format 'osm' (one of: ttobench, railtoolkit)" in res.stderr
+
+
+def test_units_are_converted_and_sharp_curves_clamped_with_a_note(tmp_path):
+    track = {"metadata": {"id": "U1"},
+             "stops": {"unit": "km", "values": [0.0, 2.0]},
+             "speed limits": {"units": {"position": "km", "velocity": "m/s"}, "values": [[0.0, 25.0], [1.5, 12.5]]},
+             "gradients": {"units": {"position": "m", "slope": "%"}, "values": [[0.0, 0.5], [1000.0, -1.2]]},
+             "curvatures": {"units": {"position": "m", "radius at start": "m", "radius at end": "m"},
+                            "values": [[0.0, "infinity", "infinity"], [500.0, -60.0, -60.0], [600.0, "infinity", "infinity"]]}}
+    src = tmp_path / "u1.json"
+    src.write_text(json.dumps(track))
+    out = tmp_path / "out"
+    out.mkdir()
+    res = _invoke(["import", "ttobench", str(src), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "1 curve(s) sharper than 100 m set to 100 m" in res.stderr
+    route = load_route(out / "U1.yaml")
+    assert route.length_m == 2000
+    assert [(x.from_m, x.to_m, x.kmh) for x in route.speed_limits] == [(0, 1500, 90), (1500, 2000, 45)]
+    assert [(x.from_m, x.to_m, x.permille) for x in route.gradients] == [(0, 1000, 5), (1000, 2000, -12)]
+    assert [(x.from_m, x.to_m, x.radius_m) for x in route.curves] == [(500, 600, 100)]
+
+
+def test_leg_and_all_legs_together_is_an_error(tmp_path):
+    src = tmp_path / "t.json"
+    src.write_text(_track())
+    res = _invoke(["import", "ttobench", str(src), "--out", str(tmp_path), "--leg", "1", "--all-legs"])
+    assert res.exit_code == 2 and "<command line>: --leg: give --leg N or --all-legs, not both" in res.stderr
