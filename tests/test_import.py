@@ -5,7 +5,6 @@ broken input is exit 2 naming file, field and why, with nothing written."""
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np

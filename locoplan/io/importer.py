@@ -7,6 +7,7 @@ A problem in a produced file is reported at the source field it was converted fr
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import shutil
@@ -48,6 +49,11 @@ def check_options(fmt: str, n_sources: int, options: ImportOptions) -> None:
         problems.append(Problem(CLI, "--leg", "give --leg N or --all-legs, not both"))
     if options.leg is not None and options.leg < 1:
         problems.append(Problem(CLI, "--leg", f"legs are numbered from 1 (got {options.leg})"))
+    if options.cap_kmh is not None and not (math.isfinite(options.cap_kmh) and options.cap_kmh > 0):
+        problems.append(Problem(CLI, "--cap-kmh", f"must be a speed > 0 km/h (got {options.cap_kmh:g})"))
+    if not (math.isfinite(options.load_fraction) and 0 <= options.load_fraction <= 1):
+        problems.append(Problem(CLI, "--load-fraction", f"must be in [0, 1] (share of each wagon's load_limit; "
+                                f"got {options.load_fraction:g})"))
     if not reader.min_files <= n_sources <= reader.max_files:
         problems.append(Problem(CLI, "FILES", f"{fmt} takes {reader.min_files} to {reader.max_files} file(s), got {n_sources}"))
     if problems:

@@ -31,7 +31,6 @@ from itertools import groupby
 from pathlib import Path
 from typing import Any
 
-from ...errors import InputError, Problem
 from ..load import _line_for, read_yaml
 from . import emit
 from .base import Imported, ImportedFile, ImportOptions, SourceChecker, increasing, licence_near, path_str
@@ -108,9 +107,6 @@ class RailtoolkitReader:
                 files += self._paths(path, data, check, options, line)
             else:
                 files += self._stock(path, data, check, options, line)
-        if not 0 <= options.load_fraction <= 1:
-            raise InputError(Problem("<command line>", "--load-fraction",
-                                     f"must be in [0, 1] (share of each wagon's load_limit; got {options.load_fraction:g})"))
         return Imported(files, licence, "railtoolkit", [])
 
     # ------------------------------------------------------------------------------------ running paths
@@ -119,8 +115,6 @@ class RailtoolkitReader:
         check.raise_if_any()
         if not paths:
             check.fail(("paths",), "is empty")
-        if options.cap_kmh is not None and options.cap_kmh <= 0:
-            check.fail(("paths",), f"--cap-kmh must be > 0 (got {options.cap_kmh:g})")
         out = []
         for p, item in enumerate(paths):
             if not isinstance(item, dict):

@@ -213,8 +213,6 @@ class TTOBenchReader:
         if options.leg is not None and not 1 <= options.leg <= n_legs:
             check.add(("stops", "values"), f"--leg {options.leg} is out of range: the track has {len(stop_m)} stops, "
                       f"so legs 1 to {n_legs}")
-        if options.cap_kmh is not None and options.cap_kmh <= 0:
-            check.add(("speed limits",), f"--cap-kmh must be > 0 (got {options.cap_kmh:g})")
         check.raise_if_any()
 
         cap = options.cap_kmh
