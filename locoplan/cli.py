@@ -38,7 +38,7 @@ def guarded(fn):
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None) or [Problem("", "", str(exc))]
             for p in problems:
-                err.print(f"[bold red]error:[/] {p}", highlight=False, markup=True, soft_wrap=True)
+                err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, markup=True, soft_wrap=True)
             raise typer.Exit(exc.exit_code) from None
     return wrapper
 
@@ -116,7 +116,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
             if s["valid"]:
                 out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False, soft_wrap=True)
         for p in problems:
-            err.print(f"[bold red]error:[/] {p}", highlight=False, soft_wrap=True)
+            err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:
         raise typer.Exit(2)
 
@@ -562,6 +562,10 @@ def study(route: Path = ROUTE,
 from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)
 
 _register_ocp(app)
+
+from .cli_import import register as _register_import  # noqa: E402  (locoplan import FORMAT FILES --out DIR)
+
+_register_import(app)
 
 
 def main() -> None:

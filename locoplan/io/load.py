@@ -76,17 +76,23 @@ def _line_for(lines: dict[tuple, int], loc: tuple) -> int | None:
     return lines.get(loc)
 
 
-def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
-    """Parse a YAML file; missing, unreadable, empty or malformed files raise ``InputError``."""
+def read_text(path: Path) -> str:
+    """A file's text (UTF-8); a missing, unreadable file or a folder raises ``InputError``."""
     name = str(path)
     if not path.exists():
         raise InputError(Problem(name, "", "no such file"))
     if path.is_dir():
         raise InputError(Problem(name, "", "is a directory, not a file"))
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+
+
+def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
+    """Parse a YAML file; missing, unreadable, empty or malformed files raise ``InputError``."""
+    name = str(path)
+    text = read_text(path)
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
         data = yaml.safe_load(text)

@@ -1,0 +1,146 @@
+"""``locoplan import``: run a reader, check every file it produced against locoplan's schemas, and
+write them all or none (into a hidden temporary folder inside the output folder, then moved).
+
+A problem in a produced file is reported at the source field it was converted from (the reader's
+``source_fields``), so a user fixes the file they have, not one they have never seen.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import tempfile
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import yaml
+
+from ..errors import InputError, Problem
+from .load import load_train, validate_data
+from .readers import READERS, ImportedFile, ImportOptions
+
+CLI = "<command line>"
+OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "load_fraction": "--load-fraction"}
+
+
+@dataclass(frozen=True)
+class ImportReport:
+    """What was written: (path, kind, summary) per file, the licence file (or None), notes for the user."""
+
+    written: list[tuple[Path, str, str]]
+    licence: Path | None
+    notes: list[str]
+
+
+def check_options(fmt: str, n_sources: int, options: ImportOptions) -> None:
+    """The format exists, gets a number of files it takes, and no option it does not use."""
+    if fmt not in READERS:
+        raise InputError(Problem(CLI, "FORMAT", f"unknown format {fmt!r} (one of: {', '.join(READERS)})"))
+    reader = READERS[fmt]
+    problems = []
+    defaults = ImportOptions()
+    for f in fields(ImportOptions):
+        if f.name in OPTION_FLAGS and getattr(options, f.name) != getattr(defaults, f.name) and f.name not in reader.options:
+            users = [name for name, r in READERS.items() if f.name in r.options]
+            problems.append(Problem(CLI, OPTION_FLAGS[f.name], f"does not apply to {fmt} (only to: {', '.join(users)})"))
+    if options.leg is not None and options.all_legs:
+        problems.append(Problem(CLI, "--leg", "give --leg N or --all-legs, not both"))
+    if options.leg is not None and options.leg < 1:
+        problems.append(Problem(CLI, "--leg", f"legs are numbered from 1 (got {options.leg})"))
+    if options.cap_kmh is not None and not (math.isfinite(options.cap_kmh) and options.cap_kmh > 0):
+        problems.append(Problem(CLI, "--cap-kmh", f"must be a speed > 0 km/h (got {options.cap_kmh:g})"))
+    if not (math.isfinite(options.load_fraction) and 0 <= options.load_fraction <= 1):
+        problems.append(Problem(CLI, "--load-fraction", f"must be in [0, 1] (share of each wagon's load_limit; "
+                                f"got {options.load_fraction:g})"))
+    if not reader.min_files <= n_sources <= reader.max_files:
+        problems.append(Problem(CLI, "FILES", f"{fmt} takes {reader.min_files} to {reader.max_files} file(s), got {n_sources}"))
+    if problems:
+        raise InputError(problems)
+
+
+def _writable(folder: Path) -> bool:
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """The output folder must exist and be writable (nothing is created on a guess)."""
+    where = str(out_dir)
+    if not out_dir.exists():
+        raise InputError(Problem(where, "--out", "folder does not exist (create it first)"))
+    if not out_dir.is_dir():
+        raise InputError(Problem(where, "--out", "is a file, not a folder"))
+    if not _writable(out_dir):
+        raise InputError(Problem(where, "--out", "folder is not writable"))
+
+
+def _top_key(field: str) -> str:
+    return re.split(r"[.\[]", field, maxsplit=1)[0] if field else ""
+
+
+def _to_source(item: ImportedFile, problems: list[Problem]) -> list[Problem]:
+    """Problems of a produced file, restated at the source field it came from."""
+    out = []
+    for p in problems:
+        key = _top_key(p.field)
+        source = item.source_fields.get(key, "")
+        line = item.source_lines.get(key) or None
+        out.append(Problem(item.source_file, source or p.field,
+                           f"{p.message} (as {p.field or 'the file'} of the imported {item.kind} {item.relpath})", line))
+    return out
+
+
+def _validate(tmp: Path, items: list[ImportedFile]) -> None:
+    """Routes and vehicles against their schemas; then consists (which load their vehicles), only if
+    every vehicle passed, so that one bad vehicle is reported once, at its source field."""
+    for stage in (("route", "vehicle"), ("consist",)):
+        problems: list[Problem] = []
+        for item in (i for i in items if i.kind in stage):
+            try:
+                if item.kind == "consist":
+                    load_train(tmp / item.relpath)
+                else:
+                    validate_data(yaml.safe_load(item.text), item.relpath, {})
+            except InputError as exc:
+                problems += _to_source(item, exc.problems)
+        if problems:
+            raise InputError(problems)
+
+
+def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOptions) -> ImportReport:
+    """Import ``sources`` of format ``fmt`` into ``out_dir``: every file written, or none (``InputError``)."""
+    check_options(fmt, len(sources), options)
+    check_out_dir(out_dir)
+    imported = READERS[fmt].read(sources, options)
+    seen: dict[str, str] = {}
+    for item in imported.files:
+        if item.relpath in seen:
+            raise InputError(Problem(item.source_file, "id", f"two inputs would both be written to {item.relpath} "
+                                     f"(also from {seen[item.relpath]}): ids must differ"))
+        seen[item.relpath] = item.source_file
+        target = out_dir / item.relpath
+        if target.is_dir():
+            raise InputError(Problem(str(target), "--out", "a folder stands where this file is to be written"))
+    licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
+    tmp = Path(tempfile.mkdtemp(prefix=".locoplan-import-", dir=out_dir))
+    try:
+        for item in imported.files:
+            (tmp / item.relpath).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / item.relpath).write_text(item.text, encoding="utf-8")
+        _validate(tmp, imported.files)
+        if licence_name:
+            shutil.copyfile(imported.licence, tmp / licence_name)
+        written = []
+        for item in imported.files:
+            target = out_dir / item.relpath
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(tmp / item.relpath, target)
+            written.append((target, item.kind, item.summary))
+        licence = None
+        if licence_name:
+            licence = out_dir / licence_name
+            os.replace(tmp / licence_name, licence)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return ImportReport(written, licence, imported.notes)
