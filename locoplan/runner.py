@@ -34,6 +34,7 @@ class RunResult:
     summary: dict
 
 
+SEARCH_MIN_CELLS = 200
 DEFAULT_TOLERANCE_SHARE = 0.01
 """Punctuality window when neither --tolerance nor the route's schedule gives one: +- 1 % of T0."""
 
@@ -59,7 +60,9 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did."""
     options = options or ModelOptions()
     calc = TractionCalculator(route, train, options)
-    search = calc if options.step_m >= SEARCH_STEP_M else TractionCalculator(route, train, replace(options, step_m=SEARCH_STEP_M))
+    # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
+    search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
+    search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
         raise InputError(Problem("<command line>", "--e-min", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))

@@ -24,6 +24,7 @@ Two sequence builders (``StrategyContext.builder``):
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Callable
@@ -36,7 +37,8 @@ from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
 from .sequence import build_sequence, classify_grades, fastest_runs
-from .template import Template, build_template, speed_bounds_kmh
+from ..optimize.dp import PricedDriveSolver
+from .drive import sequence_from_drive
 
 
 @dataclass
@@ -73,7 +75,11 @@ class StrategyContext:
         if "e" not in self._e_min_cache:
             out = energy_saving(self)
             res = evaluate_outcome(self.calc, out)
-            self._e_min_cache["e"] = float(res.traction_energy_kwh[0])
+            e = float(res.traction_energy_kwh[0])
+            # a falling line may be coasted from end to end: eq. 11 divides by E_min, so it is floored
+            # at 1 % of the fastest run's energy
+            fastest = float(self.calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0])
+            self._e_min_cache["e"] = max(e, E_MIN_FLOOR_SHARE * fastest, 1e-3)
             self._e_min_cache["outcome"] = out
         return self._e_min_cache["e"]
 
@@ -137,6 +143,7 @@ E_MIN_SEED = 1
 """...nor with --seed: its search always starts from this seed, so that fitness values (eq. 10-11) of
 runs with different seeds are comparable."""
 BUILDERS = ("general", "seed002")
+E_MIN_FLOOR_SHARE = 0.01
 
 
 def _optimise(ctx: StrategyContext, problem: SwitchingProblem, salt: int, algorithm: str | None = None,
@@ -193,19 +200,6 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
     return conditions, nominal, lower, upper
 
 
-def _template_problem(ctx: StrategyContext, tp: Template, **kw) -> SwitchingProblem:
-    lo, hi = tp.bounds()
-    return SwitchingProblem(ctx.search, tp.conditions, lo, hi, cruise_kmh=(tp.v_lo_kmh, tp.v_hi_kmh),
-                            cruise_mode="regulate", fixed_m=tp.fixed_m, **kw)
-
-
-def _template_outcome(problem: SwitchingProblem, x: np.ndarray, **kw) -> StrategyOutcome:
-    sw = problem.switches(x)[0]
-    v, w = (float(a[0]) for a in problem.cruise(x))
-    return StrategyOutcome(_plan(problem.conditions, sw[:-1]), cruise_kmh=round(v, 2), cruise_mode="regulate",
-                           brake_hold_kmh=round(w, 2), **kw)
-
-
 @register("energy-saving")
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
@@ -221,14 +215,44 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
         x = _confirmed(ctx, problem, result, prefer_best=True)
         return StrategyOutcome(_plan(conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
-    v_lo, _ = speed_bounds_kmh(ctx.search)
-    tp = build_template(ctx.search, np.inf, v_ref_kmh=v_lo)
-    problem = _template_problem(ctx, tp, objective="energy")
-    result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED,
-                       x0=tp.candidates([v_lo, v_lo + 5.0]))
-    x = _confirmed(ctx, problem, result)
-    return _template_outcome(problem, x, algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
-                             n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
+    drive = drive_solver(ctx).solve(LEAST_PRICE_KWH_PER_S)
+    if drive is None:
+        raise InfeasibleError(no_drive_message(ctx))
+    seq = sequence_from_drive(drive_solver(ctx).calc, drive)
+    out = StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
+    if len(seq.nominal_m):  # polish on the exact calculator: the least energy the sequence allows
+        problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, objective="energy")
+        result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED,
+                           x0=seq.nominal_m[None, :])
+        x = _confirmed(ctx, problem, result)
+        out = StrategyOutcome(_plan(seq.conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
+                              n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
+    return out
+
+
+LEAST_PRICE_KWH_PER_S = 1e-4
+"""The price of time [kWh/s] of the energy-saving drive: low enough that no energy is spent to save time."""
+
+
+DP_MIN_CELLS = 300
+"""The priced-drive DP places switching points on cell edges: on a short line it gets a finer grid of its
+own (at least this many cells, not finer than 10 m)."""
+
+
+def drive_solver(ctx: StrategyContext) -> PricedDriveSolver:
+    """The priced-drive DP over the search grid (finer on short lines), built once per context."""
+    if "dp" not in ctx._e_min_cache:
+        calc = ctx.search
+        step = max(10.0, min(calc.options.step_m, calc.route.length_m / DP_MIN_CELLS))
+        if step < calc.options.step_m:
+            calc = TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=step))
+        ctx._e_min_cache["dp"] = PricedDriveSolver(calc)
+    return ctx._e_min_cache["dp"]
+
+
+def no_drive_message(ctx: StrategyContext) -> str:
+    return (f"no drive of '{ctx.search.route.name}' with '{ctx.search.train.name}' reaches the stop within its "
+            f"limits (the fastest run: {ctx.calc.evaluate(('T',), np.zeros((1, 0))).reason(0)})")
 
 
 @register("four-stage", timetabled=True)
@@ -283,11 +307,26 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min, time_range_s=problem.time_range_s)
-    tp = build_template(ctx.search, ctx.t0_s)
-    problem = _template_problem(ctx, tp, **common)
-    v = tp.v_ref_kmh
-    result = _optimise(ctx, problem, salt=1, x0=tp.candidates([v - 4, v - 2, v, v + 2, v + 4, v + 8]))
+    solver = drive_solver(ctx)
+
+    def plan_time(d):  # the drive's plan on the search grid, as ISSA will see it
+        q = sequence_from_drive(solver.calc, d)
+        res = ctx.search.evaluate(q.conditions, np.array([[*q.nominal_m, np.nan]]))
+        return float(res.running_time_s[0]) if res.feasible[0] else math.inf
+
+    drive = solver.for_time(ctx.t0_s, timer=plan_time)
+    if drive is None:
+        raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
+    seq = sequence_from_drive(drive_solver(ctx).calc, drive)
+    if not len(seq.nominal_m):  # one condition, then the stop: nothing to search
+        return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
+                               e_min_kwh=e_min)
+    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
+    jitter = ctx.rng(3).normal(0.0, 0.1, (10, problem.n_var)) * (seq.upper_m - seq.lower_m)
+    x0 = np.vstack([seq.nominal_m, seq.nominal_m + jitter])
+    result = _optimise(ctx, problem, salt=1, x0=x0)
     x = _confirmed(ctx, problem, result)
-    return _template_outcome(problem, x, algorithm=ctx.algorithm, history=result.history,
-                             n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
-                             e_min_kwh=e_min, time_range_s=problem.time_range_s)
+    return StrategyOutcome(_plan(seq.conditions, x), algorithm=ctx.algorithm, history=result.history,
+                           n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
+                           e_min_kwh=e_min, time_range_s=problem.time_range_s)
+

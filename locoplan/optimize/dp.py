@@ -1,0 +1,289 @@
+"""The drive that minimises E + lambda T, by dynamic programming on a (position, speed) grid.
+
+Used by the general sequence builder (``strategy/template.py``) to find which condition to use where:
+pricing time at lambda [kWh/s] turns the timetabled minimum-energy problem into an unconstrained one
+whose optimum is found globally on a grid (the running time falls as lambda rises, so bisection on
+lambda lands on the planned time). The model is the calculator's: its cells (each with one gradient,
+limit and traction permission), its braking envelope (a state above it cannot stop in time), the same
+force, resistance and gravity values, and the same step (forces at the mid-speed, dt = 2 ds / (v0 + v1)).
+
+In each cell the train may apply full traction (T), coast (C), brake fully (B) or hold its speed (H: the
+force that keeps it, traction or braking, if the consist has it). Backward pass: the cost-to-go at
+every grid speed of every node and for each condition of the previous cell, interpolated linearly in
+speed between grid points; forward pass: from rest, each cell's best control at the train's actual
+speed. Costs: traction work [kWh] + lambda x time + a small penalty per change of condition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..sim.calculator import TractionCalculator
+
+T_, H_, C_, B_ = 0, 1, 2, 3
+DP_CONDITIONS = "TKCB"  # H holds the speed at which it starts: the calculator's K
+SPEED_STEP_KMH = 0.5
+"""Speed grid of the cost-to-go [km/h]."""
+SWITCH_PENALTY_SHARE = 0.002
+"""A change of condition costs this share of the fastest run's energy in the DP: drivers (and seed 002's
+eq. 3) do not switch every few metres, and the drive's runs become the sequence's conditions."""
+
+
+@njit(cache=True)
+def _interp1(x, xs, ys):
+    n = xs.shape[0]
+    if x <= xs[0]:
+        return ys[0]
+    if x >= xs[n - 1]:
+        return ys[n - 1]
+    lo, hi = 0, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if xs[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return ys[lo] + (x - xs[lo]) / (xs[hi] - xs[lo]) * (ys[hi] - ys[lo])
+
+
+@njit(cache=True)
+def _interp_node(v1, v_grid, ctg_row, v_cap):
+    """Cost-to-go at speed v1 on a node's grid: the shared speed grid below the node's cap, plus the cap
+    itself as the last point (``ctg_row[-1]``), so that a state just under a limit or a braking curve is
+    not lost to an infinite neighbour above the cap."""
+    nv = v_grid.shape[0]
+    if v1 > v_cap * (1.0 + 1e-9) + 1e-9:
+        return np.inf
+    # the last grid point below the cap
+    top = min(int(v_cap / v_grid[1]) if nv > 1 else 0, nv - 1)
+    while top > 0 and v_grid[top] > v_cap:
+        top -= 1
+    if v1 <= v_grid[top]:
+        return _interp1(v1, v_grid[: top + 1], ctg_row[: top + 1])
+    span = v_cap - v_grid[top]
+    if span <= 1e-12:
+        return ctg_row[top]
+    w = (v1 - v_grid[top]) / span
+    return ctg_row[top] + w * (ctg_row[nv] - ctg_row[top])
+
+
+@njit(cache=True)
+def _step(e, u, h, m, g_k, allowed, tv, tf, bv, bf, ra, rb, rc):
+    """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
+    v_kmh = math.sqrt(2.0 * e) * 3.6
+    load0 = v_kmh * (rb + rc * v_kmh) + ra + g_k
+    if u == H_:
+        f_max = _interp1(v_kmh, tv, tf) * allowed
+        b_max = _interp1(v_kmh, bv, bf)
+        if load0 > f_max or -load0 > b_max:
+            return -1.0, 0.0
+        return e, max(load0, 0.0) * h
+    # predictor at the start speed, forces again at the mid-speed (the calculator's second-order step)
+    e1 = e
+    for _ in range(2):
+        vm = math.sqrt(max(e + e1, 0.0)) * 3.6  # sqrt(2 (e + e1) / 2) in km/h
+        f = 0.0
+        b = 0.0
+        if u == T_:
+            f = _interp1(vm, tv, tf) * allowed
+        elif u == B_:
+            b = _interp1(vm, bv, bf)
+        load = vm * (rb + rc * vm) + ra + g_k
+        e1 = e + h / m * (f - b - load)
+    if u == T_:
+        vm = math.sqrt(max(e + e1, 0.0)) * 3.6
+        return e1, _interp1(vm, tv, tf) * allowed * h
+    return e1, 0.0
+
+
+@njit(cache=True)
+def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc):
+    """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
+    calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
+    = not possible. The last cell ends at rest."""
+    e1, w = _step(e, u, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+    cap = 0.0 if k == n - 1 else e_cap[k + 1]
+    if e1 > cap * (1.0 + 1e-9) + 1e-9:
+        if u == B_:
+            e_b = e1
+        else:
+            e_b, _ = _step(e, B_, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+        # full braking keeps the train at or under the cap (a tolerance for the envelope's finer steps)
+        if e_b > cap + 0.02 * (e - cap if e > cap else 0.0) + 1e-3 * max(e, 1.0):
+            return -1.0, 0.0
+        return cap, w
+    if e1 < 0.0:
+        return (0.0, w) if k == n - 1 else (-1.0, 0.0)
+    return e1, w
+
+
+@njit(cache=True)
+def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, cost_to_go):
+    """cost_to_go[k, c, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k at
+    speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the previous cell
+    having run condition c, to the stop (inf = none)."""
+    n = h.shape[0]
+    nv = v_grid.shape[0]
+    for c in range(4):
+        for j in range(nv + 1):
+            cost_to_go[n, c, j] = 0.0 if j == 0 or (j == nv and e_cap[n] <= 1e-12) else np.inf
+    step_cost = np.empty(4)
+    step_next = np.empty(4)
+    for k in range(n - 1, -1, -1):
+        v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
+        for j in range(nv + 1):
+            if j < nv:
+                v = v_grid[j]
+                e = 0.5 * v * v
+                if e > e_cap[k] * (1.0 + 1e-9) + 1e-9:
+                    for c in range(4):
+                        cost_to_go[k, c, j] = np.inf
+                    continue
+            else:
+                e = max(e_cap[k], 0.0)
+                v = math.sqrt(2.0 * e)
+            for u in range(4):
+                step_cost[u] = np.inf
+                step_next[u] = -1.0
+            for u in range(4):
+                if u == H_ and e <= 0.0:
+                    continue
+                e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+                if e1 < 0.0:
+                    continue
+                v1 = math.sqrt(2.0 * e1)
+                if v + v1 <= 0.0:
+                    continue
+                step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
+                step_next[u] = v1
+            for c in range(4):
+                best = np.inf
+                for u in range(4):
+                    if step_next[u] < 0.0:
+                        continue
+                    rest = _interp_node(step_next[u], v_grid, cost_to_go[k + 1, u], v_cap_next) if k < n - 1 else 0.0
+                    cc = step_cost[u] + rest + (penalty if u != c else 0.0)
+                    if cc < best:
+                        best = cc
+                cost_to_go[k, c, j] = best
+
+
+@njit(cache=True)
+def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, cost_to_go, controls, speeds):
+    """The drive from rest: each cell's best control at the actual speed; returns (time [s], work [kJ])."""
+    n = h.shape[0]
+    e = 0.0
+    t = 0.0
+    work = 0.0
+    speeds[0] = 0.0
+    prev = 0
+    for k in range(n):
+        v = math.sqrt(2.0 * e)
+        best = np.inf
+        best_u = -1
+        best_e = 0.0
+        best_w = 0.0
+        for u in range(4):
+            if u == H_ and e <= 0.0:
+                continue
+            e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+            if e1 < 0.0:
+                continue
+            v1 = math.sqrt(2.0 * e1)
+            if v + v1 <= 0.0:
+                continue
+            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u], math.sqrt(2.0 * max(e_cap[k + 1], 0.0))) if k < n - 1 else 0.0
+            c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
+            if c < best:
+                best, best_u, best_e, best_w = c, u, e1, w
+        if best_u < 0:
+            return np.inf, np.inf
+        controls[k] = best_u
+        prev = best_u
+        t += 2.0 * h[k] / (v + math.sqrt(2.0 * best_e))
+        work += best_w
+        e = best_e
+        speeds[k + 1] = math.sqrt(2.0 * e) * 3.6
+    return t, work
+
+
+@dataclass(frozen=True)
+class PricedDrive:
+    """The E + lambda T optimum on the grid: per-cell controls (indices into ``DP_CONDITIONS``), node
+    speeds [km/h], and its own running time [s] and traction energy [kWh]."""
+
+    price_kwh_per_s: float
+    controls: np.ndarray
+    speed_kmh: np.ndarray
+    time_s: float
+    energy_kwh: float
+
+
+class PricedDriveSolver:
+    """DP over one calculator's cells; ``solve(price)`` gives the priced optimum."""
+
+    def __init__(self, calc: TractionCalculator, speed_step_kmh: float = SPEED_STEP_KMH,
+                 switch_penalty_kwh: float | None = None):
+        self.calc = calc
+        if switch_penalty_kwh is None:  # a change of condition costs a little: no chattering between cells
+            fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
+            switch_penalty_kwh = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
+        self.switch_penalty_kwh = float(switch_penalty_kwh)
+        top = float(np.sqrt(2.0 * max(calc.e_envelope.max(), 0.0)) * 3.6)
+        self.v_grid = np.arange(0.0, top + speed_step_kmh, speed_step_kmh) / 3.6
+        tr = calc.train
+        self._args = (calc.h_m, np.ascontiguousarray(calc.gravity_kn), np.ascontiguousarray(calc.traction_allowed),
+                      np.ascontiguousarray(calc.e_envelope), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
+                      calc.brake_speed_kmh, calc.brake_kn, *map(float, tr.resistance_kn), self.v_grid)
+        self._ctg = np.empty((len(calc.h_m) + 1, 4, len(self.v_grid) + 1))
+
+    def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
+        n = len(self.calc.h_m)
+        _backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self._ctg)
+        controls = np.zeros(n, dtype=np.int64)
+        speeds = np.zeros(n + 1)
+        t, work = _forward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self._ctg, controls, speeds)
+        if not math.isfinite(t):
+            return None
+        return PricedDrive(float(price_kwh_per_s), controls, speeds, float(t), float(work) / 3600.0)
+
+    def for_time(self, t0_s: float, n_bisect: int = 14, price_range=(1e-4, 50.0), timer=None) -> PricedDrive | None:
+        """The priced optimum whose running time is closest to ``t0_s``: geometric bisection on lambda;
+        when even the cheapest time is too fast (a falling line where the least energy comes with speed),
+        a negative price (time rewarded: holding lower speeds by braking) is bisected as well.
+        ``timer(drive)`` [s], if given, replaces the drive's own time (e.g. its plan on the exact calculator)."""
+        best = None
+        best_t = math.inf
+
+        def consider(d):
+            nonlocal best, best_t
+            if d is None:
+                return
+            t = timer(d) if timer is not None else d.time_s
+            d = PricedDrive(d.price_kwh_per_s, d.controls, d.speed_kmh, t, d.energy_kwh) if timer is not None else d
+            if best is None or abs(t - t0_s) < abs(best_t - t0_s):
+                best, best_t = d, t
+            return d
+
+        lo, hi = (math.log(p) for p in price_range)
+        for _ in range(n_bisect):
+            mid = 0.5 * (lo + hi)
+            d = consider(self.solve(math.exp(mid)))
+            if d is None or d.time_s > t0_s:
+                lo = mid
+            else:
+                hi = mid
+        if best is not None and best.time_s < t0_s - 1e-6 and hi <= math.log(price_range[0]) + 1e-6:
+            lo_p, hi_p = -price_range[0] * 1e3, price_range[0]  # reward time: slower drives
+            for _ in range(n_bisect):
+                mid = 0.5 * (lo_p + hi_p)
+                d = consider(self.solve(mid))
+                if d is None or d.time_s > t0_s:
+                    lo_p = mid
+                else:
+                    hi_p = mid
+        return best

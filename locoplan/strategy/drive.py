@@ -1,0 +1,81 @@
+"""The general condition-sequence builder: seed 002's method (a condition sequence, switching points by
+ISSA), with the sequence read off the drive that is optimal at a price of time.
+
+Seed 002 section 2 classifies grades at each section's speed limit and copies the fastest run's
+conditions elsewhere. On hilly real lines that misjudges the grades (a heavy train runs well below the
+limit: on a 5200 t train's climb the optimum lets the speed sag from 80 to 45 km/h and coasts over the
+crest) and confines the switching points to windows that miss the optimum's, so the plans were far from
+the least energy, or late. Rules judged "at the speed the train will run" were tried first (a cruise
+speed V among the decision variables, coasting before steep descents and limit drops, traction before
+steep climbs): they reached the optimum on some lines and stayed 10-30 % above it on others, because
+which grades deserve a run of their own depends on the timetable and on what follows.
+
+So the sequence comes from the optimum itself, on a coarse grid: ``optimize/dp.py`` finds the drive
+that minimises energy + lambda x time over a (position, speed) grid, with lambda bisected to the
+planned time; its runs of traction, speed holding (K), coasting and braking are the condition sequence
+and its switching points the nominal ones. ISSA then places the switching points on the exact
+calculator, minimising eq. 10 inside the punctuality window, each free to move as far as its
+neighbours. The energy-saving strategy (E_min of eq. 11) is the same drive at the lowest price: the
+least traction energy whatever the time, a true lower bound of every plan's energy, which eq. 11 needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sim.calculator import TractionCalculator
+
+
+@dataclass(frozen=True)
+class DriveSequence:
+    """A condition sequence read off a priced-optimal drive, with nominal switching points and windows."""
+
+    conditions: tuple[str, ...]
+    nominal_m: np.ndarray
+    lower_m: np.ndarray
+    upper_m: np.ndarray
+    drive_time_s: float
+    drive_energy_kwh: float
+    price_kwh_per_s: float
+
+
+def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None = None) -> DriveSequence:
+    """Runs of the drive's per-cell controls as a seed 002 condition sequence: holding the speed is K
+    (the calculator's K holds the speed at which it starts); runs shorter than half the train (seed 002
+    eq. 3) join their predecessor; the last run of braking is the stop's (a bare B).
+    Each switching point may move as far as its neighbours' nominal positions (less half a train): the
+    drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between."""
+    from ..optimize.dp import DP_CONDITIONS
+
+    s, L = calc.s_m, calc.route.length_m
+    gap = calc.train.length_m / 2 if min_run_m is None else min_run_m
+    names = [DP_CONDITIONS[u] for u in drive.controls]
+    # the final braking: the last run of B (if any) is the stop's braking curve (a bare B)
+    last_b = len(names)
+    while last_b > 0 and names[last_b - 1] == "B":
+        last_b -= 1
+    names = names[:last_b]
+    runs: list[list] = []
+    for k, c in enumerate(names):
+        if runs and runs[-1][2] == c:
+            runs[-1][1] = float(s[k + 1])
+        else:
+            runs.append([float(s[k]), float(s[k + 1]), c])
+    merged: list[list] = []
+    for r in runs:
+        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]):
+            merged[-1][1] = r[1]
+        else:
+            merged.append(r)
+    if len(merged) > 1 and merged[-1][1] - merged[-1][0] < gap and merged[-1][2] == "C":
+        merged[-2][1] = merged[-1][1]
+        merged.pop()
+    conditions = tuple(r[2] for r in merged) + ("B",)
+    nominal = np.array([r[0] for r in merged[1:]], dtype=float)
+    edges = np.concatenate([[0.0], nominal, [L]])
+    lower = np.maximum(edges[:-2] + gap, gap)
+    upper = np.minimum(edges[2:] - gap, L - gap)
+    return DriveSequence(conditions, nominal, lower, np.maximum(upper, lower), drive.time_s, drive.energy_kwh,
+                         drive.price_kwh_per_s)
