@@ -11,7 +11,11 @@ In each cell the train may apply full traction (T), coast (C), brake fully (B) o
 force that keeps it, traction or braking, if the consist has it). Backward pass: the cost-to-go at
 every grid speed of every node and for each condition of the previous cell, interpolated linearly in
 speed between grid points; forward pass: from rest, each cell's best control at the train's actual
-speed. Costs: traction work [kWh] + lambda x time + a small penalty per change of condition.
+speed. Costs: traction work [kWh] + lambda x time + a small penalty per change of condition. A run may
+end only once it is half a train long (seed 002 eq. 3: the sequence's runs respect it by construction);
+the state therefore also holds the condition in progress and its length so far (in buckets). The
+departure run is exempt: on a falling start the least energy may power for a few tens of metres and
+coast (CH_Stadelhofen_Altstetten: 60 m of traction, then coasting to the stop), and a driver can do so.
 """
 
 from __future__ import annotations
@@ -28,6 +32,10 @@ T_, H_, C_, B_ = 0, 1, 2, 3
 DP_CONDITIONS = "TKCB"  # H holds the speed at which it starts: the calculator's K
 SPEED_STEP_KMH = 0.5
 """Speed grid of the cost-to-go [km/h]."""
+DP_CELL_M = 100.0
+"""Target length of the DP's cells [m]."""
+RUN_BUCKETS = 6
+"""Resolution of the run-length state: a run's length so far in sixths of the minimum run."""
 SWITCH_PENALTY_SHARE = 0.002
 """A change of condition costs this share of the fastest run's energy in the DP: drivers (and seed 002's
 eq. 3) do not switch every few metres, and the drive's runs become the sequence's conditions."""
@@ -122,15 +130,26 @@ def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb,
 
 
 @njit(cache=True)
-def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, cost_to_go):
-    """cost_to_go[k, c, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k at
-    speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the previous cell
-    having run condition c, to the stop (inf = none)."""
+def _run_bucket(r, min_run, n_buckets):
+    """Index of a run length [m] (0 .. n_buckets; the last = at least ``min_run``, free to switch)."""
+    if r >= min_run - 1e-9:
+        return n_buckets
+    return min(int(r / min_run * n_buckets), n_buckets - 1)
+
+
+@njit(cache=True)
+def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go):
+    """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
+    at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
+    progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
+    none). A run may end only once it is ``min_run`` long (seed 002 eq. 3), except the final braking."""
     n = h.shape[0]
     nv = v_grid.shape[0]
+    nb = cost_to_go.shape[2] - 1
     for c in range(4):
-        for j in range(nv + 1):
-            cost_to_go[n, c, j] = 0.0 if j == 0 or (j == nv and e_cap[n] <= 1e-12) else np.inf
+        for b in range(nb + 1):
+            for j in range(nv + 1):
+                cost_to_go[n, c, b, j] = 0.0 if j == 0 or (j == nv and e_cap[n] <= 1e-12) else np.inf
     step_cost = np.empty(4)
     step_next = np.empty(4)
     for k in range(n - 1, -1, -1):
@@ -141,7 +160,8 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                 e = 0.5 * v * v
                 if e > e_cap[k] * (1.0 + 1e-9) + 1e-9:
                     for c in range(4):
-                        cost_to_go[k, c, j] = np.inf
+                        for b in range(nb + 1):
+                            cost_to_go[k, c, b, j] = np.inf
                     continue
             else:
                 e = max(e_cap[k], 0.0)
@@ -149,7 +169,6 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
             for u in range(4):
                 step_cost[u] = np.inf
                 step_next[u] = -1.0
-            for u in range(4):
                 if u == H_ and e <= 0.0:
                     continue
                 e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
@@ -161,34 +180,50 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                 step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
                 step_next[u] = v1
             for c in range(4):
-                best = np.inf
-                for u in range(4):
-                    if step_next[u] < 0.0:
-                        continue
-                    rest = _interp_node(step_next[u], v_grid, cost_to_go[k + 1, u], v_cap_next) if k < n - 1 else 0.0
-                    cc = step_cost[u] + rest + (penalty if u != c else 0.0)
-                    if cc < best:
-                        best = cc
-                cost_to_go[k, c, j] = best
+                for b in range(nb + 1):
+                    best = np.inf
+                    for u in range(4):
+                        if step_next[u] < 0.0:
+                            continue
+                        if u == c:
+                            b1 = _run_bucket(b * min_run / nb + h[k], min_run, nb) if b < nb else nb
+                            extra = 0.0
+                        else:
+                            if b < nb and k > 0:
+                                continue  # the run in progress is too short to end
+                            b1 = _run_bucket(h[k], min_run, nb)
+                            extra = penalty
+                        rest = _interp_node(step_next[u], v_grid, cost_to_go[k + 1, u, b1], v_cap_next) if k < n - 1 else 0.0
+                        cc = step_cost[u] + rest + extra
+                        if cc < best:
+                            best = cc
+                    cost_to_go[k, c, b, j] = best
 
 
 @njit(cache=True)
-def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, cost_to_go, controls, speeds):
-    """The drive from rest: each cell's best control at the actual speed; returns (time [s], work [kJ])."""
+def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+             controls, speeds):
+    """The drive from rest: each cell's best control at the actual speed and run; returns (time [s], work [kJ])."""
     n = h.shape[0]
+    nb = cost_to_go.shape[2] - 1
     e = 0.0
     t = 0.0
     work = 0.0
     speeds[0] = 0.0
     prev = 0
+    run = min_run  # before the first cell any condition may start
+    first = True
     for k in range(n):
         v = math.sqrt(2.0 * e)
         best = np.inf
         best_u = -1
         best_e = 0.0
         best_w = 0.0
+        best_run = 0.0
         for u in range(4):
             if u == H_ and e <= 0.0:
+                continue
+            if k > 0 and u != prev and run < min_run - 1e-9:
                 continue
             e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
             if e1 < 0.0:
@@ -196,14 +231,21 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pri
             v1 = math.sqrt(2.0 * e1)
             if v + v1 <= 0.0:
                 continue
-            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u], math.sqrt(2.0 * max(e_cap[k + 1], 0.0))) if k < n - 1 else 0.0
+            r1 = (run + h[k]) if (k > 0 and u == prev) else h[k]
+            if first and (k == 0 or u == prev):
+                r1 = min_run  # the departure run may end anywhere (see the module docstring)
+            b1 = _run_bucket(r1, min_run, nb)
+            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0))) if k < n - 1 else 0.0
             c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
             if c < best:
-                best, best_u, best_e, best_w = c, u, e1, w
+                best, best_u, best_e, best_w, best_run = c, u, e1, w, r1
         if best_u < 0:
             return np.inf, np.inf
+        if k > 0 and best_u != prev:
+            first = False
         controls[k] = best_u
         prev = best_u
+        run = best_run
         t += 2.0 * h[k] / (v + math.sqrt(2.0 * best_e))
         work += best_w
         e = best_e
@@ -213,10 +255,11 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pri
 
 @dataclass(frozen=True)
 class PricedDrive:
-    """The E + lambda T optimum on the grid: per-cell controls (indices into ``DP_CONDITIONS``), node
-    speeds [km/h], and its own running time [s] and traction energy [kWh]."""
+    """The E + lambda T optimum on the grid: the DP's nodes [m], per-cell controls (indices into
+    ``DP_CONDITIONS``), node speeds [km/h], and its own running time [s] and traction energy [kWh]."""
 
     price_kwh_per_s: float
+    s_m: np.ndarray
     controls: np.ndarray
     speed_kmh: np.ndarray
     time_s: float
@@ -224,34 +267,58 @@ class PricedDrive:
 
 
 class PricedDriveSolver:
-    """DP over one calculator's cells; ``solve(price)`` gives the priced optimum."""
+    """DP over one calculator's route; ``solve(price)`` gives the priced optimum.
+
+    The DP's cells join the calculator's (which split at every route breakpoint, down to a few metres on
+    real lines) into cells of about ``cell_m``: gravity is their length-weighted mean (exact work),
+    traction is cut in the whole cell if any part is a neutral span, and the cap at a node is the lowest
+    braking envelope since the previous node (a short restriction is not jumped over). The drive is a
+    guess for the sequence; the exact calculator checks every plan made of it."""
 
     def __init__(self, calc: TractionCalculator, speed_step_kmh: float = SPEED_STEP_KMH,
-                 switch_penalty_kwh: float | None = None):
+                 switch_penalty_kwh: float | None = None, min_run_m: float | None = None,
+                 run_buckets: int = RUN_BUCKETS, cell_m: float = DP_CELL_M):
         self.calc = calc
+        self.min_run_m = calc.train.length_m / 2 if min_run_m is None else float(min_run_m)
         if switch_penalty_kwh is None:  # a change of condition costs a little: no chattering between cells
             fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
             switch_penalty_kwh = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
         self.switch_penalty_kwh = float(switch_penalty_kwh)
+        # DP nodes: calculator nodes at least cell_m apart (the first and the last always)
+        keep = [0]
+        for i in range(1, len(calc.s_m) - 1):
+            if calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
+                keep.append(i)
+        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1:
+            keep.pop()
+        keep.append(len(calc.s_m) - 1)
+        idx = np.array(keep)
+        self.s_m = calc.s_m[idx]
+        h = np.diff(self.s_m)
+        work = np.concatenate([[0.0], np.cumsum(calc.gravity_kn * calc.h_m)])
+        gravity = np.diff(work[idx]) / h
+        allowed = np.array([calc.traction_allowed[a:b].min() for a, b in zip(idx[:-1], idx[1:])])
+        cap = np.array([calc.e_envelope[idx[0]]] + [calc.e_envelope[a + 1:b + 1].min() for a, b in zip(idx[:-1], idx[1:])])
         top = float(np.sqrt(2.0 * max(calc.e_envelope.max(), 0.0)) * 3.6)
         self.v_grid = np.arange(0.0, top + speed_step_kmh, speed_step_kmh) / 3.6
         tr = calc.train
-        self._args = (calc.h_m, np.ascontiguousarray(calc.gravity_kn), np.ascontiguousarray(calc.traction_allowed),
-                      np.ascontiguousarray(calc.e_envelope), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
+        self._args = (np.ascontiguousarray(h), np.ascontiguousarray(gravity), np.ascontiguousarray(allowed),
+                      np.ascontiguousarray(cap), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
                       calc.brake_speed_kmh, calc.brake_kn, *map(float, tr.resistance_kn), self.v_grid)
-        self._ctg = np.empty((len(calc.h_m) + 1, 4, len(self.v_grid) + 1))
+        self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))
 
     def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
-        n = len(self.calc.h_m)
-        _backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self._ctg)
+        n = len(self.s_m) - 1
+        _backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg)
         controls = np.zeros(n, dtype=np.int64)
         speeds = np.zeros(n + 1)
-        t, work = _forward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self._ctg, controls, speeds)
+        t, work = _forward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg,
+                           controls, speeds)
         if not math.isfinite(t):
             return None
-        return PricedDrive(float(price_kwh_per_s), controls, speeds, float(t), float(work) / 3600.0)
+        return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), float(work) / 3600.0)
 
-    def for_time(self, t0_s: float, n_bisect: int = 14, price_range=(1e-4, 50.0), timer=None) -> PricedDrive | None:
+    def for_time(self, t0_s: float, n_bisect: int = 12, price_range=(1e-4, 50.0), timer=None) -> PricedDrive | None:
         """The priced optimum whose running time is closest to ``t0_s``: geometric bisection on lambda;
         when even the cheapest time is too fast (a falling line where the least energy comes with speed),
         a negative price (time rewarded: holding lower speeds by braking) is bisected as well.
@@ -264,7 +331,7 @@ class PricedDriveSolver:
             if d is None:
                 return
             t = timer(d) if timer is not None else d.time_s
-            d = PricedDrive(d.price_kwh_per_s, d.controls, d.speed_kmh, t, d.energy_kwh) if timer is not None else d
+            d = PricedDrive(d.price_kwh_per_s, d.s_m, d.controls, d.speed_kmh, t, d.energy_kwh) if timer is not None else d
             if best is None or abs(t - t0_s) < abs(best_t - t0_s):
                 best, best_t = d, t
             return d

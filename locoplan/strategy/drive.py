@@ -49,7 +49,7 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
     drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between."""
     from ..optimize.dp import DP_CONDITIONS
 
-    s, L = calc.s_m, calc.route.length_m
+    s, L = drive.s_m, calc.route.length_m
     gap = calc.train.length_m / 2 if min_run_m is None else min_run_m
     names = [DP_CONDITIONS[u] for u in drive.controls]
     # the final braking: the last run of B (if any) is the stop's braking curve (a bare B)
@@ -64,8 +64,10 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
         else:
             runs.append([float(s[k]), float(s[k + 1]), c])
     merged: list[list] = []
-    for r in runs:
-        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]):
+    for r in runs:  # (the DP keeps every run but the departure one at least half a train long)
+        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]) and len(merged) > 1:
+            merged[-1][1] = r[1]
+        elif merged and merged[-1][2] == r[2]:
             merged[-1][1] = r[1]
         else:
             merged.append(r)
@@ -75,7 +77,38 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
     conditions = tuple(r[2] for r in merged) + ("B",)
     nominal = np.array([r[0] for r in merged[1:]], dtype=float)
     edges = np.concatenate([[0.0], nominal, [L]])
-    lower = np.maximum(edges[:-2] + gap, gap)
+    lower = edges[:-2] + gap
+    if len(nominal):
+        lower[0] = min(gap, 0.5 * nominal[0])  # the departure run may be short
     upper = np.minimum(edges[2:] - gap, L - gap)
     return DriveSequence(conditions, nominal, lower, np.maximum(upper, lower), drive.time_s, drive.energy_kwh,
                          drive.price_kwh_per_s)
+
+
+def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
+    """The sequence with a speed hold (K) after each coasting run: for a timetable slower than the least
+    energy's own time (a falling line coasts faster than asked), the extra time is spent holding lower
+    speeds by braking, which costs no traction energy; ISSA then places the holds. Each K begins halfway
+    through its coasting run (windows: as far as the neighbours, less half a train)."""
+    L = calc.route.length_m
+    gap = calc.train.length_m / 2
+    starts = np.concatenate([[0.0], seq.nominal_m])
+    ends = np.concatenate([seq.nominal_m, [L]])
+    body = seq.conditions[:-1]
+    conditions: list[str] = []
+    nominal: list[float] = []
+    for j, (c, a, b) in enumerate(zip(body, starts, ends)):
+        conditions.append(c)
+        if j:
+            nominal.append(float(a))
+        if c == "C" and b - a > 2 * gap:
+            conditions.append("K")
+            nominal.append(float(0.5 * (a + b)))
+    nominal_m = np.array(nominal)
+    edges = np.concatenate([[0.0], nominal_m, [L]])
+    lower = edges[:-2] + gap
+    if len(nominal_m):
+        lower[0] = min(gap, 0.5 * nominal_m[0])
+    upper = np.minimum(edges[2:] - gap, L - gap)
+    return DriveSequence(tuple(conditions) + ("B",), nominal_m, lower, np.maximum(upper, lower), seq.drive_time_s,
+                         seq.drive_energy_kwh, seq.price_kwh_per_s)
