@@ -50,6 +50,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError, Problem
+from ..io.load import build_train
 from ..model.consist import Consist, ConsistEntry, Vehicle
 from ..model.route import Route
 from ..model.train import Train
@@ -67,8 +68,8 @@ BRAKE_IN_KMH = 30.0
 """Below this speed the anticipation curve to the stop is a service brake (half of full braking),
 above it a coasting curve: drivers coast towards the station and brake into it."""
 
-CALIBRATION_STEPS = 12
-"""Bisection steps on each run's cruise speed (the bracket shrinks 4096 times: to about 0.02 km/h)."""
+CALIBRATION_STEPS = 8
+"""At most this many regula-falsi steps on each run's cruise speed (after the bracket's two ends)."""
 
 SIMULATOR = "locoplan drivers simulate"
 
@@ -205,22 +206,31 @@ class SimOutcome:
 
 def _quantise(notch: np.ndarray, step: np.ndarray) -> np.ndarray:
     """Round a notch to the driver's step (1, 2 or 4), within 0..NOTCHES."""
-    return np.clip(np.round(notch / step) * step, 0, NOTCHES)
+    return np.minimum(np.maximum(np.round(notch / step) * step, 0.0), NOTCHES)
 
 
 def simulate_runs(calc: TractionCalculator, tables: RouteTables, p: DriverParams, cruise_kmh: np.ndarray,
-                  noise: np.ndarray, max_time_s: float, record: bool = False) -> SimOutcome:
+                  noise: np.ndarray, max_time_s: np.ndarray | float, record: bool = False) -> SimOutcome:
     """Drive every run (the rows of ``p``, ``cruise_kmh``, ``noise``) from rest at 0 m to rest at the
     route's end. ``noise`` (n_runs, n_steps) is each run's speed misjudgement [km/h] per step."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _simulate(calc, tables, p, np.asarray(cruise_kmh, float), noise,
+                         np.broadcast_to(np.asarray(max_time_s, float), (len(cruise_kmh),)), record)
+
+
+def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
     n = len(cruise_kmh)
     L = float(calc.route.length_m)
     m = calc.m_eff_t
     nodes, limit, allowed = tables.s_m, tables.limit_kmh, tables.allowed
+    e_brake, e_coast = tables.e_brake, tables.e_coast
+    to_up, on_up, to_down, down_gain = tables.to_up_m, tables.on_up, tables.to_down_m, tables.down_gain_kmh
     n_cells = len(limit)
     n_steps = noise.shape[1]
-    delay = np.clip(np.round(p.reaction_s / DT_S).astype(int), 0, 8)
-    hist = np.zeros((n, 9))  # commanded notches, newest in column 0 (+ traction, - braking)
-    hist_label = np.full((n, 9), 2, dtype=np.int8)  # 0 T, 1 K, 2 C, 3 B
+    depth = 9
+    delay = np.minimum(np.maximum(np.round(p.reaction_s / DT_S).astype(int), 0), depth - 1)
+    hist = np.zeros((n, depth))  # commanded notches in a ring (+ traction, - braking)
+    hist_label = np.full((n, depth), 2, dtype=np.int8)  # 0 T, 1 K, 2 C, 3 B
     rows = np.arange(n)
     s = np.zeros(n)
     v = np.zeros(n)
@@ -229,6 +239,8 @@ def simulate_runs(calc: TractionCalculator, tables: RouteTables, p: DriverParams
     failed = np.zeros(n, dtype=bool)
     reason = [""] * n
     stopping = np.zeros(n, dtype=bool)
+    half_margin = 0.5 * p.margin_kmh
+    coast_share, brake_share = p.anticipation, 1.0 - p.anticipation
     if record:
         rec_t = np.zeros((n, n_steps + 1))
         rec_s = np.zeros((n, n_steps + 1))
@@ -237,86 +249,76 @@ def simulate_runs(calc: TractionCalculator, tables: RouteTables, p: DriverParams
         rec_notch = np.zeros((n, n_steps + 1), dtype=int)
         rec_label = np.full((n, n_steps + 1), 2, dtype=np.int8)
         length = np.zeros(n, dtype=int)
-    a_max_total = 0.0
+    live = np.ones(n, dtype=bool)
     for i in range(n_steps):
-        live = ~(done | failed)
-        if not live.any():
-            break
-        k = np.clip(np.searchsorted(nodes, s, side="right") - 1, 0, n_cells - 1)
+        k = np.minimum(np.searchsorted(nodes, s, side="right") - 1, n_cells - 1)
         v_kmh = v * 3.6
         f_max, b_max, load = calc.forces_kn(v, k)
         lim = limit[k]
         # --- the target speed the driver has in mind
         look = s + v * p.reaction_s
-        e_ant = p.anticipation * np.interp(look, nodes, tables.e_coast) + (1 - p.anticipation) * np.interp(look, nodes, tables.e_brake)
-        v_ant = np.sqrt(2 * e_ant) * 3.6
-        base = np.where(tables.to_up_m[k] < p.charge_up_m, lim, cruise_kmh)
-        base = np.where(tables.on_up[k], lim, base)  # power on up a long up-grade: never brake there
-        pre_down = tables.to_down_m[k] < p.coast_down_m
-        base = np.where(pre_down, np.minimum(base, cruise_kmh - 0.7 * tables.down_gain_kmh[k]), base)
-        v_tgt = np.minimum(np.minimum(base, lim - p.margin_kmh), v_ant - 0.5 * p.margin_kmh)
+        e_ant = coast_share * np.interp(look, nodes, e_coast) + brake_share * np.interp(look, nodes, e_brake)
+        base = np.where(on_up[k] | (to_up[k] < p.charge_up_m), lim, cruise_kmh)  # power on up a long up-grade
+        base = np.where(to_down[k] < p.coast_down_m, np.minimum(base, cruise_kmh - 0.7 * down_gain[k]), base)
+        v_tgt = np.minimum(np.minimum(base, lim - p.margin_kmh), np.sqrt(2 * e_ant) * 3.6 - half_margin)
         # --- the handle: accelerate, hold, coast or brake, on the speed as the driver judges it
         v_seen = v_kmh + noise[:, i]
         err = v_tgt - v_seen
-        brake_at = np.minimum(v_tgt + p.brake_over_kmh, lim - 0.5 * p.margin_kmh)
+        brake_at = np.minimum(v_tgt + p.brake_over_kmh, lim - half_margin)
         accel = err > p.band_kmh
         brake = ~accel & (v_seen > brake_at) & (v_kmh > 1.0)
         hold = ~accel & ~brake & (err > -p.band_kmh)
         n_acc = np.maximum(_quantise(np.minimum(np.ceil(p.gain_notch_per_kmh * err), p.accel_notch), p.notch_step), p.notch_step)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            need = np.where((load > 0) & (f_max > 0), NOTCHES * load / f_max, 0.0)
-        n_hold = _quantise(need, p.notch_step)
+        n_hold = _quantise(np.where(load > 0, NOTCHES * load / f_max, 0.0), p.notch_step)
         n_brk = np.maximum(_quantise(np.ceil(p.gain_notch_per_kmh * (v_seen - brake_at)), p.notch_step), p.notch_step)
-        cmd = np.where(accel, n_acc, np.where(hold, n_hold, np.where(brake, -n_brk, 0.0)))
-        label = np.where(accel, 0, np.where(hold, 1, np.where(brake, 3, 2))).astype(np.int8)
-        hist = np.roll(hist, 1, axis=1)
-        hist_label = np.roll(hist_label, 1, axis=1)
-        hist[:, 0], hist_label[:, 0] = cmd, label
-        notch = hist[rows, delay]
-        act = hist_label[rows, delay].copy()
+        slot = i % depth
+        hist[:, slot] = np.where(accel, n_acc, np.where(hold, n_hold, np.where(brake, -n_brk, 0.0)))
+        hist_label[:, slot] = np.where(accel, 0, np.where(hold, 1, np.where(brake, 3, 2)))
+        back = (slot - delay) % depth
+        notch = hist[rows, back]
+        act = hist_label[rows, back]
         # --- the final stop: brake to stop exactly at the end, once it takes a share of full braking
-        to_go = np.maximum(L - s, 0.05)
-        a_req = v * v / (2 * to_go)
-        a_full = (b_max + load) / m
-        stopping |= live & (v > 0) & (a_req >= p.brake_in * np.maximum(a_full, 1e-3))
-        # --- supervision: full braking at the braking envelope (never above a limit)
-        ahead = s + v * DT_S
-        e_now = 0.5 * v * v
-        guard = e_now >= np.interp(ahead, nodes, tables.e_brake) - 0.5
+        a_req = v * v / (2 * np.maximum(L - s, 0.05))
+        stopping |= live & (v > 0) & (a_req * m >= p.brake_in * np.maximum(b_max + load, 1e-3 * m))
         # forces: fractions of the curves, evaluated again at the step's mid speed (RK2)
-        trac_frac = np.where(notch > 0, notch / NOTCHES, 0.0) * allowed[k]
-        brake_frac = np.where(notch < 0, -notch / NOTCHES, 0.0)
-        brake_stop = np.clip(m * a_req - load, 0.0, b_max)
-        brake_frac = np.where(stopping, np.where(b_max > 0, brake_stop / np.maximum(b_max, 1e-9), 0.0), brake_frac)
-        trac_frac = np.where(stopping | guard, 0.0, trac_frac)
-        brake_frac = np.where(guard, 1.0, brake_frac)
-        act = np.where(stopping | guard, np.where(brake_frac > 0, 3, 2), act)
-        act = np.where((act == 0) & (trac_frac == 0), 2, act)  # a neutral section: the handle is up, no force
+        trac_frac = np.where(stopping | (notch <= 0), 0.0, notch / NOTCHES * allowed[k])
+        brake_frac = np.where(stopping, np.minimum(np.maximum(m * a_req - load, 0.0), b_max) / b_max,
+                              np.maximum(-notch, 0.0) / NOTCHES)
+        # --- supervision (the train-protection curve): where the handle would take the train over the
+        # braking envelope within this step, it brakes (or cuts traction) just enough, up to full braking
+        e_now = 0.5 * v * v
+        e_cap = np.interp(s + v * DT_S, nodes, e_brake) - 0.5
+        reach = np.maximum(v, 0.1) * DT_S
+        guard = live & (v > 0) & (e_now + (trac_frac * f_max - brake_frac * b_max - load) / m * reach > e_cap)
+        if guard.any():
+            f_need = m * (e_cap - e_now) / reach + load  # net force F - B that meets the cap
+            trac_frac = np.where(guard, np.minimum(np.maximum(f_need / f_max, 0.0), trac_frac), trac_frac)
+            brake_frac = np.where(guard, np.minimum(np.maximum(-f_need / b_max, brake_frac), 1.0), brake_frac)
+            guard &= brake_frac > 0
+        act = np.where(stopping | guard, np.where(brake_frac > 0, 3, 2), np.where((act == 0) & (trac_frac == 0), 2, act))
         a0 = (trac_frac * f_max - brake_frac * b_max - load) / m
         v_mid = np.maximum(v + 0.5 * DT_S * a0, 0.0)
         f_mid, b_mid, load_mid = calc.forces_kn(v_mid, k)
         force = trac_frac * f_mid - brake_frac * b_mid
-        at_rest = v <= 0
-        # at rest the brakes hold the train unless traction overcomes the load (no rolling back)
         force_net = force - load_mid
-        acc = np.where(at_rest & (force_net <= 0), 0.0, force_net / m)
+        # at rest the brakes hold the train unless traction overcomes the load (no rolling back)
+        acc = np.where((v <= 0) & (force_net <= 0), 0.0, force_net / m)
         v_new = v + acc * DT_S
-        ds = 0.5 * (v + np.maximum(v_new, 0.0)) * DT_S
-        dt_step = np.full(n, DT_S)
         # a train coming to rest inside the step: when, and where
         halts = live & (v > 0) & (v_new <= 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_halt = np.where(halts, v / np.maximum(-acc, 1e-12), DT_S)
-        ds = np.where(halts, 0.5 * v * t_halt, ds)
-        dt_step = np.where(halts, t_halt, dt_step)
+        t_halt = np.where(halts, v / np.maximum(-acc, 1e-12), DT_S)
+        ds = np.where(halts, 0.5 * v * t_halt, 0.5 * (v + np.maximum(v_new, 0.0)) * DT_S)
+        dt_step = np.where(halts, t_halt, DT_S)
         v_new = np.maximum(v_new, 0.0)
         arrive = live & ((s + ds >= L - 0.5) | (halts & stopping & (s + ds >= L - 5.0)))
-        # the last step ends exactly at the end of the route, at rest
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dt_arrive = np.where(arrive, 2 * np.maximum(L - s, 0.0) / np.maximum(v, 1e-9), dt_step)
-        dt_step = np.where(arrive, np.minimum(dt_arrive, dt_step * 4), dt_step)
-        ds = np.where(arrive, L - s, ds)
-        stall = live & halts & ~arrive
+        if arrive.any():  # the last step ends exactly at the end of the route, at rest
+            dt_arrive = 2 * np.maximum(L - s, 0.0) / np.maximum(v, 1e-9)
+            dt_step = np.where(arrive, np.minimum(dt_arrive, dt_step * 4), dt_step)
+            ds = np.where(arrive, L - s, ds)
+            overrun = arrive & (v_kmh > 10.0) & (s + 0.5 * (v + v_new) * DT_S > L + 1.0)
+        else:
+            overrun = arrive
+        stall = halts & ~arrive
         if record:
             j = length
             rec_t[rows, j], rec_s[rows, j], rec_v[rows, j] = t, s, v_kmh
@@ -329,15 +331,18 @@ def simulate_runs(calc: TractionCalculator, tables: RouteTables, p: DriverParams
         s = np.where(live, s + ds, s)
         v = np.where(live, np.where(arrive, 0.0, v_new), v)
         t = np.where(live, t + dt_step, t)
-        done |= arrive
-        for r in np.flatnonzero(stall | over):
-            failed[r] = True
-            reason[r] = (f"stalled at {s[r]:,.0f} m" if stall[r] else f"above the limit at {s[r]:,.0f} m")
-        timeout = live & ~done & (t > max_time_s)
-        for r in np.flatnonzero(timeout):
-            failed[r] = True
-            reason[r] = f"did not arrive within {max_time_s:,.0f} s"
-    for r in np.flatnonzero(~(done | failed)):
+        done |= arrive & ~overrun
+        bad = stall | over | overrun | (live & ~arrive & (t > max_time_s))
+        if bad.any():
+            for r in np.flatnonzero(bad):
+                failed[r] = True
+                reason[r] = (f"stalled at {s[r]:,.0f} m" if stall[r] else f"above the limit at {s[r]:,.0f} m" if over[r]
+                             else f"ran past the stop at {v_kmh[r]:.1f} km/h" if overrun[r]
+                             else f"did not arrive within {max_time_s[r]:,.0f} s")
+        live = ~(done | failed)
+        if not live.any():
+            break
+    for r in np.flatnonzero(live):
         failed[r] = True
         reason[r] = f"did not arrive within {n_steps} steps"
     running = np.where(done, t, np.inf)
@@ -356,20 +361,42 @@ def simulate_runs(calc: TractionCalculator, tables: RouteTables, p: DriverParams
 
 def drive_to_schedule(calc: TractionCalculator, tables: RouteTables, p: DriverParams, aim_s: np.ndarray,
                       noise: np.ndarray, steps: int = CALIBRATION_STEPS) -> tuple[np.ndarray, SimOutcome]:
-    """Each run's cruise speed for its aimed running time (bisection, all runs at once), and the
-    recorded runs at those speeds. A run that cannot make its time even at the line speed runs at it
-    (and arrives late, as drivers sometimes do)."""
+    """Each run's cruise speed for its aimed running time, all runs at once, and the recorded runs at
+    those speeds. The running time is close to linear in 1 / cruise speed, so the search is regula
+    falsi (Illinois) on x = 1 / cruise within a bracket; it stops when every run is within 0.5 s. A run
+    that cannot make its time even at the line speed runs at it (and arrives late, as drivers sometimes
+    do)."""
     v_top = float(np.max(tables.limit_kmh))
-    lo = np.full(len(aim_s), 15.0)
-    hi = np.full(len(aim_s), v_top)
-    max_time = float(np.max(aim_s)) * 3.0
+    mean_kmh = 3.6 * calc.route.length_m / aim_s
+    max_time = 3.0 * aim_s
+    x_fast, x_slow = np.full(len(aim_s), 1.0 / v_top), 1.0 / np.maximum(0.8 * mean_kmh, 10.0)
+
+    def late(x):
+        return np.minimum(simulate_runs(calc, tables, p, 1.0 / x, noise, max_time).running_time_s - aim_s, 1e4)
+
+    f_fast, f_slow = late(x_fast), late(x_slow)
+    best_x = np.where(np.abs(f_fast) < np.abs(f_slow), x_fast, x_slow)
+    best_f = np.minimum(np.abs(f_fast), np.abs(f_slow))
+    open_ = (f_fast < 0) & (f_slow > 0)  # bracketed; otherwise the nearer end is the answer
+    side = np.zeros(len(aim_s), dtype=int)
     for _ in range(steps):
-        mid = 0.5 * (lo + hi)
-        out = simulate_runs(calc, tables, p, mid, noise, max_time)
-        late = out.running_time_s > aim_s  # too slow (or failed): drive faster
-        lo = np.where(late, mid, lo)
-        hi = np.where(late, hi, mid)
-    cruise = hi
+        if not (open_ & (best_f > 0.5)).any():
+            break
+        x = np.where(open_, x_slow - f_slow * (x_slow - x_fast) / (f_slow - f_fast), best_x)
+        lo, hi = np.minimum(x_fast, x_slow), np.maximum(x_fast, x_slow)
+        x = np.clip(x, lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo))
+        f = late(x)
+        better = np.abs(f) < best_f
+        best_x, best_f = np.where(better, x, best_x), np.where(better, np.abs(f), best_f)
+        slow = open_ & (f > 0)
+        fast = open_ & (f <= 0)
+        # Illinois: halve the stale end's value when the same end moves twice running
+        f_fast = np.where(slow & (side == -1), 0.5 * f_fast, f_fast)
+        f_slow = np.where(fast & (side == 1), 0.5 * f_slow, f_slow)
+        x_slow, f_slow = np.where(slow, x, x_slow), np.where(slow, f, f_slow)
+        x_fast, f_fast = np.where(fast, x, x_fast), np.where(fast, f, f_fast)
+        side = np.where(slow, -1, np.where(fast, 1, side))
+    cruise = 1.0 / best_x
     return cruise, simulate_runs(calc, tables, p, cruise, noise, max_time, record=True)
 
 
@@ -476,8 +503,6 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
     day = 0
     for mass in spec.masses_t:
         consist = consist_for_mass(spec.base_consist, spec.vehicles, mass)
-        from ..io.load import build_train
-
         train = build_train(consist, spec.vehicles, "--masses")
         calc = TractionCalculator(spec.route, train, spec.options)
         tables = route_tables(calc)
@@ -487,36 +512,39 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
             if t0 < calc.fastest_time_s:
                 raise InputError(Problem("<command line>", "--times", f"{t0:g} s is below the fastest possible run of "
                                          f"{train.name} on '{spec.route.name}', {calc.fastest_time_s:.1f} s"))
-            tol_s = tol if tol is not None else (spec.route.schedule.tolerance_s if spec.route.schedule else 0.01 * t0)
-            idx = np.repeat(np.arange(spec.n_drivers), spec.n_runs)
-            p = jitter(drivers.take(idx), rng)
-            aim = t0 + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -0.9, 0.9)
-            n_steps = int(math.ceil(3.0 * float(aim.max()) / DT_S))
-            noise = speed_noise(len(idx), n_steps, p.noise_kmh, rng)
-            if progress:
-                progress(f"mass {mass:g} t, time {t0:g} s: {len(idx)} runs")
-            cruise, out = drive_to_schedule(calc, tables, p, aim, noise)
-            bad = [(ids[idx[r]], out.failure[r]) for r in range(len(idx)) if out.failure[r]]
-            if bad:  # a simulator defect, never a user's mistake: say which run and why
-                raise RuntimeError(f"driver simulator: {len(bad)} run(s) failed on '{spec.route.name}' at {mass:g} t, "
-                                   f"{t0:g} s, e.g. driver {bad[0][0]}: {bad[0][1]}")
-            energies = []
-            for r, log in enumerate(out.logs):
-                d = idx[r]
-                rep = r % spec.n_runs + 1
+        # every driver's runs at every planned time of this mass, in one batch
+        per_time = spec.n_drivers * spec.n_runs
+        idx = np.tile(np.repeat(np.arange(spec.n_drivers), spec.n_runs), len(spec.times_s))
+        planned = np.repeat(np.asarray(spec.times_s, float), per_time)
+        tol_s = np.array([tol if tol is not None else (spec.route.schedule.tolerance_s if spec.route.schedule else 0.01 * x)
+                          for x in planned])
+        p = jitter(drivers.take(idx), rng)
+        aim = planned + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -0.9, 0.9)
+        noise = speed_noise(len(idx), int(math.ceil(3.0 * float(aim.max()) / DT_S)), p.noise_kmh, rng)
+        if progress:
+            progress(f"{spec.route.name}: {mass:g} t, {len(idx)} runs")
+        _, out = drive_to_schedule(calc, tables, p, aim, noise)
+        bad = [(ids[idx[r]], out.failure[r]) for r in range(len(idx)) if out.failure[r]]
+        if bad:  # a simulator defect, never a user's mistake: say which run and why
+            raise RuntimeError(f"driver simulator: {len(bad)} run(s) failed on '{spec.route.name}' at {mass:g} t, "
+                               f"e.g. driver {bad[0][0]}: {bad[0][1]}")
+        for j, t0 in enumerate(spec.times_s):
+            sel = range(j * per_time, (j + 1) * per_time)
+            for r in sel:
+                log, d, rep = out.logs[r], idx[r], r % spec.n_runs + 1
                 name = f"logs/{ids[d]}-m{mass:g}-t{t0:g}-r{rep}.csv"
                 files[name] = log_csv_text(log)
-                energies.append(log.traction_energy_kwh)
                 runs_meta.append({"log": name, "driver_id": ids[d], "consist": cname, "mass_t": float(mass),
                                   "scheduled_time_s": float(t0), "actual_time_s": round(float(log.running_time_s), 1),
                                   "date": (spec.start_date + dt.timedelta(days=day)).isoformat()})
                 day += 1
-            e = np.array(energies)
-            times = np.array([lg.running_time_s for lg in out.logs])
-            groups.append({"mass_t": float(mass), "scheduled_time_s": float(t0), "runs": len(idx),
+            e = np.array([out.logs[r].traction_energy_kwh for r in sel])
+            times = np.array([out.logs[r].running_time_s for r in sel])
+            tol_j = tol_s[j * per_time]
+            groups.append({"mass_t": float(mass), "scheduled_time_s": float(t0), "runs": per_time,
                            "mean_energy_kwh": round(float(e.mean()), 2), "min_energy_kwh": round(float(e.min()), 2),
                            "max_energy_kwh": round(float(e.max()), 2), "mean_time_s": round(float(times.mean()), 1),
-                           "late_runs": int(np.sum(times > t0 + tol_s)), "early_runs": int(np.sum(times < t0 - tol_s))})
+                           "late_runs": int(np.sum(times > t0 + tol_j)), "early_runs": int(np.sum(times < t0 - tol_j))})
     manifest = {"schema": "locoplan/driver-logs@1", "route": "route.yaml", "synthetic": True,
                 "generator": {"name": SIMULATOR, "version": __version__, "seed": int(spec.seed)},
                 "notes": (f"SYNTHETIC: {spec.n_drivers} simulated drivers x {spec.n_runs} runs per mass and time, "
