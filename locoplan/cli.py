@@ -399,7 +399,9 @@ def compare(route: Path = ROUTE,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW,
+            logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
+            patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice').")):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .optimize.registry import get_algorithm
     from .runner import compare as run_compare, make_context
@@ -411,6 +413,7 @@ def compare(route: Path = ROUTE,
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
                        params_path=str(params) if params else None, tolerance_s=tolerance, window=window)
+    ctx.inputs.update(logs=logs, patterns=patterns)
     if explain and not as_json:
         _explain(ctx)
     runs = run_compare(ctx, names)
@@ -559,6 +562,9 @@ def study(route: Path = ROUTE,
 from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)
 
 _register_ocp(app)
+from .cli_learn import register as _register_learn  # noqa: E402  (seed 004 commands: drivers, learn, advise)
+
+_register_learn(app)
 
 
 def main() -> None:

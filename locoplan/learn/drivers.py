@@ -536,7 +536,7 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
                 files[name] = log_csv_text(log)
                 runs_meta.append({"log": name, "driver_id": ids[d], "consist": cname, "mass_t": float(mass),
                                   "scheduled_time_s": float(t0), "actual_time_s": round(float(log.running_time_s), 1),
-                                  "date": (spec.start_date + dt.timedelta(days=day)).isoformat()})
+                                  "date": spec.start_date + dt.timedelta(days=day)})
                 day += 1
             e = np.array([out.logs[r].traction_energy_kwh for r in sel])
             times = np.array([out.logs[r].running_time_s for r in sel])

@@ -413,7 +413,27 @@ class Patterns:
                 "lower": self.lower.to_dict(), "report": self.report}
 
 
-def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions) -> Patterns:
+@dataclass(frozen=True)
+class Learned:
+    """What ``learn`` found: the patterns, and the good runs they came from (for the fit plot)."""
+
+    patterns: Patterns
+    runs: list[LoggedRun]
+    lines: list[LineModel]
+    observed: list  # per run: (shares, speeds at the division points)
+    heldout: np.ndarray  # per run: held out of the fit
+
+
+def smooth_curve(points_m: np.ndarray, speeds_kmh: np.ndarray):
+    """The division points' speeds joined smoothly (claim 1 step 4): a monotone cubic (PCHIP) through
+    them, which never overshoots between two points; a callable of position [m] -> speed [km/h]."""
+    from scipy.interpolate import PchipInterpolator
+
+    x, idx = np.unique(points_m, return_index=True)
+    return PchipInterpolator(x, speeds_kmh[idx])
+
+
+def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions) -> Learned:
     """Claims 1-3 and eq. I-II: pick the good drivers' runs, choose each layer's order by grouped
     cross-validation, report R^2 and errors on held-out runs, refit on all good runs."""
     settings.check()
@@ -487,7 +507,7 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
         "lower": {"order": lo_order, "cv": lo_table},
         "heldout": held_report, "fit": fit_report,
     }
-    return Patterns(settings, model, form, upper, lower, _rounded(report))
+    return Learned(Patterns(settings, model, form, upper, lower, _rounded(report)), chosen, lines, obs, held)
 
 
 def evaluate(pat: Patterns, runs: list[LoggedRun], lines: list[LineModel], obs: list) -> dict:
