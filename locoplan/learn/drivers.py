@@ -68,6 +68,10 @@ BRAKE_IN_KMH = 30.0
 """Below this speed the anticipation curve to the stop is a service brake (half of full braking),
 above it a coasting curve: drivers coast towards the station and brake into it."""
 
+COAST_SPAN_KMH = 12.0
+"""The anticipation curve lies at most this far below the braking curve: a driver coasts to shed up to
+12 km/h before a lower limit or the station, and brakes for the rest."""
+
 CALIBRATION_STEPS = 8
 """At most this many regula-falsi steps on each run's cruise speed (after the bracket's two ends)."""
 
@@ -175,7 +179,9 @@ def route_tables(calc: TractionCalculator) -> RouteTables:
         else:  # into the station, or where coasting does not slow the train: a service brake (half of full)
             e0 = e1 + h[k] * max(0.5 * b_max + load, 0.0) / m
         e_coast[k] = min(e_coast[k], e0)
-    e_coast = np.minimum(e_coast, calc.e_envelope)
+    # nobody coasts for kilometres to lose a few km/h: the curve stays within COAST_SPAN_KMH of the braking curve
+    floor_kmh = np.maximum(np.sqrt(2 * calc.e_envelope) * 3.6 - COAST_SPAN_KMH, 0.0)
+    e_coast = np.minimum(np.maximum(e_coast, (floor_kmh / 3.6) ** 2 / 2), calc.e_envelope)
     mid = 0.5 * (s[1:] + s[:-1])
     to_up = np.full(n, np.inf)
     to_down = np.full(n, np.inf)

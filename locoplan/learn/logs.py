@@ -195,8 +195,9 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
         seen.setdefault(c, j)
         if c not in known:
             problems.append(Problem(name, _col(j, c), _column_problem(c, known), 1))
+    foreign = {c.partition("_")[0] for c in cols if c not in known and c.partition("_")[0] in FOREIGN_UNITS}
     for c in REQUIRED_COLUMNS:
-        if c not in seen:
+        if c not in seen and c.partition("_")[0] not in foreign:  # a column in other units is reported already
             problems.append(Problem(name, "header", f"required column '{c}' is missing (columns found: {', '.join(cols)})", 1))
     if problems:
         raise InputError(problems)
@@ -397,8 +398,9 @@ def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> 
                 continue
             route_path = (base / route_ref).resolve()
             if not route_path.exists():
-                problems.append(Problem(str(mf), where("route"), f"no such route file: {route_ref} "
-                                        f"(looked for {route_path})", line("route") or _line_for(lines, ("route",))))
+                own = getattr(entry, "route", None) is not None and loc  # given for the run, or for the manifest
+                problems.append(Problem(str(mf), where("route") if own else "route", f"no such route file: {route_ref} "
+                                        f"(looked for {route_path})", line("route") if own else _line_for(lines, ("route",))))
                 continue
             log_path = base / entry.log
             if not log_path.exists():
@@ -451,9 +453,12 @@ def manifest_text(model: dict, header: str = "") -> str:
 
     runs = model.get("runs", [])
     head = {k: v for k, v in model.items() if k != "runs"}
-    text = header + yaml.safe_dump(head, sort_keys=False, default_flow_style=None, width=200)
+    text = header
+    for k, v in head.items():
+        flow = isinstance(v, (dict, list))
+        text += f"{k}: " + yaml.safe_dump(v, default_flow_style=flow, width=10_000).strip().removesuffix("\n...").strip() + "\n"
     if runs:
         text += "runs:\n"
         for r in runs:
-            text += "  - " + yaml.safe_dump(r, sort_keys=False, default_flow_style=True, width=400).strip() + "\n"
+            text += "  - " + yaml.safe_dump(r, sort_keys=False, default_flow_style=True, width=10_000).strip() + "\n"
     return text

@@ -57,6 +57,9 @@ UPPER_FORMS = ("pace", "share")
 RIDGE = 1e-8
 """Ridge weight (relative to the number of rows) on every coefficient but the intercept: keeps the
 normal equations solvable when a section type is missing, and leaves well-posed fits unchanged."""
+PATTERN_FLOOR = 0.5
+"""A chained pattern speed is kept at or above this share of the speed cap at its point: a pattern
+never asks the train to crawl mid-route (a lower-layer prediction far outside what it learned can)."""
 TYPE_SHRINK = 1.0
 """Pull of a per-type fit towards the pooled fit (ridge weight on the coefficient differences; the
 design's columns are z-scores, so 1 weighs like one row of data)."""
@@ -204,14 +207,19 @@ class PolyLayer:
                    np.asarray(d["coef"], float), d.get("interact"), bound("low"), bound("high"))
 
 
+def standardisation(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of each input (1 where an input does not vary)."""
+    mean = X.mean(axis=0)
+    std = X.std(axis=0)
+    return mean, np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
+
+
 def fit_layer(X: np.ndarray, kinds: list[str], y: np.ndarray, order: int, features: tuple[str, ...],
-              interact: str | None = None, by_type: bool = False) -> PolyLayer:
+              interact: str | None = None, by_type: bool = False, scale: tuple | None = None) -> PolyLayer:
     """Least squares (with ``RIDGE``) of one layer at a given order. ``by_type``: one set of
     coefficients per section type, each shrunk towards the pooled fit (weight ``TYPE_SHRINK`` per
     row), so that a type with few rows stays close to the pooled fit and an absent one equals it."""
-    mean = X.mean(axis=0)
-    std = X.std(axis=0)
-    std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
+    mean, std = scale if scale is not None else standardisation(X)
     low, high = X.min(axis=0), X.max(axis=0)
     layer = PolyLayer(features, order, mean, std, np.zeros(0), interact, low, high)
     A = layer.design(X, kinds)
@@ -247,6 +255,7 @@ def select_order(X, kinds, y, groups, features, max_order, folds, rng, score: Ca
     chosen order is the smallest within ``ORDER_TOLERANCE`` of the best. ``score(pred, rows)`` maps a
     fold's predictions to (target, predicted) arrays for the error (default: y itself)."""
     runs = np.unique(groups)
+    scale = standardisation(X)  # one set of z-scores for every fold, so that a fold fits the same polynomial family
     perm = rng.permutation(runs)
     fold_of = {r: i % min(folds, len(runs)) for i, r in enumerate(perm)}
     fold = np.array([fold_of[g] for g in groups])
@@ -256,12 +265,12 @@ def select_order(X, kinds, y, groups, features, max_order, folds, rng, score: Ca
         errs, count = 0.0, 0
         for f in np.unique(fold):
             test = fold == f
-            layer = fit_layer(X[~test], [k for k, t in zip(kinds, test) if not t], y[~test], order, features, interact, by_type)
+            layer = fit_layer(X[~test], [k for k, t in zip(kinds, test) if not t], y[~test], order, features, interact, by_type, scale)
             pred = layer.predict(X[test], [k for k, t in zip(kinds, test) if t])
             target, p = score(pred, np.flatnonzero(test)) if score else (y[test], pred)
             errs += float(np.sum((target - p) ** 2))
             count += len(target)
-        full = fit_layer(X, kinds, y, order, features, interact, by_type)
+        full = fit_layer(X, kinds, y, order, features, interact, by_type, scale)
         table.append({"order": order, "cv_rmse": math.sqrt(errs / count), "in_sample_r2": r2(y, full.predict(X, kinds))})
     best = min(r["cv_rmse"] for r in table)
     chosen = next(r["order"] for r in table if r["cv_rmse"] <= best * (1 + ORDER_TOLERANCE) + 1e-15)
@@ -391,8 +400,8 @@ class Patterns:
     def speeds(self, line: LineModel, mass_t: float, time_s: float, shares: np.ndarray | None = None,
                entry_kmh: float = 0.0) -> np.ndarray:
         """Lower layer, chained: the speed at every section's division points (n_sections, p + 1)
-        [km/h], from rest at the start; each prediction kept within [0, the division's limit and the
-        braking envelope], the last point of the line 0 (the stop)."""
+        [km/h], from rest at the start; each prediction kept between ``PATTERN_FLOOR`` of its cap and
+        the cap (the division's limit, and the braking envelope there), the last point 0 (the stop)."""
         shares = self.shares(line, mass_t, time_s) if shares is None else shares
         p = line.divisions
         out = np.zeros((len(line.sections), p + 1))
@@ -402,7 +411,7 @@ class Patterns:
             cap = np.minimum(line.division_limit_kmh[i], line.envelope_kmh[i, 1:])
             for k in range(1, p + 1):
                 x = line.lower_inputs(i, k, self.settings.entry(out[i], k), shares[i], mass_t, time_s)
-                v = float(np.clip(self.lower.predict(x[None, :], [sec.kind])[0], 0.0, cap[k - 1]))
+                v = float(np.clip(self.lower.predict(x[None, :], [sec.kind])[0], PATTERN_FLOOR * cap[k - 1], cap[k - 1]))
                 out[i, k] = v
         out[-1, -1] = 0.0
         return out
