@@ -12,8 +12,9 @@ pattern's speed at its end, v_b:
   where v_b is reached ("T until v, then K");
 - slower: K, then C from the point whose coasting curve ends at v_b (found by integrating coasting
   backward from the division's end);
-- otherwise C where coasting keeps or gains speed (a descent: the train runs above the pattern rather
-  than brake away energy bought with traction), K where it would lose speed.
+- slower, where coasting cannot get down to v_b (a descent): C all the way (the train runs above the
+  pattern rather than brake away energy bought with traction);
+- about the same: C where coasting keeps or gains speed, K where it would lose it.
 
 Braking mid-route is left to the calculator's braking envelope (a lower limit ahead), as in seed
 002's energy-saving sequences: a pattern is never followed by braking.
@@ -181,7 +182,10 @@ def operations(calc: TractionCalculator, points_m: np.ndarray, target_kmh: np.nd
                 add("C", start)
                 xs, es = fol.run("C", start, xb, float(np.interp(start, xk, ek)))
                 e = float(es[-1])
-        elif ec[-1] >= e - tol:  # coasting keeps the speed or gains (a descent): coast, never brake for a pattern
+        elif e_b < e - tol or ec[-1] >= e - tol:
+            # slower, but coasting alone does not get down to v_b: coasting is still the cheapest way
+            # towards it; or about the same speed where coasting keeps or gains it (a descent). Either
+            # way coast: a pattern is never followed by braking, nor by traction above it
             add("C", xa)
             e = float(ec[-1])
         else:  # about the same speed on a grade that slows a coasting train: hold it

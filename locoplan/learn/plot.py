@@ -6,9 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.plot import COND_COLOURS, check_plot_path
+from ..io.plot import check_plot_path, draw_profiles
 from ..io.report import atomic_write
-from ..sim.result import CONDITIONS
 from .patterns import Learned, smooth_curve
 
 
@@ -107,36 +106,16 @@ def plot_advice(path: str | Path, advice, title: str) -> None:
     (as learned, and scaled to the time: the targets followed) and the sections; gradient below."""
     path = check_plot_path(path)
     plt = _figure()
-    prof = advice.result.profile
     fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    s_km = prof.s_m / 1000
-    ax.step(s_km[:-1], prof.limit_kmh, where="post", color="black", lw=1.2, label="speed limit")
-    v = prof.v_kmh[0]
-    cond = prof.condition[0]
-    for code, name in enumerate(CONDITIONS):
-        cells = np.flatnonzero(cond == code)
-        if cells.size:
-            xs = np.column_stack([s_km[cells], s_km[cells + 1], np.full(cells.size, np.nan)]).ravel()
-            ys = np.column_stack([v[cells], v[cells + 1], np.full(cells.size, np.nan)]).ravel()
-            ax.plot(xs, ys, color=COND_COLOURS[name], lw=2,
-                    label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
     x, raw = _flat(advice.line, advice.pattern_kmh)
     fine = np.linspace(0, advice.line.route.length_m, 800)
     ax.plot(fine / 1000, smooth_curve(x, raw)(fine), color="#9467bd", lw=1, ls="--", label="learned pattern")
     ax.plot(x / 1000, advice.target_kmh, "o", color="#9467bd", ms=3, label=f"targets (pattern x {advice.scale:.3f})")
+    draw_profiles(ax, axg, [("advice", advice.result.profile)], title)
+    ax.title.set_fontsize(10)
     for sec in advice.line.sections:
         ax.axvline(sec.from_m / 1000, color="grey", lw=0.5)
         axg.axvline(sec.from_m / 1000, color="grey", lw=0.5)
         axg.text(sec.from_m / 1000 + 0.05, axg.get_ylim()[0], sec.kind, fontsize=7, rotation=90, va="bottom")
-    ax.set_ylabel("speed [km/h]")
-    ax.set_ylim(0, max(float(prof.limit_kmh.max()), float(np.nanmax(v))) * 1.12)
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", ncol=3, fontsize=8)
-    axg.fill_between(s_km[:-1], prof.gradient_permille, step="post", color="#8c564b", alpha=0.5)
-    axg.axhline(0, color="black", lw=0.6)
-    axg.set_ylabel("equiv. gradient [‰]")
-    axg.set_xlabel("position [km]")
-    axg.grid(alpha=0.3)
     fig.tight_layout()
     _save(fig, path)
