@@ -7,3 +7,5 @@
 - ``advise``: time shares and speed curve for a new run, turned into a condition sequence (claim 2)
   and checked by the traction calculator.
 """
+
+from . import strategies as _strategies  # noqa: E402,F401  (registers compare's 'drivers' and 'advice')
