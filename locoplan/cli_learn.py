@@ -43,11 +43,11 @@ def _fit_tables(report: dict) -> list[Table]:
     data = report["data"]
     t1 = Table(title=escape(f"good drivers (claim 3): {data['good_runs']} good runs of {data['runs']} "
                             f"({data['synthetic_runs']} synthetic), {data['drivers']} drivers"), title_justify="left")
-    for col in ("route", "load class [t]", "planned [s]", "runs", "drivers", "good drivers", "good runs",
+    for col in ("route", "mass [t]", "planned [s]", "runs", "drivers", "good drivers", "good runs",
                 "mean E [kWh]", "good mean E", "best E"):
         t1.add_column(escape(col), justify="left" if col == "route" else "right")
     for g in data["groups"]:
-        t1.add_row(g["route"], f"{g['load_class_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), str(g["drivers"]),
+        t1.add_row(g["route"], f"{g['mean_mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), str(g["drivers"]),
                    str(g["good_drivers"]), str(g["good_runs"]), f"{g['mean_energy_kwh']:.1f}",
                    "-" if g["good_mean_energy_kwh"] is None else f"{g['good_mean_energy_kwh']:.1f}", f"{g['best_energy_kwh']:.1f}")
     up, lo = report["upper"], report["lower"]

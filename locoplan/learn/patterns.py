@@ -306,6 +306,7 @@ def good_drivers(runs: list[LoggedRun], load_class_t: float) -> tuple[np.ndarray
             good[i] = r.driver_id in good_ids and abs(r.running_time_s - r.scheduled_time_s) <= tolerance_s(r.route, r.scheduled_time_s)
         g = [i for i in idx if good[i]]
         table.append({"route": runs[idx[0]].route.name, "route_file": key[0], "load_class_t": key[1] * load_class_t,
+                      "mean_mass_t": round(float(np.mean([runs[i].mass_t for i in idx])), 1),
                       "scheduled_time_s": float(key[2]), "runs": len(idx), "drivers": len(drivers),
                       "good_drivers": len(good_ids), "good_runs": len(g), "mean_energy_kwh": round(mean_all, 2),
                       "good_mean_energy_kwh": round(float(energy[g].mean()), 2) if g else None,
