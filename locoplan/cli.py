@@ -19,6 +19,7 @@ from .io.report import to_json, write_output
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 from .optimize.registry import ALGORITHMS
 from .strategy.strategies import STRATEGIES
+from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
