@@ -93,7 +93,7 @@ def _sections_table(sections: list[dict]) -> Table:
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
     from . import learn as _learn  # noqa: F401
-    from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, _check_outputs, _options,
+    from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
                       _sequence_table, _summary_table, err, guarded, out)
     from .learn import strategies as _strategies  # noqa: F401  (registers 'drivers' and 'advice')
 
@@ -190,7 +190,7 @@ def register(app: typer.Typer) -> None:
                plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png or .svg."),
                tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
-               rotating_mass: Optional[float] = ROT):
+               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
         """Seed 004: time shares, speed curve and operation sequence from learned patterns, checked by the calculator."""
         from .cli import _emit, _fail_if
         from .io.load import build_train, load_consist, load_route, load_train
@@ -202,7 +202,7 @@ def register(app: typer.Typer) -> None:
         from .strategy.strategies import StrategyOutcome
 
         _check_outputs(out_file, plot)
-        opts = _options(step, point_mass, rotating_mass, False, air_brake)
+        opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
         pat = load_patterns(patterns)
         check_model(pat, opts, str(patterns))
         r = load_route(route)

@@ -17,7 +17,8 @@ pattern's speed at its end, v_b:
 - about the same: C where coasting keeps or gains speed, K where it would lose it.
 
 Braking mid-route is left to the calculator's braking envelope (a lower limit ahead), as in seed
-002's energy-saving sequences: a pattern is never followed by braking.
+002's energy-saving sequences: a pattern is never followed by braking. With ``--strict-limits``
+(coasting into a limit is infeasible) a coast that would reach a limit becomes K just below it.
 - the last division: coast into the final bare B (the stop's braking curve, as everywhere here).
 
 The positions come from integrating the calculator's own forces (``calc.forces_kn``, its cells,
@@ -47,7 +48,8 @@ SUBSTEP_M = 25.0
 SAME_KMH = 1.0
 """Speeds closer than this count as the same target [km/h]."""
 SCALE_RANGE = (0.5, 1.8)
-"""Bracket of the speed-scale factor searched to meet the running time."""
+"""Range of the speed-scale factor searched to meet the running time (scanned in steps of 0.1, then
+bisected between the neighbouring feasible scales that bracket the time)."""
 
 
 # ------------------------------------------------------------------------------------------ follower
@@ -94,6 +96,13 @@ class Follower:
                 nxt = e[i] + d * self._slope(cond, e[i] + 0.5 * d * self._slope(cond, e[i], k), k)
             e[i + 1] = min(max(nxt, 0.0), env[i + 1])
         return x, e
+
+    def reaches_limit(self, x: np.ndarray, e: np.ndarray, margin_kmh: float = 0.5) -> float | None:
+        """First position of a trajectory within ``margin_kmh`` of the static limit (None if never)."""
+        cell = np.clip(np.searchsorted(self.s, x, side="right") - 1, 0, self.last)
+        e_lim = (np.maximum(self.calc.limit_kmh[cell] - margin_kmh, 0.0) / 3.6) ** 2 / 2
+        hit = np.flatnonzero(e >= e_lim)
+        return float(x[hit[0]]) if hit.size else None
 
     def run_back(self, cond: str, x1: float, x0: float, e1: float) -> tuple[np.ndarray, np.ndarray]:
         """Backward from (x1, e1) to x0: the e(x) from which ``cond`` arrives at e1 at x1 (ascending x)."""
@@ -188,6 +197,11 @@ def operations(calc: TractionCalculator, points_m: np.ndarray, target_kmh: np.nd
             # way coast: a pattern is never followed by braking, nor by traction above it
             add("C", xa)
             e = float(ec[-1])
+            hit = fol.reaches_limit(xc, ec) if calc.options.strict_limits else None
+            if hit is not None and hit < xb - 1.0:  # --strict-limits: coasting must not run into a limit
+                add("K", hit)
+                xk, ek = fol.run("K", hit, xb, float(np.interp(hit, xc, ec)))
+                e = float(ek[-1])
         else:  # about the same speed on a grade that slows a coasting train: hold it
             add("K", xa)
             xk, ek = fol.run("K", xa, xb, e)
@@ -269,26 +283,31 @@ def advise(patterns: Patterns, route: Route, train: Train, time_s: float, option
         t = float(res.running_time_s[0]) if res.feasible[0] else math.inf
         return t, conds, starts, target
 
-    lo, hi = SCALE_RANGE
-    t_lo, *_ = build(lo)
-    t_hi, *_ = build(hi)
+    # a coarse scan of the scale first (a build can be infeasible, e.g. --strict-limits), then
+    # bisection between the two neighbouring feasible scales whose times bracket the asked time
     tol = (route.schedule.tolerance_s if route.schedule else 0.01 * time_s) * 0.25
-    best = None
-    if t_hi > time_s:  # even the fastest scale is late: the pattern's shape cannot make this time
-        best = (hi, *build(hi)[1:])
-    else:
-        for _ in range(40):
+    grid = np.arange(SCALE_RANGE[0], SCALE_RANGE[1] + 1e-9, 0.1)
+    builds = [(float(x), *build(float(x))) for x in grid]
+    ok = [b for b in builds if math.isfinite(b[1])]
+    if not ok:
+        raise InfeasibleError(f"advice: no scale of the learned pattern gives a feasible run on '{route.name}' "
+                              f"({train.name}); e.g. {calc.evaluate(tuple(builds[0][2]), np.array([builds[0][3][1:]], dtype=float)).reason(0)}")
+    best = min(ok, key=lambda b: abs(b[1] - time_s))
+    pairs = [(a, b) for a, b in zip(ok, ok[1:]) if (a[1] - time_s) * (b[1] - time_s) <= 0]
+    if pairs and abs(best[1] - time_s) > tol:
+        (lo, t_lo, *_), (hi, t_hi, *_) = pairs[0]
+        for _ in range(30):
             mid = 0.5 * (lo + hi)
-            t, conds, starts, target = build(mid)
-            if best is None or abs(t - time_s) < abs(best[4] - time_s):
-                best = (mid, conds, starts, target, t)
-            if abs(t - time_s) <= tol:
+            cand = (mid, *build(mid))
+            if math.isfinite(cand[1]) and abs(cand[1] - time_s) < abs(best[1] - time_s):
+                best = cand
+            if abs(best[1] - time_s) <= tol or hi - lo < 1e-4:
                 break
-            if t > time_s:
-                lo = mid
+            if not math.isfinite(cand[1]) or cand[1] > time_s:
+                lo = mid  # too slow (or infeasible, treated as the slow side): faster
             else:
                 hi = mid
-        best = best[:4]
+    best = (best[0], best[2], best[3], best[4])
     scale, conds, starts, target = best
     plan = Plan(tuple(conds), tuple(starts))
     res = calc.evaluate(plan.conditions, plan.switches_m, profile=True)
