@@ -13,7 +13,6 @@ population (same seed), driving that case; the logs are synthetic.
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 import tempfile

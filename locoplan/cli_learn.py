@@ -92,10 +92,9 @@ def _sections_table(sections: list[dict]) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
-    from . import learn as _learn  # noqa: F401
+X
     from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
                       _sequence_table, _summary_table, err, guarded, out)
-    from .learn import strategies as _strategies  # noqa: F401  (registers 'drivers' and 'advice')
 
     drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
     app.add_typer(drivers_app, name="drivers")

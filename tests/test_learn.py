@@ -18,7 +18,7 @@ from locoplan.io.load import build_train, load_consist, load_route
 from locoplan.learn.advise import advise
 from locoplan.learn.drivers import SimulationSpec, consist_for_mass, simulate_drivers
 from locoplan.learn.logs import LogData, load_logs, log_csv_text, manifest_text, read_log_csv
-from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, fit_layer, good_drivers, learn, line_model,
+from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, good_drivers, learn, line_model,
                                      load_patterns, select_order)
 from locoplan.learn.segments import classify_gradient, equivalent_gradient_pieces, segment_route
 from locoplan.model.train import G_MS2

@@ -43,7 +43,7 @@ import math
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +53,6 @@ from ..errors import InputError, Problem
 from ..io.load import build_train
 from ..model.consist import Consist, ConsistEntry, Vehicle
 from ..model.route import Route
-from ..model.train import Train
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..strategy.sequence import classify_grades
 from .logs import MANIFEST_NAME, LogData, log_csv_text, manifest_text
@@ -81,7 +80,7 @@ SIMULATOR = "locoplan drivers simulate"
 # ------------------------------------------------------------------------------------------ drivers
 @dataclass(frozen=True)
 class DriverParams:
-    """Per-driver habits, arrays of one value per driver (or per run, after ``for_runs``)."""
+    """Per-driver habits, arrays of one value per driver (or per run, after ``take``)."""
 
     skill: np.ndarray
     margin_kmh: np.ndarray
