@@ -92,7 +92,7 @@ def _sections_table(sections: list[dict]) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
-X
+    from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
     from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
                       _sequence_table, _summary_table, err, guarded, out)
 
