@@ -19,6 +19,7 @@ from .io.report import to_json, write_output
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 from .optimize.registry import ALGORITHMS
 from .strategy.strategies import STRATEGIES
+from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
@@ -402,7 +403,9 @@ def compare(route: Path = ROUTE,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER,
+            logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
+            patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice').")):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .optimize.registry import get_algorithm
     from .runner import compare as run_compare, make_context
@@ -414,6 +417,7 @@ def compare(route: Path = ROUTE,
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
                        params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
+    ctx.inputs.update(logs=logs, patterns=patterns)
     if explain and not as_json:
         _explain(ctx)
     runs = run_compare(ctx, names)
@@ -562,6 +566,9 @@ def study(route: Path = ROUTE,
 from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)
 
 _register_ocp(app)
+from .cli_learn import register as _register_learn  # noqa: E402  (seed 004 commands: drivers, learn, advise)
+
+_register_learn(app)
 
 from .cli_import import register as _register_import  # noqa: E402  (locoplan import FORMAT FILES --out DIR)
 

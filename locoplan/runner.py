@@ -129,7 +129,8 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "n_evaluations": outcome.n_evaluations,
         "plan": outcome.plan.text(),
         "switching_points_m": [round(x, 1) for x in outcome.plan.starts_m[1:] if not math.isnan(x)],
-        "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, prof.event_m[0]),
+        "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, None if prof.event_m is None else prof.event_m[0]),
+        **(outcome.extra or {}),
     }
 
 
@@ -160,7 +161,7 @@ def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> 
     outcome = fn(ctx)
     if not outcome.solve_time_s:
         outcome = replace(outcome, solve_time_s=time.perf_counter() - t)
-    res = _evaluate(ctx, outcome)
+    res = outcome.result if outcome.result is not None else _evaluate(ctx, outcome)
     return RunResult(name, outcome, res, summarize(ctx, name, outcome, res, with_fitness))
 
 

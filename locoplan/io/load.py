@@ -166,7 +166,11 @@ def validate_data(data: dict, name: str, lines: dict[tuple, int], expect: str | 
                                  _line_for(lines, ("schema",))))
     if expect is not None and schema != expect:
         raise InputError(Problem(name, "schema", f"expected a {expect} file, got {schema}", _line_for(lines, ("schema",))))
-    model = SCHEMAS[schema]
+    return validate_model(SCHEMAS[schema], data, name, lines)
+
+
+def validate_model(model: type[BaseModel], data: dict, name: str, lines: dict[tuple, int]) -> BaseModel:
+    """Validate parsed YAML against ``model``; every problem as file:line: field: message."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
@@ -243,20 +247,28 @@ def resolve_consist_path(spec: str | Path) -> Path:
 
 def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) -> Train:
     """Load a consist, resolve each vehicle type, and build the whole-train quantities."""
+    consist, vehicles, _, path, lines = load_consist(consist_spec, stock_dir)
+    return build_train(consist, vehicles, str(path), lines)
+
+
+def load_consist(consist_spec: str | Path, stock_dir: str | Path | None = None):
+    """A consist and its vehicles, unbuilt: (Consist, {type: Vehicle}, {type: vehicle file}, consist path,
+    line map). For callers that change the consist (e.g. its wagon count or load) before building it."""
     path = resolve_consist_path(consist_spec)
     data, lines = read_yaml(path)
     consist: Consist = validate_data(data, str(path), lines, "locoplan/consist@1")  # type: ignore[assignment]
     dirs = stock_dirs_for(path, stock_dir)
     indexes = [(d, *_vehicle_index(d)) for d in dirs]
     vehicles: dict[str, Vehicle] = {}
+    files: dict[str, Path] = {}
     problems: list[Problem] = []
     for i, entry in enumerate(consist.vehicles):
         loc = ("vehicles", i, "type")
         folder = next(((d, idx, dup) for d, idx, dup in indexes if entry.type in idx), None)
         found = None if folder is None else folder[1][entry.type]
         if folder is not None and entry.type in folder[2]:
-            files = " and ".join(str(f) for f in folder[2][entry.type])
-            problems.append(Problem(str(path), field_name(loc), f"vehicle type '{entry.type}' is ambiguous: {files} "
+            both = " and ".join(str(f) for f in folder[2][entry.type])
+            problems.append(Problem(str(path), field_name(loc), f"vehicle type '{entry.type}' is ambiguous: {both} "
                                     "both declare this name (rename one)", _line_for(lines, loc)))
             continue
         if found is None:
@@ -269,6 +281,7 @@ def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) ->
             continue
         vehicle = load_vehicle(found)
         vehicles[entry.type] = vehicle
+        files[entry.type] = found
         if vehicle.kind == "locomotive" and entry.load_t:
             loc = ("vehicles", i, "load_t")
             problems.append(Problem(str(path), field_name(loc), "a locomotive carries no load", _line_for(lines, loc)))
@@ -281,13 +294,19 @@ def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) ->
         problems.append(Problem(str(path), "vehicles", "the consist has no locomotive", _line_for(lines, ("vehicles",))))
     if problems:
         raise InputError(problems)
+    return consist, vehicles, files, path, lines
+
+
+def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", lines: dict | None = None) -> Train:
+    """``Train.from_consist`` with the plausibility bounds on the whole train (mass, length)."""
+    problems: list[Problem] = []
     train = Train.from_consist(consist, vehicles)
-    where = _line_for(lines, ("vehicles",))
+    where = _line_for(lines or {}, ("vehicles",))
     if train.mass_t > PLAUSIBLE["train_mass_t"]:
-        problems.append(Problem(str(path), "vehicles", f"total mass {train.mass_t:,.0f} t is implausible: the heaviest train "
+        problems.append(Problem(name, "vehicles", f"total mass {train.mass_t:,.0f} t is implausible: the heaviest train "
                                 f"ever run weighed 99,734 t (limit {PLAUSIBLE['train_mass_t']:,.0f} t)", where))
     if train.length_m > PLAUSIBLE["train_length_m"]:
-        problems.append(Problem(str(path), "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
+        problems.append(Problem(name, "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
                                 f"train ever run was 7.35 km (limit {PLAUSIBLE['train_length_m']:,.0f} m)", where))
     if problems:
         raise InputError(problems)

@@ -31,10 +31,6 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..sim.result import CONDITIONS
-
-    ref = profiles[0][1]
-    s_km = ref.s_m / 1000.0
     if histories:
         fig = plt.figure(figsize=(11, 9))
         grid = fig.add_gridspec(3, 1, height_ratios=[3, 1, 2], hspace=0.35)
@@ -49,6 +45,23 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         axc.legend(fontsize=8)
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    draw_profiles(ax, axg, profiles, title)
+    if not histories:
+        fig.tight_layout()
+    fmt = path.suffix.lower().lstrip(".")
+    try:
+        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
+    finally:
+        plt.close(fig)
+
+
+def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str) -> None:
+    """Speed profiles over the limits on ``ax`` (one profile: coloured by condition), the equivalent
+    gradient on ``axg``."""
+    from ..sim.result import CONDITIONS
+
+    ref = profiles[0][1]
+    s_km = ref.s_m / 1000.0
     ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label="speed limit")
     single = len(profiles) == 1
     for label, prof in profiles:
@@ -75,10 +88,3 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     axg.set_ylabel("equiv. gradient [‰]")
     axg.set_xlabel("position [km]")
     axg.grid(alpha=0.3)
-    if not histories:
-        fig.tight_layout()
-    fmt = path.suffix.lower().lstrip(".")
-    try:
-        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
-    finally:
-        plt.close(fig)

@@ -36,6 +36,7 @@ from ..model.plan import Plan
 from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
+from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
 from ..optimize.dp import PricedDriveSolver
 from .drive import sequence_from_drive, with_holds
@@ -59,6 +60,8 @@ class StrategyContext:
     use_window: bool = True
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)
+    """Strategy inputs from the command line beyond route and train (e.g. compare's --logs, --patterns)."""
 
     @property
     def ranking_tolerance_s(self) -> float | None:
@@ -98,6 +101,10 @@ class StrategyOutcome:
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
+    result: "BatchResult | None" = None
+    """A strategy that measured rather than planned (drivers' logs) gives its result; None = evaluate the plan."""
+    extra: dict | None = None
+    """More fields for the strategy's summary (e.g. the drivers' mean and best energies)."""
 
 
 def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile: bool = False):

@@ -1,0 +1,464 @@
+"""Drivers' logs: one CSV per run plus a YAML manifest (SPEC section 1, "Driver log").
+
+**Log CSV**, one run per file, a header row, then one row per sample (any sampling rate; rows in time
+order)::
+
+    time_s,position_m,speed_kmh,force_kn,notch,action
+    0.0,0.00,0.000,760.00,8,T
+    1.0,0.07,0.529,760.00,8,T
+
+- ``time_s`` [s], strictly rising; ``position_m`` [m] of the train's head from the route's start,
+  never falling; ``speed_kmh`` [km/h] >= 0; ``force_kn`` [kN] at the wheel, + traction, - braking,
+  the force applied from this row until the next (zero-order hold, as recorders log it).
+- optional ``notch``: the handle position, an integer (+ traction notches, - braking notches, 0 off);
+  optional ``action``: what the driver did, one of T (traction), K (holding a speed), C (coasting),
+  B (braking).
+- Units live in the column names, as in every locoplan file: a column in other units (``speed_mph``,
+  ``position_ft``, ``force_lbf`` ...) is refused with the conversion to use.
+
+**Manifest** ``manifest.yaml`` in the log folder (or a sidecar ``<log>.yaml`` per run, schema
+``locoplan/driver-run@1``, same keys as one run plus ``synthetic``)::
+
+    schema: locoplan/driver-logs@1
+    route: route.yaml                # default for every run; paths relative to this file
+    consist: consists/m5200.yaml     # default for every run
+    synthetic: true                  # required: is this data made by a simulator?
+    generator: {name: locoplan drivers simulate, version: 0.1.0, seed: 1}   # optional
+    runs:
+      - {log: logs/r0001.csv, driver_id: D01, mass_t: 5200, scheduled_time_s: 1500,
+         actual_time_s: 1502.0, date: 2024-03-01}
+
+Every problem is reported as ``file:line: column N (name): why`` (CSV) or ``file:line: field: why``
+(manifest); a log set with any problem is refused as a whole (exit 2).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import difflib
+import io
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from ..errors import InputError, Problem
+from ..model.common import Strict
+from ..model.route import Route
+from ..model.train import Train
+
+REQUIRED_COLUMNS = ("time_s", "position_m", "speed_kmh", "force_kn")
+OPTIONAL_COLUMNS = ("notch", "action")
+ACTIONS = ("T", "K", "C", "B")
+
+MAX_PROBLEMS_PER_FILE = 20
+"""After this many problems in one CSV the rest of it is summarised (a wrong file has thousands)."""
+
+COVERAGE_TOLERANCE_M = 50.0
+"""A log must start within this distance of the route's start and end within it of the route's end."""
+
+# Units refused in column names, per quantity: what the unit is, and how to convert it.
+FOREIGN_UNITS = {
+    "speed": {"mph": ("mph", "speed_kmh = speed_mph x 1.609344"), "ms": ("m/s", "speed_kmh = speed_ms x 3.6"),
+              "mps": ("m/s", "speed_kmh = speed_mps x 3.6"), "kph": ("km/h under another name", "rename it speed_kmh"),
+              "fps": ("ft/s", "speed_kmh = speed_fps x 1.09728"), "kn": ("knots", "speed_kmh = speed_kn x 1.852")},
+    "position": {"ft": ("feet", "position_m = position_ft x 0.3048"), "mi": ("miles", "position_m = position_mi x 1609.344"),
+                 "km": ("km", "position_m = position_km x 1000"), "yd": ("yards", "position_m = position_yd x 0.9144")},
+    "time": {"min": ("minutes", "time_s = time_min x 60"), "h": ("hours", "time_s = time_h x 3600"),
+             "ms": ("milliseconds", "time_s = time_ms / 1000")},
+    "force": {"lbf": ("pound-force", "force_kn = force_lbf x 0.0044482"), "kip": ("kips", "force_kn = force_kip x 4.44822"),
+              "n": ("newtons", "force_kn = force_n / 1000"), "kgf": ("kilogram-force", "force_kn = force_kgf x 0.00980665"),
+              "tf": ("tonne-force", "force_kn = force_tf x 9.80665")},
+}
+
+
+# ------------------------------------------------------------------------------------------ manifest
+class Generator(Strict):
+    """What made synthetic logs: program, version and random seed."""
+
+    name: str
+    version: str
+    seed: int | None = None
+
+
+class RunEntry(Strict):
+    """One run in a manifest. Paths are relative to the manifest's folder."""
+
+    log: str = Field(min_length=1, description="the run's CSV file")
+    driver_id: str = Field(min_length=1)
+    route: str | None = Field(default=None, description="route file (default: the manifest's)")
+    consist: str | None = Field(default=None, description="consist file or catalogue name (default: the manifest's)")
+    mass_t: float = Field(gt=0, description="total train mass [t]")
+    scheduled_time_s: float = Field(gt=0, description="planned running time [s]")
+    actual_time_s: float = Field(gt=0, description="running time as driven [s]")
+    date: dt.date = Field(strict=False, description="date of the run, YYYY-MM-DD")
+
+
+class DriverLogs(Strict):
+    """A folder's manifest: defaults for its runs and the runs."""
+
+    schema_: Literal["locoplan/driver-logs@1"] = Field(alias="schema")
+    route: str | None = None
+    consist: str | None = None
+    synthetic: bool
+    generator: Generator | None = None
+    notes: str | None = None
+    runs: list[RunEntry] = Field(min_length=1)
+
+
+class DriverRun(RunEntry):
+    """A per-run sidecar ``<log>.yaml``: one run with its own route, consist and ``synthetic`` flag."""
+
+    schema_: Literal["locoplan/driver-run@1"] = Field(alias="schema")
+    synthetic: bool
+    generator: Generator | None = None
+    notes: str | None = None
+
+
+MANIFEST_SCHEMAS = {"locoplan/driver-logs@1": DriverLogs, "locoplan/driver-run@1": DriverRun}
+MANIFEST_NAME = "manifest.yaml"
+
+
+# ------------------------------------------------------------------------------------------ one log
+@dataclass(frozen=True)
+class LogData:
+    """The columns of one log CSV (arrays of equal length, one entry per row)."""
+
+    time_s: np.ndarray
+    position_m: np.ndarray
+    speed_kmh: np.ndarray
+    force_kn: np.ndarray
+    notch: np.ndarray | None = None
+    action: np.ndarray | None = None  # str array of T/K/C/B
+
+    @property
+    def running_time_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0])
+
+    @property
+    def traction_energy_kwh(self) -> float:
+        """Traction work sum F+ ds at the wheel [kWh] (each row's force held until the next row)."""
+        ds = np.diff(self.position_m)
+        return float(np.sum(np.maximum(self.force_kn[:-1], 0.0) * ds)) / 3600.0
+
+
+def _column_problem(name: str, known: tuple[str, ...]) -> str | None:
+    """Why an unexpected column name is refused: a foreign unit, or a likely typo."""
+    stem, _, unit = name.partition("_")
+    if stem in FOREIGN_UNITS and unit in FOREIGN_UNITS[stem]:
+        what, how = FOREIGN_UNITS[stem][unit]
+        want = next(c for c in REQUIRED_COLUMNS if c.startswith(stem + "_"))
+        return (f"units in {what} are not accepted: locoplan logs are in SI units with the unit in the column "
+                f"name; write {want} ({how})")
+    close = difflib.get_close_matches(name, known, n=1)
+    same_stem = [c for c in known if c.partition("_")[0] == stem]
+    hint = f"; did you mean '{(same_stem or close)[0]}'?" if (same_stem or close) else ""
+    return f"unknown column{hint} (allowed: {', '.join(known)})"
+
+
+def _col(j: int, name: str) -> str:
+    return f"column {j + 1} ({name})"
+
+
+def read_log_csv(path: Path, text: str | None = None) -> LogData:
+    """Read and check one log CSV. Every problem names the file, the line and the column."""
+    name = str(path)
+    if text is None:
+        if not path.exists():
+            raise InputError(Problem(name, "", "no such file"))
+        try:
+            text = path.read_text(encoding="utf-8-sig")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = next(reader)
+    except StopIteration:
+        header = []
+    except csv.Error as exc:
+        raise InputError(Problem(name, "", f"not valid CSV: {exc}", 1)) from None
+    if not header or not any(h.strip() for h in header):
+        raise InputError(Problem(name, "", "file is empty: expected a header row "
+                                 f"{','.join(REQUIRED_COLUMNS)}[,notch][,action]", 1 if text.strip() else None))
+    cols = [h.strip() for h in header]
+    known = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+    problems: list[Problem] = []
+    seen: dict[str, int] = {}
+    for j, c in enumerate(cols):
+        if c in seen:
+            problems.append(Problem(name, _col(j, c), f"duplicate column (also column {seen[c] + 1})", 1))
+        seen.setdefault(c, j)
+        if c not in known:
+            problems.append(Problem(name, _col(j, c), _column_problem(c, known), 1))
+    foreign = {c.partition("_")[0] for c in cols if c not in known and c.partition("_")[0] in FOREIGN_UNITS}
+    for c in REQUIRED_COLUMNS:
+        if c not in seen and c.partition("_")[0] not in foreign:  # a column in other units is reported already
+            problems.append(Problem(name, "header", f"required column '{c}' is missing (columns found: {', '.join(cols)})", 1))
+    if problems:
+        raise InputError(problems)
+    idx = {c: seen[c] for c in known if c in seen}
+    values: dict[str, list] = {c: [] for c in idx}
+    lines: list[int] = []
+    extra = 0
+
+    def add(problem: Problem) -> None:
+        nonlocal extra
+        if len(problems) < MAX_PROBLEMS_PER_FILE:
+            problems.append(problem)
+        else:
+            extra += 1
+
+    prev: dict[str, float] = {}
+    try:
+        for row in reader:
+            line = reader.line_num
+            if not row or not any(x.strip() for x in row):
+                continue
+            if len(row) != len(cols):
+                add(Problem(name, "row", f"{len(row)} fields, the header has {len(cols)}", line))
+                continue
+            ok = True
+            parsed: dict = {}
+            for c, j in idx.items():
+                raw = row[j].strip()
+                if c == "action":
+                    if raw.upper() not in ACTIONS:
+                        add(Problem(name, _col(j, c), f"{raw!r} is not one of {', '.join(ACTIONS)}", line))
+                        ok = False
+                    parsed[c] = raw.upper()
+                    continue
+                try:
+                    x = float(raw)
+                except ValueError:
+                    add(Problem(name, _col(j, c), f"not a number: {raw!r}", line))
+                    ok = False
+                    continue
+                if not math.isfinite(x):
+                    add(Problem(name, _col(j, c), f"must be a finite number (got {raw!r})", line))
+                    ok = False
+                    continue
+                if c == "notch" and x != round(x):
+                    add(Problem(name, _col(j, c), f"a notch is a whole number (got {raw!r})", line))
+                    ok = False
+                if c == "speed_kmh" and x < 0:
+                    add(Problem(name, _col(j, c), f"speed must be >= 0 km/h (got {raw})", line))
+                    ok = False
+                parsed[c] = x
+            if not ok:
+                continue
+            if "time_s" in prev and parsed["time_s"] <= prev["time_s"]:
+                add(Problem(name, _col(idx["time_s"], "time_s"), f"time must rise: {parsed['time_s']:g} s is not after "
+                            f"the previous row's {prev['time_s']:g} s (line {prev['line']})", line))
+            if "position_m" in prev and parsed["position_m"] < prev["position_m"]:
+                add(Problem(name, _col(idx["position_m"], "position_m"), f"positions are not monotone: "
+                            f"{parsed['position_m']:g} m is behind the previous row's {prev['position_m']:g} m "
+                            f"(line {prev['line']}); a log runs in the running direction", line))
+            prev = {"time_s": parsed["time_s"], "position_m": parsed["position_m"], "line": line}
+            for c in idx:
+                values[c].append(parsed[c])
+            lines.append(line)
+    except csv.Error as exc:
+        add(Problem(name, "", f"not valid CSV: {exc}", reader.line_num))
+    if extra:
+        problems.append(Problem(name, "", f"... and {extra} more problems in this file"))
+    if not problems and len(lines) < 2:
+        problems.append(Problem(name, "", f"needs at least two data rows (found {len(lines)})", reader.line_num or 1))
+    if problems:
+        raise InputError(problems)
+    arr = {c: np.asarray(values[c], dtype=float) for c in idx if c != "action"}
+    return LogData(arr["time_s"], arr["position_m"], arr["speed_kmh"], arr["force_kn"],
+                   arr["notch"].astype(int) if "notch" in arr else None,
+                   np.asarray(values["action"]) if "action" in idx else None)
+
+
+def log_csv_text(data: LogData) -> str:
+    """The CSV text of a log (the format ``read_log_csv`` reads)."""
+    cols = list(REQUIRED_COLUMNS) + (["notch"] if data.notch is not None else []) + (["action"] if data.action is not None else [])
+    out = io.StringIO()
+    out.write(",".join(cols) + "\n")
+    for i in range(len(data.time_s)):
+        row = [f"{data.time_s[i]:.1f}", f"{data.position_m[i]:.2f}", f"{data.speed_kmh[i]:.3f}", f"{data.force_kn[i]:.2f}"]
+        if data.notch is not None:
+            row.append(str(int(data.notch[i])))
+        if data.action is not None:
+            row.append(str(data.action[i]))
+        out.write(",".join(row) + "\n")
+    return out.getvalue()
+
+
+# ------------------------------------------------------------------------------------------ log sets
+@dataclass(frozen=True)
+class LoggedRun:
+    """One run: its log, what the manifest says about it, and the route and train it ran with."""
+
+    log_file: Path
+    manifest_file: Path
+    manifest_line: int | None
+    driver_id: str
+    route_file: Path
+    route: Route
+    consist_file: Path
+    train: Train
+    mass_t: float
+    scheduled_time_s: float
+    actual_time_s: float
+    date: dt.date
+    synthetic: bool
+    data: LogData = field(repr=False)
+
+    @cached_property
+    def traction_energy_kwh(self) -> float:
+        return self.data.traction_energy_kwh
+
+    @property
+    def running_time_s(self) -> float:
+        return self.data.running_time_s
+
+
+def _yaml_entries(path: Path):
+    """(model, line map) of a manifest or sidecar file, validated against its schema."""
+    from ..io.load import _line_for, read_yaml, validate_model
+
+    data, lines = read_yaml(path)
+    schema = data.get("schema")
+    if schema not in MANIFEST_SCHEMAS:
+        raise InputError(Problem(str(path), "schema", f"expected a driver-log manifest (schema: "
+                                 f"{' or '.join(MANIFEST_SCHEMAS)}), got {schema!r}", _line_for(lines, ("schema",))))
+    return validate_model(MANIFEST_SCHEMAS[schema], data, str(path), lines), lines
+
+
+def _manifest_files(path: Path) -> list[Path]:
+    """The manifest files a command-line LOGS argument stands for."""
+    if not path.exists():
+        raise InputError(Problem(str(path), "", "no such file or folder"))
+    if path.is_file():
+        if path.suffix.lower() == ".csv":
+            side = path.with_suffix(".yaml")
+            if not side.exists():
+                raise InputError(Problem(str(path), "", f"a log needs its manifest: no {side.name} beside it and no "
+                                         f"{MANIFEST_NAME} given"))
+            return [side]
+        return [path]
+    if (path / MANIFEST_NAME).exists():
+        return [path / MANIFEST_NAME]
+    sidecars = sorted(p for p in path.glob("*.yaml") if p.with_suffix(".csv").exists())
+    if sidecars:
+        return sidecars
+    nested = sorted(path.glob(f"*/{MANIFEST_NAME}"))
+    if nested:
+        return nested
+    raise InputError(Problem(str(path), "", f"no {MANIFEST_NAME}, no per-run <log>.yaml beside a <log>.csv, and no "
+                             f"sub-folder with a {MANIFEST_NAME}: nothing to read"))
+
+
+def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> list[LoggedRun]:
+    """Every run of the given log folders / manifests, checked. All problems are collected and raised
+    together (``InputError``, exit 2): a log set is used whole or not at all."""
+    from ..io.load import _line_for, load_route, load_train
+
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    problems: list[Problem] = []
+    runs: list[LoggedRun] = []
+    routes: dict[Path, Route] = {}
+    trains: dict[tuple, Train] = {}
+    manifests: list[Path] = []
+    for p in paths:
+        try:
+            manifests += _manifest_files(Path(p))
+        except InputError as exc:
+            problems += exc.problems
+    for mf in manifests:
+        try:
+            model, lines = _yaml_entries(mf)
+        except InputError as exc:
+            problems += exc.problems
+            continue
+        if isinstance(model, DriverRun):
+            entries = [(model, (), model.route, model.consist)]
+            synthetic = model.synthetic
+        else:
+            entries = [(r, ("runs", i), r.route or model.route, r.consist or model.consist) for i, r in enumerate(model.runs)]
+            synthetic = model.synthetic
+        base = mf.parent
+        for entry, loc, route_ref, consist_ref in entries:
+            where = lambda key: (".".join([f"runs[{loc[1]}]"] if loc else []) + ("." if loc else "") + key)  # noqa: E731
+            line = lambda key: _line_for(lines, loc + (key,))  # noqa: E731
+            bad = False
+            for key, ref in (("route", route_ref), ("consist", consist_ref)):
+                if ref is None:
+                    problems.append(Problem(str(mf), where(key), f"no {key}: give it for the run or for the whole manifest",
+                                            line(key) or _line_for(lines, loc)))
+                    bad = True
+            if bad:
+                continue
+            route_path = (base / route_ref).resolve()
+            if not route_path.exists():
+                own = getattr(entry, "route", None) is not None and loc  # given for the run, or for the manifest
+                problems.append(Problem(str(mf), where("route") if own else "route", f"no such route file: {route_ref} "
+                                        f"(looked for {route_path})", line("route") if own else _line_for(lines, ("route",))))
+                continue
+            log_path = base / entry.log
+            if not log_path.exists():
+                problems.append(Problem(str(mf), where("log"), f"no such log file: {entry.log} (looked for {log_path})",
+                                        line("log")))
+                continue
+            consist_path = base / consist_ref
+            consist_spec = str(consist_path) if consist_path.exists() else consist_ref
+            try:
+                if route_path not in routes:
+                    routes[route_path] = load_route(route_path)
+                key = (consist_spec, str(stock_dir))
+                if key not in trains:
+                    trains[key] = load_train(consist_spec, stock_dir)
+                data = read_log_csv(log_path)
+            except InputError as exc:
+                problems += exc.problems
+                continue
+            route, train = routes[route_path], trains[key]
+            n_before = len(problems)
+            if abs(entry.mass_t - train.mass_t) > 0.01 * train.mass_t:
+                problems.append(Problem(str(mf), where("mass_t"), f"{entry.mass_t:g} t disagrees with the consist "
+                                        f"'{train.name}' ({train.mass_t:g} t) by more than 1 %", line("mass_t")))
+            if abs(entry.actual_time_s - data.running_time_s) > max(2.0, 0.002 * data.running_time_s):
+                problems.append(Problem(str(mf), where("actual_time_s"), f"{entry.actual_time_s:g} s, but the log "
+                                        f"{entry.log} runs {data.running_time_s:g} s", line("actual_time_s")))
+            last_line = data.time_s.size + 1
+            if data.position_m[0] > COVERAGE_TOLERANCE_M:
+                problems.append(Problem(str(log_path), _col(1, "position_m"), f"the log starts at {data.position_m[0]:,.1f} m: "
+                                        f"a run must start at the route's start (within {COVERAGE_TOLERANCE_M:g} m)", 2))
+            if abs(data.position_m[-1] - route.length_m) > COVERAGE_TOLERANCE_M:
+                problems.append(Problem(str(log_path), _col(1, "position_m"), f"the log ends at {data.position_m[-1]:,.1f} m, "
+                                        f"the route '{route.name}' is {route.length_m:,.0f} m long: a run must cover it "
+                                        f"(within {COVERAGE_TOLERANCE_M:g} m)", last_line))
+            if len(problems) > n_before:
+                continue
+            runs.append(LoggedRun(log_path, mf, _line_for(lines, loc) if loc else None, entry.driver_id, route_path,
+                                  route, Path(consist_spec), train, entry.mass_t, entry.scheduled_time_s,
+                                  entry.actual_time_s, entry.date, synthetic, data))
+    if problems:
+        raise InputError(problems)
+    if not runs:
+        raise InputError(Problem(", ".join(str(p) for p in paths), "", "no runs found"))
+    return runs
+
+
+def manifest_text(model: dict, header: str = "") -> str:
+    """YAML text of a manifest dict (``schema`` first, one run per line)."""
+    import yaml
+
+    runs = model.get("runs", [])
+    head = {k: v for k, v in model.items() if k != "runs"}
+    text = header
+    for k, v in head.items():
+        flow = isinstance(v, (dict, list))
+        text += f"{k}: " + yaml.safe_dump(v, default_flow_style=flow, width=10_000).strip().removesuffix("\n...").strip() + "\n"
+    if runs:
+        text += "runs:\n"
+        for r in runs:
+            text += "  - " + yaml.safe_dump(r, sort_keys=False, default_flow_style=True, width=10_000).strip() + "\n"
+    return text

@@ -1,0 +1,377 @@
+"""Seed 004: driver logs, the driver simulator, segmentation, the pattern layers and the advice.
+
+Small on purpose: a 6 km test line (tests/data/learn/line-6km.yaml), a handful of simulated drivers.
+"""
+
+import datetime as dt
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from locoplan.cli import app
+from locoplan.errors import InputError
+from locoplan.io.load import build_train, load_consist, load_route
+from locoplan.learn.advise import advise
+from locoplan.learn.drivers import SimulationSpec, consist_for_mass, simulate_drivers
+from locoplan.learn.logs import LogData, load_logs, log_csv_text, manifest_text, read_log_csv
+from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, good_drivers, learn, line_model,
+                                     load_patterns, select_order)
+from locoplan.learn.segments import classify_gradient, equivalent_gradient_pieces, segment_route
+from locoplan.model.train import G_MS2
+from locoplan.physics.resistance import train_resistance_kn
+from locoplan.physics.traction import max_force_kn
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+ROOT = Path(__file__).resolve().parents[1]
+LINE = ROOT / "tests/data/learn/line-6km.yaml"
+BAD = ROOT / "tests/data/bad_logs"
+runner = CliRunner()
+SMALL = dict(divisions=4, max_order=2, folds=3)
+
+
+@pytest.fixture(scope="module")
+def base():
+    consist, vehicles, files, _, _ = load_consist(ROOT / "configs/consists/HXD1-C80x50.yaml")
+    return consist, vehicles, files
+
+
+def train_of(base, mass):
+    return build_train(consist_for_mass(base[0], base[1], mass), base[1])
+
+
+@pytest.fixture(scope="module")
+def sim_logs(tmp_path_factory, base):
+    """6 drivers x 1 run x 2 masses x 2 times on the 6 km line, seed 1."""
+    out = tmp_path_factory.mktemp("sim") / "logs"
+    spec = SimulationSpec(LINE, load_route(LINE), *base, masses_t=(3200, 4200), times_s=(520, 560), n_drivers=6,
+                          n_runs=1, seed=1)
+    summary = simulate_drivers(spec, out)
+    return out, summary
+
+
+@pytest.fixture(scope="module")
+def learned(sim_logs):
+    return learn(load_logs(sim_logs[0]), LearnSettings(**SMALL), ModelOptions())
+
+
+# ------------------------------------------------------------------------------------------ log format
+def test_log_round_trip_and_energy_by_hand(tmp_path):
+    data = LogData(np.array([0.0, 1.0, 2.0, 3.0]), np.array([0.0, 0.5, 2.0, 4.0]), np.array([0.0, 3.6, 7.2, 7.2]),
+                   np.array([720.0, 360.0, -100.0, 0.0]), np.array([8, 4, -1, 0]), np.array(["T", "T", "B", "C"]))
+    path = tmp_path / "r.csv"
+    path.write_text(log_csv_text(data))
+    back = read_log_csv(path)
+    assert np.allclose(back.position_m, data.position_m) and list(back.action) == ["T", "T", "B", "C"]
+    # sum F+ ds, each row's force held until the next row: 720 * 0.5 + 360 * 1.5 = 900 kJ
+    assert back.traction_energy_kwh == pytest.approx(900.0 / 3600.0)
+    assert back.running_time_s == 3.0
+
+
+def test_a_real_log_without_optional_columns_loads_unchanged(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("time_s,position_m,speed_kmh,force_kn\n0,0,0,500\n2.5,1.1,3.2,480.5\n5,4.4,6.1,0\n")
+    d = read_log_csv(path)
+    assert d.notch is None and d.action is None and d.time_s.tolist() == [0, 2.5, 5]
+
+
+@pytest.mark.parametrize("case, where, why", [
+    ("missing_column", "run.csv:1: header", "required column 'speed_kmh' is missing"),
+    ("non_monotone", "run.csv:5: column 2 (position_m)", "positions are not monotone: 1.2 m is behind the previous row's 1.5 m"),
+    ("mph", "run.csv:1: column 3 (speed_mph)", "units in mph are not accepted"),
+    ("missing_route", "manifest.yaml:3: route", "no such route file: ../../learn/no-such-line.yaml"),
+])
+def test_bad_logs_exit_2_with_file_line_column_and_nothing_written(case, where, why, tmp_path):
+    out = tmp_path / "patterns.json"
+    res = runner.invoke(app, ["learn", str(BAD / case), "--out", str(out), "--plot", str(tmp_path / "fit.png")])
+    assert res.exit_code == 2, res.output
+    assert f"{BAD / case}/{where}" in res.output.replace("\n", "") and why in res.output.replace("\n", "")
+    assert "Traceback" not in res.output
+    assert list(tmp_path.iterdir()) == []  # no patterns, no plot, no temporary file
+
+
+def test_bad_csv_cells_are_named_by_line_and_column(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("time_s,position_m,speed_kmh,force_kn,action\n0,0,0,0,T\n1,x,1,0,T\n2,2,-1,0,Q\n2,3,1,0\n")
+    with pytest.raises(InputError) as exc:
+        read_log_csv(path)
+    text = [str(p) for p in exc.value.problems]
+    assert f"{path}:3: column 2 (position_m): not a number: 'x'" in text
+    assert f"{path}:4: column 3 (speed_kmh): speed must be >= 0 km/h (got -1)" in text
+    assert f"{path}:4: column 5 (action): 'Q' is not one of T, K, C, B" in text
+    assert f"{path}:5: row: 4 fields, the header has 5" in text
+
+
+def test_manifest_mass_must_match_the_consist(tmp_path):
+    (tmp_path / "r.csv").write_text("time_s,position_m,speed_kmh,force_kn\n0,0,0,0\n1,6000,1,0\n")
+    (tmp_path / "manifest.yaml").write_text(manifest_text({
+        "schema": "locoplan/driver-logs@1", "route": str(LINE), "consist": "HXD1-C80x50", "synthetic": False,
+        "runs": [{"log": "r.csv", "driver_id": "A", "mass_t": 4000, "scheduled_time_s": 1, "actual_time_s": 1,
+                  "date": dt.date(2024, 1, 1)}]}))
+    with pytest.raises(InputError) as exc:
+        load_logs(tmp_path)
+    assert "runs[0].mass_t: 4000 t disagrees with the consist 'HXD1 + 50 x C80 (5200 t)'" in str(exc.value)
+
+
+# ------------------------------------------------------------------------------------------ simulator
+def test_consist_for_mass_uses_the_train_model(base):
+    c = consist_for_mass(base[0], base[1], 3700)
+    train = build_train(c, base[1])
+    assert train.mass_t == pytest.approx(3700.0)
+    assert c.vehicles[1].count == 35 and c.vehicles[1].load_t == pytest.approx(80.0)
+    c2 = consist_for_mass(base[0], base[1], 3650)  # 35 wagons, load trimmed to 78.57 t
+    assert build_train(c2, base[1]).mass_t == pytest.approx(3650.0) and c2.vehicles[1].count == 35
+
+
+def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
+    out, summary = sim_logs
+    runs = load_logs(out)
+    assert len(runs) == summary.n_runs == 24 and all(r.synthetic for r in runs)
+    manifest = (out / "manifest.yaml").read_text()
+    assert "synthetic: true" in manifest and "seed: 1" in manifest and "SYNTHETIC" in manifest
+    route = load_route(LINE)
+    for r in runs:
+        d = r.data
+        calc = TractionCalculator(route, r.train)
+        assert d.position_m[0] == 0 and d.speed_kmh[0] == 0
+        assert d.position_m[-1] == pytest.approx(route.length_m, abs=1e-6) and d.speed_kmh[-1] == 0  # arrived, at rest
+        moving = (d.position_m > 1.0) & (d.position_m < route.length_m - 1.0)
+        assert np.all(d.speed_kmh[moving] > 0)  # never stalled on the way
+        cell = np.clip(np.searchsorted(calc.s_m, d.position_m, side="right") - 1, 0, len(calc.limit_kmh) - 1)
+        assert np.all(d.speed_kmh <= calc.limit_kmh[cell] + 0.1)  # the limit, train-length aware
+        # the log is consistent with itself: distance = mean speed x time in every step (1 %)
+        ds = np.diff(d.position_m)
+        dt_ = np.diff(d.time_s)
+        v_mean = 0.5 * (d.speed_kmh[:-1] + d.speed_kmh[1:]) / 3.6
+        assert np.sum(np.abs(ds - v_mean * dt_)) < 0.01 * route.length_m
+        # traction energy at least what the work against resistance and gravity needs (a lower bound)
+        assert r.traction_energy_kwh > 0.5 * float(np.sum(calc.h_m * (train_resistance_kn(20.0, r.train.resistance_kn)
+                                                                       + np.maximum(calc.gravity_kn, 0)))) / 3600
+    late = np.array([abs(r.running_time_s - r.scheduled_time_s) for r in runs])
+    assert np.mean(late <= 15.0) >= 0.75  # most within the line's tolerance (some drivers cannot make a tight time)
+    e = np.array([r.traction_energy_kwh for r in runs if r.mass_t == 4200 and r.scheduled_time_s == 520])
+    assert e.max() / e.min() > 1.05  # good and wasteful drivers differ
+
+
+def test_simulator_same_seed_same_logs_other_seed_differs(sim_logs, tmp_path, base):
+    out, _ = sim_logs
+    spec = SimulationSpec(LINE, load_route(LINE), *base, masses_t=(3200, 4200), times_s=(520, 560), n_drivers=6,
+                          n_runs=1, seed=1)
+    again = tmp_path / "again"
+    simulate_drivers(spec, again)
+    for f in ("manifest.yaml", "logs/D03-m4200-t560-r1.csv", "drivers.csv"):
+        assert (again / f).read_bytes() == (out / f).read_bytes()
+    other = tmp_path / "other"
+    simulate_drivers(SimulationSpec(LINE, load_route(LINE), *base, masses_t=(3200,), times_s=(520,), n_drivers=6,
+                                    n_runs=1, seed=2), other)
+    assert (other / "logs/D03-m3200-t520-r1.csv").read_bytes() != (out / "logs/D03-m3200-t520-r1.csv").read_bytes()
+
+
+def test_drivers_simulate_refuses_a_used_folder(tmp_path):
+    (tmp_path / "old.txt").write_text("x")
+    res = runner.invoke(app, ["drivers", "simulate", str(LINE), "--out", str(tmp_path), "--drivers", "2", "--runs", "1"])
+    assert res.exit_code == 2 and "exists and is not an empty folder" in res.output
+    assert [p.name for p in tmp_path.iterdir()] == ["old.txt"]
+
+
+# ------------------------------------------------------------------------------------------ segmentation
+def test_segment_types_follow_claim_4_physics(base):
+    train = train_of(base, 5200)
+    v = 60.0
+    r = float(train_resistance_kn(v, train.resistance_kn))
+    weight = train.mass_t * G_MS2 / 1000  # kN per per mille
+    up = (float(max_force_kn(v, train.traction_speed_kmh, train.traction_kn)) - r) / weight  # full traction balances
+    down = -(float(max_force_kn(v, train.electric_brake_speed_kmh, train.electric_brake_kn)) + r) / weight
+    assert classify_gradient(train, up + 0.01, v) == "steep-up" and classify_gradient(train, up - 0.01, v) == "gentle-up"
+    assert classify_gradient(train, down - 0.01, v) == "steep-down" and classify_gradient(train, down + 0.01, v) == "gentle-down"
+    assert classify_gradient(train, 2.0, v) == "level" and classify_gradient(train, -2.01, v) == "gentle-down"
+    assert 9 < up < 13 and -12 < down < -9  # HXD1 + 50 C80 at 60 km/h
+
+
+def test_equivalent_gradient_has_claim_6_curve_and_tunnel_terms(base):
+    train = train_of(base, 4200)  # 515.2 m long; the 300 m curve is shorter, the 400 m tunnel adds 0.052
+    x, g = equivalent_gradient_pieces(load_route(LINE), train.length_m)
+    at = lambda s: float(g[np.searchsorted(x, s, side="right") - 1])  # noqa: E731
+    assert at(1700) == pytest.approx(6.0 + 0.00013 * 400)
+    assert at(2600) == pytest.approx(-5.0 + 600 * 300 / (800 * train.length_m))
+    assert at(2500 + train.length_m + 10) == pytest.approx(-5.0)
+    secs = segment_route(load_route(LINE), train)
+    assert [s.kind for s in secs] == ["level", "gentle-up", "gentle-down", "level", "gentle-down", "level"]
+    assert secs[2].gradient_permille == pytest.approx((-5.0 * 1200 + 600 * 300 / 800) / 1200)
+
+
+# ------------------------------------------------------------------------------------------ learning
+def test_order_is_chosen_by_cross_validation_not_in_sample_fit():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(240, 2))
+    z = (X - X.mean(axis=0)) / X.std(axis=0)
+    y = 1.0 + 0.5 * z[:, 0] - 0.3 * z[:, 1] ** 3 + 0.01 * rng.standard_normal(240)  # order 2 in z, a little noise
+    groups = np.repeat(np.arange(24), 10)
+    order, table = select_order(X, ["level"] * 240, y, groups, ("a", "b"), 4, 4, np.random.default_rng(1))
+    assert order == 2
+    assert table[3]["in_sample_r2"] >= table[1]["in_sample_r2"]  # in-sample would have taken more
+
+
+def _known_logs(folder: Path, base) -> dict:
+    """Logs made from a known pattern: good drivers' times split by known shares, their speeds from a
+    known linear division recurrence; wasteful drivers drive otherwise and use more energy."""
+    route = load_route(LINE)
+    settings = LearnSettings(**SMALL)
+    (folder / "logs").mkdir(parents=True)
+    truth = {"shares": {}, "speeds": {}}
+    runs = []
+    for mass in (3200, 4200):
+        consist = consist_for_mass(base[0], base[1], mass)
+        from locoplan.learn.drivers import consist_yaml
+
+        (folder / f"m{mass}.yaml").write_text(consist_yaml(consist))
+        line = line_model(route, build_train(consist, base[1]), ModelOptions(), settings)
+        ell = np.array([s.length_m for s in line.sections]) / route.length_m
+        g = np.array([s.gradient_permille for s in line.sections])
+        pace = 1.0 + 0.05 * (g - g.mean()) / g.std()  # slower on up-grades
+        shares = pace * ell / np.sum(pace * ell)
+        for t0 in (520.0, 540.0, 560.0):
+            for driver in ("G1", "G2", "G3", "W1", "W2", "W3"):
+                good = driver.startswith("G")
+                sh = shares if good else ell
+                v = 0.0
+                rows_x, rows_t, rows_v = [0.0], [0.0], [0.0]
+                t_start = 0.0
+                speeds = np.zeros((len(line.sections), line.divisions + 1))
+                for i, sec in enumerate(line.sections):
+                    speeds[i, 0] = v
+                    x = line.points_m[i]
+                    for k in range(1, line.divisions + 1):
+                        f = line.lower_inputs(i, k, v, sh[i], mass, t0)
+                        named = dict(zip(LOWER_FEATURES, f))
+                        v = (0.8 * named["entry_kmh"] + 6.0 * named["position"] + 0.4 * named["gradient_permille"]
+                             + 0.002 * named["mass_t"] + 5.0 * named["time_ratio"]) if good else 40.0
+                        speeds[i, k] = v
+                        rows_x.append(x[k])
+                        rows_t.append(t_start + sh[i] * t0 * k / line.divisions)
+                        rows_v.append(v)
+                    t_start += sh[i] * t0
+                force = 300.0 if good else 500.0
+                name = f"logs/{driver}-{mass}-{t0:g}.csv"
+                (folder / name).write_text(log_csv_text(LogData(np.array(rows_t), np.array(rows_x), np.array(rows_v),
+                                                                np.full(len(rows_x), force))))
+                runs.append({"log": name, "driver_id": driver, "consist": f"m{mass}.yaml", "mass_t": float(mass),
+                             "scheduled_time_s": t0, "actual_time_s": round(float(rows_t[-1]), 3), "date": dt.date(2024, 1, 1)})
+                if good:
+                    truth["shares"][mass] = shares
+                    truth["speeds"][(mass, t0)] = speeds
+    (folder / "manifest.yaml").write_text(manifest_text({"schema": "locoplan/driver-logs@1", "route": str(LINE),
+                                                         "synthetic": True, "runs": runs}))
+    return truth
+
+
+def test_learning_gives_a_known_pattern_back(tmp_path, base):
+    truth = _known_logs(tmp_path, base)
+    runs = load_logs(tmp_path)
+    good, groups = good_drivers(runs, 500.0)
+    assert {r.driver_id for r, g in zip(runs, good) if g} == {"G1", "G2", "G3"}  # claim 3
+    out = learn(runs, LearnSettings(**SMALL), ModelOptions())
+    pat = out.patterns
+    assert pat.report["lower"]["order"] == 1  # the recurrence is linear
+    route = load_route(LINE)
+    for mass in (3200, 4200):
+        line = line_model(route, train_of(base, mass), ModelOptions(), pat.settings)
+        for t0 in (520.0, 540.0, 560.0):
+            # the log rounds time to 0.1 s and speed to 0.001 km/h: that is the precision to expect
+            assert pat.shares(line, mass, t0) == pytest.approx(truth["shares"][mass], abs=3e-4)
+            known = truth["speeds"][(mass, t0)]
+            for i, sec in enumerate(line.sections):  # one division ahead, from the known entry speed
+                X = np.array([line.lower_inputs(i, k, known[i, k - 1], truth["shares"][mass][i], mass, t0)
+                              for k in range(1, line.divisions + 1)])
+                assert pat.lower.predict(X, [sec.kind] * line.divisions) == pytest.approx(known[i, 1:], abs=5e-3)
+    assert pat.report["heldout"]["lower"]["one_step_r2"] == pytest.approx(1.0, abs=1e-7)
+    assert pat.report["heldout"]["upper"]["rmse_share"] < 3e-4
+
+
+def test_learning_is_deterministic_for_a_seed(sim_logs, tmp_path):
+    out, _ = sim_logs
+    files = []
+    for i, seed in enumerate((1, 1, 2)):
+        f = tmp_path / f"p{i}.json"
+        res = runner.invoke(app, ["learn", str(out), "--out", str(f), "--seed", str(seed), "--divisions", "4",
+                                  "--max-order", "2", "--folds", "3"])
+        assert res.exit_code == 0, res.output
+        files.append(f.read_text())
+    assert files[0] == files[1] and files[0] != files[2]
+    data = json.loads(files[0])
+    assert data["schema"] == "locoplan/patterns@1" and data["report"]["data"]["synthetic_runs"] == 24
+
+
+def test_fit_report_and_plot(learned, tmp_path):
+    from locoplan.learn.plot import plot_fit
+
+    rep = learned.patterns.report
+    assert rep["heldout"]["runs"] >= 1 and rep["data"]["good_runs"] == rep["heldout"]["runs"] + rep["fit"]["runs"]
+    assert rep["heldout"]["upper"]["r2"] > 0.5 and rep["heldout"]["lower"]["one_step_r2"] > 0.8
+    plot_fit(tmp_path / "fit.png", learned)
+    assert (tmp_path / "fit.png").stat().st_size > 10_000
+
+
+def test_patterns_file_round_trip_and_bad_file(learned, tmp_path):
+    from locoplan.io.report import to_json
+
+    f = tmp_path / "p.json"
+    f.write_text(to_json(learned.patterns.to_dict()))
+    back = load_patterns(f)
+    line = line_model(load_route(LINE), learned.lines[0].train, ModelOptions(), back.settings)
+    assert back.shares(line, 4200, 540) == pytest.approx(learned.patterns.shares(line, 4200, 540))
+    data = json.loads(f.read_text())
+    data["lower"]["coef"] = data["lower"]["coef"][:3]
+    f.write_text(json.dumps(data))
+    with pytest.raises(InputError, match="lower.coef"):
+        load_patterns(f)
+
+
+# ------------------------------------------------------------------------------------------ advice
+def test_advice_is_checked_by_the_calculator_and_meets_the_time(learned, base):
+    route = load_route(LINE)
+    train = train_of(base, 3700)  # a mass not learned from, a time between the learned ones
+    a = advise(learned.patterns, route, train, 540.0, ModelOptions())
+    assert a.shares.sum() == pytest.approx(1.0) and np.all(a.shares > 0)
+    res = a.result
+    assert res.feasible[0] and abs(res.running_time_s[0] - 540.0) <= 15.0
+    assert a.plan.conditions[0] == "T" and a.plan.conditions[-1] == "B" and math.isnan(a.plan.starts_m[-1])
+    # the same sequence evaluated again by a fresh calculator gives the same numbers
+    again = TractionCalculator(route, train).evaluate(a.plan.conditions, a.plan.switches_m)
+    assert again.traction_energy_kwh[0] == pytest.approx(res.traction_energy_kwh[0])
+    assert np.all(a.target_kmh <= np.maximum.reduce([a.target_kmh]))  # shape kept
+    assert np.all(res.profile.v_kmh[0][:-1] <= np.concatenate([res.profile.limit_kmh, [0]])[:-1] + 0.5)
+
+
+def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
+    from locoplan.io.report import to_json
+
+    monkeypatch.chdir(ROOT)
+    out, _ = sim_logs
+    pfile = tmp_path / "p.json"
+    pfile.write_text(to_json(learned.patterns.to_dict()))
+    res = runner.invoke(app, ["advise", str(LINE), "--patterns", str(pfile), "--mass", "4200", "--time", "560", "--json",
+                              "--out", str(tmp_path / "a.csv"), "--plot", str(tmp_path / "a.png")])
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    assert s["strategy"] == "advice" and s["feasible"] and s["punctual"]
+    assert len(s["sections"]) == 6 and sum(x["share"] for x in s["sections"]) == pytest.approx(1.0, abs=1e-4)
+    assert (tmp_path / "a.csv").read_text().startswith("s_m,t_s,v_kmh") and (tmp_path / "a.png").exists()
+    res = runner.invoke(app, ["compare", str(LINE), "--strategies", "drivers,advice", "--logs", str(out),
+                              "--patterns", str(pfile), "--consist", str(out / "consists/m4200.yaml"), "--time", "560",
+                              "--e-min", "100", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = {r["strategy"]: r for r in json.loads(res.stdout)["results"]}
+    d = rows["drivers"]
+    runs = [r for r in load_logs(out) if r.mass_t == 4200 and r.scheduled_time_s == 560]
+    energies = [r.traction_energy_kwh for r in runs]
+    assert d["drivers_mean_kwh"] == pytest.approx(np.mean(energies), abs=0.01)
+    assert d["best_driver_kwh"] == pytest.approx(min(energies), abs=0.01)
+    assert d["best_driver_kwh"] <= d["good_drivers_mean_kwh"] < d["drivers_mean_kwh"]
+    assert rows["advice"]["feasible"] and rows["advice"]["punctual"]
+    res = runner.invoke(app, ["compare", str(LINE), "--strategies", "drivers", "--logs", str(out), "--time", "999",
+                              "--e-min", "100"])
+    assert res.exit_code == 2 and "no logged run of 'Learning test line, 6 km'" in res.output
