@@ -42,10 +42,10 @@ DEFAULT_TOLERANCE_SHARE = 0.01
 def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
         if not (math.isfinite(time_s) and time_s > 0):
-            raise InputError(Problem("<command line>", "--time", f"must be a finite number of seconds > 0 (got {time_s:g})"))
+            raise InputError(Problem("", "time_s", f"must be a finite number of seconds > 0 (got {time_s:g})"))
         return float(time_s)
     if route.schedule is None:
-        raise InputError(Problem("", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
+        raise InputError(Problem("", "time_s", f"route '{route.name}' has no schedule: give the planned running time"))
     return float(route.schedule.run_time_s)
 
 
@@ -53,21 +53,27 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
-                 tolerance_s: float | None = None, window: bool = True, builder: str | None = None) -> StrategyContext:
+                 tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
+                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
-    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did."""
+    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did.
+    ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
+    options, to reuse (a batch's runs share them). Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
-    calc = TractionCalculator(route, train, options)
-    # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
-    search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
-    search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
+    if calculators is not None:
+        calc, search = calculators
+    else:
+        calc = TractionCalculator(route, train, options)
+        # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
+        search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
+        search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
-        raise InputError(Problem("<command line>", "--e-min", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
+        raise InputError(Problem("", "e_min_kwh", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
     if tolerance_s is not None and not (math.isfinite(tolerance_s) and tolerance_s >= 0):
-        raise InputError(Problem("<command line>", "--tolerance", f"must be a finite number >= 0 s (got {tolerance_s:g})"))
+        raise InputError(Problem("", "tolerance_s", f"must be a finite number >= 0 s (got {tolerance_s:g})"))
     tol = None
     if not math.isnan(t0):
         tol = tolerance_s if tolerance_s is not None else (
@@ -75,7 +81,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if builder is None:  # the seeds' train model goes with seed 002's own builder (their tables)
         builder = "seed002" if options.point_mass else "general"
     if builder not in BUILDERS:
-        raise InputError(Problem("<command line>", "--builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
+        raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
                            tol, window, builder)
 
@@ -177,9 +183,9 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
 def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
     unknown = [n for n in names if n not in STRATEGIES]
     if unknown:
-        raise InputError(Problem("", "--strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
+        raise InputError(Problem("", "strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
     if not names:
-        raise InputError(Problem("", "--strategies", "name at least one strategy"))
+        raise InputError(Problem("", "strategies", "name at least one strategy"))
     ctx.e_min()  # first, so that every row's fitness uses the same E_min
     return [run_strategy(ctx, n) for n in names]
 
@@ -189,7 +195,7 @@ def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
     out = []
     for w in w_time:
         if not 0 <= w <= 1:
-            raise InputError(Problem("", "--weights", f"time weight {w:g} is outside [0, 1]"))
+            raise InputError(Problem("", "weights", f"time weight {w:g} is outside [0, 1]"))
         sub = replace(ctx, weights=(float(w), 1.0 - float(w)))
         out.append(run_strategy(sub, "proposed"))
     return out
@@ -201,7 +207,7 @@ def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
     out = []
     for t0 in times_s:
         if t0 <= 0:
-            raise InputError(Problem("", "--times", f"running time {t0:g} s must be > 0"))
+            raise InputError(Problem("", "times_s", f"running time {t0:g} s must be > 0"))
         out.append(run_strategy(replace(ctx, t0_s=float(t0)), "proposed"))
     return out
 
@@ -210,7 +216,7 @@ def study(ctx: StrategyContext, algorithms: list[str], runs: int) -> dict[str, l
     """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed sequence, seeds
     ctx.seed .. ctx.seed + runs - 1, all against the same E_min."""
     if runs < 1:
-        raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
+        raise InputError(Problem("", "runs", f"must be >= 1 (got {runs})"))
     ctx.e_min()
     out: dict[str, list[RunResult]] = {}
     for alg in algorithms:
