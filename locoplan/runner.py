@@ -180,48 +180,12 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
     return RunResult("sequence", outcome, res, summarize(ctx, "sequence", outcome, res))
 
 
-def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
-    unknown = [n for n in names if n not in STRATEGIES]
-    if unknown:
-        raise InputError(Problem("", "strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
-    if not names:
-        raise InputError(Problem("", "strategies", "name at least one strategy"))
-    ctx.e_min()  # first, so that every row's fitness uses the same E_min
-    return [run_strategy(ctx, n) for n in names]
+def proposed_sequence(route: Route, train: Train, options: ModelOptions | None = None, builder: str | None = None):
+    """The limit and grade classification behind seed 002's proposed sequence, with its nominal switching
+    points (``compare --explain``), on the optimisers' search grid."""
+    from .strategy.sequence import build_sequence
 
-
-def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
-    """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
-    out = []
-    for w in w_time:
-        if not 0 <= w <= 1:
-            raise InputError(Problem("", "weights", f"time weight {w:g} is outside [0, 1]"))
-        sub = replace(ctx, weights=(float(w), 1.0 - float(w)))
-        out.append(run_strategy(sub, "proposed"))
-    return out
-
-
-def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
-    """Seed 002 Table 7: the proposed strategy for each planned running time (E_min fixed)."""
-    ctx.e_min()
-    out = []
-    for t0 in times_s:
-        if t0 <= 0:
-            raise InputError(Problem("", "times_s", f"running time {t0:g} s must be > 0"))
-        out.append(run_strategy(replace(ctx, t0_s=float(t0)), "proposed"))
-    return out
-
-
-def study(ctx: StrategyContext, algorithms: list[str], runs: int) -> dict[str, list[RunResult]]:
-    """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed sequence, seeds
-    ctx.seed .. ctx.seed + runs - 1, all against the same E_min."""
-    if runs < 1:
-        raise InputError(Problem("", "runs", f"must be >= 1 (got {runs})"))
-    ctx.e_min()
-    out: dict[str, list[RunResult]] = {}
-    for alg in algorithms:
-        out[alg] = [run_strategy(replace(ctx, algorithm=alg, seed=ctx.seed + i), "proposed") for i in range(runs)]
-    return out
+    return build_sequence(make_context(route, train, options, need_time=False, builder=builder).search)
 
 
 def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) -> list[dict]:

@@ -8,6 +8,8 @@ import json
 import math
 import os
 import tempfile
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, Callable
 
@@ -17,10 +19,14 @@ from ..errors import InputError, Problem
 from ..sim.result import CONDITIONS, Profile
 
 
+_STAGED: ContextVar[list | None] = ContextVar("locoplan_staged_outputs", default=None)
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place.
 
     A failure leaves no partial file behind; a missing folder is an input error, not a traceback.
+    Inside :func:`all_or_none` the rename waits until every output of the command is written.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -28,13 +34,51 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
     os.close(fd)
+    staged = _STAGED.get()
     try:
         write(Path(tmp))
-        os.replace(tmp, path)
+        if staged is None:
+            os.replace(tmp, path)
+        else:
+            staged.append((tmp, path))
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+@contextmanager
+def all_or_none():
+    """A command's outputs appear together or not at all: files written inside the block (through
+    :func:`atomic_write`) are renamed into place at its end, and all removed if it raises."""
+    staged: list = []
+    token = _STAGED.set(staged)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in staged:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        raise
+    else:
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    finally:
+        _STAGED.reset(token)
+
+
+def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, ...]) -> None:
+    """The one check of an output file before any work: a known suffix and an existing folder.
+    ``field`` names the output (``out``, ``plot``...); the command line maps it to its flag."""
+    if path is None:
+        return
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise InputError(Problem(str(path), field, f"unknown output type {path.suffix.lower() or '(none)'!r}; use a "
+                                 + " or ".join(suffixes) + " file name"))
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -90,7 +134,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
     suffix = path.suffix.lower()
     if suffix == ".csv":
         if profile is None:
-            raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
+            raise InputError(Problem(str(path), "out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS, lineterminator="\n")
         writer.writeheader()
@@ -103,4 +147,4 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
             data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS}
         atomic_write_text(path, to_json(data) + "\n")
     else:
-        raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
+        raise InputError(Problem(str(path), "out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
