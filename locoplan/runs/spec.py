@@ -35,7 +35,7 @@ DEFAULT_CONSIST = "HXD1-C80x50"
 RESULTS_FORMAT = 1
 """Version of the record layout (the store refuses another one)."""
 
-TIMING_FIELDS = ("solve_time_s", "wall_time_s")
+TIMING_FIELDS = ("solve_time_s", "wall_time_s", "cpu_time_s")
 """Fields that measure the machine, not the result: left out when records are compared."""
 
 
@@ -218,7 +218,8 @@ class RunRecord:
     """The result of one run: ``summary`` is the SPEC's ``--json`` object (plus ``gap_to_optimum_percent``
     once an optimum is known); ``verdict`` why the run fails its job (None if it does it); ``spec`` the
     spec as a dict; ``wall_time_s`` the worker's wall time; ``versions`` what computed it; ``worker``
-    host:pid. ``profile`` and ``history`` (the reporting-grid profile and the optimiser's convergence)
+    host:pid; ``cpu_time_s`` the worker's CPU time for it (a machine shared with other work stretches
+    the wall time, not this). ``profile`` and ``history`` (the reporting-grid profile and the optimiser's convergence)
     are kept only when asked for, and never stored."""
 
     key: str
@@ -230,13 +231,14 @@ class RunRecord:
     worker: str
     profile: Any = None
     history: Any = None
+    cpu_time_s: float | None = None
 
     def row(self) -> dict:
         """One flat row: the summary's fields (their ``--json`` names), then the record's own."""
         tags = self.spec.get("tags") or {}
         return {**self.summary, "key": self.key, "route_file": self.spec.get("route"),
                 "consist_file": self.spec.get("consist"), "time_spec": tags.get("time"),
-                "verdict": self.verdict, "wall_time_s": self.wall_time_s, "worker": self.worker,
+                "verdict": self.verdict, "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "worker": self.worker,
                 "locoplan_version": self.versions.get("locoplan")}
 
     def comparable(self) -> dict:
@@ -245,11 +247,13 @@ class RunRecord:
 
     def to_json(self) -> dict:
         return {"key": self.key, "summary": self.summary, "spec": self.spec, "verdict": self.verdict,
-                "wall_time_s": self.wall_time_s, "versions": self.versions, "worker": self.worker}
+                "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "versions": self.versions,
+                "worker": self.worker}
 
     @classmethod
     def from_json(cls, d: dict) -> "RunRecord":
-        return cls(d["key"], d["summary"], d["spec"], d.get("verdict"), d["wall_time_s"], d["versions"], d["worker"])
+        return cls(d["key"], d["summary"], d["spec"], d.get("verdict"), d["wall_time_s"], d["versions"], d["worker"],
+                   cpu_time_s=d.get("cpu_time_s"))
 
 
 @lru_cache(maxsize=1)
@@ -315,7 +319,7 @@ def execute(task: Task) -> RunRecord:
     recorded with ``feasible`` false and the reason; input errors propagate."""
     from ..runner import run_strategy, schedule_verdict
 
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), time.process_time()
     spec = task.spec
     ctx, base = context_for(task)
     profile = history = None
@@ -334,7 +338,7 @@ def execute(task: Task) -> RunRecord:
     if task.optimum_kwh is not None and summary.get("gap_to_optimum_percent") is None and summary.get("feasible"):
         summary["gap_to_optimum_percent"] = round(100.0 * (summary["traction_energy_kwh"] / task.optimum_kwh - 1.0), 3)
     return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
-                     _worker_name(), profile, history)
+                     _worker_name(), profile, history, round(time.process_time() - cpu, 4))
 
 
 def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
