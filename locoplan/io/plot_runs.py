@@ -81,7 +81,8 @@ def plot_boxes(rows: list[dict], path: str | Path) -> None:
     data = [[100 * (r["traction_energy_kwh"] / best[(r["route"], r["consist"], r["planned_time_s"])] - 1)
              for r in ok if r["algorithm"] == a] for a in algs]
     fig, ax = plt.subplots(figsize=(1.8 * len(algs) + 3, 4.2))
-    ax.boxplot(data, labels=[f"{a}\n({len(d)} runs)" for a, d in zip(algs, data)])
+    ax.boxplot(data)
+    ax.set_xticks(range(1, len(algs) + 1), [f"{a}\n({len(d)} runs)" for a, d in zip(algs, data)])
     ax.set_ylabel("energy above the group's best run [%]")
     ax.set_title("per optimiser, over every (route, consist, planned time)")
     ax.grid(alpha=0.3, axis="y")
