@@ -141,7 +141,7 @@ def main() -> None:
     inputs = load_inputs(pick)
     same = sum(by_key[spec_key(sp, inputs)].comparable() == a for sp, a in zip(pick, alone))
     e_min_s = phases.get("e_min", 0.0)
-    print(f"\n| executor | runs | wall [s] | runs/s | E_min phase [s] | mean run wall [s] | mean run CPU [s] | load avg at end |")
+    print("\n| executor | runs | wall [s] | runs/s | E_min phase [s] | mean run wall [s] | mean run CPU [s] | load avg at end |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     print(f"| process pool, {args.workers} workers | {len(batch.ran)} | {wall_n:.1f} | {len(batch.ran) / wall_n:.3f} | "
           f"{e_min_s:.1f} | {sum(walls) / len(walls):.2f} | {sum(cpu) / len(cpu):.2f} | {load_n:.2f} |")

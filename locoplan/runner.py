@@ -19,7 +19,7 @@ from .model.train import Train
 from .optimize.problem import fitness_eq10
 from .sim.calculator import ModelOptions, TractionCalculator
 from .sim.result import BatchResult
-from .strategy.strategies import BUILDERS, STRATEGIES, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
+from .strategy.strategies import BUILDERS, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
 
 SEARCH_STEP_M = 100.0
 """Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on

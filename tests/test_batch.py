@@ -273,3 +273,14 @@ def test_public_api_is_lazy_and_complete():
             "print('ok')")
     res = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert res.stdout.strip() == "ok", res.stderr
+
+
+def test_ocp_study_routes_resolve_outside_the_checkout(tmp_path, monkeypatch):
+    """ocp-study's default routes come from the package catalogue when the folder has no routes/."""
+    from locoplan.io.load import load_route
+    from locoplan.ocp.study import STUDY_ROUTES, _default_path
+
+    monkeypatch.chdir(tmp_path)
+    for rel in STUDY_ROUTES.values():
+        path = _default_path(rel)
+        assert "catalogue" in str(path) and load_route(path).length_m == 1500
