@@ -103,7 +103,7 @@ def register(app: typer.Typer) -> None:
     def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result store written by locoplan batch."),
                 fmt: Optional[str] = typer.Option(None, "--format", help="Export one row per run: csv, parquet or json (stdout, or --out). Default: the summary table."),
                 out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
-                where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
+                where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
                 by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
                 plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png/.svg)."),
                 boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png/.svg)."),

@@ -83,6 +83,7 @@ def plot_boxes(rows: list[dict], path: str | Path) -> None:
     fig, ax = plt.subplots(figsize=(1.8 * len(algs) + 3, 4.2))
     ax.boxplot(data)
     ax.set_xticks(range(1, len(algs) + 1), [f"{a}\n({len(d)} runs)" for a, d in zip(algs, data)])
+    ax.set_yscale("symlog", linthresh=2.0)  # most runs lie within a few per cent, a few far above
     ax.set_ylabel("energy above the group's best run [%]")
     ax.set_title("per optimiser, over every (route, consist, planned time)")
     ax.grid(alpha=0.3, axis="y")

@@ -163,13 +163,16 @@ def study_table(rows: list[dict], title: str) -> Table:
     return table
 
 
+HEADS = {"planned_time_s": "T0 [s]", "time_spec": "T0", "consist": "consist", "route": "route"}
+
+
 def store_summary_table(rows: list[dict], by: list[str], title: str) -> Table:
     """``locoplan results``: one row per group (``runs.summary.summarize_records`` rows)."""
     table = Table(title=escape(title), title_justify="left")
-    heads = [*by, "runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
+    heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
              "gap best [%]"]
-    for h in heads:
-        table.add_column(escape(h), justify="left" if h in by else "right")
+    for i, h in enumerate(heads):
+        table.add_column(escape(h), justify="left" if i < len(by) else "right")
     for r in rows:
         table.add_row(*[str(r[k]) if r[k] is not None else "-" for k in by], str(r["runs"]), str(r["feasible_runs"]),
                       str(r["punctual_runs"]), _num(r["energy_mean_kwh"], ".2f"), _num(r["energy_best_kwh"], ".2f"),

@@ -20,24 +20,26 @@ from ..errors import InputError, Problem
 from ..io.report import atomic_write, atomic_write_text, clean, to_json
 
 FORMATS = ("csv", "parquet", "json")
-_OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt}
-_WHERE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|!=|=|<|>)\s*(.*?)\s*$")
+_OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt,
+        "~": lambda x, v: str(v) in str(x)}
+_WHERE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|!=|=|<|>|~)\s*(.*?)\s*$")
 DEFAULT_BY = ("route", "consist", "planned_time_s", "strategy", "algorithm")
 
 
 def parse_where(conditions: list[str], fields: set[str]):
-    """``FIELD OP VALUE`` (OP one of = != < <= > >=; VALUE a number, true/false/null, or text), all of
+    """``FIELD OP VALUE`` (OP one of = != < <= > >=, or ~ for 'contains'; VALUE a number, true/false/null,
+    or text), all of
     which must hold. Returns a predicate on rows; an unknown field or a malformed condition is an
     InputError naming it."""
     tests = []
     for text in conditions:
         m = _WHERE.match(text)
         if not m:
-            raise InputError(Problem("", "where", f"expected FIELD OP VALUE with OP one of = != < <= > >= (got {text!r})"))
+            raise InputError(Problem("", "where", f"expected FIELD OP VALUE with OP one of = != < <= > >= ~ (got {text!r})"))
         name, op, raw = m.groups()
         if fields and name not in fields:
             raise InputError(Problem("", "where", f"unknown field {name!r} (fields: {', '.join(sorted(fields))})"))
-        value = _value(raw)
+        value = raw.strip("'\"") if op == "~" else _value(raw)
         tests.append((name, _OPS[op], value, op))
 
     def keep(row: dict) -> bool:

@@ -126,6 +126,7 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
     algorithm or builder (naming the spec field), before any run starts."""
     from ..io.load import load_route, load_train
     from ..optimize.registry import ALGORITHMS
+    from ..runner import planned_time
     from ..strategy.strategies import BUILDERS, ENERGY_SAVING_ALGORITHM, STRATEGIES
 
     problems: list[Problem] = []
@@ -143,6 +144,8 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
             r = load_route(spec.route)
             h = canonical_hash(r.model_dump(mode="json"))
             routes[h], route_of[spec.route] = r, h
+        if needs_time(spec):
+            planned_time(routes[route_of[spec.route]], spec.time_s)  # no schedule and no time: say so now
         ck = (spec.consist, spec.stock_dir)
         if ck not in train_of:
             t = load_train(spec.consist, spec.stock_dir)
@@ -297,7 +300,7 @@ def context_for(task: Task):
     # validate the settings exactly as a single run would (same errors, same defaults)
     ctx = make_context(task.route, task.train, spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh,
                        weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params_path=spec.params,
-                       need_time=spec.time_s is not None or spec.strategy in _TIMED,
+                       need_time=needs_time(spec),
                        tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
                        calculators=(base.calc, base.search))
     dp = base._e_min_cache.get("dp")
@@ -308,6 +311,13 @@ def context_for(task: Task):
 
 
 _TIMED = ("proposed", "four-stage")
+_UNTIMED = ("time-saving", "energy-saving")
+
+
+def needs_time(spec: RunSpec) -> bool:
+    """A planned time is needed (given, or the route's schedule) by every strategy but the two that
+    ignore the timetable by definition."""
+    return spec.time_s is not None or spec.strategy not in _UNTIMED
 
 
 def _worker_name() -> str:
