@@ -3,9 +3,9 @@ processes and one by one in one process, the two compared record by record; what
 costs; and the scaling to expect on a cluster, computed from the measured run times.
 
     python benchmarks/bench_batch.py [--study benchmarks/batch_study.yaml] [--workers 2] [--keep DIR]
-                                     [--one-by-one N]
+                                     [--sample N] [--one-by-one N]
 
-``--one-by-one N``: run only N of the runs alone (every k-th) to save time; the default runs all. Prints markdown tables (pasted into docs/batch.md).
+``--sample N``: only N of the study's runs (every k-th). ``--one-by-one N``: run only N of the runs alone (every k-th) to save time; the default runs all. Prints markdown tables (pasted into docs/batch.md).
 """
 
 from __future__ import annotations
@@ -87,14 +87,15 @@ def main() -> None:
     ap.add_argument("--study", default=str(ROOT / "benchmarks/batch_study.yaml"))
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--keep", default=None, help="Folder for the stores (default: a temporary one).")
+    ap.add_argument("--sample", type=int, default=0, help="Run only N of the study's runs (every k-th; default: all).")
     ap.add_argument("--one-by-one", type=int, default=0, help="Run only N of the runs alone (default: all).")
     args = ap.parse_args()
 
     study = load_study(args.study)
-    specs = study.specs
+    specs = study.specs if not args.sample else study.specs[:: max(1, len(study.specs) // args.sample)][: args.sample]
     folder = Path(args.keep or tempfile.mkdtemp(prefix="bench_batch_"))
     folder.mkdir(parents=True, exist_ok=True)
-    print(f"study {args.study}: {len(specs)} runs; stores in {folder}; {os.cpu_count()} cores, "
+    print(f"study {args.study}: {len(specs)} of its {len(study.specs)} runs; stores in {folder}; {os.cpu_count()} cores, "
           f"load average before start {os.getloadavg()[0]:.2f}\n")
 
     starts = worker_start(Path(specs[0].route))
