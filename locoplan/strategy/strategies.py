@@ -38,7 +38,6 @@ from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
-from ..optimize.dp import PricedDriveSolver
 from .drive import sequence_from_drive, with_holds
 
 
@@ -211,7 +210,8 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
 @register("energy-saving")
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
-    energy-saving strategy); general: the general family at any cruise speed in its window."""
+    energy-saving strategy), switching points by ISSA; general: the drive at the lowest price of time
+    (``optimize/dp.py``), as a condition sequence."""
     cached = ctx._e_min_cache.get("outcome")
     if cached is not None:
         return cached
@@ -227,15 +227,7 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     if drive is None:
         raise InfeasibleError(no_drive_message(ctx))
     seq = sequence_from_drive(drive_solver(ctx).calc, drive)
-    out = StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
-    if len(seq.nominal_m):  # polish on the exact calculator: the least energy the sequence allows
-        problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, objective="energy")
-        result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED,
-                           x0=seq.nominal_m[None, :])
-        x = _confirmed(ctx, problem, result)
-        out = StrategyOutcome(_plan(seq.conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
-                              n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
-    return out
+    return StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
 
 
 LEAST_PRICE_KWH_PER_S = 1e-4
@@ -247,8 +239,11 @@ DP_MIN_CELLS = 300
 a short line on at least this many (not finer than 10 m)."""
 
 
-def drive_solver(ctx: StrategyContext) -> PricedDriveSolver:
-    """The priced-drive DP over the search grid (finer on short lines), built once per context."""
+def drive_solver(ctx: StrategyContext):
+    """The priced-drive DP (``optimize.dp.PricedDriveSolver``) over the search grid (finer on short lines),
+    built once per context."""
+    from ..optimize.dp import PricedDriveSolver  # numba: imported when a drive is needed, not at start-up
+
     if "dp" not in ctx._e_min_cache:
         calc = ctx.search
         cell = max(10.0, min(100.0, calc.route.length_m / DP_MIN_CELLS))
@@ -324,7 +319,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         res = ctx.search.evaluate(q.conditions, np.array([[*q.nominal_m, np.nan]]))
         return float(res.running_time_s[0]) if res.feasible[0] else math.inf
 
-    drive = solver.for_time(ctx.t0_s, timer=plan_time)
+    drive = solver.for_time(ctx.t0_s, timer=plan_time, close_s=0.25 * (ctx.tolerance_s or 0.0))
     if drive is None:
         raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
     seq = sequence_from_drive(solver.calc, drive)
