@@ -302,9 +302,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
     t = time.perf_counter()
-    # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
-    rank_tol = None if ctx.ranking_tolerance_s is None else RANKING_MARGIN * ctx.ranking_tolerance_s
-    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=rank_tol)
+    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s)
     if ctx.builder == "seed002":
         seq = build_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
@@ -312,6 +310,9 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min, time_range_s=problem.time_range_s)
+    # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
+    if ctx.ranking_tolerance_s is not None:
+        common["tolerance_s"] = RANKING_MARGIN * ctx.ranking_tolerance_s
     solver = drive_solver(ctx)
 
     def plan_time(d):  # the drive's plan on the search grid, as ISSA will see it
