@@ -332,7 +332,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     if not len(seq.nominal_m):  # one condition, then the stop: nothing to search
         return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min)
-    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
+    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, center=seq.nominal_m, **common)
     jitter = ctx.rng(3).normal(0.0, 0.1, (10, problem.n_var)) * (seq.upper_m - seq.lower_m)
     x0 = np.vstack([seq.nominal_m, seq.nominal_m + jitter])
     result = _optimise(ctx, problem, salt=1, x0=x0)
