@@ -1,0 +1,383 @@
+"""Meshes of a multi-phase problem and their hp refinement (GPOPS-II's ph idea, seed 001 Fig. 4).
+
+A :class:`Mesh` is a flat, ordered list of :class:`Interval` s covering the problem; every interval
+lies in one phase and carries its number of Legendre-Gauss-Radau (LGR) collocation points ``n``
+(the state is a degree-``n`` polynomial on it). :class:`Grid` lays a mesh out as arrays: the
+``N + 1`` state points (each interval's ``n`` LGR points, the last interval's end), the mapping
+``s(tau)`` of every interval and its derivative, the block Radau differentiation matrix and the
+quadrature weights. Consecutive intervals share their boundary point, so states are continuous
+inside a phase and across phases (the linkage) without extra constraints.
+
+Interval mappings: ``linear``; ``start`` = ``s = s_a + (s_b - s_a) ((1 + tau) / 2)^2`` and ``end`` =
+``s = s_b - (s_b - s_a) ((1 - tau) / 2)^2``, used on the first / last interval of a rest-to-rest
+problem: a train leaving rest has ``v ~ sqrt(s)``, which no polynomial in ``s`` follows well, but it
+is linear in ``sqrt(s)``, so in ``tau`` the states are smooth again.
+
+Refinement (:func:`refine`): an interval whose relative error (see ``radau.interval_errors``) is
+above the tolerance is split where its solution is not smooth (a control jumps between two
+collocation points, or a state leaves its bound), at the jump; elsewhere its degree is raised by
+``P = ceil(log(e / tol) / log(n))`` (GPOPS-II eq. 29) up to ``max_degree``, beyond which it is cut
+into pieces of ``min_degree``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import nodes as _nodes
+
+MAPPINGS = ("linear", "start", "end")
+
+
+@dataclass(frozen=True)
+class Interval:
+    """``[s_a, s_b]`` in phase ``phase`` with ``n`` LGR points and a mapping from ``MAPPINGS``."""
+
+    phase: int
+    s_a: float
+    s_b: float
+    n: int
+    mapping: str = "linear"
+    free_start: tuple[float, float] | None = None
+    """Bounds within which ``s_a`` (shared with the previous interval's end) is an NLP variable: a
+    moving mesh point placed on a detected switch (None: fixed)."""
+    smooth: float | None = None
+    """If set, no control may change by more than this share of its scale between neighbouring
+    points of the interval: a switch cannot hide inside it (it has to move to a mesh point)."""
+    last_error: float | None = None
+    """The interval's error on the previous mesh when only its degree was raised since (if raising
+    did not halve it, the solution is not smooth here and the interval is split)."""
+    regime: tuple[str | None, ...] | None = None
+    """Per control: ``"lower"`` (held at its lower bound), ``"upper"`` (at its upper or speed-dependent
+    bound) or ``None`` (free) on the whole interval: the arc the solution showed next to a switch,
+    so that the switch has to sit on the moving point between the arcs (seed 000's merging, eq. 31)."""
+
+    @property
+    def length(self) -> float:
+        return self.s_b - self.s_a
+
+    def s_of(self, tau) -> np.ndarray:
+        """Position [m] of ``tau`` in [-1, 1]."""
+        tau = np.asarray(tau, dtype=float)
+        d = self.length
+        if self.mapping == "start":
+            return self.s_a + d * ((1.0 + tau) / 2.0) ** 2
+        if self.mapping == "end":
+            return self.s_b - d * ((1.0 - tau) / 2.0) ** 2
+        return self.s_a + d * (1.0 + tau) / 2.0
+
+    def ds_dtau(self, tau) -> np.ndarray:
+        tau = np.asarray(tau, dtype=float)
+        d = self.length
+        if self.mapping == "start":
+            return d * (1.0 + tau) / 2.0
+        if self.mapping == "end":
+            return d * (1.0 - tau) / 2.0
+        return np.full_like(tau, d / 2.0)
+
+    def tau_of(self, s) -> np.ndarray:
+        """Inverse of :meth:`s_of` (clipped to [-1, 1])."""
+        s = np.asarray(s, dtype=float)
+        d = self.length
+        if self.mapping == "start":
+            tau = 2.0 * np.sqrt(np.clip((s - self.s_a) / d, 0.0, 1.0)) - 1.0
+        elif self.mapping == "end":
+            tau = 1.0 - 2.0 * np.sqrt(np.clip((self.s_b - s) / d, 0.0, 1.0))
+        else:
+            tau = 2.0 * (s - self.s_a) / d - 1.0
+        return np.clip(tau, -1.0, 1.0)
+
+    def shape(self, tau) -> tuple[np.ndarray, np.ndarray]:
+        """``(g, g')`` with ``s = s_a + (s_b - s_a) g(tau)``: the mapping without its end points."""
+        tau = np.asarray(tau, dtype=float)
+        if self.mapping == "start":
+            return ((1.0 + tau) / 2.0) ** 2, (1.0 + tau) / 2.0
+        if self.mapping == "end":
+            return 1.0 - ((1.0 - tau) / 2.0) ** 2, (1.0 - tau) / 2.0
+        return (1.0 + tau) / 2.0, np.full_like(tau, 0.5)
+
+    @property
+    def sqrt_factor(self) -> float:
+        """``d sqrt(s - s_a) / d tau`` of a ``start`` interval (constant: ``sqrt(length) / 2``)."""
+        return math.sqrt(self.length) / 2.0
+
+
+@dataclass(frozen=True)
+class Mesh:
+    intervals: tuple[Interval, ...]
+
+    @property
+    def n_points(self) -> int:
+        """Collocation points (the state has one more point: the end)."""
+        return sum(iv.n for iv in self.intervals)
+
+    def describe(self) -> str:
+        degs = [iv.n for iv in self.intervals]
+        return f"{len(degs)} intervals, {sum(degs)} LGR points (degree {min(degs)}..{max(degs)})"
+
+
+def initial_mesh(phases, degree: int = 4, max_length: float | None = None, rest_start: bool = False,
+                 rest_end: bool = False, end_length: float | None = None) -> Mesh:
+    """One interval per phase (cut into pieces no longer than ``max_length``), ``degree`` LGR points
+    each; with ``rest_start`` / ``rest_end`` the first / last interval is mapped quadratically and,
+    if ``end_length`` is given, kept no longer than it (the start and the stop are where the
+    solution changes fastest)."""
+    out: list[Interval] = []
+    for k, ph in enumerate(phases):
+        edges = [ph.s0, ph.s1]
+        if max_length and ph.length > max_length:
+            edges = list(np.linspace(ph.s0, ph.s1, int(math.ceil(ph.length / max_length)) + 1))
+        if end_length and k == 0 and rest_start and edges[1] - edges[0] > end_length:
+            edges.insert(1, edges[0] + end_length)
+        if end_length and k == len(phases) - 1 and rest_end and edges[-1] - edges[-2] > end_length:
+            edges.insert(-1, edges[-1] - end_length)
+        for a, b in zip(edges[:-1], edges[1:]):
+            out.append(Interval(k, float(a), float(b), degree))
+    if rest_start:
+        out[0] = replace(out[0], mapping="start")
+    if rest_end:
+        out[-1] = replace(out[-1], mapping="end" if out[-1].mapping == "linear" else out[-1].mapping)
+    if len(out) == 1 and rest_start and rest_end:  # one interval cannot be both: cut it
+        iv = out[0]
+        mid = 0.5 * (iv.s_a + iv.s_b)
+        out = [Interval(iv.phase, iv.s_a, mid, degree, "start"), Interval(iv.phase, mid, iv.s_b, degree, "end")]
+    return Mesh(tuple(out))
+
+
+class Grid:
+    """A mesh laid out as arrays for the transcription (see the module text)."""
+
+    def __init__(self, mesh: Mesh):
+        self.mesh = mesh
+        ivs = mesh.intervals
+        self.n_col = mesh.n_points
+        self.offsets = np.concatenate([[0], np.cumsum([iv.n for iv in ivs])]).astype(int)
+        tau, s, jac, w, phase, interval = [], [], [], [], [], []
+        rows, cols, vals = [], [], []
+        for i, iv in enumerate(ivs):
+            x, wq = _nodes.legendre_gauss_radau(iv.n)
+            d = _nodes.radau_differentiation_matrix(iv.n)
+            off = self.offsets[i]
+            r, c = np.nonzero(d)
+            rows.append(r + off)
+            cols.append(c + off)
+            vals.append(d[r, c])
+            tau.append(x)
+            s.append(iv.s_of(x))
+            j = iv.ds_dtau(x)
+            jac.append(j)
+            w.append(wq * j)
+            phase.append(np.full(iv.n, iv.phase))
+            interval.append(np.full(iv.n, i))
+        self.tau = np.concatenate(tau)
+        self.s_col = np.concatenate(s)
+        self.jacobian = np.concatenate(jac)
+        self.weights = np.concatenate(w)  # quadrature weights in s: sum w f = integral of f ds
+        self.phase_col = np.concatenate(phase).astype(int)
+        self.interval_col = np.concatenate(interval).astype(int)
+        self.s_points = np.concatenate([self.s_col, [ivs[-1].s_b]])
+        # moving mesh points: s_a of the intervals with ``free_start``. Node positions and ds/dtau are
+        # affine in them: s = s_a + (s_b - s_a) g(tau), ds/dtau = (s_b - s_a) g'(tau) (times 2 for
+        # the quadratic maps' own factor, already in g').
+        self.free = [i for i, iv in enumerate(ivs) if iv.free_start is not None]
+        self.free_bounds = np.array([ivs[i].free_start for i in self.free], dtype=float).reshape(-1, 2)
+        nf = len(self.free)
+        g_all, dg_all = [], []
+        for iv in ivs:
+            x, _ = _nodes.legendre_gauss_radau(iv.n)
+            g, dg = iv.shape(x)
+            g_all.append(g)
+            dg_all.append(dg)
+        self.g = np.concatenate(g_all)
+        self.dg = np.concatenate(dg_all)
+        # per node: s_a = a0 + Aa z, s_b = b0 + Ab z (z = the free points' positions)
+        a0 = np.repeat([iv.s_a for iv in ivs], [iv.n for iv in ivs]).astype(float)
+        b0 = np.repeat([iv.s_b for iv in ivs], [iv.n for iv in ivs]).astype(float)
+        Aa = np.zeros((self.n_col, nf))
+        Ab = np.zeros((self.n_col, nf))
+        for j, i in enumerate(self.free):
+            Aa[self.cols_of(i), j] = 1.0
+            Ab[self.cols_of(i - 1), j] = 1.0
+            a0[self.cols_of(i)] = 0.0
+            b0[self.cols_of(i - 1)] = 0.0
+        self.a0, self.b0, self.Aa, self.Ab = a0, b0, Aa, Ab
+        self.D = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                               shape=(self.n_col, self.n_col + 1))
+        # the rest start: the first point of a 'start' interval, where ds/dtau = 0
+        self.singular = np.zeros(self.n_col, dtype=bool)
+        self.sqrt_factor = np.zeros(self.n_col)
+        if ivs[0].mapping == "start":
+            self.singular[0] = True
+            self.sqrt_factor[0] = ivs[0].sqrt_factor
+
+    def points_of(self, i: int) -> slice:
+        """State points of interval ``i`` (its ``n`` LGR points and its end)."""
+        return slice(self.offsets[i], self.offsets[i + 1] + 1)
+
+    def cols_of(self, i: int) -> slice:
+        """Collocation points of interval ``i``."""
+        return slice(self.offsets[i], self.offsets[i + 1])
+
+    @cached_property
+    def phase_points(self) -> list[np.ndarray]:
+        """Indices of the state points of each phase (boundary points belong to both phases)."""
+        n_phase = max(iv.phase for iv in self.mesh.intervals) + 1
+        out: list[list[int]] = [[] for _ in range(n_phase)]
+        for i, iv in enumerate(self.mesh.intervals):
+            out[iv.phase].extend(range(self.offsets[i], self.offsets[i + 1] + 1))
+        return [np.unique(np.array(x, dtype=int)) for x in out]
+
+
+# --------------------------------------------------------------------------------------------------
+# refinement
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RefineSettings:
+    """``tol``: relative error to reach; ``min_degree`` / ``max_degree``: LGR points per interval;
+    ``jump``: a control change between neighbouring points above this share of its scale marks a
+    switch; ``min_length``: intervals are not cut below this length [units of s]."""
+
+    tol: float = 1e-5
+    min_degree: int = 3
+    max_degree: int = 10
+    jump: float = 0.05
+    min_length: float = 1e-3
+
+
+def _switches(s: np.ndarray, s_end: float, u: np.ndarray, u_next: np.ndarray | None, jump: float,
+              pattern: np.ndarray | None = None, pattern_next: np.ndarray | None = None,
+              limit: int = 3) -> list[tuple[float, float, float]]:
+    """Where a control switches: between neighbouring collocation points (and between the last one
+    and the interval's end, whose control is the next interval's first) where a control changes by
+    more than ``jump`` of its scale (``u`` is scaled), or by more than a tenth of that while it
+    leaves or reaches a bound (``pattern``: which bounds are active at each point). Returns
+    ``(cut, lo, hi)``: half-way, and the two points that bracket the switch."""
+    pts = np.append(s, s_end)
+    seq = u if u_next is None else np.column_stack([u, u_next])
+    if seq.shape[1] < 2:
+        return []
+    du = np.max(np.abs(np.diff(seq, axis=1)), axis=0)
+    hit = du > jump
+    if pattern is not None:
+        pat = pattern if pattern_next is None or u_next is None else np.column_stack([pattern, pattern_next])
+        hit |= np.any(pat[:, 1:] != pat[:, :-1], axis=0) & (du > 0.1 * jump)
+    idx = np.nonzero(hit)[0]
+    if idx.size > limit:  # many: the largest (the next mesh finds the rest)
+        idx = np.sort(idx[np.argsort(-du[idx])[:limit]])
+    return [(0.5 * (pts[k] + pts[k + 1]), float(pts[k]), float(pts[k + 1])) for k in idx]
+
+
+def _free_bounds(ivs: list[Interval], i: int) -> tuple[float, float]:
+    """Bounds of the moving point between intervals ``i - 1`` and ``i``: from the last LGR point of
+    the one before to the second LGR point of its own (the switch it tracks lies between the
+    neighbouring collocation points; it cannot leave them in one solve)."""
+    a, b = ivs[i - 1], ivs[i]
+    ta, _ = _nodes.legendre_gauss_radau(a.n)
+    tb, _ = _nodes.legendre_gauss_radau(b.n)
+    return (float(a.s_of(ta[-1])), float(b.s_of(tb[1])))
+
+
+def _regime(s: np.ndarray, lower: np.ndarray, upper: np.ndarray, a: float, b: float, exclude: list[float]):
+    """Each control's arc on ``[a, b]`` from the old collocation points inside it, leaving out the
+    points that bracket a switch (their values are a compromise): ``"lower"`` / ``"upper"`` if every
+    remaining point is there, else ``None``."""
+    inside = (s >= a) & (s <= b)
+    for x in exclude:
+        inside &= np.abs(s - x) > 1e-9
+    if not inside.any():
+        return None
+    out = []
+    for lo, hi in zip(lower[:, inside], upper[:, inside]):
+        out.append("lower" if lo.all() else "upper" if hi.all() else None)
+    return tuple(out) if any(r is not None for r in out) else None
+
+
+def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarray, offsets: np.ndarray,
+           settings: RefineSettings, at_lower: np.ndarray | None = None,
+           at_upper: np.ndarray | None = None) -> tuple[Mesh, dict]:
+    """The next mesh: see the module text. ``errors`` per interval; ``s_col`` the collocation points
+    and ``u_scaled`` the controls there divided by their scales, whose jumps mark switches;
+    ``at_lower`` / ``at_upper`` whether each control sits on its lower / upper bound there (to fix
+    the arcs either side of a switch). Returns the mesh and counts of what was done."""
+    out: list[Interval] = []
+    done = {"split": 0, "raised": 0, "moving": 0}
+    for i, iv in enumerate(mesh.intervals):
+        e = errors[i]
+        if not e > settings.tol:
+            out.append(iv)
+            continue
+        cols = slice(offsets[i], offsets[i + 1])
+        cuts: list[tuple[float, float, float]] = []
+        if iv.length > 2 * settings.min_length:
+            nxt = u_scaled[:, offsets[i + 1]:offsets[i + 1] + 1] if i + 1 < len(mesh.intervals) else None
+            pattern = pat_next = None
+            if at_lower is not None:
+                pat = np.vstack([at_lower, at_upper])
+                pattern = pat[:, cols]
+                pat_next = pat[:, offsets[i + 1]:offsets[i + 1] + 1] if nxt is not None else None
+            cuts = _switches(s_col[cols], iv.s_b, u_scaled[:, cols], nxt, settings.jump, pattern, pat_next)
+            cuts = [c for c in cuts if c[0] - iv.s_a > settings.min_length and iv.s_b - c[0] > settings.min_length]
+        moving = bool(cuts)
+        if not cuts:
+            p = max(1, math.ceil(math.log(e / settings.tol) / math.log(max(iv.n, 2))))
+            stalled = iv.last_error is not None and e > 0.5 * iv.last_error
+            if (iv.n + p <= settings.max_degree and not stalled) or iv.length <= 2 * settings.min_length:
+                out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
+                done["raised"] += 1
+                continue
+            if stalled:  # a higher degree did not help: a kink (e.g. of a force curve), cut in two
+                p = max(p, settings.min_degree)
+            pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
+            cuts = [(c, c, c) for c in np.linspace(iv.s_a, iv.s_b, pieces + 1)[1:-1]]
+        edges = [iv.s_a, *[c[0] for c in cuts], iv.s_b]
+        done["split"] += 1
+        for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+            mapping = "linear"
+            if iv.mapping == "start" and k == 0:
+                mapping = "start"
+            if iv.mapping == "end" and k == len(edges) - 2:
+                mapping = "end"
+            free = iv.free_start if k == 0 else None
+            if k > 0 and moving:  # a switch: the mesh point moves onto it, between its bracketing points
+                _, lo, hi = cuts[k - 1]
+                margin = settings.min_length
+                free = (lo + margin, hi - margin)
+                done["moving"] += 1
+            regime = iv.regime
+            if moving and at_lower is not None and regime is None:
+                regime = _regime(s_col, at_lower, at_upper, a, b, [c[1] for c in cuts] + [c[2] for c in cuts])
+            degree = settings.min_degree + (1 if mapping != "linear" else 0)
+            out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=regime))
+    # a moving point keeps moving, between its neighbouring collocation points; the intervals on
+    # either side of it may not hide a switch, and keep the arc they showed (their points away from
+    # the moving point on a bound)
+    if at_lower is not None:
+        for i, iv in enumerate(mesh.intervals):
+            if iv.free_start is None or i == 0:
+                continue
+            for j, drop in ((i, 0), (i - 1, -1)):
+                old_iv = mesh.intervals[j]
+                if old_iv.regime is not None:
+                    continue
+                cols = np.arange(offsets[j], offsets[j + 1])
+                cols = np.delete(cols, drop)
+                reg = tuple("lower" if lo.all() else "upper" if hi.all() else None
+                            for lo, hi in zip(at_lower[:, cols], at_upper[:, cols])) if cols.size else None
+                if reg and any(r is not None for r in reg):
+                    for k, new_iv in enumerate(out):
+                        if new_iv.regime is None and old_iv.s_a <= new_iv.s_a and new_iv.s_b <= old_iv.s_b:
+                            out[k] = replace(new_iv, regime=reg)
+    for i, iv in enumerate(out):
+        if iv.free_start is not None and i > 0 and out[i - 1].phase == iv.phase:
+            out[i] = replace(iv, free_start=_free_bounds(out, i), smooth=settings.jump)
+            out[i - 1] = replace(out[i - 1], smooth=settings.jump)
+        elif iv.free_start is not None:
+            out[i] = replace(iv, free_start=None)
+    return Mesh(tuple(out)), done
