@@ -274,14 +274,26 @@ def _switches(s: np.ndarray, s_end: float, u: np.ndarray, u_next: np.ndarray | N
     return [(0.5 * (pts[k] + pts[k + 1]), float(pts[k]), float(pts[k + 1])) for k in idx]
 
 
+def _kink(s: np.ndarray, u: np.ndarray) -> float | None:
+    """Where the controls' slope changes most between neighbouring collocation points (a kink, such
+    as a force curve's corner crossed at full traction): the point between the two gaps."""
+    if s.size < 3:
+        return None
+    slope = np.diff(u, axis=1) / np.diff(s)[None, :]
+    change = np.max(np.abs(np.diff(slope, axis=1)), axis=0)
+    k = int(np.argmax(change))
+    return float(s[k + 1]) if change[k] > 0 else None
+
+
 def _free_bounds(ivs: list[Interval], i: int) -> tuple[float, float]:
-    """Bounds of the moving point between intervals ``i - 1`` and ``i``: from the last LGR point of
-    the one before to the second LGR point of its own (the switch it tracks lies between the
-    neighbouring collocation points; it cannot leave them in one solve)."""
+    """Bounds of the moving point between intervals ``i - 1`` and ``i``: from the second-last LGR point
+    of the one before to the second LGR point of its own (the switch it tracks lies near; it can
+    move past a neighbouring collocation point per solve, not run away)."""
     a, b = ivs[i - 1], ivs[i]
     ta, _ = _nodes.legendre_gauss_radau(a.n)
     tb, _ = _nodes.legendre_gauss_radau(b.n)
-    return (float(a.s_of(ta[-1])), float(b.s_of(tb[1])))
+    lo = float(a.s_of(ta[-2])) if a.n > 1 else a.s_a
+    return (max(lo, a.s_a + 0.25 * a.length), min(float(b.s_of(tb[1])), b.s_b - 0.25 * b.length))
 
 
 def _regime(s: np.ndarray, lower: np.ndarray, upper: np.ndarray, a: float, b: float, exclude: list[float]):
@@ -332,10 +344,13 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
                 out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
                 done["raised"] += 1
                 continue
-            if stalled:  # a higher degree did not help: a kink (e.g. of a force curve), cut in two
-                p = max(p, settings.min_degree)
-            pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
-            cuts = [(c, c, c) for c in np.linspace(iv.s_a, iv.s_b, pieces + 1)[1:-1]]
+            if stalled:  # a higher degree did not help: a kink (e.g. of a force curve), cut there
+                kink = _kink(s_col[cols], u_scaled[:, cols])
+                if kink is not None and kink - iv.s_a > settings.min_length and iv.s_b - kink > settings.min_length:
+                    cuts = [(kink, kink, kink)]
+            if not cuts:
+                pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
+                cuts = [(c, c, c) for c in np.linspace(iv.s_a, iv.s_b, pieces + 1)[1:-1]]
         edges = [iv.s_a, *[c[0] for c in cuts], iv.s_b]
         done["split"] += 1
         for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
@@ -364,20 +379,24 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
                 continue
             for j, drop in ((i, 0), (i - 1, -1)):
                 old_iv = mesh.intervals[j]
-                if old_iv.regime is not None:
-                    continue
-                cols = np.arange(offsets[j], offsets[j + 1])
-                cols = np.delete(cols, drop)
+                cols = np.delete(np.arange(offsets[j], offsets[j + 1]), drop)
                 reg = tuple("lower" if lo.all() else "upper" if hi.all() else None
                             for lo, hi in zip(at_lower[:, cols], at_upper[:, cols])) if cols.size else None
-                if reg and any(r is not None for r in reg):
-                    for k, new_iv in enumerate(out):
-                        if new_iv.regime is None and old_iv.s_a <= new_iv.s_a and new_iv.s_b <= old_iv.s_b:
-                            out[k] = replace(new_iv, regime=reg)
+                if not reg or all(r is None for r in reg):
+                    continue
+                for k, new_iv in enumerate(out):
+                    if old_iv.s_a - 1e-9 <= new_iv.s_a and new_iv.s_b <= old_iv.s_b + 1e-9:
+                        out[k] = replace(new_iv, regime=reg)
     for i, iv in enumerate(out):
-        if iv.free_start is not None and i > 0 and out[i - 1].phase == iv.phase:
-            out[i] = replace(iv, free_start=_free_bounds(out, i), smooth=settings.jump)
-            out[i - 1] = replace(out[i - 1], smooth=settings.jump)
-        elif iv.free_start is not None:
+        if iv.free_start is None:
+            continue
+        left = out[i - 1] if i > 0 else None
+        differs = (left is not None and left.phase == iv.phase and
+                   (left.regime is None) != (iv.regime is None) or
+                   (left is not None and left.regime is not None and iv.regime is not None and left.regime != iv.regime))
+        fresh = iv.regime is None and (left is None or left.regime is None)
+        if left is not None and left.phase == iv.phase and (differs or fresh):
+            out[i] = replace(iv, free_start=_free_bounds(out, i))
+        else:  # the arcs either side are alike: nothing to track, the point stays where it is
             out[i] = replace(iv, free_start=None)
     return Mesh(tuple(out)), done

@@ -31,7 +31,7 @@ from .phase import MultiPhaseProblem
 
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-    "ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-6, "ipopt.max_iter": 500,
+    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-5, "ipopt.acceptable_iter": 3, "ipopt.constr_viol_tol": 1e-8, "ipopt.max_iter": 500,
     "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
 }
 """Silent IPOPT with tight tolerances (exact Hessian: CasADi's default)."""
