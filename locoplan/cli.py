@@ -272,7 +272,8 @@ def simulate(route: Path = ROUTE,
         raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False)
+    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
+                       yardstick=False)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     _emit(summary, as_json, out_file, run.result.profile)

@@ -52,7 +52,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
-                 tolerance_s: float | None = None, window: bool = True) -> StrategyContext:
+                 tolerance_s: float | None = None, window: bool = True, yardstick: bool = True) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
@@ -70,7 +70,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         tol = tolerance_s if tolerance_s is not None else (
             route.schedule.tolerance_s if route.schedule else max(1.0, DEFAULT_TOLERANCE_SHARE * t0))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
-                           tol, window)
+                           tol, window, yardstick)
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
@@ -84,7 +84,18 @@ def check_time_possible(ctx: StrategyContext) -> None:
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
-    return ctx.calc.evaluate(plan.conditions, plan.switches_m, profile=True, cruise_kmh=cruise)
+    return (outcome.calc or ctx.calc).evaluate(plan.conditions, plan.switches_m, profile=True, cruise_kmh=cruise)
+
+
+def gap_to_optimum(ctx: StrategyContext, res: BatchResult) -> float | None:
+    """(E - E*) / E* x 100 with E* the least energy at the plan's own running time (seed 001)."""
+    if not ctx.yardstick or not res.feasible[0]:
+        return None
+    from .ocp.bound import gap_to_optimum_percent
+
+    c = ctx.calc
+    return gap_to_optimum_percent(c.route, c.train, c.options, float(res.running_time_s[0]),
+                                  float(res.traction_energy_kwh[0]), calc=c)
 
 
 def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
@@ -115,6 +126,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
         "window_s": None if (math.isnan(t0) or tol is None) else [round(t0 - tol, 2), round(t0 + tol, 2)],
         "fitness": fit,
+        "gap_to_optimum_percent": gap_to_optimum(ctx, res),
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,

@@ -28,8 +28,9 @@ from .radau import RadauSolution, control_activity
 MIN_RUN_M = 15.0
 """Shorter runs are absorbed by their neighbours (a single collocation point between two arcs)."""
 MIN_HOLD_M = 150.0
-HOLD_KMH = 0.2
-"""A K run shorter than MIN_HOLD_M whose speed changes by more than HOLD_KMH is not a held speed."""
+HOLD_KMH = 0.5
+"""A K run whose speed changes by more than HOLD_KMH, or a short one (MIN_HOLD_M) next to traction, is
+not a held speed: the optimum passing from one arc to the next between collocation points."""
 TIME_TOL_S = 1.0
 SHOOT_SPAN_M = 150.0
 """How far a switch may move to reproduce the optimum's speed after it [m]."""
@@ -74,16 +75,13 @@ def condition_runs(sol: RadauSolution) -> list[tuple[str, float, float]]:
     # a K run is a held speed; a short one whose speed changes is the optimum passing from one arc to
     # the next between two collocation points: it belongs to the traction (or coasting) beside it
     for i, r in enumerate(runs):
-        if r[0] != "K" or r[2] - r[1] >= MIN_HOLD_M:
+        if r[0] != "K":
             continue
+        ss = np.linspace(r[1], r[2], 17)
+        v = np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)) * 3.6
         near = {runs[j][0] for j in (i - 1, i + 1) if 0 <= j < len(runs)}
-        if "T" in near:
-            r[0] = "T"
-        elif near <= {"C", "B"} and len(near) and i + 1 < len(runs):
-            ss = np.linspace(r[1], r[2], 9)
-            v = np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)) * 3.6
-            if np.ptp(v) > HOLD_KMH:
-                r[0] = "C"
+        if np.ptp(v) > HOLD_KMH or (r[2] - r[1] < MIN_HOLD_M and "T" in near):
+            r[0] = "T" if np.mean(sol.controls_at(ss)[0]) > 0 else "C"
     merged: list[list] = []
     for r in runs:
         if merged and (r[2] - r[1] < MIN_RUN_M or r[0] == merged[-1][0]):

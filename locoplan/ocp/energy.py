@@ -154,11 +154,15 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
     settings = RefineSettings(tol=mesh_tol, max_degree=max_degree)
     nu = problem.model.n_u
     if warm is not None:
-        guess_text = "previous solution"
+        guess_text = "a neighbouring solution"
+        stretch = tep.time_s / float(warm.X[1, -1]) if warm.X[1, -1] > 0 else 1.0
 
-        def guess(s, n_controls):
-            return warm.states_at(s), warm.controls_at(s)
-        mesh = mesh or warm.mesh
+        def guess(s, n_controls):  # another running time: its clock stretched to this one
+            x = warm.states_at(s)
+            x[0] /= stretch ** 2
+            x[1] *= stretch
+            return x, warm.controls_at(s)
+        mesh = mesh or warm.mesh.plain()
     else:
         g, guess_text = calculator_guess(calc, tep.time_s)
 
@@ -170,7 +174,8 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
     best: RadauSolution | None = None
     errors = np.zeros(0)
     converged = False
-    last = warm
+    last = None
+    su = np.asarray(problem.model.control_scale, dtype=float)[:, None]
     for it in range(1, max_iterations + 1):
         opts = dict(ipopt_options or {})
         if last is not None:
@@ -180,9 +185,8 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         U0 = guess(nlp.grid.s_col, nu)[1]
         sol = nlp.solve(X0, U0, warm=last)
         if not sol.success and best is None:
-            reason = sol.status
             raise InfeasibleError(f"IPOPT found no minimum-energy run in {tep.time_s:g} s on {tep.route.name} "
-                                  f"({reason}); the fastest run takes {calc.fastest_time_s:.1f} s")
+                                  f"({sol.status}); the fastest run takes {calc.fastest_time_s:.1f} s")
         if not sol.success:  # keep the last good mesh's solution
             history.append(MeshStep(it, len(mesh.intervals), mesh.n_points, float("nan"), sol.objective / KJ_PER_KWH,
                                     sol.iterations, sol.status, sol.build_time_s, sol.solve_time_s))
@@ -196,9 +200,8 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
             history.append(step)
             converged = True
             break
-        su = np.asarray(problem.model.control_scale, dtype=float)[:, None]
         lower, upper = control_activity(sol)
-        mesh, done = refine(mesh, errors, sol.grid.s_col, sol.U / su, sol.grid.offsets, settings, lower, upper)
+        mesh, done = refine(sol.mesh, errors, sol.grid.s_col, sol.U / su, sol.grid.offsets, settings, lower, upper)
         history.append(MeshStep(**{**step.__dict__, "split": done["split"], "raised": done["raised"]}))
         last = sol
 

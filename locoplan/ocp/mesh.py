@@ -116,6 +116,11 @@ class Mesh:
         """Collocation points (the state has one more point: the end)."""
         return sum(iv.n for iv in self.intervals)
 
+    def plain(self) -> "Mesh":
+        """The same intervals with no moving points, fixed arcs or error history: a start for a
+        neighbouring problem (another running time), whose switches lie elsewhere."""
+        return Mesh(tuple(replace(iv, free_start=None, smooth=None, last_error=None, regime=None) for iv in self.intervals))
+
     def describe(self) -> str:
         degs = [iv.n for iv in self.intervals]
         return f"{len(degs)} intervals, {sum(degs)} LGR points (degree {min(degs)}..{max(degs)})"
@@ -251,27 +256,16 @@ class RefineSettings:
     min_length: float = 1e-3
 
 
-def _switches(s: np.ndarray, s_end: float, u: np.ndarray, u_next: np.ndarray | None, jump: float,
-              pattern: np.ndarray | None = None, pattern_next: np.ndarray | None = None,
-              limit: int = 3) -> list[tuple[float, float, float]]:
-    """Where a control switches: between neighbouring collocation points (and between the last one
-    and the interval's end, whose control is the next interval's first) where a control changes by
-    more than ``jump`` of its scale (``u`` is scaled), or by more than a tenth of that while it
-    leaves or reaches a bound (``pattern``: which bounds are active at each point). Returns
-    ``(cut, lo, hi)``: half-way, and the two points that bracket the switch."""
-    pts = np.append(s, s_end)
-    seq = u if u_next is None else np.column_stack([u, u_next])
-    if seq.shape[1] < 2:
-        return []
-    du = np.max(np.abs(np.diff(seq, axis=1)), axis=0)
+def _switch_gaps(u: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None, jump: float) -> np.ndarray:
+    """Gaps between neighbouring collocation points (gap k lies between points k and k + 1) where a
+    control switches: it changes by more than ``jump`` of its scale (``u`` is scaled), or by more
+    than a tenth of that while it leaves or reaches a bound."""
+    du = np.max(np.abs(np.diff(u, axis=1)), axis=0)
     hit = du > jump
-    if pattern is not None:
-        pat = pattern if pattern_next is None or u_next is None else np.column_stack([pattern, pattern_next])
+    if lower is not None:
+        pat = np.vstack([lower, upper])
         hit |= np.any(pat[:, 1:] != pat[:, :-1], axis=0) & (du > 0.1 * jump)
-    idx = np.nonzero(hit)[0]
-    if idx.size > limit:  # many: the largest (the next mesh finds the rest)
-        idx = np.sort(idx[np.argsort(-du[idx])[:limit]])
-    return [(0.5 * (pts[k] + pts[k + 1]), float(pts[k]), float(pts[k + 1])) for k in idx]
+    return hit
 
 
 def _kink(s: np.ndarray, u: np.ndarray) -> float | None:
@@ -285,118 +279,141 @@ def _kink(s: np.ndarray, u: np.ndarray) -> float | None:
     return float(s[k + 1]) if change[k] > 0 else None
 
 
-def _free_bounds(ivs: list[Interval], i: int) -> tuple[float, float]:
-    """Bounds of the moving point between intervals ``i - 1`` and ``i``: from the second-last LGR point
-    of the one before to the second LGR point of its own (the switch it tracks lies near; it can
-    move past a neighbouring collocation point per solve, not run away)."""
-    a, b = ivs[i - 1], ivs[i]
-    ta, _ = _nodes.legendre_gauss_radau(a.n)
-    tb, _ = _nodes.legendre_gauss_radau(b.n)
-    lo = float(a.s_of(ta[-2])) if a.n > 1 else a.s_a
-    return (max(lo, a.s_a + 0.25 * a.length), min(float(b.s_of(tb[1])), b.s_b - 0.25 * b.length))
+def _node(iv: Interval, k: int) -> float:
+    """Position of the ``k``-th LGR point of ``iv`` (negative ``k`` counts from its last)."""
+    tau, _ = _nodes.legendre_gauss_radau(iv.n)
+    return float(iv.s_of(tau[k]))
 
 
-def _regime(s: np.ndarray, lower: np.ndarray, upper: np.ndarray, a: float, b: float, exclude: list[float]):
-    """Each control's arc on ``[a, b]`` from the old collocation points inside it, leaving out the
-    points that bracket a switch (their values are a compromise): ``"lower"`` / ``"upper"`` if every
-    remaining point is there, else ``None``."""
-    inside = (s >= a) & (s <= b)
-    for x in exclude:
-        inside &= np.abs(s - x) > 1e-9
-    if not inside.any():
+def _arc(lower: np.ndarray, upper: np.ndarray) -> tuple[str | None, ...] | None:
+    """Each control's arc from the points given: ``"lower"`` / ``"upper"`` if every one is there."""
+    if lower.shape[1] == 0:
         return None
-    out = []
-    for lo, hi in zip(lower[:, inside], upper[:, inside]):
-        out.append("lower" if lo.all() else "upper" if hi.all() else None)
-    return tuple(out) if any(r is not None for r in out) else None
+    reg = tuple("lower" if lo.all() else "upper" if hi.all() else None for lo, hi in zip(lower, upper))
+    return reg if any(r is not None for r in reg) else None
 
 
 def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarray, offsets: np.ndarray,
            settings: RefineSettings, at_lower: np.ndarray | None = None,
            at_upper: np.ndarray | None = None) -> tuple[Mesh, dict]:
-    """The next mesh: see the module text. ``errors`` per interval; ``s_col`` the collocation points
-    and ``u_scaled`` the controls there divided by their scales, whose jumps mark switches;
-    ``at_lower`` / ``at_upper`` whether each control sits on its lower / upper bound there (to fix
-    the arcs either side of a switch). Returns the mesh and counts of what was done."""
-    out: list[Interval] = []
+    """The next mesh (see the module text). ``errors`` per interval; ``s_col`` the collocation points,
+    ``u_scaled`` the controls there divided by their scales, ``at_lower`` / ``at_upper`` whether each
+    control sits on its lower / upper bound there.
+
+    1. A switch between two neighbouring points, next to an interval above the tolerance, gets a
+       moving mesh point: an existing boundary between them is freed, else the interval is cut
+       half-way; the point may move between the two points that bracket the switch.
+    2. The intervals either side of a moving point keep the arc their other points show (a control
+       on its lower or upper bound throughout), so the switch cannot hide inside them.
+    3. Other intervals above the tolerance get a higher degree (GPOPS-II eq. 29), or, where that did
+       not halve their error last time (a kink), are cut at the kink; beyond ``max_degree`` they
+       are cut into pieces of ``min_degree``.
+    """
+    ivs = list(mesh.intervals)
+    n_iv = len(ivs)
     done = {"split": 0, "raised": 0, "moving": 0}
-    for i, iv in enumerate(mesh.intervals):
-        e = errors[i]
-        if not e > settings.tol:
-            out.append(iv)
+    bad = errors > settings.tol
+    interval_of = np.repeat(np.arange(n_iv), np.diff(offsets))
+    gaps = _switch_gaps(u_scaled, at_lower, at_upper, settings.jump)
+    cuts: dict[int, list[tuple[float, float, float, int]]] = {}  # interval -> (cut, lo, hi, gap)
+    freed: dict[int, tuple[tuple[float, float], int]] = {}  # interval whose start becomes free -> (bounds, gap)
+    for k in np.nonzero(gaps)[0]:
+        a, b = interval_of[k], interval_of[k + 1]
+        if ivs[a].phase != ivs[b].phase or not (bad[a] or bad[b]):
             continue
-        cols = slice(offsets[i], offsets[i + 1])
-        cuts: list[tuple[float, float, float]] = []
-        if iv.length > 2 * settings.min_length:
-            nxt = u_scaled[:, offsets[i + 1]:offsets[i + 1] + 1] if i + 1 < len(mesh.intervals) else None
-            pattern = pat_next = None
-            if at_lower is not None:
-                pat = np.vstack([at_lower, at_upper])
-                pattern = pat[:, cols]
-                pat_next = pat[:, offsets[i + 1]:offsets[i + 1] + 1] if nxt is not None else None
-            cuts = _switches(s_col[cols], iv.s_b, u_scaled[:, cols], nxt, settings.jump, pattern, pat_next)
-            cuts = [c for c in cuts if c[0] - iv.s_a > settings.min_length and iv.s_b - c[0] > settings.min_length]
-        moving = bool(cuts)
-        if not cuts:
+        if a == b:
+            iv = ivs[a]
+            c = 0.5 * (s_col[k] + s_col[k + 1])
+            if c - iv.s_a > settings.min_length and iv.s_b - c > settings.min_length:
+                cuts.setdefault(a, []).append((c, float(s_col[k]), float(s_col[k + 1]), int(k)))
+        elif b > 0 and ivs[b].free_start is None:  # the switch is at an existing boundary
+            freed[b] = ((float(s_col[k]), _node(ivs[b], 1)), int(k))
+    out: list[Interval] = []
+    origin: list[int] = []  # the old interval each new one comes from
+    switch_gap: dict[int, int] = {}  # new interval with a moving start -> the gap of its switch
+    for i, iv in enumerate(ivs):
+        if i in freed:
+            iv = replace(iv, free_start=freed[i][0])
+            switch_gap[len(out)] = freed[i][1]
+            done["moving"] += 1
+        if i in cuts:
+            cs = sorted(cuts[i])[:3]
+            edges = [iv.s_a, *[c[0] for c in cs], iv.s_b]
+            done["split"] += 1
+            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+                mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
+                free = iv.free_start if k == 0 else (cs[k - 1][1] + settings.min_length, cs[k - 1][2] - settings.min_length)
+                if k > 0:
+                    switch_gap[len(out)] = cs[k - 1][3]
+                    done["moving"] += 1
+                degree = settings.min_degree + (1 if mapping != "linear" else 0)
+                out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=iv.regime))
+                origin.append(i)
+            continue
+        if bad[i] and iv.free_start is None and (i + 1 >= n_iv or i + 1 not in freed):
+            e = errors[i]
             p = max(1, math.ceil(math.log(e / settings.tol) / math.log(max(iv.n, 2))))
             stalled = iv.last_error is not None and e > 0.5 * iv.last_error
-            if (iv.n + p <= settings.max_degree and not stalled) or iv.length <= 2 * settings.min_length:
+            cols = slice(offsets[i], offsets[i + 1])
+            kink = _kink(s_col[cols], u_scaled[:, cols]) if stalled else None
+            if kink is not None and (kink - iv.s_a <= settings.min_length or iv.s_b - kink <= settings.min_length):
+                kink = None
+            if kink is None and (iv.n + p <= settings.max_degree or iv.length <= 2 * settings.min_length):
                 out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
+                origin.append(i)
                 done["raised"] += 1
                 continue
-            if stalled:  # a higher degree did not help: a kink (e.g. of a force curve), cut there
-                kink = _kink(s_col[cols], u_scaled[:, cols])
-                if kink is not None and kink - iv.s_a > settings.min_length and iv.s_b - kink > settings.min_length:
-                    cuts = [(kink, kink, kink)]
-            if not cuts:
+            if kink is not None:
+                edges = [iv.s_a, kink, iv.s_b]
+            else:
                 pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
-                cuts = [(c, c, c) for c in np.linspace(iv.s_a, iv.s_b, pieces + 1)[1:-1]]
-        edges = [iv.s_a, *[c[0] for c in cuts], iv.s_b]
-        done["split"] += 1
-        for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-            mapping = "linear"
-            if iv.mapping == "start" and k == 0:
-                mapping = "start"
-            if iv.mapping == "end" and k == len(edges) - 2:
-                mapping = "end"
-            free = iv.free_start if k == 0 else None
-            if k > 0 and moving:  # a switch: the mesh point moves onto it, between its bracketing points
-                _, lo, hi = cuts[k - 1]
-                margin = settings.min_length
-                free = (lo + margin, hi - margin)
-                done["moving"] += 1
-            regime = iv.regime
-            if moving and at_lower is not None and regime is None:
-                regime = _regime(s_col, at_lower, at_upper, a, b, [c[1] for c in cuts] + [c[2] for c in cuts])
-            degree = settings.min_degree + (1 if mapping != "linear" else 0)
-            out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=regime))
-    # a moving point keeps moving, between its neighbouring collocation points; the intervals on
-    # either side of it may not hide a switch, and keep the arc they showed (their points away from
-    # the moving point on a bound)
+                edges = list(np.linspace(iv.s_a, iv.s_b, pieces + 1))
+            done["split"] += 1
+            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+                mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
+                out.append(Interval(iv.phase, float(a), float(b), settings.min_degree + (1 if mapping != "linear" else 0),
+                                    mapping, iv.free_start if k == 0 else None, regime=iv.regime))
+                origin.append(i)
+            continue
+        if bad[i] and iv.n < settings.max_degree:  # next to a moving point: a higher degree
+            e = errors[i]
+            p = max(1, math.ceil(math.log(e / settings.tol) / math.log(max(iv.n, 2))))
+            iv = replace(iv, n=min(iv.n + p, settings.max_degree))
+            done["raised"] += 1
+        out.append(iv)
+        origin.append(i)
+    # arcs either side of every moving point, from the old points inside each side's interval (leaving
+    # out the one nearest the moving point, whose value may be a compromise between the arcs; a side
+    # with no other point keeps the arc it had)
     if at_lower is not None:
-        for i, iv in enumerate(mesh.intervals):
-            if iv.free_start is None or i == 0:
+        for j, iv in enumerate(out):
+            if iv.free_start is None or j == 0:
                 continue
-            for j, drop in ((i, 0), (i - 1, -1)):
-                old_iv = mesh.intervals[j]
-                cols = np.delete(np.arange(offsets[j], offsets[j + 1]), drop)
-                reg = tuple("lower" if lo.all() else "upper" if hi.all() else None
-                            for lo, hi in zip(at_lower[:, cols], at_upper[:, cols])) if cols.size else None
-                if not reg or all(r is None for r in reg):
-                    continue
-                for k, new_iv in enumerate(out):
-                    if old_iv.s_a - 1e-9 <= new_iv.s_a and new_iv.s_b <= old_iv.s_b + 1e-9:
-                        out[k] = replace(new_iv, regime=reg)
-    for i, iv in enumerate(out):
+            for side, drop in ((j - 1, -1), (j, 0)):
+                o = origin[side]
+                cols = np.arange(offsets[o], offsets[o + 1])
+                inside = (s_col[cols] >= out[side].s_a - 1e-9) & (s_col[cols] <= out[side].s_b + 1e-9)
+                cols = cols[inside]
+                if cols.size > 1:
+                    cols = np.delete(cols, drop)
+                elif cols.size == 1 and ivs[o].regime is not None:
+                    cols = cols[:0]
+                reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else ivs[o].regime
+                if reg is not None:
+                    out[side] = replace(out[side], regime=reg)
+    # moving points between alike arcs track nothing: fix them; the others get bounds from the
+    # collocation points around them
+    for j, iv in enumerate(out):
         if iv.free_start is None:
             continue
-        left = out[i - 1] if i > 0 else None
-        differs = (left is not None and left.phase == iv.phase and
-                   (left.regime is None) != (iv.regime is None) or
-                   (left is not None and left.regime is not None and iv.regime is not None and left.regime != iv.regime))
-        fresh = iv.regime is None and (left is None or left.regime is None)
-        if left is not None and left.phase == iv.phase and (differs or fresh):
-            out[i] = replace(iv, free_start=_free_bounds(out, i))
-        else:  # the arcs either side are alike: nothing to track, the point stays where it is
-            out[i] = replace(iv, free_start=None)
+        left = out[j - 1] if j > 0 else None
+        if left is None or left.phase != iv.phase or (left.regime == iv.regime and iv.regime is not None):
+            out[j] = replace(iv, free_start=None)
+            continue
+        lo, hi = _node(left, -1), _node(iv, 1)
+        lo = max(lo, min(iv.free_start[0], left.s_b), left.s_a + 0.1 * left.length)
+        hi = min(max(hi, iv.free_start[1]), iv.s_b - 0.1 * iv.length)
+        if not lo < iv.s_a < hi:
+            lo, hi = min(lo, iv.s_a - settings.min_length), max(hi, iv.s_a + settings.min_length)
+        out[j] = replace(iv, free_start=(lo, hi))
     return Mesh(tuple(out)), done

@@ -46,6 +46,8 @@ class StrategyContext:
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
+    yardstick: bool = True
+    """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
     _e_min_cache: dict = field(default_factory=dict)
 
     @property
@@ -80,6 +82,9 @@ class StrategyOutcome:
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
+    calc: TractionCalculator | None = None
+    """The calculator to run the plan on when not the context's (mpoc-n: the route without its
+    neutral sections, which the real train cannot drive)."""
 
 
 StrategyFn = Callable[[StrategyContext], StrategyOutcome]
@@ -214,3 +219,6 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t, e_min_kwh=e_min,
                            time_range_s=problem.time_range_s)
+
+
+from . import optimal  # noqa: E402,F401  (registers seed 001's mpoc, mpoc-n, mpoc-c and sfs)
