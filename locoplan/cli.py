@@ -561,6 +561,10 @@ from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands
 
 _register_ocp(app)
 
+from .cli_energy import register as _register_energy  # noqa: E402  (seed 001's yardstick: bound)
+
+_register_energy(app)
+
 
 def main() -> None:
     app()

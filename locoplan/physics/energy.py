@@ -45,9 +45,11 @@ class EnergyModel:
         return piecewise_linear(speed_kmh, pts[:, 0], pts[:, 1])
 
     def label(self) -> str:
+        if self.is_wheel_work:
+            return "traction work at the wheel"
         eff = (f"{self.efficiency:g}" if isinstance(self.efficiency, (int, float))
                else ",".join(f"{v:g}:{e:g}" for v, e in self.efficiency))
-        return f"efficiency {eff}, regenerative credit {self.regen_credit:g}"
+        return f"traction energy drawn (efficiency {eff}, regenerative credit {self.regen_credit:g})"
 
 
 WHEEL_WORK = EnergyModel()
