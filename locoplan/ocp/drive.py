@@ -28,10 +28,21 @@ from .radau import RadauSolution, control_activity
 MIN_RUN_M = 15.0
 """Shorter runs are absorbed by their neighbours (a single collocation point between two arcs)."""
 MIN_HOLD_M = 150.0
+"""A K run shorter than this next to traction is the optimum passing between arcs, not a held speed."""
+HOLD_ACCEL_MS2 = 5e-3
+"""Partial force with |dv^2/2 / ds| at most this [m/s^2] holds the speed (K)."""
 HOLD_KMH = 0.5
-"""A K run whose speed changes by more than HOLD_KMH, or a short one (MIN_HOLD_M) next to traction, is
-not a held speed: the optimum passing from one arc to the next between collocation points."""
+"""Holds either side of a short traction run within this of each other [km/h] are one hold."""
+IDLE_SHARE = 0.01
+"""A force below this share of its scale is no force (the NLP's round-off on a coasting arc)."""
 TIME_TOL_S = 1.0
+FIT_MOVE_M = 300.0
+FIT_SPACING_M = 250.0
+FIT_TIME_S = 1.0
+FIT_SPEED_KMH = 1.0
+FIT_ITERATIONS = 12
+"""The fit of the switching points: how far each may move [m], how often the clock [s] and the speed
+[km/h] are compared along the route [m] and with what weights, how many steps."""
 SHOOT_SPAN_M = 150.0
 """How far a switch may move to reproduce the optimum's speed after it [m]."""
 """A plan meets the asked time when it runs within this of it [s]."""
@@ -40,25 +51,36 @@ TUNE_SPAN_M = 600.0
 
 
 def condition_runs(sol: RadauSolution) -> list[tuple[str, float, float]]:
-    """The optimum's conditions as runs ``(condition, from_m, to_m)`` over the route."""
-    lower, upper = control_activity(sol)
+    """The optimum's conditions as runs ``(condition, from_m, to_m)`` over the route.
+
+    At each collocation point: traction on its speed-dependent bound is T; partial traction or
+    braking that holds the speed (``|dv^2/2 / ds| <= HOLD_ACCEL_MS2``) is K; partial traction that
+    changes the speed is T (the shots of :func:`shoot_switches` then give it the optimum's effect);
+    full braking is B; a force below ``IDLE_SHARE`` of its scale counts as none (C)."""
     grid = sol.grid
     n = grid.n_col
     model = sol.problem.model
+    lower, upper = control_activity(sol)
+    su = np.asarray(model.control_scale, dtype=float)
+    idle = sol.U <= IDLE_SHARE * su[:, None]
+    x = [sol.X[i, :n] for i in range(model.n_x)]
+    u = [sol.U[i] for i in range(model.n_u)]
+    accel = np.asarray(model.dynamics(x, u, grid.s_col, sol.params)[0], dtype=float) * np.ones(n)
+    holding = np.abs(accel) <= HOLD_ACCEL_MS2
     split = model.n_u == 3  # (F, B_e, B_a)
     cond = []
     for k in range(n):
-        f_on, f_full = not lower[0, k], upper[0, k]
-        b_on = any(not lower[j, k] for j in range(1, model.n_u))
+        f_on, f_full = not idle[0, k], upper[0, k]
+        b_on = any(not idle[j, k] for j in range(1, model.n_u))
         b_full = all(upper[j, k] for j in range(1, model.n_u)) if split else upper[1, k]
         if f_full:
             c = "T"
         elif f_on:
-            c = "K"
+            c = "K" if holding[k] else "T"
         elif b_full and b_on:
             c = "B"
         elif b_on:
-            c = "K"
+            c = "K" if holding[k] else "C"
         else:
             c = "C"
         cond.append(c)
@@ -72,16 +94,19 @@ def condition_runs(sol: RadauSolution) -> list[tuple[str, float, float]]:
         runs[-1][2] = at
         runs.append([cond[k], at, None])
     runs[-1][2] = grid.s_points[-1]
-    # a K run is a held speed; a short one whose speed changes is the optimum passing from one arc to
-    # the next between two collocation points: it belongs to the traction (or coasting) beside it
+    # a short K next to traction is the optimum passing from one arc to the next between two points;
+    # a short T between two holds at the same speed is the hold adjusting to a change of gradient
     for i, r in enumerate(runs):
-        if r[0] != "K":
+        if r[2] - r[1] >= MIN_HOLD_M or not 0 < i < len(runs) - 1:
             continue
-        ss = np.linspace(r[1], r[2], 17)
-        v = np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)) * 3.6
-        near = {runs[j][0] for j in (i - 1, i + 1) if 0 <= j < len(runs)}
-        if np.ptp(v) > HOLD_KMH or (r[2] - r[1] < MIN_HOLD_M and "T" in near):
-            r[0] = "T" if np.mean(sol.controls_at(ss)[0]) > 0 else "C"
+        near = {runs[i - 1][0], runs[i + 1][0]}
+        if r[0] == "K" and "T" in near:
+            r[0] = "T"
+        elif r[0] == "T" and near == {"K"}:
+            ss = np.linspace(runs[i - 1][1], runs[i + 1][2], 33)
+            v = np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)) * 3.6
+            if np.ptp(v) <= HOLD_KMH:
+                r[0] = "K"
     merged: list[list] = []
     for r in runs:
         if merged and (r[2] - r[1] < MIN_RUN_M or r[0] == merged[-1][0]):
@@ -147,13 +172,15 @@ def shoot_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, spa
     return Plan(conds, tuple(starts))
 
 
-def tune_last_coast(calc: TractionCalculator, plan: Plan, time_s: float, span_m: float = TUNE_SPAN_M) -> tuple[Plan, float]:
-    """Move the last coasting point so that the plan runs in ``time_s`` (one batch of calculator runs
-    and an interpolation, then a check). Returns the plan and the shift [m] (0 if nothing to move)."""
+def tune_last_coast(calc: TractionCalculator, plan: Plan, time_s: float, span_m: float = TUNE_SPAN_M,
+                    index: int | None = None) -> tuple[Plan, float]:
+    """Move the last coasting point (or the one at ``index``) so that the plan runs in ``time_s`` (one
+    batch of calculator runs and an interpolation). Returns the plan and the shift [m] (0 if there is
+    nothing to move)."""
     idx = [i for i, c in enumerate(plan.conditions) if c == "C" and i > 0]
     if not idx:
         return plan, 0.0
-    j = idx[-1]
+    j = idx[-1] if index is None else index
     starts = np.array(plan.starts_m, dtype=float)
     lo = starts[j - 1] + 1.0
     hi = calc.route.length_m - 1.0
@@ -181,6 +208,82 @@ def tune_last_coast(calc: TractionCalculator, plan: Plan, time_s: float, span_m:
     new = list(plan.starts_m)
     new[j] = float(best)
     return Plan(plan.conditions, tuple(new)), float(best - x0)
+
+
+def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_move_m: float = FIT_MOVE_M,
+                 spacing_m: float = FIT_SPACING_M) -> Plan:
+    """Least-squares fit of the plan's switching points to the optimum's clock and speed along the
+    route (every ``spacing_m``): the calculator's run should pass each point when and as fast as the
+    optimum does. Jacobians by one batch of shifted plans per step (the calculator runs plans in
+    batches); each point moves at most ``max_move_m`` and never past its neighbours. The final bare B
+    is the stop's braking curve and has no point to fit."""
+    from scipy.optimize import least_squares
+
+    starts = np.array(plan.starts_m, dtype=float)
+    free = np.nonzero(np.isfinite(starts) & (np.arange(starts.size) > 0))[0]
+    if not free.size:
+        return plan
+    length = calc.route.length_m
+    q = np.arange(spacing_m, length - spacing_m / 2, spacing_m)
+    xo = sol.states_at(q)
+    t_ref = xo[1]
+    v_ref = np.sqrt(2.0 * np.maximum(xo[0], 0.0)) * 3.6
+    x0 = starts[free]
+    ext = np.concatenate([[0.0], x0, [length]])
+    lo = np.maximum(x0 - max_move_m, 0.5 * (ext[:-2] + ext[1:-1]) + 0.5)
+    hi = np.minimum(x0 + max_move_m, 0.5 * (ext[1:-1] + ext[2:]) - 0.5)
+    lo, hi = np.minimum(lo, x0 - 1e-3), np.maximum(hi, x0 + 1e-3)
+
+    def run(X):
+        sw = np.repeat(starts[None, 1:], X.shape[0], axis=0)
+        sw[:, free - 1] = X
+        res = calc.evaluate(plan.conditions, sw, profile=True)
+        prof = res.profile
+        t = np.array([np.interp(q, prof.s_m, prof.t_s[i]) for i in range(X.shape[0])])
+        v = np.array([np.interp(q, prof.s_m, prof.v_kmh[i]) for i in range(X.shape[0])])
+        bad = ~res.feasible | ~np.isfinite(t).all(axis=1)
+        r = np.hstack([(t - t_ref) / FIT_TIME_S, (v - v_ref) / FIT_SPEED_KMH])
+        r[bad] = 1e3
+        return r
+
+    step = 1.0
+
+    def fun(x):
+        return run(x[None, :])[0]
+
+    def jac(x):
+        X = np.vstack([x] + [x + step * np.eye(x.size)[i] for i in range(x.size)])
+        R = run(X)
+        return ((R[1:] - R[0]) / step).T
+
+    try:
+        out = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", max_nfev=FIT_ITERATIONS, x_scale=10.0)
+    except ValueError:
+        return plan
+    if not out.cost < 0.5 * float(np.sum(fun(x0) ** 2)):
+        return plan
+    new = starts.copy()
+    new[free] = out.x
+    return Plan(plan.conditions, tuple(float(v) for v in new))
+
+
+def tune_coasting_point(calc: TractionCalculator, plan: Plan, time_s: float, tol_s: float = TIME_TOL_S / 2) -> tuple[Plan, float]:
+    """Seed 001's 'move the last coasting point so that T is still met', made sure to work: the last
+    coasting point first, over its whole run; if the time cannot be met there, the one before it, and
+    so on. Returns the plan and the shift [m] of the point moved."""
+    idx = [i for i, c in enumerate(plan.conditions) if c == "C" and i > 0]
+    best = (plan, 0.0)
+    for j in reversed(idx):
+        starts = np.array(plan.starts_m, dtype=float)
+        nxt = starts[j + 1] if j + 1 < len(starts) and not math.isnan(starts[j + 1]) else calc.route.length_m
+        span = max(nxt - starts[j], starts[j] - starts[j - 1])
+        cand, shift = tune_last_coast(calc, plan, time_s, span_m=span, index=j)
+        res = calc.evaluate(cand.conditions, cand.switches_m)
+        if res.feasible[0] and abs(float(res.running_time_s[0]) - time_s) <= tol_s:
+            return cand, shift
+        if j == idx[-1]:
+            best = (cand, shift)
+    return best
 
 
 @dataclass(frozen=True)

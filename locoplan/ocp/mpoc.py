@@ -17,7 +17,7 @@ import numpy as np
 from ..model.route import Route
 from ..model.train import Train
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .drive import (PlanCheck, check_plan, condition_runs, plan_from_runs, shoot_switches, sequence_runs,
+from .drive import (PlanCheck, check_plan, condition_runs, fit_switches, plan_from_runs, shoot_switches, sequence_runs,
                     tune_last_coast)
 from .energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergySolution, solve_energy
 from .train_energy import EnergyOptions, TrainEnergyProblem, build_problem, check_runnable
@@ -69,6 +69,7 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
     es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm)
     runs = condition_runs(es.solution)
     plan = shoot_switches(calc, plan_from_runs(runs), es.solution)
+    plan = fit_switches(calc, plan, es.solution)
     plan, shift = tune_last_coast(calc, plan, time_s)
     chk = check_plan(calc, plan, time_s, energy.energy, tep.spans_m)
     reasons = list(chk.reasons)

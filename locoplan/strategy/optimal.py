@@ -68,56 +68,51 @@ def mpoc_n(ctx: StrategyContext) -> StrategyOutcome:
     return _outcome(run, t0, calc=run.calc)
 
 
-def coast_through_neutral(calc, plan: Plan, spans) -> Plan:
-    """``plan`` with every neutral span coasted and, after it, traction until the speed the plan held
-    there when it held one (K), then that hold again (seed 001 Fig. 2). One calculator run per span."""
-    conds = list(plan.conditions)
-    starts = list(plan.starts_m)
+def _condition_at(plan: Plan, x: float) -> int:
+    """Index of the condition of ``plan`` running at position ``x`` (a final bare B never runs here)."""
+    starts = [v if not math.isnan(v) else math.inf for v in plan.starts_m]
+    return int(np.searchsorted(starts, x, side="right") - 1)
+
+
+def coast_through_neutral(calc, plan: Plan, spans, route_calc=None) -> Plan:
+    """``plan`` with every neutral span coasted and, after it, the plan's own condition again; where
+    that is a cruise (K holds the speed at which it starts), traction first until the speed the plan
+    held there, then the cruise (seed 001 Fig. 2). ``route_calc`` ran ``plan`` (the route without its
+    neutral sections) and gives the speeds to get back to."""
+    ref = (route_calc or calc).evaluate(plan.conditions, plan.switches_m, profile=True).profile
+    entries = list(zip(plan.conditions, plan.starts_m))
     for a, b in spans:
-        finite = [x if not math.isnan(x) else np.inf for x in starts]
-        j_a = int(np.searchsorted(finite, a, side="right") - 1)  # condition running at a
-        j_b = int(np.searchsorted(finite, b, side="right") - 1)  # condition running at b
-        after = conds[j_b]
-        if conds[-1] == "B" and math.isnan(starts[-1]) and j_b == len(conds) - 1:
-            after = conds[-2]
-        hold = None
-        if after == "K":  # the speed the plan holds there, on the route as the plan ran it
-            prof = calc.evaluate(tuple(conds), np.array([starts[1:]]), profile=True).profile
-            hold = float(np.interp(b, prof.s_m, prof.v_kmh[0]))
-        keep = [(c, x) for c, x in zip(conds, starts) if not (a <= x < b)]
-        inserted = [("C", a), ("T" if after == "K" else after, b)]
-        merged = sorted(keep + inserted, key=lambda p: (np.inf if math.isnan(p[1]) else p[1]))
-        conds, starts = [c for c, _ in merged], [x for _, x in merged]
-        if j_a < 0:
-            conds[0], starts[0] = conds[0], 0.0
-        if hold is not None:  # back to the hold where traction has brought the speed up to it again
-            k = starts.index(b)
-            nxt = starts[k + 1] if k + 1 < len(starts) and not math.isnan(starts[k + 1]) else calc.route.length_m
-            trial = list(starts)
-            prof = calc.evaluate(tuple(conds), np.array([trial[1:]]), profile=True).profile
+        cur = Plan(tuple(c for c, _ in entries), tuple(x for _, x in entries))
+        after = cur.conditions[_condition_at(cur, b)]
+        before = [(c, x) for c, x in entries if not math.isnan(x) and x < a]
+        later = [(c, x) for c, x in entries if math.isnan(x) or x > b]
+        new = before + [("C", a)]
+        if after == "K":
+            hold = float(np.interp(b, ref.s_m, ref.v_kmh[0]))
+            trial = new + [("T", b)] + later
+            tp = Plan(tuple(c for c, _ in trial), tuple(x for _, x in trial))
+            prof = calc.evaluate(tp.conditions, tp.switches_m, profile=True).profile
+            nxt = next((x for _, x in later if not math.isnan(x)), calc.route.length_m)
             sel = (prof.s_m > b) & (prof.s_m < nxt)
             reach = np.nonzero(prof.v_kmh[0][sel] >= hold)[0]
-            if reach.size:
-                x = float(prof.s_m[sel][reach[0]])
-                conds.insert(k + 1, "K")
-                starts.insert(k + 1, x)
-    # drop empty runs and repeated conditions
-    out_c, out_s = [conds[0]], [0.0]
-    for c, x in zip(conds[1:], starts[1:]):
-        if c == out_c[-1] or (not math.isnan(x) and x <= out_s[-1]):
-            if not math.isnan(x) and x <= out_s[-1]:
-                out_c[-1] = c
+            new += [("T", b)] + ([("K", float(prof.s_m[sel][reach[0]]))] if reach.size else [])
+        elif after != "C":
+            new.append((after, b))
+        entries = new + later
+    out: list[tuple[str, float]] = []
+    for c, x in entries:  # merge repeats; the first condition starts at 0
+        if out and c == out[-1][0]:
             continue
-        out_c.append(c)
-        out_s.append(x)
-    return Plan(tuple(out_c), tuple(out_s))
+        out.append((c, x))
+    out[0] = (out[0][0], 0.0)
+    return Plan(tuple(c for c, _ in out), tuple(x for _, x in out))
 
 
 @register("mpoc-c", timetabled=True)
 def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 001's MPOC-C: the MPOC-N plan with coasting through every neutral span, re-acceleration
     after it, and the last coasting point moved so that the planned time is met."""
-    from ..ocp.drive import tune_last_coast
+    from ..ocp.drive import tune_coasting_point
     from ..sim.calculator import neutral_spans_m
 
     t0 = time.perf_counter()
@@ -126,8 +121,8 @@ def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
     if not run.feasible:
         raise InfeasibleError(f"mpoc-c: the MPOC-N optimum it starts from is not confirmed: {run.summary['reason']}")
     spans = neutral_spans_m(calc.route, calc.train.length_m if calc.options.strip else 0.0)
-    plan = coast_through_neutral(calc, run.check.plan, spans)
-    plan, _ = tune_last_coast(calc, plan, ctx.t0_s, span_m=3000.0)
+    plan = coast_through_neutral(calc, run.check.plan, spans, route_calc=run.calc)
+    plan, _ = tune_coasting_point(calc, plan, ctx.t0_s)
     return StrategyOutcome(plan, algorithm="radau", solve_time_s=time.perf_counter() - t0)
 
 
