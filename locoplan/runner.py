@@ -245,5 +245,7 @@ def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) 
             "punctual_runs": len(punctual),
             "punctual_best": None if pb is None else {k: pb[k] for k in ("seed", "running_time_s", "traction_energy_kwh", "fitness")},
             "mean_solve_time_s": round(float(np.mean([x["solve_time_s"] for x in s])), 2),
+            "mean_gap_to_optimum_percent": (None if any(x.get("gap_to_optimum_percent") is None for x in s)
+                                            else round(float(np.mean([x["gap_to_optimum_percent"] for x in s])), 2)),
         })
     return rows

@@ -19,6 +19,7 @@ states integrated from the interpolated dynamics against the interpolated states
 from __future__ import annotations
 
 import time as _time
+from functools import lru_cache
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -39,6 +40,26 @@ MAP_THREADS = 1
 """Threads evaluating the model over the collocation points (this machine's two cores)."""
 MIN_INTERVAL_M = 1e-3
 """Shortest interval next to a moving mesh point [units of s]."""
+
+
+@lru_cache(maxsize=None)
+def _weights(points: tuple) -> np.ndarray:
+    return _nodes.barycentric_weights(np.array(points))
+
+
+def _lagrange(points: np.ndarray, values: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Values (rows) of the Lagrange polynomials through ``(points, values)`` at ``targets`` (the
+    second barycentric formula, weights cached per point set; exact hits return the nodal value)."""
+    lam = _weights(tuple(points))
+    diff = targets[:, None] - points[None, :]
+    exact = diff == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = lam[None, :] / diff
+        e = terms / terms.sum(axis=1, keepdims=True)
+    rows = exact.any(axis=1)
+    if rows.any():
+        e[rows] = exact[rows].astype(float)
+    return values @ e.T
 
 
 def _eval_model(fn: Callable, x, u, s, p, n_out: int):
@@ -115,8 +136,7 @@ class RadauSolution:
         for i in np.unique(idx):
             sel = idx == i
             iv = self.mesh.intervals[i]
-            e = _nodes.interpolation_matrix(_nodes.radau_support_points(iv.n), iv.tau_of(s[sel]))
-            out[:, sel] = self.X[:, self.grid.points_of(i)] @ e.T
+            out[:, sel] = _lagrange(_nodes.radau_support_points(iv.n), self.X[:, self.grid.points_of(i)], iv.tau_of(s[sel]))
         return out
 
     def controls_at(self, s, lower=None, upper=None) -> np.ndarray:
@@ -127,9 +147,7 @@ class RadauSolution:
         for i in np.unique(idx):
             sel = idx == i
             iv = self.mesh.intervals[i]
-            tau_nodes, _ = _nodes.legendre_gauss_radau(iv.n)
-            e = _nodes.interpolation_matrix(tau_nodes, iv.tau_of(s[sel]))
-            u = self.U[:, self.grid.cols_of(i)] @ e.T
+            u = _lagrange(_nodes.legendre_gauss_radau(iv.n)[0], self.U[:, self.grid.cols_of(i)], iv.tau_of(s[sel]))
             ph = self.problem.phases[iv.phase]
             out[:, sel] = np.clip(u, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
         return out
@@ -417,9 +435,9 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
         tau_hat, _ = _nodes.legendre_gauss_radau(m)
         support_hat = _nodes.radau_support_points(m)
         xs = sol.X[:, grid.points_of(i)]
-        x_hat = xs @ _nodes.interpolation_matrix(_nodes.radau_support_points(iv.n), support_hat).T  # nx x m+1
+        x_hat = _lagrange(_nodes.radau_support_points(iv.n), xs, support_hat)  # nx x m+1
         tau_u, _ = _nodes.legendre_gauss_radau(iv.n)
-        u_hat = sol.U[:, grid.cols_of(i)] @ _nodes.interpolation_matrix(tau_u, tau_hat).T
+        u_hat = _lagrange(tau_u, sol.U[:, grid.cols_of(i)], tau_hat)
         ph = problem.phases[iv.phase]
         u_hat = np.clip(u_hat, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
         s_hat = iv.s_of(tau_hat)

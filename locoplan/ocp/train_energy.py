@@ -104,7 +104,7 @@ def _speed(e):
     if is_symbolic(e):
         import casadi as ca
 
-        return ca.sqrt(2.0 * e + E_FLOOR)
+        return ca.sqrt(ca.fmax(2.0 * e, 0.0) + E_FLOOR)  # IPOPT relaxes the bound e >= 0 by a hair
     return np.sqrt(2.0 * np.maximum(np.asarray(e, dtype=float), 0.0) + E_FLOOR)
 
 
