@@ -323,16 +323,16 @@ def check_runnable(calc: TractionCalculator, time_s: float, what: str = "") -> f
 
 
 def _why_stalled(calc: TractionCalculator, res) -> str:
-    """The physics of a failed fastest run: the steepest grade against the traction at low speed, or
-    traction cut where the train stands."""
+    """The physics of a failed fastest run: the grade where it stalled against the traction at low
+    speed, or traction cut there by a neutral section's span."""
     at = float(res.failure_m[0])
     k = int(np.clip(np.searchsorted(calc.s_m, at) - 1, 0, len(calc.h_m) - 1))
-    if calc.traction_allowed[min(k, len(calc.traction_allowed) - 1)] == 0.0:
-        return " (traction is cut there by a neutral section's span)"
-    grade = float(np.max(calc.gradient_permille))
+    grade = float(np.max(calc.gradient_permille[max(0, k - 2):k + 3]))
     need = float(gradient_force_kn(grade, calc.train.mass_t) + train_resistance_kn(0.0, calc.train.resistance_kn))
     have = float(np.max(calc.train.traction_kn))
     if need > have:
-        return (f" (the steepest equivalent grade, {grade:+.1f} per mille, takes {need:,.0f} kN to climb from rest; "
+        return (f" (the steepest equivalent grade there, {grade:+.1f} per mille, takes {need:,.0f} kN to climb from rest; "
                 f"the consist's traction curve gives at most {have:,.0f} kN)")
+    if calc.traction_allowed[k] == 0.0:
+        return " (traction is cut there by a neutral section's span)"
     return ""
