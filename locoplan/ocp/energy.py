@@ -24,8 +24,8 @@ from .train_energy import KMH_PER_MS, TrainEnergyProblem
 
 DEFAULT_MESH_TOL = 1e-5
 DEFAULT_MAX_DEGREE = 10
-INITIAL_DEGREE = 4
-INITIAL_MAX_INTERVAL_M = 1000.0
+INITIAL_DEGREE = 5
+INITIAL_MAX_INTERVAL_M = 500.0
 END_INTERVAL_M = 200.0
 MAX_MESH_ITERATIONS = 12
 WARM_IPOPT = {"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6, "ipopt.warm_start_bound_push": 1e-8,

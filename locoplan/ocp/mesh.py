@@ -253,6 +253,7 @@ class RefineSettings:
     min_degree: int = 3
     max_degree: int = 10
     jump: float = 0.05
+    margin: float = 0.3
     min_length: float = 1e-3
 
 
@@ -312,7 +313,8 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
     ivs = list(mesh.intervals)
     n_iv = len(ivs)
     done = {"split": 0, "raised": 0, "moving": 0}
-    bad = errors > settings.tol
+    target = settings.margin * settings.tol  # aim below the tolerance: the next solve moves the optimum a little
+    bad = errors > target
     interval_of = np.repeat(np.arange(n_iv), np.diff(offsets))
     gaps = _switch_gaps(u_scaled, at_lower, at_upper, settings.jump)
     cuts: dict[int, list[tuple[float, float, float, int]]] = {}  # interval -> (cut, lo, hi, gap)
@@ -352,7 +354,7 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
             continue
         if bad[i] and iv.free_start is None and (i + 1 >= n_iv or i + 1 not in freed):
             e = errors[i]
-            p = max(1, math.ceil(math.log(e / settings.tol) / math.log(max(iv.n, 2))))
+            p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
             stalled = iv.last_error is not None and e > 0.5 * iv.last_error
             cols = slice(offsets[i], offsets[i + 1])
             kink = _kink(s_col[cols], u_scaled[:, cols]) if stalled else None
@@ -377,7 +379,7 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
             continue
         if bad[i] and iv.n < settings.max_degree:  # next to a moving point: a higher degree
             e = errors[i]
-            p = max(1, math.ceil(math.log(e / settings.tol) / math.log(max(iv.n, 2))))
+            p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
             iv = replace(iv, n=min(iv.n + p, settings.max_degree))
             done["raised"] += 1
         out.append(iv)
