@@ -18,7 +18,8 @@ from ..model.route import Route
 from ..model.train import Train
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .drive import (PlanCheck, check_plan, condition_runs, fit_switches, plan_from_runs, shoot_switches, sequence_runs,
-                    tune_last_coast)
+                    tune_coasting_point, tune_last_coast)
+from .drive import TIME_TOL_S
 from .energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergySolution, solve_energy
 from .train_energy import EnergyOptions, TrainEnergyProblem, build_problem, check_runnable
 
@@ -71,6 +72,9 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
     plan = shoot_switches(calc, plan_from_runs(runs), es.solution)
     plan = fit_switches(calc, plan, es.solution)
     plan, shift = tune_last_coast(calc, plan, time_s)
+    res = calc.evaluate(plan.conditions, plan.switches_m)
+    if not (res.feasible[0] and abs(float(res.running_time_s[0]) - time_s) <= TIME_TOL_S / 2):
+        plan, shift = tune_coasting_point(calc, plan, time_s)  # over a whole coasting run, or an earlier one
     chk = check_plan(calc, plan, time_s, energy.energy, tep.spans_m)
     reasons = list(chk.reasons)
     if not es.success:
