@@ -42,6 +42,9 @@ def _summary_table(s: dict) -> Table:
         rows.append(("neutral coasting", ", ".join(f"{a:.1f} s / {b:.1f} s" for a, b in s["neutral_margins_s"])
                      + " (before the head enters / after the tail leaves)"))
     rows.append(("confirmed", confirmed))
+    for key in ("plan_note", "mesh_note"):
+        if s.get(key):
+            rows.append(("note", s[key]))
     if s["feasible"]:
         rows += [("running time", f"{s['running_time_s']:.1f} s"), ("traction energy", f"{s['traction_energy_kwh']:.2f} kWh")]
     rows.append(("solve time", f"{s['solve_time_s']:.2f} s (NLP solves {sum(h['solve_time_s'] for h in s['mesh_history']):.2f} s, "

@@ -48,7 +48,6 @@ FIT_ITERATIONS = 12
 [km/h] are compared along the route [m] and with what weights, how many steps."""
 SHOOT_SPAN_M = 150.0
 """How far a switch may move to reproduce the optimum's speed after it [m]."""
-"""A plan meets the asked time when it runs within this of it [s]."""
 TUNE_SPAN_M = 600.0
 """How far the last coasting point may move to meet the time [m]."""
 

@@ -185,7 +185,9 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         U0 = guess(nlp.grid.s_col, nu)[1]
         sol = nlp.solve(X0, U0, warm=last)
         if not sol.success and best is None:
-            raise InfeasibleError(f"IPOPT found no minimum-energy run in {tep.time_s:g} s on {tep.route.name} "
+            comfort = (f" within the comfort bound of {tep.energy.comfort_ms2:g} m/s^2 (the fastest run does not keep it)"
+                       if tep.energy.comfort_ms2 is not None else "")
+            raise InfeasibleError(f"IPOPT found no minimum-energy run in {tep.time_s:g} s on {tep.route.name}{comfort} "
                                   f"({sol.status}); the fastest run takes {calc.fastest_time_s:.1f} s")
         if not sol.success:  # keep the last good mesh's solution
             history.append(MeshStep(it, len(mesh.intervals), mesh.n_points, float("nan"), sol.objective / KJ_PER_KWH,

@@ -119,6 +119,10 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
         "model": {"point_mass": options.point_mass, "air_brake": options.air_brake,
                   "rotating_mass": options.rotating_mass, "step_m": options.step_m},
     }
+    if energy.comfort_ms2 is not None:
+        summary["plan_note"] = (f"the traction calculator knows no comfort bound: the re-simulated plan accelerates and "
+                                f"brakes at full force, not within {energy.comfort_ms2:g} m/s^2, so its time and energy "
+                                "are not the comfort-bounded optimum's")
     if not es.converged:
         summary["mesh_note"] = (f"mesh tolerance {mesh_tol:g} not reached in {len(es.history)} refinements "
                                 f"(largest error {summary['mesh']['max_error']})")
