@@ -29,30 +29,32 @@ from energy_oracle import trapezoid_min_energy  # noqa: E402
 from ttobench_routes import join, line  # noqa: E402
 
 from locoplan.io.load import load_route, load_train  # noqa: E402
-from locoplan.ocp.drive import (check_plan, condition_runs, fit_switches, plan_from_runs, shoot_switches,  # noqa: E402
-                                tune_last_coast)
 from locoplan.ocp.energy import solve_energy  # noqa: E402
+from locoplan.ocp.mpoc import drivable_plan  # noqa: E402
 from locoplan.ocp.train_energy import build_problem  # noqa: E402
-from locoplan.physics.energy import WHEEL_WORK  # noqa: E402
 from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
 
 
-def solve_timed(route, train, T):
-    """(wall time of the solve incl. building, EnergySolution, calculator, problem, CPU time)."""
-    t0, c0 = time.perf_counter(), time.process_time()
-    calc = TractionCalculator(route, train, ModelOptions())
-    tep = build_problem(route, train, ModelOptions(), T)
-    es = solve_energy(tep, calc)
-    return time.perf_counter() - t0, es, calc, tep, time.process_time() - c0
-
-
-def plan_of(es, calc, tep):
+def measure(route, train, T, repeat):
+    """Solve ``repeat`` times (wall clock and CPU time of each, building included), then turn the
+    first solution into its plan and check it (timed apart)."""
+    wall, cpu, sols = [], [], []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        calc = TractionCalculator(route, train, ModelOptions())
+        es = solve_energy(build_problem(route, train, ModelOptions(), T), calc)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+        sols.append((es, calc))
+    es, calc = sols[0]
     t0 = time.perf_counter()
-    runs = condition_runs(es.solution)
-    plan = fit_switches(calc, shoot_switches(calc, plan_from_runs(runs), es.solution), es.solution)
-    plan, _ = tune_last_coast(calc, plan, tep.time_s)
-    chk = check_plan(calc, plan, tep.time_s, WHEEL_WORK, tep.spans_m)
-    return chk, time.perf_counter() - t0
+    _, chk, _ = drivable_plan(es, calc)
+    return wall, cpu, es, calc, chk, time.perf_counter() - t0
+
+
+def times(wall, cpu) -> str:
+    return (f"{statistics.median(wall):.2f} s (runs {', '.join(f'{w:.2f}' for w in wall)}; "
+            f"CPU {', '.join(f'{c:.2f}' for c in cpu)})")
 
 
 def main() -> None:
@@ -68,16 +70,11 @@ def main() -> None:
           "wall clock and this process's CPU time are both shown)")
     route = load_route(ROOT / "routes/freight-20km.yaml")
     T = 1500.0
-    runs = [solve_timed(route, train, T) for _ in range(args.repeat)]
-    wall = [r[0] for r in runs]
-    cpu = [r[4] for r in runs]
-    _, es, calc, tep, _ = runs[0]
-    chk, t_plan = plan_of(es, calc, tep)
-    print(f"\nTable 1: {route.name}, {train.name}, T = {T:g} s ({len(tep.problem.phases)} phases)")
+    wall, cpu, es, calc, chk, t_plan = measure(route, train, T, args.repeat)
+    print(f"\nTable 1: {route.name}, {train.name}, T = {T:g} s ({len(es.tep.problem.phases)} phases)")
     print(f"  MPOC objective (NLP)            {es.objective_kwh:10.3f} kWh   mesh {es.solution.mesh.describe()}, "
           f"largest error {max(es.errors):.2g}, {len(es.history)} NLP solves, converged {es.converged}")
-    print(f"  solve time (build included)     {statistics.median(wall):10.2f} s     runs: {', '.join(f'{w:.2f}' for w in wall)} "
-          f"(CPU {', '.join(f'{c:.2f}' for c in cpu)})")
+    print(f"  solve time (build included)     {times(wall, cpu)}")
     print(f"  {'check':<31} {'energy [kWh]':>12} {'vs MPOC':>9} {'time [s]':>9} {'nodes':>7} {'solve [s]':>10}")
     for step in (float(x) for x in args.oracle_steps.split(",")):
         t0 = time.perf_counter()
@@ -92,17 +89,11 @@ def main() -> None:
     long = join([line("CH_Fribourg_Bern"), line("SE_Vasteras_Kolback")], "Fribourg-Bern + Vasteras-Kolback (TTOBench, <= 80 km/h)")
     fast = TractionCalculator(long, train).fastest_time_s
     T2 = round(1.1 * fast)
-    runs = [solve_timed(long, train, T2) for _ in range(max(1, args.repeat - 1))]
-    wall = [r[0] for r in runs]
-    cpu = [r[4] for r in runs]
-    _, es, calc, tep, _ = runs[0]
-    chk, t_plan = plan_of(es, calc, tep)
+    wall, cpu, es, calc, chk, t_plan = measure(long, train, T2, max(1, args.repeat - 1))
     print(f"\nTable 2: {long.name}, {long.length_m / 1000:.1f} km, {train.name}, T = {T2:g} s (1.1 x fastest {fast:.0f} s)")
-    print(f"  phases {len(tep.problem.phases)}, {es.solution.mesh.describe()}, largest error {max(es.errors):.2g}, "
+    print(f"  phases {len(es.tep.problem.phases)}, {es.solution.mesh.describe()}, largest error {max(es.errors):.2g}, "
           f"{len(es.history)} NLP solves, converged {es.converged}")
-    print(f"  solve time (build included) {statistics.median(wall):.2f} s (runs {', '.join(f'{w:.2f}' for w in wall)}; "
-          f"CPU {', '.join(f'{c:.2f}' for c in cpu)}); "
-          f"objective {es.objective_kwh:.2f} kWh; plan {chk.energy_kwh:.2f} kWh ({100 * (chk.energy_kwh / es.objective_kwh - 1):+.2f} %), "
+    print(f"  solve time (build included) {times(wall, cpu)}; objective {es.objective_kwh:.2f} kWh; plan {chk.energy_kwh:.2f} kWh ({100 * (chk.energy_kwh / es.objective_kwh - 1):+.2f} %), "
           f"{chk.running_time_s:.1f} s, confirmed {chk.confirmed}; plan check {t_plan:.2f} s")
 
 

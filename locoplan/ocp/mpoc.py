@@ -45,6 +45,21 @@ def without_neutral(route: Route) -> Route:
     return route.model_copy(update={"neutral_sections": []})
 
 
+def drivable_plan(es: EnergySolution, calc: TractionCalculator) -> tuple[list, PlanCheck, float]:
+    """The optimum as a condition plan for ``calc`` (``drive``): runs of the optimum, switches shot and
+    fitted to its clock and speed, the last coasting point moved to meet the time, re-simulated.
+    Returns the optimum's runs, the plan's check and how far the coasting point moved [m]."""
+    tep = es.tep
+    runs = condition_runs(es.solution)
+    plan = shoot_switches(calc, plan_from_runs(runs), es.solution)
+    plan = fit_switches(calc, plan, es.solution)
+    plan, shift = tune_last_coast(calc, plan, tep.time_s)
+    res = calc.evaluate(plan.conditions, plan.switches_m)
+    if not (res.feasible[0] and abs(float(res.running_time_s[0]) - tep.time_s) <= TIME_TOL_S / 2):
+        plan, shift = tune_coasting_point(calc, plan, tep.time_s)  # over a whole coasting run, or an earlier one
+    return runs, check_plan(calc, plan, tep.time_s, tep.energy.energy, tep.spans_m), shift
+
+
 def _r(x, nd):
     return None if x is None or not math.isfinite(x) else round(float(x), nd) + 0.0
 
@@ -68,14 +83,7 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
     fastest = check_runnable(calc, time_s)
     tep = build_problem(run_route, train, options, time_s, energy)
     es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm)
-    runs = condition_runs(es.solution)
-    plan = shoot_switches(calc, plan_from_runs(runs), es.solution)
-    plan = fit_switches(calc, plan, es.solution)
-    plan, shift = tune_last_coast(calc, plan, time_s)
-    res = calc.evaluate(plan.conditions, plan.switches_m)
-    if not (res.feasible[0] and abs(float(res.running_time_s[0]) - time_s) <= TIME_TOL_S / 2):
-        plan, shift = tune_coasting_point(calc, plan, time_s)  # over a whole coasting run, or an earlier one
-    chk = check_plan(calc, plan, time_s, energy.energy, tep.spans_m)
+    runs, chk, shift = drivable_plan(es, calc)
     reasons = list(chk.reasons)
     if not es.success:
         reasons.insert(0, f"IPOPT did not converge ({es.solution.status})")

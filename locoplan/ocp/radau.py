@@ -49,17 +49,8 @@ def _weights(points: tuple) -> np.ndarray:
 
 def _lagrange(points: np.ndarray, values: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Values (rows) of the Lagrange polynomials through ``(points, values)`` at ``targets`` (the
-    second barycentric formula, weights cached per point set; exact hits return the nodal value)."""
-    lam = _weights(tuple(points))
-    diff = targets[:, None] - points[None, :]
-    exact = diff == 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = lam[None, :] / diff
-        e = terms / terms.sum(axis=1, keepdims=True)
-    rows = exact.any(axis=1)
-    if rows.any():
-        e[rows] = exact[rows].astype(float)
-    return values @ e.T
+    barycentric formula of ``nodes``, weights cached per point set)."""
+    return values @ _nodes.barycentric_matrix(points, _weights(tuple(points)), targets).T
 
 
 def _eval_model(fn: Callable, x, u, s, p, n_out: int):
