@@ -13,7 +13,6 @@ neutral-section coasting (SFS, coasting point by brute force at 1 m). Table 5: s
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +30,7 @@ NAMES = ("mpoc-n", "mpoc-c", "mpoc", "sfs")
 
 
 def main() -> None:
-    import casadi  # noqa: F401
+    import casadi  # noqa: F401  (loaded once, as a running process has it)
 
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     rows = []

@@ -36,7 +36,7 @@ def main() -> None:
     ap.add_argument("--lines", default=",".join(LINES))
     ap.add_argument("--factors", default="1.1,1.2")
     args = ap.parse_args()
-    import casadi  # noqa: F401
+    import casadi  # noqa: F401  (loaded once, as a running process has it)
 
     factors = [float(x) for x in args.factors.split(",")]
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
@@ -63,7 +63,6 @@ def main() -> None:
                     continue
                 wall = time.perf_counter() - t0
                 s = run.summary
-                solve = sum(h["build_time_s"] + h["solve_time_s"] for h in s["mesh_history"])
                 ok += bool(s["feasible"])
                 print(f"{name:<32} {train.mass_t:>5.0f}t {route.length_m / 1000:5.1f} {s['phases']:6d} {fast:8.1f} {T:7.1f} "
                       f"{s['objective']:9.2f} {s['resimulated_energy_kwh']:9.2f} {s['plan_energy_gap_percent']:+6.2f} "

@@ -26,7 +26,7 @@ from locoplan.physics.energy import EnergyModel, energy_rate_kn
 from locoplan.physics.resistance import train_resistance_kn
 from locoplan.physics.traction import gradient_force_kn, max_force_kn
 from locoplan.runner import make_context, run_strategy
-from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from locoplan.sim.calculator import ModelOptions
 
 runner = CliRunner()
 SMALL = "tests/data/routes/mpoc-small.yaml"

@@ -13,11 +13,11 @@ Interval mappings: ``linear``; ``start`` = ``s = s_a + (s_b - s_a) ((1 + tau) / 
 problem: a train leaving rest has ``v ~ sqrt(s)``, which no polynomial in ``s`` follows well, but it
 is linear in ``sqrt(s)``, so in ``tau`` the states are smooth again.
 
-Refinement (:func:`refine`): an interval whose relative error (see ``radau.interval_errors``) is
-above the tolerance is split where its solution is not smooth (a control jumps between two
-collocation points, or a state leaves its bound), at the jump; elsewhere its degree is raised by
-``P = ceil(log(e / tol) / log(n))`` (GPOPS-II eq. 29) up to ``max_degree``, beyond which it is cut
-into pieces of ``min_degree``.
+Refinement (:func:`refine`): where an interval above the tolerance (see ``radau.interval_errors``)
+holds a control switch, a moving mesh point goes onto it, with the arcs either side held (our
+extension, as seed 000's two-stage hp stage); elsewhere the degree is raised by
+``P = ceil(log(e / tol) / log(n))`` (GPOPS-II eq. 29) up to ``max_degree``, beyond which the interval is
+cut into pieces of ``min_degree``, or cut at a kink where raising did not help.
 """
 
 from __future__ import annotations
@@ -46,9 +46,6 @@ class Interval:
     free_start: tuple[float, float] | None = None
     """Bounds within which ``s_a`` (shared with the previous interval's end) is an NLP variable: a
     moving mesh point placed on a detected switch (None: fixed)."""
-    smooth: float | None = None
-    """If set, no control may change by more than this share of its scale between neighbouring
-    points of the interval: a switch cannot hide inside it (it has to move to a mesh point)."""
     last_error: float | None = None
     """The interval's error on the previous mesh when only its degree was raised since (if raising
     did not halve it, the solution is not smooth here and the interval is split)."""
@@ -119,7 +116,7 @@ class Mesh:
     def plain(self) -> "Mesh":
         """The same intervals with no moving points, fixed arcs or error history: a start for a
         neighbouring problem (another running time), whose switches lie elsewhere."""
-        return Mesh(tuple(replace(iv, free_start=None, smooth=None, last_error=None, regime=None) for iv in self.intervals))
+        return Mesh(tuple(replace(iv, free_start=None, last_error=None, regime=None) for iv in self.intervals))
 
     def describe(self) -> str:
         degs = [iv.n for iv in self.intervals]

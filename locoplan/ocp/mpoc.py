@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -317,16 +317,6 @@ class RadauTranscription:
             rr, dgr = self._length_rows(grid, own, nx + nu + 1, m)
             A = sp.csr_matrix(E_np[rr, :].multiply(1.0 / dgr[:, None]))
             lin_rows.append((A, c[rr] / dgr, np.full(len(own), MIN_INTERVAL_M), np.full(len(own), np.inf)))
-        pairs = [(k, k + 1, iv.smooth) for i, iv in enumerate(mesh.intervals) if iv.smooth is not None
-                 for k in range(grid.offsets[i], grid.offsets[i + 1] - 1)]
-        if pairs:  # no control jump inside the intervals next to a moving point
-            lim = np.array([q[2] for q in pairs])
-            for i in range(nu):
-                col = lambda k: nx * (n + 1) + i + nu * k  # noqa: E731
-                A = sp.csr_matrix((np.concatenate([-np.ones(len(pairs)), np.ones(len(pairs))]),
-                                   (np.tile(np.arange(len(pairs)), 2), np.concatenate([[col(q[0]) for q in pairs], [col(q[1]) for q in pairs]]))),
-                                  shape=(len(pairs), n_vars))
-                lin_rows.append((A, np.zeros(len(pairs)), -lim, lim))
         for A, off, lo_, hi_ in lin_rows:
             Ad = ca.DM(A.tocsc())
             g_parts.append(ca.mtimes(Ad, w) + ca.DM(off))
@@ -448,31 +438,6 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
         scale = 1.0 + np.max(np.abs(xs), axis=1)
         errs[i] = float(np.max(np.abs(x_int - x_hat[:, 1:]) / scale[:, None]))
     return errs
-
-
-def active_set(sol: RadauSolution, tol: float = 1e-4) -> np.ndarray:
-    """Which bounds hold with equality at each collocation point (rows: controls at their lower /
-    upper bound, path constraints at 0, states at their lower / upper bound), within ``tol`` of
-    each quantity's scale. A change of this pattern between neighbouring points is a switch of the
-    optimal control's structure: where the solution is not smooth."""
-    problem, grid = sol.problem, sol.grid
-    model = problem.model
-    n = grid.n_col
-    su = np.asarray(model.control_scale, dtype=float)[:, None]
-    sx = np.asarray(model.state_scale, dtype=float)[:, None]
-    ul = np.array([problem.phases[k].control_lower for k in grid.phase_col]).T
-    uu = np.array([problem.phases[k].control_upper for k in grid.phase_col]).T
-    xl = np.array([problem.phases[k].state_lower for k in grid.phase_col]).T
-    xu = np.array([problem.phases[k].state_upper for k in grid.phase_col]).T
-    U, X = sol.U, sol.X[:, :n]
-    rows = [U - ul <= tol * su, uu - U <= tol * su, X - xl <= tol * sx, xu - X <= tol * sx]
-    if model.path is not None and model.n_path:
-        x = [X[i] for i in range(model.n_x)]
-        u = [U[i] for i in range(model.n_u)]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = np.array([np.asarray(v, float) * np.ones(n) for v in _eval_model(model.path, x, u, grid.s_col, sol.params, model.n_path)])
-        rows.append(g >= -tol * np.max(su))
-    return np.vstack(rows)
 
 
 def control_activity(sol: RadauSolution, tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
