@@ -11,7 +11,7 @@ started from the previous solution. The history of meshes is kept for the report
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -184,6 +184,16 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         X0 = guess(nlp.grid.s_points, nu)[0]
         U0 = guess(nlp.grid.s_col, nu)[1]
         sol = nlp.solve(X0, U0, warm=last)
+        for fallback in (mesh, mesh.plain()):
+            if sol.success or last is None:
+                break
+            # a warm start gone astray, or arcs held wrongly: the same mesh started plainly, then the
+            # same intervals with nothing held or moving
+            mesh = fallback
+            nlp = RadauTranscription(problem, mesh, ipopt_options)
+            retry = nlp.solve(X0, U0)
+            sol = replace(retry, build_time_s=sol.build_time_s + retry.build_time_s,
+                          solve_time_s=sol.solve_time_s + retry.solve_time_s, iterations=sol.iterations + retry.iterations)
         if not sol.success and best is None:
             comfort = (f" within the comfort bound of {tep.energy.comfort_ms2:g} m/s^2 (the fastest run does not keep it)"
                        if tep.energy.comfort_ms2 is not None else "")
