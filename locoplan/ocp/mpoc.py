@@ -100,6 +100,7 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
         "fitness": None,
         "gap_to_optimum_percent": _r(100 * (chk.energy_kwh - objective) / objective, 3) if not reasons else None,
         "solve_time_s": round(wall, 3),
+        "optimal_control_time_s": round(es.wall_time_s, 3),
         "objective": _r(objective, 4),
         "objective_kwh": _r(objective, 4),
         "resimulated_running_time_s": _r(chk.running_time_s, 3),
