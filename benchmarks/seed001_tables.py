@@ -13,9 +13,11 @@ neutral-section coasting (SFS, coasting point by brute force at 1 m). Table 5: s
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this checkout first
 
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp.mpoc import run_mpoc  # noqa: E402
