@@ -139,6 +139,8 @@ def _summary_table(summary: dict) -> Table:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
+    if summary.get("gap_to_optimum_percent") is not None:
+        rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E*, the least energy in this running time (seed 001)"))
     rows.append(("solve time", f"{summary['solve_time_s']:.3f} s"))
     for k, v in rows:
         table.add_row(k, v)
@@ -255,6 +257,7 @@ TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default
 WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
 BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
+GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
 
 
 @app.command()
@@ -276,7 +279,7 @@ def simulate(route: Path = ROUTE,
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
-                       builder=builder)
+                       builder=builder, yardstick=False)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     _emit(summary, as_json, out_file, run.result.profile)
@@ -303,7 +306,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
     """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
@@ -315,7 +318,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
-                           tolerance_s=tolerance, window=window, builder=builder)
+                           tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
         if e_min is None:
             ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
         run = run_strategy(ctx, "proposed")
@@ -351,7 +354,7 @@ def _compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"), overflow="fold")
     t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
-    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "switches", "coasting", "fitness"):
+    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "vs E* [%]", "switches", "coasting", "fitness"):
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
     base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving"), None)
     for s in rows:
@@ -367,7 +370,8 @@ def _compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
         rel = "-" if not base else f"{100 * (s['traction_energy_kwh'] / base - 1):+.1f} %"
         name = s["strategy"] + ("" if s["feasible"] else f" [red](infeasible: {s['reason']})[/]")
-        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, str(len(conds) - 1),
+        gap = "-" if s.get("gap_to_optimum_percent") is None else f"{s['gap_to_optimum_percent']:+.2f}"
+        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, gap, str(len(conds) - 1),
                    str(conds.count("C")), "-" if s["fitness"] is None else f"{s['fitness']:.4f}")
     return t8, t9
 
@@ -403,7 +407,7 @@ def compare(route: Path = ROUTE,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER,
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice').")):
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
@@ -416,7 +420,7 @@ def compare(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     ctx.inputs.update(logs=logs, patterns=patterns)
     if explain and not as_json:
         _explain(ctx)
@@ -447,7 +451,7 @@ def sweep(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
     """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, sweep_times, sweep_weights
@@ -459,7 +463,7 @@ def sweep(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, algorithm=algorithm, seed=seed,
-                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
+                       params_path=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     runs = sweep_weights(ctx, values) if weights else sweep_times(ctx, values)
     rows = [x.summary for x in runs]
     if times:
@@ -475,7 +479,7 @@ def sweep(route: Path = ROUTE,
         plot_profiles(plot, [(label(x), x.result.profile) for x in runs], f"{r.name} — {train.name}: sweep")
     if not as_json:
         table = Table(title=f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}", title_justify="left")
-        cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness"]
+        cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
         cols += [] if weights else ["energy reduction [%]"]
         for c in cols:
             table.add_column(escape(c), justify="right")
@@ -483,7 +487,8 @@ def sweep(route: Path = ROUTE,
             lead = [f"{x['weights'][0]:g}", f"{x['weights'][1]:g}"] if weights else [f"{x['planned_time_s']:g}"]
             tail = [] if weights else [f"{x['energy_reduction_percent']:.1f}"]
             table.add_row(*lead, f"{x['running_time_s']:.1f}", f"{x['traction_energy_kwh']:.2f}",
-                          f"{x['punctuality_error_s']:.1f}", f"{x['fitness']:.4f}" if x["fitness"] is not None else "-", *tail)
+                          f"{x['punctuality_error_s']:.1f}", f"{x['fitness']:.4f}" if x["fitness"] is not None else "-",
+                          "-" if x.get("gap_to_optimum_percent") is None else f"{x['gap_to_optimum_percent']:+.2f}", *tail)
         out.print(table)
     from .runner import schedule_verdict
 
@@ -501,7 +506,7 @@ def study(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
     """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
     from dataclasses import replace
 
@@ -517,7 +522,7 @@ def study(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, seed=seed, tolerance_s=tolerance,
-                       window=window, builder=builder)
+                       window=window, builder=builder, yardstick=gap)
     from .runner import check_time_possible
 
     check_time_possible(ctx)
@@ -543,11 +548,11 @@ def study(route: Path = ROUTE,
     if not as_json:
         table = Table(title=f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh", title_justify="left")
         for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
-                  "punctual runs", "punctual best E / T / fitness", "mean solve [s]"):
+                  "punctual runs", "punctual best E / T / fitness", "mean vs E* [%]", "mean solve [s]"):
             table.add_column(escape(c), justify="right" if c != "algorithm" else "left")
         for x in rows:
             if not x.get("feasible_runs"):
-                table.add_row(x["algorithm"], *(["-"] * 7))
+                table.add_row(x["algorithm"], *(["-"] * 8))
                 continue
             pb = x["punctual_best"]
             table.add_row(x["algorithm"],
@@ -556,6 +561,7 @@ def study(route: Path = ROUTE,
                           f"{x['mean_traction_energy_kwh']:.2f} / {x['mean_running_time_s']:.1f}",
                           f"{x['mean_fitness']:.5f} ({x['std_fitness']:.5f})", f"{x['punctual_runs']}/{x['runs']}",
                           "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
+                          "-" if x.get("mean_gap_to_optimum_percent") is None else f"{x['mean_gap_to_optimum_percent']:+.2f}",
                           f"{x['mean_solve_time_s']:.2f}")
         out.print(table)
     from .runner import schedule_verdict
@@ -573,6 +579,10 @@ _register_learn(app)
 from .cli_import import register as _register_import  # noqa: E402  (locoplan import FORMAT FILES --out DIR)
 
 _register_import(app)
+
+from .cli_energy import register as _register_energy  # noqa: E402  (seed 001's yardstick: bound)
+
+_register_energy(app)
 
 
 def main() -> None:

@@ -57,6 +57,8 @@ class StrategyContext:
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
+    yardstick: bool = True
+    """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
@@ -100,6 +102,9 @@ class StrategyOutcome:
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
+    calc: TractionCalculator | None = None
+    """The calculator to run the plan on when not the context's (mpoc-n: the route without its
+    neutral sections, which the real train cannot drive)."""
     result: "BatchResult | None" = None
     """A strategy that measured rather than planned (drivers' logs) gives its result; None = evaluate the plan."""
     extra: dict | None = None
@@ -111,7 +116,7 @@ def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
     brake = None if outcome.brake_hold_kmh is None else [outcome.brake_hold_kmh]
-    return calc.evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
+    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
                          cruise_mode=outcome.cruise_mode, brake_hold_kmh=brake)
 
 
@@ -341,3 +346,5 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                            e_min_kwh=e_min, time_range_s=problem.time_range_s)
 
+
+from . import optimal  # noqa: E402,F401  (registers seed 001's mpoc, mpoc-n, mpoc-c and sfs)
