@@ -66,7 +66,8 @@ def one_by_one(specs) -> list[dict]:
         if s.consist not in trains:
             trains[s.consist] = load_train(s.consist)
         ctx = make_context(routes[s.route], trains[s.consist], s.options, time_s=s.time_s, algorithm=s.algorithm,
-                           seed=s.seed, weights=s.weights, tolerance_s=s.tolerance_s, builder=s.builder)
+                           seed=s.seed, weights=s.weights, tolerance_s=s.tolerance_s, builder=s.builder,
+                           yardstick=s.yardstick)
         summary = run_strategy(ctx, s.strategy).summary
         summary.pop("solve_time_s")
         out.append(summary)

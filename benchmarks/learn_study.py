@@ -17,7 +17,6 @@ import shutil
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +27,6 @@ from locoplan.io.report import to_json  # noqa: E402
 from locoplan.learn.drivers import SimulationSpec, consist_for_mass, simulate_drivers  # noqa: E402
 from locoplan.learn.logs import load_logs  # noqa: E402
 from locoplan.learn.patterns import LearnSettings, learn  # noqa: E402
-from locoplan.optimize.base import NoFeasibleCandidateError  # noqa: E402
 from locoplan.runner import make_context, run_strategy  # noqa: E402
 from locoplan.sim.calculator import ModelOptions  # noqa: E402
 
@@ -92,15 +90,7 @@ def main() -> None:
                 drv = run_strategy(ctx, "drivers").summary
                 adv = run_strategy(ctx, "advice").summary
                 t_p = time.perf_counter()
-                note = ""
-                try:
-                    pro = run_strategy(ctx, "proposed").summary
-                except NoFeasibleCandidateError:
-                    # seed 002's energy-saving baseline (E_min of eq. 11) finds no feasible T/C plan on some
-                    # line/mass pairs. Eq. 10 uses |E - E_min|: an E_min above the reachable least energy would
-                    # steer the search towards it, so take one surely below every plan's: half the best driver's
-                    note = "E_min = half the best driver's energy (energy-saving baseline infeasible)"
-                    pro = run_strategy(replace(ctx, e_min_kwh=0.5 * drv["best_driver_kwh"]), "proposed").summary
+                pro = run_strategy(ctx, "proposed").summary
                 row = {"route": r.name, "route_learned": route in [x[0] for x in TRAIN], "mass_t": mass, "time_s": t,
                        "tolerance_s": ctx.tolerance_s,
                        "drivers_mean_kwh": drv["drivers_mean_kwh"], "good_drivers_mean_kwh": drv["good_drivers_mean_kwh"],
@@ -109,8 +99,7 @@ def main() -> None:
                        "advice_punctual": adv["punctual"], "advice_feasible": adv["feasible"],
                        "advice_solve_s": adv["solve_time_s"],
                        "proposed_kwh": pro["traction_energy_kwh"], "proposed_time_s": pro["running_time_s"],
-                       "proposed_punctual": pro["punctual"], "proposed_solve_s": round(time.perf_counter() - t_p, 2),
-                       "proposed_note": note}
+                       "proposed_punctual": pro["punctual"], "proposed_solve_s": round(time.perf_counter() - t_p, 2)}
                 row["advice_vs_good_percent"] = round(100 * (row["advice_kwh"] / row["good_drivers_mean_kwh"] - 1), 1)
                 rows.append(row)
                 print(f"  {Path(route).stem} {mass} t {t} s: drivers {row['drivers_mean_kwh']:.1f}, good "
@@ -125,9 +114,7 @@ def main() -> None:
         print(f"| {x['route']} ({'yes' if x['route_learned'] else 'no'}) | {x['mass_t']} | {x['time_s']} +- {x['tolerance_s']:g} | "
               f"{x['drivers_mean_kwh']:.1f} | {x['good_drivers_mean_kwh']:.1f} | {x['best_driver_kwh']:.1f} | "
               f"{x['advice_kwh']:.1f} / {x['advice_time_s']:.1f}{ok} | {x['advice_vs_good_percent']:+.1f} % | "
-              f"{x['proposed_kwh']:.1f} / {x['proposed_time_s']:.1f}{' *' if x['proposed_note'] else ''} |")
-    if any(x["proposed_note"] for x in rows):
-        print("\n* seed 002's energy-saving baseline finds no feasible plan here; E_min of eq. 10-11 = half the best driver's energy")
+              f"{x['proposed_kwh']:.1f} / {x['proposed_time_s']:.1f} |")
     wins = sum(x["advice_kwh"] < x["good_drivers_mean_kwh"] and x["advice_punctual"] for x in rows)
     print(f"\nadvice punctual and below the good drivers' mean in {wins} of {len(rows)} held-out cases; "
           f"drivers {args.drivers} x {args.runs} runs per mass and time, seed {args.seed}; work folder {work}")

@@ -15,9 +15,9 @@ import typer
 from rich.markup import escape
 
 from . import __version__
-from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP, STOCK,
-                         STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _names, _options,
-                         _range, _weights, all_or_none, err, guarded, out)
+from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
+                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
+                         _names, _options, _range, _weights, all_or_none, err, guarded, out)
 from .errors import InputError, Problem
 from .io.load import load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
@@ -38,12 +38,6 @@ def _version(value: bool):
 @app.callback()
 def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Show the version.")):
     pass
-
-
-def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
-          rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
-    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
-    return load_route(route), load_train(consist, stock_dir), opts
 
 
 def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **settings):
@@ -124,7 +118,7 @@ def simulate(route: Path = ROUTE,
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
-                       builder=builder)
+                       builder=builder, yardstick=False)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     with all_or_none():
@@ -152,7 +146,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
     """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
@@ -164,7 +158,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
-                           tolerance_s=tolerance, window=window, builder=builder)
+                           tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
         if e_min is None:
             ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
         run = run_strategy(ctx, "proposed")
@@ -206,7 +200,7 @@ def compare(route: Path = ROUTE,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-            tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER,
+            tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
             workers: int = WORKERS):
@@ -221,7 +215,7 @@ def compare(route: Path = ROUTE,
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
-                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)))
+                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
     specs = compare_specs(base, names)
     if explain and not as_json:
         for t in explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts)):
@@ -256,7 +250,7 @@ def sweep(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-          tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER,
+          tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
     """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
     from .runs import make_executor, run_many
@@ -268,7 +262,8 @@ def sweep(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
-                      params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder)
+                      params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
+                      yardstick=gap)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
     batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
@@ -301,7 +296,7 @@ def study(route: Path = ROUTE,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-          tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER,
+          tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
     """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
     from .runner import study_table as study_rows
@@ -313,7 +308,7 @@ def study(route: Path = ROUTE,
     _check_outputs(out_file, plot, csv_ok=False)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
-                      tolerance_s=tolerance, window=window, builder=builder)
+                      tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
     batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
@@ -353,6 +348,10 @@ _register_learn(app)
 from .cli_import import register as _register_import  # noqa: E402  (locoplan import FORMAT FILES --out DIR)
 
 _register_import(app)
+
+from .cli_energy import register as _register_energy  # noqa: E402  (seed 001's yardstick: bound)
+
+_register_energy(app)
 
 from .cli_batch import register as _register_batch  # noqa: E402  (batch, results, pareto)
 

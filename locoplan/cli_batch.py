@@ -164,8 +164,9 @@ def register(app: typer.Typer) -> None:
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
                window: bool = WINDOW, builder: Optional[str] = BUILDER,
+               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E* at each planned time from seed 001's bound (a few seconds per time)."),
                workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
-        """The energy-time front: the best on-time plan at a grid of running times (the optimum E* once known)."""
+        """The energy-time front: the best on-time plan at a grid of running times, and the optimum E* (seed 001)."""
         from .errors import InputError, Problem
         from .io.plot_runs import plot_pareto
         from .io.report import atomic_write_text
@@ -190,7 +191,7 @@ def register(app: typer.Typer) -> None:
         cb, close = _progress_printer(err, not as_json and err.is_terminal)
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
-                               seeds=tuple(seed_list), executor=executor, progress=cb)
+                               seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
         finally:
             close()
             executor.close()

@@ -116,6 +116,14 @@ def _names(text: str, field: str) -> list[str]:
     return names
 
 
+def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
+          rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
+    from .io.load import load_route, load_train
+
+    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    return load_route(route), load_train(consist, stock_dir), opts
+
+
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
     if out_file:
         write_output(out_file, summary_or_results, profile)
@@ -156,7 +164,7 @@ TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default
 WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
 BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
+GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
 WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")
-STRATEGY_NAMES = ", ".join(STRATEGIES)
 
 __all__ = ["out", "err", "guarded", "all_or_none", "check_outputs"]

@@ -1,4 +1,4 @@
-"""``locoplan ocp`` and ``locoplan ocp-study``: seed 000's optimal control on the command line.
+"""``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (seeds 000, 001).
 
 Thin commands over :mod:`locoplan.ocp.study`; :func:`register` adds them to a typer app (the main
 app in :mod:`locoplan.cli`, or a fresh one in tests).
@@ -17,6 +17,8 @@ from rich import box
 from rich.table import Table
 
 from .ocp.registry import (
+    DEFAULT_ENERGY_CONSIST,
+    DEFAULT_METHOD,
     DEFAULT_OCP_CONSIST,
     OBJECTIVES,
     OCP_METHODS,
@@ -111,27 +113,48 @@ def register(app: typer.Typer) -> None:
 
     @app.command("ocp")
     @guarded
-    def ocp(route: Path = typer.Argument(..., help="Route YAML file (one gradient and one speed limit)."),
-            consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
+    def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective time: one gradient and one speed limit)."),
+            consist: Optional[str] = typer.Option(None, "--consist", help=f"Consist YAML file or catalogue name (default: {DEFAULT_OCP_CONSIST} for time, {DEFAULT_ENERGY_CONSIST} for energy).", show_default=False),
             stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
-            objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)} (only 'time' is built)."),
-            method: str = typer.Option("two-stage", "--method", help=f"Transcription: {methods}."),
+            objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)}."),
+            method: Optional[str] = typer.Option(None, "--method", help=f"Transcription: {methods} (default: two-stage for time, radau for energy).", show_default=False),
             nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
             state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (two-stage: 2 x nodes, even; gpm: = nodes)."),
             stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
+            time_s: Optional[float] = typer.Option(None, "--time", help="Energy: planned running time T [s] (default: the route's schedule)."),
+            mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
+            max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
+            efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),
+            regen: float = typer.Option(0.0, "--regen", help="Energy: credited share of the electric brake's work (the air brake returns nothing)."),
+            comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (seed 001's comfort bound; off by default)."),
+            step: float = typer.Option(50.0, "--step", help="Energy: grid of the traction calculator that checks the plan [m]."),
+            point_mass: bool = typer.Option(False, "--point-mass", help="Energy: the seeds' point-mass train, braked by its locomotives alone."),
+            air_brake: Optional[bool] = typer.Option(None, "--air-brake/--no-air-brake", help="Energy: brake with the wagons' air brakes too (default: on, off with --point-mass).", show_default=False),
+            rotating_mass: Optional[float] = typer.Option(None, "--rotating-mass", help="Energy: uniform rotating-mass allowance gamma.", show_default=False),
+            strict_limits: bool = typer.Option(False, "--strict-limits", help="Energy: the checking calculator fails a plan that coasts up to a limit."),
             as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
             out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="Control and state curves, .png or .svg."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png or .svg."),
             ):
-        """Seed 000: minimum running time by optimal control, checked by re-simulation (exit 1 if not confirmed)."""
+        """Optimal control: seed 000's minimum running time, or seed 001's minimum traction energy in a
+        running time (--objective energy); checked by re-simulation (exit 1 if not confirmed)."""
         from .io.load import load_route, load_train
         from .ocp.study import check_options, check_output_path, solve_ocp, write_ocp_output
 
+        method = method or DEFAULT_METHOD.get(objective, "two-stage")
+        if objective == "energy":
+            check_options(method, None, None, stage2, objective)
+            from .cli_energy import run_energy_ocp
+
+            run_energy_ocp(route, consist or DEFAULT_ENERGY_CONSIST, stock_dir, time_s, mesh_tol, max_phase_degree,
+                           efficiency, regen, comfort, step, point_mass, air_brake, rotating_mass, strict_limits,
+                           as_json, out_file, plot, nodes, state_nodes)
+            return
         check_options(method, nodes, state_nodes, stage2, objective)
         check_output_path(out_file, "--out", (".csv", ".json"))
         check_output_path(plot, "--plot", (".png", ".svg"))
         r = load_route(route)
-        train = load_train(consist, stock_dir)
+        train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
         run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
                         route_file=route)
         if out_file:

@@ -54,6 +54,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
                  tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
+                 yardstick: bool = True,
                  calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
@@ -83,7 +84,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if builder not in BUILDERS:
         raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
-                           tol, window, builder)
+                           tol, window, yardstick, builder)
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
@@ -96,6 +97,17 @@ def check_time_possible(ctx: StrategyContext) -> None:
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
     return evaluate_outcome(ctx.calc, outcome, profile=True)
+
+
+def gap_to_optimum(ctx: StrategyContext, res: BatchResult) -> float | None:
+    """(E - E*) / E* x 100 with E* the least energy at the plan's own running time (seed 001)."""
+    if not ctx.yardstick or not res.feasible[0]:
+        return None
+    from .ocp.bound import gap_to_optimum_percent
+
+    c = ctx.calc
+    return gap_to_optimum_percent(c.route, c.train, c.options, float(res.running_time_s[0]),
+                                  float(res.traction_energy_kwh[0]), calc=c)
 
 
 def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
@@ -126,6 +138,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
         "window_s": None if (math.isnan(t0) or tol is None) else [round(t0 - tol, 2), round(t0 + tol, 2)],
         "fitness": fit,
+        "gap_to_optimum_percent": gap_to_optimum(ctx, res),
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,
@@ -211,5 +224,7 @@ def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) 
             "punctual_runs": len(punctual),
             "punctual_best": None if pb is None else {k: pb[k] for k in ("seed", "running_time_s", "traction_energy_kwh", "fitness")},
             "mean_solve_time_s": round(float(np.mean([x["solve_time_s"] for x in s])), 2),
+            "mean_gap_to_optimum_percent": (None if any(x.get("gap_to_optimum_percent") is None for x in s)
+                                            else round(float(np.mean([x["gap_to_optimum_percent"] for x in s])), 2)),
         })
     return rows

@@ -89,7 +89,7 @@ def test_two_stage_reaches_exact_minimum(runs, grade, nodes):
     ta, _, tb, _, t, _ = seed000_exact(grade)
     assert sol.breakpoints_s[0] == pytest.approx(ta, abs=0.05)
     assert sol.breakpoints_s[-1] == pytest.approx(t - tb, abs=0.05)
-    assert wall < 1.0
+    # (solve times are measured by benchmarks/ocp_study.py, not asserted here)
 
 
 def test_two_stage_on_a_route_too_short_for_the_limit():
@@ -124,7 +124,7 @@ def test_classical_gpm(runs, grade, nodes):
     assert abs(raw.time_to_length_s - sol.objective_s) < 0.05
     # ... but that polynomial leaves the traction / brake bounds between the LG points
     assert rs.max_control_excess_kn > 50.0
-    assert wall < 1.0
+    # (solve times are measured by benchmarks/ocp_study.py, not asserted here)
 
 
 @pytest.mark.parametrize("grade", GRADES)
@@ -137,7 +137,7 @@ def test_cvp(runs, grade, nodes):
     assert abs(rs.time_to_length_s - sol.objective_s) < 0.05
     assert abs(rs.distance_at_tf_m - 1500.0) < 0.05
     assert rs.max_overspeed_kmh < 0.25  # the limit is imposed at the RK4 points only
-    assert wall < 1.0
+    # (solve times are measured by benchmarks/ocp_study.py, not asserted here)
 
 
 def test_cvp_improves_with_nodes(runs):

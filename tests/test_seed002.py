@@ -121,7 +121,7 @@ def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
 @pytest.fixture(scope="module")
 def small_ctx(freight, root):
     route, train = freight
-    return lambda **kw: make_context(route, train, SEEDS, builder="seed002", params_path=str(root / "tests/data/optimizers/issa.yaml"),
+    return lambda **kw: make_context(route, train, SEEDS, builder="seed002", yardstick=False, params_path=str(root / "tests/data/optimizers/issa.yaml"),
                                      e_min_kwh=580.0, **kw)
 
 
@@ -154,12 +154,12 @@ def test_strategies_physics_order(small_ctx):
 def test_time_below_fastest_is_exit_1_with_the_fastest_time(root, monkeypatch, freight):
     monkeypatch.chdir(root)
     fastest = TractionCalculator(*freight).fastest_time_s  # the default model, as the command uses
-    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", f"{fastest - 1:.1f}", "--e-min", "580"])
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", f"{fastest - 1:.1f}", "--e-min", "580", "--no-gap"])
     assert res.exit_code == 1
     assert f"below the fastest possible run, {fastest:.1f} s" in res.stderr
 
 
-SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass"]
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--no-gap"]
 
 
 def test_optimize_json(root, monkeypatch):
@@ -182,7 +182,7 @@ def test_compare_explain_and_json(root, monkeypatch, tmp_path):
         assert word in res.stdout
     assert (tmp_path / "c.png").stat().st_size > 10000
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--json", "--strategies", "time-saving,four-stage",
-                              "--e-min", "580", "--point-mass"])
+                              "--e-min", "580", "--point-mass", "--no-gap"])
     d = json.loads(res.stdout)
     assert [r["strategy"] for r in d["results"]] == ["time-saving", "four-stage"]
 
@@ -194,7 +194,7 @@ def test_sweep_and_study(root, monkeypatch):
     rows = json.loads(res.stdout)["results"]
     assert [r["planned_time_s"] for r in rows] == [1470, 1530] and rows[0]["energy_reduction_percent"] == 0
     res = runner.invoke(app, ["study", "routes/freight-20km.yaml", "--algorithms", "issa,pso", "--runs", "2", "--json",
-                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass"])
+                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass", "--no-gap"])
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     assert [r["algorithm"] for r in d["table"]] == ["issa", "pso"] and len(d["results"]) == 4

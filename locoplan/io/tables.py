@@ -51,6 +51,8 @@ def summary_table(summary: dict) -> Table:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
+    if summary.get("gap_to_optimum_percent") is not None:
+        rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E*, the least energy in this running time (seed 001)"))
     rows.append(("solve time", f"{summary['solve_time_s']:.3f} s"))
     for k, v in rows:
         table.add_row(k, v)
@@ -76,13 +78,13 @@ def compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"), overflow="fold")
     t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
-    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "switches", "coasting", "fitness"):
+    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "vs E* [%]", "switches", "coasting", "fitness"):
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
     base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving"), None)
     for s in rows:
         if s["plan"] is None:  # no plan at all (the run was infeasible before it planned)
             t8.add_row(s["strategy"], "-", "-")
-            t9.add_row(f"{s['strategy']} [red](infeasible: {escape(str(s['reason']))})[/]", *(["-"] * 7))
+            t9.add_row(f"{s['strategy']} [red](infeasible: {escape(str(s['reason']))})[/]", *(["-"] * 8))
             continue
         conds = [c.split(":")[0] for c in s["plan"].split(",")]
         points = list(s["switching_points_m"])
@@ -96,7 +98,8 @@ def compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
         rel = "-" if not base else f"{100 * (s['traction_energy_kwh'] / base - 1):+.1f} %"
         name = s["strategy"] + ("" if s["feasible"] else f" [red](infeasible: {s['reason']})[/]")
-        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, str(len(conds) - 1),
+        gap = "-" if s.get("gap_to_optimum_percent") is None else f"{s['gap_to_optimum_percent']:+.2f}"
+        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, gap, str(len(conds) - 1),
                    str(conds.count("C")), "-" if s["fitness"] is None else f"{s['fitness']:.4f}")
     return t8, t9
 
@@ -128,7 +131,7 @@ def _num(value, fmt: str) -> str:
 def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
     """Seed 002 Table 6 (``by_weights``) or Table 7 (planned times, with the energy reduction)."""
     table = Table(title=title, title_justify="left")
-    cols = (["w_time", "w_energy"] if by_weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness"]
+    cols = (["w_time", "w_energy"] if by_weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
     cols += [] if by_weights else ["energy reduction [%]"]
     for c in cols:
         table.add_column(escape(c), justify="right")
@@ -137,7 +140,8 @@ def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
             ["-", "-"] if by_weights else [f"{x['planned_time_s']:g}"])
         tail = [] if by_weights else [_num(x.get("energy_reduction_percent"), ".1f")]
         table.add_row(*lead, _num(x["running_time_s"], ".1f"), _num(x["traction_energy_kwh"], ".2f"),
-                      _num(x["punctuality_error_s"], ".1f"), _num(x["fitness"], ".4f"), *tail)
+                      _num(x["punctuality_error_s"], ".1f"), _num(x["fitness"], ".4f"),
+                      _num(x.get("gap_to_optimum_percent"), "+.2f"), *tail)
     return table
 
 
@@ -146,11 +150,11 @@ def study_table(rows: list[dict], title: str) -> Table:
     punctual runs and the best punctual one."""
     table = Table(title=title, title_justify="left")
     for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
-              "punctual runs", "punctual best E / T / fitness", "mean solve [s]"):
+              "punctual runs", "punctual best E / T / fitness", "mean vs E* [%]", "mean solve [s]"):
         table.add_column(escape(c), justify="right" if c != "algorithm" else "left")
     for x in rows:
         if not x.get("feasible_runs"):
-            table.add_row(x["algorithm"], *(["-"] * 7))
+            table.add_row(x["algorithm"], *(["-"] * 8))
             continue
         pb = x["punctual_best"]
         table.add_row(x["algorithm"],
@@ -159,7 +163,7 @@ def study_table(rows: list[dict], title: str) -> Table:
                       f"{x['mean_traction_energy_kwh']:.2f} / {x['mean_running_time_s']:.1f}",
                       f"{x['mean_fitness']:.5f} ({x['std_fitness']:.5f})", f"{x['punctual_runs']}/{x['runs']}",
                       "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
-                      f"{x['mean_solve_time_s']:.2f}")
+                      _num(x.get("mean_gap_to_optimum_percent"), "+.2f"), f"{x['mean_solve_time_s']:.2f}")
     return table
 
 

@@ -1,6 +1,14 @@
-"""Optimal control of a train run (seed 000): Gauss pseudospectral, two-stage re-collocation, CVP.
+"""Optimal control of a train run: seed 000's minimum time (Gauss pseudospectral, two-stage
+re-collocation, CVP) and seed 001's multi-phase minimum energy (Radau, hp mesh refinement).
 
-Layers, each using only the ones before it:
+Seed 001 (multi-phase): :mod:`~locoplan.ocp.phase` (phases, linkage) -> :mod:`~locoplan.ocp.mesh`
+(meshes, hp refinement) -> :mod:`~locoplan.ocp.radau` (LGR transcription, IPOPT) ->
+:mod:`~locoplan.ocp.train_energy` (the train problem from route breakpoints) ->
+:mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.drive` (drivable plan, checked
+by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and :mod:`~locoplan.ocp.bound`
+(the yardstick E*).
+
+Seed 000 layers, each using only the ones before it:
 
 * :mod:`locoplan.ocp.nodes`: LG / LGR nodes and weights (Golub-Welsch), differentiation matrices;
 * :mod:`locoplan.ocp.transcription`: generic problem description, GPM (single / hp mesh, separate

@@ -37,6 +37,7 @@ from ..errors import InputError
 
 __all__ = [
     "MAX_NODES",
+    "barycentric_matrix",
     "barycentric_weights",
     "differentiation_matrix",
     "gauss_differentiation_matrix",
@@ -200,14 +201,20 @@ def interpolation_matrix(points, targets) -> np.ndarray:
     t = np.array(targets, dtype=float).reshape(-1)
     if not np.all(np.isfinite(t)):
         raise InputError("interpolation matrix: targets must be finite numbers")
-    lam = barycentric_weights(x)
+    return barycentric_matrix(x, barycentric_weights(x), t)
+
+
+def barycentric_matrix(x: np.ndarray, lam: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """:func:`interpolation_matrix` from points ``x`` with their barycentric weights ``lam`` already
+    known (no checks: for callers that evaluate the same point sets many times)."""
     diff = t[:, None] - x[None, :]
     exact = diff == 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         terms = lam[None, :] / diff
         e = terms / terms.sum(axis=1, keepdims=True)
     rows = exact.any(axis=1)
-    e[rows] = exact[rows].astype(float)
+    if rows.any():
+        e[rows] = exact[rows].astype(float)
     return e
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError, Problem
 from ..io.report import atomic_write
 
-__all__ = ["plot_run", "plot_study"]
+__all__ = ["plot_energy_run", "plot_energy_time", "plot_run", "plot_study"]
 
 _COLOURS = {"cvp": "#2ca02c", "gpm": "#d62728", "two-stage": "#1f77b4"}
 _GLOBAL = "#9467bd"  # two-stage with the seed's global stage 2
@@ -159,5 +159,74 @@ def plot_study(path, study) -> None:
         ax.set_ylabel(f"solve time [s] (median of {study.repeats})")
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle("Seed 000 Tables 2-3 reproduced (hatched: objective not confirmed by re-simulation)", fontsize=11)
+    fig.tight_layout()
+    _save(fig, path, fmt, plt)
+
+
+def plot_energy_run(path, run, title: str | None = None) -> None:
+    """Seed 001 Fig. 6/7 for one MPOC run: speed over distance (the optimum, its re-simulated plan and
+    the limit, neutral sections shaded), the optimum's traction and braking forces with the consist's
+    speed-dependent bounds, and the mesh (interval boundaries, LGR points per interval, moving points
+    on switches)."""
+    path, fmt = _figure_path(path)
+    plt = _pyplot()
+    from ..physics.traction import max_force_kn
+
+    sol = run.solution.solution
+    grid = sol.grid
+    prof = run.check.result.profile
+    s = grid.s_col
+    n = grid.n_col
+    v = np.sqrt(2 * np.maximum(sol.X[0, :n], 0.0)) * 3.6
+    fig, (ax, axf, axm) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True,
+                                      gridspec_kw={"height_ratios": [3, 2, 1]})
+    km = 1e-3
+    for a, b in run.tep.spans_m:
+        for axis in (ax, axf, axm):
+            axis.axvspan(a * km, b * km, color="#ffdd88", alpha=0.5, lw=0)
+    ax.step(prof.s_m[:-1] * km, prof.limit_kmh, where="post", color="black", lw=1.2, label="speed limit (train length)")
+    ax.plot(prof.s_m * km, prof.v_kmh[0], color="#1f77b4", lw=1.8, label="plan, re-simulated")
+    ax.plot(s * km, v, ".", color="#d62728", ms=3, label="optimum (LGR points)")
+    ax.set_ylabel("speed [km/h]")
+    ax.set_ylim(0, max(float(np.max(prof.limit_kmh)), float(np.max(v))) * 1.12)
+    sm = run.summary
+    ax.set_title(title or f"{sm['route']} — {sm['consist']}: minimum energy in {sm['planned_time_s']:g} s, "
+                          f"{sm['objective']:.1f} kWh (plan {sm['resimulated_energy_kwh']:.1f} kWh, "
+                          f"{sm['resimulated_running_time_s']:.1f} s)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower center", fontsize=8, ncol=3)
+    tm = run.tep.model
+    axf.plot(s * km, sol.U[0], ".", color="#d62728", ms=3, label="traction F")
+    brake = sol.U[1] + (sol.U[2] if sol.U.shape[0] > 2 else 0.0)
+    axf.plot(s * km, -brake, ".", color="#7f7f7f", ms=3, label="braking B (as -B)")
+    axf.plot(s * km, max_force_kn(v, *tm.traction_curve), "-", color="#d62728", lw=0.6, alpha=0.6, label="F max(v)")
+    axf.plot(s * km, -max_force_kn(v, *tm.brake_curve), "-", color="#7f7f7f", lw=0.6, alpha=0.6, label="-B max(v)")
+    axf.axhline(0, color="black", lw=0.5)
+    axf.set_ylabel("force [kN]")
+    axf.grid(alpha=0.3)
+    axf.legend(loc="lower right", fontsize=7, ncol=4)
+    for iv in grid.mesh.intervals:
+        axm.axvline(iv.s_a * km, color="#9467bd" if iv.free_start is not None else "#bbbbbb",
+                    lw=1.2 if iv.free_start is not None else 0.5)
+    axm.plot(s * km, [grid.mesh.intervals[i].n for i in grid.interval_col], ".", color="#2ca02c", ms=3)
+    axm.set_ylabel("LGR points\nper interval")
+    axm.set_xlabel("position [km]  (purple: mesh points moved onto switches; shaded: neutral-section spans)")
+    axm.grid(alpha=0.3)
+    fig.tight_layout()
+    _save(fig, path, fmt, plt)
+
+
+def plot_energy_time(path, data: dict) -> None:
+    """The energy-time curve E*(T) of ``locoplan bound --times``: the least traction energy for each
+    running time (a planner's trade-off between punctuality margin and energy)."""
+    path, fmt = _figure_path(path)
+    plt = _pyplot()
+    rows = [r for r in data["results"] if r["energy_kwh"] is not None]
+    fig, ax = plt.subplots(figsize=(8, 5))
+    ax.plot([r["time_s"] for r in rows], [r["energy_kwh"] for r in rows], "o-", color="#1f77b4")
+    ax.set_xlabel("running time T [s]")
+    ax.set_ylabel("least traction energy E* [kWh]")
+    ax.set_title(f"{data['route']} — {data['consist']}: energy-time curve (seed 001 optimum)")
+    ax.grid(alpha=0.3)
     fig.tight_layout()
     _save(fig, path, fmt, plt)

@@ -6,6 +6,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
+"""The seed 000 test train: the default of ``--objective time``."""
+DEFAULT_ENERGY_CONSIST = "configs/consists/HXD1-C80x50.yaml"
+"""The project's freight train: the default of ``--objective energy``."""
 
 
 @dataclass(frozen=True)
@@ -13,7 +16,8 @@ class OcpMethod:
     """One transcription of the minimum-time problem (see :mod:`locoplan.ocp.solve`).
 
     ``seed_nodes``: the two control-node counts of the seed's Tables 2-3 (the first is the default).
-    ``has_stage2``: the method reads ``stage2``; ``has_state_nodes``: ``state_nodes`` may be given.
+    ``has_stage2``: the method reads ``stage2``; ``has_state_nodes``: ``state_nodes`` may be given;
+    ``objectives``: the objectives it solves.
     """
 
     key: str
@@ -22,6 +26,7 @@ class OcpMethod:
     description: str
     has_stage2: bool = False
     has_state_nodes: bool = False
+    objectives: tuple[str, ...] = ("time",)
 
 
 OCP_METHODS: dict[str, OcpMethod] = {
@@ -32,6 +37,8 @@ OCP_METHODS: dict[str, OcpMethod] = {
                      "states and control", has_state_nodes=True),
     "cvp": OcpMethod("cvp", "CVP", (20, 40), "control vector parameterisation: N control values on a "
                      "uniform grid, piecewise linear, RK4 states"),
+    "radau": OcpMethod("radau", "Radau", (0, 0), "multi-phase Legendre-Gauss-Radau collocation with hp mesh "
+                       "refinement (seed 001, GPOPS-II's method)", objectives=("energy",)),
 }
 """Methods by CLI name; the CLI's ``--method`` choices are these keys."""
 
@@ -44,6 +51,9 @@ STAGE2_MODES: dict[str, str] = {
 
 OBJECTIVES: dict[str, str | None] = {
     "time": "minimum running time (seed 000, eq. 34)",
-    "energy": None,  # planned: seed 001's multi-phase minimum-energy problem
+    "energy": "minimum traction energy in a running time, multi-phase (seed 001)",
 }
 """Objectives by CLI name; ``None`` marks one that is planned but not built."""
+
+DEFAULT_METHOD = {"time": "two-stage", "energy": "radau"}
+"""The method ``--method`` defaults to, per objective."""

@@ -132,7 +132,7 @@ def train_problem(route, train, route_file: str | Path | None = None) -> MinTime
     """
     name = str(route_file) if route_file is not None else route.name
     why = ("the single-phase minimum-time problem (seed 000) needs one constant gradient and one speed "
-           "limit over the whole route; the multi-phase problem of seed 001 is not built yet")
+           "limit over the whole route; for such a route use seed 001's multi-phase problem (--objective energy)")
     problems: list[Problem] = []
     grades = _merged(route.gradients, lambda s: s.permille)
     limits = _merged(route.speed_limits, lambda s: s.kmh)
@@ -157,7 +157,7 @@ def train_problem(route, train, route_file: str | Path | None = None) -> MinTime
             extra += float(tunnel_gradient_permille(t.to_m - t.from_m))
     if route.neutral_sections:
         problems.append(Problem(name, "neutral_sections", "the minimum-time problem has no traction-free "
-                                "zones; remove the neutral sections or wait for the multi-phase problem (seed 001)"))
+                                "zones; remove the neutral sections or use the multi-phase problem (--objective energy, seed 001)"))
     if problems:
         raise InputError(problems)
     limit_kmh = min(limits[0][2], float(train.max_speed_kmh))
@@ -377,12 +377,15 @@ def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective
     if objective not in OBJECTIVES:
         problems.append(Problem(SOURCE, "--objective", f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}"))
     elif OBJECTIVES[objective] is None:
-        problems.append(Problem(SOURCE, "--objective", f"'{objective}' is not built yet: the minimum-energy optimal "
-                                "control of seed 001 (multi-phase, with a running-time constraint) is a later "
-                                "issue; use --objective time"))
+        problems.append(Problem(SOURCE, "--objective", f"'{objective}' is not built yet"))
     spec = OCP_METHODS.get(method)
     if spec is None:
         problems.append(Problem(SOURCE, "--method", f"unknown method {method!r}; choose one of {', '.join(OCP_METHODS)}"))
+    elif objective in OBJECTIVES and objective not in spec.objectives:
+        fit = [k for k, m in OCP_METHODS.items() if objective in m.objectives]
+        problems.append(Problem(SOURCE, "--method", f"{method} solves --objective {'/'.join(spec.objectives)}, not "
+                                f"{objective}; use {' or '.join(fit)}"))
+        spec = None
 
     def count(flag: str, value, even: bool = False):
         if value is None:

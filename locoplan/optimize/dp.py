@@ -109,6 +109,26 @@ def _step(e, u, h, m, g_k, allowed, tv, tf, bv, bf, ra, rb, rc):
 
 
 @njit(cache=True)
+def _bracket(v1, dv, nv, v_cap):
+    """Where speed v1 lies on a node's grid (the uniform grid below the node's cap, then the cap itself as
+    column nv): (i0, i1, w) with value = (1 - w) row[i0] + w row[i1]; i0 < 0 = above the cap."""
+    if v1 > v_cap * (1.0 + 1e-9) + 1e-9:
+        return -1, -1, 0.0
+    top = min(int(v_cap / dv), nv - 1)
+    while top > 0 and top * dv > v_cap:
+        top -= 1
+    if v1 <= top * dv:
+        i0 = min(int(v1 / dv), nv - 1)
+        if i0 >= top:
+            return top, top, 0.0
+        return i0, i0 + 1, (v1 - i0 * dv) / dv
+    span = v_cap - top * dv
+    if span <= 1e-12:
+        return top, top, 0.0
+    return top, nv, (v1 - top * dv) / span
+
+
+@njit(cache=True)
 def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc):
     """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
     calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
@@ -152,6 +172,10 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                 cost_to_go[n, c, b, j] = 0.0 if j == 0 or (j == nv and e_cap[n] <= 1e-12) else np.inf
     step_cost = np.empty(4)
     step_next = np.empty(4)
+    lo_i = np.zeros(4, dtype=np.int64)
+    hi_i = np.zeros(4, dtype=np.int64)
+    w_i = np.zeros(4)
+    dv = v_grid[1] - v_grid[0]
     for k in range(n - 1, -1, -1):
         v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
         for j in range(nv + 1):
@@ -179,6 +203,10 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                     continue
                 step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
                 step_next[u] = v1
+            for u in range(4):
+                if step_next[u] >= 0.0 and k < n - 1:
+                    i0, i1, wgt = _bracket(step_next[u], dv, nv, v_cap_next)
+                    lo_i[u], hi_i[u], w_i[u] = i0, i1, wgt
             for c in range(4):
                 for b in range(nb + 1):
                     best = np.inf
@@ -193,7 +221,13 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                                 continue  # the run in progress is too short to end
                             b1 = _run_bucket(h[k], min_run, nb)
                             extra = penalty
-                        rest = _interp_node(step_next[u], v_grid, cost_to_go[k + 1, u, b1], v_cap_next) if k < n - 1 else 0.0
+                        if k < n - 1:
+                            if lo_i[u] < 0:
+                                continue
+                            row = cost_to_go[k + 1, u, b1]
+                            rest = (1.0 - w_i[u]) * row[lo_i[u]] + (w_i[u] * row[hi_i[u]] if w_i[u] > 0.0 else 0.0)
+                        else:
+                            rest = 0.0
                         cc = step_cost[u] + rest + extra
                         if cc < best:
                             best = cc
@@ -318,11 +352,13 @@ class PricedDriveSolver:
             return None
         return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), float(work) / 3600.0)
 
-    def for_time(self, t0_s: float, n_bisect: int = 12, price_range=(1e-4, 50.0), timer=None) -> PricedDrive | None:
+    def for_time(self, t0_s: float, n_bisect: int = 12, price_range=(1e-4, 50.0), timer=None,
+                 close_s: float = 0.0) -> PricedDrive | None:
         """The priced optimum whose running time is closest to ``t0_s``: geometric bisection on lambda;
         when even the cheapest time is too fast (a falling line where the least energy comes with speed),
         a negative price (time rewarded: holding lower speeds by braking) is bisected as well.
-        ``timer(drive)`` [s], if given, replaces the drive's own time (e.g. its plan on the exact calculator)."""
+        ``timer(drive)`` [s], if given, replaces the drive's own time (e.g. its plan on the exact calculator);
+        the search stops as soon as a drive is within ``close_s`` of ``t0_s``."""
         best = None
         best_t = math.inf
 
@@ -340,6 +376,8 @@ class PricedDriveSolver:
         for _ in range(n_bisect):
             mid = 0.5 * (lo + hi)
             d = consider(self.solve(math.exp(mid)))
+            if d is not None and abs(d.time_s - t0_s) <= close_s:
+                return best
             if d is None or d.time_s > t0_s:
                 lo = mid
             else:

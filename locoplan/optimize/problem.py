@@ -64,6 +64,11 @@ class SwitchingProblem:
     cruise_kmh: tuple[float, float] | None = None
     cruise_mode: str = "regulate"
     fixed_m: np.ndarray | None = None
+    center: np.ndarray | None = None
+    """A known good candidate (the general builder's nominal plan): random candidates are then drawn
+    around it (normal, a tenth of the distance to the nearer neighbouring switching point) instead of
+    uniformly, which keeps most of them feasible on long lines where a uniform draw of 20+ switching
+    points almost never is."""
     last: BatchResult | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -131,7 +136,12 @@ class SwitchingProblem:
         return Evaluation(fitness=self.fitness(res), feasible=res.feasible.copy())
 
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """Uniform inside each switching point's window, then repaired (sorted, spaced)."""
+        """Uniform inside each switching point's window (or around ``center``), then repaired (sorted, spaced)."""
+        if self.center is not None:
+            c = np.asarray(self.center, dtype=float)
+            edges = np.concatenate([[self.lower[0]], c, [self.upper[-1]]])
+            spread = 0.1 * np.minimum(c - edges[:-2], edges[2:] - c) + 1.0
+            return self.repair(rng.normal(c, spread, size=(n, self.n_var)))
         return self.repair(rng.uniform(self.lower, self.upper, size=(n, self.n_var)))
 
     def repair(self, X: np.ndarray) -> np.ndarray:

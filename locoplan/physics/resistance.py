@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..model.train import G_MS2
+from .backend import as_operand
 
 
 def basic_resistance_n_per_kn(speed_kmh, a: float, b: float, c: float):
-    """Unit basic resistance w0 = a + b v + c v^2 [N/kN] at ``speed_kmh`` [km/h]; scalars or arrays."""
-    v = np.asarray(speed_kmh, dtype=float)
+    """Unit basic resistance w0 = a + b v + c v^2 [N/kN] at ``speed_kmh`` [km/h]; scalars, arrays or
+    CasADi symbols."""
+    v = as_operand(speed_kmh)
     return a + v * (b + c * v)
 
 
@@ -19,7 +19,8 @@ def basic_resistance_kn(speed_kmh, a: float, b: float, c: float, mass_t: float):
 
 
 def train_resistance_kn(speed_kmh, resistance_kn: tuple[float, float, float]):
-    """Whole-train basic resistance A + B v + C v^2 [kN], v in km/h (coefficients from ``Train``)."""
+    """Whole-train basic resistance A + B v + C v^2 [kN], v in km/h (coefficients from ``Train``);
+    scalars, arrays or CasADi symbols."""
     a, b, c = resistance_kn
-    v = np.asarray(speed_kmh, dtype=float)
+    v = as_operand(speed_kmh)
     return a + v * (b + c * v)

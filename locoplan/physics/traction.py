@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.train import G_MS2
+from .backend import as_operand, piecewise_linear
 
 
 def max_force_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray):
-    """Max effort [kN] at ``speed_kmh``, linear between curve points, held flat beyond the ends."""
-    return np.interp(speed_kmh, curve_speed_kmh, curve_force_kn)
+    """Max effort [kN] at ``speed_kmh``, linear between curve points, held flat beyond the ends
+    (``np.interp`` on numbers and arrays, a hinge sum on CasADi symbols: see ``backend``)."""
+    return piecewise_linear(speed_kmh, curve_speed_kmh, curve_force_kn)
 
 
 def gradient_force_kn(gradient_permille, mass_t: float):
@@ -17,4 +19,4 @@ def gradient_force_kn(gradient_permille, mass_t: float):
 
     1 per mille of gradient costs 1 N per kN of weight: F = i * mass_t * g / 1000 [kN].
     """
-    return np.asarray(gradient_permille, dtype=float) * mass_t * G_MS2 / 1000.0
+    return as_operand(gradient_permille) * mass_t * G_MS2 / 1000.0

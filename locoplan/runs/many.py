@@ -4,10 +4,10 @@
    input stops everything here, before any work) and keys every spec.
 2. With a store, the keys it already holds are taken from it and not run again.
 3. E_min (the energy-saving strategy's energy, seed 002 eq. 11) is computed once per group (route,
-   train, options, builder) on the executor, kept in the store, and handed to every run of the group;
-   so is the optimum's energy E* per (group, planned time) once a provider is registered
-   (:mod:`locoplan.runs.optimum`). A run's result therefore depends on its spec alone, not on the
-   executor, the number of workers or which other runs share the batch.
+   train, options, builder) on the executor, kept in the store, and handed to every run of the group.
+   A run's result therefore depends on its spec alone, not on the executor, the number of workers or
+   which other runs share the batch (the optional gap to seed 001's optimum, ``RunSpec.yardstick``,
+   excepted in its last digits: the bound warm-starts from its process's previous solve).
 4. The runs go to the executor, longest route first (a scheduling choice only); each finished run is
    committed to the store as it arrives.
 """
@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterable
 
 from .executors import Executor, SerialExecutor
-from .optimum import optimum_providers
 from .spec import EMinTask, RunRecord, RunSpec, Task, execute, execute_e_min, group_key, load_inputs, spec_key
 
 
@@ -102,17 +101,13 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
     # the runs not yet in the store, each key once
     tasks: list[Task] = []
     seen: set[str] = set()
-    optimum: dict[tuple, float | None] = {}
     for s, k in zip(specs, keys):
         if k in done or k in seen:
             continue
         seen.add(k)
         rh, th = inputs.route_of[s.route], inputs.train_of[(s.consist, s.stock_dir)]
         e = s.e_min_kwh if s.e_min_kwh is not None else (e_min.get(group_key(s, inputs)) if needs_e_min(s) else None)
-        ok = (rh, th, s.options, s.time_s)
-        if ok not in optimum:  # once per (route, train, options, planned time)
-            optimum[ok] = _optimum(inputs.routes[rh], inputs.trains[th], s)
-        tasks.append(Task(s, k, inputs.routes[rh], inputs.trains[th], rh, th, e, optimum[ok], keep_profiles))
+        tasks.append(Task(s, k, inputs.routes[rh], inputs.trains[th], rh, th, e, keep_profiles))
     tasks.sort(key=lambda t: -t.route.length_m)
     failed = sum(1 for k in set(keys) if k in done and done[k].verdict)
     for n, (_, record) in enumerate(executor.imap_unordered(execute, tasks), 1):
@@ -126,11 +121,3 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
     batch.records = [done[k] for k in keys]
     return batch
 
-
-def _optimum(route, train, spec: RunSpec) -> float | None:
-    """E* for the run's planned time from the registered providers (None until one exists)."""
-    if spec.time_s is None or not optimum_providers():
-        return None
-    from .optimum import optimum_energy_kwh
-
-    return optimum_energy_kwh(route, train, spec.options, spec.time_s)

@@ -1,10 +1,10 @@
 """The optimum's energy E*(T): the least traction energy any plan can spend to run a route in T.
 
-Seed 001's minimum-energy optimal control (the ``bound`` command, built in ``ocp/``) is the yardstick
-of every plan. This module is where it slots in: a provider is a function
-``(route, train, options, time_s) -> E* [kWh] or None`` registered with :func:`register_optimum`.
-Until one is registered :func:`optimum_energy_kwh` returns None, and everything that would show a gap
-to the optimum (the store's summary, ``pareto``) says it is not known rather than inventing one.
+A provider is a function ``(route, train, options, time_s) -> E* [kWh] or None`` registered with
+:func:`register_optimum`; ``pareto`` asks :func:`optimum_energy_kwh` at each planned time. The one
+registered here is seed 001's minimum-energy optimal control (``ocp.bound.energy_bound``, the
+``bound`` command). Where no provider knows E* (none registered, or the solve fails) the answer is
+None, and ``pareto`` and the store's summary say it is not known rather than inventing one.
 """
 
 from __future__ import annotations
@@ -35,3 +35,14 @@ def optimum_energy_kwh(route, train, options, time_s: float) -> float | None:
         if value is not None:
             return float(value)
     return None
+
+
+@register_optimum("seed 001 bound (ocp.bound.energy_bound)")
+def _seed001_bound(route, train, options, time_s: float) -> float | None:
+    from ..errors import LocoplanError
+    from ..ocp.bound import energy_bound
+
+    try:
+        return energy_bound(route, train, options, time_s).energy_kwh
+    except LocoplanError:  # a time the optimum cannot reach, a solver failure: no E* here
+        return None

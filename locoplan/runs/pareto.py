@@ -48,10 +48,12 @@ def nondominated(points: list[dict]) -> list[dict]:
 
 
 def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, seeds=(1,), executor=None,
-           progress=None) -> dict:
+           progress=None, optimum: bool = True) -> dict:
     """The front of ``base.route`` with ``base.consist`` under ``base.options`` (see the module doc).
 
     ``strategies``: the timetabled strategies planned at each time (the proposed one once per seed).
+    ``optimum``: ask the registered providers for E* at each planned time (seed 001's bound: seconds
+    per time, solved in this process, each warm-started from the previous one).
     Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
     best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""
     from ..io.load import load_route, load_train
@@ -77,7 +79,7 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     for t0, f in grid:
         ok = [p for p in points if p["planned_time_s"] == t0 and p["punctual"]]
         best = min(ok, key=lambda p: p["traction_energy_kwh"]) if ok else None
-        e_star = optimum_energy_kwh(route, train, base.options, t0) if optimum_providers() else None
+        e_star = optimum_energy_kwh(route, train, base.options, t0) if optimum and optimum_providers() else None
         gap = None if best is None or e_star is None else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3)
         rows.append({"planned_time_s": t0, "factor": round(f, 4),
                      "best_energy_kwh": None if best is None else best["traction_energy_kwh"],
@@ -88,7 +90,7 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     known = any(r["optimum_kwh"] is not None for r in rows)
     return {"route": route.name, "consist": train.name, "fastest_time_s": round(fastest, 2),
             "front_kind": "optimum E*(T) from " + ", ".join(optimum_providers()) if known else
-            "best on-time plans found by the strategies (no optimum provider yet: an upper bound of the true front)",
+            "best on-time plans found by the strategies (no optimum E* asked for or known: an upper bound of the true front)",
             "strategies": list(strategies), "seeds": list(seeds), "grid": rows, "points": points, "front": front}
 
 

@@ -72,6 +72,7 @@ class RunSpec:
     stock_dir: str | None = None
     fitness: bool = True
     strict: bool | None = None
+    yardstick: bool = False
     inputs: tuple[tuple[str, Any], ...] = ()
     tags: tuple[tuple[str, str], ...] = ()
 
@@ -202,8 +203,8 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
 
 @dataclass(frozen=True)
 class Task:
-    """What a worker gets: the spec, its key, its loaded route and train, and the E_min (and optimum,
-    when one is known) of its group, computed once for the whole batch."""
+    """What a worker gets: the spec, its key, its loaded route and train, and the E_min of its group,
+    computed once for the whole batch."""
 
     spec: RunSpec
     key: str
@@ -212,14 +213,12 @@ class Task:
     route_hash: str
     train_hash: str
     e_min_kwh: float | None = None
-    optimum_kwh: float | None = None
     keep_profile: bool = False
 
 
 @dataclass
 class RunRecord:
-    """The result of one run: ``summary`` is the SPEC's ``--json`` object (plus ``gap_to_optimum_percent``
-    once an optimum is known); ``verdict`` why the run fails its job (None if it does it); ``spec`` the
+    """The result of one run: ``summary`` is the SPEC's ``--json`` object; ``verdict`` why the run fails its job (None if it does it); ``spec`` the
     spec as a dict; ``wall_time_s`` the worker's wall time; ``versions`` what computed it; ``worker``
     host:pid; ``cpu_time_s`` the worker's CPU time for it (a machine shared with other work stretches
     the wall time, not this). ``profile`` and ``history`` (the reporting-grid profile and the optimiser's convergence)
@@ -286,7 +285,8 @@ def _base_context(task: Task):
     if ctx is None:
         if len(_CONTEXTS) >= _CONTEXTS_MAX:
             _CONTEXTS.pop(next(iter(_CONTEXTS)))
-        ctx = make_context(task.route, task.train, spec.options, need_time=False, builder=spec.resolved_builder)
+        ctx = make_context(task.route, task.train, spec.options, need_time=False, builder=spec.resolved_builder,
+                           yardstick=False)
         _CONTEXTS[k] = ctx
     return ctx
 
@@ -302,7 +302,7 @@ def context_for(task: Task):
                        weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params_path=spec.params,
                        need_time=needs_time(spec),
                        tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
-                       calculators=(base.calc, base.search))
+                       yardstick=spec.yardstick, calculators=(base.calc, base.search))
     dp = base._e_min_cache.get("dp")
     if dp is not None:
         ctx._e_min_cache["dp"] = dp
@@ -345,8 +345,6 @@ def execute(task: Task) -> RunRecord:
         verdict = schedule_verdict(ctx, run, strict=spec.strict)
         if task.keep_profile:
             profile, history = run.result.profile, run.outcome.history
-    if task.optimum_kwh is not None and summary.get("gap_to_optimum_percent") is None and summary.get("feasible"):
-        summary["gap_to_optimum_percent"] = round(100.0 * (summary["traction_energy_kwh"] / task.optimum_kwh - 1.0), 3)
     return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
                      _worker_name(), profile, history, round(time.process_time() - cpu, 4))
 
@@ -382,7 +380,7 @@ def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     from ..runner import make_context
 
     ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params_path=task.params)
+                       params_path=task.params, yardstick=False)
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:

@@ -11,7 +11,8 @@ algorithms: [issa, ssa, pso]      # default: issa
 seeds: [1, 2, 3, 4, 5]            # default: 1
 ```
 Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``tolerance_s``, ``window``,
-``builder``, ``stock_dir``, and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
+``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, seed 001's bound at
+the plan's own running time, seconds per run), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).
 
 The batch is routes x consists x times x strategies x algorithms x seeds, except that algorithms and
@@ -66,6 +67,7 @@ class StudyFile(BaseModel):
     window: bool = True
     builder: Optional[str] = None
     stock_dir: Optional[str] = None
+    gap: bool = False
     model: _Model = Field(default_factory=_Model)
 
 
@@ -171,7 +173,7 @@ def load_study(path: str | Path) -> Study:
     stock = None if study.stock_dir is None else str(base / study.stock_dir)
     planned = _planned_times(name, routes, consists, stock, options, times, where)
     common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
-                  builder=study.builder, options=options, stock_dir=stock)
+                  builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap)
     specs: list[RunSpec] = []
     for r in routes:
         for c in consists:

@@ -107,6 +107,24 @@ def neutral_spans_m(route: Route, train_length_m: float = 0.0) -> list[tuple[flo
     return spans
 
 
+def limit_kmh_at(route: Route, s_m, train_length_m: float | None = None) -> np.ndarray:
+    """Static speed limit [km/h] at head positions ``s_m``. With ``train_length_m`` (the strip model)
+    the lowest limit under the train: a drop counts from where the head reaches it, a rise only once
+    the tail has cleared the restriction. ``None``: the point mass at the head."""
+    s_m = np.asarray(s_m, dtype=float)
+    sl = route.speed_limits
+    starts = np.array([x.from_m for x in sl])
+    kmh = np.array([x.kmh for x in sl])
+    idx = np.clip(np.searchsorted(starts, s_m, side="right") - 1, 0, len(sl) - 1)
+    lim = kmh[idx]
+    if train_length_m is not None:
+        tail = s_m - train_length_m
+        for x in sl:  # a rise counts only once the tail has cleared the restriction
+            under = (x.from_m < s_m) & (x.to_m > tail)
+            lim = np.where(under, np.minimum(lim, x.kmh), lim)
+    return lim
+
+
 def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
     """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode)."""
     L = route.length_m
@@ -181,17 +199,7 @@ class TractionCalculator:
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
         """Static speed limit [km/h] at head positions; in strip mode the lowest under the train."""
-        sl = self.route.speed_limits
-        starts = np.array([x.from_m for x in sl])
-        kmh = np.array([x.kmh for x in sl])
-        idx = np.clip(np.searchsorted(starts, s_m, side="right") - 1, 0, len(sl) - 1)
-        lim = kmh[idx]
-        if self.options.strip:
-            tail = s_m - self.train.length_m
-            for x in sl:  # a rise counts only once the tail has cleared the restriction
-                under = (x.from_m < s_m) & (x.to_m > tail)
-                lim = np.where(under, np.minimum(lim, x.kmh), lim)
-        return lim
+        return limit_kmh_at(self.route, s_m, self.train.length_m if self.options.strip else None)
 
     def forces_kn(self, v_ms: np.ndarray, k: int | np.ndarray):
         """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k``."""

@@ -38,7 +38,6 @@ from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
-from ..optimize.dp import PricedDriveSolver
 from .drive import sequence_from_drive, with_holds
 
 
@@ -58,6 +57,8 @@ class StrategyContext:
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
+    yardstick: bool = True
+    """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
@@ -101,6 +102,9 @@ class StrategyOutcome:
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
+    calc: TractionCalculator | None = None
+    """The calculator to run the plan on when not the context's (mpoc-n: the route without its
+    neutral sections, which the real train cannot drive)."""
     result: "BatchResult | None" = None
     """A strategy that measured rather than planned (drivers' logs) gives its result; None = evaluate the plan."""
     extra: dict | None = None
@@ -112,7 +116,7 @@ def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
     brake = None if outcome.brake_hold_kmh is None else [outcome.brake_hold_kmh]
-    return calc.evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
+    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
                          cruise_mode=outcome.cruise_mode, brake_hold_kmh=brake)
 
 
@@ -211,7 +215,8 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
 @register("energy-saving")
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
-    energy-saving strategy); general: the general family at any cruise speed in its window."""
+    energy-saving strategy), switching points by ISSA; general: the drive at the lowest price of time
+    (``optimize/dp.py``), as a condition sequence."""
     cached = ctx._e_min_cache.get("outcome")
     if cached is not None:
         return cached
@@ -227,15 +232,7 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     if drive is None:
         raise InfeasibleError(no_drive_message(ctx))
     seq = sequence_from_drive(drive_solver(ctx).calc, drive)
-    out = StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
-    if len(seq.nominal_m):  # polish on the exact calculator: the least energy the sequence allows
-        problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, objective="energy")
-        result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED,
-                           x0=seq.nominal_m[None, :])
-        x = _confirmed(ctx, problem, result)
-        out = StrategyOutcome(_plan(seq.conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
-                              n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
-    return out
+    return StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
 
 
 LEAST_PRICE_KWH_PER_S = 1e-4
@@ -247,8 +244,11 @@ DP_MIN_CELLS = 300
 a short line on at least this many (not finer than 10 m)."""
 
 
-def drive_solver(ctx: StrategyContext) -> PricedDriveSolver:
-    """The priced-drive DP over the search grid (finer on short lines), built once per context."""
+def drive_solver(ctx: StrategyContext):
+    """The priced-drive DP (``optimize.dp.PricedDriveSolver``) over the search grid (finer on short lines),
+    built once per context."""
+    from ..optimize.dp import PricedDriveSolver  # numba: imported when a drive is needed, not at start-up
+
     if "dp" not in ctx._e_min_cache:
         calc = ctx.search
         cell = max(10.0, min(100.0, calc.route.length_m / DP_MIN_CELLS))
@@ -307,9 +307,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
     t = time.perf_counter()
-    # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
-    rank_tol = None if ctx.ranking_tolerance_s is None else RANKING_MARGIN * ctx.ranking_tolerance_s
-    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=rank_tol)
+    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s)
     if ctx.builder == "seed002":
         seq = build_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
@@ -317,6 +315,9 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min, time_range_s=problem.time_range_s)
+    # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
+    if ctx.ranking_tolerance_s is not None:
+        common["tolerance_s"] = RANKING_MARGIN * ctx.ranking_tolerance_s
     solver = drive_solver(ctx)
 
     def plan_time(d):  # the drive's plan on the search grid, as ISSA will see it
@@ -324,7 +325,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         res = ctx.search.evaluate(q.conditions, np.array([[*q.nominal_m, np.nan]]))
         return float(res.running_time_s[0]) if res.feasible[0] else math.inf
 
-    drive = solver.for_time(ctx.t0_s, timer=plan_time)
+    drive = solver.for_time(ctx.t0_s, timer=plan_time, close_s=0.25 * (ctx.tolerance_s or 0.0))
     if drive is None:
         raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
     seq = sequence_from_drive(solver.calc, drive)
@@ -336,7 +337,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     if not len(seq.nominal_m):  # one condition, then the stop: nothing to search
         return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min)
-    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
+    problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, center=seq.nominal_m, **common)
     jitter = ctx.rng(3).normal(0.0, 0.1, (10, problem.n_var)) * (seq.upper_m - seq.lower_m)
     x0 = np.vstack([seq.nominal_m, seq.nominal_m + jitter])
     result = _optimise(ctx, problem, salt=1, x0=x0)
@@ -345,3 +346,5 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                            e_min_kwh=e_min, time_range_s=problem.time_range_s)
 
+
+from . import optimal  # noqa: E402,F401  (registers seed 001's mpoc, mpoc-n, mpoc-c and sfs)

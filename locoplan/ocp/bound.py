@@ -1,0 +1,95 @@
+"""The yardstick: the least traction energy E* a train can use on a route in a running time.
+
+E* is seed 001's optimum (MPOC, neutral sections included) of the same train model the calculator
+runs: the objective of the refined LGR solution. Every plan's ``gap_to_optimum_percent`` is
+``(E - E*(T)) / E*(T) x 100`` with ``T`` the plan's own running time. Solutions are cached per
+(route, train, model options, energy options, time) in this process, and the last solution of a
+route and train starts the next solve at another time (a warm start: the energy-time curve costs a
+fraction of a cold solve per point).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LocoplanError
+from ..model.route import Route
+from ..model.train import Train
+from ..sim.calculator import ModelOptions, TractionCalculator
+from .energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, solve_energy
+from .train_energy import EnergyOptions, build_problem, check_runnable
+
+_BOUNDS: dict[tuple, "Bound"] = {}
+_WARM: dict[tuple, object] = {}
+
+
+@dataclass(frozen=True)
+class Bound:
+    """E* at one running time: ``energy_kwh``, the mesh it was solved on, whether the refinement met
+    its tolerance, and the wall time of the solve [s] (0 when it came from the cache)."""
+
+    time_s: float
+    energy_kwh: float
+    converged: bool
+    intervals: int
+    points: int
+    solve_time_s: float
+
+
+def _train_key(train: Train) -> tuple:
+    arrays = (train.traction_speed_kmh, train.traction_kn, train.electric_brake_speed_kmh, train.electric_brake_kn,
+              train.air_brake_speed_kmh, train.air_brake_kn)
+    return (train.name, train.mass_t, train.inertial_mass_t, train.length_m, train.max_speed_kmh, train.resistance_kn,
+            tuple(np.asarray(a, float).tobytes() for a in arrays))
+
+
+def _base_key(route: Route, train: Train, options: ModelOptions, energy: EnergyOptions) -> tuple:
+    return (route.model_dump_json(), _train_key(train), options, energy)
+
+
+def energy_bound(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
+                 energy: EnergyOptions | None = None, mesh_tol: float = DEFAULT_MESH_TOL,
+                 max_degree: int = DEFAULT_MAX_DEGREE, calc: TractionCalculator | None = None) -> Bound:
+    """E* of ``train`` on ``route`` in ``time_s`` seconds (default: the route's schedule) [kWh].
+
+    Raises ``InfeasibleError`` when no run takes that little time or the consist cannot run the
+    route, ``InputError`` for bad options."""
+    options = options or ModelOptions()
+    energy = energy or EnergyOptions()
+    time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
+    base = _base_key(route, train, options, energy)
+    key = (base, round(time_s, 2), mesh_tol, max_degree)
+    if key in _BOUNDS:
+        b = _BOUNDS[key]
+        return Bound(b.time_s, b.energy_kwh, b.converged, b.intervals, b.points, 0.0)
+    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
+    check_runnable(calc, time_s)
+    tep = build_problem(route, train, options, time_s, energy)
+    warm = _WARM.get(base)
+    try:
+        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm)
+    except LocoplanError:
+        if warm is None:
+            raise
+        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree)  # a cold start after all
+    _WARM[base] = es.solution
+    b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
+              es.wall_time_s)
+    _BOUNDS[key] = b
+    return b
+
+
+def gap_to_optimum_percent(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
+                           calc: TractionCalculator | None = None) -> float | None:
+    """``(E - E*) / E* x 100`` at the plan's own running time ``time_s``; None when there is no E*
+    there (an infeasible plan, a time the optimum cannot reach, a solver failure)."""
+    if not (math.isfinite(time_s) and math.isfinite(energy_kwh)):
+        return None
+    try:
+        b = energy_bound(route, train, options, time_s, calc=calc)
+    except LocoplanError:
+        return None
+    return round(100.0 * (energy_kwh - b.energy_kwh) / b.energy_kwh, 2)

@@ -1,0 +1,494 @@
+"""Legendre-Gauss-Radau (LGR) collocation of a multi-phase problem, solved by IPOPT (seed 001 section 3).
+
+Layer 3 of the multi-phase stack. On a :class:`~locoplan.ocp.mesh.Mesh`, every interval with ``n``
+LGR points carries the states as a degree-``n`` polynomial through its ``n`` points and its end
+(Garg et al.'s Radau pseudospectral method, GPOPS-II): the dynamics are collocated at the LGR points,
+``D X = (ds/dtau) f(X, U, s)``, the objective is LGR quadrature of the integrand, path constraints
+hold at the LGR points, state bounds at every state point. Controls live at the LGR points only.
+
+The NLP is built from vectorised CasADi ``SX`` expressions over *all* collocation points at once
+(one call of the model's functions, a sparse block differentiation matrix), so building it costs
+milliseconds, and handed to IPOPT with exact Hessians. Variables and constraints are scaled by the
+model's nominal magnitudes.
+
+:func:`interval_errors` is GPOPS-II's error estimate: on ``n + 1`` LGR points per interval, the
+states integrated from the interpolated dynamics against the interpolated states, relative to
+``1 + max |x|`` on the interval.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from functools import lru_cache
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import nodes as _nodes
+from .mesh import Grid, Mesh
+from .phase import MultiPhaseProblem
+
+IPOPT_OPTIONS = {
+    "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+    "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-5, "ipopt.acceptable_iter": 3, "ipopt.constr_viol_tol": 1e-8, "ipopt.max_iter": 500,
+    "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
+}
+"""Silent IPOPT with tight tolerances (exact Hessian: CasADi's default)."""
+MAP_THREADS = 1
+"""Threads evaluating the model over the collocation points (this machine's two cores)."""
+MIN_INTERVAL_M = 1e-3
+"""Shortest interval next to a moving mesh point [units of s]."""
+
+
+@lru_cache(maxsize=None)
+def _weights(points: tuple) -> np.ndarray:
+    return _nodes.barycentric_weights(np.array(points))
+
+
+def _lagrange(points: np.ndarray, values: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Values (rows) of the Lagrange polynomials through ``(points, values)`` at ``targets`` (the
+    barycentric formula of ``nodes``, weights cached per point set)."""
+    return values @ _nodes.barycentric_matrix(points, _weights(tuple(points)), targets).T
+
+
+def _eval_model(fn: Callable, x, u, s, p, n_out: int):
+    out = fn(x, u, s, p)
+    if n_out == 1 and not isinstance(out, (list, tuple)):
+        out = [out]
+    return list(out)
+
+
+def _params(problem: MultiPhaseProblem, phase_idx: np.ndarray, s: np.ndarray) -> dict:
+    """Each phase's parameters at the positions ``s`` (whose phase is ``phase_idx``), stacked."""
+    out: dict = {}
+    for k in np.unique(phase_idx):
+        sel = np.nonzero(phase_idx == k)[0]
+        for name, val in problem.phases[k].params(s[sel]).items():
+            arr = out.setdefault(name, np.zeros(s.size))
+            arr[sel] = np.broadcast_to(np.asarray(val, dtype=float), sel.shape)
+    return out
+
+
+def _bounds_per_point(problem: MultiPhaseProblem, grid: Grid):
+    """State bounds at every state point (a phase boundary point takes the tighter of both phases)
+    and control bounds at every collocation point."""
+    nx, nu = problem.model.n_x, problem.model.n_u
+    xl = np.full((nx, grid.n_col + 1), -np.inf)
+    xu = np.full((nx, grid.n_col + 1), np.inf)
+    for k, pts in enumerate(grid.phase_points):
+        ph = problem.phases[k]
+        xl[:, pts] = np.maximum(xl[:, pts], np.asarray(ph.state_lower, float)[:, None])
+        xu[:, pts] = np.minimum(xu[:, pts], np.asarray(ph.state_upper, float)[:, None])
+    for i, v in enumerate(problem.initial_state):
+        if v is not None:
+            xl[i, 0] = xu[i, 0] = v
+    xl[:, -1] = np.maximum(xl[:, -1], problem.final_lower)
+    xu[:, -1] = np.minimum(xu[:, -1], problem.final_upper)
+    ul = np.array([problem.phases[k].control_lower for k in grid.phase_col]).T
+    uu = np.array([problem.phases[k].control_upper for k in grid.phase_col]).T
+    return xl, xu, ul.reshape(nu, -1), uu.reshape(nu, -1)
+
+
+@dataclass
+class RadauSolution:
+    """The NLP's answer on one mesh: states ``X`` (n_x x N+1 state points), controls ``U`` (n_u x N
+    collocation points), the objective, IPOPT's status and timings."""
+
+    problem: MultiPhaseProblem
+    grid: Grid
+    X: np.ndarray
+    U: np.ndarray
+    objective: float
+    success: bool
+    status: str
+    iterations: int
+    build_time_s: float
+    solve_time_s: float
+    params: dict = field(repr=False, default_factory=dict)
+    lam_x: np.ndarray | None = field(repr=False, default=None)
+    lam_g: np.ndarray | None = field(repr=False, default=None)
+    n_path: int = 0
+
+    @property
+    def mesh(self) -> Mesh:
+        return self.grid.mesh
+
+    def _locate(self, s):
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        starts = np.array([iv.s_a for iv in self.mesh.intervals])
+        return s, np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(starts) - 1)
+
+    def states_at(self, s) -> np.ndarray:
+        """The state polynomials at positions ``s`` (n_x x len(s))."""
+        s, idx = self._locate(s)
+        out = np.empty((self.X.shape[0], s.size))
+        for i in np.unique(idx):
+            sel = idx == i
+            iv = self.mesh.intervals[i]
+            out[:, sel] = _lagrange(_nodes.radau_support_points(iv.n), self.X[:, self.grid.points_of(i)], iv.tau_of(s[sel]))
+        return out
+
+    def controls_at(self, s, lower=None, upper=None) -> np.ndarray:
+        """The control polynomials (degree n - 1 through the LGR values) at ``s``, clipped to the
+        phases' control bounds."""
+        s, idx = self._locate(s)
+        out = np.empty((self.U.shape[0], s.size))
+        for i in np.unique(idx):
+            sel = idx == i
+            iv = self.mesh.intervals[i]
+            u = _lagrange(_nodes.legendre_gauss_radau(iv.n)[0], self.U[:, self.grid.cols_of(i)], iv.tau_of(s[sel]))
+            ph = self.problem.phases[iv.phase]
+            out[:, sel] = np.clip(u, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
+        return out
+
+
+def _sparse(a: np.ndarray):
+    """A numpy matrix as a CasADi matrix that stores only its nonzeros."""
+    import casadi as ca
+
+    return ca.DM(sp.csc_matrix(a))
+
+
+def _affine_params(problem: MultiPhaseProblem, grid: Grid) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Each point's parameters as ``p_ref + slope (s - s_ref)`` around its current position ``s_ref``
+    (phase parameters are affine in ``s`` inside a phase, so a moving mesh point keeps them exact)."""
+    p0 = _params(problem, grid.phase_col, grid.s_col)
+    p1 = _params(problem, grid.phase_col, grid.s_col + 1.0)
+    names = sorted(p0)
+    ref = np.array([p0[k] for k in names]).reshape(len(names), -1)
+    slope = np.array([p1[k] - p0[k] for k in names]).reshape(len(names), -1)
+    return names, ref, slope
+
+
+def _block_diagonal(rows: int, cols: int, count: int):
+    """Sparsity of ``count`` dense ``rows x cols`` blocks on the diagonal (nonzeros column by column,
+    the layout of a horizontally stacked ``rows x (cols * count)`` matrix)."""
+    import casadi as ca
+
+    return ca.diagcat(*[ca.Sparsity.dense(rows, cols)] * count) if count else ca.Sparsity(0, 0)
+
+
+class RadauTranscription:
+    """The NLP of ``problem`` on ``mesh``: build once, solve from any initial guess.
+
+    Every collocation point depends on its own local variables ``w_k = (x_k, u_k, s_k, J_k)``
+    (state, control, position, ds/dtau), and those are affine in the NLP's variables: a constant
+    sparse matrix ``E`` maps one onto the other (positions and ``ds/dtau`` move only with a moving
+    mesh point). So the constraints' Jacobian is ``blockdiag(dC_k/dw_k) E`` plus the constant
+    differentiation matrix, and the Lagrangian's Hessian ``E' blockdiag(d2L_k/dw_k2) E`` plus the
+    few terms of the rest start: the model is traced once on ``SX`` scalars into small point
+    functions (value, Jacobian, Hessian), mapped over all points in an ``MX`` graph, and the NLP
+    gets these exact derivatives directly. Building costs milliseconds, an IPOPT iteration a few.
+    """
+
+    def __init__(self, problem: MultiPhaseProblem, mesh: Mesh, ipopt_options: dict | None = None):
+        import casadi as ca
+
+        t0 = _time.perf_counter()
+        self.problem, self.mesh = problem, mesh
+        model = problem.model
+        grid = self.grid = Grid(mesh)
+        nx, nu, n = model.n_x, model.n_u, grid.n_col
+        npath = model.n_path if model.path is not None else 0
+        nc = nx + npath  # constraints per point
+        m = nx + nu + 2  # local variables per point
+        sx = np.asarray(model.state_scale, dtype=float)
+        su = np.asarray(model.control_scale, dtype=float)
+        self.sx, self.su = sx, su
+        names, p_ref, p_slope = _affine_params(problem, grid)
+        npar = len(names)
+        nf = len(grid.free)
+        n_vars = nx * (n + 1) + nu * n + nf
+        self.n_x_vars, self.n_u_vars = nx * (n + 1), nu * n
+
+        # ---- one point, on SX scalars
+        wl = ca.SX.sym("w", m)
+        sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
+        xl_ = [wl[i] for i in range(nx)]
+        ul_ = [wl[nx + i] for i in range(nu)]
+        s_sym, j_sym = wl[nx + nu], wl[nx + nu + 1]
+        pdict = {k: pr[i] + pd[i] * (s_sym - sref) for i, k in enumerate(names)}
+        f = ca.vertcat(*_eval_model(model.dynamics, xl_, ul_, s_sym, pdict, nx))
+        con = -j_sym * f / ca.DM(sx)
+        if npath:
+            con = ca.vertcat(con, *_eval_model(model.path, xl_, ul_, s_sym, pdict, npath))
+        integrand = j_sym * _eval_model(model.integrand, xl_, ul_, s_sym, pdict, 1)[0]
+        mu = ca.SX.sym("mu", 1 + nc)
+        lag = mu[0] * integrand + ca.dot(mu[1:], con)
+        args = [wl, sref, pr, pd]
+        f_con = ca.Function("con", args, [con])
+        f_jac = ca.Function("con_jac", args, [ca.densify(ca.jacobian(con, wl))])
+        f_obj = ca.Function("obj", args, [integrand])
+        f_hess = ca.Function("lag_hess", args + [mu], [ca.densify(ca.hessian(lag, wl)[0])])
+
+        # ---- local variables from the NLP's: wloc = E w + c (column k*m + j: variable j of point k)
+        rows, cols, vals = [], [], []
+        c = np.zeros(m * n)
+        k_idx = np.arange(n)
+        for j in range(nx):
+            rows.append(k_idx * m + j)
+            cols.append(j + nx * k_idx)
+            vals.append(np.full(n, sx[j]))
+        for j in range(nu):
+            rows.append(k_idx * m + nx + j)
+            cols.append(nx * (n + 1) + j + nu * k_idx)
+            vals.append(np.full(n, su[j]))
+        c[k_idx * m + nx + nu] = grid.s_col
+        c[k_idx * m + nx + nu + 1] = grid.jacobian
+        if nf:
+            lo, hi = grid.free_bounds[:, 0], grid.free_bounds[:, 1]
+            width = hi - lo
+            # s = s_a + (s_b - s_a) g, J = (s_b - s_a) g', s_a = a0 + Aa z, s_b = b0 + Ab z, z = lo + width Z
+            ds = grid.Aa * (1 - grid.g)[:, None] + grid.Ab * grid.g[:, None]
+            dj = (grid.Ab - grid.Aa) * grid.dg[:, None]
+            c[k_idx * m + nx + nu] = grid.a0 + (grid.b0 - grid.a0) * grid.g + ds @ lo
+            c[k_idx * m + nx + nu + 1] = (grid.b0 - grid.a0) * grid.dg + dj @ lo
+            for mat, off in ((ds, nx + nu), (dj, nx + nu + 1)):
+                r, q = np.nonzero(mat)
+                rows.append(r * m + off)
+                cols.append(nx * (n + 1) + nu * n + q)
+                vals.append(mat[r, q] * width[q])
+        E_np = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, n_vars))
+        E = ca.DM(E_np)
+        w = ca.MX.sym("w", n_vars)
+        wloc = ca.reshape(ca.mtimes(E, w) + ca.DM(c), m, n)
+        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope))
+
+        # ---- linear parts: D X / sx in the defect rows; smoothness; lengths next to moving points
+        Dl = sp.kron(grid.D, sp.identity(nx), format="coo")  # rows k*nx + i, cols (state point)*nx + i
+        Lin = sp.csc_matrix((Dl.data, ((Dl.row // nx) * nc + Dl.row % nx, Dl.col)), shape=(nc * n, n_vars))
+        g_parts, j_parts = [], []
+        lbg, ubg = [], []
+        # pointwise constraints
+        xl, xu, ul, uu = _bounds_per_point(problem, grid)
+        path_lo = np.full((max(npath, 1), n), -np.inf)
+        for i, iv in enumerate(mesh.intervals):  # arcs fixed next to a moving point
+            if iv.regime is None:
+                continue
+            cc = grid.cols_of(i)
+            for j, r in enumerate(iv.regime):
+                row = model.control_paths[j] if j < len(model.control_paths) else None
+                if r == "lower":
+                    uu[j, cc] = ul[j, cc]
+                elif r == "upper" and row is not None:
+                    path_lo[row, cc] = 0.0
+                elif r == "upper":
+                    ul[j, cc] = uu[j, cc]
+        con_all = ca.vec(f_con.map(n)(*call)) + ca.mtimes(ca.DM(Lin), w)
+        jac_all = ca.MX(_block_diagonal(nc, m, n), ca.vec(f_jac.map(n)(*call)))
+        jac_all = ca.mtimes(jac_all, E) + ca.DM(Lin)
+        lb_pt = np.vstack([np.zeros((nx, n)), path_lo[:npath]])
+        ub_pt = np.zeros((nc, n))
+        small = []  # (expression, lower, upper) of the few constraints that are not pointwise
+        sing_rows = None
+        if grid.singular.any():
+            xs0, us0 = ca.SX.sym("x0", nx), ca.SX.sym("u0", nu)
+            s0, fac = ca.SX.sym("s0"), ca.SX.sym("fac")
+            pd0 = {k: pr[i] + pd[i] * (s0 - sref) for i, k in enumerate(names)}
+            x0l, u0l = [xs0[i] for i in range(nx)], [us0[i] for i in range(nu)]
+            rate = ca.vertcat(*_eval_model(model.singular_start, x0l, u0l, s0, pd0, nx))
+            start = ca.Function("start", [xs0, us0, s0, fac, sref, pr, pd],
+                                [-fac * rate / ca.DM(sx),
+                                 ca.vertcat(*_eval_model(model.start_path, x0l, u0l, s0, pd0, model.n_start_path))])
+            w0 = wloc[:, 0]
+            r0, dg0 = self._length_rows(grid, [0], nx + nu + 1, m)
+            fac_expr = ca.sqrt((ca.mtimes(E[int(r0[0]), :], w) + float(c[r0[0]])) / float(dg0[0])) / 2
+            extra, g_start = start(w0[:nx], w0[nx:nx + nu], w0[nx + nu], fac_expr, grid.s_col[0], p_ref[:, 0], p_slope[:, 0])
+            pad = ca.vertcat(extra, ca.MX.zeros(nc * n - nx, 1))
+            con_all = con_all + pad
+            jac_all = jac_all + ca.jacobian(pad, w)
+            sing_rows = (extra, g_start)
+            if model.n_start_path:
+                small.append((g_start, np.full(model.n_start_path, -np.inf), np.zeros(model.n_start_path)))
+        g_parts.append(con_all)
+        j_parts.append(jac_all)
+        lbg.append(lb_pt.ravel(order="F"))
+        ubg.append(ub_pt.ravel(order="F"))
+        for expr, lo_, hi_ in small:
+            g_parts.append(expr)
+            j_parts.append(ca.jacobian(expr, w))
+            lbg.append(lo_)
+            ubg.append(hi_)
+        lin_rows = []  # (matrix, offset, lower, upper) of linear constraints
+        if nf:  # every interval next to a moving point keeps a positive length
+            own = sorted({i for q in grid.free for i in (q - 1, q)})
+            rr, dgr = self._length_rows(grid, own, nx + nu + 1, m)
+            A = sp.csr_matrix(E_np[rr, :].multiply(1.0 / dgr[:, None]))
+            lin_rows.append((A, c[rr] / dgr, np.full(len(own), MIN_INTERVAL_M), np.full(len(own), np.inf)))
+        for A, off, lo_, hi_ in lin_rows:
+            Ad = ca.DM(A.tocsc())
+            g_parts.append(ca.mtimes(Ad, w) + ca.DM(off))
+            j_parts.append(Ad)
+            lbg.append(lo_)
+            ubg.append(hi_)
+        g_all = ca.vertcat(*g_parts)
+        jac_g = ca.vertcat(*j_parts)
+
+        # ---- objective and Hessian of the Lagrangian
+        wq = np.concatenate([_nodes.legendre_gauss_radau(iv.n)[1] for iv in mesh.intervals])
+        obj_scale = problem.objective_scale
+        obj = ca.mtimes(f_obj.map(n)(*call), ca.DM(wq)) / obj_scale
+        lam_f = ca.MX.sym("lam_f")
+        lam_g = ca.MX.sym("lam_g", g_all.size1())
+        lam_pt = ca.reshape(lam_g[: nc * n], nc, n)
+        mus = ca.vertcat(lam_f * ca.DM(wq).T / obj_scale, lam_pt)
+        hess_blocks = ca.MX(_block_diagonal(m, m, n), ca.vec(f_hess.map(n)(*call, mus)))
+        H = ca.mtimes(ca.mtimes(ca.DM(E_np.T.tocsc()), hess_blocks), E)
+        if sing_rows is not None:  # the rest start's terms (a few variables)
+            extra, g_start = sing_rows
+            lag_small = ca.dot(lam_g[:nx], extra)
+            if model.n_start_path:
+                lag_small = lag_small + ca.dot(lam_g[nc * n: nc * n + model.n_start_path], g_start)
+            H = H + ca.hessian(lag_small, w)[0]
+        p = ca.MX.sym("p", 0, 1)
+        jac_fun = ca.Function("nlp_jac_g", [w, p], [g_all, jac_g], ["x", "p"], ["g", "jac_g_x"])
+        hess_fun = ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [ca.triu(H)],
+                               ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+        nlp = {"x": w, "f": obj, "g": g_all}
+        opts = {**IPOPT_OPTIONS, **(ipopt_options or {}), "jac_g": jac_fun, "hess_lag": hess_fun}
+        self.solver = ca.nlpsol("radau", "ipopt", nlp, opts)
+        self.lbg, self.ubg = np.concatenate(lbg), np.concatenate(ubg)
+        self.xl, self.xu, self.ul, self.uu = xl, xu, ul, uu
+        self.lbx = np.concatenate([(xl / sx[:, None]).ravel(order="F"), (ul / su[:, None]).ravel(order="F"), np.zeros(nf)])
+        self.ubx = np.concatenate([(xu / sx[:, None]).ravel(order="F"), (uu / su[:, None]).ravel(order="F"), np.ones(nf)])
+        self.n_path = npath
+        self.n_g = g_all.size1()
+        self.build_time_s = _time.perf_counter() - t0
+
+    @staticmethod
+    def _length_rows(grid: Grid, intervals, j_row: int, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """For each interval, the row of ``E`` of ds/dtau at a point where g' > 0, and that g': the
+        interval's length is that ds/dtau over g' (affine in the NLP's variables)."""
+        pts = np.array([grid.offsets[i] + (1 if grid.dg[grid.offsets[i]] == 0.0 else 0) for i in intervals], dtype=int)
+        return pts * m + j_row, grid.dg[pts]
+
+    def solve(self, X0: np.ndarray, U0: np.ndarray, warm: "RadauSolution | None" = None) -> RadauSolution:
+        """Solve from states ``X0`` (n_x x N+1) and controls ``U0`` (n_u x N), clipped into bounds;
+        moving points start where the mesh has them. With ``warm`` (the solution on a neighbouring
+        mesh) its multipliers are carried over (:func:`carry_multipliers`) and IPOPT starts warm."""
+        sx, su = self.sx, self.su
+        grid = self.grid
+        X0 = np.clip(X0, np.where(np.isfinite(self.xl), self.xl, -1e30), np.where(np.isfinite(self.xu), self.xu, 1e30))
+        U0 = np.clip(U0, self.ul, self.uu)
+        z0 = np.array([self.mesh.intervals[i].s_a for i in grid.free], dtype=float)
+        if grid.free:
+            lo, hi = grid.free_bounds[:, 0], grid.free_bounds[:, 1]
+            z0 = np.clip((z0 - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+        w0 = np.concatenate([(X0 / sx[:, None]).ravel(order="F"), (U0 / su[:, None]).ravel(order="F"), z0])
+        t0 = _time.perf_counter()
+        kw = {}
+        if warm is not None and warm.lam_g is not None:
+            kw["lam_x0"], kw["lam_g0"] = carry_multipliers(warm, self)
+        sol = self.solver(x0=w0, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg, **kw)
+        solve_time = _time.perf_counter() - t0
+        stats = self.solver.stats()
+        w = np.asarray(sol["x"], dtype=float).ravel()
+        nx, nu, n = len(sx), len(su), grid.n_col
+        X = w[: self.n_x_vars].reshape(nx, n + 1, order="F") * sx[:, None]
+        U = w[self.n_x_vars:self.n_x_vars + self.n_u_vars].reshape(nu, n, order="F") * su[:, None]
+        mesh = self.mesh
+        if grid.free:  # the moving points where the NLP put them: the solution's own mesh
+            lo, hi = grid.free_bounds[:, 0], grid.free_bounds[:, 1]
+            z = lo + (hi - lo) * w[self.n_x_vars + self.n_u_vars:]
+            ivs = list(mesh.intervals)
+            for j, i in enumerate(grid.free):
+                ivs[i] = replace(ivs[i], s_a=float(z[j]))
+                ivs[i - 1] = replace(ivs[i - 1], s_b=float(z[j]))
+            mesh = Mesh(tuple(ivs))
+        return RadauSolution(self.problem, Grid(mesh), X, U, float(sol["f"]) * self.problem.objective_scale,
+                             bool(stats.get("success", False)), str(stats.get("return_status", "unknown")),
+                             int(stats.get("iter_count", -1)), self.build_time_s, solve_time,
+                             _params(self.problem, Grid(mesh).phase_col, Grid(mesh).s_col),
+                             np.asarray(sol["lam_x"], dtype=float).ravel(), np.asarray(sol["lam_g"], dtype=float).ravel(),
+                             self.n_path)
+
+
+def interval_errors(sol: RadauSolution) -> np.ndarray:
+    """GPOPS-II's relative error of each interval (see the module text): on ``M = n + 1`` LGR points,
+    ``max |X_integrated - X_interpolated| / (1 + max |X|)`` over the states."""
+    problem, grid = sol.problem, sol.grid
+    model = problem.model
+    errs = np.zeros(len(grid.mesh.intervals))
+    for i, iv in enumerate(grid.mesh.intervals):
+        m = iv.n + 1
+        tau_hat, _ = _nodes.legendre_gauss_radau(m)
+        support_hat = _nodes.radau_support_points(m)
+        xs = sol.X[:, grid.points_of(i)]
+        x_hat = _lagrange(_nodes.radau_support_points(iv.n), xs, support_hat)  # nx x m+1
+        tau_u, _ = _nodes.legendre_gauss_radau(iv.n)
+        u_hat = _lagrange(tau_u, sol.U[:, grid.cols_of(i)], tau_hat)
+        ph = problem.phases[iv.phase]
+        u_hat = np.clip(u_hat, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
+        s_hat = iv.s_of(tau_hat)
+        p = {k: np.broadcast_to(np.asarray(v, float), s_hat.shape).copy() for k, v in ph.params(s_hat).items()}
+        xl = [x_hat[j, :m] for j in range(model.n_x)]
+        ul = [u_hat[j] for j in range(model.n_u)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.array([np.asarray(v, float) * np.ones(m) for v in _eval_model(model.dynamics, xl, ul, s_hat, p, model.n_x)])
+        f = f * iv.ds_dtau(tau_hat)[None, :]
+        if iv.mapping == "start" and i == 0 and problem.rest_start:
+            p0 = {k: v[:1] for k, v in p.items()}
+            rate = _eval_model(model.singular_start, [x[:1] for x in xl], [u[:1] for u in ul], s_hat[:1], p0, model.n_x)
+            f[:, 0] = np.array([float(np.asarray(r).ravel()[0]) for r in rate]) * iv.sqrt_factor
+        d = _nodes.radau_differentiation_matrix(m)
+        integ = np.linalg.solve(d[:, 1:], f.T).T  # X(tau_2..tau_m, +1) - X(-1)
+        x_int = x_hat[:, :1] + integ
+        scale = 1.0 + np.max(np.abs(xs), axis=1)
+        errs[i] = float(np.max(np.abs(x_int - x_hat[:, 1:]) / scale[:, None]))
+    return errs
+
+
+def control_activity(sol: RadauSolution, tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each control sits on its lower bound, and on its upper bound (its speed-dependent path
+    bound where the model names one, else its box bound), at each collocation point, within ``tol``
+    of its scale."""
+    problem, grid = sol.problem, sol.grid
+    model = problem.model
+    n = grid.n_col
+    su = np.asarray(model.control_scale, dtype=float)[:, None]
+    ul = np.array([problem.phases[k].control_lower for k in grid.phase_col]).T.reshape(model.n_u, n)
+    uu = np.array([problem.phases[k].control_upper for k in grid.phase_col]).T.reshape(model.n_u, n)
+    lower = sol.U - ul <= tol * su
+    upper = uu - sol.U <= tol * su
+    if model.path is not None and model.control_paths:
+        x = [sol.X[i, :n] for i in range(model.n_x)]
+        u = [sol.U[i] for i in range(model.n_u)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            g = [np.asarray(v, float) * np.ones(n) for v in _eval_model(model.path, x, u, grid.s_col, sol.params, model.n_path)]
+        for j, row in enumerate(model.control_paths):
+            if row is not None:
+                upper[j] |= g[row] >= -tol * su[j, 0]
+    return lower & ~upper, upper & ~lower
+
+
+def carry_multipliers(old: RadauSolution, new: "RadauTranscription") -> tuple[np.ndarray, np.ndarray]:
+    """Multipliers of ``old`` moved onto the mesh of ``new`` (for IPOPT's warm start).
+
+    A defect multiplier is the costate times the point's quadrature weight, a path or bound
+    multiplier the multiplier density times weight and ds/dtau; the densities are interpolated
+    along ``s`` and multiplied by the new weights (on an unchanged interval this returns the old
+    values). The few other constraints start at zero."""
+    og, ng = old.grid, new.grid
+    nx, nu = old.X.shape[0], old.U.shape[0]
+    npath = old.n_path
+    nc = nx + npath
+    wo = np.concatenate([_nodes.legendre_gauss_radau(iv.n)[1] for iv in og.mesh.intervals])
+    wn = np.concatenate([_nodes.legendre_gauss_radau(iv.n)[1] for iv in ng.mesh.intervals])
+    jo = np.maximum(og.jacobian, 1e-12)
+    jn = np.maximum(ng.jacobian, 1e-12)
+    lg = old.lam_g[: nc * og.n_col].reshape(nc, og.n_col, order="F")
+    lam_g = np.zeros(new.n_g)
+    dens = np.vstack([lg[:nx] / wo, lg[nx:] / (wo * jo)])
+    moved = np.array([np.interp(ng.s_col, og.s_col, d) for d in dens])
+    moved[:nx] *= wn
+    moved[nx:] *= wn * jn
+    lam_g[: nc * ng.n_col] = moved.ravel(order="F")
+    lam_x = np.zeros(new.n_x_vars + new.n_u_vars + len(ng.free))
+    lx = old.lam_x[: nx * (og.n_col + 1)].reshape(nx, og.n_col + 1, order="F")
+    lam_x[: nx * (ng.n_col + 1)] = np.array([np.interp(ng.s_points, og.s_points, r) for r in lx]).ravel(order="F")
+    lu = old.lam_x[nx * (og.n_col + 1): nx * (og.n_col + 1) + nu * og.n_col].reshape(nu, og.n_col, order="F")
+    du = np.array([np.interp(ng.s_col, og.s_col, r / (wo * jo)) for r in lu]) * (wn * jn)
+    lam_x[nx * (ng.n_col + 1): nx * (ng.n_col + 1) + nu * ng.n_col] = du.ravel(order="F")
+    return lam_x, lam_g

@@ -1,0 +1,119 @@
+"""The general sequence builder (issue 8): the priced-drive DP against exhaustive search, its drives as
+condition sequences, and the proposed strategy on lines the seed 002 builder could not drive."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from locoplan.io.load import load_route, load_train
+from locoplan.model.route import Route
+from locoplan.optimize.dp import DP_CONDITIONS, PricedDriveSolver
+from locoplan.runner import make_context, run_strategy, schedule_verdict
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from locoplan.strategy.drive import sequence_from_drive
+
+
+def _route(limits, grades, length):
+    def sections(items, key):
+        out, a = [], 0.0
+        for b, val in items:
+            out.append({"from_m": a, "to_m": b, key: val})
+            a = b
+        return out
+    return Route.model_validate({"schema": "locoplan/route@1", "name": "hand-made", "length_m": length,
+                                 "speed_limits": sections(limits, "kmh"), "gradients": sections(grades, "permille")})
+
+
+@pytest.fixture(scope="module")
+def hilly(freight):
+    """6 km: a climb, a crest, a descent steep enough to coast down, level to the stop."""
+    _, train = freight
+    return _route([(6000, 80)], [(1000, 0.0), (2500, 8.0), (4000, -9.0), (6000, 0.0)], 6000), train
+
+
+def test_dp_beats_every_one_and_two_switch_plan(hilly):
+    """On a coarse grid the DP's E + lambda T is at most that of every plan T-C-B and T-K-C-B with switches
+    on its own cell edges, simulated by the exact calculator (up to the DP's speed-grid error, 1 %)."""
+    route, train = hilly
+    calc = TractionCalculator(route, train, ModelOptions(step_m=200.0))
+    solver = PricedDriveSolver(calc, cell_m=200.0, switch_penalty_kwh=0.0, min_run_m=1.0)
+    price = 0.3  # kWh/s
+    d = solver.solve(price)
+    assert d is not None and set(np.unique(d.controls)) <= set(range(4))
+    best = math.inf
+    edges = calc.s_m[1:-1]
+    for x in edges:
+        res = calc.evaluate(("T", "C", "B"), [[x, np.nan]])
+        if res.feasible[0]:
+            best = min(best, res.traction_energy_kwh[0] + price * res.running_time_s[0])
+    for x, y in itertools.combinations(edges[::2], 2):
+        res = calc.evaluate(("T", "K", "C", "B"), [[x, y, np.nan]])
+        if res.feasible[0]:
+            best = min(best, res.traction_energy_kwh[0] + price * res.running_time_s[0])
+    assert d.energy_kwh + price * d.time_s <= best * 1.01
+
+
+def test_dp_price_trades_energy_for_time(hilly):
+    """A dearer hour buys a faster drive with more energy; the cheapest drive is the least energy."""
+    route, train = hilly
+    calc = TractionCalculator(route, train)
+    solver = PricedDriveSolver(calc)
+    drives = [solver.solve(p) for p in (1e-4, 0.1, 0.5, 2.0)]
+    times = [d.time_s for d in drives]
+    energies = [d.energy_kwh for d in drives]
+    assert times == sorted(times, reverse=True) and energies == sorted(energies)
+    assert drives[-1].time_s < 1.3 * calc.fastest_time_s
+    target = 0.5 * (times[1] + times[2])
+    close = solver.for_time(target)
+    assert abs(close.time_s - target) < 0.05 * target
+
+
+def test_every_run_but_the_departure_is_half_a_train_long(freight):
+    """Seed 002 eq. 3 (S >= L/2) holds by construction: the DP's runs, hence the sequence's."""
+    route, train = freight
+    calc = TractionCalculator(route, train, ModelOptions(step_m=100.0))
+    solver = PricedDriveSolver(calc)
+    d = solver.for_time(1500.0)
+    runs = []
+    for k, u in enumerate(d.controls):
+        if runs and runs[-1][2] == u:
+            runs[-1][1] = d.s_m[k + 1]
+        else:
+            runs.append([d.s_m[k], d.s_m[k + 1], u])
+    inner = runs[1:-1]  # the departure run and the final braking are exempt
+    assert all(b - a >= train.length_m / 2 - 1e-6 for a, b, _ in inner)
+    seq = sequence_from_drive(calc, d)
+    assert seq.conditions[-1] == "B" and len(seq.nominal_m) == len(seq.conditions) - 2
+    assert np.all(seq.lower_m <= seq.nominal_m + 1e-9) and np.all(seq.nominal_m <= seq.upper_m + 1e-9)
+    assert set(seq.conditions) <= set(DP_CONDITIONS)
+
+
+def test_proposed_on_a_line_the_seed_builder_could_not_drive(root):
+    """CH_StGallen_Wil with 3200 t: no climb is long-up at the limit speed, so seed 002's sequence collapsed
+    to T-C-B and every coast stalled; the general builder drives it on time, below four-stage."""
+    route = load_route(root / "routes/real/CH_StGallen_Wil.yaml")
+    train = load_train(root / "configs/consists/HXD1-C80x30.yaml")
+    fastest = TractionCalculator(route, train).fastest_time_s
+    t0 = round(1.2 * fastest)
+    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0, params_path=str(root / "tests/data/optimizers/issa.yaml"))
+    prop = run_strategy(ctx, "proposed")
+    four = run_strategy(ctx, "four-stage")
+    assert schedule_verdict(ctx, prop) is None
+    s = prop.summary
+    assert s["feasible"] and abs(s["running_time_s"] - t0) <= 0.01 * t0
+    assert s["traction_energy_kwh"] < four.summary["traction_energy_kwh"]
+    assert ctx.e_min() <= s["traction_energy_kwh"]  # E_min is a lower bound, as eq. 11 needs
+
+
+def test_a_falling_line_slower_than_its_least_energy(root):
+    """CH_Stadelhofen_Altstetten leg 1 falls 38 per mille: asked for more time than coasting takes, the
+    plan spends it holding lower speeds by braking (no extra traction), and is on time."""
+    route = load_route(root / "routes/real/CH_Stadelhofen_Altstetten-leg1.yaml")
+    train = load_train(root / "configs/consists/HXD1-C80x30.yaml")
+    fastest = TractionCalculator(route, train).fastest_time_s
+    t0 = round(1.6 * fastest, 1)
+    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+    prop = run_strategy(ctx, "proposed")
+    assert schedule_verdict(ctx, prop) is None, prop.summary
