@@ -54,7 +54,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
                  tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
-                 yardstick: bool = True,
+                 yardstick: bool = False,
                  calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 

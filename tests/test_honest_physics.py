@@ -185,7 +185,7 @@ def test_rotating_mass_factor_of_vehicles(tmp_path):
 
 
 # --------------------------------------------------------------------- schedules that cannot be met
-SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--e-min", "580"]
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--e-min", "580", "--no-gap"]
 
 
 def test_optimize_cannot_meet_ten_times_the_fastest_run(root, monkeypatch, freight):
@@ -214,7 +214,7 @@ def test_simulate_checks_the_window_when_a_time_is_asked(root, monkeypatch, frei
 def test_compare_names_the_strategy_that_misses(root, monkeypatch):
     monkeypatch.chdir(root)
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
-                              "--time", "9000", "--json", "--e-min", "580"])
+                              "--time", "9000", "--json", "--e-min", "580", "--no-gap"])
     assert res.exit_code == 1
     rows = {r["strategy"]: r for r in json.loads(res.stdout)["results"]}
     assert rows["time-saving"]["feasible"] and rows["four-stage"]["punctual"] is False

@@ -362,7 +362,7 @@ def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
     assert (tmp_path / "a.csv").read_text().startswith("s_m,t_s,v_kmh") and (tmp_path / "a.png").exists()
     res = runner.invoke(app, ["compare", str(LINE), "--strategies", "drivers,advice", "--logs", str(out),
                               "--patterns", str(pfile), "--consist", str(out / "consists/m4200.yaml"), "--time", "560",
-                              "--e-min", "100", "--json"])
+                              "--e-min", "100", "--json", "--no-gap"])
     assert res.exit_code == 0, res.output
     rows = {r["strategy"]: r for r in json.loads(res.stdout)["results"]}
     d = rows["drivers"]

@@ -57,7 +57,7 @@ class StrategyContext:
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
-    yardstick: bool = True
+    yardstick: bool = False
     """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
