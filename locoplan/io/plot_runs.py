@@ -109,7 +109,7 @@ def plot_pareto(front: dict, path: str | Path) -> None:
             label="best on-time plan at each T0")
     opt = [g for g in front["grid"] if g["optimum_kwh"] is not None]
     if opt:
-        ax.plot([g["planned_time_s"] for g in opt], [g["optimum_kwh"] for g in opt], "r-", lw=1.6, label="optimum E*(T)")
+        ax.plot([g["optimum_time_s"] for g in opt], [g["optimum_kwh"] for g in opt], "r-", lw=1.6, label="optimum E*(T)")
     ax.axvline(front["fastest_time_s"], color="grey", ls=":", lw=0.9)
     right = 1.08 * max(g["planned_time_s"] for g in front["grid"])
     beyond = [p for p in front["points"] if p["running_time_s"] > right]

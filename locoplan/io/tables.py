@@ -189,7 +189,7 @@ def pareto_table(front: dict) -> Table:
     """``locoplan pareto``: per planned time, the best on-time plan (and E* once known), and the front."""
     table = Table(title=escape(f"{front['route']} — {front['consist']}: energy-time front "
                                f"(fastest run {front['fastest_time_s']:.1f} s)"), title_justify="left")
-    for c in ("T0 [s]", "factor", "best on-time E [kWh]", "by", "its T [s]", "E* [kWh]", "gap [%]", "on front"):
+    for c in ("T0 [s]", "factor", "best on-time E [kWh]", "by", "its T [s]", "E* at its T [kWh]", "gap [%]", "on front"):
         table.add_column(escape(c), justify="right" if c != "by" else "left")
     for p in front["grid"]:
         table.add_row(f"{p['planned_time_s']:g}", f"{p['factor']:.3f}", _num(p["best_energy_kwh"], ".2f"),

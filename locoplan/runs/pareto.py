@@ -2,9 +2,8 @@
 
 At each planned time of a grid (factors of the fastest run, or seconds) the timetabled strategies
 plan (the proposed one over several seeds); time-saving and energy-saving add the two ends. The
-result has, per planned time, the best on-time plan found and, once a provider of the optimum is
-registered (:mod:`locoplan.runs.optimum`, seed 001's ``bound``), the optimum's energy E*(T) and the
-gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
+result has, per planned time, the best on-time plan found and the optimum's energy E* at that plan's
+own running time (:mod:`locoplan.runs.optimum`, seed 001's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
 other). Until E* is known the front is *the best plans found*, an upper bound of the true front, and
 the result says so (``front_kind``).
 """
@@ -79,13 +78,17 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     for t0, f in grid:
         ok = [p for p in points if p["planned_time_s"] == t0 and p["punctual"]]
         best = min(ok, key=lambda p: p["traction_energy_kwh"]) if ok else None
-        e_star = optimum_energy_kwh(route, train, base.options, t0) if optimum and optimum_providers() else None
+        # E* at the best plan's own running time (a plan may run up to its window later than T0, and
+        # E* falls with time): the gap compares like with like, as runner.summarize's does
+        t_star = t0 if best is None else best["running_time_s"]
+        e_star = optimum_energy_kwh(route, train, base.options, t_star) if optimum and optimum_providers() else None
         gap = None if best is None or e_star is None else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3)
         rows.append({"planned_time_s": t0, "factor": round(f, 4),
                      "best_energy_kwh": None if best is None else best["traction_energy_kwh"],
                      "best_strategy": None if best is None else best["strategy"],
                      "best_running_time_s": None if best is None else best["running_time_s"],
-                     "optimum_kwh": None if e_star is None else round(e_star, 2), "gap_to_optimum_percent": gap,
+                     "optimum_time_s": t_star, "optimum_kwh": None if e_star is None else round(e_star, 2),
+                     "gap_to_optimum_percent": gap,
                      "on_front": best is not None and (best["strategy"], best["running_time_s"], best["traction_energy_kwh"]) in on_front})
     known = any(r["optimum_kwh"] is not None for r in rows)
     return {"route": route.name, "consist": train.name, "fastest_time_s": round(fastest, 2),
