@@ -17,7 +17,6 @@ from .errors import InputError, LocoplanError, Problem
 from .io.report import all_or_none, check_output_path, to_json, write_output
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
-from .strategy.strategies import STRATEGIES
 
 out = Console()
 err = Console(stderr=True)
