@@ -160,10 +160,9 @@ def register(app: typer.Typer) -> None:
         """Seed 000 Tables 2-3: CVP 20/40, GPM 34/48, two-stage 17/24 (hp and the seed's global stage 2)."""
         from .ocp.study import check_output_path, run_study, write_study_output
 
-        if repeats < 1:
-            from .errors import InputError, Problem
+        from .bounds import count
 
-            raise InputError(Problem("ocp-study", "--repeats", f"must be >= 1, got {repeats}"))
+        count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
         check_output_path(plot, "--plot", (".png", ".svg"))
         with err.status("solving") as status:

@@ -30,6 +30,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .. import bounds
 from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import G_MS2, Train
@@ -128,6 +129,13 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
     return s
 
 
+def shorter_than_train(route: Route, train: Train, route_file: str, consist_file: str = "") -> Problem:
+    """The problem of a route no longer than its train (it cannot run from stop to stop)."""
+    of = f" ({consist_file})" if consist_file else ""
+    return Problem(route_file, "length_m", f"{route.length_m:,.0f} m: the route is shorter than the train '{train.name}'"
+                   f"{of}, {train.length_m:,.0f} m long; it cannot run from stop to stop")
+
+
 class TractionCalculator:
     """Route + train + model options, with everything plan-independent precomputed.
 
@@ -140,11 +148,9 @@ class TractionCalculator:
         self.backend = backend
         self.route, self.train = route, train
         self.options = options or ModelOptions()
-        if not self.options.step_m > 0:
-            raise InputError(Problem("", "step_m", f"must be > 0 (got {self.options.step_m:g})"))
+        bounds.step(self.options.step_m, route.length_m)
         if train.length_m >= route.length_m:
-            raise InputError(Problem("", "route", f"route '{route.name}' ({route.length_m:,.0f} m) is not longer than the "
-                                     f"train '{train.name}' ({train.length_m:,.0f} m): it cannot run from stop to stop"))
+            raise InputError(shorter_than_train(route, train, f"route '{route.name}'"))
         self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)
         s = _grid(route, train, self.options)
         self._build(s)
