@@ -21,7 +21,7 @@ from .optimize.registry import ALGORITHMS
 from .strategy.strategies import STRATEGIES
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 out = Console()
 err = Console(stderr=True)
@@ -120,7 +120,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False, soft_wrap=True)
+                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False, soft_wrap=True)
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:
@@ -129,7 +129,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
 
 # ------------------------------------------------------------------------------------------ simulate
 def _summary_table(summary: dict) -> Table:
-    table = Table(title=f"{summary['route']}\n{summary['consist']}", show_header=False, title_justify="left")
+    table = Table(title=escape(f"{summary['route']}\n{summary['consist']}"), show_header=False, title_justify="left")
     table.add_column("quantity", style="bold")
     table.add_column("value")
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({summary['reason']})"
@@ -372,7 +372,7 @@ def _explain(ctx) -> None:
     for g in seq.grades:
         t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
     out.print(t)
-    out.print(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}", highlight=False, soft_wrap=True)
+    out.print(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}", highlight=False, soft_wrap=True, markup=False)
 
 
 @app.command()
@@ -458,7 +458,7 @@ def sweep(route: Path = ROUTE,
         label = (lambda x: f"w_time {x.summary['weights'][0]:g}") if weights else (lambda x: f"T0 {x.summary['planned_time_s']:g} s")
         plot_profiles(plot, [(label(x), x.result.profile) for x in runs], f"{r.name} — {train.name}: sweep")
     if not as_json:
-        table = Table(title=f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}", title_justify="left")
+        table = Table(title=escape(f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}"), title_justify="left")
         cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness"]
         cols += [] if weights else ["energy reduction [%]"]
         for c in cols:
@@ -526,7 +526,7 @@ def study(route: Path = ROUTE,
                       f"{r.name} — {train.name}: best run of each optimiser",
                       histories=[(a, b.outcome.history) for a, b in zip(algs, best)])
     if not as_json:
-        table = Table(title=f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh", title_justify="left")
+        table = Table(title=escape(f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh"), title_justify="left")
         for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
                   "punctual runs", "punctual best E / T / fitness", "mean solve [s]"):
             table.add_column(escape(c), justify="right" if c != "algorithm" else "left")

@@ -176,7 +176,7 @@ def register(app: typer.Typer) -> None:
         else:
             for table in _fit_tables(data["report"]):
                 out.print(table)
-            out.print(f"patterns written to {out_file}", highlight=False)
+            out.print(f"patterns written to {out_file}", highlight=False, markup=False)
 
     @app.command("advise")
     @guarded

@@ -89,7 +89,28 @@ def check_time_possible(ctx: StrategyContext) -> None:
     fastest = ctx.calc.fastest_time_s
     if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
         raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
-                              f"{fastest:.1f} s ({ctx.calc.route.name}, {ctx.calc.train.name})")
+                              f"{fastest:,.1f} s{_hours(fastest)} ({ctx.calc.route.name}, {ctx.calc.train.name}): "
+                              f"{slowest_limit(ctx.calc)}")
+
+
+def _hours(seconds: float) -> str:
+    return f" = {seconds / 3600:.2f} h" if seconds >= 3600 else (f" = {seconds / 60:.1f} min" if seconds >= 120 else "")
+
+
+def slowest_limit(calc: TractionCalculator) -> str:
+    """The speed-limit section that takes longest at its limit (or the train's top speed): a lower bound
+    on any run's time that says why the fastest run takes as long as it does."""
+    top = calc.train.max_speed_kmh
+
+    def at_limit_s(sec) -> float:
+        return (sec.to_m - sec.from_m) / (min(sec.kmh, top) / 3.6)
+
+    total = sum(at_limit_s(s) for s in calc.route.speed_limits)
+    sec = max(calc.route.speed_limits, key=at_limit_s)
+    t = at_limit_s(sec)
+    cap = f"the train's top speed {top:g} km/h" if top < sec.kmh else f"the limit of {sec.kmh:g} km/h"
+    return (f"at the limit all the way it would take {total:,.1f} s{_hours(total)} (longest part: {cap} over "
+            f"{sec.from_m:,.0f} .. {sec.to_m:,.0f} m needs {t:,.1f} s{_hours(t)}); starting, stopping and grades take the rest")
 
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:

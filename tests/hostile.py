@@ -40,6 +40,7 @@ class Case:
     exit: int = 2
     expect: tuple[str, ...] = ()  # each must appear in stderr (file, field, why)
     batch_file: str | None = None  # a file case `validate` can check together with others
+    expect_out: tuple[str, ...] = ()  # each must appear in stdout
     after: Callable[[], str | None] | None = None  # extra check after the run; returns a complaint or None
     umask: int | None = None
     stdin_ok: bool = False
@@ -282,6 +283,10 @@ def build(tmp: Path) -> list[Case]:
     slow = write("slow_limit.yaml", route(kmh="1"))
     cases.append(Case("slow_limit_optimize", "message", ["optimize", slow, "--consist", SMALL], 1,
                       ("1 km/h", " h")))
+    downhill = write("downhill.yaml", route(length="8000", permille="-40", kmh="40",
+                                            schedule="schedule: {run_time_s: 900, tolerance_s: 30}\n"))
+    cases.append(Case("cannot_hold_limit", "message", ["simulate", downhill, "--consist", "HXD1-C80x50", "--no-air-brake"], 1,
+                      ("cannot hold 40 km/h", "-40.0 per mille")))
     cases.append(Case("time_below_fastest", "message", ["optimize", good_route, "--consist", SMALL, "--time", "50"], 1,
                       ("below the fastest possible run",)))
 
@@ -484,6 +489,14 @@ def build(tmp: Path) -> list[Case]:
     # --- messages: never an empty file field, never markup eaten
     option("empty_file_field_weights", opt + ["--weights", "x"], f"{CMDLINE}: --weights")
     option("markup_sequence", sim + ["--sequence", "T:0,[bold]X:5"], "[BOLD]X", cls="message")
+    marked = write("marked_route.yaml", route(name="'[bold]Strecke[/bold] [m]'"))
+    cases.append(Case("markup_route_name", "message", ["simulate", marked, "--consist", SMALL], 0, (),
+                      expect_out=("[bold]Strecke[/bold] [m]",)))
+    cases.append(Case("markup_help", "message", ["simulate", "--help"], 0, (), expect_out=("[m]", "[s]", "[kWh]")))
+    nocurve = write("no_curve.yaml", VEHICLE.format(name="NoCurve", mass="200", a="2.23", force="532")
+                    .replace("traction_kn: [[0, 532.0], [120, 532]]\n", ""))
+    cases.append(Case("markup_curve_hint", "message", ["validate", nocurve], 2, (nocurve, "traction_kn",
+                                                                                "[[speed_kmh, force_kn], ...]")))
     markup_route = write("[m]route.yaml", route(length="abc"))
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
     return cases
@@ -543,6 +556,9 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
     for text in case.expect:
         if text not in err:
             o.problems.append(f"stderr lacks {text!r}")
+    for text in case.expect_out:
+        if text not in out:
+            o.problems.append(f"stdout lacks {text!r}")
     if case.exit != 0 and "error: : " in err:
         o.problems.append("a message with an empty file field")
     if case.after is not None:

@@ -123,8 +123,7 @@ class NoFeasibleCandidateError(InfeasibleError):
         self.needed, self.found, self.sampled, self.batches = needed, found, sampled, batches
         super().__init__(
             f"could not find {needed} feasible candidate(s) for the optimiser population: only {found} of "
-            f"{sampled} random samples in {batches} batch(es) passed the traction calculation; the constraints "
-            "(e.g. the scheduled running time) may be too tight for this route and train"
+            f"{sampled} random samples in {batches} batch(es) passed the traction calculation"
         )
 
 
