@@ -108,8 +108,8 @@ def weights(text: str, option: str = "--weights") -> tuple[float, float]:
     except ValueError:
         raise InputError(Problem(CMDLINE, option, f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
     if len(parts) != 2 or not all(math.isfinite(x) and x >= 0 for x in parts) or abs(sum(parts) - 1) > 1e-9:
-        raise InputError(Problem(CMDLINE, option, "expected two finite, non-negative weights summing to 1 "
-                                 f"(seed 002 eq. 10), got {text!r}"))
+        raise InputError(Problem(CMDLINE, option, "expected two non-negative weights summing to 1 "
+                                 f"(finite numbers, seed 002 eq. 10), got {text!r}"))
     return parts[0], parts[1]
 
 

@@ -89,7 +89,7 @@ def check_time_possible(ctx: StrategyContext) -> None:
     fastest = ctx.calc.fastest_time_s
     if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
         raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
-                              f"{fastest:,.1f} s{_hours(fastest)} ({ctx.calc.route.name}, {ctx.calc.train.name}): "
+                              f"{fastest:.1f} s{_hours(fastest)} ({ctx.calc.route.name}, {ctx.calc.train.name}): "
                               f"{slowest_limit(ctx.calc)}")
 
 
