@@ -64,8 +64,8 @@ def seed(value: int, option: str = "--seed") -> int:
     lo, hi = LIMITS["seed"]
     if not lo <= value <= hi:
         got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
-        raise InputError(Problem(CMDLINE, option, f"must be an integer >= 0 and < 2**63 (got {got}): numpy's "
-                                 "random generators take no negative seeds"))
+        raise InputError(Problem(CMDLINE, option, f"must be an integer 0 .. 2**63 - 1 (got {got}): numpy's "
+                                 "random generators take no negative seeds, and a seed is a label, not a quantity"))
     return value
 
 

@@ -154,6 +154,14 @@ def build(tmp: Path) -> list[Case]:
     # --- yaml: structure that blows up parsers (aliases, nesting, keys, tags, documents)
     file_case("alias_bomb.yaml", "yaml", route() + alias_bomb(), "alias", note="9**9 nodes when expanded")
     file_case("alias_bomb_wide.yaml", "yaml", route() + alias_bomb(5, 40), "alias", note="40**5 nodes")
+    file_case("alias_bomb_maps.yaml", "yaml", route() + "".join(
+        f"m{i}: &m{i} {{a: *m{i - 1}, b: *m{i - 1}, c: *m{i - 1}, d: *m{i - 1}}}\n" if i else "m0: &m0 {a: 1}\n" for i in range(12)),
+        "alias", note="mappings of aliases, 4**11 nodes")
+    file_case("alias_bomb_merge.yaml", "yaml", route() + "".join(
+        f"m{i}: &m{i} {{<<: [*m{i - 1}], x{i}: [*m{i - 1}, *m{i - 1}, *m{i - 1}]}}\n" if i else "m0: &m0 {a: 1}\n" for i in range(14)),
+        "alias", note="merge keys of aliases")
+    file_case("many_values.yaml", "yaml", route(length="250000", extra="tunnels:\n" + "".join(
+        f"  - {{from_m: {10 * i}, to_m: {10 * i + 5}}}\n" for i in range(22000))), "100,000 values")
     file_case("alias_recursive.yaml", "yaml", route() + "loop: &x [1, *x]\n", "recursive", field_="loop")
     file_case("alias_unknown.yaml", "yaml", route() + "x: *nowhere\n", "not valid YAML")
     file_case("alias_small_ok.yaml", "yaml", route(extra="tunnels:\n  - &t {from_m: 100, to_m: 200}\n"
@@ -184,6 +192,7 @@ def build(tmp: Path) -> list[Case]:
     file_case("top_list.yaml", "yaml", "- 1\n- 2\n", "expected a mapping")
     file_case("only_comments.yaml", "yaml", "# nothing here\n# at all\n", "file is empty")
     file_case("nul_bytes.yaml", "yaml", route().replace("hostile", "host\x00ile"), "not valid YAML")
+    file_case("nul_in_value.yaml", "yaml", route() + "x: 1\x00\n", "control character U+0000")
     file_case("control_chars.yaml", "yaml", route().replace("hostile", "host\x07ile\x1b[31m"), "not valid YAML")
     file_case("markup_in_values.yaml", "message", route().replace("name: hostile", "name: hostile\n'[m]': 1"),
               "[m]", "unknown key", note="rich markup must not eat '[m]'")
@@ -202,7 +211,7 @@ def build(tmp: Path) -> list[Case]:
     with open(big, "a", encoding="utf-8") as fh:
         line = "# " + "padding " * 12 + "\n"
         fh.write(line * (11 * 1024 * 1024 // len(line) + 1))
-    cases.append(Case("big.yaml", "file", ["validate", big], 2, (big, "MB"), batch_file=big, note="11 MB"))
+    cases.append(Case("big.yaml", "file", ["validate", big], 2, (big, "MiB"), batch_file=big, note="11 MB"))
     folder = files / "a_folder.yaml"
     folder.mkdir(exist_ok=True)
     cases.append(Case("folder_as_file", "file", ["validate", str(folder)], 2, (str(folder), "folder"), batch_file=str(folder)))
@@ -378,13 +387,13 @@ def build(tmp: Path) -> list[Case]:
         option(f"step_{v}", sim + ["--step", v], CMDLINE, "--step")
     option("step_above_route", ["simulate", write("r300.yaml", route(length="300")), "--consist", SMALL, "--step", "200"],
            CMDLINE, "--step", "cells")
-    for v in ("-1", "-99999999999999999999"):
-        option(f"seed_{v}", opt + ["--seed", v], CMDLINE, "--seed", ">= 0")
+    for v in ("-1", "-99999999999999999999", str(2 ** 63)):
+        option(f"seed_{v}", opt + ["--seed", v], CMDLINE, "--seed", "0 .. 2**63 - 1")
     option("seed_study_negative", ["study", good_route, "--consist", SMALL, "--runs", "2", "--seed", "-1"], CMDLINE, "--seed")
-    for v in ("nan", "inf", "0", "-5", "1e308"):
+    for v in ("nan", "inf", "0", "-5", "1e308", "1e-300", "0.5"):
         option(f"time_{v}", opt + ["--time", v], CMDLINE, "--time")
     option("time_nan_simulate", sim + ["--time", "nan"], CMDLINE, "--time")
-    for v in ("nan", "inf", "-1", "0"):
+    for v in ("nan", "inf", "-1", "0", "1e300"):
         option(f"e_min_{v}", sim + ["--strategy", "proposed", "--e-min", v], CMDLINE, "--e-min")
     option("e_min_nan_optimize", opt + ["--e-min", "nan"], CMDLINE, "--e-min")
     for v in ("nan", "inf", "-1"):
@@ -443,6 +452,13 @@ def build(tmp: Path) -> list[Case]:
     option("out_dot", sim + ["--out", str(out_dir)], "--out", cls="output")
     option("out_unwritable", sim + ["--out", "/proc/locoplan.json"], "/proc/locoplan.json", "--out", "cannot write", cls="output")
     option("out_missing_folder", sim + ["--out", str(out_dir / "no/such/x.json")], "--out", "does not exist", cls="output")
+    option("out_name_too_long", sim + ["--out", str(out_dir / ("x" * 300 + ".json"))], "--out", "cannot write", cls="output")
+    pipe_json = out_dir / "pipe.json"
+    if not pipe_json.exists():
+        os.mkfifo(pipe_json)
+    option("out_is_a_fifo", sim + ["--out", str(pipe_json)], str(pipe_json), "--out", "not a regular file", cls="output")
+    option("drivers_out_unwritable", ["drivers", "simulate", good_route, "--out", "/proc/logs", "--drivers", "1", "--runs", "1"],
+           "/proc/logs", "--out", "cannot write", cls="output")
     option("out_parent_is_file", sim + ["--out", good_route + "/x.json"], "--out", cls="output")
     (out_dir / "folder.png").mkdir(exist_ok=True)
     option("plot_is_folder", sim + ["--plot", str(out_dir / "folder.png")], "--plot", "folder", cls="output")

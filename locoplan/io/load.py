@@ -87,6 +87,9 @@ shipped), and keeps a mistaken ``/dev/zero``-like input from filling the memory.
 MAX_DEPTH = 32
 """Deepest nesting of lists and mappings: every locoplan file needs 4 levels; Python's own recursion
 (the YAML composer, pydantic) fails near 1,000."""
+MAX_NODES = 100_000
+"""Most values (YAML nodes, aliases expanded) in one file: the largest real line shipped holds about
+2,500 (355 sections); 100,000 is 14,000 sections, and parsing and checking them takes seconds, not minutes."""
 MAX_ALIAS_NODES = 100_000
 """Nodes that YAML aliases may add when expanded: an anchor reused a few times is fine, the 'billion
 laughs' (9 levels of 9 aliases = 387 million nodes) is not."""
@@ -108,8 +111,8 @@ def _kind_problem(name: str, mode: int) -> Problem | None:
 
 
 def _too_big(name: str, size: int, limit: int) -> Problem:
-    return Problem(name, "", f"is {size / 1e6:,.1f} MB or more, larger than the {limit / 1e6:g} MB limit for input "
-                   "files (the longest real line shipped takes 0.1 MB)")
+    return Problem(name, "", f"is {size / 2**20:,.1f} MiB or more, larger than the {limit / 2**20:g} MiB limit for input "
+                   "files (the longest real line shipped takes 0.1 MiB)")
 
 
 def read_bytes(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
@@ -205,6 +208,7 @@ def _scan(text: str, name: str) -> None:
     stack: list[_Open] = []
     anchors: dict[str, int | None] = {}  # expanded node count of each anchored node (None while still open)
     added = 0  # nodes that aliases add when expanded
+    written = 0  # nodes written out
 
     def where() -> str:
         parts: list = []
@@ -242,6 +246,11 @@ def _scan(text: str, name: str) -> None:
 
     try:
         for event in yaml.parse(text, Loader=_LOADER):
+            if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                written += 1
+                if written > MAX_NODES:
+                    fail(event, f"holds more than {MAX_NODES:,} values: no route, vehicle or consist needs so many "
+                                "(the largest real line shipped holds about 2,500; 355 sections)")
             top = stack[-1] if stack else None
             at_key = top is not None and top.is_map and top.want_key
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
@@ -296,6 +305,12 @@ def parse_yaml(text: str, name: str) -> tuple[Any, yaml.Node | None]:
     try:
         node = loader.get_single_node()
         data = None if node is None else loader.construct_document(node)
+    except yaml.reader.ReaderError as exc:  # a control character: say which and where
+        line = text.count("\n", 0, exc.position) + 1
+        column = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        raise InputError(Problem(name, "", f"not valid YAML: control character U+{code:04X} in column {column} "
+                                 "(YAML text may not contain it)", line)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark else None

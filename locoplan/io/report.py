@@ -29,6 +29,13 @@ def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...]
     if path is None:
         return None
     path = Path(path)
+    try:
+        return _check_output(path, option, suffixes)
+    except OSError as exc:  # a name too long, a loop of links, ...
+        raise InputError(Problem(str(path), option, f"cannot write: {exc.strerror or exc}")) from None
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     name = str(path)
     if suffixes and path.suffix.lower() not in suffixes:
         raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
@@ -42,12 +49,17 @@ def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...]
     if not folder.is_dir():
         raise InputError(Problem(name, option, f"{folder} is not a folder"))
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
         raise InputError(Problem(name, option, f"cannot write into {folder}: {exc.strerror or exc}")) from None
     return path
+
+
+def _temp_prefix(path: Path) -> str:
+    """A hidden temporary name beside ``path``: short enough for any name the folder takes."""
+    return f".{path.name[:40]}."
 
 
 def _umask() -> int:
@@ -79,7 +91,7 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     if not folder.is_dir():
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
         os.close(fd)
     except OSError as exc:
         raise InputError(Problem(str(path), "", f"cannot write into {folder}: {exc.strerror or exc}")) from None

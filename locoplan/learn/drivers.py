@@ -431,6 +431,10 @@ def consist_for_mass(base: Consist, vehicles: dict[str, Vehicle], mass_t: float)
     fixed = sum(vehicles[e.type].mass_t * e.count + e.load_t * e.count for i, e in enumerate(base.vehicles) if i != w)
     payload_max = wagon.max_load_t if wagon.max_load_t is not None else entry.load_t
     per_wagon = wagon.mass_t + payload_max
+    if payload_max <= 0 and abs(mass_t - fixed - round((mass_t - fixed) / wagon.mass_t) * wagon.mass_t) > 1e-6:
+        raise InputError(Problem("<command line>", "--masses", f"{mass_t:g} t cannot be reached: {wagon.name} declares no "
+                                 "max_load_t and its entry no load_t, so only whole wagons of "
+                                 f"{wagon.mass_t:g} t can be added (use a consist whose wagon has max_load_t)"))
     rest = mass_t - fixed
     if rest < wagon.mass_t:
         raise InputError(Problem("<command line>", "--masses", f"{mass_t:g} t is lighter than the locomotives plus one "
@@ -520,6 +524,12 @@ def check_out_dir(out_dir: Path) -> None:
     parent = out_dir.parent if str(out_dir.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(Problem(str(out_dir), "--out", f"folder {parent} does not exist"))
+    try:  # the logs go into a temporary folder beside it first: can one be made there?
+        import tempfile
+
+        os.rmdir(tempfile.mkdtemp(prefix=".locoplan-probe-", dir=parent))
+    except OSError as exc:
+        raise InputError(Problem(str(out_dir), "--out", f"cannot write into {parent}: {exc.strerror or exc}")) from None
 
 
 def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> SimulationSummary:

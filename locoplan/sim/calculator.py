@@ -239,7 +239,11 @@ class TractionCalculator:
         x = self._entry_m
         if not x.size:
             return x
-        gap = np.min(np.abs(x[:, None] - self.s_m[None, :]), axis=1)
+        # distance to the nearest node by bisection (the nodes are sorted): O(n log n) memory-light,
+        # where an (entries x nodes) matrix took a gigabyte on a line of thousands of limits
+        s = self.s_m
+        i = np.clip(np.searchsorted(s, x), 1, len(s) - 1)
+        gap = np.minimum(np.abs(x - s[i - 1]), np.abs(x - s[i]))
         return x[gap > 1e-3]
 
     @cached_property
