@@ -42,7 +42,7 @@ def finite(value: float, option: str, lo: float | None = None, hi: float | None 
     """``value`` as a float if it is finite and inside [lo, hi] (``lo_open``: (lo, hi]); else ``InputError``."""
     u = f" {unit}" if unit else ""
     if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(Problem(CMDLINE, option, f"must be a finite number{u} (got {value})"))
+        raise InputError(Problem(CMDLINE, option, f"must be a finite number{', in ' + unit if unit else ''} (got {value})"))
     low_bad = lo is not None and (value <= lo if lo_open else value < lo)
     if low_bad or (hi is not None and value > hi):
         left = "(" if lo_open else "["

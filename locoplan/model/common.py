@@ -31,7 +31,7 @@ def plausible(lo: float, hi: float, unit: str, why: str) -> AfterValidator:
 
     def check(value: float) -> float:
         if not lo <= value <= hi:
-            raise RuleViolations([((), f"{value:g} {unit} is implausible: {why} (expected {number(lo)} .. {number(hi)} {unit})")])
+            raise RuleViolations([((), f"{number(value) if isinstance(value, int) else format(value, 'g')} {unit} is implausible: {why} (expected {number(lo)} .. {number(hi)} {unit})")])
         return value
 
     return AfterValidator(check)
