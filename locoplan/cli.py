@@ -14,7 +14,7 @@ from rich.table import Table
 
 from . import __version__, bounds
 from .errors import InputError, LocoplanError, Problem
-from .io.load import SCHEMAS, check_folder, load_route, load_route_and_train, load_train, read_yaml, resolve_consist_path, stock_dirs_for, validate_data
+from .io.load import SCHEMAS, check_folder, load_route_and_train, load_train, read_yaml, resolve_consist_path, stock_dirs_for, validate_data
 from .io.report import all_or_none, check_output, to_json, write_output
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 from .optimize.registry import ALGORITHMS
@@ -521,7 +521,7 @@ def study(route: Path = ROUTE,
     if plot:
         from .io.plot import plot_profiles
 
-        best = [min(results[a], key=lambda x: x.summary["fitness"] if x.summary["fitness"] is not None else np.inf) for a in algs]
+        best = [min(results[a], key=lambda x: x.summary["fitness"] if x.summary["fitness"] is not None else float("inf")) for a in algs]
         plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.result.profile) for a, b in zip(algs, best)],
                       f"{r.name} — {train.name}: best run of each optimiser",
                       histories=[(a, b.outcome.history) for a, b in zip(algs, best)])

@@ -490,6 +490,10 @@ def build(tmp: Path) -> list[Case]:
             return None if got == want else f"{path.name} has mode {got:o}, expected {want:o}"
         return check
 
+    study_png = out_dir / "study.png"
+    cases.append(Case("study_plot_ok", "output", ["study", good_route, "--consist", SMALL, "--algorithms", "issa", "--runs", "1",
+                                                   "--params-dir", str(ROOT / "tests/data/optimizers"), "--plot", str(study_png)],
+                      0, (), after=lambda: None if study_png.is_file() else "study.png was not written"))
     new_csv = out_dir / "new.csv"
     cases.append(Case("umask_022_new_file", "output", sim + ["--out", str(new_csv)], 0, (), after=mode_is(new_csv, 0o644),
                       umask=0o022))
