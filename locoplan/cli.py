@@ -12,16 +12,16 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from . import __version__
+from . import __version__, bounds
 from .errors import InputError, LocoplanError, Problem
-from .io.load import SCHEMAS, load_route, load_train, read_yaml, resolve_consist_path, stock_dirs_for, validate_data
-from .io.report import to_json, write_output
+from .io.load import SCHEMAS, check_folder, load_route_and_train, load_train, read_yaml, resolve_consist_path, stock_dirs_for, validate_data
+from .io.report import all_or_none, check_output, to_json, write_output
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 from .optimize.registry import ALGORITHMS
 from .strategy.strategies import STRATEGIES
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 out = Console()
 err = Console(stderr=True)
@@ -35,11 +35,12 @@ def guarded(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            return fn(*args, **kwargs)
+            # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
+            with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
+                return fn(*args, **kwargs)
         except LocoplanError as exc:
-            problems = getattr(exc, "problems", None) or [Problem("", "", str(exc))]
-            for p in problems:
-                err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, markup=True, soft_wrap=True)
+            for text in (str(p) for p in getattr(exc, "problems", None) or [exc]):  # an infeasible request has no file
+                err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
             raise typer.Exit(exc.exit_code) from None
     return wrapper
 
@@ -66,8 +67,7 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
 
 def _options(step: float, point_mass: bool, rotating_mass: Optional[float], strict_limits: bool = False,
              air_brake: Optional[bool] = None) -> ModelOptions:
-    if not 0 < step <= 1000:
-        raise InputError(Problem("<command line>", "--step", f"must be in (0, 1000] m (got {step:g})"))
+    bounds.step(step)
     if rotating_mass is not None and not 0 <= rotating_mass < 1:
         raise InputError(Problem("<command line>", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
     air = (not point_mass) if air_brake is None else air_brake
@@ -102,6 +102,11 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     """Check files; print every problem as file:line: field: message (exit 2), or a summary per file."""
     problems: list[Problem] = []
     summaries = []
+    try:
+        if stock_dir is not None:
+            check_folder(stock_dir, "--stock-dir")
+    except InputError as exc:
+        problems += exc.problems
     for f in files:
         try:
             data, lines = read_yaml(f)
@@ -115,7 +120,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False, soft_wrap=True)
+                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False, soft_wrap=True)
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:
@@ -124,7 +129,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
 
 # ------------------------------------------------------------------------------------------ simulate
 def _summary_table(summary: dict) -> Table:
-    table = Table(title=f"{summary['route']}\n{summary['consist']}", show_header=False, title_justify="left")
+    table = Table(title=escape(f"{summary['route']}\n{summary['consist']}"), show_header=False, title_justify="left")
     table.add_column("quantity", style="bold")
     table.add_column("value")
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({summary['reason']})"
@@ -179,27 +184,14 @@ def _progress(enabled: bool):
 
 
 def _weights(text: str) -> tuple[float, float]:
-    try:
-        parts = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise InputError(Problem("", "--weights", f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
-    if len(parts) != 2 or min(parts) < 0 or abs(sum(parts) - 1) > 1e-9:
-        raise InputError(Problem("", "--weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {text!r}"))
-    return parts[0], parts[1]
+    return bounds.weights(text, "--weights")
 
 
 def _range(text: str, field: str) -> list[float]:
-    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530'."""
-    try:
-        if ":" in text:
-            a, b, c = (float(x) for x in text.split(":"))
-            if c <= 0 or b < a:
-                raise ValueError
-            n = int(round((b - a) / c))
-            return [round(a + i * c, 10) for i in range(n + 1)]
-        return [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise InputError(Problem("", field, f"expected start:stop:step or a comma list of numbers, got {text!r}")) from None
+    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times."""
+    if field == "--weights":
+        return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
+    return bounds.values(text, field, *bounds.LIMITS["time_s"], "s", "a planned running time")
 
 
 def _names(text: str, field: str) -> list[str]:
@@ -212,7 +204,7 @@ def _names(text: str, field: str) -> list[str]:
 def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
           rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
-    return load_route(route), load_train(consist, stock_dir), opts
+    return (*load_route_and_train(route, consist, stock_dir), opts)
 
 
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
@@ -223,19 +215,11 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
 
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
-    """Refuse bad output names before any long computation."""
+    """Refuse bad output names (type, folder, writable) before any long computation."""
     from .io.plot import check_plot_path
 
-    if out_file is not None:
-        suffix = out_file.suffix.lower()
-        if suffix not in ((".csv", ".json") if csv_ok else (".json",)):
-            raise InputError(Problem(str(out_file), "--out", f"unknown output type {suffix or '(none)'!r}; use {'.csv or ' if csv_ok else ''}.json"))
-        if not (out_file.parent if str(out_file.parent) else Path(".")).is_dir():
-            raise InputError(Problem(str(out_file), "", f"folder {out_file.parent} does not exist"))
-    if plot is not None:
-        check_plot_path(plot)
-        if not (plot.parent if str(plot.parent) else Path(".")).is_dir():
-            raise InputError(Problem(str(plot), "", f"folder {plot.parent} does not exist"))
+    check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
+    check_output(plot and check_plot_path(plot), "--plot")
 
 
 # Options shared by the commands (typer has no option groups; these keep them identical)
@@ -392,7 +376,7 @@ def _explain(ctx) -> None:
     for g in seq.grades:
         t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
     out.print(t)
-    out.print(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}", highlight=False, soft_wrap=True)
+    out.print(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}", highlight=False, soft_wrap=True, markup=False)
 
 
 @app.command()
@@ -478,7 +462,7 @@ def sweep(route: Path = ROUTE,
         label = (lambda x: f"w_time {x.summary['weights'][0]:g}") if weights else (lambda x: f"T0 {x.summary['planned_time_s']:g} s")
         plot_profiles(plot, [(label(x), x.result.profile) for x in runs], f"{r.name} — {train.name}: sweep")
     if not as_json:
-        table = Table(title=f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}", title_justify="left")
+        table = Table(title=escape(f"{r.name}: {'Table 6, weights' if weights else 'Table 7, running times'}"), title_justify="left")
         cols = (["w_time", "w_energy"] if weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
         cols += [] if weights else ["energy reduction [%]"]
         for c in cols:
@@ -516,8 +500,9 @@ def study(route: Path = ROUTE,
     algs = _names(algorithms, "--algorithms")
     for a in algs:
         get_algorithm(a)
-    if runs < 1:
-        raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
+    bounds.runs(bounds.count(runs, "--runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser") * len(algs), "--runs")
+    if params_dir is not None:
+        check_folder(params_dir, "--params-dir")
     w = _weights(weights)
     _check_outputs(out_file, plot, csv_ok=False)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
@@ -541,12 +526,12 @@ def study(route: Path = ROUTE,
     if plot:
         from .io.plot import plot_profiles
 
-        best = [min(results[a], key=lambda x: x.summary["fitness"] if x.summary["fitness"] is not None else np.inf) for a in algs]
+        best = [min(results[a], key=lambda x: x.summary["fitness"] if x.summary["fitness"] is not None else float("inf")) for a in algs]
         plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.result.profile) for a, b in zip(algs, best)],
                       f"{r.name} — {train.name}: best run of each optimiser",
                       histories=[(a, b.outcome.history) for a, b in zip(algs, best)])
     if not as_json:
-        table = Table(title=f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh", title_justify="left")
+        table = Table(title=escape(f"{r.name}: {runs} runs per optimiser (Tables 10-12), E_min {ctx.e_min():.1f} kWh"), title_justify="left")
         for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
                   "punctual runs", "punctual best E / T / fitness", "mean vs E* [%]", "mean solve [s]"):
             table.add_column(escape(c), justify="right" if c != "algorithm" else "left")

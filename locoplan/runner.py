@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import bounds
 from .errors import InfeasibleError, InputError, Problem
 from .model.plan import Plan, parse_sequence, runs_from_profile
 from .model.route import Route
@@ -41,11 +42,9 @@ DEFAULT_TOLERANCE_SHARE = 0.01
 
 def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
-        if not (math.isfinite(time_s) and time_s > 0):
-            raise InputError(Problem("<command line>", "--time", f"must be a finite number of seconds > 0 (got {time_s:g})"))
-        return float(time_s)
+        return bounds.planned_time(time_s)
     if route.schedule is None:
-        raise InputError(Problem("", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
+        raise InputError(Problem("<command line>", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
     return float(route.schedule.run_time_s)
 
 
@@ -60,6 +59,11 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
     ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did."""
     options = options or ModelOptions()
+    bounds.seed(seed)
+    if e_min_kwh is not None:
+        bounds.finite(e_min_kwh, "--e-min", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+    if tolerance_s is not None:
+        bounds.finite(tolerance_s, "--tolerance", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
     calc = TractionCalculator(route, train, options)
     # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
     search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
@@ -86,7 +90,28 @@ def check_time_possible(ctx: StrategyContext) -> None:
     fastest = ctx.calc.fastest_time_s
     if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
         raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
-                              f"{fastest:.1f} s ({ctx.calc.route.name}, {ctx.calc.train.name})")
+                              f"{fastest:.1f} s{_hours(fastest)} ({ctx.calc.route.name}, {ctx.calc.train.name}): "
+                              f"{slowest_limit(ctx.calc)}")
+
+
+def _hours(seconds: float) -> str:
+    return f" = {seconds / 3600:.2f} h" if seconds >= 3600 else (f" = {seconds / 60:.1f} min" if seconds >= 120 else "")
+
+
+def slowest_limit(calc: TractionCalculator) -> str:
+    """The speed-limit section that takes longest at its limit (or the train's top speed): a lower bound
+    on any run's time that says why the fastest run takes as long as it does."""
+    top = calc.train.max_speed_kmh
+
+    def at_limit_s(sec) -> float:
+        return (sec.to_m - sec.from_m) / (min(sec.kmh, top) / 3.6)
+
+    total = sum(at_limit_s(s) for s in calc.route.speed_limits)
+    sec = max(calc.route.speed_limits, key=at_limit_s)
+    t = at_limit_s(sec)
+    cap = f"the train's top speed {top:g} km/h" if top < sec.kmh else f"the limit of {sec.kmh:g} km/h"
+    return (f"at the limit all the way it would take {total:,.1f} s{_hours(total)} (longest part: {cap} over "
+            f"{sec.from_m:,.0f} .. {sec.to_m:,.0f} m needs {t:,.1f} s{_hours(t)}); starting, stopping and grades take the rest")
 
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
@@ -199,10 +224,11 @@ def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
 
 def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
     """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
+    for w in w_time:  # every value checked before the first run
+        bounds.finite(w, "--weights", 0.0, 1.0, why="a time weight")
+    bounds.runs(len(w_time), "--weights", "time weights")
     out = []
     for w in w_time:
-        if not 0 <= w <= 1:
-            raise InputError(Problem("", "--weights", f"time weight {w:g} is outside [0, 1]"))
         sub = replace(ctx, weights=(float(w), 1.0 - float(w)))
         out.append(run_strategy(sub, "proposed"))
     return out
@@ -210,11 +236,12 @@ def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
 
 def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
     """Seed 002 Table 7: the proposed strategy for each planned running time (E_min fixed)."""
+    for t0 in times_s:  # every value checked before the first run
+        bounds.planned_time(t0, "--times")
+    bounds.runs(len(times_s), "--times", "running times")
     ctx.e_min()
     out = []
     for t0 in times_s:
-        if t0 <= 0:
-            raise InputError(Problem("", "--times", f"running time {t0:g} s must be > 0"))
         out.append(run_strategy(replace(ctx, t0_s=float(t0)), "proposed"))
     return out
 
@@ -222,8 +249,8 @@ def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
 def study(ctx: StrategyContext, algorithms: list[str], runs: int) -> dict[str, list[RunResult]]:
     """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed sequence, seeds
     ctx.seed .. ctx.seed + runs - 1, all against the same E_min."""
-    if runs < 1:
-        raise InputError(Problem("", "--runs", f"must be >= 1 (got {runs})"))
+    bounds.count(runs, "--runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser")
+    bounds.runs(runs * len(algorithms), "--runs")
     ctx.e_min()
     out: dict[str, list[RunResult]] = {}
     for alg in algorithms:

@@ -7,7 +7,10 @@ import io
 import json
 import math
 import os
+import stat
 import tempfile
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, Callable
 
@@ -17,8 +20,69 @@ from ..errors import InputError, Problem
 from ..sim.result import CONDITIONS, Profile
 
 
+_PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
+
+
+def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...] = ()) -> Path | None:
+    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder exists
+    and takes a new file (tried by creating and removing an empty temporary file there)."""
+    if path is None:
+        return None
+    path = Path(path)
+    try:
+        return _check_output(path, option, suffixes)
+    except OSError as exc:  # a name too long, a loop of links, ...
+        raise InputError(Problem(str(path), option, f"cannot write: {exc.strerror or exc}")) from None
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
+    name = str(path)
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
+    if path.is_dir():
+        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
+    if path.exists() and not path.is_file():
+        raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.exists():
+        raise InputError(Problem(name, option, f"folder {folder} does not exist"))
+    if not folder.is_dir():
+        raise InputError(Problem(name, option, f"{folder} is not a folder"))
+    try:
+        fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot write into {folder}: {exc.strerror or exc}")) from None
+    return path
+
+
+def _temp_prefix(path: Path) -> str:
+    """A hidden temporary name beside ``path``: short enough for any name the folder takes."""
+    return f".{path.name[:40]}."
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _mode_for(path: Path) -> int:
+    """The mode ``path`` gets: an existing file keeps its own (as when written in place), a new one
+    0666 less the umask (as ``open`` gives); never mkstemp's 0600."""
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode):
+            return stat.S_IMODE(st.st_mode)
+    except OSError:
+        pass
+    return 0o666 & ~_umask()
+
+
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place.
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place (inside
+    ``all_or_none()``: when the whole command has succeeded).
 
     A failure leaves no partial file behind; a missing folder is an input error, not a traceback.
     """
@@ -26,15 +90,56 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
-    os.close(fd)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(Problem(str(path), "", f"cannot write into {folder}: {exc.strerror or exc}")) from None
     try:
         write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
+        os.chmod(tmp, _mode_for(path))
+        pending = _PENDING.get()
+        if pending is None:
+            os.replace(tmp, path)
+        else:
+            pending.append((tmp, path))
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
         raise
+
+
+@contextmanager
+def all_or_none(keep: Callable[[BaseException], bool] = lambda exc: False):
+    """Every output written inside (by ``atomic_write``) appears when the block ends normally, or
+    when it ends with an exception ``keep`` accepts (a deliberate exit after the outputs); otherwise
+    none does: a command writes all its outputs or none."""
+    pending: list[tuple[str, Path]] = []
+    token = _PENDING.set(pending)
+    commit = False
+    try:
+        yield
+        commit = True
+    except BaseException as exc:
+        commit = keep(exc)
+        raise
+    finally:
+        _PENDING.reset(token)
+        if commit:
+            for i, (tmp, path) in enumerate(pending):
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    for rest, _ in pending[i:]:
+                        if os.path.exists(rest):
+                            os.unlink(rest)
+                    raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
+        else:
+            for tmp, _ in pending:
+                if os.path.exists(tmp):
+                    os.unlink(tmp)
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:

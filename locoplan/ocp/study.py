@@ -552,15 +552,9 @@ def run_ocp(route, train, method: str = "two-stage", nodes: int | None = None, *
 
 def check_output_path(path: str | Path | None, flag: str, suffixes: tuple[str, ...]) -> None:
     """Fail early (before solving) on an output file with the wrong suffix or a missing folder."""
-    if path is None:
-        return
-    path = Path(path)
-    if path.suffix.lower() not in suffixes:
-        raise InputError(Problem(str(path), flag, f"unknown output type {path.suffix or '(none)'!r}; use "
-                                 + " or ".join(suffixes)))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(Problem(str(path), flag, f"folder {folder} does not exist"))
+    from ..io.report import check_output
+
+    check_output(path, flag, suffixes)
 
 
 def _csv_text(rows: list[dict], columns) -> str:
