@@ -19,13 +19,13 @@ from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, P
                          STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
                          _names, _options, _range, _weights, all_or_none, err, guarded, out)
 from .errors import InputError, Problem
-from .io.load import load_route, load_train, read_yaml, validate_data
+from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
 from .io.tables import compare_tables, describe, explain_tables, sequence_table, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 
 
@@ -56,6 +56,11 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     """Check files; print every problem as file:line: field: message (exit 2), or a summary per file."""
     problems: list[Problem] = []
     summaries = []
+    try:
+        if stock_dir is not None:
+            check_folder(stock_dir, "--stock-dir")
+    except InputError as exc:
+        problems += exc.problems
     for f in files:
         try:
             data, lines = read_yaml(f)
@@ -69,7 +74,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {s['file']}: {s['summary']}", highlight=False, soft_wrap=True)
+                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False, soft_wrap=True)
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:
@@ -219,7 +224,7 @@ def compare(route: Path = ROUTE,
     specs = compare_specs(base, names)
     if explain and not as_json:
         for t in explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts)):
-            out.print(t, highlight=False, soft_wrap=True)
+            out.print(t, highlight=False, soft_wrap=True, markup=False) if isinstance(t, str) else out.print(t)
     batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
     results = {"results": [x.summary for x in batch.records]}
     with all_or_none():
@@ -305,6 +310,8 @@ def study(route: Path = ROUTE,
 
     algs = _names(algorithms, "--algorithms")
     w = _weights(weights)
+    if params_dir is not None:
+        check_folder(params_dir, "--params-dir")
     _check_outputs(out_file, plot, csv_ok=False)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,

@@ -13,8 +13,9 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
+from . import bounds
 from .errors import InputError, LocoplanError, Problem
-from .io.report import all_or_none, check_output_path, to_json, write_output
+from .io.report import all_or_none, check_output, check_output_path, to_json, write_output
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
@@ -28,7 +29,7 @@ FLAGS = {
     "strategy": "--strategy", "strategies": "--strategies", "weights": "--weights", "times_s": "--times",
     "runs": "--runs", "algorithm": "--algorithm", "algorithms": "--algorithms", "out": "--out", "plot": "--plot",
     "workers": "--workers", "scheduler": "--scheduler", "where": "--where", "format": "--format", "by": "--by",
-    "step_m": "--step", "rotating_mass": "--rotating-mass", "boxplot": "--boxplot",
+    "step_m": "--step", "rotating_mass": "--rotating-mass", "boxplot": "--boxplot", "seed": "--seed",
 }
 """Library argument names -> this command line's flags. The library names its arguments in errors
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
@@ -55,11 +56,13 @@ def guarded(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            return fn(*args, **kwargs)
+            # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
+            with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
+                return fn(*args, **kwargs)
         except LocoplanError as exc:
-            problems = getattr(exc, "problems", None) or [Problem("", "", str(exc))]
-            for p in problems:
-                err.print(f"[bold red]error:[/] {escape(str(as_flags(p)))}", highlight=False, markup=True, soft_wrap=True)
+            problems = getattr(exc, "problems", None)
+            for text in ([str(as_flags(p)) for p in problems] if problems else [str(exc)]):  # an infeasible request has no file
+                err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
             raise typer.Exit(exc.exit_code) from None
     return wrapper
 
@@ -75,8 +78,7 @@ def _fail_if(messages: list) -> None:
 
 def _options(step: float, point_mass: bool, rotating_mass: Optional[float], strict_limits: bool = False,
              air_brake: Optional[bool] = None) -> ModelOptions:
-    if not 0 < step <= 1000:
-        raise InputError(Problem("<command line>", "--step", f"must be in (0, 1000] m (got {step:g})"))
+    bounds.step(step)
     if rotating_mass is not None and not 0 <= rotating_mass < 1:
         raise InputError(Problem("<command line>", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
     air = (not point_mass) if air_brake is None else air_brake
@@ -85,27 +87,17 @@ def _options(step: float, point_mass: bool, rotating_mass: Optional[float], stri
 
 
 def _weights(text: str) -> tuple[float, float]:
-    try:
-        parts = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise InputError(Problem("", "--weights", f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
-    if len(parts) != 2 or min(parts) < 0 or abs(sum(parts) - 1) > 1e-9:
-        raise InputError(Problem("", "--weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {text!r}"))
-    return parts[0], parts[1]
+    return bounds.weights(text, "--weights")
 
 
 def _range(text: str, field: str) -> list[float]:
-    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530'."""
-    try:
-        if ":" in text:
-            a, b, c = (float(x) for x in text.split(":"))
-            if c <= 0 or b < a:
-                raise ValueError
-            n = int(round((b - a) / c))
-            return [round(a + i * c, 10) for i in range(n + 1)]
-        return [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise InputError(Problem("", field, f"expected start:stop:step or a comma list of numbers, got {text!r}")) from None
+    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times
+    (``pareto --factors``: factors of the fastest run, 1 .. 10)."""
+    if field == "--weights":
+        return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
+    if field == "--factors":
+        return bounds.values(text, field, 1.0, 10.0, why="a factor of the fastest run")
+    return bounds.values(text, field, *bounds.LIMITS["time_s"], "s", "a planned running time")
 
 
 def _names(text: str, field: str) -> list[str]:
@@ -117,10 +109,10 @@ def _names(text: str, field: str) -> list[str]:
 
 def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
           rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
-    from .io.load import load_route, load_train
+    from .io.load import load_route_and_train
 
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
-    return load_route(route), load_train(consist, stock_dir), opts
+    return (*load_route_and_train(route, consist, stock_dir), opts)
 
 
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
@@ -140,8 +132,11 @@ def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
 
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
-    """Refuse bad output names before any long computation (``--out`` and ``--plot``)."""
-    check_outputs(out=(out_file, (".csv", ".json") if csv_ok else (".json",)), plot=(plot, PLOT_SUFFIXES))
+    """Refuse bad output names (type, folder, writable) before any long computation."""
+    from .io.plot import check_plot_path
+
+    check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
+    check_output(plot and check_plot_path(plot), "--plot")
 
 
 # Options shared by the commands (typer has no option groups; these keep them identical)

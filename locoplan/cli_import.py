@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 
 __all__ = ["register"]
 
@@ -61,8 +62,8 @@ def register(app: typer.Typer) -> None:
                            "licence": str(report.licence) if report.licence else None, "notes": report.notes}))
         else:
             for path, kind, summary in report.written:
-                out.print(f"[green]wrote[/] {path}  ({kind}: {summary.split(': ', 1)[-1]})", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False, soft_wrap=True)
             if report.licence:
-                out.print(f"[green]wrote[/] {report.licence}  (the source's licence)", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False, soft_wrap=True)
         for note in report.notes:
-            err.print(f"[yellow]note:[/] {note}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)

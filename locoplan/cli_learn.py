@@ -177,7 +177,7 @@ def register(app: typer.Typer) -> None:
         else:
             for table in _fit_tables(data["report"]):
                 out.print(table)
-            out.print(f"patterns written to {out_file}", highlight=False)
+            out.print(f"patterns written to {out_file}", highlight=False, markup=False)
 
     @app.command("advise")
     @guarded
@@ -196,13 +196,15 @@ def register(app: typer.Typer) -> None:
         from .io.load import build_train, load_consist, load_route, load_train
         from .learn.advise import advise as run_advise
         from .learn.advise import check_model
-        from .learn.drivers import consist_for_mass
+        from .learn.drivers import check_train_mass, consist_for_mass
         from .learn.patterns import load_patterns
         from .runner import make_context, schedule_verdict, summarize, RunResult
         from .strategy.strategies import StrategyOutcome
 
         _check_outputs(out_file, plot)
         opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+        if mass is not None:
+            check_train_mass(mass, "--mass")
         pat = load_patterns(patterns)
         check_model(pat, opts, str(patterns))
         r = load_route(route)

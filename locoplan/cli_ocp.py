@@ -13,6 +13,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich import box
 from rich.table import Table
 
@@ -29,7 +30,7 @@ __all__ = ["register"]
 
 
 def _summary_table(s: dict) -> Table:
-    table = Table(title=f"{s['route']}\n{s['consist']}", show_header=False, title_justify="left")
+    table = Table(title=escape(f"{s['route']}\n{s['consist']}"), show_header=False, title_justify="left")
     table.add_column("quantity", style="bold")
     table.add_column("value")
     method = s["algorithm"] + (f" (stage 2: {s['stage2']})" if s["stage2"] else "")
@@ -169,7 +170,7 @@ def register(app: typer.Typer) -> None:
             out.print(_summary_table(run.summary))
         if not run.feasible:
             err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
-                      f"{run.summary['reason']}", highlight=False, soft_wrap=True)
+                      f"{escape(run.summary['reason'])}", highlight=False, soft_wrap=True)
             raise typer.Exit(1)
 
     @app.command("ocp-study")
@@ -183,10 +184,9 @@ def register(app: typer.Typer) -> None:
         """Seed 000 Tables 2-3: CVP 20/40, GPM 34/48, two-stage 17/24 (hp and the seed's global stage 2)."""
         from .ocp.study import check_output_path, run_study, write_study_output
 
-        if repeats < 1:
-            from .errors import InputError, Problem
+        from .bounds import count
 
-            raise InputError(Problem("ocp-study", "--repeats", f"must be >= 1, got {repeats}"))
+        count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
         check_output_path(plot, "--plot", (".png", ".svg"))
         with err.status("solving") as status:
@@ -208,5 +208,5 @@ def register(app: typer.Typer) -> None:
             out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
             for r in study.rows:
                 if not r["feasible"]:
-                    out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {r['reason']}",
+                    out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {escape(r['reason'])}",
                               highlight=False, soft_wrap=True)

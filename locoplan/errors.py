@@ -21,7 +21,8 @@ class Problem:
     line: int | None = None
 
     def __str__(self) -> str:
-        where = f"{self.file}:{self.line}" if self.line else self.file
+        file = self.file or "<command line>"  # a problem with no file is one with an option's value
+        where = f"{file}:{self.line}" if self.line else file
         return f"{where}: {self.field}: {self.message}" if self.field else f"{where}: {self.message}"
 
 

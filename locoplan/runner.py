@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import bounds
 from .errors import InfeasibleError, InputError, Problem
 from .model.plan import Plan, parse_sequence, runs_from_profile
 from .model.route import Route
@@ -41,9 +42,7 @@ DEFAULT_TOLERANCE_SHARE = 0.01
 
 def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
-        if not (math.isfinite(time_s) and time_s > 0):
-            raise InputError(Problem("", "time_s", f"must be a finite number of seconds > 0 (got {time_s:g})"))
-        return float(time_s)
+        return bounds.planned_time(time_s, "time_s")
     if route.schedule is None:
         raise InputError(Problem("", "time_s", f"route '{route.name}' has no schedule: give the planned running time"))
     return float(route.schedule.run_time_s)
@@ -63,6 +62,11 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
     options, to reuse (a batch's runs share them). Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
+    bounds.seed(seed, "seed")
+    if e_min_kwh is not None:
+        bounds.finite(e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+    if tolerance_s is not None:
+        bounds.finite(tolerance_s, "tolerance_s", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
     if calculators is not None:
         calc, search = calculators
     else:
@@ -92,7 +96,28 @@ def check_time_possible(ctx: StrategyContext) -> None:
     fastest = ctx.calc.fastest_time_s
     if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
         raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
-                              f"{fastest:.1f} s ({ctx.calc.route.name}, {ctx.calc.train.name})")
+                              f"{fastest:.1f} s{_hours(fastest)} ({ctx.calc.route.name}, {ctx.calc.train.name}): "
+                              f"{slowest_limit(ctx.calc)}")
+
+
+def _hours(seconds: float) -> str:
+    return f" = {seconds / 3600:.2f} h" if seconds >= 3600 else (f" = {seconds / 60:.1f} min" if seconds >= 120 else "")
+
+
+def slowest_limit(calc: TractionCalculator) -> str:
+    """The speed-limit section that takes longest at its limit (or the train's top speed): a lower bound
+    on any run's time that says why the fastest run takes as long as it does."""
+    top = calc.train.max_speed_kmh
+
+    def at_limit_s(sec) -> float:
+        return (sec.to_m - sec.from_m) / (min(sec.kmh, top) / 3.6)
+
+    total = sum(at_limit_s(s) for s in calc.route.speed_limits)
+    sec = max(calc.route.speed_limits, key=at_limit_s)
+    t = at_limit_s(sec)
+    cap = f"the train's top speed {top:g} km/h" if top < sec.kmh else f"the limit of {sec.kmh:g} km/h"
+    return (f"at the limit all the way it would take {total:,.1f} s{_hours(total)} (longest part: {cap} over "
+            f"{sec.from_m:,.0f} .. {sec.to_m:,.0f} m needs {t:,.1f} s{_hours(t)}); starting, stopping and grades take the rest")
 
 
 def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:

@@ -21,3 +21,17 @@ def seed000():
     from locoplan.io.load import load_route, load_train
     train = load_train(ROOT / "configs/consists/HXD1-C64-seed000.yaml")
     return load_route(ROOT / "routes/seed000-flat.yaml"), load_route(ROOT / "routes/seed000-grade30.yaml"), train
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory):
+    """Tests never read or write the user's cache of optima (~/.cache/locoplan): one of their own."""
+    import os
+
+    old = os.environ.get("LOCOPLAN_CACHE_DIR")
+    os.environ["LOCOPLAN_CACHE_DIR"] = str(tmp_path_factory.mktemp("locoplan-cache"))
+    yield
+    if old is None:
+        os.environ.pop("LOCOPLAN_CACHE_DIR", None)
+    else:
+        os.environ["LOCOPLAN_CACHE_DIR"] = old

@@ -233,7 +233,7 @@ def test_absurd_trains_are_refused(tmp_path):
                      "  - {type: HXD1, count: 1}\n  - {type: C80, count: 1000000000, load_t: 80}\n")
     with pytest.raises(InputError) as exc:
         load_train(billion)
-    assert any(p.field == "vehicles[1].count" and p.line == 5 and "less than or equal to 1000" in p.message
+    assert any(p.field == "vehicles[1].count" and p.line == 5 and "(expected 1 .. 1,000 vehicles)" in p.message
                for p in exc.value.problems)
     stock = tmp_path / "stock"
     stock.mkdir()

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import codecs
 import difflib
+import os
+import re
+import stat
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -76,31 +80,256 @@ def _line_for(lines: dict[tuple, int], loc: tuple) -> int | None:
     return lines.get(loc)
 
 
-def read_text(path: Path) -> str:
-    """A file's text (UTF-8); a missing, unreadable file or a folder raises ``InputError``."""
-    name = str(path)
-    if not path.exists():
-        raise InputError(Problem(name, "", "no such file"))
-    if path.is_dir():
-        raise InputError(Problem(name, "", "is a directory, not a file"))
-    try:
-        return path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+# ------------------------------------------------------------------------------------------ reading
+MAX_FILE_BYTES = 10 * 1024 * 1024
+"""Largest input file read [bytes]: 10 MB holds a route of ~250,000 sections (20x the longest real line
+shipped), and keeps a mistaken ``/dev/zero``-like input from filling the memory."""
+MAX_DEPTH = 32
+"""Deepest nesting of lists and mappings: every locoplan file needs 4 levels; Python's own recursion
+(the YAML composer, pydantic) fails near 1,000."""
+MAX_NODES = 100_000
+"""Most values (YAML nodes, aliases expanded) in one file: the largest real line shipped holds about
+2,500 (355 sections); 100,000 is 14,000 sections, and parsing and checking them takes seconds, not minutes."""
+MAX_ALIAS_NODES = 100_000
+"""Nodes that YAML aliases may add when expanded: an anchor reused a few times is fine, the 'billion
+laughs' (9 levels of 9 aliases = 387 million nodes) is not."""
+MAX_NUMBER_DIGITS = 30
+"""Longest number literal: no physical quantity here needs more than 17 significant digits (a float's
+precision); 5,000 digits is an attack on Python's integer parser, not a value."""
+
+_NOT_REGULAR = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+                (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
-def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
-    """Parse a YAML file; missing, unreadable, empty or malformed files raise ``InputError``."""
+def _kind_problem(name: str, mode: int) -> Problem | None:
+    if stat.S_ISDIR(mode):
+        return Problem(name, "", "is a folder, not a file")
+    for test, kind in _NOT_REGULAR:
+        if test(mode):
+            return Problem(name, "", f"is {kind}, not a regular file (input files are read whole, so a stream cannot be one)")
+    return None
+
+
+def _too_big(name: str, size: int, limit: int) -> Problem:
+    return Problem(name, "", f"is {size / 2**20:,.1f} MiB or more, larger than the {limit / 2**20:g} MiB limit for input "
+                   "files (the longest real line shipped takes 0.1 MiB)")
+
+
+def read_bytes(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes. A missing file, a folder, a FIFO, a device,
+    an unreadable or too large file raises ``InputError`` (never blocks: FIFOs are refused unopened)."""
     name = str(path)
-    text = read_text(path)
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(Problem(name, "", "no such file")) from None
+    except OSError as exc:
+        raise InputError(Problem(name, "", f"cannot read: {exc.strerror or exc}")) from None
+    problem = _kind_problem(name, st.st_mode)
+    if problem is None and st.st_size > limit:
+        problem = _too_big(name, st.st_size, limit)
+    if problem is not None:
+        raise InputError(problem)
+    try:
+        # O_NONBLOCK: a FIFO put in the file's place after the stat cannot block the open
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as fh:
+            problem = _kind_problem(name, os.fstat(fh.fileno()).st_mode)
+            data = b"" if problem else fh.read(limit + 1)
+    except OSError as exc:
+        raise InputError(Problem(name, "", f"cannot read: {exc.strerror or exc}")) from None
+    if problem is None and len(data) > limit:  # e.g. a /proc file, whose size says 0
+        problem = _too_big(name, len(data), limit)
+    if problem is not None:
+        raise InputError(problem)
+    return data
+
+
+_WIDE_BOMS = ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"),
+              (codecs.BOM_UTF16_LE, "UTF-16"), (codecs.BOM_UTF16_BE, "UTF-16"))
+
+
+def decode_text(data: bytes, name: str) -> str:
+    """UTF-8 text (a UTF-8 byte-order mark is dropped); UTF-16/32 or other bytes raise ``InputError``
+    naming the line and column of the first byte that is not UTF-8."""
+    for bom, encoding in _WIDE_BOMS:  # UTF-32 first: its little-endian mark begins with UTF-16's
+        if data.startswith(bom):
+            raise InputError(Problem(name, "", f"is {encoding} text (byte-order mark {bom.hex(' ').upper()}): "
+                                     "save it as UTF-8", 1))
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise InputError(Problem(name, "", f"not UTF-8 text: byte 0x{data[exc.start]:02X} in column {column} "
+                                 "(save the file as UTF-8)", line)) from None
+
+
+def read_text(path: str | Path, limit: int = MAX_FILE_BYTES) -> str:
+    """A regular file's UTF-8 text, at most ``limit`` bytes; anything else raises ``InputError``."""
+    return decode_text(read_bytes(path, limit), str(path))
+
+
+# ------------------------------------------------------------------------------------------ YAML
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when present: fast, and its parser does not recurse
+_RESOLVER = yaml.SafeLoader("")
+_STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
+_NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
+_READ_AS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number",
+            "tag:yaml.org,2002:bool": "a boolean", "tag:yaml.org,2002:null": "null",
+            "tag:yaml.org,2002:timestamp": "a date"}
+
+
+def _digits(text: str) -> int:
+    """Digits of a YAML number literal: '0x' + 3,000 hex digits counts 3,000, '1.5e+10' counts 2."""
+    t = text.lower().lstrip("+-").replace("_", "")
+    if t.startswith(("0x", "0o", "0b")):
+        return len(t) - 2
+    return sum(ch.isdigit() for ch in t.split("e")[0])
+
+
+class _Open:
+    """One open list or mapping while scanning the event stream."""
+
+    __slots__ = ("size", "anchor", "is_map", "want_key", "key", "index")
+
+    def __init__(self, anchor: str | None, is_map: bool):
+        self.size, self.anchor, self.is_map = 1, anchor, is_map
+        self.want_key, self.key, self.index = True, None, 0
+
+
+def _scan(text: str, name: str) -> None:
+    """Refuse what would blow up composing or walking the YAML, before composing it: nesting deeper than
+    ``MAX_DEPTH``, aliases adding more than ``MAX_ALIAS_NODES`` nodes or referring to themselves, keys
+    that are not strings, number literals longer than ``MAX_NUMBER_DIGITS`` digits. Works on the event
+    stream (iterative, constant stack), so even a 10 MB file of '[' costs no recursion."""
+    stack: list[_Open] = []
+    anchors: dict[str, int | None] = {}  # expanded node count of each anchored node (None while still open)
+    added = 0  # nodes that aliases add when expanded
+    written = 0  # nodes written out
+
+    def where() -> str:
+        parts: list = []
+        for o in stack:
+            if o.is_map and o.key is not None and not o.want_key:
+                parts.append(o.key)
+            elif not o.is_map:
+                parts.append(o.index)
+        if len(parts) > 4:  # a field 5,000 levels deep is no help: its first levels say where
+            return field_name(tuple(parts[:3])) + "[...]"
+        return field_name(tuple(parts))
+
+    def fail(event, message: str):
+        raise InputError(Problem(name, where(), message, event.start_mark.line + 1 if event.start_mark else None))
+
+    def child_done(size: int) -> None:
+        if not stack:
+            return
+        parent = stack[-1]
+        parent.size += size
+        if parent.is_map:
+            parent.want_key = not parent.want_key
+        else:
+            parent.index += 1
+
+    def key_check(event, value: str | None, tag: str | None, implicit) -> None:
+        """``event`` arrives where its mapping expects a key: it must be a string (or a merge '<<')."""
+        if value is None:
+            what = {yaml.AliasEvent: "an alias", yaml.SequenceStartEvent: "a list"}.get(type(event), "a mapping")
+            fail(event, f"a key is {what}, not a string; write keys as plain names")
+        resolved = tag if tag and tag != "!" else _RESOLVER.resolve(yaml.ScalarNode, value, implicit)
+        if resolved not in (_STR, _MERGE):
+            kind = _READ_AS.get(resolved, f"tag {resolved}")
+            fail(event, f"key {value!r} is not a string (YAML reads it as {kind}); quote it, or remove it")
+
+    try:
+        for event in yaml.parse(text, Loader=_LOADER):
+            if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                written += 1
+                if written > MAX_NODES:
+                    fail(event, f"holds more than {MAX_NODES:,} values: no route, vehicle or consist needs so many "
+                                "(the largest real line shipped holds about 2,500; 355 sections)")
+            top = stack[-1] if stack else None
+            at_key = top is not None and top.is_map and top.want_key
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                if at_key:
+                    key_check(event, None, None, None)
+                if len(stack) >= MAX_DEPTH:
+                    fail(event, f"nested deeper than {MAX_DEPTH} levels (locoplan files need 4); the file is "
+                                "refused before the parser's recursion is at risk")
+                if event.anchor:
+                    anchors[event.anchor] = None
+                stack.append(_Open(event.anchor, isinstance(event, yaml.MappingStartEvent)))
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                done = stack.pop()
+                if done.anchor:
+                    anchors[done.anchor] = done.size
+                child_done(done.size)
+            elif isinstance(event, yaml.ScalarEvent):
+                if at_key:
+                    key_check(event, event.value, event.tag, event.implicit)
+                    top.key = event.value
+                else:
+                    tag = event.tag if event.tag and event.tag != "!" else (
+                        _RESOLVER.resolve(yaml.ScalarNode, event.value, event.implicit) if event.implicit[0] else _STR)
+                    if tag in _NUMBER_TAGS:
+                        n = _digits(event.value)
+                        if n > MAX_NUMBER_DIGITS:
+                            fail(event, f"{_NUMBER_TAGS[tag]} of {n:,} digits is not a plausible value "
+                                        f"(at most {MAX_NUMBER_DIGITS} digits)")
+                if event.anchor:
+                    anchors[event.anchor] = 1
+                child_done(1)
+            elif isinstance(event, yaml.AliasEvent):
+                if at_key:
+                    key_check(event, None, None, None)
+                size = anchors.get(event.anchor, 0)
+                if event.anchor in anchors and size is None:
+                    fail(event, f"recursive alias: *{event.anchor} refers to the list or mapping it is inside")
+                added += size or 0
+                if added > MAX_ALIAS_NODES:
+                    fail(event, f"aliases expand this file by more than {MAX_ALIAS_NODES:,} nodes "
+                                "(an alias bomb?); write the values out, or reuse fewer")
+                child_done(size or 0)
+    except yaml.YAMLError:
+        return  # composing reports the syntax error with its line
+
+
+def parse_yaml(text: str, name: str) -> tuple[Any, yaml.Node | None]:
+    """Parse one YAML document safely: (data, node). ``InputError`` for anything malformed or hostile
+    (see ``_scan``); data and node are None for an empty document."""
+    _scan(text, name)
+    loader = _LOADER(text)
+    try:
+        node = loader.get_single_node()
+        data = None if node is None else loader.construct_document(node)
+    except yaml.reader.ReaderError as exc:  # a control character: say which and where
+        line = text.count("\n", 0, exc.position) + 1
+        column = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        raise InputError(Problem(name, "", f"not valid YAML: control character U+{code:04X} in column {column} "
+                                 "(YAML text may not contain it)", line)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark else None
         what = getattr(exc, "problem", None) or str(exc)
+        context = getattr(exc, "context", None)
+        if context and "document" in str(context) and "single" not in what:
+            what = f"{context}, {what}"
         raise InputError(Problem(name, "", f"not valid YAML: {what}", line)) from None
+    except (ValueError, RecursionError, MemoryError) as exc:  # a resolver's int(), a tree the scan let through
+        raise InputError(Problem(name, "", f"not a usable YAML file: {exc.__class__.__name__}: {str(exc)[:120]}")) from None
+    finally:
+        loader.dispose()
+    return data, node
+
+
+def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
+    """Parse a YAML file; missing, unreadable, empty, malformed or hostile files raise ``InputError``."""
+    name = str(path)
+    data, node = parse_yaml(read_text(path), name)
     if node is None or data is None:
         raise InputError(Problem(name, "", "file is empty"))
     duplicates = _duplicate_keys(node, name)
@@ -151,10 +380,37 @@ def _message(model: type[BaseModel], err: dict) -> str:
         return f"unknown key{hint} (allowed: {', '.join(allowed)})"
     if kind == "missing":
         return "required field is missing"
+    if kind == "finite_number":
+        return f"must be a finite number, got {err.get('input')!r}"
     msg = err["msg"]
+    value = err.get("input")
+    if kind == "float_type" and isinstance(value, str) and _EXPONENT_TEXT.match(value):
+        return (f"{value!r} is text, not a number, to YAML 1.1: write a number in exponent form with a dot "
+                f"and a signed exponent, e.g. {_yaml_float(value)}")
     if "input" in err and kind not in ("literal_error",):
-        msg += f" (got {err['input']!r})"
+        msg += f" (got {short_repr(err['input'])})"
     return msg
+
+
+_EXPONENT_TEXT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+"""Exponent forms YAML 1.1 reads as text: '1e308', '3e3', '2.5e-3' without a dot or a signed exponent
+(its float needs both: 1.0e+308). Only these get the hint; a quoted "2.5" is a plain type error."""
+
+
+def _yaml_float(text: str) -> str:
+    """'1e308' -> '1.0e+308' (the form YAML 1.1 reads as a float)."""
+    mantissa, _, exponent = text.lower().partition("e")
+    if "." not in mantissa:
+        mantissa += ".0"
+    if exponent and exponent[0] not in "+-":
+        exponent = "+" + exponent
+    return mantissa + ("e" + exponent if exponent else "")
+
+
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, cut to ``limit`` characters: a message quotes a bad value, not a whole file."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 5] + " ...>"
 
 
 def validate_data(data: dict, name: str, lines: dict[tuple, int], expect: str | None = None) -> BaseModel:
@@ -203,10 +459,22 @@ def load_vehicle(path: str | Path) -> Vehicle:
 
 def stock_dirs_for(consist_path: Path, stock_dir: str | Path | None = None) -> list[Path]:
     """Where vehicle types are looked up, in order (SPEC section 1)."""
+    if stock_dir is not None:
+        check_folder(stock_dir, "--stock-dir")
     dirs = [Path(stock_dir)] if stock_dir else []
     dirs.append(consist_path.parent.parent / "rolling_stock")
     dirs.append(Path(str(CATALOGUE / "rolling_stock")))
     return dirs
+
+
+def check_folder(path: str | Path, option: str) -> Path:
+    """``path`` must be an existing folder (an option such as ``--stock-dir`` naming one)."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(Problem(str(path), option, "no such folder"))
+    if not path.is_dir():
+        raise InputError(Problem(str(path), option, "not a folder"))
+    return path
 
 
 def _vehicle_index(directory: Path) -> tuple[dict[str, Path], dict[str, list[Path]]]:
@@ -217,10 +485,10 @@ def _vehicle_index(directory: Path) -> tuple[dict[str, Path], dict[str, list[Pat
     if not directory.is_dir():
         return index, {}
     for file in sorted(directory.glob("*.yaml")):
-        index.setdefault(file.stem, file)
+        index.setdefault(file.stem, file)  # a FIFO or device is indexed by name, and refused if a consist uses it
         try:
-            data = yaml.safe_load(file.read_text(encoding="utf-8"))
-        except (OSError, yaml.YAMLError, UnicodeDecodeError):
+            data, _ = parse_yaml(read_text(file), str(file))
+        except InputError:
             continue
         if isinstance(data, dict) and isinstance(data.get("name"), str):
             declared.setdefault(data["name"], []).append(file)
@@ -243,6 +511,18 @@ def resolve_consist_path(spec: str | Path) -> Path:
         if candidate.exists():
             return candidate
     return path
+
+
+def load_route_and_train(route_path: str | Path, consist_spec: str | Path,
+                         stock_dir: str | Path | None = None) -> tuple[Route, Train]:
+    """A route and a train that can run on it (the route is longer than the train), every problem named."""
+    from ..sim.calculator import shorter_than_train
+
+    route = load_route(route_path)
+    train = load_train(consist_spec, stock_dir)
+    if train.length_m >= route.length_m:
+        raise InputError(shorter_than_train(route, train, str(route_path), str(resolve_consist_path(consist_spec))))
+    return route, train
 
 
 def load_train(consist_spec: str | Path, stock_dir: str | Path | None = None) -> Train:

@@ -7,6 +7,7 @@ import io
 import json
 import math
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -19,66 +20,126 @@ from ..errors import InputError, Problem
 from ..sim.result import CONDITIONS, Profile
 
 
-_STAGED: ContextVar[list | None] = ContextVar("locoplan_staged_outputs", default=None)
+_PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
+
+
+def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...] = ()) -> Path | None:
+    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder exists
+    and takes a new file (tried by creating and removing an empty temporary file there)."""
+    if path is None:
+        return None
+    path = Path(path)
+    try:
+        return _check_output(path, option, suffixes)
+    except OSError as exc:  # a name too long, a loop of links, ...
+        raise InputError(Problem(str(path), option, f"cannot write: {exc.strerror or exc}")) from None
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
+    name = str(path)
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
+    if path.is_dir():
+        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
+    if path.exists() and not path.is_file():
+        raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.exists():
+        raise InputError(Problem(name, option, f"folder {folder} does not exist"))
+    if not folder.is_dir():
+        raise InputError(Problem(name, option, f"{folder} is not a folder"))
+    try:
+        fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot write into {folder}: {exc.strerror or exc}")) from None
+    return path
+
+
+def _temp_prefix(path: Path) -> str:
+    """A hidden temporary name beside ``path``: short enough for any name the folder takes."""
+    return f".{path.name[:40]}."
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _mode_for(path: Path) -> int:
+    """The mode ``path`` gets: an existing file keeps its own (as when written in place), a new one
+    0666 less the umask (as ``open`` gives); never mkstemp's 0600."""
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode):
+            return stat.S_IMODE(st.st_mode)
+    except OSError:
+        pass
+    return 0o666 & ~_umask()
 
 
 def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place.
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place (inside
+    ``all_or_none()``: when the whole command has succeeded).
 
     A failure leaves no partial file behind; a missing folder is an input error, not a traceback.
-    Inside :func:`all_or_none` the rename waits until every output of the command is written.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
-    os.close(fd)
-    staged = _STAGED.get()
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(Problem(str(path), "", f"cannot write into {folder}: {exc.strerror or exc}")) from None
     try:
         write(Path(tmp))
-        if staged is None:
+        os.chmod(tmp, _mode_for(path))
+        pending = _PENDING.get()
+        if pending is None:
             os.replace(tmp, path)
         else:
-            staged.append((tmp, path))
-    except BaseException:
+            pending.append((tmp, path))
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
         raise
 
 
 @contextmanager
-def all_or_none():
-    """A command's outputs appear together or not at all: files written inside the block (through
-    :func:`atomic_write`) are renamed into place at its end, and all removed if it raises."""
-    staged: list = []
-    token = _STAGED.set(staged)
+def all_or_none(keep: Callable[[BaseException], bool] = lambda exc: False):
+    """Every output written inside (by ``atomic_write``) appears when the block ends normally, or
+    when it ends with an exception ``keep`` accepts (a deliberate exit after the outputs); otherwise
+    none does: a command writes all its outputs or none."""
+    pending: list[tuple[str, Path]] = []
+    token = _PENDING.set(pending)
+    commit = False
     try:
         yield
-    except BaseException:
-        for tmp, _ in staged:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        commit = True
+    except BaseException as exc:
+        commit = keep(exc)
         raise
-    else:
-        for tmp, path in staged:
-            os.replace(tmp, path)
     finally:
-        _STAGED.reset(token)
-
-
-def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, ...]) -> None:
-    """The one check of an output file before any work: a known suffix and an existing folder.
-    ``field`` names the output (``out``, ``plot``...); the command line maps it to its flag."""
-    if path is None:
-        return
-    path = Path(path)
-    if path.suffix.lower() not in suffixes:
-        raise InputError(Problem(str(path), field, f"unknown output type {path.suffix.lower() or '(none)'!r}; use a "
-                                 + " or ".join(suffixes) + " file name"))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
+        _PENDING.reset(token)
+        if commit:
+            for i, (tmp, path) in enumerate(pending):
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    for rest, _ in pending[i:]:
+                        if os.path.exists(rest):
+                            os.unlink(rest)
+                    raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
+        else:
+            for tmp, _ in pending:
+                if os.path.exists(tmp):
+                    os.unlink(tmp)
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
@@ -134,7 +195,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
     suffix = path.suffix.lower()
     if suffix == ".csv":
         if profile is None:
-            raise InputError(Problem(str(path), "out", "this command has no profile to write as CSV; use .json"))
+            raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS, lineterminator="\n")
         writer.writeheader()
@@ -147,4 +208,10 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
             data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS}
         atomic_write_text(path, to_json(data) + "\n")
     else:
-        raise InputError(Problem(str(path), "out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
+        raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
+
+
+def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, ...]) -> None:
+    """:func:`check_output` under the name the batch commands use (``field`` names the output: ``out``,
+    ``plot``...; the command line maps it to its flag)."""
+    check_output(path, field, suffixes)

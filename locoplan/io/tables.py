@@ -36,7 +36,7 @@ def describe(model, path: str, stock_dir: Optional[Path]) -> str:
 
 def summary_table(summary: dict) -> Table:
     """One result (the SPEC's JSON object) as a two-column table."""
-    table = Table(title=f"{summary['route']}\n{summary['consist']}", show_header=False, title_justify="left")
+    table = Table(title=escape(f"{summary['route']}\n{summary['consist']}"), show_header=False, title_justify="left")
     table.add_column("quantity", style="bold")
     table.add_column("value")
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({summary['reason']})"
@@ -130,7 +130,7 @@ def _num(value, fmt: str) -> str:
 
 def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
     """Seed 002 Table 6 (``by_weights``) or Table 7 (planned times, with the energy reduction)."""
-    table = Table(title=title, title_justify="left")
+    table = Table(title=escape(title), title_justify="left")
     cols = (["w_time", "w_energy"] if by_weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
     cols += [] if by_weights else ["energy reduction [%]"]
     for c in cols:
@@ -148,7 +148,7 @@ def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
 def study_table(rows: list[dict], title: str) -> Table:
     """Seed 002 Tables 10-12 from ``runner.study_table`` rows: per optimiser best, worst, mean, sd,
     punctual runs and the best punctual one."""
-    table = Table(title=title, title_justify="left")
+    table = Table(title=escape(title), title_justify="left")
     for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
               "punctual runs", "punctual best E / T / fitness", "mean vs E* [%]", "mean solve [s]"):
         table.add_column(escape(c), justify="right" if c != "algorithm" else "left")

@@ -420,6 +420,7 @@ def speed_noise(n: int, n_steps: int, sigma_kmh: np.ndarray, rng: np.random.Gene
 def consist_for_mass(base: Consist, vehicles: dict[str, Vehicle], mass_t: float) -> Consist:
     """The base consist with its wagon entry resized to reach ``mass_t``: as few wagons as carry it
     fully loaded (heavy haul runs full), the load per wagon then trimmed to hit the mass exactly."""
+    check_train_mass(mass_t, "--masses")
     wagons = [i for i, e in enumerate(base.vehicles) if vehicles[e.type].kind == "wagon"]
     if len(wagons) != 1:
         raise InputError(Problem(base.name, "vehicles", "the base consist for --masses needs exactly one wagon entry "
@@ -430,6 +431,10 @@ def consist_for_mass(base: Consist, vehicles: dict[str, Vehicle], mass_t: float)
     fixed = sum(vehicles[e.type].mass_t * e.count + e.load_t * e.count for i, e in enumerate(base.vehicles) if i != w)
     payload_max = wagon.max_load_t if wagon.max_load_t is not None else entry.load_t
     per_wagon = wagon.mass_t + payload_max
+    if payload_max <= 0 and abs(mass_t - fixed - round((mass_t - fixed) / wagon.mass_t) * wagon.mass_t) > 1e-6:
+        raise InputError(Problem("<command line>", "--masses", f"{mass_t:g} t cannot be reached: {wagon.name} declares no "
+                                 "max_load_t and its entry no load_t, so only whole wagons of "
+                                 f"{wagon.mass_t:g} t can be added (use a consist whose wagon has max_load_t)"))
     rest = mass_t - fixed
     if rest < wagon.mass_t:
         raise InputError(Problem("<command line>", "--masses", f"{mass_t:g} t is lighter than the locomotives plus one "
@@ -471,6 +476,37 @@ class SimulationSpec:
     tolerance_s: float | None = None
     start_date: dt.date = dt.date(2024, 1, 1)
 
+    def check(self) -> None:
+        """Every count and value inside its bound (``locoplan.bounds``), before any run is simulated."""
+        from .. import bounds
+
+        bounds.count(self.n_drivers, "--drivers", 1, 1_000, "simulated drivers")
+        bounds.count(self.n_runs, "--runs", 1, 100, "runs per driver at every mass and time")
+        logs = self.n_drivers * self.n_runs * len(self.masses_t) * len(self.times_s)
+        if logs > MAX_LOGS:
+            raise InputError(Problem("<command line>", "--runs", f"drivers x runs x masses x times = {logs:,} logs, more "
+                                     f"than the limit of {MAX_LOGS:,} (each is a CSV file)"))
+        for m in self.masses_t:
+            check_train_mass(m, "--masses")
+        for t in self.times_s:
+            bounds.planned_time(t, "--times")
+        bounds.seed(self.seed)
+        if self.tolerance_s is not None:
+            bounds.finite(self.tolerance_s, "--tolerance", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
+
+
+MAX_LOGS = 20_000
+"""Logs one ``drivers simulate`` writes at most (40 drivers x 5 runs x 100 groups)."""
+
+
+def check_train_mass(mass_t: float, option: str) -> float:
+    """A whole train's mass from the command line: finite and no heavier than the heaviest train ever run."""
+    from .. import bounds
+    from ..model.consist import PLAUSIBLE
+
+    return bounds.finite(mass_t, option, 0.0, PLAUSIBLE["train_mass_t"], "t",
+                         "the heaviest train ever run weighed 99,734 t", lo_open=True)
+
 
 @dataclass(frozen=True)
 class SimulationSummary:
@@ -488,6 +524,12 @@ def check_out_dir(out_dir: Path) -> None:
     parent = out_dir.parent if str(out_dir.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(Problem(str(out_dir), "--out", f"folder {parent} does not exist"))
+    try:  # the logs go into a temporary folder beside it first: can one be made there?
+        import tempfile
+
+        os.rmdir(tempfile.mkdtemp(prefix=".locoplan-probe-", dir=parent))
+    except OSError as exc:
+        raise InputError(Problem(str(out_dir), "--out", f"cannot write into {parent}: {exc.strerror or exc}")) from None
 
 
 def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> SimulationSummary:
@@ -495,6 +537,7 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
     log folder (manifest.yaml, route.yaml, consists/, rolling_stock/, logs/, drivers.csv) atomically:
     into a temporary folder first, renamed into place when complete."""
     out_dir = Path(out_dir)
+    spec.check()
     check_out_dir(out_dir)
     rng = np.random.default_rng(spec.seed)
     drivers = draw_drivers(spec.n_drivers, rng)

@@ -169,12 +169,9 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
     """Read and check one log CSV. Every problem names the file, the line and the column."""
     name = str(path)
     if text is None:
-        if not path.exists():
-            raise InputError(Problem(name, "", "no such file"))
-        try:
-            text = path.read_text(encoding="utf-8-sig")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+        from ..io.load import read_text
+
+        text = read_text(path)  # a regular UTF-8 file of at most 10 MiB (a FIFO or /dev/zero is refused)
     reader = csv.reader(io.StringIO(text))
     try:
         header = next(reader)

@@ -90,13 +90,20 @@ class LearnSettings:
         return "position" if self.lower_interactions else None
 
     def check(self) -> None:
-        rules = [("--divisions", self.divisions >= 1, "must be >= 1"), ("--max-order", 1 <= self.max_order <= 6, "must be 1..6"),
-                 ("--folds", self.folds >= 2, "must be >= 2"), ("--holdout", 0 <= self.holdout_share < 0.9, "must be in [0, 0.9)"),
-                 ("--load-class", self.load_class_t > 0, "must be > 0 t"), ("--level", self.level_permille >= 0, "must be >= 0"),
+        from .. import bounds
+
+        finite = math.isfinite
+        rules = [("--divisions", 1 <= self.divisions <= 100, "must be 1 .. 100 (equal divisions per section; seed 004 uses 8)"),
+                 ("--max-order", 1 <= self.max_order <= 6, "must be 1..6"),
+                 ("--folds", 2 <= self.folds <= 100, "must be 2 .. 100"),
+                 ("--holdout", finite(self.holdout_share) and 0 <= self.holdout_share < 0.9, "must be in [0, 0.9)"),
+                 ("--load-class", finite(self.load_class_t) and 0 < self.load_class_t <= 100_000, "must be in (0, 100,000] t"),
+                 ("--level", finite(self.level_permille) and 0 <= self.level_permille <= 40, "must be in [0, 40] per mille"),
                  ("--lower-entry", self.lower_entry in ("section", "division"), "must be 'section' or 'division'")]
         for name, ok, why in rules:
             if not ok:
                 raise InputError(Problem("<command line>", name, why))
+        bounds.seed(self.seed)
 
 
 # ------------------------------------------------------------------------------------------ the line
@@ -572,12 +579,14 @@ def load_patterns(path: str | Path) -> Patterns:
 
     path = Path(path)
     name = str(path)
+    from ..io.load import read_text
+
     if not path.exists():
         raise InputError(Problem(name, "--patterns", "no such file"))
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(Problem(name, "", f"cannot read: {exc}")) from None
+        data = json.loads(read_text(path))
+    except RecursionError:
+        raise InputError(Problem(name, "", "not a patterns file: nested too deeply")) from None
     except json.JSONDecodeError as exc:
         raise InputError(Problem(name, "", f"not valid JSON: {exc.msg}", exc.lineno)) from None
 

@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from .common import RuleViolations, Strict
+from .common import RuleViolations, Strict, plausible
 
 PLAUSIBLE = {
     "vehicle_mass_t": (1.0, 500.0),  # lightest draisine-class vehicle .. heaviest multi-section locomotive
@@ -128,8 +128,9 @@ class Vehicle(Strict):
 
 class ConsistEntry(Strict):
     type: str = Field(min_length=1, description="a vehicle's name")
-    count: int = Field(ge=1, le=PLAUSIBLE["count"])
-    load_t: float = Field(default=0.0, ge=0, le=PLAUSIBLE["load_t"], description="payload per wagon [t]")
+    count: Annotated[int, plausible(1, PLAUSIBLE["count"], "vehicles", "the longest train ever run had 682 wagons")] = Field(ge=1)
+    load_t: Annotated[float, plausible(0, PLAUSIBLE["load_t"], "t", "heavy-haul ore cars carry about 120 t")] = Field(
+        default=0.0, ge=0, description="payload per wagon [t]")
 
 
 class Consist(Strict):

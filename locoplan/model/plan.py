@@ -49,9 +49,12 @@ def parse_sequence(text: str, length_m: float, field: str = "--sequence") -> Pla
                 raise InputError(Problem("", field, f"item {i + 1} {item!r}: needs a position in metres (only a final B may omit it)"))
         else:
             try:
-                starts.append(float(pos))
+                start = float(pos)
             except ValueError:
                 raise InputError(Problem("", field, f"item {i + 1} {item!r}: position {pos.strip()!r} is not a number")) from None
+            if not math.isfinite(start):
+                raise InputError(Problem("", field, f"item {i + 1} {item!r}: position {pos.strip()!r} is not a finite number of metres"))
+            starts.append(start)
         conds.append(cond)
     if starts[0] != 0.0:
         raise InputError(Problem("", field, f"the first condition must start at 0 m (got {starts[0]:g})"))

@@ -2,16 +2,37 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from .common import RuleViolations, Strict
+from .common import RuleViolations, Strict, plausible
+
+PLAUSIBLE_ROUTE = {
+    # a run from stop to stop: shorter than 10 m is no run; 2,000 km is beyond any non-stop freight run
+    # (the longest real line shipped is 102 km) and keeps the 50 m grid under 40,000 cells
+    "length_m": (10.0, 2_000_000.0),
+    # below 1 km/h a train does not run (a closed line is split into two routes, not given 0 km/h)
+    "kmh": (1.0, 400.0),
+    # no stop-to-stop run is planned longer than a week
+    "run_time_s": (1.0, 604_800.0),
+    # drivers shut off power for a neutral section some seconds before and after it; ten minutes is the most
+    "coast_s": (0.0, 600.0),
+}
+_L, _V, _T, _C = (PLAUSIBLE_ROUTE[k] for k in ("length_m", "kmh", "run_time_s", "coast_s"))
 
 
 class Schedule(Strict):
-    run_time_s: float = Field(gt=0, description="planned running time [s]")
+    run_time_s: Annotated[float, plausible(*_T, "s", "no stop-to-stop run is planned longer than a week")] = Field(
+        gt=0, description="planned running time [s]")
     tolerance_s: float = Field(default=0.0, ge=0, description="punctuality window +- [s]")
+
+    @model_validator(mode="after")
+    def _window(self) -> "Schedule":
+        if self.tolerance_s >= self.run_time_s:
+            raise RuleViolations([(("tolerance_s",), f"{self.tolerance_s:g} s is not below run_time_s {self.run_time_s:g} s: "
+                                   "the window would open at or before departure")])
+        return self
 
 
 class Section(Strict):
@@ -20,7 +41,8 @@ class Section(Strict):
 
 
 class SpeedLimit(Section):
-    kmh: float = Field(gt=0, le=400, description="speed limit [km/h]")
+    kmh: Annotated[float, plausible(*_V, "km/h", "below 1 km/h a train does not run; above 400 km/h no freight train does")] = Field(
+        gt=0, description="speed limit [km/h]")
 
 
 class Gradient(Section):
@@ -36,16 +58,18 @@ class Tunnel(Section):
 
 
 class NeutralSection(Section):
-    coast_before_s: float = Field(default=0.0, ge=0)
-    coast_after_s: float = Field(default=0.0, ge=0)
+    coast_before_s: Annotated[float, plausible(*_C, "s", "power is shut off seconds, not hours, around a neutral section")] = 0.0
+    coast_after_s: Annotated[float, plausible(*_C, "s", "power is shut off seconds, not hours, around a neutral section")] = 0.0
 
 
 def _section_problems(name: str, sections, length_m: float, contiguous: bool) -> list[tuple[tuple, str]]:
     """Positive lengths, inside [0, length_m], sorted; contiguous lists must also cover [0, length_m] exactly."""
     out: list[tuple[tuple, str]] = []
     for i, sec in enumerate(sections):
-        if sec.to_m <= sec.from_m:
-            out.append(((name, i, "to_m"), f"must be greater than from_m ({sec.to_m:g} <= {sec.from_m:g})"))
+        if sec.to_m < sec.from_m:
+            out.append(((name, i), f"from_m > to_m: section reversed ({sec.from_m:g} > {sec.to_m:g}; swap them)"))
+        elif sec.to_m == sec.from_m:
+            out.append(((name, i), f"zero length: from_m = to_m = {sec.to_m:g} (to_m must be greater than from_m)"))
         if sec.to_m > length_m + 1e-9:
             out.append(((name, i, "to_m"), f"{sec.to_m:g} m lies beyond the route's length_m {length_m:g}"))
     for i in range(1, len(sections)):
@@ -70,7 +94,7 @@ class Route(Strict):
 
     schema_: Literal["locoplan/route@1"] = Field(alias="schema")
     name: str
-    length_m: float = Field(gt=0)
+    length_m: Annotated[float, plausible(*_L, "m", "a route runs from stop to stop, 10 m .. 2,000 km")] = Field(gt=0)
     schedule: Schedule | None = None
     speed_limits: list[SpeedLimit]
     gradients: list[Gradient]

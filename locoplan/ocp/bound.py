@@ -5,13 +5,21 @@ runs: the objective of the refined LGR solution. Every plan's ``gap_to_optimum_p
 ``(E - E*(T)) / E*(T) x 100`` with ``T`` the plan's own running time. Solutions are cached per
 (route, train, model options, energy options, time) in this process, and the last solution of a
 route and train starts the next solve at another time (a warm start: the energy-time curve costs a
-fraction of a cold solve per point).
+fraction of a cold solve per point). Results are also kept on disk (``LOCOPLAN_CACHE_DIR``, default
+``~/.cache/locoplan``; empty = off), keyed by a hash of everything E* depends on, the ocp code's own
+source included, so that a command run twice, or a batch over the same cases, solves each E* once.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
-from dataclasses import dataclass
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -50,6 +58,47 @@ def _base_key(route: Route, train: Train, options: ModelOptions, energy: EnergyO
     return (route.model_dump_json(), _train_key(train), options, energy)
 
 
+@lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """A hash of the optimal-control and physics sources: a cached E* is only as good as the code."""
+    h = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for folder in (here, here.parent / "physics"):
+        for f in sorted(folder.glob("*.py")):
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _cache_file(key: tuple) -> Path | None:
+    root = os.environ.get("LOCOPLAN_CACHE_DIR", str(Path.home() / ".cache" / "locoplan"))
+    if not root:
+        return None
+    digest = hashlib.sha256(repr((key, _code_digest())).encode()).hexdigest()[:32]
+    return Path(root) / "bounds" / f"{digest}.json"
+
+
+def _cache_read(key: tuple) -> "Bound | None":
+    f = _cache_file(key)
+    try:
+        return Bound(**json.loads(f.read_text())) if f is not None and f.is_file() else None
+    except (OSError, ValueError, TypeError):
+        return None
+
+
+def _cache_write(key: tuple, b: "Bound") -> None:
+    f = _cache_file(key)
+    if f is None:
+        return
+    try:  # atomic; a cache that cannot be written is simply not kept
+        f.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp")
+        with os.fdopen(fd, "w") as out:
+            json.dump(asdict(b), out)
+        os.replace(tmp, f)
+    except OSError:
+        pass
+
+
 def energy_bound(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
                  energy: EnergyOptions | None = None, mesh_tol: float = DEFAULT_MESH_TOL,
                  max_degree: int = DEFAULT_MAX_DEGREE, calc: TractionCalculator | None = None) -> Bound:
@@ -62,6 +111,10 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
     base = _base_key(route, train, options, energy)
     key = (base, round(time_s, 2), mesh_tol, max_degree)
+    if key not in _BOUNDS:
+        cached = _cache_read(key)
+        if cached is not None:
+            _BOUNDS[key] = cached
     if key in _BOUNDS:
         b = _BOUNDS[key]
         return Bound(b.time_s, b.energy_kwh, b.converged, b.intervals, b.points, 0.0)
@@ -79,6 +132,7 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
               es.wall_time_s)
     _BOUNDS[key] = b
+    _cache_write(key, b)
     return b
 
 

@@ -551,11 +551,10 @@ def run_ocp(route, train, method: str = "two-stage", nodes: int | None = None, *
 
 
 def check_output_path(path: str | Path | None, flag: str, suffixes: tuple[str, ...]) -> None:
-    """Fail early (before solving) on an output file with the wrong suffix or a missing folder
-    (the one check, :func:`locoplan.io.report.check_output_path`)."""
-    from ..io.report import check_output_path as check
+    """Fail early (before solving) on an output file with the wrong suffix or a missing folder."""
+    from ..io.report import check_output
 
-    check(path, flag, suffixes)
+    check_output(path, flag, suffixes)
 
 
 def _csv_text(rows: list[dict], columns) -> str:
@@ -608,17 +607,13 @@ SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, i
 SEED000_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
 """The seed's abstract / conclusion: two-stage solve time lower than CVP / GPM by this many per cent."""
 
+_REPO = Path(__file__).resolve().parents[2]
 STUDY_ROUTES = {2: "routes/seed000-flat.yaml", 3: "routes/seed000-grade30.yaml"}
 
 
 def _default_path(rel: str) -> Path:
-    """A study route: as given if it exists, else the copy shipped in the package catalogue (so that
-    ``ocp-study`` works from any folder after a normal install; routes/seed000-*.yaml link to it)."""
-    from ..io.load import CATALOGUE
-
     p = Path(rel)
-    shipped = Path(str(CATALOGUE / "routes")) / p.name
-    return p if p.exists() or not shipped.exists() else shipped
+    return p if p.exists() or not (_REPO / rel).exists() else _REPO / rel
 
 
 @dataclass(frozen=True)

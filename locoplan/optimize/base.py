@@ -32,7 +32,11 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from ..model.common import RuleViolations, plausible
 
 from ..errors import InfeasibleError, InputError
 from ..errors import Problem as InputProblem
@@ -119,8 +123,7 @@ class NoFeasibleCandidateError(InfeasibleError):
         self.needed, self.found, self.sampled, self.batches = needed, found, sampled, batches
         super().__init__(
             f"could not find {needed} feasible candidate(s) for the optimiser population: only {found} of "
-            f"{sampled} random samples in {batches} batch(es) passed the traction calculation; the constraints "
-            "(e.g. the scheduled running time) may be too tight for this route and train"
+            f"{sampled} random samples in {batches} batch(es) passed the traction calculation"
         )
 
 
@@ -209,19 +212,41 @@ def replace_infeasible(
 # --------------------------------------------------------------------------------------------- parameters
 
 
+LIMITS = {
+    "pop_size": (2, 1_000),
+    "max_iter": (1, 10_000),
+    "max_sample_batches": (1, 1_000),
+    "evaluations": 1_000_000,  # pop_size x max_iter: 200x seed 002's 5,000
+}
+"""Bounds of every optimiser's parameter file: generous for studies, finite so that a typo
+(``pop_size: 100000000``) is refused at once instead of running for days or filling the memory."""
+
+
 class OptimizerParams(BaseModel):
     """Parameters common to every algorithm; subclasses add the algorithm's own (seed 002 Table 5).
 
     Unknown keys are rejected (``extra="forbid"``): a typo in a parameter file never passes silently.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
-    pop_size: int = Field(50, ge=2, description="individuals in the population (seed 002 sec. 4.1: 50)")
-    max_iter: int = Field(100, ge=1, description="iterations (seed 002 sec. 4.1: 100)")
-    max_sample_batches: int = Field(
+    pop_size: Annotated[int, plausible(*LIMITS["pop_size"], "individuals", "seed 002 uses 50")] = Field(
+        50, ge=2, description="individuals in the population (seed 002 sec. 4.1: 50)")
+    max_iter: Annotated[int, plausible(*LIMITS["max_iter"], "iterations", "seed 002 uses 100")] = Field(
+        100, ge=1, description="iterations (seed 002 sec. 4.1: 100)")
+    max_sample_batches: Annotated[int, plausible(*LIMITS["max_sample_batches"], "batches",
+                                                 "each batch is a population's worth of traction calculations")] = Field(
         20, ge=1, description="sample batches tried when refilling with feasible candidates before giving up"
     )
+
+    @model_validator(mode="after")
+    def _budget(self) -> "OptimizerParams":
+        n = self.pop_size * self.max_iter
+        if n > LIMITS["evaluations"]:
+            raise RuleViolations([(("pop_size",), f"pop_size x max_iter = {n:,} evaluations is more than the limit of "
+                                   f"{LIMITS['evaluations']:,} (seed 002: 50 x 100 = 5,000; a run of the limit takes "
+                                   "about an hour on a 20 km line)")])
+        return self
 
 
 def validation_problems(exc: ValidationError, file: str, lines: dict[str, int] | None = None) -> list[InputProblem]:

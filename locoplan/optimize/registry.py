@@ -17,11 +17,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-from pydantic import ValidationError
-
 from ..errors import InputError, Problem
-from .base import Optimizer, OptimizerParams, validation_problems
+from ..io.load import read_yaml, validate_model
+from .base import Optimizer, OptimizerParams
 from .issa import ISSA
 from .pso import PSO
 from .ssa import SSA
@@ -40,7 +38,7 @@ def get_algorithm(name: str) -> type[Optimizer]:
     key = str(name).strip().lower()
     if key not in ALGORITHMS:
         known = ", ".join(sorted(ALGORITHMS))
-        raise InputError(Problem(file="", field="algorithm", message=f"unknown optimiser {name!r} (known: {known})"))
+        raise InputError(Problem(file="<command line>", field="--algorithm", message=f"unknown optimiser {name!r} (known: {known})"))
     return ALGORITHMS[key]
 
 
@@ -62,23 +60,8 @@ def load_optimizer_params(name: str, path: str | Path | None = None) -> Optimize
     key = str(name).strip().lower()
     file = Path(path) if path is not None else default_params_path(key)
     where = str(file)
-    if not file.is_file():
-        raise InputError(Problem(file=where, field="", message="no such file"))
-    try:
-        text = file.read_text(encoding="utf-8")
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(Problem(file=where, field="", message=f"cannot read: {exc}")) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(
-            Problem(file=where, field="", message=f"not valid YAML: {getattr(exc, 'problem', None) or exc}",
-                    line=mark.line + 1 if mark else None)
-        ) from None
-    if not isinstance(data, dict) or not isinstance(node, yaml.MappingNode):
-        raise InputError(Problem(file=where, field="", message="expected a mapping of parameter names to values", line=1))
-    lines = {str(k.value): k.start_mark.line + 1 for k, _ in node.value}
+    data, all_lines = read_yaml(file)
+    lines = {k[0]: v for k, v in all_lines.items() if len(k) == 1}
 
     problems = []
     schema = data.pop("schema", None)
@@ -89,10 +72,11 @@ def load_optimizer_params(name: str, path: str | Path | None = None) -> Optimize
     if str(algorithm).strip().lower() != key:
         problems.append(Problem(file=where, field="algorithm", message=f"expected {key!r}, got {algorithm!r}",
                                 line=lines.get("algorithm")))
+    params = None
     try:
-        params = cls.Params.model_validate(data)
-    except ValidationError as exc:
-        problems.extend(validation_problems(exc, where, lines))
+        params = validate_model(cls.Params, data, where, all_lines)
+    except InputError as exc:
+        problems.extend(exc.problems)
     if problems:
         raise InputError(problems)
     return params

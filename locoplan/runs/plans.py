@@ -11,10 +11,10 @@ Errors name the argument (``strategies``, ``weights``, ``times_s``, ``runs``), n
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
+from .. import bounds
 from ..errors import InputError, Problem
 from .spec import RunSpec
 
@@ -33,17 +33,17 @@ def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
 
 def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
     """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
-    for w in w_time:
-        if not (math.isfinite(w) and 0 <= w <= 1):
-            raise InputError(Problem("", "weights", f"time weight {w:g} is outside [0, 1]"))
+    for w in w_time:  # every value checked before the first run
+        bounds.finite(w, "weights", 0.0, 1.0, why="a time weight")
+    bounds.runs(len(w_time), "weights", "time weights")
     return [replace(base, strategy="proposed", weights=(float(w), 1.0 - float(w))) for w in w_time]
 
 
 def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
     """Seed 002 Table 7: the proposed strategy for each planned running time (E_min is the same for all)."""
-    for t in times_s:
-        if not (math.isfinite(t) and t > 0):
-            raise InputError(Problem("", "times_s", f"running time {t:g} s must be > 0"))
+    for t in times_s:  # every value checked before the first run
+        bounds.planned_time(t, "times_s")
+    bounds.runs(len(times_s), "times_s", "running times")
     return [replace(base, strategy="proposed", time_s=float(t)) for t in times_s]
 
 
@@ -52,8 +52,8 @@ def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str
     base.seed .. base.seed + runs - 1, parameters from ``params_dir/<algorithm>.yaml`` if given."""
     if not algorithms:
         raise InputError(Problem("", "algorithms", "name at least one optimiser"))
-    if runs < 1:
-        raise InputError(Problem("", "runs", f"must be >= 1 (got {runs})"))
+    bounds.count(runs, "runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser")
+    bounds.runs(runs * len(algorithms), "runs")
     return [replace(base, strategy="proposed", algorithm=a, seed=base.seed + i,
                     params=str(Path(params_dir) / f"{a}.yaml") if params_dir else base.params)
             for a in algorithms for i in range(runs)]

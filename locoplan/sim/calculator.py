@@ -30,6 +30,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .. import bounds
 from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import G_MS2, Train
@@ -146,6 +147,13 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
     return s
 
 
+def shorter_than_train(route: Route, train: Train, route_file: str, consist_file: str = "") -> Problem:
+    """The problem of a route no longer than its train (it cannot run from stop to stop)."""
+    of = f" ({consist_file})" if consist_file else ""
+    return Problem(route_file, "length_m", f"{route.length_m:,.0f} m: the route is not longer than the train '{train.name}'"
+                   f"{of}, {train.length_m:,.0f} m long; it cannot run from stop to stop")
+
+
 class TractionCalculator:
     """Route + train + model options, with everything plan-independent precomputed.
 
@@ -158,11 +166,9 @@ class TractionCalculator:
         self.backend = backend
         self.route, self.train = route, train
         self.options = options or ModelOptions()
-        if not self.options.step_m > 0:
-            raise InputError(Problem("", "step_m", f"must be > 0 (got {self.options.step_m:g})"))
+        bounds.step(self.options.step_m, route.length_m)
         if train.length_m >= route.length_m:
-            raise InputError(Problem("", "route", f"route '{route.name}' ({route.length_m:,.0f} m) is not longer than the "
-                                     f"train '{train.name}' ({train.length_m:,.0f} m): it cannot run from stop to stop"))
+            raise InputError(shorter_than_train(route, train, f"route '{route.name}'"))
         self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)
         s = _grid(route, train, self.options)
         self._build(s)
@@ -241,7 +247,11 @@ class TractionCalculator:
         x = self._entry_m
         if not x.size:
             return x
-        gap = np.min(np.abs(x[:, None] - self.s_m[None, :]), axis=1)
+        # distance to the nearest node by bisection (the nodes are sorted): O(n log n) memory-light,
+        # where an (entries x nodes) matrix took a gigabyte on a line of thousands of limits
+        s = self.s_m
+        i = np.clip(np.searchsorted(s, x), 1, len(s) - 1)
+        gap = np.minimum(np.abs(x - s[i - 1]), np.abs(x - s[i]))
         return x[gap > 1e-3]
 
     @cached_property

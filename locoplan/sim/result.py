@@ -61,6 +61,19 @@ class BatchResult:
     failure_gradient_permille: np.ndarray | None = None
     failure_brake_kn: np.ndarray | None = None
 
+    def failures(self) -> str:
+        """Why the infeasible plans of this batch failed, most common first, each with an example:
+        '42 stalled (e.g. stalled at 4,520 m on +12.0 per mille), 8 ...' ('' when all are feasible)."""
+        bad = np.flatnonzero(~np.asarray(self.feasible, dtype=bool))
+        if not bad.size:
+            return ""
+        codes, counts = np.unique(self.reason_code[bad], return_counts=True)
+        parts = []
+        for code, n in sorted(zip(codes.tolist(), counts.tolist()), key=lambda x: -x[1]):
+            example = bad[self.reason_code[bad] == code][0]
+            parts.append(f"{n} {REASONS[int(code)]} (e.g. {self.reason(int(example))})")
+        return f"of {len(self.feasible)} plans, " + ", ".join(parts)
+
     def reason(self, i: int) -> str:
         """Human-readable feasibility verdict of plan ``i``: what failed, where, and the physics of it."""
         code = int(self.reason_code[i])

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError, Problem
 from ..model.plan import Plan
+from ..optimize.base import NoFeasibleCandidateError
 from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import get_algorithm, load_optimizer_params
 from ..sim.calculator import TractionCalculator
@@ -163,8 +164,12 @@ def _optimise(ctx: StrategyContext, problem: SwitchingProblem, salt: int, algori
     name = algorithm or ctx.algorithm
     params = load_optimizer_params(name, ctx.params_path if name == ctx.algorithm else None).model_dump()
     opt = get_algorithm(name)()
-    opt.setup(problem, ctx.rng(salt, seed), x0=x0, **params)
-    return opt.run(callback=ctx.callback)
+    try:
+        opt.setup(problem, ctx.rng(salt, seed), x0=x0, **params)
+        return opt.run(callback=ctx.callback)
+    except NoFeasibleCandidateError as exc:  # say what the traction calculation found, not only that it failed
+        why = problem.last.failures() if getattr(problem, "last", None) is not None else ""
+        raise InfeasibleError(f"{exc}{': the last batch, ' + why if why else ''}") from None
 
 
 def _confirmed(ctx: StrategyContext, problem: SwitchingProblem, result, prefer_best: bool = False) -> np.ndarray:

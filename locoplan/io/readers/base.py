@@ -188,9 +188,11 @@ def licence_near(source: Path) -> tuple[Path | None, str]:
     for folder in (source.parent, source.parent.parent, source.parent.parent.parent):
         candidate = folder / "LICENSE"
         if candidate.is_file():
+            from ..load import read_text
+
             try:
-                text = candidate.read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError):
+                text = read_text(candidate)
+            except InputError:
                 return None, ""
             line = next((ln.strip() for ln in text.splitlines() if ln.strip().lower().startswith("copyright")), "")
             return candidate, line

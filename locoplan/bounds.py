@@ -1,0 +1,151 @@
+"""Bounds on every value that enters from the command line, and the checks that enforce them.
+
+One table (``LIMITS``) says how far each input may go and why; the checks raise ``InputError`` naming
+``<command line>``, the option and the bound, before any work starts. File values are bounded in their
+schemas (``model/route.py``, ``model/consist.py``, ``optimize/base.py``); docs/reliability.md lists all.
+
+A bound is never a guess at what is "reasonable" for a study: it is where a value stops meaning
+anything physical (a grid finer than a metre, a negative seed) or where the work would take days or the
+memory would run out (ten million sweep runs), and each message says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .errors import InputError, Problem
+from .model.common import number
+
+CMDLINE = "<command line>"
+
+LIMITS = {
+    # reporting grid [m]: finer than 0.1 m resolves nothing the train model has; coarser than 1 km skips limits
+    "step_m": (0.1, 1000.0),
+    # cells of one calculator grid: memory and time grow with them (2,000 km at 10 m is 200,000 cells)
+    "cells": 200_000,
+    # cells a route needs at least, so that the grid resolves it at all (a 200 m route at the 50 m default)
+    "min_cells": 4,
+    # optimisation runs of one command (sweep values, study runs x optimisers, drivers x runs x groups):
+    # each is an optimisation of seconds to minutes, so 1,000 is already a night's batch
+    "runs": 1_000,
+    # numpy's generators take seeds 0 .. 2**128 - 1; a seed is a label, so 0 .. 2**63 - 1 is plenty
+    "seed": (0, 2**63 - 1),
+    # planned running time and tolerance [s]: as a route's schedule (model/route.py)
+    "time_s": (1.0, 604_800.0),
+    # E_min [kWh]: more than any run's traction energy (a 10,000 t train over 2,000 km uses ~200 MWh)
+    "e_min_kwh": (1e-6, 1e7),
+}
+
+
+def finite(value: float, option: str, lo: float | None = None, hi: float | None = None, unit: str = "",
+           why: str = "", lo_open: bool = False) -> float:
+    """``value`` as a float if it is finite and inside [lo, hi] (``lo_open``: (lo, hi]); else ``InputError``."""
+    u = f" {unit}" if unit else ""
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(Problem(CMDLINE, option, f"must be a finite number{', in ' + unit if unit else ''} (got {value})"))
+    low_bad = lo is not None and (value <= lo if lo_open else value < lo)
+    if low_bad or (hi is not None and value > hi):
+        left = "(" if lo_open else "["
+        span = f"{left}{number(lo) if lo is not None else '-inf'}, {number(hi) if hi is not None else 'inf'}]{u}"
+        raise InputError(Problem(CMDLINE, option, f"must be in {span} (got {value:g}){': ' + why if why else ''}"))
+    return float(value)
+
+
+def count(value: int, option: str, lo: int, hi: int, why: str) -> int:
+    """An integer option inside [lo, hi]."""
+    if not lo <= value <= hi:
+        got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
+        raise InputError(Problem(CMDLINE, option, f"must be {number(lo)} .. {number(hi)} (got {got}): {why}"))
+    return value
+
+
+def seed(value: int, option: str = "--seed") -> int:
+    """A random seed: an integer 0 .. 2**63 - 1 (numpy refuses negative seeds)."""
+    lo, hi = LIMITS["seed"]
+    if not lo <= value <= hi:
+        got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
+        raise InputError(Problem(CMDLINE, option, f"must be an integer 0 .. 2**63 - 1 (got {got}): numpy's "
+                                 "random generators take no negative seeds, and a seed is a label, not a quantity"))
+    return value
+
+
+def runs(n: int, option: str, what: str = "runs") -> int:
+    """The number of optimisation runs one command would start, at most ``LIMITS['runs']``."""
+    limit = LIMITS["runs"]
+    if n > limit:
+        raise InputError(Problem(CMDLINE, option, f"{n:,} {what} is more than the limit of {limit:,} runs per "
+                                 "command (each run is an optimisation; split the study into several commands)"))
+    return n
+
+
+def step(step_m: float, length_m: float | None = None) -> float:
+    """The calculator's grid spacing: finite, within ``LIMITS['step_m']``, and (given the route's length)
+    at least ``min_cells`` and at most ``cells`` cells."""
+    lo, hi = LIMITS["step_m"]
+    finite(step_m, "--step", lo, hi, "m", "the reporting grid spacing")
+    if length_m is not None:
+        cells = length_m / step_m
+        if cells > LIMITS["cells"]:
+            raise InputError(Problem(CMDLINE, "--step", f"{step_m:g} m gives {cells:,.0f} cells on this {length_m:,.0f} m "
+                                     f"route, more than the limit of {LIMITS['cells']:,} (memory and time grow with "
+                                     f"them); use at least {length_m / LIMITS['cells']:.2g} m"))
+        if cells < LIMITS["min_cells"]:
+            raise InputError(Problem(CMDLINE, "--step", f"{step_m:g} m gives only {cells:.2g} cells on this "
+                                     f"{length_m:,.0f} m route (at least {LIMITS['min_cells']} resolve it); use at most "
+                                     f"{length_m / LIMITS['min_cells']:.3g} m"))
+    return float(step_m)
+
+
+def planned_time(time_s: float, option: str = "--time") -> float:
+    lo, hi = LIMITS["time_s"]
+    return finite(time_s, option, lo, hi, "s", "a planned running time (no stop-to-stop run is planned longer than a week)")
+
+
+def weights(text: str, option: str = "--weights") -> tuple[float, float]:
+    """'w_time,w_energy': two finite, non-negative weights summing to 1 (seed 002 eq. 10)."""
+    try:
+        parts = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(Problem(CMDLINE, option, f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
+    if len(parts) != 2 or not all(math.isfinite(x) and x >= 0 for x in parts) or abs(sum(parts) - 1) > 1e-9:
+        raise InputError(Problem(CMDLINE, option, "expected two non-negative weights summing to 1 "
+                                 f"(finite numbers, seed 002 eq. 10), got {text!r}"))
+    return parts[0], parts[1]
+
+
+def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: str = "",
+           max_values: int | None = None) -> list[float]:
+    """'start:stop:step' (inclusive) or 'a,b,c': finite values in [lo, hi], at most ``max_values``
+    (default ``LIMITS['runs']``) of them, counted before any list is built."""
+    max_values = LIMITS["runs"] if max_values is None else max_values
+    form = "expected start:stop:step or a comma list of numbers"
+    u = f" {unit}" if unit else ""
+    if ":" in text:
+        try:
+            a, b, c = (float(x) for x in text.split(":"))
+        except ValueError:
+            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}")) from None
+        if not all(math.isfinite(x) for x in (a, b, c)):
+            raise InputError(Problem(CMDLINE, option, f"start, stop and step must be finite numbers, got {text!r}"))
+        if c <= 0 or b < a:
+            raise InputError(Problem(CMDLINE, option, f"needs start <= stop and a step > 0, got {text!r}"))
+        n = (b - a) / c
+        if not n + 1 <= max_values:
+            raise InputError(Problem(CMDLINE, option, f"{text!r} gives {n + 1:,.0f} values: more than the limit of "
+                                     f"{max_values:,} runs per command (each is an optimisation); use a larger step"))
+        out = [round(a + i * c, 10) for i in range(int(round(n)) + 1)]
+    else:
+        try:
+            out = [float(x) for x in text.split(",") if x.strip()]
+        except ValueError:
+            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}")) from None
+        if not out:
+            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}"))
+        if len(out) > max_values:
+            raise InputError(Problem(CMDLINE, option, f"{len(out):,} values: more than the limit of {max_values:,} "
+                                     "runs per command"))
+    for x in out:
+        if not math.isfinite(x) or not lo <= x <= hi:
+            raise InputError(Problem(CMDLINE, option, f"value {x:g}{u} is outside [{number(lo)}, {number(hi)}]{u}"
+                                     f"{': ' + why if why else ''}"))
+    return out

@@ -1,0 +1,67 @@
+"""Issue 10: the generated hostile corpus (``tests/hostile.py``) gives no traceback, no hang, no memory
+blow-up and no wrong success, and every message names the file (or ``<command line>``) and the field.
+
+The corpus runs in a few capped subprocesses that import locoplan once and run many cases each (fast);
+the cases whose point is the process itself (umask, FIFOs, /dev/zero, an alias bomb, all-or-none
+outputs) also run alone as ``python -m locoplan``. ``benchmarks/hostile_corpus.py`` runs every case
+alone and prints the counts with each case's own peak memory.
+"""
+
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+import hostile
+
+ALONE = ("alias_bomb.yaml", "fifo_as_file", "dev_zero", "fifo_route_simulate", "stock_dir_with_fifo", "big.yaml",
+         "nested_lists.yaml", "int_5000_digits.yaml", "billion_wagons.yaml", "pop_1e8.yaml", "sweep_weights_limit",
+         "runs_1000000000", "out_ok_plot_unwritable", "out_is_folder", "umask_022_new_file", "umask_022_overwrite_0644",
+         "umask_077_new_file")
+
+
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("hostile")
+    return tmp, hostile.build(tmp)
+
+
+def _report(outcomes) -> str:
+    bad = [o for o in outcomes if o.problems]
+    return "\n".join(f"{o.case.name} [{o.case.cls}] exit {o.returncode}: {'; '.join(o.problems)}\n    "
+                     + o.stderr.strip()[-400:].replace("\n", "\n    ") for o in bad)
+
+
+def test_corpus_covers_every_class(corpus):
+    _, cases = corpus
+    assert len(cases) >= 100
+    assert len({c.name for c in cases}) == len(cases)
+    by_class = {}
+    for c in cases:
+        by_class.setdefault(c.cls, []).append(c)
+    assert set(by_class) == {"yaml", "file", "number", "physics", "params", "option", "output", "message"}
+    assert all(len(v) >= 5 for v in by_class.values()), {k: len(v) for k, v in by_class.items()}
+    # valid-but-infeasible requests exit 1 with the physical reason; a few valid controls exit 0
+    assert sum(c.exit == 1 for c in cases) >= 4 and sum(c.exit == 0 for c in cases) >= 5
+    assert all(c.expect or c.expect_out or c.exit == 0 for c in cases)
+
+
+def test_corpus_no_traceback_hang_or_wrong_success(corpus):
+    tmp, cases = corpus
+    batched = [c for c in cases if c.umask is None]
+    chunks = [batched[i::6] for i in range(6)]
+    with ThreadPoolExecutor(2) as pool:
+        outcomes = [o for part in pool.map(lambda ch: hostile.run_batch(ch, tmp), chunks) for o in part]
+    assert len(outcomes) == len(batched)
+    assert not any(o.problems for o in outcomes), _report(outcomes)
+    assert max(o.peak_rss_bytes for o in outcomes) < hostile.MEMORY_CAP_BYTES
+
+
+def test_process_level_cases_alone(corpus):
+    """The cases about the process itself, each as its own ``python -m locoplan`` under the caps."""
+    tmp, cases = corpus
+    alone = [c for c in cases if c.name in ALONE]
+    assert len(alone) == len(ALONE)
+    with ThreadPoolExecutor(2) as pool:
+        outcomes = list(pool.map(lambda c: hostile.run_case(c, tmp), alone))
+    assert not any(o.problems for o in outcomes), _report(outcomes)
+    assert all(o.peak_rss_bytes < hostile.MEMORY_CAP_BYTES for o in outcomes)
