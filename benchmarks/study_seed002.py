@@ -2,7 +2,7 @@
 (Tables 10-12) and the issue-3 acceptance check: in every run the proposed plan is within the
 schedule's +-30 s and uses less traction energy than four-stage and than time-saving.
 
-    python benchmarks/study_seed002.py [--runs 10]
+    python benchmarks/study_seed002.py [--runs 10] [--workers 2]
 
 Prints markdown tables (pasted into the README).
 """
@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from locoplan.io.load import load_route, load_train
-from locoplan.runner import make_context, run_strategy, study_table
+from locoplan.io.load import load_route
+from locoplan.runner import study_table
+from locoplan.runs import RunSpec, make_executor, run_many
+from locoplan.runs.plans import compare_specs, study_specs
 from locoplan.sim.calculator import ModelOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,23 +28,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--algorithms", default="issa,ssa,pso")
+    ap.add_argument("--workers", type=int, default=1, help="Worker processes (the results do not depend on it).")
     ap.add_argument("--point-mass", action="store_true",
                     help="the seeds' model and seed 002's own builder (reproduces the study as first measured)")
     args = ap.parse_args()
     route = load_route(ROOT / "routes/freight-20km.yaml")
     options = ModelOptions.seeds() if args.point_mass else ModelOptions()
-    ctx = make_context(route, load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"), options)
+    spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options)
     t0 = time.perf_counter()
-    e_min = ctx.e_min()
-    base = {name: run_strategy(ctx, name).summary for name in ("time-saving", "four-stage", "energy-saving")}
+    baselines = run_many(compare_specs(spec, ["time-saving", "four-stage", "energy-saving"]))
+    e_min = next(iter(baselines.e_min_kwh.values()))
+    base = {r.summary["strategy"]: r.summary for r in baselines.records}
     print(f"E_min (energy-saving) = {e_min:.2f} kWh\n")
     print("| strategy | time [s] | energy [kWh] |\n| --- | --- | --- |")
     for name, s in base.items():
         print(f"| {name} | {s['running_time_s']:.1f} | {s['traction_energy_kwh']:.2f} |")
     tol = route.schedule.tolerance_s
-    results = {}
-    for alg in args.algorithms.split(","):
-        results[alg] = [run_strategy(replace(ctx, algorithm=alg, seed=1 + i), "proposed") for i in range(args.runs)]
+    algorithms = args.algorithms.split(",")
+    records = run_many(study_specs(spec, algorithms, args.runs), make_executor(args.workers)).records
+    results = {alg: [r for r in records if r.spec["algorithm"] == alg] for alg in algorithms}
     print(f"\n| algorithm | seed | time [s] | energy [kWh] | fitness | on time | < four-stage | < time-saving | solve [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     all_ok = True

@@ -96,7 +96,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
                    point_mass: bool, air_brake: Optional[bool], rotating_mass: Optional[float], strict_limits: bool,
                    as_json: bool, out_file: Optional[Path], plot: Optional[Path], nodes, state_nodes) -> None:
     """``locoplan ocp ROUTE --objective energy``: solve, print, write; exit 1 if not confirmed."""
-    from .cli import _check_outputs, _load, err, out
+    from .cli_common import _check_outputs, _load, err, out
     from .errors import InputError, Problem
     from .io.report import to_json, write_output
     from .ocp.mpoc import run_mpoc
@@ -143,7 +143,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
-    from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
                       _range, err, guarded, out)
 
     @app.command("bound")

@@ -24,7 +24,7 @@ def _command(fmt: str, sources: list[Path], out_dir: Path, flags: list[str]) -> 
 
 def register(app: typer.Typer) -> None:
     """Add the ``import`` command to ``app``."""
-    from .cli import err, guarded, out  # here, not at import time: locoplan.cli imports this module
+    from .cli_common import err, guarded, out
     from .io.readers import READERS
 
     formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())

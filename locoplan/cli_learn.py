@@ -93,8 +93,9 @@ def _sections_table(sections: list[dict]) -> Table:
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
-                      _sequence_table, _summary_table, err, guarded, out)
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
+                             err, guarded, out)
+    from .io.tables import sequence_table as _sequence_table, summary_table as _summary_table
 
     drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
     app.add_typer(drivers_app, name="drivers")
@@ -191,7 +192,7 @@ def register(app: typer.Typer) -> None:
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
         """Seed 004: time shares, speed curve and operation sequence from learned patterns, checked by the calculator."""
-        from .cli import _emit, _fail_if
+        from .cli_common import _emit, _fail_if
         from .io.load import build_train, load_consist, load_route, load_train
         from .learn.advise import advise as run_advise
         from .learn.advise import check_model

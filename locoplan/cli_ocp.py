@@ -107,7 +107,7 @@ def _ratio_table(study) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
-    from .cli import err, guarded, out  # here, not at import time: locoplan.cli imports this module
+    from .cli_common import err, guarded, out
     from .io.report import to_json
 
     methods = ", ".join(OCP_METHODS)

@@ -20,7 +20,7 @@ from .model.train import Train
 from .optimize.problem import fitness_eq10
 from .sim.calculator import ModelOptions, TractionCalculator
 from .sim.result import BatchResult
-from .strategy.strategies import BUILDERS, STRATEGIES, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
+from .strategy.strategies import BUILDERS, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
 
 SEARCH_STEP_M = 100.0
 """Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on
@@ -42,9 +42,9 @@ DEFAULT_TOLERANCE_SHARE = 0.01
 
 def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
-        return bounds.planned_time(time_s)
+        return bounds.planned_time(time_s, "time_s")
     if route.schedule is None:
-        raise InputError(Problem("<command line>", "--time", f"route '{route.name}' has no schedule: give the planned running time with --time"))
+        raise InputError(Problem("", "time_s", f"route '{route.name}' has no schedule: give the planned running time"))
     return float(route.schedule.run_time_s)
 
 
@@ -53,26 +53,32 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  seed: int = 1, params_path: str | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
                  tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
-                 yardstick: bool = False) -> StrategyContext:
+                 yardstick: bool = False,
+                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
-    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did."""
+    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did.
+    ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
+    options, to reuse (a batch's runs share them). Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
-    bounds.seed(seed)
+    bounds.seed(seed, "seed")
     if e_min_kwh is not None:
-        bounds.finite(e_min_kwh, "--e-min", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+        bounds.finite(e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
     if tolerance_s is not None:
-        bounds.finite(tolerance_s, "--tolerance", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
-    calc = TractionCalculator(route, train, options)
-    # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
-    search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
-    search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
+        bounds.finite(tolerance_s, "tolerance_s", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
+    if calculators is not None:
+        calc, search = calculators
+    else:
+        calc = TractionCalculator(route, train, options)
+        # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
+        search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
+        search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
-        raise InputError(Problem("<command line>", "--e-min", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
+        raise InputError(Problem("", "e_min_kwh", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
     if tolerance_s is not None and not (math.isfinite(tolerance_s) and tolerance_s >= 0):
-        raise InputError(Problem("<command line>", "--tolerance", f"must be a finite number >= 0 s (got {tolerance_s:g})"))
+        raise InputError(Problem("", "tolerance_s", f"must be a finite number >= 0 s (got {tolerance_s:g})"))
     tol = None
     if not math.isnan(t0):
         tol = tolerance_s if tolerance_s is not None else (
@@ -80,7 +86,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if builder is None:  # the seeds' train model goes with seed 002's own builder (their tables)
         builder = "seed002" if options.point_mass else "general"
     if builder not in BUILDERS:
-        raise InputError(Problem("<command line>", "--builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
+        raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
                            tol, window, yardstick, builder)
 
@@ -212,50 +218,12 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
     return RunResult("sequence", outcome, res, summarize(ctx, "sequence", outcome, res))
 
 
-def compare(ctx: StrategyContext, names: list[str]) -> list[RunResult]:
-    unknown = [n for n in names if n not in STRATEGIES]
-    if unknown:
-        raise InputError(Problem("", "--strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
-    if not names:
-        raise InputError(Problem("", "--strategies", "name at least one strategy"))
-    ctx.e_min()  # first, so that every row's fitness uses the same E_min
-    return [run_strategy(ctx, n) for n in names]
+def proposed_sequence(route: Route, train: Train, options: ModelOptions | None = None, builder: str | None = None):
+    """The limit and grade classification behind seed 002's proposed sequence, with its nominal switching
+    points (``compare --explain``), on the optimisers' search grid."""
+    from .strategy.sequence import build_sequence
 
-
-def sweep_weights(ctx: StrategyContext, w_time: list[float]) -> list[RunResult]:
-    """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
-    for w in w_time:  # every value checked before the first run
-        bounds.finite(w, "--weights", 0.0, 1.0, why="a time weight")
-    bounds.runs(len(w_time), "--weights", "time weights")
-    out = []
-    for w in w_time:
-        sub = replace(ctx, weights=(float(w), 1.0 - float(w)))
-        out.append(run_strategy(sub, "proposed"))
-    return out
-
-
-def sweep_times(ctx: StrategyContext, times_s: list[float]) -> list[RunResult]:
-    """Seed 002 Table 7: the proposed strategy for each planned running time (E_min fixed)."""
-    for t0 in times_s:  # every value checked before the first run
-        bounds.planned_time(t0, "--times")
-    bounds.runs(len(times_s), "--times", "running times")
-    ctx.e_min()
-    out = []
-    for t0 in times_s:
-        out.append(run_strategy(replace(ctx, t0_s=float(t0)), "proposed"))
-    return out
-
-
-def study(ctx: StrategyContext, algorithms: list[str], runs: int) -> dict[str, list[RunResult]]:
-    """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed sequence, seeds
-    ctx.seed .. ctx.seed + runs - 1, all against the same E_min."""
-    bounds.count(runs, "--runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser")
-    bounds.runs(runs * len(algorithms), "--runs")
-    ctx.e_min()
-    out: dict[str, list[RunResult]] = {}
-    for alg in algorithms:
-        out[alg] = [run_strategy(replace(ctx, algorithm=alg, seed=ctx.seed + i), "proposed") for i in range(runs)]
-    return out
+    return build_sequence(make_context(route, train, options, need_time=False, builder=builder).search)
 
 
 def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) -> list[dict]:

@@ -210,7 +210,7 @@ def test_sweep_and_study(root, monkeypatch):
     (["sweep", "routes/freight-20km.yaml"], "give exactly one of --weights or --times"),
     (["sweep", "routes/freight-20km.yaml", "--weights", "0.9:0.1:0.1"], "needs start <= stop"),
     (["study", "routes/freight-20km.yaml", "--runs", "0", "--e-min", "580"], "--runs: must be 1 .. 1,000 (got 0)"),
-    (["optimize", "routes/seed000-flat.yaml", "--consist", "HXD1-C64-seed000"], "has no schedule: give the planned running time with --time"),
+    (["optimize", "routes/seed000-flat.yaml", "--consist", "HXD1-C64-seed000"], "--time: route"),
 ])
 def test_seed002_bad_input_exit_2(root, monkeypatch, args, why):
     monkeypatch.chdir(root)

@@ -16,7 +16,7 @@ COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
 def check_plot_path(path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in (".png", ".svg"):
-        raise InputError(Problem(str(path), "--plot", "use a .png or .svg file name"))
+        raise InputError(Problem(str(path), "plot", "use a .png or .svg file name"))
     return path
 
 

@@ -209,3 +209,9 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
         atomic_write_text(path, to_json(data) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
+
+
+def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, ...]) -> None:
+    """:func:`check_output` under the name the batch commands use (``field`` names the output: ``out``,
+    ``plot``...; the command line maps it to its flag)."""
+    check_output(path, field, suffixes)

@@ -88,7 +88,7 @@ class SwitchingProblem:
         if self.min_gap_m is None:
             self.min_gap_m = self.calc.train.length_m / 2
         if self.e_min_kwh <= 0:
-            raise InputError(Problem("", "--e-min", f"must be > 0 kWh (got {self.e_min_kwh:g})"))
+            raise InputError(Problem("", "e_min_kwh", f"must be > 0 kWh (got {self.e_min_kwh:g})"))
         self.n_evaluated = 0
         self.time_range_s: tuple[float, float] | None = None  # shortest / longest feasible time seen [s]
 

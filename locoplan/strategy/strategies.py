@@ -141,7 +141,7 @@ def get_strategy(name: str) -> StrategyFn:
     try:
         return STRATEGIES[name]
     except KeyError:
-        raise InputError(Problem("", "--strategy", f"unknown strategy {name!r} (one of: {', '.join(STRATEGIES)})")) from None
+        raise InputError(Problem("", "strategy", f"unknown strategy {name!r} (one of: {', '.join(STRATEGIES)})")) from None
 
 
 def _plan(conditions, switches) -> Plan:

@@ -1,0 +1,207 @@
+"""``locoplan batch``, ``locoplan results`` and ``locoplan pareto``: many runs, their store, the front.
+
+Thin commands over :mod:`locoplan.runs`; :func:`register` adds them to a typer app.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+__all__ = ["register"]
+
+
+def _progress_printer(err, enabled: bool):
+    """A progress callback for run_many on stderr: a rich bar (counts, rate, ETA) on a terminal, a
+    plain line at most every 10 s otherwise (a log file), nothing when disabled. Returns (callback, close)."""
+    if not enabled:
+        return None, lambda: None
+    if err.is_terminal:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+        bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                       TextColumn("{task.fields[note]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                       console=err, transient=False)
+        bar.start()
+        tasks: dict = {}
+
+        def cb(ev):
+            label = "E_min per route and consist" if ev.phase == "e_min" else "runs"
+            if ev.phase not in tasks:
+                tasks[ev.phase] = bar.add_task(label, total=ev.total, note="")
+            note = "" if ev.phase == "e_min" else f"({ev.reused} from the store, {ev.failed} fail their job)"
+            bar.update(tasks[ev.phase], completed=ev.done, total=ev.total, note=note)
+        return cb, bar.stop
+    start, last = time.monotonic(), [0.0]
+
+    def line(ev):
+        now = time.monotonic()
+        if ev.done != ev.total and now - last[0] < 10:
+            return
+        last[0] = now
+        rate = ev.done / max(now - start, 1e-9)
+        eta = (ev.total - ev.done) / rate if rate > 0 else float("nan")
+        err.print(f"{ev.phase}: {ev.done}/{ev.total} done, {rate:.2f}/s, ETA {eta:.0f} s"
+                  + (f", {ev.reused} from the store, {ev.failed} fail their job" if ev.phase == "runs" else ""),
+                  highlight=False)
+    return line, lambda: None
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
+    from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
+                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out, wide)
+    from .io.report import to_json
+
+    @app.command("batch")
+    @guarded
+    def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Study file: routes, consists, times, strategies, algorithms, seeds (docs/batch.md)."),
+              store_path: Path = typer.Option(..., "--store", help="Result store (SQLite, created if missing); a rerun runs only what it lacks."),
+              workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count; 1 = in this process).", show_default=False),
+              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (instead of local processes; pip install 'locoplan[dask]')."),
+              as_json: bool = JSON,
+              quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr.")):
+        """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
+        from .io.tables import store_summary_table
+        from .runs import Store, make_executor, run_many
+        from .runs.results import rows_of, summarize_rows
+        from .runs.study import load_study
+
+        study = load_study(study_file)
+        with Store(store_path) as store:
+            store.check_writer()
+            executor = make_executor(workers, scheduler)
+            cb, close = _progress_printer(err, not quiet)
+            t = time.perf_counter()
+            try:
+                result = run_many(study.specs, executor, store=store, progress=cb)
+            finally:
+                close()
+                executor.close()
+            wall = time.perf_counter() - t
+            n, ran = len(study.specs), len(result.ran)
+            report = {"store": str(store_path), "runs": n, "distinct_runs": len(set(r.key for r in result.records)),
+                      "from_store": result.reused, "ran": ran, "workers": executor.workers, "executor": executor.name,
+                      "wall_time_s": round(wall, 2), "runs_per_s": round(ran / wall, 3) if ran else None,
+                      "fail_their_job": len(result.failures), "ran_keys": result.ran}
+            if as_json:
+                print(to_json(report))
+                return
+            rows = summarize_rows(rows_of(result.records))
+            wide().print(store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
+                                          f"{study_file}: {n} runs"), highlight=False)
+            out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
+                      f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
+                      + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
+                      "(infeasible, or outside the window)", highlight=False, soft_wrap=True)
+
+    @app.command("results")
+    @guarded
+    def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result store written by locoplan batch."),
+                fmt: Optional[str] = typer.Option(None, "--format", help="Export one row per run: csv, parquet or json (stdout, or --out). Default: the summary table."),
+                out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
+                where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
+                by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
+                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png/.svg)."),
+                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png/.svg)."),
+                as_json: bool = JSON):
+        """Export, summarise and plot a result store (from the stored runs, no re-run)."""
+        from .io.plot_runs import plot_boxes, plot_energy_time
+        from .io.tables import store_summary_table
+        from .runs import Store
+        from .runs.results import FORMATS, export, rows_of, summarize_rows
+
+        if fmt is not None and fmt not in FORMATS:
+            from .errors import InputError, Problem
+
+            raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
+        if fmt is not None:
+            check_outputs(out=(out_file, (f".{fmt}",)))
+        else:
+            check_outputs(out=(out_file, (".json", ".csv")))
+        check_outputs(plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
+        group = _names(by, "--by")
+        with Store(store_path, create=False) as store:
+            rows = rows_of(store.records(), where)
+        fields = set().union(*(r.keys() for r in rows)) if rows else set()
+        unknown = [g for g in group if rows and g not in fields]
+        if unknown:
+            from .errors import InputError, Problem
+
+            raise InputError(Problem("", "by", f"unknown field {unknown[0]!r} (fields: {', '.join(sorted(fields))})"))
+        summary = summarize_rows(rows, group)
+        with all_or_none():
+            text = None
+            if fmt is not None:
+                text = export(rows, out_file, fmt)
+            elif out_file is not None:
+                export(summary, out_file, out_file.suffix.lower().lstrip("."))
+            if plot:
+                plot_energy_time(rows, plot)
+            if boxplot:
+                plot_boxes(rows, boxplot)
+        if text is not None:
+            print(text, end="")
+        elif fmt is None:
+            if as_json:
+                print(to_json({"store": str(store_path), "runs": len(rows), "summary": summary}))
+            else:
+                wide().print(store_summary_table(summary, group, f"{store_path}: {len(rows)} runs"), highlight=False)
+
+    @app.command("pareto")
+    @guarded
+    def pareto(route: Path = ROUTE,
+               factors: Optional[str] = typer.Option(None, "--factors", help="Planned times as factors of the fastest run, start:stop:step or list (default 1.05:1.6:0.05)."),
+               times: Optional[str] = typer.Option(None, "--times", help="Planned times [s] instead of factors, e.g. 1300,1400,1500."),
+               strategies: str = typer.Option("four-stage,proposed", "--strategies", help="Timetabled strategies planned at each time."),
+               seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
+               algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+               out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
+               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png/.svg)."),
+               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
+               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
+               window: bool = WINDOW, builder: Optional[str] = BUILDER,
+               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E* at each planned time from seed 001's bound (a few seconds per time)."),
+               workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
+        """The energy-time front: the best on-time plan at a grid of running times, and the optimum E* (seed 001)."""
+        from .errors import InputError, Problem
+        from .io.plot_runs import plot_pareto
+        from .io.report import atomic_write_text
+        from .io.tables import pareto_table
+        from .runs import make_executor
+        from .runs.pareto import pareto as run_pareto
+        from .runs.spec import RunSpec
+
+        if factors is not None and times is not None:
+            raise InputError(Problem("", "--factors", "give --factors or --times, not both"))
+        check_outputs(out=(out_file, (".json",)), plot=(plot, PLOT_SUFFIXES))
+        f = _range(factors, "--factors") if factors else None
+        ts = _range(times, "--times") if times else None
+        try:
+            seed_list = [int(x) for x in _names(seeds, "--seeds")]
+        except ValueError:
+            raise InputError(Problem("", "--seeds", f"expected whole numbers, e.g. 1,2,3 (got {seeds!r})")) from None
+        opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+        base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
+                       builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
+        executor = make_executor(workers)
+        cb, close = _progress_printer(err, not as_json and err.is_terminal)
+        try:
+            front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
+                               seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
+        finally:
+            close()
+            executor.close()
+        with all_or_none():
+            if out_file:
+                atomic_write_text(out_file, to_json(front) + "\n")
+            if plot:
+                plot_pareto(front, plot)
+        if as_json:
+            print(to_json(front))
+        else:
+            wide().print(pareto_table(front), highlight=False)
+            out.print(f"front: {front['front_kind']}", highlight=False, soft_wrap=True)

@@ -1,0 +1,164 @@
+"""What every command module shares: the consoles, the error guard, option parsing and declarations,
+and the output-path check. ``cli.py`` and the ``cli_*.py`` command modules import from here, so none of
+them imports another (the app lives in ``cli.py``, which registers the others' commands).
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from . import bounds
+from .errors import InputError, LocoplanError, Problem
+from .io.report import all_or_none, check_output, check_output_path, to_json, write_output
+from .optimize.registry import ALGORITHMS
+from .sim.calculator import DEFAULT_STEP_M, ModelOptions
+
+out = Console()
+err = Console(stderr=True)
+
+DEFAULT_CONSIST = "configs/consists/HXD1-C80x50.yaml"
+
+FLAGS = {
+    "time_s": "--time", "e_min_kwh": "--e-min", "tolerance_s": "--tolerance", "builder": "--builder",
+    "strategy": "--strategy", "strategies": "--strategies", "weights": "--weights", "times_s": "--times",
+    "runs": "--runs", "algorithm": "--algorithm", "algorithms": "--algorithms", "out": "--out", "plot": "--plot",
+    "workers": "--workers", "scheduler": "--scheduler", "where": "--where", "format": "--format", "by": "--by",
+    "step_m": "--step", "rotating_mass": "--rotating-mass", "boxplot": "--boxplot", "seed": "--seed",
+}
+"""Library argument names -> this command line's flags. The library names its arguments in errors
+(``time_s``); the command line shows the flag the user typed (``--time``)."""
+
+
+def wide() -> Console:
+    """stdout for wide tables: the terminal as it is, or 200 columns when piped (a pipe reports 80,
+    which would fold every cell)."""
+    import sys
+
+    return out if out.is_terminal else Console(file=sys.stdout, width=200)
+
+
+def as_flags(problem: Problem) -> Problem:
+    """A library problem about an argument, restated with the command line's flag."""
+    if problem.field in FLAGS and (problem.file in ("", "<command line>") or problem.field in ("out", "plot", "boxplot")):
+        return Problem(problem.file or "<command line>", FLAGS[problem.field], problem.message, problem.line)
+    return problem
+
+
+def guarded(fn):
+    """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
+            with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
+                return fn(*args, **kwargs)
+        except LocoplanError as exc:
+            problems = getattr(exc, "problems", None)
+            for text in ([str(as_flags(p)) for p in problems] if problems else [str(exc)]):  # an infeasible request has no file
+                err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
+            raise typer.Exit(exc.exit_code) from None
+    return wrapper
+
+
+def _fail_if(messages: list) -> None:
+    """After every output is written: name each result that failed its job, exit 1 if any did."""
+    messages = [m for m in messages if m]
+    for m in messages:
+        err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
+    if messages:
+        raise typer.Exit(1)
+
+
+def _options(step: float, point_mass: bool, rotating_mass: Optional[float], strict_limits: bool = False,
+             air_brake: Optional[bool] = None) -> ModelOptions:
+    bounds.step(step)
+    if rotating_mass is not None and not 0 <= rotating_mass < 1:
+        raise InputError(Problem("<command line>", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
+    air = (not point_mass) if air_brake is None else air_brake
+    return ModelOptions(step_m=step, point_mass=point_mass, air_brake=air, rotating_mass=rotating_mass,
+                        strict_limits=strict_limits)
+
+
+def _weights(text: str) -> tuple[float, float]:
+    return bounds.weights(text, "--weights")
+
+
+def _range(text: str, field: str) -> list[float]:
+    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times
+    (``pareto --factors``: factors of the fastest run, 1 .. 10)."""
+    if field == "--weights":
+        return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
+    if field == "--factors":
+        return bounds.values(text, field, 1.0, 10.0, why="a factor of the fastest run")
+    return bounds.values(text, field, *bounds.LIMITS["time_s"], "s", "a planned running time")
+
+
+def _names(text: str, field: str) -> list[str]:
+    names = [x.strip() for x in text.split(",") if x.strip()]
+    if not names:
+        raise InputError(Problem("", field, "name at least one"))
+    return names
+
+
+def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
+          rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
+    from .io.load import load_route_and_train
+
+    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    return (*load_route_and_train(route, consist, stock_dir), opts)
+
+
+def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
+    if out_file:
+        write_output(out_file, summary_or_results, profile)
+    if as_json:
+        print(to_json(summary_or_results))
+
+
+PLOT_SUFFIXES = (".png", ".svg")
+
+
+def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
+    """Check every output path of a command before any work (name -> (path or None, suffixes))."""
+    for name, (path, suffixes) in outputs.items():
+        check_output_path(path, name, suffixes)
+
+
+def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
+    """Refuse bad output names (type, folder, writable) before any long computation."""
+    from .io.plot import check_plot_path
+
+    check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
+    check_output(plot and check_plot_path(plot), "--plot")
+
+
+# Options shared by the commands (typer has no option groups; these keep them identical)
+ROUTE = typer.Argument(..., help="Route YAML file.")
+CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or catalogue name.")
+STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
+JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
+STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
+POINT_MASS = typer.Option(False, "--point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
+AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
+ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
+STRICT = typer.Option(False, "--strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
+TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
+WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
+EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy).")
+SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
+ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
+TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
+WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
+BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
+PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
+GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
+WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")
+
+__all__ = ["out", "err", "guarded", "all_or_none", "check_outputs"]

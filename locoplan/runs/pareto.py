@@ -1,0 +1,103 @@
+"""``locoplan pareto ROUTE``: the energy-time front of a route and train.
+
+At each planned time of a grid (factors of the fastest run, or seconds) the timetabled strategies
+plan (the proposed one over several seeds); time-saving and energy-saving add the two ends. The
+result has, per planned time, the best on-time plan found and the optimum's energy E* at that plan's
+own running time (:mod:`locoplan.runs.optimum`, seed 001's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
+other). Until E* is known the front is *the best plans found*, an upper bound of the true front, and
+the result says so (``front_kind``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import InputError, Problem
+from .many import run_many
+from .optimum import optimum_energy_kwh, optimum_providers
+from .spec import RunSpec
+
+DEFAULT_FACTORS = tuple(round(1.05 + 0.05 * i, 2) for i in range(12))
+"""1.05 .. 1.6 times the fastest run: from a tight timetable to one with a third more time."""
+TIMETABLED = ("four-stage", "proposed")
+ENDS = ("time-saving", "energy-saving")
+
+
+def time_grid(fastest_s: float, factors=None, times_s=None) -> list[tuple[float, float]]:
+    """(T0 [s], factor) pairs: factors of the fastest run (T0 rounded up to 0.1 s) or times in seconds."""
+    if times_s:
+        for t in times_s:
+            if not (math.isfinite(t) and t >= fastest_s):
+                raise InputError(Problem("", "times_s", f"{t:g} s is below the fastest possible run, {fastest_s:.1f} s"))
+        return [(float(t), float(t) / fastest_s) for t in times_s]
+    factors = factors or DEFAULT_FACTORS
+    for f in factors:
+        if not (math.isfinite(f) and f >= 1):
+            raise InputError(Problem("", "factors", f"a factor of the fastest run must be >= 1 (got {f:g})"))
+    return [(math.ceil(f * fastest_s * 10 - 1e-9) / 10, float(f)) for f in factors]
+
+
+def nondominated(points: list[dict]) -> list[dict]:
+    """The points no other point beats in both running time and energy, by increasing time."""
+    out: list[dict] = []
+    for p in sorted(points, key=lambda p: (p["running_time_s"], p["traction_energy_kwh"])):
+        if not out or p["traction_energy_kwh"] < out[-1]["traction_energy_kwh"]:
+            out.append(p)
+    return out
+
+
+def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, seeds=(1,), executor=None,
+           progress=None, optimum: bool = True) -> dict:
+    """The front of ``base.route`` with ``base.consist`` under ``base.options`` (see the module doc).
+
+    ``strategies``: the timetabled strategies planned at each time (the proposed one once per seed).
+    ``optimum``: ask the registered providers for E* at each planned time (seed 001's bound: seconds
+    per time, solved in this process, each warm-started from the previous one).
+    Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
+    best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""
+    from ..io.load import load_route, load_train
+    from ..sim.calculator import TractionCalculator
+
+    route, train = load_route(base.route), load_train(base.consist, base.stock_dir)
+    fastest = TractionCalculator(route, train, base.options).fastest_time_s
+    grid = time_grid(fastest, factors, times_s)
+    specs = [_with(base, strategy=s, time_s=grid[0][0]) for s in ENDS]
+    for t0, _ in grid:
+        for s in strategies:
+            for seed in (seeds if s == "proposed" else seeds[:1]):
+                specs.append(_with(base, strategy=s, time_s=t0, seed=seed))
+    batch = run_many(specs, executor, progress=progress)
+    points = [{"strategy": r.summary["strategy"] + (f" ({r.summary['algorithm']})" if r.summary.get("algorithm") else ""),
+               "planned_time_s": r.summary["planned_time_s"] if r.spec["strategy"] not in ENDS else None,
+               "seed": r.summary.get("seed"), "running_time_s": r.summary["running_time_s"],
+               "traction_energy_kwh": r.summary["traction_energy_kwh"], "punctual": r.summary.get("punctual")}
+              for r in batch.records if r.summary.get("feasible")]
+    front = nondominated(points)
+    on_front = {(p["strategy"], p["running_time_s"], p["traction_energy_kwh"]) for p in front}
+    rows = []
+    for t0, f in grid:
+        ok = [p for p in points if p["planned_time_s"] == t0 and p["punctual"]]
+        best = min(ok, key=lambda p: p["traction_energy_kwh"]) if ok else None
+        # E* at the best plan's own running time (a plan may run up to its window later than T0, and
+        # E* falls with time): the gap compares like with like, as runner.summarize's does
+        t_star = t0 if best is None else best["running_time_s"]
+        e_star = optimum_energy_kwh(route, train, base.options, t_star) if optimum and optimum_providers() else None
+        gap = None if best is None or e_star is None else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3)
+        rows.append({"planned_time_s": t0, "factor": round(f, 4),
+                     "best_energy_kwh": None if best is None else best["traction_energy_kwh"],
+                     "best_strategy": None if best is None else best["strategy"],
+                     "best_running_time_s": None if best is None else best["running_time_s"],
+                     "optimum_time_s": t_star, "optimum_kwh": None if e_star is None else round(e_star, 2),
+                     "gap_to_optimum_percent": gap,
+                     "on_front": best is not None and (best["strategy"], best["running_time_s"], best["traction_energy_kwh"]) in on_front})
+    known = any(r["optimum_kwh"] is not None for r in rows)
+    return {"route": route.name, "consist": train.name, "fastest_time_s": round(fastest, 2),
+            "front_kind": "optimum E*(T) from " + ", ".join(optimum_providers()) if known else
+            "best on-time plans found by the strategies (no optimum E* asked for or known: an upper bound of the true front)",
+            "strategies": list(strategies), "seeds": list(seeds), "grid": rows, "points": points, "front": front}
+
+
+def _with(base: RunSpec, **changes) -> RunSpec:
+    from dataclasses import replace
+
+    return replace(base, **changes)

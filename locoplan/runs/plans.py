@@ -1,0 +1,87 @@
+"""The specs of the multi-run commands, from one base spec: compare, the two sweeps, the study.
+
+Each function returns the list of :class:`RunSpec` that :func:`locoplan.runs.run_many` runs, so a
+Python user does what a command does in two lines::
+
+    base = RunSpec("routes/freight-20km.yaml", time_s=1500)
+    batch = run_many(study_specs(base, ["issa", "ssa", "pso"], runs=10))
+
+Errors name the argument (``strategies``, ``weights``, ``times_s``, ``runs``), never a command's flag.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from .. import bounds
+from ..errors import InputError, Problem
+from .spec import RunSpec
+
+
+def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
+    """Seed 002 Tables 8-9: one run per strategy, all with the same E_min (run_many computes it once)."""
+    from ..strategy.strategies import STRATEGIES
+
+    if not strategies:
+        raise InputError(Problem("", "strategies", "name at least one strategy"))
+    unknown = [n for n in strategies if n not in STRATEGIES]
+    if unknown:
+        raise InputError(Problem("", "strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
+    return [replace(base, strategy=n) for n in strategies]
+
+
+def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
+    """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
+    for w in w_time:  # every value checked before the first run
+        bounds.finite(w, "weights", 0.0, 1.0, why="a time weight")
+    bounds.runs(len(w_time), "weights", "time weights")
+    return [replace(base, strategy="proposed", weights=(float(w), 1.0 - float(w))) for w in w_time]
+
+
+def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
+    """Seed 002 Table 7: the proposed strategy for each planned running time (E_min is the same for all)."""
+    for t in times_s:  # every value checked before the first run
+        bounds.planned_time(t, "times_s")
+    bounds.runs(len(times_s), "times_s", "running times")
+    return [replace(base, strategy="proposed", time_s=float(t)) for t in times_s]
+
+
+def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str | Path | None = None) -> list[RunSpec]:
+    """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed strategy, seeds
+    base.seed .. base.seed + runs - 1, parameters from ``params_dir/<algorithm>.yaml`` if given."""
+    if not algorithms:
+        raise InputError(Problem("", "algorithms", "name at least one optimiser"))
+    bounds.count(runs, "runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser")
+    bounds.runs(runs * len(algorithms), "runs")
+    return [replace(base, strategy="proposed", algorithm=a, seed=base.seed + i,
+                    params=str(Path(params_dir) / f"{a}.yaml") if params_dir else base.params)
+            for a in algorithms for i in range(runs)]
+
+
+def check_time_possible(specs: list[RunSpec]) -> None:
+    """Before a study or sweep: a planned time below the fastest run cannot be met by any plan, whatever
+    the seed (InfeasibleError naming the fastest run), so none of the runs is started."""
+    from ..io.load import load_route, load_train
+    from ..runner import check_time_possible as check, make_context, planned_time
+
+    contexts: dict = {}
+    for s in specs:
+        if s.strategy not in ("proposed", "four-stage"):
+            continue
+        k = (s.route, s.consist, s.stock_dir, s.options, s.resolved_builder)
+        if k not in contexts:
+            route = load_route(s.route)
+            contexts[k] = make_context(route, load_train(s.consist, s.stock_dir), s.options, need_time=False,
+                                       builder=s.resolved_builder)
+        ctx = contexts[k]
+        check(replace(ctx, t0_s=planned_time(ctx.calc.route, s.time_s)))
+
+
+def energy_reduction(rows: list[dict]) -> list[dict]:
+    """Seed 002 Table 7's derived column: each row's energy saved against the first row's, in per cent."""
+    base = rows[0]["traction_energy_kwh"] if rows else None
+    for x in rows:
+        e = x["traction_energy_kwh"]
+        x["energy_reduction_percent"] = None if not base or e is None else round(100 * (1 - e / base), 2)
+    return rows

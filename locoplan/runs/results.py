@@ -1,0 +1,151 @@
+"""What ``locoplan results`` does with a store: filter, export, summarise, plot (never a re-run).
+
+Rows are :meth:`RunRecord.row` dicts: the ``--json`` summary's field names (``route``, ``strategy``,
+``algorithm``, ``seed``, ``planned_time_s``, ``running_time_s``, ``traction_energy_kwh``, ...) plus
+``key``, ``route_file``, ``time_spec``, ``verdict``, ``wall_time_s``, ``worker``, ``locoplan_version``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import operator
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, Problem
+from ..io.report import atomic_write, atomic_write_text, clean, to_json
+
+FORMATS = ("csv", "parquet", "json")
+_OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt,
+        "~": lambda x, v: str(v) in str(x)}
+_WHERE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|!=|=|<|>|~)\s*(.*?)\s*$")
+DEFAULT_BY = ("route", "consist", "planned_time_s", "strategy", "algorithm")
+
+
+def parse_where(conditions: list[str], fields: set[str]):
+    """``FIELD OP VALUE`` (OP one of = != < <= > >=, or ~ for 'contains'; VALUE a number, true/false/null,
+    or text), all of
+    which must hold. Returns a predicate on rows; an unknown field or a malformed condition is an
+    InputError naming it."""
+    tests = []
+    for text in conditions:
+        m = _WHERE.match(text)
+        if not m:
+            raise InputError(Problem("", "where", f"expected FIELD OP VALUE with OP one of = != < <= > >= ~ (got {text!r})"))
+        name, op, raw = m.groups()
+        if fields and name not in fields:
+            raise InputError(Problem("", "where", f"unknown field {name!r} (fields: {', '.join(sorted(fields))})"))
+        value = raw.strip("'\"") if op == "~" else _value(raw)
+        tests.append((name, _OPS[op], value, op))
+
+    def keep(row: dict) -> bool:
+        for name, fn, value, op in tests:
+            x = row.get(name)
+            if x is None or value is None:
+                if not ((x is None) == (value is None) if op == "=" else (x is None) != (value is None) if op == "!=" else False):
+                    return False
+                continue
+            try:
+                if not fn(x, value):
+                    return False
+            except TypeError:  # e.g. text against a number
+                if not fn(str(x), str(value)):
+                    return False
+        return True
+    return keep
+
+
+def _value(raw: str):
+    low = raw.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    if low in ("null", "none"):
+        return None
+    try:
+        return float(raw)
+    except ValueError:
+        return raw.strip("'\"")
+
+
+def rows_of(records, where: list[str] | None = None) -> list[dict]:
+    rows = [r.row() for r in records]
+    if where:
+        fields = set().union(*(r.keys() for r in rows)) if rows else set()
+        keep = parse_where(where, fields)
+        rows = [r for r in rows if keep(r)]
+    return rows
+
+
+def _flat(value):
+    """A cell of a CSV / Parquet column: lists and dicts as JSON text."""
+    return json.dumps(clean(value)) if isinstance(value, (list, dict)) else value
+
+
+def _columns(rows: list[dict]) -> list[str]:
+    cols: dict[str, None] = {}
+    for r in rows:
+        cols.update(dict.fromkeys(r))
+    return list(cols)
+
+
+def export(rows: list[dict], path: str | Path | None, fmt: str) -> str | None:
+    """Write ``rows`` as ``fmt`` to ``path`` (atomically), or return the text for stdout (csv, json)."""
+    if fmt not in FORMATS:
+        raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
+    cols = _columns(rows)
+    if fmt == "json":
+        text = to_json({"results": rows}) + "\n"
+    elif fmt == "csv":
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
+        w.writeheader()
+        w.writerows({k: _flat(r.get(k)) for k in cols} for r in rows)
+        text = buf.getvalue()
+    else:
+        if path is None:
+            raise InputError(Problem("", "out", "Parquet is binary: give a file with --out"))
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:
+            raise InputError(Problem("", "format", "Parquet needs pyarrow: pip install 'locoplan[parquet]'")) from None
+        table = pa.table({c: [_flat(clean(r.get(c))) for r in rows] for c in cols})
+        atomic_write(path, lambda p: pq.write_table(table, p))
+        return None
+    if path is None:
+        return text
+    atomic_write_text(path, text)
+    return None
+
+
+def _stats(values: list[float]) -> tuple[float | None, float | None, float | None]:
+    if not values:
+        return None, None, None
+    a = np.array(values, dtype=float)
+    return round(float(a.mean()), 3), round(float(a.min()), 3), round(float(a.std(ddof=1)), 3) if len(a) > 1 else 0.0
+
+
+def summarize_rows(rows: list[dict], by: list[str] = list(DEFAULT_BY)) -> list[dict]:
+    """One row per group of ``by`` fields: runs, feasible and punctual runs, energy mean / best / sd,
+    time mean / sd (over the feasible runs), and the gap to the optimum (mean, best) where the records
+    have one (``gap_to_optimum_percent``; none until an optimum is known)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r.get(k) for k in by), []).append(r)
+    out = []
+    for key in sorted(groups, key=lambda k: tuple((x is None, str(x) if not isinstance(x, (int, float)) else x) for x in k)):
+        rs = groups[key]
+        ok = [r for r in rs if r.get("feasible")]
+        e_mean, e_best, e_sd = _stats([r["traction_energy_kwh"] for r in ok])
+        t_mean, _, t_sd = _stats([r["running_time_s"] for r in ok])
+        gaps = [r["gap_to_optimum_percent"] for r in ok if r.get("gap_to_optimum_percent") is not None]
+        g_mean, g_best, _ = _stats(gaps)
+        out.append({**dict(zip(by, key)), "runs": len(rs), "feasible_runs": len(ok),
+                    "punctual_runs": sum(1 for r in ok if r.get("punctual")),
+                    "energy_mean_kwh": e_mean, "energy_best_kwh": e_best, "energy_sd_kwh": e_sd,
+                    "time_mean_s": t_mean, "time_sd_s": t_sd, "gap_mean_percent": g_mean, "gap_best_percent": g_best})
+    return out

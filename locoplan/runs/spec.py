@@ -1,0 +1,391 @@
+"""A run as data: :class:`RunSpec` (what to run) -> :class:`RunRecord` (what came out).
+
+A spec names its route by file and its consist by catalogue name or file, plus everything that
+decides the result (model options, strategy, optimiser, seed, planned time, weights, builder,
+punctuality window). It is small and picklable, so any executor can ship it to any worker.
+
+Before anything runs, :func:`prepare` loads every route and consist once (input errors surface here,
+before any work starts) and gives each spec its **key**: a SHA-256 of the validated route and train
+models (their content, not their file names), the optimiser's parameters and the spec's settings.
+The same key means the same result; a result store is keyed by it (resume, no run done twice).
+
+:func:`execute` runs one :class:`Task` (a spec with its loaded inputs and its group's E_min) in
+whatever process it lands in; it never reads the spec's files again, so a cluster's workers need
+no shared file system (custom optimiser parameter files excepted: they are read where they run).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import platform
+import socket
+import time
+from dataclasses import asdict, dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from ..errors import InfeasibleError, InputError, Problem
+from ..sim.calculator import ModelOptions
+
+DEFAULT_CONSIST = "HXD1-C80x50"
+RESULTS_FORMAT = 1
+"""Version of the record layout (the store refuses another one)."""
+
+TIMING_FIELDS = ("solve_time_s", "wall_time_s", "cpu_time_s")
+"""Fields that measure the machine, not the result: left out when records are compared."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run. Field names are the library's (``time_s``, ``e_min_kwh``), never a command's flags.
+
+    route: route file. consist: catalogue name or consist file. strategy: a name of
+    ``strategy.strategies.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
+    parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
+    schedule). weights: (w_time, w_energy) of seed 002 eq. 10. tolerance_s: punctuality window +- [s]
+    (None: the route's, else 1 % of T0). window: rank inside the window (seed 002 eq. 3). builder:
+    sequence builder (None: the default for the options). e_min_kwh: E_min of eq. 11 given by the
+    user (None: the energy-saving strategy's, computed once per route, consist and options and passed
+    to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window
+    fails its job whatever the strategy (None: only the timetabled strategies). inputs: further
+    strategy inputs as (name, value) pairs (e.g. compare's logs and patterns). tags: labels carried
+    into the record but not into the key (e.g. the study file's time factor '1.1x').
+    """
+
+    route: str
+    consist: str = DEFAULT_CONSIST
+    strategy: str = "proposed"
+    algorithm: str = "issa"
+    seed: int = 1
+    time_s: float | None = None
+    weights: tuple[float, float] = (0.5, 0.5)
+    tolerance_s: float | None = None
+    window: bool = True
+    builder: str | None = None
+    e_min_kwh: float | None = None
+    params: str | None = None
+    options: ModelOptions = field(default_factory=ModelOptions)
+    stock_dir: str | None = None
+    fitness: bool = True
+    strict: bool | None = None
+    yardstick: bool = False
+    inputs: tuple[tuple[str, Any], ...] = ()
+    tags: tuple[tuple[str, str], ...] = ()
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["weights"] = list(self.weights)
+        d["inputs"] = {k: _plain(v) for k, v in self.inputs}
+        d["tags"] = dict(self.tags)
+        return d
+
+    @property
+    def resolved_builder(self) -> str:
+        """The builder the run uses: the seeds' model goes with seed 002's own builder (runner.make_context)."""
+        return self.builder or ("seed002" if self.options.point_mass else "general")
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def canonical_hash(obj: Any) -> str:
+    """SHA-256 (hex, 32 characters) of a canonical JSON text of ``obj``: stable across processes and machines."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:32]
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """What :func:`prepare` loaded: routes and trains by content hash, and each spec's hashes."""
+
+    routes: dict[str, Any]          # route hash -> Route
+    trains: dict[str, Any]          # train hash -> Train
+    route_of: dict[str, str]        # route file -> route hash
+    train_of: dict[tuple, str]      # (consist, stock_dir) -> train hash
+    params_of: dict[tuple, dict]    # (algorithm, params file) -> parameters (validated)
+
+
+def _params(algorithm: str, path: str | None) -> dict:
+    from ..optimize.registry import load_optimizer_params
+
+    return load_optimizer_params(algorithm, path).model_dump()
+
+
+def load_inputs(specs: list[RunSpec]) -> Inputs:
+    """Load every distinct route, consist and optimiser parameter file of ``specs`` once.
+
+    Raises :class:`InputError` for a bad file (naming file, line and field) or an unknown strategy,
+    algorithm or builder (naming the spec field), before any run starts."""
+    from ..io.load import load_route, load_train
+    from ..optimize.registry import ALGORITHMS
+    from ..runner import planned_time
+    from ..strategy.strategies import BUILDERS, ENERGY_SAVING_ALGORITHM, STRATEGIES
+
+    problems: list[Problem] = []
+    routes, trains, route_of, train_of, params_of = {}, {}, {}, {}, {}
+    for spec in specs:
+        if spec.strategy not in STRATEGIES:
+            problems.append(Problem("", "strategy", f"unknown strategy {spec.strategy!r} (one of: {', '.join(STRATEGIES)})"))
+        if spec.algorithm not in ALGORITHMS:
+            problems.append(Problem("", "algorithm", f"unknown optimiser {spec.algorithm!r} (one of: {', '.join(ALGORITHMS)})"))
+        if spec.resolved_builder not in BUILDERS:
+            problems.append(Problem("", "builder", f"unknown sequence builder {spec.builder!r} (one of: {', '.join(BUILDERS)})"))
+        if problems:
+            raise InputError(problems[:1])
+        if spec.route not in route_of:
+            r = load_route(spec.route)
+            h = canonical_hash(r.model_dump(mode="json"))
+            routes[h], route_of[spec.route] = r, h
+        if needs_time(spec):
+            planned_time(routes[route_of[spec.route]], spec.time_s)  # no schedule and no time: say so now
+        ck = (spec.consist, spec.stock_dir)
+        if ck not in train_of:
+            t = load_train(spec.consist, spec.stock_dir)
+            h = canonical_hash(_train_identity(t))
+            trains[h], train_of[ck] = t, h
+        for pk in ((spec.algorithm, spec.params), (ENERGY_SAVING_ALGORITHM, _e_min_params(spec))):
+            if pk not in params_of:
+                params_of[pk] = _params(*pk)
+    return Inputs(routes, trains, route_of, train_of, params_of)
+
+
+def _train_identity(train) -> dict:
+    """The resolved train's numbers (what the physics sees), arrays as lists: its content hash does not
+    depend on which files or catalogue names it was built from."""
+    from dataclasses import fields
+
+    return {f.name: (v.tolist() if hasattr(v := getattr(train, f.name), "tolist") else v) for f in fields(train)}
+
+
+def _e_min_params(spec: RunSpec) -> str | None:
+    """The parameter file E_min's ISSA search reads: the spec's own only when its algorithm is ISSA
+    (strategies._optimise), so that a batch gives what the same run alone gives."""
+    from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
+
+    return spec.params if spec.algorithm == ENERGY_SAVING_ALGORITHM else None
+
+
+def _options_dict(options: ModelOptions) -> dict:
+    return asdict(options)
+
+
+def group_key(spec: RunSpec, inputs: Inputs) -> str:
+    """Key of the spec's E_min group: route, train, model options, builder and E_min's optimiser
+    parameters (E_min does not depend on the planned time, the seed or the algorithm studied)."""
+    from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
+
+    return canonical_hash({
+        "what": "e_min", "route": inputs.route_of[spec.route], "train": inputs.train_of[(spec.consist, spec.stock_dir)],
+        "options": _options_dict(spec.options), "builder": spec.resolved_builder,
+        "params": inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))], "format": RESULTS_FORMAT,
+    })
+
+
+def spec_key(spec: RunSpec, inputs: Inputs) -> str:
+    """The run's key: everything that decides its result, by content (see the module docstring)."""
+    d = spec.to_dict()
+    for k in ("route", "consist", "stock_dir", "params", "tags", "builder"):
+        d.pop(k)
+    d.update(route=inputs.route_of[spec.route], train=inputs.train_of[(spec.consist, spec.stock_dir)],
+             params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
+             e_min_group=None if spec.e_min_kwh is not None else group_key(spec, inputs), format=RESULTS_FORMAT)
+    return canonical_hash(d)
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker gets: the spec, its key, its loaded route and train, and the E_min of its group,
+    computed once for the whole batch."""
+
+    spec: RunSpec
+    key: str
+    route: Any
+    train: Any
+    route_hash: str
+    train_hash: str
+    e_min_kwh: float | None = None
+    keep_profile: bool = False
+
+
+@dataclass
+class RunRecord:
+    """The result of one run: ``summary`` is the SPEC's ``--json`` object; ``verdict`` why the run fails its job (None if it does it); ``spec`` the
+    spec as a dict; ``wall_time_s`` the worker's wall time; ``versions`` what computed it; ``worker``
+    host:pid; ``cpu_time_s`` the worker's CPU time for it (a machine shared with other work stretches
+    the wall time, not this). ``profile`` and ``history`` (the reporting-grid profile and the optimiser's convergence)
+    are kept only when asked for, and never stored."""
+
+    key: str
+    summary: dict
+    spec: dict
+    verdict: str | None
+    wall_time_s: float
+    versions: dict
+    worker: str
+    profile: Any = None
+    history: Any = None
+    cpu_time_s: float | None = None
+
+    def row(self) -> dict:
+        """One flat row: the summary's fields (their ``--json`` names), then the record's own."""
+        tags = self.spec.get("tags") or {}
+        return {**self.summary, "key": self.key, "route_file": self.spec.get("route"),
+                "consist_file": self.spec.get("consist"), "time_spec": tags.get("time"),
+                "verdict": self.verdict, "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "worker": self.worker,
+                "locoplan_version": self.versions.get("locoplan")}
+
+    def comparable(self) -> dict:
+        """The summary without the fields that time the machine (for 'same result' checks)."""
+        return {k: v for k, v in self.summary.items() if k not in TIMING_FIELDS}
+
+    def to_json(self) -> dict:
+        return {"key": self.key, "summary": self.summary, "spec": self.spec, "verdict": self.verdict,
+                "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "versions": self.versions,
+                "worker": self.worker}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "RunRecord":
+        return cls(d["key"], d["summary"], d["spec"], d.get("verdict"), d["wall_time_s"], d["versions"], d["worker"],
+                   cpu_time_s=d.get("cpu_time_s"))
+
+
+@lru_cache(maxsize=1)
+def versions() -> dict:
+    import numba
+    import numpy
+
+    from .. import __version__
+
+    return {"locoplan": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
+            "numba": numba.__version__, "results_format": RESULTS_FORMAT}
+
+
+# ---------------------------------------------------------------------------------------- workers
+_CONTEXTS: dict[tuple, Any] = {}
+_CONTEXTS_MAX = 16
+"""Per process: the calculators and the priced-drive DP of a (route, train, options, builder), reused by
+its runs (the DP's work arrays are rewritten by every solve, so reuse cannot change a result)."""
+
+
+def _base_context(task: Task):
+    from ..runner import make_context
+
+    spec = task.spec
+    k = (task.route_hash, task.train_hash, spec.options, spec.resolved_builder)
+    ctx = _CONTEXTS.get(k)
+    if ctx is None:
+        if len(_CONTEXTS) >= _CONTEXTS_MAX:
+            _CONTEXTS.pop(next(iter(_CONTEXTS)))
+        ctx = make_context(task.route, task.train, spec.options, need_time=False, builder=spec.resolved_builder,
+                           yardstick=False)
+        _CONTEXTS[k] = ctx
+    return ctx
+
+
+def context_for(task: Task):
+    """The run's StrategyContext: a fresh one sharing only the calculators and the DP with earlier runs."""
+    from ..runner import make_context
+
+    spec = task.spec
+    base = _base_context(task)
+    # validate the settings exactly as a single run would (same errors, same defaults)
+    ctx = make_context(task.route, task.train, spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh,
+                       weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params_path=spec.params,
+                       need_time=needs_time(spec),
+                       tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
+                       yardstick=spec.yardstick, calculators=(base.calc, base.search))
+    dp = base._e_min_cache.get("dp")
+    if dp is not None:
+        ctx._e_min_cache["dp"] = dp
+    ctx.inputs.update(dict(spec.inputs))
+    return ctx, base
+
+
+_TIMED = ("proposed", "four-stage")
+_UNTIMED = ("time-saving", "energy-saving")
+
+
+def needs_time(spec: RunSpec) -> bool:
+    """A planned time is needed (given, or the route's schedule) by every strategy but the two that
+    ignore the timetable by definition."""
+    return spec.time_s is not None or spec.strategy not in _UNTIMED
+
+
+def _worker_name() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def execute(task: Task) -> RunRecord:
+    """Run one task (in any process). A run that has no feasible plan (InfeasibleError) is a result,
+    recorded with ``feasible`` false and the reason; input errors propagate."""
+    from ..runner import run_strategy, schedule_verdict
+
+    t, cpu = time.perf_counter(), time.process_time()
+    spec = task.spec
+    ctx, base = context_for(task)
+    profile = history = None
+    try:
+        run = run_strategy(ctx, spec.strategy, with_fitness=spec.fitness)
+    except InfeasibleError as exc:
+        summary = infeasible_summary(ctx, spec, str(exc))
+        verdict = f"{spec.strategy}: {exc}"
+    else:
+        if "dp" in ctx._e_min_cache and "dp" not in base._e_min_cache:
+            base._e_min_cache["dp"] = ctx._e_min_cache["dp"]
+        summary = dict(run.summary)
+        verdict = schedule_verdict(ctx, run, strict=spec.strict)
+        if task.keep_profile:
+            profile, history = run.result.profile, run.outcome.history
+    return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
+                     _worker_name(), profile, history, round(time.process_time() - cpu, 4))
+
+
+def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
+    """The summary of a run that produced no plan: the SPEC's fields, with nothing measured."""
+    t0 = ctx.t0_s
+    return {"route": ctx.calc.route.name, "consist": ctx.calc.train.name, "strategy": spec.strategy,
+            "algorithm": spec.algorithm if spec.strategy in _TIMED else None,
+            "seed": spec.seed if spec.strategy in _TIMED else None, "feasible": False, "reason": reason,
+            "running_time_s": None, "traction_energy_kwh": None,
+            "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
+            "window_s": None, "fitness": None, "weights": None,
+            "e_min_kwh": None if ctx.e_min_kwh is None else round(float(ctx.e_min_kwh), 2),
+            "solve_time_s": None, "n_evaluations": 0, "plan": None, "switching_points_m": [], "sequence": []}
+
+
+@dataclass(frozen=True)
+class EMinTask:
+    """E_min of one group (route, train, options, builder, E_min's optimiser parameters)."""
+
+    key: str
+    route: Any
+    train: Any
+    options: ModelOptions
+    builder: str
+    params: str | None
+
+
+def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
+    """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
+    (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
+    from ..runner import make_context
+
+    ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
+                       params_path=task.params, yardstick=False)
+    try:
+        return task.key, float(ctx.e_min()), None
+    except InfeasibleError as exc:
+        return task.key, None, str(exc)
+
+
+__all__ = ["RunSpec", "RunRecord", "Task", "EMinTask", "Inputs", "load_inputs", "spec_key", "group_key",
+           "execute", "execute_e_min", "canonical_hash", "versions", "DEFAULT_CONSIST"]

@@ -1,0 +1,216 @@
+"""Study files: a batch as the product of its lists (``locoplan batch STUDY.yaml``).
+
+```yaml
+schema: locoplan/study@1          # optional
+routes: [routes/real/*.yaml]      # files or globs, relative to the study file's folder
+consists: [HXD1-C80x30, HXD1-C80x50]   # catalogue names or files (default: HXD1-C80x50)
+times: [1.1x, 1.2x, 1500]         # planned running times: seconds, or factors of each route's fastest
+                                  # run with each consist (default: each route's schedule)
+strategies: [proposed]            # default: proposed
+algorithms: [issa, ssa, pso]      # default: issa
+seeds: [1, 2, 3, 4, 5]            # default: 1
+```
+Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``tolerance_s``, ``window``,
+``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, seed 001's bound at
+the plan's own running time, seconds per run), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
+``rotating_mass``, ``strict_limits``: the options every model-running command has).
+
+The batch is routes x consists x times x strategies x algorithms x seeds, except that algorithms and
+seeds multiply only the strategies that search with an optimiser (:data:`SEARCHED`); the others run
+once per route, consist and time. Every problem is reported as ``file:line: field: message`` (exit 2):
+an unknown key, strategy or algorithm, a glob that matches nothing, a time factor below 1.
+"""
+
+from __future__ import annotations
+
+import glob as _glob
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..errors import InputError, Problem
+from ..sim.calculator import DEFAULT_STEP_M, ModelOptions
+from .spec import DEFAULT_CONSIST, RunSpec
+
+STUDY_SCHEMA = "locoplan/study@1"
+SEARCHED = frozenset({"proposed"})
+"""Strategies whose result depends on the optimiser and its seed (the others ignore both)."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    step_m: float = Field(DEFAULT_STEP_M, gt=0, le=1000)
+    point_mass: bool = False
+    air_brake: Optional[bool] = None
+    rotating_mass: Optional[float] = Field(None, ge=0, lt=1)
+    strict_limits: bool = False
+
+
+class StudyFile(BaseModel):
+    """The study file's keys (unknown keys are errors, with a 'did you mean')."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_: Optional[str] = Field(None, alias="schema")
+    routes: list[str] = Field(min_length=1)
+    consists: list[str] = Field(default_factory=lambda: [DEFAULT_CONSIST], min_length=1)
+    times: Optional[list[Union[float, str]]] = Field(None, min_length=1)
+    strategies: list[str] = Field(default_factory=lambda: ["proposed"], min_length=1)
+    algorithms: list[str] = Field(default_factory=lambda: ["issa"], min_length=1)
+    seeds: list[int] = Field(default_factory=lambda: [1], min_length=1)
+    weights: tuple[float, float] = (0.5, 0.5)
+    tolerance_s: Optional[float] = Field(None, ge=0)
+    window: bool = True
+    builder: Optional[str] = None
+    stock_dir: Optional[str] = None
+    gap: bool = False
+    model: _Model = Field(default_factory=_Model)
+
+
+@dataclass(frozen=True)
+class Study:
+    """A loaded study: its file, the settings, and the specs (the product, in a stable order)."""
+
+    path: Path
+    settings: StudyFile
+    specs: list[RunSpec]
+
+
+def _time_value(value, where: str) -> tuple[str, float]:
+    """('s', seconds) or ('x', factor) from a study file's ``times`` entry; ValueError says why not."""
+    if isinstance(value, bool):
+        raise ValueError(f"expected seconds or a factor such as '1.1x', got {value!r}")
+    if isinstance(value, (int, float)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"a running time must be > 0 s (got {value:g})")
+        return "s", float(value)
+    text = str(value).strip().lower()
+    if text.endswith("x"):
+        try:
+            f = float(text[:-1])
+        except ValueError:
+            raise ValueError(f"expected a factor such as '1.1x', got {value!r}") from None
+        if not (math.isfinite(f) and f >= 1):
+            raise ValueError(f"a factor of the fastest run must be >= 1 (got {value!r}: no train runs faster than its fastest run)")
+        return "x", f
+    try:
+        return _time_value(float(text), where)
+    except ValueError:
+        raise ValueError(f"expected seconds or a factor such as '1.1x', got {value!r}") from None
+
+
+def load_study(path: str | Path) -> Study:
+    """Read, check and expand a study file. Raises :class:`InputError` naming file, line and field."""
+    from ..io.load import _line_for, read_yaml, validate_model
+    from ..optimize.registry import ALGORITHMS
+    from ..strategy.strategies import BUILDERS, STRATEGIES
+
+    path = Path(path)
+    name = str(path)
+    data, lines = read_yaml(path)
+    study: StudyFile = validate_model(StudyFile, data, name, lines)  # type: ignore[assignment]
+
+    def where(*loc) -> int | None:
+        return _line_for(lines, loc)
+
+    problems: list[Problem] = []
+    if study.schema_ not in (None, STUDY_SCHEMA):
+        problems.append(Problem(name, "schema", f"expected {STUDY_SCHEMA}, got {study.schema_!r}", where("schema")))
+    for i, s in enumerate(study.strategies):
+        if s not in STRATEGIES:
+            problems.append(Problem(name, f"strategies[{i}]", f"unknown strategy {s!r} (one of: {', '.join(STRATEGIES)})",
+                                    where("strategies", i)))
+    for i, a in enumerate(study.algorithms):
+        if a not in ALGORITHMS:
+            problems.append(Problem(name, f"algorithms[{i}]", f"unknown optimiser {a!r} (one of: {', '.join(ALGORITHMS)})",
+                                    where("algorithms", i)))
+    if study.builder is not None and study.builder not in BUILDERS:
+        problems.append(Problem(name, "builder", f"unknown sequence builder {study.builder!r} (one of: {', '.join(BUILDERS)})",
+                                where("builder")))
+    w = study.weights
+    if min(w) < 0 or abs(sum(w) - 1) > 1e-9:
+        problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {list(w)}",
+                                where("weights")))
+    for i, seed in enumerate(study.seeds):
+        if seed < 0:
+            problems.append(Problem(name, f"seeds[{i}]", f"a seed is a whole number >= 0 (got {seed})", where("seeds", i)))
+    if len(set(study.seeds)) != len(study.seeds):
+        problems.append(Problem(name, "seeds", "a seed is listed twice", where("seeds")))
+    times = []
+    for i, t in enumerate(study.times or []):
+        try:
+            times.append((_time_value(t, name), t))
+        except ValueError as exc:
+            problems.append(Problem(name, f"times[{i}]", str(exc), where("times", i)))
+    base = path.parent
+    routes: list[Path] = []
+    for i, pattern in enumerate(study.routes):
+        full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
+        if any(c in pattern for c in "*?["):
+            found = sorted(Path(p) for p in _glob.glob(str(full), recursive=True) if p.endswith((".yaml", ".yml")))
+            if not found:
+                problems.append(Problem(name, f"routes[{i}]", f"{pattern!r} matches no route file (looked in {full.parent})",
+                                        where("routes", i)))
+            routes += found
+        elif not full.is_file():
+            problems.append(Problem(name, f"routes[{i}]", f"no such route file: {full}", where("routes", i)))
+        else:
+            routes.append(full)
+    if problems:
+        raise InputError(problems)
+    routes = list(dict.fromkeys(routes))  # a route matched by two globs runs once
+
+    m = study.model
+    options = ModelOptions(step_m=m.step_m, point_mass=m.point_mass,
+                           air_brake=(not m.point_mass) if m.air_brake is None else m.air_brake,
+                           rotating_mass=m.rotating_mass, strict_limits=m.strict_limits)
+    consists = [c if not (Path(c).suffix in (".yaml", ".yml") or "/" in c) or Path(c).is_absolute() else str(base / c)
+                for c in study.consists]
+    stock = None if study.stock_dir is None else str(base / study.stock_dir)
+    planned = _planned_times(name, routes, consists, stock, options, times, where)
+    common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
+                  builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap)
+    specs: list[RunSpec] = []
+    for r in routes:
+        for c in consists:
+            for t_s, label in planned[(r, c)]:
+                for s in study.strategies:
+                    pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if s in SEARCHED \
+                        else [(study.algorithms[0], study.seeds[0])]
+                    for a, seed in pairs:
+                        specs.append(RunSpec(str(r), c, s, a, seed, t_s, tags=(("time", label),) if label else (), **common))
+    return Study(path, study, specs)
+
+
+def _planned_times(name, routes, consists, stock, options, times, where) -> dict:
+    """(route, consist) -> [(T0 [s] or None, label)]: factors times the fastest run, rounded up to 0.1 s
+    (rounding down could put T0 below the fastest run)."""
+    from ..io.load import load_route, load_train
+    from ..sim.calculator import TractionCalculator
+
+    out = {}
+    trains = {c: load_train(c, stock) for c in consists}
+    for r in routes:
+        route = load_route(r)
+        for c in consists:
+            if not times:
+                if route.schedule is None:
+                    raise InputError(Problem(name, "times", f"route {r} has no schedule: give the planned running "
+                                             "times (seconds, or factors of the fastest run such as '1.1x')", where("routes")))
+                out[(r, c)] = [(None, "schedule")]
+                continue
+            fastest = None
+            rows = []
+            for (kind, value), raw in times:
+                if kind == "x":
+                    if fastest is None:
+                        fastest = TractionCalculator(route, trains[c], options).fastest_time_s
+                    rows.append((math.ceil(value * fastest * 10 - 1e-9) / 10, f"{value:g}x"))
+                else:
+                    rows.append((value, f"{value:g}s"))
+            out[(r, c)] = rows
+    return out
