@@ -607,13 +607,17 @@ SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, i
 SEED000_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
 """The seed's abstract / conclusion: two-stage solve time lower than CVP / GPM by this many per cent."""
 
-_REPO = Path(__file__).resolve().parents[2]
 STUDY_ROUTES = {2: "routes/seed000-flat.yaml", 3: "routes/seed000-grade30.yaml"}
 
 
 def _default_path(rel: str) -> Path:
+    """A study route: the file in the current folder when there is one, else the package's copy (the
+    default works from any directory and from an installed wheel)."""
+    from ..io.load import CATALOGUE
+
     p = Path(rel)
-    return p if p.exists() or not (_REPO / rel).exists() else _REPO / rel
+    shipped = Path(str(CATALOGUE / "routes")) / p.name
+    return p if p.exists() or not shipped.exists() else shipped
 
 
 @dataclass(frozen=True)

@@ -55,10 +55,10 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     per time, solved in this process, each warm-started from the previous one).
     Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
     best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""
-    from ..io.load import load_route, load_train
+    from ..io.load import load_route_and_train
     from ..sim.calculator import TractionCalculator
 
-    route, train = load_route(base.route), load_train(base.consist, base.stock_dir)
+    route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
     fastest = TractionCalculator(route, train, base.options).fastest_time_s
     grid = time_grid(fastest, factors, times_s)
     specs = [_with(base, strategy=s, time_s=grid[0][0]) for s in ENDS]

@@ -62,7 +62,7 @@ def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str
 def check_time_possible(specs: list[RunSpec]) -> None:
     """Before a study or sweep: a planned time below the fastest run cannot be met by any plan, whatever
     the seed (InfeasibleError naming the fastest run), so none of the runs is started."""
-    from ..io.load import load_route, load_train
+    from ..io.load import load_route_and_train
     from ..runner import check_time_possible as check, make_context, planned_time
 
     contexts: dict = {}
@@ -71,8 +71,8 @@ def check_time_possible(specs: list[RunSpec]) -> None:
             continue
         k = (s.route, s.consist, s.stock_dir, s.options, s.resolved_builder)
         if k not in contexts:
-            route = load_route(s.route)
-            contexts[k] = make_context(route, load_train(s.consist, s.stock_dir), s.options, need_time=False,
+            route, train = load_route_and_train(s.route, s.consist, s.stock_dir)
+            contexts[k] = make_context(route, train, s.options, need_time=False,
                                        builder=s.resolved_builder)
         ctx = contexts[k]
         check(replace(ctx, t0_s=planned_time(ctx.calc.route, s.time_s)))

@@ -125,8 +125,9 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
 
     Raises :class:`InputError` for a bad file (naming file, line and field) or an unknown strategy,
     algorithm or builder (naming the spec field), before any run starts."""
-    from ..io.load import load_route, load_train
+    from ..io.load import load_route, load_train, resolve_consist_path
     from ..optimize.registry import ALGORITHMS
+    from ..sim.calculator import shorter_than_train
     from ..runner import planned_time
     from ..strategy.strategies import BUILDERS, ENERGY_SAVING_ALGORITHM, STRATEGIES
 
@@ -152,6 +153,9 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
             t = load_train(spec.consist, spec.stock_dir)
             h = canonical_hash(_train_identity(t))
             trains[h], train_of[ck] = t, h
+        route, train = routes[route_of[spec.route]], trains[train_of[ck]]
+        if train.length_m >= route.length_m:
+            raise InputError(shorter_than_train(route, train, spec.route, str(resolve_consist_path(spec.consist))))
         for pk in ((spec.algorithm, spec.params), (ENERGY_SAVING_ALGORITHM, _e_min_params(spec))):
             if pk not in params_of:
                 params_of[pk] = _params(*pk)
