@@ -50,6 +50,18 @@ def simulate(route: str, masses, times, folder: Path, args, base) -> Path:
     return out
 
 
+def optimum_kwh(route, train, options, time_s: float):
+    """E*, the least traction energy in ``time_s`` (seed 001's optimal control), or None where it does not
+    solve and confirm (the table then shows "-")."""
+    from locoplan.errors import LocoplanError
+    from locoplan.ocp.bound import energy_bound
+
+    try:
+        return round(float(energy_bound(route, train, options, time_s).energy_kwh), 2)
+    except LocoplanError:
+        return None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--drivers", type=int, default=40)
@@ -105,20 +117,22 @@ def main() -> None:
                        "proposed_kwh": pro["traction_energy_kwh"], "proposed_time_s": pro["running_time_s"],
                        "proposed_punctual": pro["punctual"], "proposed_solve_s": round(time.perf_counter() - t_p, 2)}
                 row["advice_vs_good_percent"] = round(100 * (row["advice_kwh"] / row["good_drivers_mean_kwh"] - 1), 1)
+                row["optimum_kwh"] = optimum_kwh(r, train, options, float(t))
                 rows.append(row)
                 print(f"  {Path(route).stem} {mass} t {t} s: drivers {row['drivers_mean_kwh']:.1f}, good "
                       f"{row['good_drivers_mean_kwh']:.1f}, best {row['best_driver_kwh']:.1f}, advice {row['advice_kwh']:.1f} "
                       f"({row['advice_time_s']:.1f} s), proposed {row['proposed_kwh']:.1f} ({row['proposed_time_s']:.1f} s)",
                       flush=True)
     print()
-    print("| line (learned?) | mass [t] | T0 [s] | drivers' mean [kWh] | good drivers' mean | best driver | advice [kWh] / time [s] | advice vs good | proposed (ISSA) [kWh] / time [s] |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| line (learned?) | mass [t] | T0 [s] | drivers' mean [kWh] | good drivers' mean | best driver | advice [kWh] / time [s] | advice vs good | proposed (ISSA) [kWh] / time [s] | optimum E* at T0 [kWh] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for x in rows:
         ok = "" if x["advice_punctual"] and x["advice_feasible"] else " **not punctual**"
         print(f"| {x['route']} ({'yes' if x['route_learned'] else 'no'}) | {x['mass_t']} | {x['time_s']} +- {x['tolerance_s']:g} | "
               f"{x['drivers_mean_kwh']:.1f} | {x['good_drivers_mean_kwh']:.1f} | {x['best_driver_kwh']:.1f} | "
               f"{x['advice_kwh']:.1f} / {x['advice_time_s']:.1f}{ok} | {x['advice_vs_good_percent']:+.1f} % | "
-              f"{x['proposed_kwh']:.1f} / {x['proposed_time_s']:.1f} |")
+              f"{x['proposed_kwh']:.1f} / {x['proposed_time_s']:.1f} | "
+              f"{'-' if x['optimum_kwh'] is None else format(x['optimum_kwh'], '.1f')} |")
     wins = sum(x["advice_kwh"] < x["good_drivers_mean_kwh"] and x["advice_punctual"] for x in rows)
     print(f"\nadvice punctual and below the good drivers' mean in {wins} of {len(rows)} held-out cases; "
           f"drivers {args.drivers} x {args.runs} runs per mass and time, seed {args.seed}; work folder {work}")
