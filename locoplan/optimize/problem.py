@@ -42,13 +42,6 @@ class SwitchingProblem:
 
     objective: "eq10" (seed 002 fitness) or "energy" (traction energy alone [kWh], the energy-saving
     strategy that ignores the timetable).
-
-    Two optional extensions (the general builder, ``strategy/template.py``): ``cruise_kmh`` (lo, hi)
-    makes a cruise speed V the first decision variable, at which K regulates, and the second a share
-    r in [0, 1] placing K's braking speed W = V + r (hi - V) (above V it coasts, at W it brakes); and
-    ``fixed_m`` (one entry per switching point, NaN = free) pins some switching points, so that the
-    decision vector holds only the free ones. With fixed points the windows of the free ones must not
-    overlap (they are then kept in order by clipping alone).
     """
 
     calc: TractionCalculator
@@ -61,9 +54,6 @@ class SwitchingProblem:
     objective: str = "eq10"
     tolerance_s: float | None = None
     min_gap_m: float | None = None
-    cruise_kmh: tuple[float, float] | None = None
-    cruise_mode: str = "regulate"
-    fixed_m: np.ndarray | None = None
     center: np.ndarray | None = None
     """A known good candidate (the general builder's nominal plan): random candidates are then drawn
     around it (normal, a tenth of the distance to the nearer neighbouring switching point) instead of
@@ -75,13 +65,7 @@ class SwitchingProblem:
         self.lower = np.asarray(self.lower, dtype=float)
         self.upper = np.asarray(self.upper, dtype=float)
         self.n_var = len(self.lower)
-        self._lead = 2 if self.cruise_kmh is not None else 0
-        n_sw = len(self.conditions) - 2
-        if self.fixed_m is None:
-            self.fixed_m = np.full(n_sw, np.nan)
-        self.fixed_m = np.asarray(self.fixed_m, dtype=float)
-        self._free = np.flatnonzero(np.isnan(self.fixed_m))
-        if self.conditions[-1] != "B" or len(self.fixed_m) != n_sw or len(self._free) + self._lead != self.n_var:
+        if self.conditions[-1] != "B" or len(self.conditions) - 2 != self.n_var:
             raise InputError(Problem("", "sequence", "the sequence must end with B and have one switching point per condition after the first, the final braking point excluded"))
         if np.any(self.upper < self.lower):
             raise InputError(Problem("", "bounds", "a switching point's window is empty (upper < lower)"))
@@ -95,23 +79,11 @@ class SwitchingProblem:
     def switches(self, X: np.ndarray) -> np.ndarray:
         """Every switching point of candidates X (n, n_var), the final braking point appended as 'auto' (NaN)."""
         X = np.atleast_2d(X)
-        sw = np.tile(np.append(self.fixed_m, np.nan), (len(X), 1))
-        sw[:, self._free] = X[:, self._lead:]
-        return sw
-
-    def cruise(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
-        """The candidates' cruise speeds V and braking speeds W [km/h], or (None, None) without them."""
-        if not self._lead:
-            return None, None
-        X = np.atleast_2d(X)
-        v = X[:, 0]
-        return v, v + X[:, 1] * (self.cruise_kmh[1] - v)
+        return np.column_stack([X, np.full(len(X), np.nan)])
 
     def simulate(self, X: np.ndarray, profile: bool = False) -> BatchResult:
         """Traction calculation of candidates X (n, n_var)."""
-        v, w = self.cruise(X)
-        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile, cruise_kmh=v,
-                                  cruise_mode=self.cruise_mode, brake_hold_kmh=w)
+        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile)
 
     def fitness(self, res: BatchResult) -> np.ndarray:
         if self.objective == "energy":
@@ -145,11 +117,8 @@ class SwitchingProblem:
         return self.repair(rng.uniform(self.lower, self.upper, size=(n, self.n_var)))
 
     def repair(self, X: np.ndarray) -> np.ndarray:
-        """Clip to the windows, sort each row, and push points apart to the minimum spacing (with fixed
-        switching points the free ones' windows are disjoint: clipping keeps them in order)."""
+        """Clip to the windows, sort each row, and push points apart to the minimum spacing."""
         X = np.clip(np.atleast_2d(X).astype(float), self.lower, self.upper)
-        if self._lead or not np.all(np.isnan(self.fixed_m)):
-            return X
         X = np.sort(X, axis=1)
         gap = self.min_gap_m
         for j in range(1, self.n_var):  # forward pass, then a backward pass against the upper bounds

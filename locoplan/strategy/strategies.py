@@ -13,9 +13,10 @@ its switching points and, for four-stage, a cruise speed). The CLI's ``--strateg
   minimising eq. 10 inside the punctuality window of eq. 3.
 
 Two sequence builders (``StrategyContext.builder``):
-- ``general`` (the default): ``strategy/template.py``, the sequence judged at the speed the train will
-  run, with a cruise speed among the decision variables; energy-saving is the same family searched for
-  energy alone, four-stage may coast from anywhere. Works on any line (issue 8).
+- ``general`` (the default): ``strategy/drive.py``, the sequence read off the drive that is optimal at a
+  price of time (``optimize/dp.py``, bisected to the planned time); energy-saving is the same drive at
+  the lowest price (deterministic: E_min does not depend on the seed), four-stage may coast from
+  anywhere. Works on any line (issue 8, docs/real-lines.md).
 - ``seed002``: seed 002 section 2 to the letter (``strategy/sequence.py``): grades classified at the
   limit speed, the fastest run's conditions elsewhere; energy-saving alternates traction and coasting;
   four-stage coasts in the second half. With the seeds' train model (``--point-mass``) it reproduces
