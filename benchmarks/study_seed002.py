@@ -64,7 +64,7 @@ def main() -> None:
             all_ok &= all(ok)
             print(f"| {alg} | {s['seed']} | {s['running_time_s']:.1f} | {s['traction_energy_kwh']:.2f} | {s['fitness']:.5f} | "
                   + " | ".join("yes" if x else "NO" for x in ok) + f" | {s['solve_time_s']:.2f} |")
-    print("\n| algorithm | best E / T | worst E / T | mean E / T | mean fitness (sd) | punctual | punctual best E / T / fitness |")
+    print("\n| algorithm | best-fitness run E / T | worst-fitness run E / T | mean E / T | mean fitness (sd) | punctual | punctual best E / T / fitness |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for row in study_table(results, tol):
         pb = row["punctual_best"]
