@@ -8,6 +8,12 @@ T0) with its running time, energy and whether it is on time, four-stage beside i
 optimum, (E - E*) / E*, with E* the minimum traction energy at the plan's own running time from
 `locoplan.ocp` (seed 001's optimal control) when it is installed. Prints a table and the maximum and
 median gap. Targets: every case on time and within 1 % of T0, gap <= 3 % everywhere, median <= 1.5 %.
+
+    python benchmarks/real_lines.py --compare [--strategies time-saving,energy-saving,four-stage,proposed]
+
+runs `locoplan compare` on the same cases as a user would (a subprocess each, --json --no-gap) and
+prints its exit code and, per strategy, whether it is feasible and punctual or the reason it has no plan.
+Target: exit 0 on every case, every strategy present, each feasible or marked infeasible with a reason.
 """
 
 from __future__ import annotations
@@ -49,7 +55,11 @@ def main() -> None:
     ap.add_argument("--consists", default="HXD1-C80x30,HXD1-C80x50")
     ap.add_argument("--factors", default="1.1,1.2")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--compare", action="store_true", help="run `locoplan compare` on every case instead")
+    ap.add_argument("--strategies", default="time-saving,energy-saving,four-stage,proposed")
     args = ap.parse_args()
+    if args.compare:
+        return compare_cases(args)
     rows = []
     head = (f"{'line':32} {'mass':>6} {'x':>4} {'T0 [s]':>8} {'time [s]':>9} {'on time':>7} {'E [kWh]':>9} "
             f"{'E* [kWh]':>9} {'gap %':>6} {'4-stage':>9} {'solve s':>8}")
@@ -85,6 +95,44 @@ def main() -> None:
           + (f", gap max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)}" if gaps else ""))
     if args.json:
         args.json.write_text(json.dumps({"results": rows}, indent=2) + "\n")
+
+
+def compare_cases(args) -> None:
+    """`locoplan compare` on every case, as a user runs it; a table of exit codes and per-strategy verdicts."""
+    import subprocess
+    import sys
+
+    names = args.strategies.split(",")
+    print(f"{'line':32} {'mass':>6} {'x':>4} {'exit':>4}  " + "  ".join(f"{n:>14}" for n in names))
+    bad = 0
+    for line in args.lines.split(","):
+        path = ROOT / "routes/real" / f"{line}.yaml"
+        route = load_route(path)
+        for consist in args.consists.split(","):
+            train = load_train(ROOT / "configs/consists" / f"{consist}.yaml")
+            fastest = TractionCalculator(route, train).fastest_time_s
+            for factor in (float(x) for x in args.factors.split(",")):
+                t0 = round(factor * fastest, 1)
+                p = subprocess.run([sys.executable, "-m", "locoplan", "compare", str(path), "--consist", consist,
+                                    "--time", str(t0), "--tolerance", str(round(0.01 * t0, 2)), "--strategies",
+                                    args.strategies, "--json", "--no-gap"], cwd=ROOT, capture_output=True, text=True)
+                try:
+                    got = {r["strategy"]: r for r in json.loads(p.stdout)["results"]}
+                except (ValueError, KeyError):
+                    got = {}
+                cells = []
+                for n in names:
+                    r = got.get(n)
+                    if r is None:
+                        cells.append("MISSING")
+                    elif r["feasible"]:
+                        cells.append("on time" if r["punctual"] else "off time")
+                    else:
+                        cells.append("infeasible" if r.get("reason") else "NO REASON")
+                bad += p.returncode != 0 or any(c in ("MISSING", "NO REASON") for c in cells)
+                print(f"{line:32} {train.mass_t:>6.0f} {factor:>4} {p.returncode:>4}  " + "  ".join(f"{c:>14}" for c in cells),
+                      flush=True)
+    print(f"cases with a failed compare, a missing strategy or an unexplained infeasible one: {bad}")
 
 
 if __name__ == "__main__":
