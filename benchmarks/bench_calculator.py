@@ -15,6 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+import sys as _sys
+from pathlib import Path as _Path
+_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
 from locoplan.io.load import load_route, load_train
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 

@@ -28,6 +28,10 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]  # thi
 from energy_oracle import trapezoid_min_energy  # noqa: E402
 from ttobench_routes import join, line  # noqa: E402
 
+import sys as _sys
+from pathlib import Path as _Path
+_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp.energy import solve_energy  # noqa: E402
 from locoplan.ocp.mpoc import drivable_plan  # noqa: E402

@@ -8,6 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import sys as _sys
+from pathlib import Path as _Path
+_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
 from locoplan.io.load import load_route, load_train
 from locoplan.model.plan import parse_sequence
 from locoplan.sim.calculator import ModelOptions, TractionCalculator

@@ -21,6 +21,10 @@ from pathlib import Path
 
 import casadi
 
+import sys as _sys
+from pathlib import Path as _Path
+_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
 from locoplan.ocp.study import run_study, study_markdown
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,6 +19,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # this checkout first
 
+import sys as _sys
+from pathlib import Path as _Path
+_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp.mpoc import run_mpoc  # noqa: E402
 from locoplan.ocp.train_energy import EnergyOptions  # noqa: E402

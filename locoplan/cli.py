@@ -248,7 +248,8 @@ def compare(route: Path = ROUTE,
 @app.command()
 @guarded
 def sweep(route: Path = ROUTE,
-          weights: Optional[str] = typer.Option(None, "--weights", help="Time weights start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1."),
+          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
+          old_weights: Optional[str] = typer.Option(None, "--weights", hidden=True, help="Old name of --weight-grid."),
           times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
@@ -261,9 +262,15 @@ def sweep(route: Path = ROUTE,
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
+    if old_weights is not None:  # sweep's --weights was a grid, optimize's a pair: one meaning per name now
+        if weights is not None:
+            raise InputError(Problem("<command line>", "--weight-grid", "give --weight-grid (--weights is its old name), not both"))
+        weights = old_weights
+        err.print("note: sweep's --weights is now --weight-grid (--weights is w_time,w_energy in optimize, compare, study)",
+                  highlight=False, markup=False, soft_wrap=True)
     if (weights is None) == (times is None):
-        raise InputError(Problem("", "--weights", "give exactly one of --weights or --times"))
-    values = _range(weights or times, "--weights" if weights else "--times")
+        raise InputError(Problem("<command line>", "--weight-grid", "give exactly one of --weight-grid or --times"))
+    values = _range(weights or times, "--weight-grid" if weights else "--times")
     _check_outputs(out_file, plot, csv_ok=False)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
@@ -363,6 +370,10 @@ _register_energy(app)
 from .cli_batch import register as _register_batch  # noqa: E402  (batch, results, pareto)
 
 _register_batch(app)
+
+from .cli_help import tidy as _tidy_help  # noqa: E402  (every option's value named with its unit, once all are registered)
+
+_tidy_help(app)
 
 
 def main() -> None:

@@ -93,7 +93,7 @@ def _weights(text: str) -> tuple[float, float]:
 def _range(text: str, field: str) -> list[float]:
     """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times
     (``pareto --factors``: factors of the fastest run, 1 .. 10)."""
-    if field == "--weights":
+    if field == "--weight-grid":
         return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
     if field == "--factors":
         return bounds.values(text, field, 1.0, 10.0, why="a factor of the fastest run")
@@ -145,10 +145,10 @@ CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or 
 STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
 JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
 STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
-POINT_MASS = typer.Option(False, "--point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
+POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
 AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
 ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
-STRICT = typer.Option(False, "--strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
+STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
 TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
 EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy).")

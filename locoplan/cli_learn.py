@@ -103,7 +103,7 @@ def register(app: typer.Typer) -> None:
     @drivers_app.command("simulate")
     @guarded
     def simulate(route: Path = ROUTE,
-                 out_dir: Path = typer.Option(..., "--out", help="New folder for the logs (must not exist or be empty)."),
+                 out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
                  drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
                  runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
                  masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
@@ -184,7 +184,7 @@ def register(app: typer.Typer) -> None:
     def advise(route: Path = ROUTE,
                patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
                time_s: Optional[float] = typer.Option(None, "--time", help="Planned running time [s] (default: the route's schedule)."),
-               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t]."),
+               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
                consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
                plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png or .svg."),
