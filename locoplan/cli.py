@@ -21,7 +21,7 @@ from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, P
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
-from .io.tables import compare_tables, describe, explain_tables, sequence_table, summary_table, study_table, sweep_table
+from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
@@ -135,8 +135,7 @@ def simulate(route: Path = ROUTE,
                           f"{r.name} — {train.name}: {summary['strategy']}, "
                           f"{summary['running_time_s'] or float('nan'):.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
     if not as_json:
-        out.print(summary_table(summary))
-        out.print(sequence_table(summary["sequence"]))
+        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
 
     # a plan is checked against the window only when a running time was asked for (--time)
@@ -179,8 +178,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
                           f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh",
                           histories=[(algorithm, run.outcome.history)])
     if not as_json:
-        out.print(summary_table(summary))
-        out.print(sequence_table(summary["sequence"]))
+        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
 
     _fail_if([schedule_verdict(ctx, run)])
@@ -223,8 +221,7 @@ def compare(route: Path = ROUTE,
                       params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
     specs = compare_specs(base, names)
     if explain and not as_json:
-        for t in explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts)):
-            out.print(t, highlight=False, soft_wrap=True, markup=False) if isinstance(t, str) else out.print(t)
+        show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
     batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
     results = {"results": [x.summary for x in batch.records]}
     with all_or_none():
@@ -239,9 +236,8 @@ def compare(route: Path = ROUTE,
                           f"{first['route']} — {first['consist']}: strategies", histories=hist or None)
     if not as_json:
         first = results["results"][0]
-        for table in compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
-                                    if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}"):
-            out.print(table)
+        show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
+                                 if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
@@ -292,8 +288,8 @@ def sweep(route: Path = ROUTE,
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
                           f"{rows[0]['route']} — {rows[0]['consist']}: sweep")
     if not as_json:
-        out.print(sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
-                              by_weights=bool(weights)))
+        show(out, sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
+                              by_weights=bool(weights), width=out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
@@ -347,8 +343,8 @@ def study(route: Path = ROUTE,
                           f"{first['route']} — {first['consist']}: best run of each optimiser",
                           histories=[(a, b.history) for a, b in shown if b.history is not None] or None)
     if not as_json:
-        out.print(study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
-                                    + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh")))
+        show(out, study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
+                                    + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh"), out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 

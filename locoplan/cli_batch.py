@@ -53,7 +53,8 @@ def _progress_printer(err, enabled: bool):
 def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
-                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out, wide)
+                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
+    from .io.tables import show
     from .io.report import to_json
 
     @app.command("batch")
@@ -91,8 +92,8 @@ def register(app: typer.Typer) -> None:
                 print(to_json(report))
                 return
             rows = summarize_rows(rows_of(result.records))
-            wide().print(store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
-                                          f"{study_file}: {n} runs"), highlight=False)
+            show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
+                                          f"{study_file}: {n} runs", out.width))
             out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
                       f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
                       + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
@@ -149,7 +150,7 @@ def register(app: typer.Typer) -> None:
             if as_json:
                 print(to_json({"store": str(store_path), "runs": len(rows), "summary": summary}))
             else:
-                wide().print(store_summary_table(summary, group, f"{store_path}: {len(rows)} runs"), highlight=False)
+                show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
 
     @app.command("pareto")
     @guarded
@@ -203,5 +204,5 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(to_json(front))
         else:
-            wide().print(pareto_table(front), highlight=False)
+            show(out, pareto_table(front, out.width))
             out.print(f"front: {front['front_kind']}", highlight=False, soft_wrap=True)

@@ -35,14 +35,6 @@ FLAGS = {
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
 
 
-def wide() -> Console:
-    """stdout for wide tables: the terminal as it is, or 200 columns when piped (a pipe reports 80,
-    which would fold every cell)."""
-    import sys
-
-    return out if out.is_terminal else Console(file=sys.stdout, width=200)
-
-
 def as_flags(problem: Problem) -> Problem:
     """A library problem about an argument, restated with the command line's flag."""
     if problem.field in FLAGS and (problem.file in ("", "<command line>") or problem.field in ("out", "plot", "boxplot")):

@@ -95,7 +95,7 @@ def register(app: typer.Typer) -> None:
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
     from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
                              err, guarded, out)
-    from .io.tables import sequence_table as _sequence_table, summary_table as _summary_table
+    from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
     drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
     app.add_typer(drivers_app, name="drivers")
@@ -225,7 +225,6 @@ def register(app: typer.Typer) -> None:
             plot_advice(plot, a, f"{r.name} — {train.name}: advice from {patterns.name}, "
                                  f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
         if not as_json:
-            out.print(_summary_table(summary))
-            out.print(_sections_table(summary["sections"]))
-            out.print(_sequence_table(summary["sequence"]))
+            show(out, _summary_table(summary, out.width) + fit(_sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
+                 + _sequence_table(summary["sequence"], out.width))
         _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
