@@ -8,6 +8,7 @@ Shared consoles, option declarations and parsing live in :mod:`locoplan.cli_comm
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
@@ -17,7 +18,7 @@ from rich.markup import escape
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
                          STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
-                         _names, _options, _range, _weights, all_or_none, err, guarded, out)
+                         _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
@@ -220,9 +221,12 @@ def compare(route: Path = ROUTE,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
                       params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
     specs = compare_specs(base, names)
+    if "proposed" not in names and e_min is None:  # E_min (an energy-saving run) only when a requested strategy needs it
+        specs = [replace(x, fitness=False) for x in specs]
     if explain and not as_json:
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+    with run_progress(f"compare: strategies run ({', '.join(names)})", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {"results": [x.summary for x in batch.records]}
     with all_or_none():
         _emit(results, as_json, out_file)
@@ -274,7 +278,9 @@ def sweep(route: Path = ROUTE,
                       yardstick=gap)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+    what = "time weights" if weights else "planned running times"
+    with run_progress(f"sweep: proposed-strategy runs over {len(specs)} {what}", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     rows = [x.summary for x in batch.records]
     if times:
         energy_reduction(rows)
@@ -321,7 +327,8 @@ def study(route: Path = ROUTE,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+    with run_progress(f"study: optimiser runs ({', '.join(algs)} x {runs} seeds)", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {a: [x for x in batch.records if x.spec["algorithm"] == a] for a in algs}
     first = batch.records[0].summary
     tolerance_s = (first.get("window_s") or [0, 0])

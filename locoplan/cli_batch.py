@@ -14,7 +14,7 @@ import typer
 __all__ = ["register"]
 
 
-def _progress_printer(err, enabled: bool):
+def _progress_printer(err, enabled: bool, label: str = "runs"):
     """A progress callback for run_many on stderr: a rich bar (counts, rate, ETA) on a terminal, a
     plain line at most every 10 s otherwise (a log file), nothing when disabled. Returns (callback, close)."""
     if not enabled:
@@ -29,9 +29,9 @@ def _progress_printer(err, enabled: bool):
         tasks: dict = {}
 
         def cb(ev):
-            label = "E_min per route and consist" if ev.phase == "e_min" else "runs"
+            name = "E_min per route and consist" if ev.phase == "e_min" else label
             if ev.phase not in tasks:
-                tasks[ev.phase] = bar.add_task(label, total=ev.total, note="")
+                tasks[ev.phase] = bar.add_task(name, total=ev.total, note="")
             note = "" if ev.phase == "e_min" else f"({ev.reused} from the store, {ev.failed} fail their job)"
             bar.update(tasks[ev.phase], completed=ev.done, total=ev.total, note=note)
         return cb, bar.stop
@@ -189,7 +189,7 @@ def register(app: typer.Typer) -> None:
         base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                        builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
         executor = make_executor(workers)
-        cb, close = _progress_printer(err, not as_json and err.is_terminal)
+        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto: strategy runs over the planned times")
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
                                seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)

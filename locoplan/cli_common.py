@@ -6,6 +6,7 @@ them imports another (the app lives in ``cli.py``, which registers the others' c
 from __future__ import annotations
 
 import functools
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Optional
 
@@ -33,6 +34,48 @@ FLAGS = {
 }
 """Library argument names -> this command line's flags. The library names its arguments in errors
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
+
+
+@contextmanager
+def run_progress(label: str, total: int, enabled: bool):
+    """A progress bar on stderr for a command's runs (``run_many``'s progress events), only when stderr
+    is a terminal and never with --json (stdout stays clean either way): ``label`` says what is counted
+    (e.g. "compare: strategies run"); E_min's energy-saving run, when one is needed, has its own line.
+    Yields the callback for ``run_many(progress=...)`` (None when there is no bar)."""
+    if not enabled or not err.is_terminal:
+        yield None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=err, transient=True) as bar:
+        tasks = {"runs": bar.add_task(label, total=total)}
+
+        def callback(ev) -> None:
+            if ev.phase not in tasks:
+                tasks[ev.phase] = bar.add_task("E_min: the energy-saving run (once per route and train)", total=ev.total)
+            bar.update(tasks[ev.phase], completed=ev.done, total=ev.total)
+        yield callback
+
+
+@contextmanager
+def step_progress(label: str, total: int, enabled: bool):
+    """A progress bar on stderr over ``total`` steps (terminal only, never with --json). Yields
+    ``step(text)``, called as each step starts: the bar counts the steps before it and shows ``text``."""
+    if not enabled or not err.is_terminal:
+        yield lambda text: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[now]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+        task = bar.add_task(label, total=total, now="")
+        started = [0]
+
+        def step(text: str) -> None:
+            bar.update(task, completed=started[0], now=text)
+            started[0] += 1
+        yield step
 
 
 def as_flags(problem: Problem) -> Problem:

@@ -142,7 +142,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
     from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
-                      _range, err, guarded, out)
+                      _range, guarded, out)
 
     @app.command("bound")
     @guarded
@@ -177,9 +177,11 @@ def register(app: typer.Typer) -> None:
         r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
         ts = values if values is not None else [planned_time(r, time_s)]
         rows = []
-        with err.status("solving") as status:
+        from .cli_common import step_progress
+
+        with step_progress("bound: E*, the least energy, per running time", len(ts), not as_json) as step:
             for t in ts:
-                status.update(f"solving E* at {t:g} s")
+                step(f"E* at {t:g} s")
                 try:
                     b = energy_bound(r, train, opts, t, mesh_tol=mesh_tol, max_degree=max_phase_degree)
                     rows.append({"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,

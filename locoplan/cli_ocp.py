@@ -186,8 +186,12 @@ def register(app: typer.Typer) -> None:
         count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
         check_output_path(plot, "--plot", (".png", ".svg"))
-        with err.status("solving") as status:
-            study = run_study(consist=consist, repeats=repeats, progress=lambda text: status.update(f"solving {text}"))
+        from .cli_common import step_progress
+        from .ocp.study import STUDY_ROUTES, STUDY_RUNS
+
+        with step_progress("ocp-study: optimal-control solves (seed 000 Tables 2-3)", len(STUDY_RUNS) * len(STUDY_ROUTES),
+                           not as_json) as step:
+            study = run_study(consist=consist, repeats=repeats, progress=step)
         if out_file:
             write_study_output(out_file, study)
         if plot:

@@ -140,3 +140,42 @@ def test_in_a_pseudo_terminal_of_80_columns(root):
     assert proc.returncode == 0, text
     _check_lines(text, 80, whole=(LONG_PLAN,))
     assert LONG_PLAN in text
+
+
+def _in_pty(args, root, timeout=120) -> tuple[int, str]:
+    """Run the command with stdout and stderr on an 80-column pseudo-terminal; (exit code, all it wrote)."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 50, 80, 0, 0))
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    proc = subprocess.Popen([sys.executable, "-m", "locoplan", *args], stdout=slave, stderr=slave, stdin=slave, cwd=root,
+                            env=env, close_fds=True)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 65536)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    proc.wait(timeout=timeout)
+    os.close(master)
+    return proc.returncode, b"".join(chunks).decode("utf-8", "replace")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_progress_bar_on_a_terminal_only_and_never_with_json(root):
+    args = ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage", "--no-gap"]
+    code, text = _in_pty(args, root)
+    assert code == 0 and "compare: strategies run (time-saving, four-stage)" in text
+    code, text = _in_pty(args + ["--json"], root)
+    assert code == 0 and "strategies run" not in text
+    json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))  # nothing but the JSON
+    res = subprocess.run([sys.executable, "-m", "locoplan", *args], capture_output=True, text=True, cwd=root, timeout=120)
+    assert res.returncode == 0 and "strategies run" not in res.stderr  # piped: no bar

@@ -223,7 +223,7 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
             t8.add_row(escape(s["strategy"]), "-", "-")
             t9.add_row(escape(s["strategy"]) + " [red](no plan)[/]", *(["-"] * (len(heads) - 1)))
             continue
-        plans.append((s["strategy"], s["plan"]))
+        plans.append((s["strategy"], s["plan"], s.get("cruise_kmh")))
         conds = [c.split(":")[0] for c in s["plan"].split(",")]
         points = list(s["switching_points_m"])
         if conds[-1] == "B" and len(points) < len(conds) - 1 and s["sequence"]:
@@ -241,8 +241,9 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
                    _num(s["fitness"], ".4f"))
     blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6, 7, 5, 4, 8), wrap=(0,)) + notes
     if plans:
-        blocks.append(Note("plans (locoplan simulate ROUTE --sequence PLAN):"))
-        blocks += [Line(f"{name:<{max(len(n) for n, _ in plans)}}  {plan}") for name, plan in plans]
+        blocks.append(Note("plans:"))
+        blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))
+                   for name, plan, c in plans]
     return blocks
 
 
