@@ -54,7 +54,13 @@ def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **
 def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or consist YAML files."),
              stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
              as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout.")):
-    """Check files; print every problem as file:line: field: message (exit 2), or a summary per file."""
+    """Check files; print every problem as file:line: field: message (exit 2), or a summary per file.
+    --json: {"valid": bool, "results": [per file: "file", "valid", and "kind" + "description" (what it
+    holds) + "summary" if valid, else "problems": [{"file", "line", "field", "message"}]], "problems": [every one]}."""
+    from dataclasses import asdict
+
+    from .io.tables import describe_data
+
     problems: list[Problem] = []
     summaries = []
     try:
@@ -66,12 +72,14 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
         try:
             data, lines = read_yaml(f)
             model = validate_data(data, str(f), lines)
-            summaries.append({"file": str(f), "valid": True, "summary": describe(model, str(f), stock_dir)})
+            d = describe_data(model, str(f), stock_dir)
+            summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
+                              "description": d})
         except InputError as exc:
             problems += exc.problems
-            summaries.append({"file": str(f), "valid": False, "problems": [str(p) for p in exc.problems]})
+            summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
     if as_json:
-        print(to_json({"results": summaries}))
+        print(to_json({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]}))
     else:
         for s in summaries:
             if s["valid"]:
@@ -201,7 +209,7 @@ def compare(route: Path = ROUTE,
             algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED,
             e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS, consist: str = CONSIST,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-            out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+            out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -215,7 +223,7 @@ def compare(route: Path = ROUTE,
 
     names = _names(strategies, "--strategies")
     w = _weights(weights)
-    _check_outputs(out_file, plot, csv_ok=False)
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
@@ -253,7 +261,7 @@ def sweep(route: Path = ROUTE,
           times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -271,7 +279,7 @@ def sweep(route: Path = ROUTE,
     if (weights is None) == (times is None):
         raise InputError(Problem("<command line>", "--weight-grid", "give exactly one of --weight-grid or --times"))
     values = _range(weights or times, "--weight-grid" if weights else "--times")
-    _check_outputs(out_file, plot, csv_ok=False)
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
                       params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
@@ -307,7 +315,7 @@ def study(route: Path = ROUTE,
           time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED, e_min: Optional[float] = EMIN,
           params_dir: Optional[Path] = typer.Option(None, "--params-dir", help="Folder of <algorithm>.yaml parameter files."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results (runs and the table) as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -321,7 +329,7 @@ def study(route: Path = ROUTE,
     w = _weights(weights)
     if params_dir is not None:
         check_folder(params_dir, "--params-dir")
-    _check_outputs(out_file, plot, csv_ok=False)
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)

@@ -153,7 +153,11 @@ def register(app: typer.Typer) -> None:
         train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
         run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
                         route_file=route)
-        if out_file:
+        if out_file and out_file.suffix.lower() == ".csv":  # the profile's columns in the order of every command's CSV
+            from .io.report import PROFILE_COLUMNS, atomic_write_text, rows_csv
+
+            atomic_write_text(out_file, rows_csv(run.profile_rows(), PROFILE_COLUMNS))
+        elif out_file:
             write_ocp_output(out_file, run)
         if plot:
             from .ocp.plot import plot_run

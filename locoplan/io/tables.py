@@ -109,27 +109,46 @@ def show(console, blocks) -> None:
             console.print(b)
 
 
-def describe(model, path: str, stock_dir: Optional[Path]) -> str:
-    """One line about a validated file (validate's output): a route's length and sections, a vehicle's
-    mass, a consist's train."""
+def describe_data(model, path: str, stock_dir: Optional[Path]) -> dict:
+    """A validated file described as data (``validate --json``): its kind and what it holds, in the
+    files' own units (route: length, sections, schedule; vehicle: mass, length, top speed; consist: the
+    resolved train)."""
     from .load import load_train
 
     kind = type(model).__name__
     if kind == "Route":
-        def count(items, noun):
-            return f"{len(items)} {noun}{'' if len(items) == 1 else 's'}"
-        parts = [f"{model.length_m / 1000:g} km", count(model.speed_limits, "speed-limit section"),
-                 count(model.gradients, "gradient section"), count(model.curves, "curve"),
-                 count(model.tunnels, "tunnel"), count(model.neutral_sections, "neutral section")]
+        d = {"kind": "route", "name": model.name, "length_m": model.length_m,
+             "speed_limit_sections": len(model.speed_limits), "gradient_sections": len(model.gradients),
+             "curves": len(model.curves), "tunnels": len(model.tunnels), "neutral_sections": len(model.neutral_sections),
+             "schedule": None}
         if model.schedule:
-            parts.append(f"schedule {model.schedule.run_time_s:g} +- {model.schedule.tolerance_s:g} s")
-        return f"route '{model.name}': " + ", ".join(parts)
+            d["schedule"] = {"run_time_s": model.schedule.run_time_s, "tolerance_s": model.schedule.tolerance_s}
+        return d
     if kind == "Vehicle":
-        return (f"{model.kind} '{model.name}': {model.mass_t:g} t, {model.length_m:g} m, "
-                f"max {model.max_speed_kmh:g} km/h")
+        return {"kind": "vehicle", "name": model.name, "vehicle_kind": model.kind, "mass_t": model.mass_t,
+                "length_m": model.length_m, "max_speed_kmh": model.max_speed_kmh}
     train = load_train(path, stock_dir)
-    return (f"consist '{train.name}': {train.n_vehicles} vehicles, {train.mass_t:g} t, "
-            f"train length {train.length_m:g} m, max {train.max_speed_kmh:g} km/h")
+    return {"kind": "consist", "name": train.name, "vehicles": train.n_vehicles, "mass_t": train.mass_t,
+            "length_m": train.length_m, "max_speed_kmh": train.max_speed_kmh}
+
+
+def describe(model, path: str, stock_dir: Optional[Path]) -> str:
+    """One line about a validated file (validate's output): a route's length and sections, a vehicle's
+    mass, a consist's train."""
+    d = describe_data(model, path, stock_dir)
+    if d["kind"] == "route":
+        def count(n, noun):
+            return f"{n} {noun}{'' if n == 1 else 's'}"
+        parts = [f"{d['length_m'] / 1000:g} km", count(d["speed_limit_sections"], "speed-limit section"),
+                 count(d["gradient_sections"], "gradient section"), count(d["curves"], "curve"),
+                 count(d["tunnels"], "tunnel"), count(d["neutral_sections"], "neutral section")]
+        if d["schedule"]:
+            parts.append(f"schedule {d['schedule']['run_time_s']:g} +- {d['schedule']['tolerance_s']:g} s")
+        return f"route '{d['name']}': " + ", ".join(parts)
+    if d["kind"] == "vehicle":
+        return f"{d['vehicle_kind']} '{d['name']}': {d['mass_t']:g} t, {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h"
+    return (f"consist '{d['name']}': {d['vehicles']} vehicles, {d['mass_t']:g} t, "
+            f"train length {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h")
 
 
 def _num(value, fmt: str, unit: str = "") -> str:
