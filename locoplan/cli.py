@@ -140,9 +140,9 @@ def simulate(route: Path = ROUTE,
         if plot:
             from .io.plot import plot_profiles
 
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)],
-                          f"{r.name} — {train.name}: {summary['strategy']}, "
-                          f"{summary['running_time_s'] or float('nan'):.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
+            from .io.plot import run_title
+
+            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary))
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
@@ -182,10 +182,11 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
         if plot:
             from .io.plot import plot_profiles
 
+            from .io.plot import run_title
+
             plot_profiles(plot, [("proposed", run.result.profile)],
-                          f"{r.name} — {train.name}: proposed ({algorithm}, seed {seed}), "
-                          f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh",
-                          histories=[(algorithm, run.outcome.history)])
+                          run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
+                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
@@ -242,7 +243,10 @@ def compare(route: Path = ROUTE,
             from .io.plot import plot_profiles
 
             recs = [x for x in batch.records if x.profile is not None]
-            hist = [(x.summary["strategy"], x.history) for x in recs if x.history is not None]
+            from .io.plot import history_quantity
+
+            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"])) for x in recs
+                    if x.history is not None]
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
                           f"{first['route']} — {first['consist']}: strategies", histories=hist or None)

@@ -222,8 +222,9 @@ def register(app: typer.Typer) -> None:
         if plot:
             from .learn.plot import plot_advice
 
-            plot_advice(plot, a, f"{r.name} — {train.name}: advice from {patterns.name}, "
-                                 f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
+            from .io.plot import run_title
+
+            plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
         if not as_json:
             show(out, _summary_table(summary, out.width) + fit(_sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
                  + _sequence_table(summary["sequence"], out.width))

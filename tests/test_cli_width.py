@@ -179,3 +179,36 @@ def test_progress_bar_on_a_terminal_only_and_never_with_json(root):
     json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))  # nothing but the JSON
     res = subprocess.run([sys.executable, "-m", "locoplan", *args], capture_output=True, text=True, cwd=root, timeout=120)
     assert res.returncode == 0 and "strategies run" not in res.stderr  # piped: no bar
+
+
+def test_plot_of_a_stalled_plan_ends_where_it_stalls(root, tmp_path):
+    """The line stops at the stall (13 km), the title names the reason, never "nan s"."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from locoplan.io.load import load_route, load_train
+    from locoplan.io.plot import ENERGY, FITNESS, draw_profiles, plot_profiles, run_title
+    from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+    route, train = load_route(root / "routes/freight-20km.yaml"), load_train(root / "configs/consists/HXD1-C80x50.yaml")
+    calc = TractionCalculator(route, train, ModelOptions())
+    res = calc.evaluate(("T", "K", "C", "B"), np.array([[2200.0, 9000.0, 19600.0]]), profile=True)
+    assert not res.feasible[0]
+    prof = res.profile
+    fig, (ax, axg) = plt.subplots(2, 1)
+    draw_profiles(ax, axg, [("stalls", prof), ("again", prof)], "t")
+    for line in ax.lines[1:]:  # [0] is the limit
+        x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+        drawn = x[np.isfinite(y)]
+        assert drawn.max() <= 13.0 + 1e-9 and np.nanmin(y[x > 12.0]) >= 0
+    plt.close(fig)
+    title = run_title("Freight", "HXD1", "sequence", {"feasible": False, "running_time_s": None,
+                                                      "traction_energy_kwh": 584.5, "reason": "stalled at 13,000 m"})
+    assert "nan" not in title and "stalled at 13,000 m" in title
+    out = tmp_path / "p.png"
+    plot_profiles(out, [("stalls", prof)], title, histories=[("issa", np.array([0.3, 0.2])),
+                                                             ("energy-saving", np.array([600.0, 580.0]), ENERGY)])
+    assert out.stat().st_size > 1000 and FITNESS != ENERGY
