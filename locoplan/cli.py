@@ -83,7 +83,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False, soft_wrap=True)
+                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:

@@ -97,7 +97,7 @@ def register(app: typer.Typer) -> None:
             out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
                       f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
                       + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
-                      "(infeasible, or outside the window)", highlight=False, soft_wrap=True)
+                      "(infeasible, or outside the window)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
 
     @app.command("results")
     @guarded
@@ -205,4 +205,4 @@ def register(app: typer.Typer) -> None:
             print(to_json(front))
         else:
             show(out, pareto_table(front, out.width))
-            out.print(f"front: {front['front_kind']}", highlight=False, soft_wrap=True)
+            out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)

@@ -62,8 +62,8 @@ def register(app: typer.Typer) -> None:
                            "licence": str(report.licence) if report.licence else None, "notes": report.notes}))
         else:
             for path, kind, summary in report.written:
-                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
             if report.licence:
-                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
         for note in report.notes:
             err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)
