@@ -114,30 +114,9 @@ def test_piped_at_80_columns(root):
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
 def test_in_a_pseudo_terminal_of_80_columns(root):
     """As a user sees it: a terminal 80 columns wide (no COLUMNS), colours and all."""
-    import fcntl
-    import pty
-    import struct
-    import termios
-
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 50, 80, 0, 0))
-    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
-    proc = subprocess.Popen([sys.executable, "-m", "locoplan", "simulate", "routes/freight-20km.yaml", "--sequence",
-                             LONG_PLAN], stdout=slave, stderr=slave, stdin=slave, cwd=root, env=env, close_fds=True)
-    os.close(slave)
-    chunks = []
-    while True:
-        try:
-            data = os.read(master, 65536)
-        except OSError:  # the child closed the terminal
-            break
-        if not data:
-            break
-        chunks.append(data)
-    proc.wait(timeout=120)
-    os.close(master)
-    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", b"".join(chunks).decode("utf-8", "replace")).replace("\r", "")
-    assert proc.returncode == 0, text
+    code, raw = _in_pty(["simulate", "routes/freight-20km.yaml", "--sequence", LONG_PLAN], root)
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", raw).replace("\r", "")
+    assert code == 0, text
     _check_lines(text, 80, whole=(LONG_PLAN,))
     assert LONG_PLAN in text
 
