@@ -8,6 +8,7 @@ Shared consoles, option declarations and parsing live in :mod:`locoplan.cli_comm
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Optional
 
@@ -17,11 +18,11 @@ from rich.markup import escape
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
                          STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
-                         _names, _options, _range, _weights, all_or_none, err, guarded, out)
+                         _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
-from .io.tables import compare_tables, describe, explain_tables, sequence_table, summary_table, study_table, sweep_table
+from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
@@ -53,7 +54,13 @@ def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **
 def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or consist YAML files."),
              stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
              as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout.")):
-    """Check files; print every problem as file:line: field: message (exit 2), or a summary per file."""
+    """Check files; print every problem as file:line: field: message (exit 2), or a summary per file.
+    --json: {"valid": bool, "results": [per file: "file", "valid", and "kind" + "description" (what it
+    holds) + "summary" if valid, else "problems": [{"file", "line", "field", "message"}]], "problems": [every one]}."""
+    from dataclasses import asdict
+
+    from .io.tables import describe_data
+
     problems: list[Problem] = []
     summaries = []
     try:
@@ -65,16 +72,18 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
         try:
             data, lines = read_yaml(f)
             model = validate_data(data, str(f), lines)
-            summaries.append({"file": str(f), "valid": True, "summary": describe(model, str(f), stock_dir)})
+            d = describe_data(model, str(f), stock_dir)
+            summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
+                              "description": d})
         except InputError as exc:
             problems += exc.problems
-            summaries.append({"file": str(f), "valid": False, "problems": [str(p) for p in exc.problems]})
+            summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
     if as_json:
-        print(to_json({"results": summaries}))
+        print(to_json({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]}))
     else:
         for s in summaries:
             if s["valid"]:
-                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False, soft_wrap=True)
+                out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:
@@ -131,12 +140,11 @@ def simulate(route: Path = ROUTE,
         if plot:
             from .io.plot import plot_profiles
 
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)],
-                          f"{r.name} — {train.name}: {summary['strategy']}, "
-                          f"{summary['running_time_s'] or float('nan'):.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
+            from .io.plot import run_title
+
+            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary))
     if not as_json:
-        out.print(summary_table(summary))
-        out.print(sequence_table(summary["sequence"]))
+        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
 
     # a plan is checked against the window only when a running time was asked for (--time)
@@ -174,13 +182,13 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
         if plot:
             from .io.plot import plot_profiles
 
+            from .io.plot import run_title
+
             plot_profiles(plot, [("proposed", run.result.profile)],
-                          f"{r.name} — {train.name}: proposed ({algorithm}, seed {seed}), "
-                          f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh",
-                          histories=[(algorithm, run.outcome.history)])
+                          run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
+                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None)
     if not as_json:
-        out.print(summary_table(summary))
-        out.print(sequence_table(summary["sequence"]))
+        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
 
     _fail_if([schedule_verdict(ctx, run)])
@@ -202,7 +210,7 @@ def compare(route: Path = ROUTE,
             algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED,
             e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS, consist: str = CONSIST,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-            out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+            out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -216,16 +224,18 @@ def compare(route: Path = ROUTE,
 
     names = _names(strategies, "--strategies")
     w = _weights(weights)
-    _check_outputs(out_file, plot, csv_ok=False)
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
                       params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
     specs = compare_specs(base, names)
+    if "proposed" not in names and e_min is None:  # E_min (an energy-saving run) only when a requested strategy needs it
+        specs = [replace(x, fitness=False) for x in specs]
     if explain and not as_json:
-        for t in explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts)):
-            out.print(t, highlight=False, soft_wrap=True, markup=False) if isinstance(t, str) else out.print(t)
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+        show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
+    with run_progress(f"compare: strategies run ({', '.join(names)})", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {"results": [x.summary for x in batch.records]}
     with all_or_none():
         _emit(results, as_json, out_file)
@@ -233,26 +243,29 @@ def compare(route: Path = ROUTE,
             from .io.plot import plot_profiles
 
             recs = [x for x in batch.records if x.profile is not None]
-            hist = [(x.summary["strategy"], x.history) for x in recs if x.history is not None]
+            from .io.plot import history_quantity
+
+            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"])) for x in recs
+                    if x.history is not None]
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
                           f"{first['route']} — {first['consist']}: strategies", histories=hist or None)
     if not as_json:
         first = results["results"][0]
-        for table in compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
-                                    if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}"):
-            out.print(table)
+        show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
+                                 if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
 @app.command()
 @guarded
 def sweep(route: Path = ROUTE,
-          weights: Optional[str] = typer.Option(None, "--weights", help="Time weights start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1."),
+          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
+          old_weights: Optional[str] = typer.Option(None, "--weights", hidden=True, help="Old name of --weight-grid."),
           times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -261,17 +274,25 @@ def sweep(route: Path = ROUTE,
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
+    if old_weights is not None:  # sweep's --weights was a grid, optimize's a pair: one meaning per name now
+        if weights is not None:
+            raise InputError(Problem("<command line>", "--weight-grid", "give --weight-grid (--weights is its old name), not both"))
+        weights = old_weights
+        err.print("note: sweep's --weights is now --weight-grid (--weights is w_time,w_energy in optimize, compare, study)",
+                  highlight=False, markup=False, soft_wrap=True)
     if (weights is None) == (times is None):
-        raise InputError(Problem("", "--weights", "give exactly one of --weights or --times"))
-    values = _range(weights or times, "--weights" if weights else "--times")
-    _check_outputs(out_file, plot, csv_ok=False)
+        raise InputError(Problem("<command line>", "--weight-grid", "give exactly one of --weight-grid or --times"))
+    values = _range(weights or times, "--weight-grid" if weights else "--times")
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
                       params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
                       yardstick=gap)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+    what = "time weights" if weights else "planned running times"
+    with run_progress(f"sweep: proposed-strategy runs over {len(specs)} {what}", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     rows = [x.summary for x in batch.records]
     if times:
         energy_reduction(rows)
@@ -285,8 +306,8 @@ def sweep(route: Path = ROUTE,
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
                           f"{rows[0]['route']} — {rows[0]['consist']}: sweep")
     if not as_json:
-        out.print(sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
-                              by_weights=bool(weights)))
+        show(out, sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
+                              by_weights=bool(weights), width=out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
@@ -298,7 +319,7 @@ def study(route: Path = ROUTE,
           time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED, e_min: Optional[float] = EMIN,
           params_dir: Optional[Path] = typer.Option(None, "--params-dir", help="Folder of <algorithm>.yaml parameter files."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-          out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json."),
+          out_file: Optional[Path] = typer.Option(None, "--out", help="Results (runs and the table) as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
@@ -312,13 +333,14 @@ def study(route: Path = ROUTE,
     w = _weights(weights)
     if params_dir is not None:
         check_folder(params_dir, "--params-dir")
-    _check_outputs(out_file, plot, csv_ok=False)
+    _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
-    batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None)
+    with run_progress(f"study: optimiser runs ({', '.join(algs)} x {runs} seeds)", len(specs), not as_json) as progress:
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {a: [x for x in batch.records if x.spec["algorithm"] == a] for a in algs}
     first = batch.records[0].summary
     tolerance_s = (first.get("window_s") or [0, 0])
@@ -340,8 +362,8 @@ def study(route: Path = ROUTE,
                           f"{first['route']} — {first['consist']}: best run of each optimiser",
                           histories=[(a, b.history) for a, b in shown if b.history is not None] or None)
     if not as_json:
-        out.print(study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
-                                    + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh")))
+        show(out, study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
+                                    + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh"), out.width))
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
@@ -363,6 +385,10 @@ _register_energy(app)
 from .cli_batch import register as _register_batch  # noqa: E402  (batch, results, pareto)
 
 _register_batch(app)
+
+from .cli_help import tidy as _tidy_help  # noqa: E402  (every option's value named with its unit, once all are registered)
+
+_tidy_help(app)
 
 
 def main() -> None:

@@ -14,7 +14,7 @@ import typer
 __all__ = ["register"]
 
 
-def _progress_printer(err, enabled: bool):
+def _progress_printer(err, enabled: bool, label: str = "runs"):
     """A progress callback for run_many on stderr: a rich bar (counts, rate, ETA) on a terminal, a
     plain line at most every 10 s otherwise (a log file), nothing when disabled. Returns (callback, close)."""
     if not enabled:
@@ -29,9 +29,9 @@ def _progress_printer(err, enabled: bool):
         tasks: dict = {}
 
         def cb(ev):
-            label = "E_min per route and consist" if ev.phase == "e_min" else "runs"
+            name = "E_min per route and consist" if ev.phase == "e_min" else label
             if ev.phase not in tasks:
-                tasks[ev.phase] = bar.add_task(label, total=ev.total, note="")
+                tasks[ev.phase] = bar.add_task(name, total=ev.total, note="")
             note = "" if ev.phase == "e_min" else f"({ev.reused} from the store, {ev.failed} fail their job)"
             bar.update(tasks[ev.phase], completed=ev.done, total=ev.total, note=note)
         return cb, bar.stop
@@ -53,7 +53,8 @@ def _progress_printer(err, enabled: bool):
 def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
-                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out, wide)
+                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
+    from .io.tables import show
     from .io.report import to_json
 
     @app.command("batch")
@@ -91,12 +92,12 @@ def register(app: typer.Typer) -> None:
                 print(to_json(report))
                 return
             rows = summarize_rows(rows_of(result.records))
-            wide().print(store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
-                                          f"{study_file}: {n} runs"), highlight=False)
+            show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
+                                          f"{study_file}: {n} runs", out.width))
             out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
                       f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
                       + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
-                      "(infeasible, or outside the window)", highlight=False, soft_wrap=True)
+                      "(infeasible, or outside the window)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
 
     @app.command("results")
     @guarded
@@ -149,7 +150,7 @@ def register(app: typer.Typer) -> None:
             if as_json:
                 print(to_json({"store": str(store_path), "runs": len(rows), "summary": summary}))
             else:
-                wide().print(store_summary_table(summary, group, f"{store_path}: {len(rows)} runs"), highlight=False)
+                show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
 
     @app.command("pareto")
     @guarded
@@ -188,7 +189,7 @@ def register(app: typer.Typer) -> None:
         base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                        builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
         executor = make_executor(workers)
-        cb, close = _progress_printer(err, not as_json and err.is_terminal)
+        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto: strategy runs over the planned times")
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
                                seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
@@ -203,5 +204,5 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(to_json(front))
         else:
-            wide().print(pareto_table(front), highlight=False)
-            out.print(f"front: {front['front_kind']}", highlight=False, soft_wrap=True)
+            show(out, pareto_table(front, out.width))
+            out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)

@@ -6,6 +6,7 @@ them imports another (the app lives in ``cli.py``, which registers the others' c
 from __future__ import annotations
 
 import functools
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Optional
 
@@ -35,12 +36,46 @@ FLAGS = {
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
 
 
-def wide() -> Console:
-    """stdout for wide tables: the terminal as it is, or 200 columns when piped (a pipe reports 80,
-    which would fold every cell)."""
-    import sys
+@contextmanager
+def run_progress(label: str, total: int, enabled: bool):
+    """A progress bar on stderr for a command's runs (``run_many``'s progress events), only when stderr
+    is a terminal and never with --json (stdout stays clean either way): ``label`` says what is counted
+    (e.g. "compare: strategies run"); E_min's energy-saving run, when one is needed, has its own line.
+    Yields the callback for ``run_many(progress=...)`` (None when there is no bar)."""
+    if not enabled or not err.is_terminal:
+        yield None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    return out if out.is_terminal else Console(file=sys.stdout, width=200)
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=err, transient=True) as bar:
+        tasks = {"runs": bar.add_task(label, total=total)}
+
+        def callback(ev) -> None:
+            if ev.phase not in tasks:
+                tasks[ev.phase] = bar.add_task("E_min: the energy-saving run (once per route and train)", total=ev.total)
+            bar.update(tasks[ev.phase], completed=ev.done, total=ev.total)
+        yield callback
+
+
+@contextmanager
+def step_progress(label: str, total: int, enabled: bool):
+    """A progress bar on stderr over ``total`` steps (terminal only, never with --json). Yields
+    ``step(text)``, called as each step starts: the bar counts the steps before it and shows ``text``."""
+    if not enabled or not err.is_terminal:
+        yield lambda text: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[now]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+        task = bar.add_task(label, total=total, now="")
+        started = [0]
+
+        def step(text: str) -> None:
+            bar.update(task, completed=started[0], now=text)
+            started[0] += 1
+        yield step
 
 
 def as_flags(problem: Problem) -> Problem:
@@ -93,7 +128,7 @@ def _weights(text: str) -> tuple[float, float]:
 def _range(text: str, field: str) -> list[float]:
     """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times
     (``pareto --factors``: factors of the fastest run, 1 .. 10)."""
-    if field == "--weights":
+    if field == "--weight-grid":
         return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
     if field == "--factors":
         return bounds.values(text, field, 1.0, 10.0, why="a factor of the fastest run")
@@ -145,13 +180,13 @@ CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or 
 STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
 JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
 STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
-POINT_MASS = typer.Option(False, "--point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
+POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
 AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
 ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
-STRICT = typer.Option(False, "--strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
+STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
 TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
-EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy).")
+EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
 ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
 TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")

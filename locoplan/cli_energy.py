@@ -17,10 +17,9 @@ from rich.table import Table
 __all__ = ["register", "run_energy_ocp"]
 
 
-def _summary_table(s: dict) -> Table:
-    table = Table(title=f"{s['route']}\n{s['consist']}", show_header=False, title_justify="left")
-    table.add_column("quantity", style="bold")
-    table.add_column("value")
+def _summary_table(s: dict, width: int = 80) -> list:
+    from .io.tables import key_value_table
+
     mesh = s["mesh"]
     confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({escape(s['reason'] or '')})"
     rows = [
@@ -32,7 +31,7 @@ def _summary_table(s: dict) -> Table:
                  f"largest error {mesh['max_error']:.2g} (tolerance {mesh['tolerance']:g})"
                  + ("" if mesh["converged"] else " [yellow]not reached[/]")),
         ("objective (NLP)", f"{s['objective']:.3f} kWh"),
-        ("plan", s["plan"]),
+        ("plan", escape(s["plan"])),
         ("re-simulated", f"{s['resimulated_running_time_s']:.1f} s, {s['resimulated_energy_kwh']:.3f} kWh "
                          f"({s['plan_energy_gap_percent']:+.2f} % vs the objective), last coasting point moved "
                          f"{s['coast_shift_m']:+.0f} m"),
@@ -50,9 +49,7 @@ def _summary_table(s: dict) -> Table:
     rows.append(("solve time", f"{s['solve_time_s']:.2f} s in all; the optimal control {s['optimal_control_time_s']:.2f} s "
                                f"(NLP solves {sum(h['solve_time_s'] for h in s['mesh_history']):.2f} s, builds "
                                f"{sum(h['build_time_s'] for h in s['mesh_history']):.2f} s), then the plan and its check"))
-    for k, v in rows:
-        table.add_row(k, v)
-    return table
+    return key_value_table(f"{s['route']}\n{s['consist']}", rows, width)
 
 
 def _mesh_table(history: list[dict]) -> Table:
@@ -132,9 +129,10 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     if as_json:
         print(to_json(s))
     else:
-        out.print(_summary_table(s))
-        out.print(_sequence_table(s["sequence"]))
-        out.print(_mesh_table(s["mesh_history"]))
+        from .io.tables import fit, show
+
+        show(out, _summary_table(s, out.width) + fit(_sequence_table(s["sequence"]), out.width)
+             + fit(_mesh_table(s["mesh_history"]), out.width, drop=(8, 7, 5)))
     if not run.feasible:
         err.print(f"[bold red]not confirmed:[/] {s['objective']:.3f} kWh is not reported as a result: "
                   f"{escape(s['reason'])}", highlight=False, soft_wrap=True)
@@ -144,7 +142,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
     from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
-                      _range, err, guarded, out)
+                      _range, guarded, out)
 
     @app.command("bound")
     @guarded
@@ -179,9 +177,11 @@ def register(app: typer.Typer) -> None:
         r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
         ts = values if values is not None else [planned_time(r, time_s)]
         rows = []
-        with err.status("solving") as status:
+        from .cli_common import step_progress
+
+        with step_progress("bound: E*, the least energy, per running time", len(ts), not as_json) as step:
             for t in ts:
-                status.update(f"solving E* at {t:g} s")
+                step(f"E* at {t:g} s")
                 try:
                     b = energy_bound(r, train, opts, t, mesh_tol=mesh_tol, max_degree=max_phase_degree)
                     rows.append({"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
@@ -209,10 +209,10 @@ def register(app: typer.Typer) -> None:
             print(to_json(data if values is not None else {**data, **rows[0]}))
         elif values is None:
             row = rows[0]
-            out.print(f"E* = {row['energy_kwh']:.2f} kWh  ({r.name}, {train.name}, {row['time_s']:g} s; "
+            out.print(f"E* = {row['energy_kwh']:.2f} kWh  ({escape(r.name)}, {escape(train.name)}, {row['time_s']:g} s; "
                       f"{row['mesh_points']} LGR points, {row['solve_time_s']:.2f} s)", highlight=False)
         else:
-            table = Table(title=f"{r.name} — {train.name}: least traction energy E*(T)", title_justify="left")
+            table = Table(title=escape(f"{r.name} — {train.name}: least traction energy E*(T)"), title_justify="left")
             for col in ("T [s]", "E* [kWh]", "mesh tol. met", "solve [s]"):
                 table.add_column(escape(col), justify="right")
             for row in rows:
@@ -221,6 +221,8 @@ def register(app: typer.Typer) -> None:
                 else:
                     table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", "yes" if row["converged"] else "no",
                                   f"{row['solve_time_s']:.2f}")
-            out.print(table)
+            from .io.tables import fit, show
+
+            show(out, fit(table, out.width, wrap=(3,)))
         if all(row["energy_kwh"] is None for row in rows):
             raise typer.Exit(1)

@@ -33,9 +33,9 @@ def register(app: typer.Typer) -> None:
     @guarded
     def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source format ({formats})."),
                 sources: list[Path] = typer.Argument(..., metavar="FILES...", help="Source files (railtoolkit: running-path and/or rolling-stock files, in any order)."),
-                out_dir: Path = typer.Option(..., "--out", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
-                cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed in km/h (e.g. 80 for a freight train on a passenger line)."),
-                leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg (1 = first stop to second)."),
+                out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
+                cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h], e.g. 80 for a freight train on a passenger line (default: no cap)."),
+                leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg, 1 = first stop to second (default: every leg)."),
                 all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
                 load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),
                 as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
@@ -62,8 +62,8 @@ def register(app: typer.Typer) -> None:
                            "licence": str(report.licence) if report.licence else None, "notes": report.notes}))
         else:
             for path, kind, summary in report.written:
-                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
             if report.licence:
-                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False, soft_wrap=True)
+                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
         for note in report.notes:
             err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)

@@ -95,7 +95,7 @@ def register(app: typer.Typer) -> None:
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
     from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
                              err, guarded, out)
-    from .io.tables import sequence_table as _sequence_table, summary_table as _summary_table
+    from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
     drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
     app.add_typer(drivers_app, name="drivers")
@@ -103,7 +103,7 @@ def register(app: typer.Typer) -> None:
     @drivers_app.command("simulate")
     @guarded
     def simulate(route: Path = ROUTE,
-                 out_dir: Path = typer.Option(..., "--out", help="New folder for the logs (must not exist or be empty)."),
+                 out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
                  drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
                  runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
                  masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
@@ -184,7 +184,7 @@ def register(app: typer.Typer) -> None:
     def advise(route: Path = ROUTE,
                patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
                time_s: Optional[float] = typer.Option(None, "--time", help="Planned running time [s] (default: the route's schedule)."),
-               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t]."),
+               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
                consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
                plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png or .svg."),
@@ -222,10 +222,10 @@ def register(app: typer.Typer) -> None:
         if plot:
             from .learn.plot import plot_advice
 
-            plot_advice(plot, a, f"{r.name} — {train.name}: advice from {patterns.name}, "
-                                 f"{summary['running_time_s']:.1f} s, {summary['traction_energy_kwh']:.1f} kWh")
+            from .io.plot import run_title
+
+            plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
         if not as_json:
-            out.print(_summary_table(summary))
-            out.print(_sections_table(summary["sections"]))
-            out.print(_sequence_table(summary["sequence"]))
+            show(out, _summary_table(summary, out.width) + fit(_sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
+                 + _sequence_table(summary["sequence"], out.width))
         _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])

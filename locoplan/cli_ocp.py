@@ -6,13 +6,11 @@ app in :mod:`locoplan.cli`, or a fresh one in tests).
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Optional
 
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich import box
 from rich.table import Table
@@ -29,15 +27,14 @@ from .ocp.registry import (
 __all__ = ["register"]
 
 
-def _summary_table(s: dict) -> Table:
-    table = Table(title=escape(f"{s['route']}\n{s['consist']}"), show_header=False, title_justify="left")
-    table.add_column("quantity", style="bold")
-    table.add_column("value")
+def _summary_table(s: dict, width: int = 80) -> list:
+    from .io.tables import key_value_table
+
     method = s["algorithm"] + (f" (stage 2: {s['stage2']})" if s["stage2"] else "")
     nodes = f"{s['control_nodes']} control" + (f" / {s['state_nodes']} state" if s["state_nodes"] else "")
     if s["algorithm"] == "two-stage":
         nodes += f" (stage 2: {s['final_control_nodes']} / {s['final_state_nodes']}, {s['segments']} segments)"
-    confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({s['reason']})"
+    confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({escape(str(s['reason']))})"
     rows = [
         ("method", method), ("nodes", nodes), ("problem", f"{s['length_m']:g} m, {s['gradient_permille']:g} ‰, "
                                                          f"limit {s['speed_limit_kmh']:g} km/h, force "
@@ -54,10 +51,8 @@ def _summary_table(s: dict) -> Table:
                  ("traction energy", f"{s['traction_energy_kwh']:.3f} kWh")]
     rows += [("IPOPT", f"{s['status']}, {s['iterations']} iterations"), ("solve time", f"{s['solve_time_s']:.3f} s")]
     if s.get("force_bounds_note"):
-        rows.append(("note", s["force_bounds_note"]))
-    for k, v in rows:
-        table.add_row(k, v)
-    return table
+        rows.append(("note", escape(s["force_bounds_note"])))
+    return key_value_table(f"{s['route']}\n{s['consist']}", rows, width)
 
 
 _STUDY_HEADS = ("method", "u / x", "stage 2 u / x", "objective", "re-sim.", "- exact", "solve", "ok",
@@ -74,7 +69,7 @@ def _study_tables(study) -> list[Table]:
                             f"minimum {study.exact[tab]:.4f} s): times in s, solve = median of {study.repeats}",
                       title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
         for col in _STUDY_HEADS:
-            table.add_column(col, justify="left" if col in ("method", "stage 2 u / x") else "right", no_wrap=True)
+            table.add_column(col, justify="left" if col in ("method", "stage 2 u / x") else "right")
         for r in rows:
             st2 = f"{r['final_control_nodes']} / {r['final_state_nodes']} ({r['segments']})" if r["algorithm"] == "two-stage" else "-"
             nodes = f"{r['control_nodes']}" + (f" / {r['state_nodes']}" if r["state_nodes"] else "")
@@ -92,12 +87,12 @@ def _ratio_table(study) -> Table:
     pairs = [(p["table"], p["test"]) for p in study.ratios[0]["per_test"]] if study.ratios else []
     table = Table(title="solve-time reduction of two-stage in per cent: measured here (seed's Tables)",
                   title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
-    table.add_column("two-stage", no_wrap=True)
-    table.add_column("vs", no_wrap=True)
+    table.add_column("two-stage")
+    table.add_column("vs")
     for tab, test in pairs:
-        table.add_column(f"T{tab} test {test}", justify="right", no_wrap=True)
+        table.add_column(f"T{tab} test {test}", justify="right")
     for col in ("mean", "seed mean", "seed claim"):
-        table.add_column(col, justify="right", no_wrap=True)
+        table.add_column(col, justify="right")
     for r in study.ratios:
         cells = [f"{p['percent']:.1f} ({p['seed_percent']:.1f})" for p in r["per_test"]]
         table.add_row(r["two_stage"], r["versus"].upper(), *cells, f"{r['mean_percent']:.1f}",
@@ -120,7 +115,7 @@ def register(app: typer.Typer) -> None:
             objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)}."),
             method: Optional[str] = typer.Option(None, "--method", help=f"Transcription: {methods} (default: two-stage for time, radau for energy).", show_default=False),
             nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
-            state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (two-stage: 2 x nodes, even; gpm: = nodes)."),
+            state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
             stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
             time_s: Optional[float] = typer.Option(None, "--time", help="Energy: planned running time T [s] (default: the route's schedule)."),
             mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
@@ -129,10 +124,10 @@ def register(app: typer.Typer) -> None:
             regen: float = typer.Option(0.0, "--regen", help="Energy: credited share of the electric brake's work (the air brake returns nothing)."),
             comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (seed 001's comfort bound; off by default)."),
             step: float = typer.Option(50.0, "--step", help="Energy: grid of the traction calculator that checks the plan [m]."),
-            point_mass: bool = typer.Option(False, "--point-mass", help="Energy: the seeds' point-mass train, braked by its locomotives alone."),
+            point_mass: bool = typer.Option(False, "--point-mass/--no-point-mass", help="Energy: the seeds' point-mass train, braked by its locomotives alone."),
             air_brake: Optional[bool] = typer.Option(None, "--air-brake/--no-air-brake", help="Energy: brake with the wagons' air brakes too (default: on, off with --point-mass).", show_default=False),
-            rotating_mass: Optional[float] = typer.Option(None, "--rotating-mass", help="Energy: uniform rotating-mass allowance gamma.", show_default=False),
-            strict_limits: bool = typer.Option(False, "--strict-limits", help="Energy: the checking calculator fails a plan that coasts up to a limit."),
+            rotating_mass: Optional[float] = typer.Option(None, "--rotating-mass", help="Energy: uniform rotating-mass allowance gamma (default: each vehicle's own factor).", show_default=False),
+            strict_limits: bool = typer.Option(False, "--strict-limits/--no-strict-limits", help="Energy: the checking calculator fails a plan that coasts up to a limit."),
             as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
             out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png or .svg."),
@@ -158,7 +153,11 @@ def register(app: typer.Typer) -> None:
         train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
         run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
                         route_file=route)
-        if out_file:
+        if out_file and out_file.suffix.lower() == ".csv":  # the profile's columns in the order of every command's CSV
+            from .io.report import PROFILE_COLUMNS, atomic_write_text, rows_csv
+
+            atomic_write_text(out_file, rows_csv(run.profile_rows(), PROFILE_COLUMNS))
+        elif out_file:
             write_ocp_output(out_file, run)
         if plot:
             from .ocp.plot import plot_run
@@ -167,7 +166,9 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(to_json(run.summary))
         else:
-            out.print(_summary_table(run.summary))
+            from .io.tables import show
+
+            show(out, _summary_table(run.summary, out.width))
         if not run.feasible:
             err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
                       f"{escape(run.summary['reason'])}", highlight=False, soft_wrap=True)
@@ -189,8 +190,12 @@ def register(app: typer.Typer) -> None:
         count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
         check_output_path(plot, "--plot", (".png", ".svg"))
-        with err.status("solving") as status:
-            study = run_study(consist=consist, repeats=repeats, progress=lambda text: status.update(f"solving {text}"))
+        from .cli_common import step_progress
+        from .ocp.study import STUDY_ROUTES, STUDY_RUNS
+
+        with step_progress("ocp-study: optimal-control solves (seed 000 Tables 2-3)", len(STUDY_RUNS) * len(STUDY_ROUTES),
+                           not as_json) as step:
+            study = run_study(consist=consist, repeats=repeats, progress=step)
         if out_file:
             write_study_output(out_file, study)
         if plot:
@@ -200,11 +205,12 @@ def register(app: typer.Typer) -> None:
         if as_json:
             print(to_json(study.to_dict()))
         else:
-            # the tables need ~120 columns; a pipe reports 80, so widen rather than truncate every cell
-            wide = out if out.width >= 132 else Console(file=sys.stdout, width=132)
+            from .io.tables import fit, show
+
+            # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
             for table in _study_tables(study):
-                wide.print(table)
-            wide.print(_ratio_table(study))
+                show(out, fit(table, out.width, drop=(9, 8, 2)))
+            show(out, fit(_ratio_table(study), out.width, drop=(8, 7)))
             out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
             for r in study.rows:
                 if not r["feasible"]:

@@ -404,8 +404,9 @@ def build(tmp: Path) -> list[Case]:
         option(f"weights_{v}", opt + ["--weights", v], CMDLINE, "--weights")
     swp = ["sweep", good_route, "--consist", SMALL]
     for v in ("0:1:0.0000001", "0:1e300:1e-300", "0:inf:0.1", "0:1:nan", "0:1:0", "1:0:0.1", "nan", "0.5,nan", "0:1:inf"):
-        option(f"sweep_weights_{v}", swp + ["--weights", v], CMDLINE, "--weights")
-    option("sweep_weights_limit", swp + ["--weights", "0:1:0.0000001"], "1,000 runs")
+        option(f"sweep_weights_{v}", swp + ["--weight-grid", v], CMDLINE, "--weight-grid")
+    option("sweep_weights_limit", swp + ["--weight-grid", "0:1:0.0000001"], "1,000 runs")
+    option("sweep_weights_old_name", swp + ["--weights", "0:1:0.0000001"], "1,000 runs")
     for v in ("0:1000000000:1", "nan", "inf", "-5", "1e308,200", "200,0"):
         option(f"sweep_times_{v}", swp + ["--times", v], CMDLINE, "--times")
     for v in (str(10 ** 9), "-1", "0", str(10 ** 30)):

@@ -64,7 +64,21 @@ def test_validate_json_lists_problems():
     assert res.exit_code == 2
     data = json.loads(res.stdout)
     assert [r["valid"] for r in data["results"]] == [False, False]
-    assert "gap" in data["results"][0]["problems"][0]
+    p = data["results"][0]["problems"][0]  # structured: file, line, field, message
+    assert p["file"].endswith("route_gap.yaml") and p["line"] == 6 and p["field"] == "speed_limits[1].from_m"
+    assert "gap" in p["message"] and data["valid"] is False and len(data["problems"]) >= 2
+
+
+def test_validate_json_describes_valid_files(root):
+    res = runner.invoke(app, ["validate", "--json", str(root / "routes/freight-20km.yaml"),
+                              str(root / "configs/consists/HXD1-C80x50.yaml")])
+    assert res.exit_code == 0
+    data = json.loads(res.stdout)
+    route, consist = data["results"]
+    assert data["valid"] is True and data["problems"] == []
+    assert route["kind"] == "route" and route["description"]["length_m"] == 20000
+    assert route["description"]["speed_limit_sections"] == 9 and route["description"]["schedule"]["run_time_s"] == 1500
+    assert consist["description"]["mass_t"] == 5200 and consist["description"]["vehicles"] == 51
 
 
 def _simulate(*args):

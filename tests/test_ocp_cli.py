@@ -158,7 +158,7 @@ def test_out_csv_and_plots(app, tmp_path):
     assert res.exit_code == 0, res.output
     summary = json.loads(res.stdout)
     rows = list(csv.DictReader(io.StringIO(csv_path.read_text())))
-    assert list(rows[0]) == ["t_s", "s_m", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn"]
+    assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn"]
     t = np.array([float(r["t_s"]) for r in rows])
     s = np.array([float(r["s_m"]) for r in rows])
     f = np.array([float(r["traction_kn"]) for r in rows])

@@ -207,8 +207,8 @@ def test_sweep_and_study(root, monkeypatch):
     (["optimize", "routes/freight-20km.yaml", "--e-min", "-5"], "--e-min: must be in [1e-06, 10,000,000] kWh (got -5)"),
     (["optimize", "routes/freight-20km.yaml", "--out", "x.txt"], "unknown output type '.txt'"),
     (["compare", "routes/freight-20km.yaml", "--strategies", "fast"], "unknown strategy 'fast'"),
-    (["sweep", "routes/freight-20km.yaml"], "give exactly one of --weights or --times"),
-    (["sweep", "routes/freight-20km.yaml", "--weights", "0.9:0.1:0.1"], "needs start <= stop"),
+    (["sweep", "routes/freight-20km.yaml"], "give exactly one of --weight-grid or --times"),
+    (["sweep", "routes/freight-20km.yaml", "--weight-grid", "0.9:0.1:0.1"], "needs start <= stop"),
     (["study", "routes/freight-20km.yaml", "--runs", "0", "--e-min", "580"], "--runs: must be 1 .. 1,000 (got 0)"),
     (["optimize", "routes/seed000-flat.yaml", "--consist", "HXD1-C64-seed000"], "--time: route"),
 ])

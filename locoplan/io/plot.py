@@ -20,11 +20,33 @@ def check_plot_path(path: str | Path) -> Path:
     return path
 
 
+FITNESS = "best fitness (eq. 10)"
+ENERGY = "best traction energy [kWh]"
+"""What a convergence history measures (``histories`` items' third element; fitness when absent)."""
+
+
+def history_quantity(strategy: str) -> str:
+    """What a strategy's optimiser history measures: the energy-saving search minimises energy [kWh],
+    the others eq. 10's fitness."""
+    return ENERGY if strategy == "energy-saving" else FITNESS
+
+
+def run_title(route: str, train: str, label: str, summary: dict) -> str:
+    """A plot title: route, train, what was run, and its time and energy, or why it has no plan
+    (never "nan s")."""
+    t, e = summary.get("running_time_s"), summary.get("traction_energy_kwh")
+    if summary.get("feasible") and t is not None and e is not None and np.isfinite(t):
+        return f"{route} — {train}: {label}, {t:.1f} s, {e:.1f} kWh"
+    return f"{route} — {train}: {label}, no feasible plan ({summary.get('reason') or 'infeasible'})"
+
+
 def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str,
-                  histories: list[tuple[str, np.ndarray]] | None = None) -> None:
+                  histories: list[tuple] | None = None) -> None:
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
     equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
-    (best fitness per iteration, Fig. 17); ``.png`` or ``.svg`` by extension, written atomically."""
+    (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
+    quantity) e.g. :data:`ENERGY`; one panel per quantity); ``.png`` or ``.svg`` by extension, written
+    atomically. A plan that failed (stalled, overshot) is drawn up to where it failed."""
     path = check_plot_path(path)
     import matplotlib
 
@@ -32,17 +54,23 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     import matplotlib.pyplot as plt
 
     if histories:
+        # one convergence panel per quantity: a fitness (eq. 10, no unit) and an energy [kWh] never share an axis
+        groups: dict[str, list] = {}
+        for item in histories:
+            label, hist = item[0], item[1]
+            groups.setdefault(item[2] if len(item) > 2 else FITNESS, []).append((label, hist))
         fig = plt.figure(figsize=(11, 9))
-        grid = fig.add_gridspec(3, 1, height_ratios=[3, 1, 2], hspace=0.35)
-        ax = fig.add_subplot(grid[0])
-        axg = fig.add_subplot(grid[1], sharex=ax)
-        axc = fig.add_subplot(grid[2])
-        for label, hist in histories:
-            axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label)
-        axc.set_xlabel("iteration")
-        axc.set_ylabel("best fitness (eq. 10)")
-        axc.grid(alpha=0.3)
-        axc.legend(fontsize=8)
+        grid = fig.add_gridspec(3, len(groups), height_ratios=[3, 1, 2], hspace=0.35, wspace=0.25)
+        ax = fig.add_subplot(grid[0, :])
+        axg = fig.add_subplot(grid[1, :], sharex=ax)
+        for k, (quantity, items) in enumerate(groups.items()):
+            axc = fig.add_subplot(grid[2, k])
+            for label, hist in items:
+                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label)
+            axc.set_xlabel("iteration")
+            axc.set_ylabel(quantity)
+            axc.grid(alpha=0.3)
+            axc.legend(fontsize=8)
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     draw_profiles(ax, axg, profiles, title)
@@ -55,6 +83,19 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         plt.close(fig)
 
 
+def _until_failure(v_kmh: np.ndarray) -> np.ndarray:
+    """The speeds up to where the plan failed: NaN after the first NaN node (the calculator stops a
+    failed plan there) and after a stand-still short of the end (a stall), so no line runs on at 0 km/h."""
+    v = np.array(v_kmh, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(v))
+    if bad.size:
+        v[bad[0]:] = np.nan
+    stopped = np.flatnonzero(v[1:-1] <= 0.0) + 1  # at rest before the last node: stalled there
+    if stopped.size:
+        v[stopped[0] + 1:] = np.nan
+    return v
+
+
 def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str) -> None:
     """Speed profiles over the limits on ``ax`` (one profile: coloured by condition), the equivalent
     gradient on ``axg``."""
@@ -65,7 +106,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str) -> N
     ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label="speed limit")
     single = len(profiles) == 1
     for label, prof in profiles:
-        v = prof.v_kmh[0]
+        v = _until_failure(prof.v_kmh[0])
         if single:  # colour the one profile by the condition applied in each cell
             cond = prof.condition[0]
             for code, name in enumerate(CONDITIONS):

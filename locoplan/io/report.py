@@ -189,11 +189,45 @@ def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
     return rows
 
 
+RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
+               "reason", "running_time_s", "traction_energy_kwh", "punctuality_error_s", "punctual", "fitness",
+               "e_min_kwh", "gap_to_optimum_percent", "cruise_kmh", "energy_reduction_percent", "n_evaluations",
+               "solve_time_s", "plan")
+"""Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
+run, the ``--json`` summary's fields of the same names (weights split into w_time, w_energy; empty when
+a run has no value, e.g. no running time for a plan that stalls)."""
+
+
+def rows_csv(rows: list[dict], columns) -> str:
+    """Rows (dicts) as CSV text with ``columns`` in this order (other keys left out)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="ignore")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def run_rows_csv(rows: list[dict]) -> str:
+    """Run summaries as CSV text in :data:`RUN_COLUMNS` order."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=RUN_COLUMNS, lineterminator="\n", extrasaction="ignore")
+    writer.writeheader()
+    for r in rows:
+        w = r.get("weights") or (None, None)
+        row = {k: clean(r.get(k)) for k in RUN_COLUMNS}
+        row.update(w_time=w[0], w_energy=w[1])
+        writer.writerow({k: "" if v is None else v for k, v in row.items()})
+    return buf.getvalue()
+
+
 def write_output(path: str | Path, summary: dict, profile: Profile | None) -> None:
-    """``--out``: ``.csv`` writes the profile, ``.json`` the summary plus the profile's columns."""
+    """``--out``: ``.csv`` writes the profile (or, for several runs ``{"results": [...]}``, one row per
+    run, :data:`RUN_COLUMNS`), ``.json`` the summary plus the profile's columns."""
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".csv":
+    if suffix == ".csv" and profile is None and isinstance(summary.get("results"), list):
+        atomic_write_text(path, run_rows_csv(summary["results"]))
+    elif suffix == ".csv":
         if profile is None:
             raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()

@@ -4,62 +4,200 @@ returns a ``rich.table.Table``; nothing here runs the model or prints."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Optional
 
 from rich.markup import escape
 from rich.table import Table
+from rich.text import Text
+
+# ------------------------------------------------------------------------------- fitting a width
+# A table is printed at the console's width (the terminal's, or COLUMNS, or 80 when piped). Numbers
+# are never folded, cut or ended with "…": a column of numbers is as wide as its widest number, a
+# header wraps at its spaces, text (names, reasons) wraps at its spaces, and when the table is still
+# too wide whole columns are left out, least useful first, and a note under the table names them.
+# A plan string, which has no spaces and must stay one piece to be copied, goes on a line of its
+# own when it does not fit (printed whole: the terminal wraps it, nothing cuts it).
+
+
+class Line(str):
+    """A line printed whole, never folded or cut by rich (a plan string, a path): the terminal wraps it."""
+
+
+class Note(str):
+    """A line of prose under a table (wrapped at its spaces)."""
+
+
+def _plain(cell) -> str:
+    if isinstance(cell, Text):
+        return cell.plain
+    if isinstance(cell, str):
+        try:
+            return Text.from_markup(cell).plain
+        except Exception:  # text that only looks like markup
+            return cell
+    return str(cell)
+
+
+def _longest_word(text: str) -> int:
+    return max((len(w) for w in text.split()), default=0)
+
+
+def fit(table: Table, width: int, drop: tuple[int, ...] = (), wrap: tuple[int, ...] = ()) -> list:
+    """``table`` made to fit ``width`` columns without cutting a number: every column not in ``wrap``
+    (indices of text columns that may wrap at their spaces) is at least as wide as its widest cell
+    and its header's longest word; while the table is wider than ``width``, the columns in ``drop``
+    (indices, the first left out first) are removed. The columns' widths are then fixed here (rich's
+    own shrinking would cut numbers). Returns the blocks to print: the table, and a :class:`Note`
+    naming the columns left out (every field is in ``--json`` / ``--out``)."""
+    cols = list(table.columns)
+    low, high = {}, {}
+    for i, col in enumerate(cols):
+        cells = [_plain(c) for c in col._cells]
+        head = _plain(col.header) if table.show_header else ""
+        lines = [line for c in cells for line in (c.splitlines() or [""])]
+        high[id(col)] = max([len(head)] + [len(x) for x in lines])
+        if i in wrap:
+            low[id(col)] = max([_longest_word(head)] + [_longest_word(c) for c in cells])
+        else:
+            low[id(col)] = max([_longest_word(head)] + [len(x) for x in lines])
+        col.overflow = "fold"  # should a width ever be too small: fold, never "…"
+
+    def overhead() -> int:
+        return table._extra_width + sum(table._get_padding_width(k) for k in range(len(table.columns)))
+
+    dropped = []
+    left = list(drop)
+    while sum(low[id(c)] for c in table.columns) + overhead() > width and left:
+        col = cols[left.pop(0)]
+        table.columns[:] = [c for c in table.columns if c is not col]
+        for k, c in enumerate(table.columns):
+            c._index = k
+        dropped.append(" ".join(_plain(col.header).split()))
+    # widths: each column's minimum, then what is left shared out up to each column's natural width
+    room = width - overhead()
+    widths = {id(c): low[id(c)] for c in table.columns}
+    spare = room - sum(widths.values())
+    while spare > 0:
+        short = [c for c in table.columns if widths[id(c)] < high[id(c)]]
+        if not short:
+            break
+        share = max(1, spare // len(short))
+        for c in short:
+            give = min(share, high[id(c)] - widths[id(c)], spare)
+            widths[id(c)] += give
+            spare -= give
+            if spare <= 0:
+                break
+    for c in table.columns:
+        c.width = widths[id(c)]
+    blocks: list = [table]
+    if dropped:
+        blocks.append(Note(f"(left out at {width} columns: {'; '.join(dropped)}; --json has every field)"))
+    return blocks
+
+
+def show(console, blocks) -> None:
+    """Print tables, :class:`Line` s (whole) and :class:`Note` s (wrapped) in order."""
+    for b in blocks:
+        if isinstance(b, Line):
+            console.print(b, soft_wrap=True, markup=False, highlight=False)
+        elif isinstance(b, Note):
+            console.print(b, markup=False, highlight=False, style="dim")
+        else:
+            console.print(b)
+
+
+def describe_data(model, path: str, stock_dir: Optional[Path]) -> dict:
+    """A validated file described as data (``validate --json``): its kind and what it holds, in the
+    files' own units (route: length, sections, schedule; vehicle: mass, length, top speed; consist: the
+    resolved train)."""
+    from .load import load_train
+
+    kind = type(model).__name__
+    if kind == "Route":
+        d = {"kind": "route", "name": model.name, "length_m": model.length_m,
+             "speed_limit_sections": len(model.speed_limits), "gradient_sections": len(model.gradients),
+             "curves": len(model.curves), "tunnels": len(model.tunnels), "neutral_sections": len(model.neutral_sections),
+             "schedule": None}
+        if model.schedule:
+            d["schedule"] = {"run_time_s": model.schedule.run_time_s, "tolerance_s": model.schedule.tolerance_s}
+        return d
+    if kind == "Vehicle":
+        return {"kind": "vehicle", "name": model.name, "vehicle_kind": model.kind, "mass_t": model.mass_t,
+                "length_m": model.length_m, "max_speed_kmh": model.max_speed_kmh}
+    train = load_train(path, stock_dir)
+    return {"kind": "consist", "name": train.name, "vehicles": train.n_vehicles, "mass_t": train.mass_t,
+            "length_m": train.length_m, "max_speed_kmh": train.max_speed_kmh}
 
 
 def describe(model, path: str, stock_dir: Optional[Path]) -> str:
     """One line about a validated file (validate's output): a route's length and sections, a vehicle's
     mass, a consist's train."""
-    from .load import load_train
-
-    kind = type(model).__name__
-    if kind == "Route":
-        def count(items, noun):
-            return f"{len(items)} {noun}{'' if len(items) == 1 else 's'}"
-        parts = [f"{model.length_m / 1000:g} km", count(model.speed_limits, "speed-limit section"),
-                 count(model.gradients, "gradient section"), count(model.curves, "curve"),
-                 count(model.tunnels, "tunnel"), count(model.neutral_sections, "neutral section")]
-        if model.schedule:
-            parts.append(f"schedule {model.schedule.run_time_s:g} +- {model.schedule.tolerance_s:g} s")
-        return f"route '{model.name}': " + ", ".join(parts)
-    if kind == "Vehicle":
-        return (f"{model.kind} '{model.name}': {model.mass_t:g} t, {model.length_m:g} m, "
-                f"max {model.max_speed_kmh:g} km/h")
-    train = load_train(path, stock_dir)
-    return (f"consist '{train.name}': {train.n_vehicles} vehicles, {train.mass_t:g} t, "
-            f"train length {train.length_m:g} m, max {train.max_speed_kmh:g} km/h")
+    d = describe_data(model, path, stock_dir)
+    if d["kind"] == "route":
+        def count(n, noun):
+            return f"{n} {noun}{'' if n == 1 else 's'}"
+        parts = [f"{d['length_m'] / 1000:g} km", count(d["speed_limit_sections"], "speed-limit section"),
+                 count(d["gradient_sections"], "gradient section"), count(d["curves"], "curve"),
+                 count(d["tunnels"], "tunnel"), count(d["neutral_sections"], "neutral section")]
+        if d["schedule"]:
+            parts.append(f"schedule {d['schedule']['run_time_s']:g} +- {d['schedule']['tolerance_s']:g} s")
+        return f"route '{d['name']}': " + ", ".join(parts)
+    if d["kind"] == "vehicle":
+        return f"{d['vehicle_kind']} '{d['name']}': {d['mass_t']:g} t, {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h"
+    return (f"consist '{d['name']}': {d['vehicles']} vehicles, {d['mass_t']:g} t, "
+            f"train length {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h")
 
 
-def summary_table(summary: dict) -> Table:
-    """One result (the SPEC's JSON object) as a two-column table."""
-    table = Table(title=escape(f"{summary['route']}\n{summary['consist']}"), show_header=False, title_justify="left")
+def _num(value, fmt: str, unit: str = "") -> str:
+    """A number for a table, "-" when there is none (None, NaN: an infeasible plan has no time)."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return format(value, fmt) + unit
+
+
+def key_value_table(title: str, rows: list[tuple[str, str]], width: int = 80, whole: tuple[str, ...] = ("plan",)) -> list:
+    """A two-column table (quantity, value; values are markup, wrapped at their spaces); the value of a
+    key in ``whole`` (a plan string: no spaces, copied as one piece) that does not fit the value column
+    goes on a line of its own under the table, printed whole. Blocks for :func:`show`."""
+    table = Table(title=escape(title), show_header=False, title_justify="left")
     table.add_column("quantity", style="bold")
     table.add_column("value")
-    feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({summary['reason']})"
-    rows = [("strategy", summary["strategy"] + (f" ({summary['algorithm']}, seed {summary['seed']})" if summary.get("algorithm") else "")),
-            ("plan", summary["plan"]), ("feasible", feasible)]
-    if summary["running_time_s"] is not None:
-        rows.append(("running time", f"{summary['running_time_s']:.1f} s"))
-    rows.append(("traction energy", f"{summary['traction_energy_kwh']:.2f} kWh"))
-    if summary.get("planned_time_s") is not None and summary["punctuality_error_s"] is not None:
-        rows.append(("punctuality error", f"{summary['punctuality_error_s']:.1f} s (planned {summary['planned_time_s']:g} s)"))
+    key_width = max(len(k) for k, _ in rows)
+    room = width - key_width - 7  # the value column's width inside a table of `width`
+    below = []
+    for k, v in rows:
+        if k in whole and len(_plain(v)) > room:
+            below.append(Line(f"{k} {_plain(v)}"))
+            v = "(below the table)"
+        table.add_row(k, v)
+    return [table] + below
+
+
+def summary_table(summary: dict, width: int = 80) -> list:
+    """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
+    long for the table's value column follows the table on a line of its own, whole)."""
+    feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({escape(str(summary['reason']))})"
+    rows = [("strategy", escape(summary["strategy"] + (f" ({summary['algorithm']}, seed {summary['seed']})" if summary.get("algorithm") else ""))),
+            ("plan", escape(summary.get("plan") or "-")), ("feasible", feasible)]
+    rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
+    rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
+                 + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
+    if summary.get("planned_time_s") is not None:
+        rows.append(("punctuality error", f"{_num(summary['punctuality_error_s'], '.1f', ' s')} (planned {summary['planned_time_s']:g} s)"))
     if summary.get("fitness") is not None:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     if summary.get("gap_to_optimum_percent") is not None:
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E*, the least energy in this running time (seed 001)"))
-    rows.append(("solve time", f"{summary['solve_time_s']:.3f} s"))
-    for k, v in rows:
-        table.add_row(k, v)
-    return table
+    rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
+    return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
 
 
-def sequence_table(runs: list[dict]) -> Table:
+def sequence_table(runs: list[dict], width: int = 80) -> list:
     """The applied condition sequence (a summary's ``sequence``)."""
     table = Table(title="condition sequence", title_justify="left")
     for col in ("condition", "from [m]", "to [m]", "length [m]"):
@@ -67,44 +205,68 @@ def sequence_table(runs: list[dict]) -> Table:
     names = {"T": "T traction", "K": "K cruise", "C": "C coast", "B": "B brake"}
     for r in runs:
         table.add_row(names[r["condition"]], f"{r['from_m']:.0f}", f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}")
-    return table
+    return fit(table, width)
 
 
-def compare_tables(rows: list[dict], title: str) -> tuple[Table, Table]:
+def _wrap_sequence(conds: list[str], room: int = 17) -> str:
+    """'T-K-T-C-...' broken after a '-' into lines of at most ``room`` characters."""
+    lines, line = [], ""
+    for c in conds:
+        piece = c if not line else f"-{c}"
+        if line and len(line) + len(piece) + 1 > room:  # keep the '-' at the end of the broken line
+            lines.append(line + "-")
+            line = c
+        else:
+            line += piece
+    return "\n".join(lines + [line])
+
+
+def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     """Seed 002 Table 8 (each strategy's planned sequence and switching points; the final B begins
-    where the stop's braking curve does) and Table 9 (time and energy, re-simulated at the report grid)."""
+    where the stop's braking curve does) and Table 9 (time and energy, re-simulated at the report grid),
+    then why any strategy has no plan, and each plan whole (to give ``simulate --sequence``)."""
     t8 = Table(title=escape(f"{title}\nTable 8: condition sequences and switching points"), title_justify="left")
     t8.add_column("strategy")
     t8.add_column("sequence")
-    t8.add_column(escape("switching points [m]"), overflow="fold")
+    t8.add_column(escape("switching points [m]"))
     t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
-    for col in ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs time-saving", "vs E* [%]", "switches", "coasting", "fitness"):
+    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
+    for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
-    base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving"), None)
+    base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving" and r["feasible"]), None)
+    notes, plans = [], []
     for s in rows:
+        if not s["feasible"]:
+            notes.append(Note(f"{s['strategy']}: no feasible plan: {s['reason']}"))
         if s["plan"] is None:  # no plan at all (the run was infeasible before it planned)
-            t8.add_row(s["strategy"], "-", "-")
-            t9.add_row(f"{s['strategy']} [red](infeasible: {escape(str(s['reason']))})[/]", *(["-"] * 8))
+            t8.add_row(escape(s["strategy"]), "-", "-")
+            t9.add_row(escape(s["strategy"]) + " [red](no plan)[/]", *(["-"] * (len(heads) - 1)))
             continue
+        plans.append((s["strategy"], s["plan"], s.get("cruise_kmh")))
         conds = [c.split(":")[0] for c in s["plan"].split(",")]
         points = list(s["switching_points_m"])
         if conds[-1] == "B" and len(points) < len(conds) - 1 and s["sequence"]:
             points.append(s["sequence"][-1]["from_m"])  # where the final braking curve begins
-        seq = "-".join(conds) + (f" (cruise {s['cruise_kmh']:g} km/h)" if s.get("cruise_kmh") else "")
-        t8.add_row(s["strategy"], seq, " ".join(f"{x:.0f}" for x in points) or "-")
-        t = "-" if s["running_time_s"] is None else f"{s['running_time_s']:.1f}"
-        late = "-" if s["punctuality_error_s"] is None else f"{s['punctuality_error_s']:.1f}"
-        if s.get("punctual") is False:
+        seq = _wrap_sequence(conds) + (f"\n(cruise {s['cruise_kmh']:g} km/h)" if s.get("cruise_kmh") else "")
+        t8.add_row(escape(s["strategy"]), seq, " ".join(f"{x:.0f}" for x in points) or "-")
+        late = _num(s["punctuality_error_s"], ".1f")
+        if s.get("punctual") is False and s["running_time_s"] is not None:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
-        rel = "-" if not base else f"{100 * (s['traction_energy_kwh'] / base - 1):+.1f} %"
-        name = s["strategy"] + ("" if s["feasible"] else f" [red](infeasible: {s['reason']})[/]")
-        gap = "-" if s.get("gap_to_optimum_percent") is None else f"{s['gap_to_optimum_percent']:+.2f}"
-        t9.add_row(name, t, late, f"{s['traction_energy_kwh']:.2f}", rel, gap, str(len(conds) - 1),
-                   str(conds.count("C")), "-" if s["fitness"] is None else f"{s['fitness']:.4f}")
-    return t8, t9
+        e = s["traction_energy_kwh"]
+        rel = "-" if not base or e is None or not s["feasible"] else f"{100 * (e / base - 1):+.1f}"
+        name = escape(s["strategy"]) + ("" if s["feasible"] else " [red](infeasible)[/]")
+        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"), rel,
+                   _num(s.get("gap_to_optimum_percent"), "+.2f"), str(len(conds) - 1), str(conds.count("C")),
+                   _num(s["fitness"], ".4f"))
+    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6, 7, 5, 4, 8), wrap=(0,)) + notes
+    if plans:
+        blocks.append(Note("plans:"))
+        blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))
+                   for name, plan, c in plans]
+    return blocks
 
 
-def explain_tables(seq) -> list:
+def explain_tables(seq, width: int = 80) -> list:
     """The limit and grade classification behind the proposed sequence (seed 002 Fig. 2, step 2), and
     the sequence with its nominal switching points (a ``strategy.sequence.build_sequence`` result)."""
     out = []
@@ -113,28 +275,26 @@ def explain_tables(seq) -> list:
         t.add_column(escape(col), justify="right" if col != "type" else "left")
     for s in seq.limits:
         t.add_row(f"{s.from_m:.0f}", f"{s.to_m:.0f}", f"{s.kmh:g}", s.kind)
-    out.append(t)
+    out += fit(t, width, wrap=(3,))
     t = Table(title="grades (seed 002 step 2: can full traction / coasting hold the limit speed?)", title_justify="left")
     for col in ("from [m]", "to [m]", "equiv. gradient [‰]", "speed change [km/h]", "type"):
         t.add_column(escape(col), justify="right" if col != "type" else "left")
     for g in seq.grades:
         t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
-    out.append(t)
-    out.append(f"proposed sequence (nominal switching points, seed 002 step 3): {seq.text()}")
+    out += fit(t, width, wrap=(4,))
+    out.append(Note("proposed sequence (nominal switching points, seed 002 step 3):"))
+    out.append(Line(seq.text()))
     return out
 
 
-def _num(value, fmt: str) -> str:
-    return "-" if value is None else format(value, fmt)
-
-
-def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
+def sweep_table(rows: list[dict], title: str, by_weights: bool, width: int = 80) -> list:
     """Seed 002 Table 6 (``by_weights``) or Table 7 (planned times, with the energy reduction)."""
     table = Table(title=escape(title), title_justify="left")
     cols = (["w_time", "w_energy"] if by_weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
     cols += [] if by_weights else ["energy reduction [%]"]
     for c in cols:
         table.add_column(escape(c), justify="right")
+    notes = []
     for x in rows:
         lead = [f"{x['weights'][0]:g}", f"{x['weights'][1]:g}"] if by_weights and x.get("weights") else (
             ["-", "-"] if by_weights else [f"{x['planned_time_s']:g}"])
@@ -142,35 +302,42 @@ def sweep_table(rows: list[dict], title: str, by_weights: bool) -> Table:
         table.add_row(*lead, _num(x["running_time_s"], ".1f"), _num(x["traction_energy_kwh"], ".2f"),
                       _num(x["punctuality_error_s"], ".1f"), _num(x["fitness"], ".4f"),
                       _num(x.get("gap_to_optimum_percent"), "+.2f"), *tail)
-    return table
+        if not x["feasible"]:
+            notes.append(Note(f"{' / '.join(lead)}: no feasible plan: {x['reason']}"))
+    n = len(cols)
+    return fit(table, width, drop=(n - 1 - (0 if by_weights else 1), 1 if by_weights else n - 1)) + notes
 
 
-def study_table(rows: list[dict], title: str) -> Table:
-    """Seed 002 Tables 10-12 from ``runner.study_table`` rows: per optimiser best, worst, mean, sd,
-    punctual runs and the best punctual one."""
-    table = Table(title=escape(title), title_justify="left")
-    for c in ("algorithm", "best E [kWh] / T [s]", "worst E / T", "mean E / T", "mean fitness (sd)",
-              "punctual runs", "punctual best E / T / fitness", "mean vs E* [%]", "mean solve [s]"):
+def study_table(rows: list[dict], title: str, width: int = 80) -> list:
+    """Seed 002 Tables 10-12 from ``runner.study_table`` rows: per optimiser the best and the worst run
+    **by fitness** (eq. 10, what the optimisers minimise; the table shows each one's fitness, energy and
+    time), means, punctual runs and the punctual run with the least energy."""
+    table = Table(title=escape(title + "; best / worst: by fitness (eq. 10)"), title_justify="left")
+    heads = ("algorithm", "best fitness", "best's E [kWh]", "best's T [s]", "worst fitness", "worst's E [kWh]",
+             "worst's T [s]", "mean fitness", "sd fitness", "mean E [kWh]", "mean T [s]", "on time",
+             "least E on time [kWh]", "its T [s]", "mean vs E* [%]", "mean solve [s]")
+    for c in heads:
         table.add_column(escape(c), justify="right" if c != "algorithm" else "left")
     for x in rows:
         if not x.get("feasible_runs"):
-            table.add_row(x["algorithm"], *(["-"] * 8))
+            table.add_row(escape(x["algorithm"]), *(["-"] * (len(heads) - 1)))
             continue
-        pb = x["punctual_best"]
-        table.add_row(x["algorithm"],
-                      f"{x['best']['traction_energy_kwh']:.2f} / {x['best']['running_time_s']:.1f}",
-                      f"{x['worst']['traction_energy_kwh']:.2f} / {x['worst']['running_time_s']:.1f}",
-                      f"{x['mean_traction_energy_kwh']:.2f} / {x['mean_running_time_s']:.1f}",
-                      f"{x['mean_fitness']:.5f} ({x['std_fitness']:.5f})", f"{x['punctual_runs']}/{x['runs']}",
-                      "-" if pb is None else f"{pb['traction_energy_kwh']:.2f} / {pb['running_time_s']:.1f} / {pb['fitness']:.5f}",
+        b, w, pb = x["best"], x["worst"], x["punctual_best"]
+        table.add_row(escape(x["algorithm"]),
+                      f"{b['fitness']:.5f}", f"{b['traction_energy_kwh']:.2f}", f"{b['running_time_s']:.1f}",
+                      f"{w['fitness']:.5f}", f"{w['traction_energy_kwh']:.2f}", f"{w['running_time_s']:.1f}",
+                      f"{x['mean_fitness']:.5f}", f"{x['std_fitness']:.5f}",
+                      f"{x['mean_traction_energy_kwh']:.2f}", f"{x['mean_running_time_s']:.1f}",
+                      f"{x['punctual_runs']}/{x['runs']}",
+                      "-" if pb is None else f"{pb['traction_energy_kwh']:.2f}", "-" if pb is None else f"{pb['running_time_s']:.1f}",
                       _num(x.get("mean_gap_to_optimum_percent"), "+.2f"), f"{x['mean_solve_time_s']:.2f}")
-    return table
+    return fit(table, width, drop=(15, 14, 6, 3, 8, 10, 13, 5, 12), wrap=(0,))
 
 
 HEADS = {"planned_time_s": "T0 [s]", "time_spec": "T0", "consist": "consist", "route": "route"}
 
 
-def store_summary_table(rows: list[dict], by: list[str], title: str) -> Table:
+def store_summary_table(rows: list[dict], by: list[str], title: str, width: int = 80) -> list:
     """``locoplan results``: one row per group (``runs.summary.summarize_records`` rows)."""
     table = Table(title=escape(title), title_justify="left")
     heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
@@ -178,14 +345,16 @@ def store_summary_table(rows: list[dict], by: list[str], title: str) -> Table:
     for i, h in enumerate(heads):
         table.add_column(escape(h), justify="left" if i < len(by) else "right")
     for r in rows:
-        table.add_row(*[str(r[k]) if r[k] is not None else "-" for k in by], str(r["runs"]), str(r["feasible_runs"]),
+        table.add_row(*[escape(str(r[k])) if r[k] is not None else "-" for k in by], str(r["runs"]), str(r["feasible_runs"]),
                       str(r["punctual_runs"]), _num(r["energy_mean_kwh"], ".2f"), _num(r["energy_best_kwh"], ".2f"),
                       _num(r["energy_sd_kwh"], ".2f"), _num(r["time_mean_s"], ".1f"), _num(r["time_sd_s"], ".1f"),
                       _num(r["gap_mean_percent"], ".2f"), _num(r["gap_best_percent"], ".2f"))
-    return table
+    k = len(by)
+    text = tuple(i for i, b in enumerate(by) if b in ("route", "consist", "strategy"))
+    return fit(table, width, drop=(k + 9, k + 7, k + 5, k + 1, k + 8, k + 4, k + 6, k + 2), wrap=text)
 
 
-def pareto_table(front: dict) -> Table:
+def pareto_table(front: dict, width: int = 80) -> list:
     """``locoplan pareto``: per planned time, the best on-time plan (and E* once known), and the front."""
     table = Table(title=escape(f"{front['route']} — {front['consist']}: energy-time front "
                                f"(fastest run {front['fastest_time_s']:.1f} s)"), title_justify="left")
@@ -193,6 +362,6 @@ def pareto_table(front: dict) -> Table:
         table.add_column(escape(c), justify="right" if c != "by" else "left")
     for p in front["grid"]:
         table.add_row(f"{p['planned_time_s']:g}", f"{p['factor']:.3f}", _num(p["best_energy_kwh"], ".2f"),
-                      p["best_strategy"] or "-", _num(p["best_running_time_s"], ".1f"), _num(p["optimum_kwh"], ".2f"),
+                      escape(p["best_strategy"] or "-"), _num(p["best_running_time_s"], ".1f"), _num(p["optimum_kwh"], ".2f"),
                       _num(p["gap_to_optimum_percent"], ".2f"), "yes" if p["on_front"] else "")
-    return table
+    return fit(table, width, drop=(1, 4), wrap=(3,))

@@ -1,0 +1,88 @@
+"""Help that reads well: every option's value named with its unit or kind (``--time S``, ``--e-min KWH``),
+arguments named as click names them (``ROUTE``, ``FILES...``), never typer's ``<float>`` / ``{route}``.
+
+:func:`tidy` is called once on the finished app (end of ``cli.py``): it fills in the metavar of every
+option that has none, from :data:`METAVARS` (one name per flag, so a flag reads the same in every
+command), and of every argument (its name in capitals). The wording of each option stays where it is
+declared; this module only names the values.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import typer
+
+METAVARS = {
+    "--algorithm": "NAME", "--algorithms": "NAME,...", "--boxplot": "FILE", "--builder": "NAME", "--by": "FIELD,...",
+    "--cap-kmh": "KMH", "--comfort": "M/S2", "--consist": "FILE|NAME", "--divisions": "N", "--drivers": "N",
+    "--e-min": "KWH", "--efficiency": "ETA|KMH:ETA,...", "--factors": "A:B:STEP|X,...", "--folds": "N",
+    "--format": "csv|parquet|json", "--holdout": "SHARE", "--leg": "N", "--level": "PERMILLE", "--load-class": "T",
+    "--load-fraction": "SHARE", "--logs": "DIR", "--mass": "T", "--masses": "T,...", "--max-order": "N",
+    "--max-phase-degree": "N", "--mesh-tol": "REL", "--method": "NAME", "--nodes": "N", "--objective": "time|energy",
+    "--out": "FILE", "--params": "FILE", "--params-dir": "DIR", "--patterns": "FILE", "--plot": "FILE",
+    "--regen": "SHARE", "--repeats": "N", "--rotating-mass": "GAMMA", "--runs": "N", "--scheduler": "ADDRESS",
+    "--seed": "N", "--seeds": "N,...", "--sequence": "PLAN", "--stage2": "MODE", "--state-nodes": "N", "--step": "M",
+    "--stock-dir": "DIR", "--store": "FILE", "--strategies": "NAME,...", "--strategy": "NAME", "--time": "S",
+    "--times": "A:B:STEP|S,...", "--tolerance": "S", "--weights": "W_TIME,W_ENERGY",
+    "--weight-grid": "A:B:STEP|W,...", "--where": "EXPR", "--workers": "N",
+}
+"""Flag -> the name of its value in help (units in capitals: S seconds, M metres, KWH, KMH, T tonnes)."""
+
+
+def _flag(info) -> str:
+    return info.param_decls[0].split("/")[0] if info.param_decls else ""
+
+
+def _params(fn):
+    fn = inspect.unwrap(fn)
+    return inspect.signature(fn).parameters.items()
+
+
+def _tidy_command(fn) -> None:
+    for name, p in _params(fn):
+        info = p.default
+        if isinstance(info, typer.models.OptionInfo):
+            if info.metavar is None and "bool" not in str(p.annotation):  # a flag has no value
+                flag = _flag(info)
+                if flag not in METAVARS:
+                    raise KeyError(f"cli_help.METAVARS has no entry for {flag} (add one)")
+                info.metavar = METAVARS[flag]
+        elif isinstance(info, typer.models.ArgumentInfo) and info.metavar is None:
+            plural = "list" in str(p.annotation)
+            info.metavar = name.upper() + ("..." if plural else "")
+
+
+def tidy(app: typer.Typer) -> None:
+    """Name every option's and argument's value in ``app`` (and its sub-apps) that has no metavar yet."""
+    for cmd in app.registered_commands:
+        _tidy_command(cmd.callback)
+    for group in app.registered_groups:
+        tidy(group.typer_instance)
+
+
+def _patch_typer_arguments() -> None:
+    """typer 0.29 writes a required argument as ``{ROUTE}`` in the usage line and adds its type
+    (``ROUTE <path>``) in the list; with a metavar set, show just the metavar, as click does."""
+    from typer.core import TyperArgument
+
+    if hasattr(TyperArgument, "_usage_display_name") and not getattr(TyperArgument, "_locoplan_tidy", False):
+        original_type = TyperArgument.display_type_rich
+        original_usage = TyperArgument._usage_display_name
+
+        def display_type_rich(self, ctx):
+            return None if self.metavar else original_type(self, ctx)
+
+        def usage_display_name(self):
+            if not self.metavar:
+                return original_usage(self)
+            return self.metavar if self.required else f"[{self.metavar}]"
+
+        TyperArgument.display_type_rich = display_type_rich
+        TyperArgument._usage_display_name = usage_display_name
+        TyperArgument._locoplan_tidy = True
+
+
+_patch_typer_arguments()
+
+__all__ = ["tidy", "METAVARS"]
