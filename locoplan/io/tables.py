@@ -338,7 +338,13 @@ HEADS = {"planned_time_s": "T0 [s]", "time_spec": "T0", "consist": "consist", "r
 
 
 def store_summary_table(rows: list[dict], by: list[str], title: str, width: int = 80) -> list:
-    """``locoplan results``: one row per group (``runs.summary.summarize_records`` rows)."""
+    """``locoplan results``: one row per group (``runs.summary.summarize_records`` rows). A grouping key
+    with one value in every row goes into the title instead of a column (narrow terminals keep the numbers)."""
+    if len(rows) > 1:
+        same = [b for b in by if len({str(r[b]) for r in rows}) == 1]
+        if same and len(same) < len(by):
+            title += "".join(f"\n{HEADS.get(b, b)}: {rows[0][b]}" for b in same)
+            by = [b for b in by if b not in same]
     table = Table(title=escape(title), title_justify="left")
     heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
              "gap best [%]"]
