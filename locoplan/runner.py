@@ -167,8 +167,6 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,
-        "cruise_mode": None if outcome.cruise_kmh is None else outcome.cruise_mode,
-        "brake_hold_kmh": outcome.brake_hold_kmh,
         "solve_time_s": round(outcome.solve_time_s, 3),
         "n_evaluations": outcome.n_evaluations,
         "plan": outcome.plan.text(),

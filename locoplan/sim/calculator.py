@@ -285,17 +285,13 @@ class TractionCalculator:
                 frac[code] = share[:, sel, :].sum(axis=1)
         return frac
 
-    def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
-                 cruise_mode: str = "hold", brake_hold_kmh=None) -> BatchResult:
+    def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
         switches_m: (n_plans, len(conditions) - 1) positions [m] where conditions 2.. begin, rising.
-        cruise_kmh: optional (n_plans,) cruise speed [km/h]. cruise_mode "hold" (seed 002's four-stage):
-        traction stops at it and cruise holds it, braking if need be (below the limits); coasting is not
-        held to it. "regulate": K drives at it (full traction below it, holds it without braking, coasts
-        above it up to ``brake_hold_kmh`` (n_plans,) where it holds by braking; default: the limits), T
-        is full traction up to the limits (the structure of the minimum-energy optimum).
+        cruise_kmh: optional (n_plans,) cruise speed [km/h] (seed 002's four-stage): traction stops at it
+        and cruise holds it, braking if need be (below the limits); coasting is not held to it.
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
         and on request the per-cell profile.
         """
@@ -309,22 +305,12 @@ class TractionCalculator:
         cap = None
         if cruise_kmh is not None:
             cap = np.ascontiguousarray(np.broadcast_to(np.asarray(cruise_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2)
-        if cruise_mode not in ("hold", "regulate"):
-            raise ValueError(f"cruise_mode must be 'hold' or 'regulate', not {cruise_mode!r}")
-        regulate = cruise_mode == "regulate" and cap is not None
         if self.backend == "numba":
-            brake_e = None
-            if regulate:
-                brake_e = np.full(sw.shape[0], np.inf) if brake_hold_kmh is None else np.ascontiguousarray(
-                    np.broadcast_to(np.asarray(brake_hold_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2)
-            return self._run_kernel(conditions, sw, profile, cap, brake_e)
-        if regulate:
-            raise NotImplementedError("the numpy backend (the reference loop) has the seeds' cruise only")
+            return self._run_kernel(conditions, sw, profile, cap)
         frac = self.condition_fractions(conditions, sw)
         return self._integrate(frac, profile, sw, cap)
 
-    def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None,
-                    brake_e: np.ndarray | None = None) -> BatchResult:
+    def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
         from .kernel import run_plans
 
@@ -347,7 +333,7 @@ class TractionCalculator:
                   self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn, self.brake_speed_kmh,
                   self.brake_kn, *map(float, tr.resistance_kn), bool(self.options.strict_limits),
                   codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n),
-                  brake_e if brake_e is not None else np.zeros(n), cruise_e is not None, brake_e is not None, want_profile, t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event)
+                  cruise_e is not None, want_profile, t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event)
         never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
         prof = (t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw)

@@ -67,17 +67,15 @@ def _shares(s0, s1, codes, starts, ends, j0, out):
 
 @njit(cache=True)
 def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, bv, bf, ra, rb, rc, strict,
-              codes, starts, ends, cruise_e, brake_e, has_cruise, regulate, want_profile,
+              codes, starts, ends, cruise_e, has_cruise, want_profile,
               t_out, work_out, over_at, stop_at, hold_at, fb_at,
               t_nodes, v_nodes, cond, trac, brk, event):
     """Integrate every plan; per plan the first cell where each failure happens (-1 = never).
 
     codes (n_runs,) condition codes of the shared sequence; starts / ends (n, n_runs) where each run
     begins and ends [m] (inf = never); cruise_e (n,) e = v^2/2 of the plan's cruise speed (with
-    ``has_cruise``). Cruise modes: ``regulate`` False = the seeds' cruise (T and K capped at the speed,
-    held there by braking if need be); True = K regulates at the speed (full traction below it,
-    holding it without braking, coasting above it up to ``brake_e`` (n,), where it holds by braking)
-    and T is not capped. Profile arrays are written only when ``want_profile``.
+    ``has_cruise``): the seeds' cruise, T and K capped at that speed and held there by braking if need
+    be. Profile arrays are written only when ``want_profile``.
     """
     n = starts.shape[0]
     n_cells = h.shape[0]
@@ -106,14 +104,12 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 f0 = _interp(0.0, tv, tf) * allowed[0]
                 b0 = _interp(0.0, bv, bf)
                 l0 = ra + grav[0]
-                hold0 = f0 if regulate else min(max(l0, -b0), f0)
+                hold0 = min(max(l0, -b0), f0)
                 slope = max((fT * f0 - fB * b0 + fK * hold0 - l0) / m, 0.0)
             e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1))
             ce = np.inf
-            if has_cruise and not regulate and fC == 0.0:  # the seeds' cruise speed caps T and K, not C
+            if has_cruise and fC == 0.0:  # the seeds' cruise speed caps T and K, not C
                 ce = cruise_e[i]
-            elif regulate and fK > 0.0 and fT == 0.0 and fC == 0.0:  # K holds its braking speed by braking
-                ce = brake_e[i]
             if ce < c0:
                 c0 = ce
             if ce < c1:
@@ -123,42 +119,9 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
             b_max = _interp(v_kmh, bv, bf)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = min(max(load, -b_max), f_max)
-            side = 0
-            if regulate and fK > 0.0:
-                # regulating at the cruise speed: power below it, hold it without braking, coast above it
-                e_v = cruise_e[i]
-                if e < e_v * (1.0 - 1e-12):
-                    hold, side = f_max, -1
-                elif e > e_v * (1.0 + 1e-12):
-                    hold, side = 0.0, 1
-                else:
-                    hold = min(max(load, 0.0), f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
             e_pred = e + (hk / m) * (full - fB * b_max + fK * hold - load)
-            if side != 0 and fK == 1.0 and ((side < 0 and e_pred > e_v) or (side > 0 and e_pred < e_v)):
-                # the cruise speed is reached inside the cell (powering up to it, or coasting down to it):
-                # the rest of the cell holds it (without braking), unless a limit or braking curve caps it
-                phi_v = (e_v - e) / (e_pred - e)
-                hold_v = min(max(load, 0.0), f_max)
-                e_end = e_v + ((1.0 - phi_v) * hk / m) * (hold_v - load)
-                if e_end <= c1 and e_v <= c1 and k < last:
-                    v_v = math.sqrt(2.0 * e_v)
-                    v_new = math.sqrt(max(e_end, E_FLOOR) * 2.0)
-                    t += (2.0 * hk) * (phi_v / (v + v_v + 1e-12) + (1.0 - phi_v) / (v_v + v_new + 1e-12))
-                    w_tr = hk * (phi_v * hold + (1.0 - phi_v) * hold_v)
-                    work += w_tr
-                    if want_profile:
-                        t_nodes[i, k + 1] = t
-                        v_nodes[i, k + 1] = v_new * 3.6
-                        trac[i, k] = w_tr / hk
-                        brk[i, k] = 0.0
-                        cond[i, k] = K
-                        event[i, k] = np.nan
-                    slope = (e_end - e) / hk
-                    e = max(e_end, E_FLOOR)
-                    v = v_new
-                    continue
             if strict and over_at[i] < 0:
                 if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0:
                     over_at[i] = k

@@ -99,8 +99,6 @@ class StrategyOutcome:
     n_evaluations: int = 0
     solve_time_s: float = 0.0
     e_min_kwh: float | None = None
-    cruise_mode: str = "hold"  # how the calculator treats cruise_kmh (see TractionCalculator.evaluate)
-    brake_hold_kmh: float | None = None  # "regulate": where K holds by braking
     time_range_s: tuple[float, float] | None = None
     """Shortest and longest running time [s] among the feasible plans the strategy evaluated: what it
     can reach on this route (named when the asked time is outside it)."""
@@ -114,12 +112,10 @@ class StrategyOutcome:
 
 
 def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile: bool = False):
-    """Simulate a strategy's plan (with its cruise and braking speeds, if any) on ``calc``."""
+    """Simulate a strategy's plan (with its cruise speed, if any) on ``calc``."""
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
-    brake = None if outcome.brake_hold_kmh is None else [outcome.brake_hold_kmh]
-    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
-                         cruise_mode=outcome.cruise_mode, brake_hold_kmh=brake)
+    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise)
 
 
 StrategyFn = Callable[[StrategyContext], StrategyOutcome]
