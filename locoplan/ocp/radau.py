@@ -33,7 +33,7 @@ from .phase import MultiPhaseProblem
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
     "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-5, "ipopt.acceptable_iter": 3, "ipopt.constr_viol_tol": 1e-8, "ipopt.max_iter": 500,
-    "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
+    "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps", "ipopt.mumps_mem_percent": 100,
 }
 """Silent IPOPT with tight tolerances (exact Hessian: CasADi's default)."""
 MAP_THREADS = 1
@@ -170,6 +170,54 @@ def _block_diagonal(rows: int, cols: int, count: int):
     return ca.diagcat(*[ca.Sparsity.dense(rows, cols)] * count) if count else ca.Sparsity(0, 0)
 
 
+_POINTS: dict = {}
+"""Point functions per model (see :func:`_point_functions`): ``id -> (model, names, SX functions, jit job)``."""
+
+
+def _point_functions(model, names: tuple[str, ...]):
+    """The model at one collocation point as CasADi functions of ``(w, s_ref, p_ref, p_slope, sx)``
+    (``w`` = state, control, position, ds/dtau; ``sx`` the state scales): the scaled constraints
+    (defects, path), their Jacobian in ``w``, the objective integrand and, with ``mu`` (objective and
+    constraint weights), the Lagrangian's Hessian in ``w``. Traced once per model and reused by every
+    mesh; compiled versions (``jit.start``) replace the SX ones as soon as they are built."""
+    import casadi as ca
+
+    from . import jit
+
+    entry = _POINTS.get(id(model))
+    if entry is None or entry[0] is not model or entry[1] != names:
+        nx, nu = model.n_x, model.n_u
+        npath = model.n_path if model.path is not None else 0
+        m, npar = nx + nu + 2, len(names)
+        wl = ca.SX.sym("w", m)
+        sref, pr, pd, sxs = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar), ca.SX.sym("sx", nx)
+        xl_ = [wl[i] for i in range(nx)]
+        ul_ = [wl[nx + i] for i in range(nu)]
+        s_sym, j_sym = wl[nx + nu], wl[nx + nu + 1]
+        pdict = {k: pr[i] + pd[i] * (s_sym - sref) for i, k in enumerate(names)}
+        f = ca.vertcat(*_eval_model(model.dynamics, xl_, ul_, s_sym, pdict, nx))
+        con = -j_sym * f / sxs
+        if npath:
+            con = ca.vertcat(con, *_eval_model(model.path, xl_, ul_, s_sym, pdict, npath))
+        integrand = j_sym * _eval_model(model.integrand, xl_, ul_, s_sym, pdict, 1)[0]
+        mu = ca.SX.sym("mu", 1 + nx + npath)
+        lag = mu[0] * integrand + ca.dot(mu[1:], con)
+        args = [wl, sref, pr, pd, sxs]
+        funcs = (ca.Function("lgr_con", args, [con]),
+                 ca.Function("lgr_con_jac", args, [ca.densify(ca.jacobian(con, wl))]),
+                 ca.Function("lgr_obj", args, [integrand]),
+                 ca.Function("lgr_lag_hess", args + [mu], [ca.densify(ca.hessian(lag, wl)[0])]))
+        if len(_POINTS) > 16:  # models of finished solves
+            _POINTS.clear()
+        # compiled: all but the trivial objective; CasADi differentiates the NLP's constraints once
+        # (for the multipliers it reports), through the Jacobian compiled beside them
+        job = jit.start((funcs[0], funcs[1], funcs[3]), helpers=(funcs[0].jacobian(),))
+        entry = _POINTS[id(model)] = (model, names, funcs, job)
+    job = entry[3]
+    fast = job.ready() if job is not None else None
+    return entry[2] if fast is None else (fast[0], fast[1], entry[2][2], fast[2])
+
+
 class RadauTranscription:
     """The NLP of ``problem`` on ``mesh``: build once, solve from any initial guess.
 
@@ -203,25 +251,8 @@ class RadauTranscription:
         n_vars = nx * (n + 1) + nu * n + nf
         self.n_x_vars, self.n_u_vars = nx * (n + 1), nu * n
 
-        # ---- one point, on SX scalars
-        wl = ca.SX.sym("w", m)
-        sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
-        xl_ = [wl[i] for i in range(nx)]
-        ul_ = [wl[nx + i] for i in range(nu)]
-        s_sym, j_sym = wl[nx + nu], wl[nx + nu + 1]
-        pdict = {k: pr[i] + pd[i] * (s_sym - sref) for i, k in enumerate(names)}
-        f = ca.vertcat(*_eval_model(model.dynamics, xl_, ul_, s_sym, pdict, nx))
-        con = -j_sym * f / ca.DM(sx)
-        if npath:
-            con = ca.vertcat(con, *_eval_model(model.path, xl_, ul_, s_sym, pdict, npath))
-        integrand = j_sym * _eval_model(model.integrand, xl_, ul_, s_sym, pdict, 1)[0]
-        mu = ca.SX.sym("mu", 1 + nc)
-        lag = mu[0] * integrand + ca.dot(mu[1:], con)
-        args = [wl, sref, pr, pd]
-        f_con = ca.Function("con", args, [con])
-        f_jac = ca.Function("con_jac", args, [ca.densify(ca.jacobian(con, wl))])
-        f_obj = ca.Function("obj", args, [integrand])
-        f_hess = ca.Function("lag_hess", args + [mu], [ca.densify(ca.hessian(lag, wl)[0])])
+        # ---- one point: SX functions traced once per model, compiled beside the solve (``jit``)
+        f_con, f_jac, f_obj, f_hess = _point_functions(model, tuple(names))
 
         # ---- local variables from the NLP's: wloc = E w + c (column k*m + j: variable j of point k)
         rows, cols, vals = [], [], []
@@ -254,7 +285,7 @@ class RadauTranscription:
         E = ca.DM(E_np)
         w = ca.MX.sym("w", n_vars)
         wloc = ca.reshape(ca.mtimes(E, w) + ca.DM(c), m, n)
-        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope))
+        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope), ca.DM(sx))
 
         # ---- linear parts: D X / sx in the defect rows; smoothness; lengths next to moving points
         Dl = sp.kron(grid.D, sp.identity(nx), format="coo")  # rows k*nx + i, cols (state point)*nx + i
@@ -284,6 +315,7 @@ class RadauTranscription:
         small = []  # (expression, lower, upper) of the few constraints that are not pointwise
         sing_rows = None
         if grid.singular.any():
+            sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
             xs0, us0 = ca.SX.sym("x0", nx), ca.SX.sym("u0", nu)
             s0, fac = ca.SX.sym("s0"), ca.SX.sym("fac")
             pd0 = {k: pr[i] + pd[i] * (s0 - sref) for i, k in enumerate(names)}
