@@ -16,6 +16,7 @@ the caller keeps using the ``SX`` functions meanwhile. No compiler, a failed com
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import os
 import shutil
@@ -87,6 +88,15 @@ class _Job:
         except RuntimeError:
             self.failed = True
         return self.functions
+
+
+@atexit.register
+def _finish_compiles() -> None:
+    """A short command may end while gcc still runs: let it finish (a second or so) so that the next
+    command finds the library, rather than leave a half-made folder behind."""
+    for job in list(_JOBS.values()):
+        if job.thread is not None:
+            job.thread.join(timeout=10.0)
 
 
 def forget() -> None:

@@ -33,9 +33,15 @@ from .phase import MultiPhaseProblem
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
     "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-5, "ipopt.acceptable_iter": 3, "ipopt.constr_viol_tol": 1e-8, "ipopt.max_iter": 500,
+    "ipopt.acceptable_obj_change_tol": 1e-7,
     "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps", "ipopt.mumps_mem_percent": 100,
 }
-"""Silent IPOPT with tight tolerances (exact Hessian: CasADi's default)."""
+"""Silent IPOPT with tight tolerances (exact Hessian: CasADi's default). "Acceptable" ends a solve only
+once the objective has settled (relative change < 1e-7 per iteration): without that, IPOPT stopped
+refinement solves up to 3e-5 short of their optimum, the error estimate took that for discretisation
+error and the refinement wandered (12 solves, not converged, instead of 8 on a 50 km line). MUMPS
+gets 100 % working-space headroom instead of IPOPT's 1000 %: the same factorisations without zeroing
+memory it never uses (-11 % solve time; IPOPT enlarges it if ever short)."""
 MAP_THREADS = 1
 """Threads evaluating the model over the collocation points (this machine's two cores)."""
 MIN_INTERVAL_M = 1e-3
