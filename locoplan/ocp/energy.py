@@ -31,6 +31,11 @@ MAX_MESH_ITERATIONS = 12
 WARM_IPOPT = {"ipopt.warm_start_init_point": "yes", "ipopt.mu_init": 1e-6, "ipopt.warm_start_bound_push": 1e-8,
               "ipopt.warm_start_mult_bound_push": 1e-8, "ipopt.warm_start_slack_bound_push": 1e-8}
 """IPOPT starting from a solution on a neighbouring mesh (primal values and multipliers)."""
+WARM_MAX_ITER = 150
+"""Iterations allowed to a solve started from the previous mesh's solution, and to its plain restart
+on the same mesh: the ones that converge take 5-80; one that has not by 150 has gone astray (on
+CH_Fribourg_Bern, 5200 t, two such solves ran to IPOPT's 500 twice each: 30 of 37 s) and the
+fallback below (the same intervals with nothing held or moving) is tried sooner."""
 _FAILED = {"Infeasible_Problem_Detected", "Restoration_Failed", "Error_In_Step_Computation",
            "Maximum_Iterations_Exceeded", "Invalid_Number_Detected"}
 
@@ -179,7 +184,7 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
     for it in range(1, max_iterations + 1):
         opts = dict(ipopt_options or {})
         if last is not None:
-            opts = {**WARM_IPOPT, **opts}
+            opts = {**WARM_IPOPT, "ipopt.max_iter": WARM_MAX_ITER, **opts}
         nlp = RadauTranscription(problem, mesh, opts)
         X0 = guess(nlp.grid.s_points, nu)[0]
         U0 = guess(nlp.grid.s_col, nu)[1]
@@ -189,8 +194,9 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
                 break
             # a warm start gone astray, or arcs held wrongly: the same mesh started plainly, then the
             # same intervals with nothing held or moving
+            capped = {"ipopt.max_iter": WARM_MAX_ITER} if fallback is mesh else {}
             mesh = fallback
-            nlp = RadauTranscription(problem, mesh, ipopt_options)
+            nlp = RadauTranscription(problem, mesh, {**capped, **(ipopt_options or {})})
             retry = nlp.solve(X0, U0)
             sol = replace(retry, build_time_s=sol.build_time_s + retry.build_time_s,
                           solve_time_s=sol.solve_time_s + retry.solve_time_s, iterations=sol.iterations + retry.iterations)

@@ -33,24 +33,27 @@ from .phase import MultiPhaseProblem
 IPOPT_OPTIONS = {
     "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
     "ipopt.tol": 1e-6, "ipopt.acceptable_tol": 1e-5, "ipopt.acceptable_iter": 3, "ipopt.constr_viol_tol": 1e-8, "ipopt.max_iter": 500,
-    "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
+    "ipopt.acceptable_obj_change_tol": 1e-7,
+    "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps", "ipopt.mumps_mem_percent": 100,
 }
-"""Silent IPOPT with tight tolerances (exact Hessian: CasADi's default)."""
+"""Silent IPOPT with tight tolerances (exact Hessian: CasADi's default). "Acceptable" ends a solve only
+once the objective has settled (relative change < 1e-7 per iteration): without that, IPOPT stopped
+refinement solves up to 3e-5 short of their optimum, the error estimate took that for discretisation
+error and the refinement wandered (12 solves, not converged, instead of 8 on a 50 km line). MUMPS
+gets 100 % working-space headroom instead of IPOPT's 1000 %: the same factorisations without zeroing
+memory it never uses (-11 % solve time; IPOPT enlarges it if ever short)."""
 MAP_THREADS = 1
 """Threads evaluating the model over the collocation points (this machine's two cores)."""
 MIN_INTERVAL_M = 1e-3
 """Shortest interval next to a moving mesh point [units of s]."""
 
 
+_MAP_CODE = {"linear": 0, "start": 1, "end": 2}
+
+
 @lru_cache(maxsize=None)
 def _weights(points: tuple) -> np.ndarray:
     return _nodes.barycentric_weights(np.array(points))
-
-
-def _lagrange(points: np.ndarray, values: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Values (rows) of the Lagrange polynomials through ``(points, values)`` at ``targets`` (the
-    barycentric formula of ``nodes``, weights cached per point set)."""
-    return values @ _nodes.barycentric_matrix(points, _weights(tuple(points)), targets).T
 
 
 def _eval_model(fn: Callable, x, u, s, p, n_out: int):
@@ -120,35 +123,52 @@ class RadauSolution:
         starts = np.array([iv.s_a for iv in self.mesh.intervals])
         return s, np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(starts) - 1)
 
+    def _piecewise(self, s, values: np.ndarray, nodes, width: int):
+        """The interval polynomials through ``values`` (one column per point, interval ``i``'s from
+        ``offsets[i]``, ``n + width`` of them on ``nodes(n)``) at positions ``s``, and each position's
+        interval: the barycentric formula over all positions of intervals of one degree at once."""
+        s, idx = self._locate(s)
+        ivs = self.mesh.intervals
+        sa = np.array([iv.s_a for iv in ivs])[idx]
+        d = np.array([iv.length for iv in ivs])[idx]
+        kind = np.array([_MAP_CODE[iv.mapping] for iv in ivs])[idx]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = np.clip((s - sa) / d, 0.0, 1.0)
+        tau = np.where(kind == 1, 2.0 * np.sqrt(rel) - 1.0,
+                       np.where(kind == 2, 1.0 - 2.0 * np.sqrt(1.0 - rel), 2.0 * rel - 1.0))
+        tau = np.clip(tau, -1.0, 1.0)  # Interval.tau_of, for all positions
+        deg = np.array([iv.n for iv in ivs])[idx]
+        out = np.empty((values.shape[0], s.size))
+        for n in np.unique(deg):
+            sel = np.nonzero(deg == n)[0]
+            x = nodes(int(n))
+            e = _nodes.barycentric_matrix(x, _weights(tuple(x)), tau[sel])  # positions x (n + width)
+            cols = self.grid.offsets[idx[sel]][:, None] + np.arange(int(n) + width)[None, :]
+            out[:, sel] = np.einsum("vtj,tj->vt", values[:, cols], e)
+        return out, idx
+
     def states_at(self, s) -> np.ndarray:
         """The state polynomials at positions ``s`` (n_x x len(s))."""
-        s, idx = self._locate(s)
-        out = np.empty((self.X.shape[0], s.size))
-        for i in np.unique(idx):
-            sel = idx == i
-            iv = self.mesh.intervals[i]
-            out[:, sel] = _lagrange(_nodes.radau_support_points(iv.n), self.X[:, self.grid.points_of(i)], iv.tau_of(s[sel]))
-        return out
+        return self._piecewise(s, self.X, _nodes.radau_support_points, 1)[0]
 
     def controls_at(self, s, lower=None, upper=None) -> np.ndarray:
         """The control polynomials (degree n - 1 through the LGR values) at ``s``, clipped to the
         phases' control bounds."""
-        s, idx = self._locate(s)
-        out = np.empty((self.U.shape[0], s.size))
-        for i in np.unique(idx):
-            sel = idx == i
-            iv = self.mesh.intervals[i]
-            u = _lagrange(_nodes.legendre_gauss_radau(iv.n)[0], self.U[:, self.grid.cols_of(i)], iv.tau_of(s[sel]))
-            ph = self.problem.phases[iv.phase]
-            out[:, sel] = np.clip(u, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
-        return out
+        u, idx = self._piecewise(s, self.U, lambda n: _nodes.legendre_gauss_radau(n)[0], 0)
+        phase = np.array([iv.phase for iv in self.mesh.intervals])[idx]
+        lo = np.array([ph.control_lower for ph in self.problem.phases], dtype=float)[phase].T
+        hi = np.array([ph.control_upper for ph in self.problem.phases], dtype=float)[phase].T
+        return np.clip(u, lo, hi)
 
 
-def _sparse(a: np.ndarray):
-    """A numpy matrix as a CasADi matrix that stores only its nonzeros."""
+def _sparse(a):
+    """A scipy sparse (or numpy) matrix as a CasADi matrix that stores only its nonzeros, built from
+    its compressed columns (7x faster than ``casadi.DM(scipy matrix)``: a tenth of a mesh's build)."""
     import casadi as ca
 
-    return ca.DM(sp.csc_matrix(a))
+    a = sp.csc_matrix(a)
+    a.sort_indices()
+    return ca.DM(ca.Sparsity(a.shape[0], a.shape[1], a.indptr.tolist(), a.indices.tolist()), a.data.tolist())
 
 
 def _affine_params(problem: MultiPhaseProblem, grid: Grid) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -168,6 +188,54 @@ def _block_diagonal(rows: int, cols: int, count: int):
     import casadi as ca
 
     return ca.diagcat(*[ca.Sparsity.dense(rows, cols)] * count) if count else ca.Sparsity(0, 0)
+
+
+_POINTS: dict = {}
+"""Point functions per model (see :func:`_point_functions`): ``id -> (model, names, SX functions, jit job)``."""
+
+
+def _point_functions(model, names: tuple[str, ...]):
+    """The model at one collocation point as CasADi functions of ``(w, s_ref, p_ref, p_slope, sx)``
+    (``w`` = state, control, position, ds/dtau; ``sx`` the state scales): the scaled constraints
+    (defects, path), their Jacobian in ``w``, the objective integrand and, with ``mu`` (objective and
+    constraint weights), the Lagrangian's Hessian in ``w``. Traced once per model and reused by every
+    mesh; compiled versions (``jit.start``) replace the SX ones as soon as they are built."""
+    import casadi as ca
+
+    from . import jit
+
+    entry = _POINTS.get(id(model))
+    if entry is None or entry[0] is not model or entry[1] != names:
+        nx, nu = model.n_x, model.n_u
+        npath = model.n_path if model.path is not None else 0
+        m, npar = nx + nu + 2, len(names)
+        wl = ca.SX.sym("w", m)
+        sref, pr, pd, sxs = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar), ca.SX.sym("sx", nx)
+        xl_ = [wl[i] for i in range(nx)]
+        ul_ = [wl[nx + i] for i in range(nu)]
+        s_sym, j_sym = wl[nx + nu], wl[nx + nu + 1]
+        pdict = {k: pr[i] + pd[i] * (s_sym - sref) for i, k in enumerate(names)}
+        f = ca.vertcat(*_eval_model(model.dynamics, xl_, ul_, s_sym, pdict, nx))
+        con = -j_sym * f / sxs
+        if npath:
+            con = ca.vertcat(con, *_eval_model(model.path, xl_, ul_, s_sym, pdict, npath))
+        integrand = j_sym * _eval_model(model.integrand, xl_, ul_, s_sym, pdict, 1)[0]
+        mu = ca.SX.sym("mu", 1 + nx + npath)
+        lag = mu[0] * integrand + ca.dot(mu[1:], con)
+        args = [wl, sref, pr, pd, sxs]
+        funcs = (ca.Function("lgr_con", args, [con]),
+                 ca.Function("lgr_con_jac", args, [ca.densify(ca.jacobian(con, wl))]),
+                 ca.Function("lgr_obj", args, [integrand]),
+                 ca.Function("lgr_lag_hess", args + [mu], [ca.densify(ca.hessian(lag, wl)[0])]))
+        if len(_POINTS) > 16:  # models of finished solves
+            _POINTS.clear()
+        # compiled: all but the trivial objective; CasADi differentiates the NLP's constraints once
+        # (for the multipliers it reports), through the Jacobian compiled beside them
+        job = jit.start((funcs[0], funcs[1], funcs[3]), helpers=(funcs[0].jacobian(),))
+        entry = _POINTS[id(model)] = (model, names, funcs, job)
+    job = entry[3]
+    fast = job.ready() if job is not None else None
+    return entry[2] if fast is None else (fast[0], fast[1], entry[2][2], fast[2])
 
 
 class RadauTranscription:
@@ -203,25 +271,8 @@ class RadauTranscription:
         n_vars = nx * (n + 1) + nu * n + nf
         self.n_x_vars, self.n_u_vars = nx * (n + 1), nu * n
 
-        # ---- one point, on SX scalars
-        wl = ca.SX.sym("w", m)
-        sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
-        xl_ = [wl[i] for i in range(nx)]
-        ul_ = [wl[nx + i] for i in range(nu)]
-        s_sym, j_sym = wl[nx + nu], wl[nx + nu + 1]
-        pdict = {k: pr[i] + pd[i] * (s_sym - sref) for i, k in enumerate(names)}
-        f = ca.vertcat(*_eval_model(model.dynamics, xl_, ul_, s_sym, pdict, nx))
-        con = -j_sym * f / ca.DM(sx)
-        if npath:
-            con = ca.vertcat(con, *_eval_model(model.path, xl_, ul_, s_sym, pdict, npath))
-        integrand = j_sym * _eval_model(model.integrand, xl_, ul_, s_sym, pdict, 1)[0]
-        mu = ca.SX.sym("mu", 1 + nc)
-        lag = mu[0] * integrand + ca.dot(mu[1:], con)
-        args = [wl, sref, pr, pd]
-        f_con = ca.Function("con", args, [con])
-        f_jac = ca.Function("con_jac", args, [ca.densify(ca.jacobian(con, wl))])
-        f_obj = ca.Function("obj", args, [integrand])
-        f_hess = ca.Function("lag_hess", args + [mu], [ca.densify(ca.hessian(lag, wl)[0])])
+        # ---- one point: SX functions traced once per model, compiled beside the solve (``jit``)
+        f_con, f_jac, f_obj, f_hess = _point_functions(model, tuple(names))
 
         # ---- local variables from the NLP's: wloc = E w + c (column k*m + j: variable j of point k)
         rows, cols, vals = [], [], []
@@ -251,10 +302,10 @@ class RadauTranscription:
                 cols.append(nx * (n + 1) + nu * n + q)
                 vals.append(mat[r, q] * width[q])
         E_np = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, n_vars))
-        E = ca.DM(E_np)
+        E = _sparse(E_np)
         w = ca.MX.sym("w", n_vars)
         wloc = ca.reshape(ca.mtimes(E, w) + ca.DM(c), m, n)
-        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope))
+        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope), ca.DM(sx))
 
         # ---- linear parts: D X / sx in the defect rows; smoothness; lengths next to moving points
         Dl = sp.kron(grid.D, sp.identity(nx), format="coo")  # rows k*nx + i, cols (state point)*nx + i
@@ -276,14 +327,16 @@ class RadauTranscription:
                     path_lo[row, cc] = 0.0
                 elif r == "upper":
                     ul[j, cc] = uu[j, cc]
-        con_all = ca.vec(f_con.map(n)(*call)) + ca.mtimes(ca.DM(Lin), w)
+        Lin_dm = _sparse(Lin)
+        con_all = ca.vec(f_con.map(n)(*call)) + ca.mtimes(Lin_dm, w)
         jac_all = ca.MX(_block_diagonal(nc, m, n), ca.vec(f_jac.map(n)(*call)))
-        jac_all = ca.mtimes(jac_all, E) + ca.DM(Lin)
+        jac_all = ca.mtimes(jac_all, E) + Lin_dm
         lb_pt = np.vstack([np.zeros((nx, n)), path_lo[:npath]])
         ub_pt = np.zeros((nc, n))
         small = []  # (expression, lower, upper) of the few constraints that are not pointwise
         sing_rows = None
         if grid.singular.any():
+            sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
             xs0, us0 = ca.SX.sym("x0", nx), ca.SX.sym("u0", nu)
             s0, fac = ca.SX.sym("s0"), ca.SX.sym("fac")
             pd0 = {k: pr[i] + pd[i] * (s0 - sref) for i, k in enumerate(names)}
@@ -318,7 +371,7 @@ class RadauTranscription:
             A = sp.csr_matrix(E_np[rr, :].multiply(1.0 / dgr[:, None]))
             lin_rows.append((A, c[rr] / dgr, np.full(len(own), MIN_INTERVAL_M), np.full(len(own), np.inf)))
         for A, off, lo_, hi_ in lin_rows:
-            Ad = ca.DM(A.tocsc())
+            Ad = _sparse(A)
             g_parts.append(ca.mtimes(Ad, w) + ca.DM(off))
             j_parts.append(Ad)
             lbg.append(lo_)
@@ -335,7 +388,7 @@ class RadauTranscription:
         lam_pt = ca.reshape(lam_g[: nc * n], nc, n)
         mus = ca.vertcat(lam_f * ca.DM(wq).T / obj_scale, lam_pt)
         hess_blocks = ca.MX(_block_diagonal(m, m, n), ca.vec(f_hess.map(n)(*call, mus)))
-        H = ca.mtimes(ca.mtimes(ca.DM(E_np.T.tocsc()), hess_blocks), E)
+        H = ca.mtimes(ca.mtimes(_sparse(E_np.T), hess_blocks), E)
         if sing_rows is not None:  # the rest start's terms (a few variables)
             extra, g_start = sing_rows
             lag_small = ca.dot(lam_g[:nx], extra)
@@ -397,12 +450,29 @@ class RadauTranscription:
                 ivs[i] = replace(ivs[i], s_a=float(z[j]))
                 ivs[i - 1] = replace(ivs[i - 1], s_b=float(z[j]))
             mesh = Mesh(tuple(ivs))
-        return RadauSolution(self.problem, Grid(mesh), X, U, float(sol["f"]) * self.problem.objective_scale,
+            grid = Grid(mesh)
+        return RadauSolution(self.problem, grid, X, U, float(sol["f"]) * self.problem.objective_scale,
                              bool(stats.get("success", False)), str(stats.get("return_status", "unknown")),
                              int(stats.get("iter_count", -1)), self.build_time_s, solve_time,
-                             _params(self.problem, Grid(mesh).phase_col, Grid(mesh).s_col),
+                             _params(self.problem, grid.phase_col, grid.s_col),
                              np.asarray(sol["lam_x"], dtype=float).ravel(), np.asarray(sol["lam_g"], dtype=float).ravel(),
                              self.n_path)
+
+
+@lru_cache(maxsize=None)
+def _error_matrices(n: int):
+    """For an interval of ``n`` LGR points: the ``n + 1`` LGR points ``tau_hat``, the matrices taking
+    its state values (``n`` points and the end) and its control values onto the ``n + 1`` points
+    (and the end, for the states), and the transposed inverse of the differentiation matrix's
+    columns 2.. (integrating the dynamics): the per-degree algebra of :func:`interval_errors`."""
+    m = n + 1
+    tau_hat, _ = _nodes.legendre_gauss_radau(m)
+    support = _nodes.radau_support_points(n)
+    to_hat_x = _nodes.barycentric_matrix(support, _weights(tuple(support)), _nodes.radau_support_points(m)).T
+    tau_u, _ = _nodes.legendre_gauss_radau(n)
+    to_hat_u = _nodes.barycentric_matrix(tau_u, _weights(tuple(tau_u)), tau_hat).T
+    d = _nodes.radau_differentiation_matrix(m)
+    return tau_hat, to_hat_x, to_hat_u, np.linalg.inv(d[:, 1:]).T
 
 
 def interval_errors(sol: RadauSolution) -> np.ndarray:
@@ -413,12 +483,10 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
     errs = np.zeros(len(grid.mesh.intervals))
     for i, iv in enumerate(grid.mesh.intervals):
         m = iv.n + 1
-        tau_hat, _ = _nodes.legendre_gauss_radau(m)
-        support_hat = _nodes.radau_support_points(m)
+        tau_hat, to_hat_x, to_hat_u, d_inv = _error_matrices(iv.n)
         xs = sol.X[:, grid.points_of(i)]
-        x_hat = _lagrange(_nodes.radau_support_points(iv.n), xs, support_hat)  # nx x m+1
-        tau_u, _ = _nodes.legendre_gauss_radau(iv.n)
-        u_hat = _lagrange(tau_u, sol.U[:, grid.cols_of(i)], tau_hat)
+        x_hat = xs @ to_hat_x  # nx x m+1: the state polynomial on the n + 1 LGR points and the end
+        u_hat = sol.U[:, grid.cols_of(i)] @ to_hat_u
         ph = problem.phases[iv.phase]
         u_hat = np.clip(u_hat, np.asarray(ph.control_lower)[:, None], np.asarray(ph.control_upper)[:, None])
         s_hat = iv.s_of(tau_hat)
@@ -432,8 +500,7 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
             p0 = {k: v[:1] for k, v in p.items()}
             rate = _eval_model(model.singular_start, [x[:1] for x in xl], [u[:1] for u in ul], s_hat[:1], p0, model.n_x)
             f[:, 0] = np.array([float(np.asarray(r).ravel()[0]) for r in rate]) * iv.sqrt_factor
-        d = _nodes.radau_differentiation_matrix(m)
-        integ = np.linalg.solve(d[:, 1:], f.T).T  # X(tau_2..tau_m, +1) - X(-1)
+        integ = f @ d_inv  # X(tau_2..tau_m, +1) - X(-1)
         x_int = x_hat[:, :1] + integ
         scale = 1.0 + np.max(np.abs(xs), axis=1)
         errs[i] = float(np.max(np.abs(x_int - x_hat[:, 1:]) / scale[:, None]))
