@@ -58,8 +58,8 @@ def _node_controls(solution) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plot_run(path, run, title: str | None = None) -> None:
-    """Draw one :class:`~locoplan.ocp.study.OcpRun`: ``F_u`` [kN], ``v`` [m/s] and ``s`` [m] against
-    time [s]. ``.png`` or ``.svg`` by extension, written whole or not at all."""
+    """Draw one :class:`~locoplan.ocp.study.OcpRun`: ``F_u`` [kN], ``v`` [km/h] and ``s`` [km] against
+    time [s] (km/h and km like every plot of locoplan; the seed's own figures use m/s and m). ``.png`` or ``.svg`` by extension, written whole or not at all."""
     path, fmt = _figure_path(path)
     plt = _pyplot()
     p, sol, rs, ex = run.problem, run.solution, run.resimulation, run.exact
@@ -88,19 +88,20 @@ def plot_run(path, run, title: str | None = None) -> None:
     ax_u.legend(loc="upper right", fontsize=7, ncol=2)
     ax_u.grid(alpha=0.3)
 
-    ax_v.axhline(p.speed_limit_ms, color="black", lw=0.8, ls="--",
-                 label=f"limit {p.speed_limit_ms:.2f} m/s ({p.speed_limit_kmh:g} km/h)")
-    ax_v.plot(rs.time_s, rs.speed_ms, color="C0", lw=1.4, label="re-simulated")
-    ax_v.plot(sol.time_s, sol.speed_ms, "o", ms=3, color="C1", label="NLP nodes")
-    ax_v.set_ylabel("v [m/s]")
-    ax_v.set_ylim(0.0, p.speed_limit_ms * 1.25)
+    kmh = 3.6  # km/h per m/s
+    ax_v.axhline(p.speed_limit_kmh, color="black", lw=0.8, ls="--",
+                 label=f"limit {p.speed_limit_kmh:g} km/h ({p.speed_limit_ms:.2f} m/s)")
+    ax_v.plot(rs.time_s, np.asarray(rs.speed_ms) * kmh, color="C0", lw=1.4, label="re-simulated")
+    ax_v.plot(sol.time_s, np.asarray(sol.speed_ms) * kmh, "o", ms=3, color="C1", label="NLP nodes")
+    ax_v.set_ylabel("v [km/h]")
+    ax_v.set_ylim(0.0, p.speed_limit_kmh * 1.25)
     ax_v.legend(loc="lower center", fontsize=7, ncol=3)
     ax_v.grid(alpha=0.3)
 
-    ax_s.axhline(p.length_m, color="black", lw=0.8, ls="--", label=f"end {p.length_m:g} m")
-    ax_s.plot(rs.time_s, rs.position_m, color="C0", lw=1.4, label="re-simulated")
-    ax_s.plot(sol.time_s, sol.position_m, "o", ms=3, color="C1", label="NLP nodes")
-    ax_s.set_ylabel("s [m]")
+    ax_s.axhline(p.length_m / 1000, color="black", lw=0.8, ls="--", label=f"end {p.length_m / 1000:g} km")
+    ax_s.plot(rs.time_s, np.asarray(rs.position_m) / 1000, color="C0", lw=1.4, label="re-simulated")
+    ax_s.plot(sol.time_s, np.asarray(sol.position_m) / 1000, "o", ms=3, color="C1", label="NLP nodes")
+    ax_s.set_ylabel("s [km]")
     ax_s.set_xlabel("t [s]")
     ax_s.set_xlim(0.0, t_end * 1.01)
     ax_s.legend(loc="lower right", fontsize=7)

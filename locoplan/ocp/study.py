@@ -33,7 +33,7 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from ..errors import InputError, Problem
-from ..io.report import atomic_write_text, to_json
+from ..io.report import atomic_write_text, rows_csv, to_json
 from ..physics.gradient import curve_gradient_permille, tunnel_gradient_permille
 from ..physics.traction import max_force_kn
 from . import nodes as _nodes
@@ -557,24 +557,13 @@ def check_output_path(path: str | Path | None, flag: str, suffixes: tuple[str, .
     check_output(path, flag, suffixes)
 
 
-def _csv_text(rows: list[dict], columns) -> str:
-    import csv
-    import io
-
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="ignore")
-    writer.writeheader()
-    writer.writerows(rows)
-    return buf.getvalue()
-
-
 def write_ocp_output(path: str | Path, run: OcpRun) -> None:
     """``--out``: ``.csv`` the re-simulated profile (:data:`PROFILE_COLUMNS`), ``.json`` the summary
     plus the profile's columns. Written whole or not at all."""
     check_output_path(path, "--out", (".csv", ".json"))
     rows = run.profile_rows()
     if Path(path).suffix.lower() == ".csv":
-        atomic_write_text(path, _csv_text(rows, PROFILE_COLUMNS))
+        atomic_write_text(path, rows_csv(rows, PROFILE_COLUMNS))
     else:
         data = dict(run.summary)
         data["profile"] = {c: [r[c] for r in rows] for c in PROFILE_COLUMNS}
@@ -810,4 +799,4 @@ def write_study_output(path: str | Path, study: Study) -> None:
                 "final_control_nodes", "final_state_nodes", "segments", "objective", "resimulated_running_time_s",
                 "exact_minimum_s", "gap_to_exact_s", "solve_time_s", "feasible", "max_limit_violation_kmh",
                 "seed_objective_s", "seed_solve_time_s", "reason"]
-        atomic_write_text(path, _csv_text(study.rows, cols))
+        atomic_write_text(path, rows_csv(study.rows, cols))
