@@ -166,7 +166,8 @@ def test_readme_example(example, ran):
     long = [line for line in res.stdout.splitlines() if len(line) > WIDTH and not _whole_token(line)]
     assert not long, "lines wider than 80 columns:\n" + "\n".join(long)
     if example.checked:
-        missing_plans = [p for p in _plans(example.output) if p not in res.stdout]
+        shown = res.stdout + res.stderr  # the README shows both streams, as a terminal does
+        missing_plans = [p for p in _plans(example.output) if p not in shown]
         assert not missing_plans, f"plans the README shows that the command did not print: {missing_plans}\n{res.stdout}"
-        missing = sorted(n for n in _numbers(example.output) if n not in res.stdout)
+        missing = sorted(n for n in _numbers(example.output) if n not in shown)
         assert not missing, f"numbers the README shows that the command did not print: {missing}\n{res.stdout}"
