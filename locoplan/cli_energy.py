@@ -210,7 +210,8 @@ def register(app: typer.Typer) -> None:
         elif values is None:
             row = rows[0]
             out.print(f"E* = {row['energy_kwh']:.2f} kWh  ({escape(r.name)}, {escape(train.name)}, {row['time_s']:g} s; "
-                      f"{row['mesh_points']} LGR points, solved in {row['solve_time_s']:.2f} s)", highlight=False)
+                      f"{row['mesh_points']} LGR points, "
+                      + (f"solved in {row['solve_time_s']:.2f} s)" if row["solve_time_s"] else "from the cache of earlier solves)"), highlight=False)
         else:
             table = Table(title=escape(f"{r.name} — {train.name}: least traction energy E*(T)"), title_justify="left")
             for col in ("T [s]", "E* [kWh]", "mesh tol. met", "solve [s]"):
