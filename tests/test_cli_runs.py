@@ -56,6 +56,31 @@ def test_compare_with_one_strategy_that_cannot_run():
     assert "1264.12" in text.stdout and "four-stage: no feasible plan" in text.stdout
 
 
+def test_compare_default_strategies_a_failed_one_is_a_row_not_an_exit(monkeypatch):
+    """Issue 8: without --strategies, a strategy the user did not name that cannot run is its row with
+    its reason and a note on stderr, and compare exits 0 while a timetabled strategy is on time; an
+    unreachable timetable (every timetabled strategy fails) is still exit 1 (issue 7)."""
+    import locoplan.cli as cli
+    from locoplan.errors import InfeasibleError
+    from locoplan.strategy import strategies as st
+
+    def broken(ctx):
+        raise InfeasibleError("broken-for-test: no plan on this line")
+
+    monkeypatch.setitem(st.STRATEGIES, "broken-for-test", broken)
+    monkeypatch.setattr(cli, "COMPARE_DEFAULT", "time-saving,four-stage,broken-for-test")
+    res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--no-gap", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = {r["strategy"]: r for r in json.loads(res.stdout)["results"]}
+    assert rows["four-stage"]["punctual"] and not rows["broken-for-test"]["feasible"]
+    assert "no plan on this line" in rows["broken-for-test"]["reason"] and "note: broken-for-test" in res.stderr
+    named = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--no-gap", "--json",
+                                "--strategies", "time-saving,four-stage,broken-for-test"])
+    assert named.exit_code == 1
+    late = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--no-gap", "--json", "--time", "1000"])
+    assert late.exit_code == 1 and "four-stage" in late.stderr
+
+
 def test_compare_exit_0_when_every_requested_strategy_does_its_job(tmp_path):
     out = tmp_path / "c.csv"
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
