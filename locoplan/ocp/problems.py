@@ -24,6 +24,8 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError, Problem
 from ..model.train import G_MS2  # one g for the whole project (SPEC: 9.81 m/s^2)
+from ..physics.resistance import train_resistance_kn
+from ..physics.traction import gradient_force_kn
 from .transcription import Guess, OcpDescription
 
 __all__ = ["G_MS2", "KMH_PER_MS", "MinTimeTrainProblem", "davis_resistance_kn", "seed000_problem"]
@@ -135,14 +137,13 @@ class MinTimeTrainProblem:
 
     @property
     def grade_force_kn(self) -> float:
-        """Grade resistance ``M g i / 1000`` [kN] (positive uphill)."""
-        return self.mass_t * G_MS2 * self.gradient_permille / 1000.0
+        """Grade resistance ``M g i / 1000`` [kN] (positive uphill), from ``physics``."""
+        return float(gradient_force_kn(self.gradient_permille, self.mass_t))
 
     def resistance(self, v_ms):
-        """Basic resistance of the whole train [kN] at speed ``v_ms`` [m/s]."""
-        r0, r1, r2 = self.resistance_kn
-        vk = KMH_PER_MS * v_ms
-        return r0 + r1 * vk + r2 * vk * vk
+        """Basic resistance of the whole train [kN] at speed ``v_ms`` [m/s], from ``physics`` (floats,
+        arrays and CasADi symbols alike)."""
+        return train_resistance_kn(KMH_PER_MS * v_ms, tuple(self.resistance_kn))
 
     def acceleration(self, v_ms, force_kn):
         """``dv/dt`` [m/s^2] for traction (+) / brake (-) force ``force_kn``."""
