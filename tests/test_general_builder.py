@@ -117,3 +117,28 @@ def test_a_falling_line_slower_than_its_least_energy(root):
     ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
     prop = run_strategy(ctx, "proposed")
     assert schedule_verdict(ctx, prop) is None, prop.summary
+
+
+def test_blend_is_safe_with_infinite_neighbours():
+    """The DP interpolates cost-to-go between grid speeds; a neighbour that cannot reach the stop (inf)
+    must not turn a reachable state into nan or -inf (a weight at 1 + 1e-12 once gave (1 - w) inf = -inf,
+    which poisoned every state behind it)."""
+    from locoplan.optimize.dp import _blend
+
+    assert _blend(5.0, math.inf, 0.0) == 5.0 and _blend(math.inf, 7.0, 1.0) == 7.0
+    assert _blend(1.0, 3.0, 0.25) == pytest.approx(1.5)
+    assert _blend(math.inf, 7.0, 0.5) == math.inf and _blend(2.0, math.inf, 0.5) == math.inf
+
+
+def test_dp_drives_a_heavy_train_through_neutral_sections_near_its_top_speed(root):
+    """HXD1 + 50 x C80 on the reconstructed high-speed leg (290 km/h allowed, the train's 100 km/h caps it;
+    three neutral sections, a -10 per mille descent held at the cap by braking): the fastest run drives it,
+    so the DP must find a drive at every price, and optimize must meet a timetable on it."""
+    route, train = load_route(root / "routes/hsr-leg2-ns.yaml"), load_train(root / "configs/consists/HXD1-C80x50.yaml")
+    calc = TractionCalculator(route, train, ModelOptions(step_m=100))
+    solver = PricedDriveSolver(calc)
+    times = [solver.solve(p).time_s for p in (50.0, 1.0, 1e-2)]
+    assert times[0] < times[1] < times[2] and times[0] >= calc.fastest_time_s - 1.0
+    ctx = make_context(route, train, time_s=1500.0)
+    run = run_strategy(ctx, "proposed")
+    assert run.summary["feasible"] and schedule_verdict(ctx, run) is None

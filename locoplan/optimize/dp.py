@@ -55,7 +55,21 @@ def _interp1(x, xs, ys):
             lo = mid
         else:
             hi = mid
-    return ys[lo] + (x - xs[lo]) / (xs[hi] - xs[lo]) * (ys[hi] - ys[lo])
+    return _blend(ys[lo], ys[hi], (x - xs[lo]) / (xs[hi] - xs[lo]))
+
+
+@njit(cache=True)
+def _blend(a, b, w):
+    """a + w (b - a) for w in [0, 1], safe with infinite ends: w = 0 or 1 is exactly a or b (an
+    infinite neighbour must not turn a reachable state into nan or -inf), strictly between it is
+    infinite if either end is."""
+    if w <= 0.0:
+        return a
+    if w >= 1.0:
+        return b
+    if math.isinf(a) or math.isinf(b):
+        return np.inf
+    return a + w * (b - a)
 
 
 @njit(cache=True)
@@ -75,8 +89,7 @@ def _interp_node(v1, v_grid, ctg_row, v_cap):
     span = v_cap - v_grid[top]
     if span <= 1e-12:
         return ctg_row[top]
-    w = (v1 - v_grid[top]) / span
-    return ctg_row[top] + w * (ctg_row[nv] - ctg_row[top])
+    return _blend(ctg_row[top], ctg_row[nv], (v1 - v_grid[top]) / span)
 
 
 @njit(cache=True)
@@ -125,7 +138,7 @@ def _bracket(v1, dv, nv, v_cap):
     span = v_cap - top * dv
     if span <= 1e-12:
         return top, top, 0.0
-    return top, nv, (v1 - top * dv) / span
+    return top, nv, min((v1 - top * dv) / span, 1.0)  # v1 may pass the cap by the tolerance above
 
 
 @njit(cache=True)
@@ -225,7 +238,7 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                             if lo_i[u] < 0:
                                 continue
                             row = cost_to_go[k + 1, u, b1]
-                            rest = (1.0 - w_i[u]) * row[lo_i[u]] + (w_i[u] * row[hi_i[u]] if w_i[u] > 0.0 else 0.0)
+                            rest = _blend(row[lo_i[u]], row[hi_i[u]], w_i[u])
                         else:
                             rest = 0.0
                         cc = step_cost[u] + rest + extra
