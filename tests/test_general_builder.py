@@ -142,3 +142,19 @@ def test_dp_drives_a_heavy_train_through_neutral_sections_near_its_top_speed(roo
     ctx = make_context(route, train, time_s=1500.0)
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
+
+
+@pytest.mark.parametrize("leg", ["CH_Stadelhofen_Altstetten-leg2", "CN_Songjiazhuang_Yizhuang-leg11"])
+def test_a_heavy_train_that_barely_climbs_a_steep_grade(root, leg):
+    """5200 t on +28 / +23.5 per mille: the fastest run crawls up. On the DP's fine cells (short lines) the
+    speed grid used to round the stall boundary up at every cell until the climb looked impossible
+    ("no drive reaches the stop" while the fastest run did); the continuous boundary keeps it, and
+    optimize meets 1.15 x the fastest run."""
+    route = load_route(root / f"routes/real/{leg}.yaml")
+    train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
+    fastest = TractionCalculator(route, train).fastest_time_s
+    ctx = make_context(route, train, time_s=round(1.15 * fastest, 1))
+    run = run_strategy(ctx, "proposed")
+    assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
+    least = run_strategy(ctx, "energy-saving").summary
+    assert least["feasible"] and least["traction_energy_kwh"] <= run.summary["traction_energy_kwh"] + 1e-6

@@ -35,7 +35,9 @@ SPEED_STEP_KMH = 0.5
 DP_CELL_M = 100.0
 """Target length of the DP's cells [m]."""
 RUN_BUCKETS = 6
-"""Resolution of the run-length state: a run's length so far in sixths of the minimum run."""
+"""Resolution of the run-length state: a run's length so far in sixths of the minimum run (more on fine
+cells: a bucket is never longer than the shortest cell, up to ``MAX_RUN_BUCKETS``)."""
+MAX_RUN_BUCKETS = 32
 SWITCH_PENALTY_SHARE = 0.002
 """A change of condition costs this share of the fastest run's energy in the DP: drivers (and seed 002's
 eq. 3) do not switch every few metres, and the drive's runs become the sequence's conditions."""
@@ -73,7 +75,7 @@ def _blend(a, b, w):
 
 
 @njit(cache=True)
-def _interp_node(v1, v_grid, ctg_row, v_cap):
+def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
     """Cost-to-go at speed v1 on a node's grid: the shared speed grid below the node's cap, plus the cap
     itself as the last point (``ctg_row[-1]``), so that a state just under a limit or a braking curve is
     not lost to an infinite neighbour above the cap."""
@@ -85,6 +87,9 @@ def _interp_node(v1, v_grid, ctg_row, v_cap):
     while top > 0 and v_grid[top] > v_cap:
         top -= 1
     if v1 <= v_grid[top]:
+        i0 = min(int(v1 / v_grid[1]) if nv > 1 else 0, top)
+        if i0 < top and math.isinf(ctg_row[i0]) and not math.isinf(ctg_row[i0 + 1]) and v1 >= v_low:
+            return ctg_row[i0 + 1]  # above the node's stall boundary: the lower grid point is below it
         return _interp1(v1, v_grid[: top + 1], ctg_row[: top + 1])
     span = v_cap - v_grid[top]
     if span <= 1e-12:
@@ -163,6 +168,34 @@ def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb,
 
 
 @njit(cache=True)
+def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low_next):
+    """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
+    node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
+    does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
+    fine cells a slow climb would otherwise look impossible)."""
+    if not math.isfinite(e_low_next):
+        return np.inf
+
+    def ok(e):
+        e1, _ = _capped_step(e, T_, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+        return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
+
+    hi = max(e_cap[k], 0.0)
+    if not ok(hi):
+        return np.inf
+    lo = 0.0
+    if ok(lo):
+        return 0.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if ok(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+@njit(cache=True)
 def _run_bucket(r, min_run, n_buckets):
     """Index of a run length [m] (0 .. n_buckets; the last = at least ``min_run``, free to switch)."""
     if r >= min_run - 1e-9:
@@ -171,7 +204,8 @@ def _run_bucket(r, min_run, n_buckets):
 
 
 @njit(cache=True)
-def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go):
+def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+              e_low):
     """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
     at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
     progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
@@ -189,8 +223,11 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
     hi_i = np.zeros(4, dtype=np.int64)
     w_i = np.zeros(4)
     dv = v_grid[1] - v_grid[0]
+    e_low[n] = 0.0
     for k in range(n - 1, -1, -1):
         v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
+        v_low_next = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
+        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low[k + 1])
         for j in range(nv + 1):
             if j < nv:
                 v = v_grid[j]
@@ -227,7 +264,9 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                         if step_next[u] < 0.0:
                             continue
                         if u == c:
-                            b1 = _run_bucket(b * min_run / nb + h[k], min_run, nb) if b < nb else nb
+                            # at least one bucket per cell: with cells shorter than a bucket the floor would
+                            # never advance and a run could never end (see PricedDriveSolver: buckets >= cells)
+                            b1 = max(b + 1, _run_bucket(b * min_run / nb + h[k], min_run, nb)) if b < nb else nb
                             extra = 0.0
                         else:
                             if b < nb and k > 0:
@@ -238,7 +277,11 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                             if lo_i[u] < 0:
                                 continue
                             row = cost_to_go[k + 1, u, b1]
-                            rest = _blend(row[lo_i[u]], row[hi_i[u]], w_i[u])
+                            a, z = row[lo_i[u]], row[hi_i[u]]
+                            if 0.0 < w_i[u] < 1.0 and math.isinf(a) and not math.isinf(z) and step_next[u] >= v_low_next:
+                                rest = z  # above the next node's stall boundary: the lower grid point is below it
+                            else:
+                                rest = _blend(a, z, w_i[u])
                         else:
                             rest = 0.0
                         cc = step_cost[u] + rest + extra
@@ -249,7 +292,7 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
 
 @njit(cache=True)
 def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
-             controls, speeds):
+             e_low, controls, speeds):
     """The drive from rest: each cell's best control at the actual speed and run; returns (time [s], work [kJ])."""
     n = h.shape[0]
     nb = cost_to_go.shape[2] - 1
@@ -282,7 +325,9 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pri
             if first and (k == 0 or u == prev):
                 r1 = min_run  # the departure run may end anywhere (see the module docstring)
             b1 = _run_bucket(r1, min_run, nb)
-            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0))) if k < n - 1 else 0.0
+            v_low = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
+            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0)),
+                                v_low) if k < n - 1 else 0.0
             c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
             if c < best:
                 best, best_u, best_e, best_w, best_run = c, u, e1, w, r1
@@ -324,7 +369,7 @@ class PricedDriveSolver:
 
     def __init__(self, calc: TractionCalculator, speed_step_kmh: float = SPEED_STEP_KMH,
                  switch_penalty_kwh: float | None = None, min_run_m: float | None = None,
-                 run_buckets: int = RUN_BUCKETS, cell_m: float = DP_CELL_M):
+                 run_buckets: int | None = None, cell_m: float = DP_CELL_M):
         self.calc = calc
         self.min_run_m = calc.train.length_m / 2 if min_run_m is None else float(min_run_m)
         if switch_penalty_kwh is None:  # a change of condition costs a little: no chattering between cells
@@ -352,15 +397,18 @@ class PricedDriveSolver:
         self._args = (np.ascontiguousarray(h), np.ascontiguousarray(gravity), np.ascontiguousarray(allowed),
                       np.ascontiguousarray(cap), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
                       calc.brake_speed_kmh, calc.brake_kn, *map(float, tr.resistance_kn), self.v_grid)
+        if run_buckets is None:  # a bucket no longer than the shortest cell (a run advances a bucket per cell)
+            run_buckets = int(min(MAX_RUN_BUCKETS, max(RUN_BUCKETS, math.ceil(self.min_run_m / max(h.min(), 1e-9) - 1e-9))))
         self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))
+        self._low = np.zeros(len(h) + 1)  # each node's lowest feasible e = v^2/2 under full traction
 
     def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
         n = len(self.s_m) - 1
-        _backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg)
+        _backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg, self._low)
         controls = np.zeros(n, dtype=np.int64)
         speeds = np.zeros(n + 1)
         t, work = _forward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg,
-                           controls, speeds)
+                           self._low, controls, speeds)
         if not math.isfinite(t):
             return None
         return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), float(work) / 3600.0)
