@@ -8,29 +8,18 @@ import numpy as np
 import pytest
 
 from locoplan.io.load import load_route, load_train
-from locoplan.model.route import Route
 from locoplan.optimize.dp import DP_CONDITIONS, PricedDriveSolver
 from locoplan.runner import make_context, run_strategy, schedule_verdict
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.drive import sequence_from_drive
-
-
-def _route(limits, grades, length):
-    def sections(items, key):
-        out, a = [], 0.0
-        for b, val in items:
-            out.append({"from_m": a, "to_m": b, key: val})
-            a = b
-        return out
-    return Route.model_validate({"schema": "locoplan/route@1", "name": "hand-made", "length_m": length,
-                                 "speed_limits": sections(limits, "kmh"), "gradients": sections(grades, "permille")})
+from routes import hand_made_route
 
 
 @pytest.fixture(scope="module")
 def hilly(freight):
     """6 km: a climb, a crest, a descent steep enough to coast down, level to the stop."""
     _, train = freight
-    return _route([(6000, 80)], [(1000, 0.0), (2500, 8.0), (4000, -9.0), (6000, 0.0)], 6000), train
+    return hand_made_route([(6000, 80)], [(1000, 0.0), (2500, 8.0), (4000, -9.0), (6000, 0.0)], 6000), train
 
 
 def test_dp_beats_every_one_and_two_switch_plan(hilly):

@@ -21,11 +21,11 @@ from locoplan.cli import app
 from locoplan.errors import InputError
 from locoplan.io.load import load_route, load_train
 from locoplan.model.plan import parse_sequence
-from locoplan.model.route import Route
 from locoplan.physics.braking import composite_shoe_friction
 from locoplan.physics.traction import max_force_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import CANNOT_HOLD, CODE, OK
+from locoplan.sim.result import CANNOT_HOLD, CODE
+from routes import hand_made_route
 
 runner = CliRunner()
 G = 9.81
@@ -33,20 +33,9 @@ R60_KN = 200 * G / 1000 * (1.40 + 0.0038 * 60 + 0.0003 * 3600) + 5000 * G / 1000
 B60_KN = 461.0 + 50 * 0.20 * 100 * G * 0.322 * 210 / 270 * 0.5
 
 
-def _route(limits, grades, length):
-    def sections(items, key):
-        out, a = [], 0.0
-        for b, val in items:
-            out.append({"from_m": a, "to_m": b, key: val})
-            a = b
-        return out
-    return Route.model_validate({"schema": "locoplan/route@1", "name": "hand-made", "length_m": length,
-                                 "speed_limits": sections(limits, "kmh"), "gradients": sections(grades, "permille")})
-
-
 def descent(permille, limit_kmh=60.0, end_m=5000.0):
     """10 km at one limit, level except ``permille`` from 2000 m to ``end_m`` (the issue's case: 3 km)."""
-    return _route([(10000, limit_kmh)], [(2000, 0.0), (end_m, permille), (10000, 0.0)], 10000)
+    return hand_made_route([(10000, limit_kmh)], [(2000, 0.0), (end_m, permille), (10000, 0.0)], 10000)
 
 
 def test_hand_worked_numbers():
@@ -74,7 +63,7 @@ def test_stopping_distance_at_full_cylinder_pressure(tmp_path):
     (tmp_path / "c.yaml").write_text("schema: locoplan/consist@1\nname: full pressure\nservice_brake_coefficient: 1.0\n"
                                       "vehicles:\n  - {type: HXD1, count: 1}\n  - {type: C80, count: 50, load_t: 80}\n")
     train = load_train(tmp_path / "c.yaml")
-    route = _route([(5000, 90)], [(5000, 0.0)], 5000)
+    route = hand_made_route([(5000, 90)], [(5000, 0.0)], 5000)
     a, b, c = train.resistance_kn
     force = lambda v: (max_force_kn(3.6 * v, train.brake_speed_kmh, train.brake_kn)  # noqa: E731
                        + a + 3.6 * v * (b + c * 3.6 * v))
@@ -161,7 +150,7 @@ def test_a_700_m_train_accelerates_only_once_its_tail_clears_a_limit_rise(tmp_pa
                                       "  - {type: HXD1, count: 1}\n  - {type: C80, count: 55, load_t: 80}\n")
     train = load_train(tmp_path / "c.yaml")
     assert train.length_m == pytest.approx(695.2)
-    route = _route([(2000, 40), (8000, 80)], [(8000, 0.0)], 8000)
+    route = hand_made_route([(2000, 40), (8000, 80)], [(8000, 0.0)], 8000)
     for options, release in ((ModelOptions(), 2695.2), (ModelOptions.seeds(), 2000.0)):
         p = TractionCalculator(route, train, options).evaluate(("T",), np.zeros((1, 0)), profile=True).profile
         s, v = p.s_m, p.v_kmh[0]

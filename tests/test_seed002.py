@@ -8,13 +8,13 @@ import pytest
 from typer.testing import CliRunner
 
 from locoplan.cli import app
-from locoplan.model.route import Route
 from locoplan.optimize.base import Evaluation
 from locoplan.optimize.problem import SwitchingProblem, fitness_eq10
 from locoplan.optimize.registry import get_algorithm, load_optimizer_params
 from locoplan.runner import make_context, run_strategy
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.sequence import build_sequence, classify_grades, classify_limits
+from routes import hand_made_route
 
 runner = CliRunner()
 SEEDS = ModelOptions.seeds()
@@ -23,17 +23,7 @@ the strategies' order are checked as the seed states them."""
 
 
 def _route(limits, grades, length=None):
-    """Hand-made route: limits [(to_m, kmh)], grades [(to_m, permille)], contiguous from 0."""
-    def sections(items, key):
-        out, a = [], 0.0
-        for b, val in items:
-            out.append({"from_m": a, "to_m": b, key: val})
-            a = b
-        return out
-    length = length or limits[-1][0]
-    return Route.model_validate({"schema": "locoplan/route@1", "name": "hand-made", "length_m": length,
-                                 "schedule": {"run_time_s": 900, "tolerance_s": 30},
-                                 "speed_limits": sections(limits, "kmh"), "gradients": sections(grades, "permille")})
+    return hand_made_route(limits, grades, length, schedule={"run_time_s": 900, "tolerance_s": 30})
 
 
 def test_limit_types_one_of_each(freight):

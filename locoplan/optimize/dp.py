@@ -196,6 +196,16 @@ def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc,
 
 
 @njit(cache=True)
+def _stall_boundary(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, e_low):
+    """Every node's lowest feasible e (``_lowest_energy``), from the stop backwards; it depends on the
+    route and the train only, not on the price, so it is computed once per solver."""
+    n = h.shape[0]
+    e_low[n] = 0.0
+    for k in range(n - 1, -1, -1):
+        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low[k + 1])
+
+
+@njit(cache=True)
 def _run_bucket(r, min_run, n_buckets):
     """Index of a run length [m] (0 .. n_buckets; the last = at least ``min_run``, free to switch)."""
     if r >= min_run - 1e-9:
@@ -205,7 +215,7 @@ def _run_bucket(r, min_run, n_buckets):
 
 @njit(cache=True)
 def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
-              e_low):
+              e_low):  # e_low: _stall_boundary's
     """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
     at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
     progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
@@ -223,11 +233,9 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
     hi_i = np.zeros(4, dtype=np.int64)
     w_i = np.zeros(4)
     dv = v_grid[1] - v_grid[0]
-    e_low[n] = 0.0
     for k in range(n - 1, -1, -1):
         v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
         v_low_next = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
-        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low[k + 1])
         for j in range(nv + 1):
             if j < nv:
                 v = v_grid[j]
@@ -278,8 +286,11 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                                 continue
                             row = cost_to_go[k + 1, u, b1]
                             a, z = row[lo_i[u]], row[hi_i[u]]
-                            if 0.0 < w_i[u] < 1.0 and math.isinf(a) and not math.isinf(z) and step_next[u] >= v_low_next:
-                                rest = z  # above the next node's stall boundary: the lower grid point is below it
+                            if (0.0 < w_i[u] < 1.0 and math.isinf(a) and not math.isinf(z) and step_next[u] >= v_low_next
+                                    and (u == T_ or b1 == nb)):
+                                # above the next node's stall boundary, free to take full traction there:
+                                # the lower grid point is below the boundary, the state is not
+                                rest = z
                             else:
                                 rest = _blend(a, z, w_i[u])
                         else:
@@ -325,7 +336,8 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pri
             if first and (k == 0 or u == prev):
                 r1 = min_run  # the departure run may end anywhere (see the module docstring)
             b1 = _run_bucket(r1, min_run, nb)
-            v_low = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
+            # the stall boundary holds for a state that may take full traction next (_stall_boundary)
+            v_low = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) and (u == T_ or b1 == nb) else np.inf
             rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0)),
                                 v_low) if k < n - 1 else 0.0
             c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
@@ -401,6 +413,7 @@ class PricedDriveSolver:
             run_buckets = int(min(MAX_RUN_BUCKETS, max(RUN_BUCKETS, math.ceil(self.min_run_m / max(h.min(), 1e-9) - 1e-9))))
         self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))
         self._low = np.zeros(len(h) + 1)  # each node's lowest feasible e = v^2/2 under full traction
+        _stall_boundary(*self._args[:12], self._low)
 
     def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
         n = len(self.s_m) - 1

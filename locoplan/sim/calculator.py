@@ -33,11 +33,11 @@ import numpy as np
 from .. import bounds
 from ..errors import InputError, Problem
 from ..model.route import Route
-from ..model.train import G_MS2, Train
+from ..model.train import Train
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
-from .result import CANNOT_HOLD, CODE, CONDITIONS, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+from .result import CANNOT_HOLD, CODE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -477,7 +477,6 @@ class TractionCalculator:
 
         first_*: (n,) the first cell where the plan broke a limit (strict mode), came to rest, or could not
         be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest."""
-        n = len(t)
         n_cells = len(self.h_m)
         last = n_cells - 1
         e_env = self.e_envelope

@@ -252,17 +252,11 @@ def drive_solver(ctx: StrategyContext):
     from ..optimize.dp import PricedDriveSolver  # numba: imported when a drive is needed, not at start-up
 
     if "dp" not in ctx._e_min_cache:
-        fine = max(10.0, min(100.0, ctx.search.route.length_m / DP_MIN_CELLS))
-        for cell in sorted({fine, max(fine, 50.0), 100.0}):
-            calc = ctx.search
-            if cell < calc.options.step_m:
-                calc = TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=cell))
-            solver = PricedDriveSolver(calc, cell_m=cell)
-            # On fine cells a train that barely climbs a grade can look stalled to the DP (its speed grid
-            # rounds the stall boundary up by a little at every cell); coarser cells then find the drive.
-            if cell == 100.0 or solver.solve(LEAST_PRICE_KWH_PER_S) is not None:
-                break
-        ctx._e_min_cache["dp"] = solver
+        calc = ctx.search
+        cell = max(10.0, min(100.0, calc.route.length_m / DP_MIN_CELLS))
+        if cell < calc.options.step_m:
+            calc = TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=cell))
+        ctx._e_min_cache["dp"] = PricedDriveSolver(calc, cell_m=cell)
     return ctx._e_min_cache["dp"]
 
 
