@@ -1,11 +1,12 @@
-"""Start-up costs (issue 12): `locoplan --help`, and `simulate` the first time on a machine (the numba
-kernels compile and are cached) and after (the cache is loaded).
+"""Start-up costs (issue 12): `locoplan --help`, `simulate` and `optimize` the first time on a machine
+(the kernels are compiled ahead of time into the cache folder; E* is solved) and after (the compiled
+module and E* are loaded), and the same with LOCOPLAN_NATIVE=0 (numba's JIT functions, loaded from
+numba's own on-disk cache), the path taken where the ahead-of-time build is not possible.
 
     python benchmarks/startup.py [--repeat 3]
 
-A fresh machine is emulated by an empty NUMBA_CACHE_DIR (numba then compiles and writes its cache
-there, exactly as it does into the installed package's __pycache__ on the first run after install).
-Wall times of whole commands, median of --repeat.
+A fresh machine is emulated by empty LOCOPLAN_NATIVE_DIR, LOCOPLAN_CACHE_DIR and NUMBA_CACHE_DIR.
+Wall times of whole commands (median of --repeat where it says so), stdout to /dev/null.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def wall(args: list[str], env: dict) -> float:
     t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "locoplan", *args], env=env, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([sys.executable, "-m", "locoplan", *args], env=env, check=True, stdout=subprocess.DEVNULL,
+                   cwd=ROOT)
     return time.perf_counter() - t
 
 
@@ -33,17 +35,30 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     route = str(ROOT / "routes/freight-20km.yaml")
+    sim, opt = ["simulate", route, "--json"], ["optimize", route, "--json"]
     rows = []
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        rows.append(("locoplan --help", statistics.median(wall(["--help"], env) for _ in range(args.repeat))))
-        rows.append(("simulate, first run (compiles the kernel)", wall(["simulate", route, "--json"], env)))
-        rows.append(("simulate, cached", statistics.median(wall(["simulate", route, "--json"], env) for _ in range(args.repeat))))
-        rows.append(("optimize, first run (compiles the DP)", wall(["optimize", route, "--json"], env)))
-        rows.append(("optimize, cached", statistics.median(wall(["optimize", route, "--json"], env) for _ in range(args.repeat))))
-    print(f"{'command':45} {'wall [s]':>8}")
+
+    def median(cmd, env):
+        return statistics.median(wall(cmd, env) for _ in range(args.repeat))
+
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=f"{tmp}/numba", LOCOPLAN_NATIVE_DIR=f"{tmp}/native",
+                   LOCOPLAN_CACHE_DIR=f"{tmp}/cache")
+        env.pop("LOCOPLAN_NATIVE", None)
+        rows.append(("locoplan --help", median(["--help"], env)))
+        rows.append(("simulate, first run on a machine (builds the kernels)", wall(sim, env)))
+        rows.append((f"simulate, after (median of {args.repeat})", median(sim, env)))
+        rows.append(("optimize, first run (solves E* for the gap)", wall(opt, env)))
+        rows.append((f"optimize, after (median of {args.repeat})", median(opt, env)))
+        jit = dict(env, LOCOPLAN_NATIVE="0")
+        rows.append(("LOCOPLAN_NATIVE=0: simulate, first run (numba JIT compiles)", wall(sim, jit)))
+        rows.append((f"LOCOPLAN_NATIVE=0: simulate, after (median of {args.repeat})", median(sim, jit)))
+        wall(opt, jit)  # the DP's JIT compile
+        rows.append((f"LOCOPLAN_NATIVE=0: optimize, after (median of {args.repeat})", median(opt, jit)))
+    width = max(len(r[0]) for r in rows)
+    print(f"| {'command':{width}} | wall [s] |\n| {'-' * width} | -------- |")
     for name, s in rows:
-        print(f"{name:45} {s:>8.2f}")
+        print(f"| {name:{width}} | {s:>8.2f} |")
 
 
 if __name__ == "__main__":

@@ -112,7 +112,7 @@ def test_blend_is_safe_with_infinite_neighbours():
     """The DP interpolates cost-to-go between grid speeds; a neighbour that cannot reach the stop (inf)
     must not turn a reachable state into nan or -inf (a weight at 1 + 1e-12 once gave (1 - w) inf = -inf,
     which poisoned every state behind it)."""
-    from locoplan.optimize.dp import _blend
+    from locoplan.optimize.dp_kernel import _blend
 
     assert _blend(5.0, math.inf, 0.0) == 5.0 and _blend(math.inf, 7.0, 1.0) == 7.0
     assert _blend(1.0, 3.0, 0.25) == pytest.approx(1.5)

@@ -27,8 +27,7 @@ from ..errors import LocoplanError
 from ..model.route import Route
 from ..model.train import Train
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, solve_energy
-from .train_energy import EnergyOptions, build_problem, check_runnable
+from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergyOptions, build_problem, check_runnable
 
 _BOUNDS: dict[tuple, "Bound"] = {}
 _WARM: dict[tuple, object] = {}
@@ -120,6 +119,8 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
         return Bound(b.time_s, b.energy_kwh, b.converged, b.intervals, b.points, 0.0)
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
+    from .energy import solve_energy  # the solver (CasADi, scipy.sparse): only when E* is not cached
+
     tep = build_problem(route, train, options, time_s, energy)
     warm = _WARM.get(base)
     try:

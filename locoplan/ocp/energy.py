@@ -20,10 +20,8 @@ from ..physics.energy import KJ_PER_KWH
 from ..sim.calculator import TractionCalculator
 from .mesh import Mesh, RefineSettings, initial_mesh, refine
 from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors
-from .train_energy import KMH_PER_MS, TrainEnergyProblem
+from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, KMH_PER_MS, TrainEnergyProblem
 
-DEFAULT_MESH_TOL = 1e-5
-DEFAULT_MAX_DEGREE = 10
 INITIAL_DEGREE = 5
 INITIAL_MAX_INTERVAL_M = 500.0
 END_INTERVAL_M = 200.0

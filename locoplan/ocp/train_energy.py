@@ -46,6 +46,10 @@ from ..sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at, neu
 from .phase import MultiPhaseProblem, Phase, PhaseModel
 
 KMH_PER_MS = 3.6
+DEFAULT_MESH_TOL = 1e-5
+"""hp refinement's tolerance on the relative dynamics error (``energy.solve_energy``)."""
+DEFAULT_MAX_DEGREE = 10
+"""Highest collocation degree per interval before an interval is split."""
 E_FLOOR = 1e-8
 """Added under the square root of ``v = sqrt(2 e + E_FLOOR)``: keeps derivatives finite at the rest
 points (a speed error below 1e-4 m/s at rest, below 1e-9 m/s above walking pace)."""

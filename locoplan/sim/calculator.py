@@ -312,7 +312,7 @@ class TractionCalculator:
 
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
-        from .kernel import run_plans
+        from ..native import kernels
 
         n, n_cells = sw.shape[0], len(self.h_m)
         starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
@@ -329,7 +329,7 @@ class TractionCalculator:
         cond = np.zeros(shape_cells, dtype=np.int8)
         trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
         tr = self.train
-        run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
+        kernels().run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
                   self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn, self.brake_speed_kmh,
                   self.brake_kn, *map(float, tr.resistance_kn), bool(self.options.strict_limits),
                   codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n),

@@ -1,0 +1,223 @@
+"""The compiled loops, loaded without numba's start-up cost.
+
+The calculator's distance loop (``sim/kernel.py``) and the DP drive (``optimize/dp_kernel.py``) are
+numba functions. Even from numba's on-disk cache, using them imports numba and initialises its
+compiler in every process: about 0.5-0.7 s on the reference machine, more than all the work of
+``locoplan optimize routes/freight-20km.yaml``. So the first time they are needed on a machine, their
+entry points are compiled *ahead of time* (``numba.pycc``, same source, same compiler) into one
+extension module in the cache folder; every later process imports that module, which needs numpy only.
+
+- Folder: ``$LOCOPLAN_NATIVE_DIR``, else ``$LOCOPLAN_CACHE_DIR/native``, else
+  ``~/.cache/locoplan/native``. The module's name holds a hash of the kernels' source, the Python
+  version and numpy's version: an edit or an upgrade builds a new one, never loads a stale one.
+- The build runs once, in a subprocess (its compiler output never reaches a command's stdout), under a
+  file lock (parallel workers wait for one build instead of racing), and lands by an atomic rename.
+- No C compiler, no setuptools, a numba without ``pycc``, or ``LOCOPLAN_NATIVE=0``: the numba JIT
+  functions (``cache=True``) are used instead; same code, same results (``tests/test_native.py``). A
+  failed build leaves a ``.failed`` file with its log and is not retried until that file is removed.
+
+The ahead-of-time functions check nothing about their arguments (a float32 array would be read as
+float64), so every call goes through :class:`_Checked`, which verifies each array's dtype, rank and
+contiguity first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import importlib
+import importlib.machinery
+import importlib.util
+import os
+import subprocess
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+_F, _I, _I1, _B = "f8", "i8", "i1", "b1"
+_A1, _A2, _A4 = "f8[:]", "f8[:, :]", "f8[:, :, :, :]"
+_DP_HEAD = (_A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _F, _F, _F)  # h grav allowed e_cap m tv tf bv bf ra rb rc
+
+ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
+    # name: (module, function, return type, argument types)
+    "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (
+        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
+        "i8[:]", _A2, _A2, _A1, _B, _B,  # codes starts ends cruise_e has_cruise want_profile
+        _A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]",  # t_out work_out over_at stop_at hold_at fb_at
+        _A2, _A2, "i1[:, :]", _A2, _A2, _A2)),  # t_nodes v_nodes cond trac brk event
+    "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (*_DP_HEAD, _A1)),
+    "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1)),
+    "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
+                (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
+}
+_SOURCES = ("sim/kernel.py", "optimize/dp_kernel.py", "native.py")
+BUILD_TIMEOUT_S = 900.0
+
+_kernels = None
+
+
+def enabled() -> bool:
+    return os.environ.get("LOCOPLAN_NATIVE", "1").strip().lower() not in ("0", "no", "off", "false")
+
+
+def native_dir() -> Path:
+    if os.environ.get("LOCOPLAN_NATIVE_DIR"):
+        return Path(os.environ["LOCOPLAN_NATIVE_DIR"])
+    root = os.environ.get("LOCOPLAN_CACHE_DIR") or str(Path.home() / ".cache" / "locoplan")
+    return Path(root) / "native"
+
+
+def module_name() -> str:
+    """``locoplan_kernels_<hash>``: the kernels' source, this file's signatures, Python and numpy."""
+    digest = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for rel in _SOURCES:
+        digest.update((here / rel).read_bytes())
+    digest.update(f"{sys.version}|{np.__version__}|{sys.platform}".encode())
+    return f"locoplan_kernels_{digest.hexdigest()[:16]}"
+
+
+class _Checked:
+    """An ahead-of-time function behind a check of its arguments' types (it makes none itself)."""
+
+    _DTYPES = {"f8": np.float64, "i8": np.int64, "i1": np.int8, "b1": np.bool_}
+
+    def __init__(self, name: str, fn, arg_types: tuple[str, ...]):
+        self.name, self.fn = name, fn
+        self.spec = []
+        for a in arg_types:
+            base = a.split("[")[0]
+            rank = a.count(":") if "[" in a else 0
+            self.spec.append((self._DTYPES[base], rank))
+
+    def __call__(self, *args):
+        if len(args) != len(self.spec):
+            raise TypeError(f"{self.name}: expected {len(self.spec)} arguments, got {len(args)}")
+        conv = []
+        for i, (a, (dtype, rank)) in enumerate(zip(args, self.spec)):
+            if rank:
+                if not (isinstance(a, np.ndarray) and a.dtype == dtype and a.ndim == rank and a.flags.c_contiguous
+                        and a.flags.aligned):
+                    got = f"{a.dtype} rank {a.ndim}" if isinstance(a, np.ndarray) else type(a).__name__
+                    raise TypeError(f"{self.name}: argument {i} must be a C-contiguous {np.dtype(dtype)} array of "
+                                    f"rank {rank}, not {got}")
+                conv.append(a)
+            else:
+                conv.append(dtype(a).item())
+        return self.fn(*conv)
+
+
+class _Namespace:
+    def __init__(self, functions: dict, source: str):
+        self.__dict__.update(functions)
+        self.source = source  # "native <path>" or "numba-jit (<why>)"
+
+
+def kernels() -> _Namespace:
+    """The compiled entry points (``run_plans``, ``stall_boundary``, ``backward``, ``forward``)."""
+    global _kernels
+    if _kernels is None:
+        why = "LOCOPLAN_NATIVE=0"
+        if enabled():
+            try:
+                _kernels = _load_native()
+            except _Unavailable as exc:
+                why = str(exc)
+        if _kernels is None:
+            _kernels = _jit(why)
+    return _kernels
+
+
+class _Unavailable(Exception):
+    pass
+
+
+def _jit(why: str) -> _Namespace:
+    funcs = {}
+    for name, (mod, fn, _, _) in ENTRY_POINTS.items():
+        funcs[name] = getattr(importlib.import_module(mod), fn)
+    return _Namespace(funcs, f"numba-jit ({why})")
+
+
+def _load_native() -> _Namespace:
+    folder = native_dir()
+    name = module_name()
+    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
+    path = folder / f"{name}{suffix}"
+    failed = folder / f"{name}.failed"
+    if not path.is_file():
+        if failed.is_file():
+            raise _Unavailable(f"the ahead-of-time build failed before, see {failed}")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise _Unavailable(f"cannot create {folder}: {exc.strerror}") from None
+        with _locked(folder / ".lock"):
+            if not path.is_file() and not failed.is_file():
+                _build(folder, name, path, failed)
+        if not path.is_file():
+            raise _Unavailable(f"the ahead-of-time build failed, see {failed}")
+    spec = importlib.util.spec_from_file_location(name, path)
+    try:
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+    except ImportError as exc:
+        raise _Unavailable(f"cannot load {path}: {exc}") from None
+    funcs = {n: _Checked(n, getattr(mod, n), args) for n, (_, _, _, args) in ENTRY_POINTS.items()}
+    return _Namespace(funcs, f"native {path}")
+
+
+@contextlib.contextmanager
+def _locked(lock_path: Path):
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: the atomic rename alone keeps a half-written module out
+        yield
+        return
+    with open(lock_path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
+    """Compile in a subprocess into a temporary folder, then rename into place (or write ``.failed``)."""
+    if sys.stderr is not None and sys.stderr.isatty():
+        print("locoplan: compiling the traction and DP kernels for this machine (once, about a minute)...",
+              file=sys.stderr, flush=True)
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
+        cmd = [sys.executable, "-m", "locoplan.native", tmp, name]
+        try:
+            out = subprocess.run(cmd, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S,
+                                 env={**os.environ, "LOCOPLAN_NATIVE": "0"})
+            log, ok = out.stdout + out.stderr, out.returncode == 0
+        except (OSError, subprocess.SubprocessError) as exc:
+            log, ok = f"{type(exc).__name__}: {exc}", False
+        built = Path(tmp) / path.name
+        if ok and built.is_file():
+            os.replace(built, path)
+        else:
+            failed.write_text(f"{' '.join(cmd)}\n\n{log}")
+
+
+def _compile_here(out_dir: str, name: str) -> None:
+    """The build itself (``python -m locoplan.native OUT_DIR NAME``): numba.pycc on the numba functions."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # pycc's pending-deprecation notice
+        from numba.pycc import CC
+    cc = CC(name)
+    cc.output_dir = out_dir
+    cc.verbose = False
+    for export, (mod, fn, ret, args) in ENTRY_POINTS.items():
+        func = getattr(importlib.import_module(mod), fn)
+        cc.export(export, f"{ret}({', '.join(args)})")(func.py_func)
+    cc.compile()
+
+
+if __name__ == "__main__":
+    _compile_here(sys.argv[1], sys.argv[2])

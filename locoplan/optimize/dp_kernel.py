@@ -1,0 +1,328 @@
+"""The DP drive's compiled loops (numba): per-cell step, stall boundary, backward and forward passes.
+
+``dp.py`` holds the method and its documentation; these are its inner loops, called through
+``locoplan.native`` (ahead-of-time compiled where possible, numba's JIT otherwise).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+T_, H_, C_, B_ = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def _interp1(x, xs, ys):
+    n = xs.shape[0]
+    if x <= xs[0]:
+        return ys[0]
+    if x >= xs[n - 1]:
+        return ys[n - 1]
+    lo, hi = 0, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if xs[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return _blend(ys[lo], ys[hi], (x - xs[lo]) / (xs[hi] - xs[lo]))
+
+
+@njit(cache=True)
+def _blend(a, b, w):
+    """a + w (b - a) for w in [0, 1], safe with infinite ends: w = 0 or 1 is exactly a or b (an
+    infinite neighbour must not turn a reachable state into nan or -inf), strictly between it is
+    infinite if either end is."""
+    if w <= 0.0:
+        return a
+    if w >= 1.0:
+        return b
+    if math.isinf(a) or math.isinf(b):
+        return np.inf
+    return a + w * (b - a)
+
+
+@njit(cache=True)
+def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
+    """Cost-to-go at speed v1 on a node's grid: the shared speed grid below the node's cap, plus the cap
+    itself as the last point (``ctg_row[-1]``), so that a state just under a limit or a braking curve is
+    not lost to an infinite neighbour above the cap."""
+    nv = v_grid.shape[0]
+    if v1 > v_cap * (1.0 + 1e-9) + 1e-9:
+        return np.inf
+    # the last grid point below the cap
+    top = min(int(v_cap / v_grid[1]) if nv > 1 else 0, nv - 1)
+    while top > 0 and v_grid[top] > v_cap:
+        top -= 1
+    if v1 <= v_grid[top]:
+        i0 = min(int(v1 / v_grid[1]) if nv > 1 else 0, top)
+        if i0 < top and math.isinf(ctg_row[i0]) and not math.isinf(ctg_row[i0 + 1]) and v1 >= v_low:
+            return ctg_row[i0 + 1]  # above the node's stall boundary: the lower grid point is below it
+        return _interp1(v1, v_grid[: top + 1], ctg_row[: top + 1])
+    span = v_cap - v_grid[top]
+    if span <= 1e-12:
+        return ctg_row[top]
+    return _blend(ctg_row[top], ctg_row[nv], (v1 - v_grid[top]) / span)
+
+
+@njit(cache=True)
+def _step(e, u, h, m, g_k, allowed, tv, tf, bv, bf, ra, rb, rc):
+    """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
+    v_kmh = math.sqrt(2.0 * e) * 3.6
+    load0 = v_kmh * (rb + rc * v_kmh) + ra + g_k
+    if u == H_:
+        f_max = _interp1(v_kmh, tv, tf) * allowed
+        b_max = _interp1(v_kmh, bv, bf)
+        if load0 > f_max or -load0 > b_max:
+            return -1.0, 0.0
+        return e, max(load0, 0.0) * h
+    # predictor at the start speed, forces again at the mid-speed (the calculator's second-order step)
+    e1 = e
+    for _ in range(2):
+        vm = math.sqrt(max(e + e1, 0.0)) * 3.6  # sqrt(2 (e + e1) / 2) in km/h
+        f = 0.0
+        b = 0.0
+        if u == T_:
+            f = _interp1(vm, tv, tf) * allowed
+        elif u == B_:
+            b = _interp1(vm, bv, bf)
+        load = vm * (rb + rc * vm) + ra + g_k
+        e1 = e + h / m * (f - b - load)
+    if u == T_:
+        vm = math.sqrt(max(e + e1, 0.0)) * 3.6
+        return e1, _interp1(vm, tv, tf) * allowed * h
+    return e1, 0.0
+
+
+@njit(cache=True)
+def _bracket(v1, dv, nv, v_cap):
+    """Where speed v1 lies on a node's grid (the uniform grid below the node's cap, then the cap itself as
+    column nv): (i0, i1, w) with value = (1 - w) row[i0] + w row[i1]; i0 < 0 = above the cap."""
+    if v1 > v_cap * (1.0 + 1e-9) + 1e-9:
+        return -1, -1, 0.0
+    top = min(int(v_cap / dv), nv - 1)
+    while top > 0 and top * dv > v_cap:
+        top -= 1
+    if v1 <= top * dv:
+        i0 = min(int(v1 / dv), nv - 1)
+        if i0 >= top:
+            return top, top, 0.0
+        return i0, i0 + 1, (v1 - i0 * dv) / dv
+    span = v_cap - top * dv
+    if span <= 1e-12:
+        return top, top, 0.0
+    return top, nv, min((v1 - top * dv) / span, 1.0)  # v1 may pass the cap by the tolerance above
+
+
+@njit(cache=True)
+def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc):
+    """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
+    calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
+    = not possible. The last cell ends at rest."""
+    e1, w = _step(e, u, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+    cap = 0.0 if k == n - 1 else e_cap[k + 1]
+    if e1 > cap * (1.0 + 1e-9) + 1e-9:
+        if u == B_:
+            e_b = e1
+        else:
+            e_b, _ = _step(e, B_, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+        # full braking keeps the train at or under the cap (a tolerance for the envelope's finer steps)
+        if e_b > cap + 0.02 * (e - cap if e > cap else 0.0) + 1e-3 * max(e, 1.0):
+            return -1.0, 0.0
+        return cap, w
+    if e1 < 0.0:
+        return (0.0, w) if k == n - 1 else (-1.0, 0.0)
+    return e1, w
+
+
+@njit(cache=True)
+def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low_next):
+    """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
+    node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
+    does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
+    fine cells a slow climb would otherwise look impossible)."""
+    if not math.isfinite(e_low_next):
+        return np.inf
+
+    def ok(e):
+        e1, _ = _capped_step(e, T_, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+        return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
+
+    hi = max(e_cap[k], 0.0)
+    if not ok(hi):
+        return np.inf
+    lo = 0.0
+    if ok(lo):
+        return 0.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if ok(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+@njit(cache=True)
+def _stall_boundary(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, e_low):
+    """Every node's lowest feasible e (``_lowest_energy``), from the stop backwards; it depends on the
+    route and the train only, not on the price, so it is computed once per solver."""
+    n = h.shape[0]
+    e_low[n] = 0.0
+    for k in range(n - 1, -1, -1):
+        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low[k + 1])
+
+
+@njit(cache=True)
+def _run_bucket(r, min_run, n_buckets):
+    """Index of a run length [m] (0 .. n_buckets; the last = at least ``min_run``, free to switch)."""
+    if r >= min_run - 1e-9:
+        return n_buckets
+    return min(int(r / min_run * n_buckets), n_buckets - 1)
+
+
+@njit(cache=True)
+def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+              e_low):  # e_low: _stall_boundary's
+    """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
+    at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
+    progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
+    none). A run may end only once it is ``min_run`` long (seed 002 eq. 3), except the final braking."""
+    n = h.shape[0]
+    nv = v_grid.shape[0]
+    nb = cost_to_go.shape[2] - 1
+    for c in range(4):
+        for b in range(nb + 1):
+            for j in range(nv + 1):
+                cost_to_go[n, c, b, j] = 0.0 if j == 0 or (j == nv and e_cap[n] <= 1e-12) else np.inf
+    step_cost = np.empty(4)
+    step_next = np.empty(4)
+    lo_i = np.zeros(4, dtype=np.int64)
+    hi_i = np.zeros(4, dtype=np.int64)
+    w_i = np.zeros(4)
+    dv = v_grid[1] - v_grid[0]
+    for k in range(n - 1, -1, -1):
+        v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
+        v_low_next = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
+        for j in range(nv + 1):
+            if j < nv:
+                v = v_grid[j]
+                e = 0.5 * v * v
+                if e > e_cap[k] * (1.0 + 1e-9) + 1e-9:
+                    for c in range(4):
+                        for b in range(nb + 1):
+                            cost_to_go[k, c, b, j] = np.inf
+                    continue
+            else:
+                e = max(e_cap[k], 0.0)
+                v = math.sqrt(2.0 * e)
+            for u in range(4):
+                step_cost[u] = np.inf
+                step_next[u] = -1.0
+                if u == H_ and e <= 0.0:
+                    continue
+                e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+                if e1 < 0.0:
+                    continue
+                v1 = math.sqrt(2.0 * e1)
+                if v + v1 <= 0.0:
+                    continue
+                step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
+                step_next[u] = v1
+            for u in range(4):
+                if step_next[u] >= 0.0 and k < n - 1:
+                    i0, i1, wgt = _bracket(step_next[u], dv, nv, v_cap_next)
+                    lo_i[u], hi_i[u], w_i[u] = i0, i1, wgt
+            for c in range(4):
+                for b in range(nb + 1):
+                    best = np.inf
+                    for u in range(4):
+                        if step_next[u] < 0.0:
+                            continue
+                        if u == c:
+                            # at least one bucket per cell: with cells shorter than a bucket the floor would
+                            # never advance and a run could never end (see PricedDriveSolver: buckets >= cells)
+                            b1 = max(b + 1, _run_bucket(b * min_run / nb + h[k], min_run, nb)) if b < nb else nb
+                            extra = 0.0
+                        else:
+                            if b < nb and k > 0:
+                                continue  # the run in progress is too short to end
+                            b1 = _run_bucket(h[k], min_run, nb)
+                            extra = penalty
+                        if k < n - 1:
+                            if lo_i[u] < 0:
+                                continue
+                            row = cost_to_go[k + 1, u, b1]
+                            a, z = row[lo_i[u]], row[hi_i[u]]
+                            if (0.0 < w_i[u] < 1.0 and math.isinf(a) and not math.isinf(z) and step_next[u] >= v_low_next
+                                    and (u == T_ or b1 == nb)):
+                                # above the next node's stall boundary, free to take full traction there:
+                                # the lower grid point is below the boundary, the state is not
+                                rest = z
+                            else:
+                                rest = _blend(a, z, w_i[u])
+                        else:
+                            rest = 0.0
+                        cc = step_cost[u] + rest + extra
+                        if cc < best:
+                            best = cc
+                    cost_to_go[k, c, b, j] = best
+
+
+@njit(cache=True)
+def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+             e_low, controls, speeds):
+    """The drive from rest: each cell's best control at the actual speed and run; returns (time [s], work [kJ])."""
+    n = h.shape[0]
+    nb = cost_to_go.shape[2] - 1
+    e = 0.0
+    t = 0.0
+    work = 0.0
+    speeds[0] = 0.0
+    prev = 0
+    run = min_run  # before the first cell any condition may start
+    first = True
+    for k in range(n):
+        v = math.sqrt(2.0 * e)
+        best = np.inf
+        best_u = -1
+        best_e = 0.0
+        best_w = 0.0
+        best_run = 0.0
+        for u in range(4):
+            if u == H_ and e <= 0.0:
+                continue
+            if k > 0 and u != prev and run < min_run - 1e-9:
+                continue
+            e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+            if e1 < 0.0:
+                continue
+            v1 = math.sqrt(2.0 * e1)
+            if v + v1 <= 0.0:
+                continue
+            r1 = (run + h[k]) if (k > 0 and u == prev) else h[k]
+            if first and (k == 0 or u == prev):
+                r1 = min_run  # the departure run may end anywhere (see the module docstring)
+            b1 = _run_bucket(r1, min_run, nb)
+            # the stall boundary holds for a state that may take full traction next (_stall_boundary)
+            v_low = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) and (u == T_ or b1 == nb) else np.inf
+            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0)),
+                                v_low) if k < n - 1 else 0.0
+            c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
+            if c < best:
+                best, best_u, best_e, best_w, best_run = c, u, e1, w, r1
+        if best_u < 0:
+            return np.inf, np.inf
+        if k > 0 and best_u != prev:
+            first = False
+        controls[k] = best_u
+        prev = best_u
+        run = best_run
+        t += 2.0 * h[k] / (v + math.sqrt(2.0 * best_e))
+        work += best_w
+        e = best_e
+        speeds[k + 1] = math.sqrt(2.0 * e) * 3.6
+    return t, work

@@ -1,0 +1,125 @@
+"""The ahead-of-time compiled kernels (``locoplan.native``) against numba's JIT functions they are built
+from: the same source through the same compiler, so the calculator's and the DP's numbers agree to
+1e-12 relative; arguments of the wrong type are refused with a TypeError (the compiled functions check
+nothing themselves); a failed build falls back to the JIT functions and is not retried; parallel first
+runs build the module once."""
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from locoplan import native
+from locoplan.optimize.dp import PricedDriveSolver
+from locoplan.sim.calculator import TractionCalculator
+
+ROOT = Path(__file__).resolve().parents[1]
+RTOL = 1e-12
+
+
+@pytest.fixture(scope="module")
+def both():
+    """(native, jit) namespaces; native is built in this session's cache folder if need be."""
+    if not native.enabled():
+        pytest.skip("LOCOPLAN_NATIVE=0")
+    nat = native.kernels()
+    assert nat.source.startswith("native "), nat.source  # the build works on this machine (gcc, setuptools)
+    return nat, native._jit("test")
+
+
+def _with(monkeypatch, ns):
+    monkeypatch.setattr(native, "_kernels", ns)
+
+
+def test_calculator_agrees_with_the_jit_kernel(freight, both, monkeypatch):
+    route, train = freight
+    calc = TractionCalculator(route, train)
+    rng = np.random.default_rng(5)
+    seq = tuple("TKTCTCKCB")
+    X = np.sort(rng.uniform(0, route.length_m, (80, len(seq) - 1)), axis=1)
+    cruise = rng.uniform(40, 80, 80)
+    out = []
+    for ns in both:
+        _with(monkeypatch, ns)
+        out.append((calc.evaluate(seq, X, profile=True), calc.evaluate(("T", "C", "B"), X[:, :2],
+                                                                        cruise_kmh=cruise)))
+    (a, a2), (b, b2) = out
+    assert 0 < a.feasible.sum() < len(X)  # the sample mixes verdicts
+    for x, y in ((a, b), (a2, b2)):
+        np.testing.assert_array_equal(x.reason_code, y.reason_code)
+        np.testing.assert_allclose(x.running_time_s, y.running_time_s, rtol=RTOL, equal_nan=True)
+        np.testing.assert_allclose(x.traction_energy_kwh, y.traction_energy_kwh, rtol=RTOL)
+    for field in ("t_s", "v_kmh", "traction_kn", "brake_kn", "event_m"):
+        np.testing.assert_allclose(getattr(a.profile, field), getattr(b.profile, field), rtol=RTOL, atol=1e-12,
+                                   equal_nan=True, err_msg=field)
+
+
+def test_dp_agrees_with_the_jit_kernel(freight, both, monkeypatch):
+    route, train = freight
+    calc = TractionCalculator(route, train)
+    drives, lows = [], []
+    for ns in both:
+        _with(monkeypatch, ns)
+        solver = PricedDriveSolver(calc)
+        lows.append(solver._low.copy())
+        drives.append([solver.solve(p) for p in (0.02, 0.2, 2.0)])
+    np.testing.assert_allclose(lows[0], lows[1], rtol=RTOL)
+    for a, b in zip(*drives):
+        np.testing.assert_array_equal(a.controls, b.controls)
+        np.testing.assert_allclose(a.speed_kmh, b.speed_kmh, rtol=RTOL)
+        assert a.time_s == pytest.approx(b.time_s, rel=RTOL) and a.energy_kwh == pytest.approx(b.energy_kwh, rel=RTOL)
+    assert drives[0][0].time_s > drives[0][2].time_s  # a higher price of time: a faster drive
+
+
+def test_wrong_argument_types_are_refused(both):
+    nat, _ = both
+    h = np.full(4, 100.0)
+    args = [h, h, np.ones(4), np.full(5, 100.0), 5000.0, h, h, h, h, 1.0, 0.1, 0.01, np.zeros(5)]
+    with pytest.raises(TypeError, match="argument 0 must be a C-contiguous float64 array of rank 1, not float32"):
+        nat.stall_boundary(h.astype(np.float32), *args[1:])
+    with pytest.raises(TypeError, match="argument 12"):
+        nat.stall_boundary(*args[:12], np.zeros(10)[::2])  # not contiguous: an output must not be a copy
+    with pytest.raises(TypeError, match="expected 13 arguments"):
+        nat.stall_boundary(*args[:12])
+
+
+def test_a_failed_build_falls_back_to_jit_and_is_not_retried(tmp_path, monkeypatch, freight):
+    monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(tmp_path))
+    monkeypatch.setattr(native, "_kernels", None)
+    monkeypatch.setattr(native.sys, "executable", "/bin/false")  # the build's interpreter fails at once
+    ns = native.kernels()
+    assert ns.source.startswith("numba-jit (the ahead-of-time build failed")
+    failed = list(tmp_path.glob("*.failed"))
+    assert len(failed) == 1 and "/bin/false" in failed[0].read_text()
+    assert not list(tmp_path.glob("locoplan_kernels_*.so")) and not list(tmp_path.glob(".build-*"))
+    monkeypatch.setattr(native, "_kernels", None)
+    assert "failed before" in native.kernels().source  # not retried
+    route, train = freight  # and the calculator runs on the JIT functions
+    assert 900 < TractionCalculator(route, train).fastest_time_s < 1500
+
+
+def test_parallel_first_runs_build_the_module_once(tmp_path):
+    """Two processes start on an empty folder at once: one builds under the lock, the other waits and loads
+    the same module; both then run the calculator on it."""
+    code = ("from locoplan import native; from locoplan.io.load import load_route, load_train; "
+            "from locoplan.sim.calculator import TractionCalculator; import numpy as np; "
+            "r = load_route('routes/freight-20km.yaml'); t = load_train('configs/consists/HXD1-C80x50.yaml'); "
+            "x = TractionCalculator(r, t).fastest_time_s; "
+            "print(native.kernels().source); print(repr(float(x)))")
+    env = {**os.environ, "LOCOPLAN_NATIVE_DIR": str(tmp_path)}
+    env.pop("LOCOPLAN_NATIVE", None)
+    procs = [subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=900) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
+    lines = [o[0].split("\n") for o in outs]
+    built = list(tmp_path.glob("locoplan_kernels_*"))
+    assert len(built) == 1 and not list(tmp_path.glob("*.failed"))
+    assert lines[0][0] == lines[1][0] == f"native {built[0]}"
+    assert lines[0][1] == lines[1][1]
+    assert "numba" not in subprocess.run([sys.executable, "-c", code + "; import sys; print(sorted(sys.modules))"],
+                                         cwd=ROOT, env=env, capture_output=True, text=True).stdout.split("\n")[2]
