@@ -1,6 +1,7 @@
 """Plan evaluations per second of the batch traction calculator on routes/freight-20km.yaml, old (the
-numpy loop, ``backend="numpy"``) against new (the compiled numba kernel, the default), for batches of 1,
-10, 50 and 200 plans, and peak memory. Targets (issue 12): >= 20,000 plans/s for batches of 50 and
+numpy loop, ``backend="numpy"``) against new (the compiled kernel, the default: numba's JIT function and
+the same function compiled ahead of time, ``locoplan.native``, which the commands load), for batches of
+1, 10, 50 and 200 plans, and peak memory. Targets (issue 12): >= 20,000 plans/s for batches of 50 and
 >= 5,000 plans/s for single plans, on one core.
 
     taskset -c 0 python benchmarks/bench_calculator.py [--repeat 40] [--step 50]
@@ -19,6 +20,7 @@ import sys as _sys
 from pathlib import Path as _Path
 _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
 
+from locoplan import native
 from locoplan.io.load import load_route, load_train
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
@@ -36,14 +38,21 @@ def main() -> None:
     t0 = time.perf_counter()
     calcs = {"old (numpy)": TractionCalculator(route, train, opts, backend="numpy")}
     setup_s = time.perf_counter() - t0
-    calcs["new (numba)"] = TractionCalculator(route, train, opts)
+    new = TractionCalculator(route, train, opts)
+    kernels = {"new (numba JIT)": native._jit("benchmark"), "new (ahead of time)": native.kernels()}
+    if not kernels["new (ahead of time)"].source.startswith("native"):
+        print(f"ahead-of-time kernels unavailable: {kernels['new (ahead of time)'].source}")
+        del kernels["new (ahead of time)"]
+    calcs.update({name: new for name in kernels})
     seq = tuple("TKTCTCKCB")  # seed 002's proposed sequence: 8 switching points
     print(f"route freight-20km, {train.name}, default train model, grid {len(calcs['old (numpy)'].h_m)} cells "
           f"(step {opts.step_m:g} m), route set-up {setup_s * 1e3:.0f} ms")
-    print(f"{'batch':>6} {'backend':>12} {'ms / batch':>11} {'plans / s':>10} {'peak MiB':>9}")
+    print(f"{'batch':>6} {'backend':>20} {'ms / batch':>11} {'plans / s':>10} {'peak MiB':>9}")
     for batch in (1, 10, 50, 200):
         X = np.sort(np.random.default_rng(batch).uniform(0, route.length_m, (batch, len(seq) - 1)), axis=1)
         for name, calc in calcs.items():
+            if name in kernels:
+                native._kernels = kernels[name]
             calc.evaluate(seq, X)  # warm-up (and, the first time on a machine, the kernel's compile)
             repeat = args.repeat * (20 if name.startswith("new") else 1)
             t0 = time.perf_counter()
@@ -54,7 +63,7 @@ def main() -> None:
             calc.evaluate(seq, X)
             peak = tracemalloc.get_traced_memory()[1] / 2**20
             tracemalloc.stop()
-            print(f"{batch:>6} {name:>12} {dt * 1e3:>11.3f} {batch / dt:>10.0f} {peak:>9.2f}")
+            print(f"{batch:>6} {name:>20} {dt * 1e3:>11.3f} {batch / dt:>10.0f} {peak:>9.2f}")
 
 
 if __name__ == "__main__":

@@ -193,8 +193,11 @@ def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
         cmd = [sys.executable, "-m", "locoplan.native", tmp, name]
         try:
+            # this very locoplan (the hash is of its source), whatever the child's sys.path would find first
+            path_env = os.pathsep.join(p for p in (str(Path(__file__).resolve().parents[1]),
+                                                   os.environ.get("PYTHONPATH", "")) if p)
             out = subprocess.run(cmd, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S,
-                                 env={**os.environ, "LOCOPLAN_NATIVE": "0"})
+                                 env={**os.environ, "LOCOPLAN_NATIVE": "0", "PYTHONPATH": path_env})
             log, ok = out.stdout + out.stderr, out.returncode == 0
         except (OSError, subprocess.SubprocessError) as exc:
             log, ok = f"{type(exc).__name__}: {exc}", False
