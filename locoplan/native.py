@@ -155,9 +155,12 @@ def _load_native() -> _Namespace:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise _Unavailable(f"cannot create {folder}: {exc.strerror}") from None
-        with _locked(folder / ".lock"):
-            if not path.is_file() and not failed.is_file():
-                _build(folder, name, path, failed)
+        try:
+            with _locked(folder / ".lock"):
+                if not path.is_file() and not failed.is_file():
+                    _build(folder, name, path, failed)
+        except OSError as exc:  # a folder that cannot be written (read-only, full, not a folder)
+            raise _Unavailable(f"cannot build in {folder}: {exc.strerror or exc}") from None
         if not path.is_file():
             raise _Unavailable(f"the ahead-of-time build failed, see {failed}")
     spec = importlib.util.spec_from_file_location(name, path)

@@ -74,6 +74,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         # the optimisers search a coarser grid, but not one too coarse for a short line (at least ~200 cells)
         search_step = max(options.step_m, min(SEARCH_STEP_M, route.length_m / SEARCH_MIN_CELLS))
         search = calc if search_step <= options.step_m else TractionCalculator(route, train, replace(options, step_m=search_step))
+        if search is not calc and not _drives(search) and _drives(calc):
+            # a climb the train barely makes (a few km/h at the top) can stall on the coarser grid alone:
+            # then the search grid would refuse every plan the reporting grid accepts, so search on that
+            search = calc
     t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
         raise InputError(Problem("", "e_min_kwh", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
@@ -89,6 +93,11 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
                            tol, window, yardstick, builder)
+
+
+def _drives(calc: TractionCalculator) -> bool:
+    """Whether the fastest run (full traction, held at the limits) reaches the stop on this grid."""
+    return bool(calc.evaluate(("T",), np.zeros((1, 0))).feasible[0])
 
 
 def check_time_possible(ctx: StrategyContext) -> None:

@@ -147,3 +147,20 @@ def test_a_heavy_train_that_barely_climbs_a_steep_grade(root, leg):
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
     least = run_strategy(ctx, "energy-saving").summary
     assert least["feasible"] and least["traction_energy_kwh"] <= run.summary["traction_energy_kwh"] + 1e-6
+
+
+def test_a_climb_that_stalls_only_on_the_coarse_search_grid(root):
+    """Fr100 (V 90 + 10 ore wagons) on the 102 km railtoolkit line: at 2,000 m, on +18.1 per mille, the
+    fastest run crawls over the top at a few km/h on the 50 m reporting grid but stalls on the optimisers'
+    100 m grid, where every candidate plan then stalled ("could not find 50 feasible candidates"). The
+    search must use a grid the train can drive, and optimize meet 1.15 x the fastest run."""
+    route = load_route(root / "routes/railtoolkit/realworld.yaml")
+    train = load_train("Fr100")
+    calc = TractionCalculator(route, train)
+    coarse = TractionCalculator(route, train, ModelOptions(step_m=100.0))
+    assert not coarse.evaluate(("T",), np.zeros((1, 0))).feasible[0]  # the case this test is about
+    assert calc.evaluate(("T",), np.zeros((1, 0))).feasible[0]
+    ctx = make_context(route, train, time_s=round(1.15 * calc.fastest_time_s, 1))
+    assert ctx.search.evaluate(("T",), np.zeros((1, 0))).feasible[0]
+    run = run_strategy(ctx, "proposed")
+    assert run.summary["feasible"] and schedule_verdict(ctx, run) is None

@@ -123,3 +123,17 @@ def test_parallel_first_runs_build_the_module_once(tmp_path):
     assert lines[0][1] == lines[1][1]
     assert "numba" not in subprocess.run([sys.executable, "-c", code + "; import sys; print(sorted(sys.modules))"],
                                          cwd=ROOT, env=env, capture_output=True, text=True).stdout.split("\n")[2]
+
+
+@pytest.mark.parametrize("where", ["not writable", "a file"])
+def test_an_unusable_folder_falls_back_to_jit(tmp_path, monkeypatch, where):
+    folder = tmp_path / "native"
+    if where == "a file":
+        folder.write_text("not a folder")
+    else:  # as a read-only folder is for a user (root may write anywhere): the lock file cannot be opened
+        def refuse(path):
+            raise PermissionError(13, "Permission denied", str(path))
+        monkeypatch.setattr(native, "_locked", refuse)
+    monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(folder))
+    monkeypatch.setattr(native, "_kernels", None)
+    assert native.kernels().source.startswith("numba-jit (cannot ")
