@@ -39,12 +39,12 @@ import numpy as np
 
 _F, _I, _I1, _B = "f8", "i8", "i1", "b1"
 _A1, _A2, _A4 = "f8[:]", "f8[:, :]", "f8[:, :, :, :]"
-_DP_HEAD = (_A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _F, _F, _F)  # h grav allowed e_cap m tv tf bv bf ra rb rc
+_DP_HEAD = (_A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F)  # h grav allowed e_cap m tv tf ev ef av af ra rb rc
 
 ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
     # name: (module, function, return type, argument types)
     "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (
-        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
+        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
         "i8[:]", _A2, _A2, _A1, _B, _B,  # codes starts ends cruise_e has_cruise want_profile
         _A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]",  # t_out work_out over_at stop_at hold_at fb_at
         _A2, _A2, "i1[:, :]", _A2, _A2, _A2)),  # t_nodes v_nodes cond trac brk event

@@ -133,15 +133,14 @@ def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
     return evaluate_outcome(ctx.calc, outcome, profile=True)
 
 
-def gap_to_optimum(ctx: StrategyContext, res: BatchResult) -> float | None:
-    """(E - E*) / E* x 100 with E* the least energy at the plan's own running time (seed 001)."""
+def gap_to_optimum(ctx: StrategyContext, res: BatchResult):
+    """The plan against E*, the least energy at its own running time (seed 001): ``ocp.bound.Gap`` or None."""
     if not ctx.yardstick or not res.feasible[0]:
         return None
-    from .ocp.bound import gap_to_optimum_percent
+    from .ocp.bound import gap_to_optimum as gap
 
     c = ctx.calc
-    return gap_to_optimum_percent(c.route, c.train, c.options, float(res.running_time_s[0]),
-                                  float(res.traction_energy_kwh[0]), calc=c)
+    return gap(c.route, c.train, c.options, float(res.running_time_s[0]), float(res.traction_energy_kwh[0]), calc=c)
 
 
 def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
@@ -157,6 +156,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
     if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
         fit = round(float(fitness_eq10(t, e, t0, e_min, *ctx.weights)), 5)
     tol = ctx.tolerance_s
+    gap = gap_to_optimum(ctx, res)
     return {
         "route": route.name,
         "consist": train.name,
@@ -172,7 +172,9 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
         "window_s": None if (math.isnan(t0) or tol is None) else [round(t0 - tol, 2), round(t0 + tol, 2)],
         "fitness": fit,
-        "gap_to_optimum_percent": gap_to_optimum(ctx, res),
+        "gap_to_optimum_percent": None if gap is None else gap.gap_percent,
+        "gap_to_optimum_kwh": None if gap is None else gap.gap_kwh,
+        "optimum_kwh": None if gap is None else gap.optimum_kwh,
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,

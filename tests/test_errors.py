@@ -33,6 +33,7 @@ EXPECTED = {
     "route_is_a_list.yaml": ("", "expected a mapping", 1),
     "consist_unknown_type.yaml": ("vehicles[0].type", "unknown vehicle type 'HXD2'; did you mean 'HXD1'?", 4),
     "consist_no_locomotive.yaml": ("vehicles", "the consist has no locomotive", 3),
+    "consist_no_brake.yaml": ("vehicles", "the train has no brake: no locomotive gives a brake_kn above 0 kN", 5),
     "consist_overloaded.yaml": ("vehicles[1].load_t", "95 t exceeds C80's max_load_t 80 t", 5),
     "consist_zero_count.yaml": ("vehicles[0].count", "greater than or equal to 1", 4),
     "vehicle_locomotive_without_curves.yaml": ("traction_kn", "needs its max force curve", 1),

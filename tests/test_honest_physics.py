@@ -272,3 +272,49 @@ def test_two_vehicle_files_with_one_name(tmp_path):
         load_train(consist, stock)
     (p,) = exc.value.problems
     assert p.field == "vehicles[0].type" and "hxd1_a.yaml and" in p.message and "hxd1_b.yaml both declare" in p.message
+
+
+def _neutral_before_a_drop():
+    """8 km level: 80 km/h, then 40 km/h from 5,000 m; a neutral section at 4,300-4,500 m, whose span
+    (10 s before the head enters until 10 s after the tail leaves) covers where a train brakes for 40."""
+    data = hand_made_route([(5000, 80.0), (8000, 40.0)], [(8000, 0.0)], 8000).model_dump(by_alias=True)
+    data["neutral_sections"] = [{"from_m": 4300, "to_m": 4500, "coast_before_s": 10, "coast_after_s": 10}]
+    from locoplan.model.route import Route
+    return Route.model_validate(data)
+
+
+def test_a_neutral_section_cuts_the_electric_brake_not_the_air_brake(freight):
+    """In a neutral section's span the main breaker is open: no traction and no electric brake (it needs
+    the catenary), while the wagons' air brake works. At 60 km/h: B60 = 1,689.4 kN powered, B60 - 461 kN
+    in the span; in the seeds' model (electric brake only) nothing is left there: coasting."""
+    _, train = freight
+    route = _neutral_before_a_drop()
+    for options, powered, unpowered in ((ModelOptions(), B60_KN, B60_KN - 461.0), (ModelOptions.seeds(), 461.0, 0.0)):
+        calc = TractionCalculator(route, train, options)
+        span = np.flatnonzero(calc.traction_allowed == 0.0)
+        assert len(span) and calc.traction_allowed[0] == 1.0
+        assert calc.brake_kn_at(60.0, 0) == pytest.approx(powered, rel=1e-6)
+        assert calc.brake_kn_at(60.0, span[len(span) // 2]) == pytest.approx(unpowered, rel=1e-6, abs=1e-9)
+        f, b, _ = calc.forces_kn(np.float64(60 / 3.6), span[0])
+        assert f == 0.0 and b == pytest.approx(unpowered, rel=1e-6, abs=1e-9)
+
+
+def test_the_optimum_is_a_lower_bound_where_plans_brake_in_a_neutral_span(freight):
+    """The optimal-control problem (E*, seed 001) and the calculator agree on what a neutral section allows,
+    so E* stays at or below a plan that brakes with the air brake inside the span (when E* forbade all
+    braking there, random lines showed plans 18 % below their 'optimum')."""
+    from locoplan.ocp.bound import energy_bound
+    from locoplan.runner import make_context, run_strategy
+
+    _, train = freight
+    route = _neutral_before_a_drop()
+    calc = TractionCalculator(route, train)
+    ctx = make_context(route, train, time_s=round(1.05 * calc.fastest_time_s, 1))
+    run = run_strategy(ctx, "proposed")
+    s = run.summary
+    prof = run.result.profile
+    span = calc.traction_allowed == 0.0
+    assert s["feasible"] and np.nanmax(prof.brake_kn[0][span]) > 100.0  # it brakes in the span
+    e_star = energy_bound(route, train, calc.options, s["running_time_s"]).energy_kwh
+    assert e_star <= s["traction_energy_kwh"] * (1 + 1e-3)
+    assert e_star >= 0.9 * s["traction_energy_kwh"]  # and is not far below either (same model)

@@ -78,13 +78,13 @@ def test_dp_agrees_with_the_jit_kernel(freight, both, monkeypatch):
 def test_wrong_argument_types_are_refused(both):
     nat, _ = both
     h = np.full(4, 100.0)
-    args = [h, h, np.ones(4), np.full(5, 100.0), 5000.0, h, h, h, h, 1.0, 0.1, 0.01, np.zeros(5)]
+    args = [h, h, np.ones(4), np.full(5, 100.0), 5000.0, h, h, h, h, h, h, 1.0, 0.1, 0.01, np.zeros(5)]
     with pytest.raises(TypeError, match="argument 0 must be a C-contiguous float64 array of rank 1, not float32"):
         nat.stall_boundary(h.astype(np.float32), *args[1:])
-    with pytest.raises(TypeError, match="argument 12"):
-        nat.stall_boundary(*args[:12], np.zeros(10)[::2])  # not contiguous: an output must not be a copy
-    with pytest.raises(TypeError, match="expected 13 arguments"):
-        nat.stall_boundary(*args[:12])
+    with pytest.raises(TypeError, match="argument 14"):
+        nat.stall_boundary(*args[:14], np.zeros(10)[::2])  # not contiguous: an output must not be a copy
+    with pytest.raises(TypeError, match="expected 15 arguments"):
+        nat.stall_boundary(*args[:14])
 
 
 def test_a_failed_build_falls_back_to_jit_and_is_not_retried(tmp_path, monkeypatch, freight):

@@ -16,7 +16,7 @@ def sx_functions(root):
     route = load_route(root / "routes/freight-20km.yaml")
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
     model = build_problem(route, train, ModelOptions(), 1500.0).problem.model
-    radau._point_functions(model, ("gravity_kn",))
+    radau._point_functions(model, ("gravity_kn", "powered"))
     return radau._POINTS[id(model)][2]  # the SX functions (the compiled ones may be ready already)
 
 

@@ -588,6 +588,13 @@ def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", 
     if train.length_m > PLAUSIBLE["train_length_m"]:
         problems.append(Problem(name, "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
                                 f"train ever run was 7.35 km (limit {PLAUSIBLE['train_length_m']:,.0f} m)", where))
+    if not max(train.traction_kn, default=0.0) > 0:
+        problems.append(Problem(name, "vehicles", "the train has no traction: no vehicle of kind 'locomotive' gives a "
+                                "traction_kn above 0 kN, so it could never start", where))
+    if not max(train.brake_kn, default=0.0) > 0:
+        problems.append(Problem(name, "vehicles", "the train has no brake: no locomotive gives a brake_kn above 0 kN, "
+                                "no wagon an air_brake, and the consist no brake_deceleration_ms2, so it could never "
+                                "stop", where))
     if problems:
         raise InputError(problems)
     return train

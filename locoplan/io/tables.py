@@ -193,6 +193,9 @@ def summary_table(summary: dict, width: int = 80) -> list:
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     if summary.get("gap_to_optimum_percent") is not None:
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E*, the least energy in this running time (seed 001)"))
+    elif summary.get("gap_to_optimum_kwh") is not None:  # E* too small for a percentage (a falling line)
+        rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
+                     "the least energy in this running time (seed 001; too little for a percentage)"))
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
 

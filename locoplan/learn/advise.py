@@ -68,7 +68,6 @@ class Follower:
 
     def _slope(self, cond: str, e: float, k: int) -> float:
         f_max, b_max, load = (float(x) for x in self.calc.forces_kn(np.float64(math.sqrt(2 * max(e, 0.0))), k))
-        f_max *= self.calc.traction_allowed[k]
         force = {"T": f_max, "C": 0.0, "B": -b_max, "K": min(max(load, -b_max), f_max)}[cond]
         return (force - load) / self.m
 

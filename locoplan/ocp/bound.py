@@ -137,14 +137,47 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     return b
 
 
-def gap_to_optimum_percent(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
-                           calc: TractionCalculator | None = None) -> float | None:
-    """``(E - E*) / E* x 100`` at the plan's own running time ``time_s``; None when there is no E*
-    there (an infeasible plan, a time the optimum cannot reach, a solver failure)."""
+PERCENT_FLOOR_SHARE = 0.02
+"""A gap is given in per cent only where E* is at least this share of the train's kinetic energy at the
+route's highest limit: below it the least-energy run is nearly all coasting (a falling line), E* is a few
+kWh or less, and a percentage of it would mostly measure the solver's tolerance (a plan 0.7 kWh under an
+E* of 0.7 kWh is "-100 %"). The gap in kWh is always given."""
+
+
+@dataclass(frozen=True)
+class Gap:
+    """A plan against the optimum at its own running time: E* [kWh], E - E* [kWh], and (E - E*) / E* [%]
+    (None where E* is too small for a percentage to mean anything, see ``PERCENT_FLOOR_SHARE``)."""
+
+    optimum_kwh: float
+    gap_kwh: float
+    gap_percent: float | None
+
+
+def percent_floor_kwh(route: Route, train: Train) -> float:
+    """``PERCENT_FLOOR_SHARE`` x the kinetic energy [kWh] of ``train`` at ``route``'s highest limit."""
+    v_top = min(max(x.kmh for x in route.speed_limits), float(train.max_speed_kmh)) / 3.6
+    return PERCENT_FLOOR_SHARE * 0.5 * float(train.inertial_mass_t) * v_top ** 2 / 3600.0
+
+
+def gap_to_optimum(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
+                   calc: TractionCalculator | None = None) -> Gap | None:
+    """The plan's energy ``energy_kwh`` against E* at its own running time ``time_s``; None when there is
+    no E* there (an infeasible plan, a time the optimum cannot reach, a solver failure)."""
     if not (math.isfinite(time_s) and math.isfinite(energy_kwh)):
         return None
     try:
         b = energy_bound(route, train, options, time_s, calc=calc)
     except LocoplanError:
         return None
-    return round(100.0 * (energy_kwh - b.energy_kwh) / b.energy_kwh, 2)
+    e_star = max(b.energy_kwh, 0.0)  # traction work is never negative: below 0 is the solver's tolerance
+    pct = (round(100.0 * (energy_kwh - e_star) / e_star, 2) if e_star >= percent_floor_kwh(route, train)
+           else None)
+    return Gap(round(e_star, 2), round(energy_kwh - e_star, 2), pct)
+
+
+def gap_to_optimum_percent(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
+                           calc: TractionCalculator | None = None) -> float | None:
+    """``(E - E*) / E* x 100`` at the plan's own running time ``time_s`` (see :func:`gap_to_optimum`)."""
+    g = gap_to_optimum(route, train, options, time_s, energy_kwh, calc)
+    return None if g is None else g.gap_percent

@@ -14,7 +14,9 @@ starting rate ``dt / d sqrt(s) = sqrt(2 / a0)`` handle it (``locoplan.ocp.phase`
 
 Path constraints: ``0 <= F <= Fmax(v)``, ``0 <= B <= Bmax(v)`` with the consist's speed-dependent
 curves (``physics.traction.max_force_kn``, a hinge sum on symbols), ``e <= e_limit`` of the phase,
-optionally ``|a| <= comfort_ms2``; ``F = B = 0`` in a neutral-section phase (seed 001 eq. 5);
+optionally ``|a| <= comfort_ms2``; in a neutral-section phase ``F = 0`` and the electric brake is cut
+with it (the main breaker is open), so ``B`` is the wagons' air brake alone, and ``F = B = 0`` without
+one (seed 001 eq. 5; the calculator's ``brake_kn_at`` is the same);
 rest to rest; ``t_f <= T``. Objective: ``physics.energy.energy_rate_kn`` integrated over ``s``
 (the traction work at the wheel by default).
 
@@ -167,10 +169,14 @@ class TrainModel:
     def path(self, x, u, s, p):
         v_kmh = KMH_PER_MS * _speed(x[0])
         out = [u[0] - max_force_kn(v_kmh, *self.traction_curve)]
+        # the electric brake needs the catenary: p["powered"] is 0 in a neutral-section phase
+        electric = max_force_kn(v_kmh, *self.electric_curve) * p["powered"]
         if self.split_brake:
-            out += [u[1] - max_force_kn(v_kmh, *self.electric_curve), u[2] - max_force_kn(v_kmh, *self.air_curve)]
+            out += [u[1] - electric, u[2] - max_force_kn(v_kmh, *self.air_curve)]
+        elif self.air_curve is not None:
+            out.append(u[1] - (electric + max_force_kn(v_kmh, *self.air_curve)))
         else:
-            out.append(u[1] - max_force_kn(v_kmh, *self.brake_curve))
+            out.append(u[1] - electric)
         if self.comfort_ms2 is not None:
             a = self.accel(x, u, p, v_kmh)
             out += [a - self.comfort_ms2, -a - self.comfort_ms2]
@@ -292,7 +298,13 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
         params, grads = _gravity_params(route, train, options, float(a), float(b))
         neutral = any(lo < mid[k] < hi for lo, hi in spans)
         e_lim = float((limits[k] / KMH_PER_MS) ** 2 / 2)
-        upper_u = (0.0,) * len(tm.controls) if neutral else (f_top, *brake_tops)
+        if not neutral:
+            upper_u = (f_top, *brake_tops)
+        elif tm.air_curve is None:  # coasting: no traction, no brake at all
+            upper_u = (0.0,) * len(tm.controls)
+        else:  # no traction, the air brake alone (the path constraint bounds B by its curve)
+            upper_u = (0.0, 0.0, brake_tops[1]) if tm.split_brake else (0.0, brake_tops[0])
+        params = _with_power(params, 0.0 if neutral else 1.0)
         phases.append(Phase(f"phase {k + 1}", float(a), float(b), model, params,
                             state_lower=(0.0, 0.0), state_upper=(e_lim, float(time_s)),
                             control_lower=(0.0,) * len(tm.controls), control_upper=upper_u,
@@ -301,6 +313,16 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
                                 final_upper=(0.0, float(time_s)), objective_scale=_energy_scale_kj(tm, route),
                                 rest_start=True, rest_end=REST_END)
     return TrainEnergyProblem(route, train, options, energy, float(time_s), tm, problem, spans)
+
+
+def _with_power(params, powered: float):
+    """A phase's parameters plus ``powered`` (1, or 0 in a neutral-section span: no electric brake)."""
+    def with_power(s):
+        out = dict(params(s))
+        out["powered"] = np.full(np.shape(s), powered)
+        return out
+
+    return with_power
 
 
 def _energy_scale_kj(tm: TrainModel, route: Route) -> float:

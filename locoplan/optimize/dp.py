@@ -94,12 +94,13 @@ class PricedDriveSolver:
         tr = calc.train
         self._args = (np.ascontiguousarray(h), np.ascontiguousarray(gravity), np.ascontiguousarray(allowed),
                       np.ascontiguousarray(cap), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
-                      calc.brake_speed_kmh, calc.brake_kn, *map(float, tr.resistance_kn), self.v_grid)
+                      calc.electric_brake_speed_kmh, calc.electric_brake_kn, calc.air_brake_speed_kmh,
+                      calc.air_brake_kn, *map(float, tr.resistance_kn), self.v_grid)
         if run_buckets is None:  # a bucket no longer than the shortest cell (a run advances a bucket per cell)
             run_buckets = int(min(MAX_RUN_BUCKETS, max(RUN_BUCKETS, math.ceil(self.min_run_m / max(h.min(), 1e-9) - 1e-9))))
         self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))
         self._low = np.zeros(len(h) + 1)  # each node's lowest feasible e = v^2/2 under full traction
-        kernels().stall_boundary(*self._args[:12], self._low)
+        kernels().stall_boundary(*self._args[:14], self._low)
 
     def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
         n = len(self.s_m) - 1
@@ -142,13 +143,19 @@ class PricedDriveSolver:
                 lo = mid
             else:
                 hi = mid
-        if best is not None and best.time_s < t0_s - 1e-6 and hi <= math.log(price_range[0]) + 1e-6:
-            lo_p, hi_p = -price_range[0] * 1e3, price_range[0]  # reward time: slower drives
-            for _ in range(n_bisect):
-                mid = 0.5 * (lo_p + hi_p)
-                d = consider(self.solve(mid))
+        # even the lowest price drives too fast? (the bisection never reaches its lower end exactly)
+        slowest = consider(self.solve(price_range[0])) if best is not None and best.time_s < t0_s - 1e-6 else None
+        if slowest is not None and slowest.time_s < t0_s - 1e-6:
+            # reward time (a negative price): slower drives, holding lower speeds by braking. The running
+            # time changes fastest just below zero, so bisect on log |price| (from -1e-8 to -0.1 kWh/s)
+            lo_l, hi_l = math.log(price_range[0] * 1e-4), math.log(price_range[0] * 1e3)
+            for _ in range(2 * n_bisect):
+                mid = 0.5 * (lo_l + hi_l)
+                d = consider(self.solve(-math.exp(mid)))
+                if d is not None and abs(d.time_s - t0_s) <= close_s:
+                    return best
                 if d is None or d.time_s > t0_s:
-                    lo_p = mid
+                    hi_l = mid
                 else:
-                    hi_p = mid
+                    lo_l = mid
         return best

@@ -69,13 +69,13 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
 
 
 @njit(cache=True)
-def _step(e, u, h, m, g_k, allowed, tv, tf, bv, bf, ra, rb, rc):
+def _step(e, u, h, m, g_k, allowed, tv, tf, ev, ef, av, af, ra, rb, rc):
     """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
     v_kmh = math.sqrt(2.0 * e) * 3.6
     load0 = v_kmh * (rb + rc * v_kmh) + ra + g_k
     if u == H_:
         f_max = _interp1(v_kmh, tv, tf) * allowed
-        b_max = _interp1(v_kmh, bv, bf)
+        b_max = _interp1(v_kmh, ev, ef) * allowed + _interp1(v_kmh, av, af)
         if load0 > f_max or -load0 > b_max:
             return -1.0, 0.0
         return e, max(load0, 0.0) * h
@@ -88,7 +88,7 @@ def _step(e, u, h, m, g_k, allowed, tv, tf, bv, bf, ra, rb, rc):
         if u == T_:
             f = _interp1(vm, tv, tf) * allowed
         elif u == B_:
-            b = _interp1(vm, bv, bf)
+            b = _interp1(vm, ev, ef) * allowed + _interp1(vm, av, af)
         load = vm * (rb + rc * vm) + ra + g_k
         e1 = e + h / m * (f - b - load)
     if u == T_:
@@ -118,17 +118,17 @@ def _bracket(v1, dv, nv, v_cap):
 
 
 @njit(cache=True)
-def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc):
+def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc):
     """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
     calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
     = not possible. The last cell ends at rest."""
-    e1, w = _step(e, u, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+    e1, w = _step(e, u, h[k], m, grav[k], allowed[k], tv, tf, ev, ef, av, af, ra, rb, rc)
     cap = 0.0 if k == n - 1 else e_cap[k + 1]
     if e1 > cap * (1.0 + 1e-9) + 1e-9:
         if u == B_:
             e_b = e1
         else:
-            e_b, _ = _step(e, B_, h[k], m, grav[k], allowed[k], tv, tf, bv, bf, ra, rb, rc)
+            e_b, _ = _step(e, B_, h[k], m, grav[k], allowed[k], tv, tf, ev, ef, av, af, ra, rb, rc)
         # full braking keeps the train at or under the cap (a tolerance for the envelope's finer steps)
         if e_b > cap + 0.02 * (e - cap if e > cap else 0.0) + 1e-3 * max(e, 1.0):
             return -1.0, 0.0
@@ -139,7 +139,7 @@ def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb,
 
 
 @njit(cache=True)
-def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low_next):
+def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc, e_low_next):
     """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
     node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
     does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
@@ -148,7 +148,7 @@ def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc,
         return np.inf
 
     def ok(e):
-        e1, _ = _capped_step(e, T_, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+        e1, _ = _capped_step(e, T_, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
         return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
 
     hi = max(e_cap[k], 0.0)
@@ -167,13 +167,13 @@ def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc,
 
 
 @njit(cache=True)
-def _stall_boundary(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, e_low):
+def _stall_boundary(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, e_low):
     """Every node's lowest feasible e (``_lowest_energy``), from the stop backwards; it depends on the
     route and the train only, not on the price, so it is computed once per solver."""
     n = h.shape[0]
     e_low[n] = 0.0
     for k in range(n - 1, -1, -1):
-        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc, e_low[k + 1])
+        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc, e_low[k + 1])
 
 
 @njit(cache=True)
@@ -185,7 +185,7 @@ def _run_bucket(r, min_run, n_buckets):
 
 
 @njit(cache=True)
-def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
               e_low):  # e_low: _stall_boundary's
     """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
     at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
@@ -224,7 +224,7 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
                 step_next[u] = -1.0
                 if u == H_ and e <= 0.0:
                     continue
-                e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+                e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
                 if e1 < 0.0:
                     continue
                 v1 = math.sqrt(2.0 * e1)
@@ -273,7 +273,7 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pr
 
 
 @njit(cache=True)
-def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
+def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
              e_low, controls, speeds):
     """The drive from rest: each cell's best control at the actual speed and run; returns (time [s], work [kJ])."""
     n = h.shape[0]
@@ -297,7 +297,7 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, bv, bf, ra, rb, rc, v_grid, pri
                 continue
             if k > 0 and u != prev and run < min_run - 1e-9:
                 continue
-            e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, bv, bf, ra, rb, rc)
+            e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
             if e1 < 0.0:
                 continue
             v1 = math.sqrt(2.0 * e1)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 from ..errors import InputError, Problem
+from ..ocp.bound import percent_floor_kwh
 from .many import run_many
 from .optimum import optimum_energy_kwh, optimum_providers
 from .spec import RunSpec
@@ -82,7 +83,11 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
         # E* falls with time): the gap compares like with like, as runner.summarize's does
         t_star = t0 if best is None else best["running_time_s"]
         e_star = optimum_energy_kwh(route, train, base.options, t_star) if optimum and optimum_providers() else None
-        gap = None if best is None or e_star is None else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3)
+        if e_star is not None:
+            e_star = max(e_star, 0.0)  # traction work is never negative: below 0 is the solver's tolerance
+        # (E* too small for a percentage of it to mean anything: no per cent, as runner.summarize)
+        gap = (None if best is None or e_star is None or e_star < percent_floor_kwh(route, train)
+               else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3))
         rows.append({"planned_time_s": t0, "factor": round(f, 4),
                      "best_energy_kwh": None if best is None else best["traction_energy_kwh"],
                      "best_strategy": None if best is None else best["strategy"],

@@ -169,7 +169,12 @@ class TractionCalculator:
         bounds.step(self.options.step_m, route.length_m)
         if train.length_m >= route.length_m:
             raise InputError(shorter_than_train(route, train, f"route '{route.name}'"))
-        self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)
+        # braking: the locomotives' electric brake needs the catenary (none in a neutral section's span,
+        # where the main breaker is open, as for traction); the wagons' air brake works everywhere
+        self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)  # all of it, powered
+        self.electric_brake_speed_kmh, self.electric_brake_kn = train.brake_curve(air=False)
+        self.air_brake_speed_kmh, self.air_brake_kn = ((train.air_brake_speed_kmh, train.air_brake_kn)
+                                                       if self.options.air_brake else (np.array([0.0, 1.0]), np.zeros(2)))
         s = _grid(route, train, self.options)
         self._build(s)
         kinks = self._braking_curve_entries()
@@ -207,11 +212,18 @@ class TractionCalculator:
         """Static speed limit [km/h] at head positions; in strip mode the lowest under the train."""
         return limit_kmh_at(self.route, s_m, self.train.length_m if self.options.strip else None)
 
+    def brake_kn_at(self, v_kmh, k):
+        """Max braking force [kN] at ``v_kmh`` in cell ``k``: the electric brake where traction is allowed
+        (it needs the catenary) plus the air brake (everywhere, with the air-brake model)."""
+        return (max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed[k]
+                + max_force_kn(v_kmh, self.air_brake_speed_kmh, self.air_brake_kn))
+
     def forces_kn(self, v_ms: np.ndarray, k: int | np.ndarray):
-        """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k``."""
+        """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k`` (traction
+        and the electric brake cut in a neutral section's span)."""
         v_kmh = v_ms * 3.6
-        return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn),
-                max_force_kn(v_kmh, self.brake_speed_kmh, self.brake_kn),
+        return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k],
+                self.brake_kn_at(v_kmh, k),
                 train_resistance_kn(v_kmh, self.train.resistance_kn) + self.gravity_kn[k])
 
     def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
@@ -330,8 +342,9 @@ class TractionCalculator:
         trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
         tr = self.train
         kernels().run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
-                  self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn, self.brake_speed_kmh,
-                  self.brake_kn, *map(float, tr.resistance_kn), bool(self.options.strict_limits),
+                  self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
+                  self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh, self.air_brake_kn,
+                  *map(float, tr.resistance_kn), bool(self.options.strict_limits),
                   codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n),
                   cruise_e is not None, want_profile, t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event)
         never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
@@ -356,7 +369,6 @@ class TractionCalculator:
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
-        f0 *= self.traction_allowed[0]
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
             t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap,
@@ -387,7 +399,8 @@ class TractionCalculator:
         strict = self.options.strict_limits
         e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
         tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
-        bv, bf = self.brake_speed_kmh, self.brake_kn
+        ev, ef = self.electric_brake_speed_kmh, self.electric_brake_kn
+        av, af = self.air_brake_speed_kmh, self.air_brake_kn
         ra, rb, rc = self.train.resistance_kn
         grav = self.gravity_kn
         allowed = self.traction_allowed
@@ -405,7 +418,7 @@ class TractionCalculator:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = _interp(v_kmh, bv, bf)
+            b_max = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
             fk = fK[k]
@@ -521,4 +534,4 @@ class TractionCalculator:
                            reason_code=reason, failure_m=fail_at, profile=profile,
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
-                           failure_brake_kn=np.where(failed, max_force_kn(lim, self.brake_speed_kmh, self.brake_kn), np.nan))
+                           failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan))

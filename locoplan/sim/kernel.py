@@ -66,7 +66,7 @@ def _shares(s0, s1, codes, starts, ends, j0, out):
 
 
 @njit(cache=True)
-def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, bv, bf, ra, rb, rc, strict,
+def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, ev, ef, av, af, ra, rb, rc, strict,
               codes, starts, ends, cruise_e, has_cruise, want_profile,
               t_out, work_out, over_at, stop_at, hold_at, fb_at,
               t_nodes, v_nodes, cond, trac, brk, event):
@@ -75,7 +75,8 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
     codes (n_runs,) condition codes of the shared sequence; starts / ends (n, n_runs) where each run
     begins and ends [m] (inf = never); cruise_e (n,) e = v^2/2 of the plan's cruise speed (with
     ``has_cruise``): the seeds' cruise, T and K capped at that speed and held there by braking if need
-    be. Profile arrays are written only when ``want_profile``.
+    be. (ev, ef) the electric brake, cut with traction where ``allowed`` is 0 (a neutral section's span),
+    (av, af) the air brake. Profile arrays are written only when ``want_profile``.
     """
     n = starts.shape[0]
     n_cells = h.shape[0]
@@ -102,7 +103,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
             if k == 0:
                 # de/ds at the start, from rest, to extrapolate the first cell's mid-speed
                 f0 = _interp(0.0, tv, tf) * allowed[0]
-                b0 = _interp(0.0, bv, bf)
+                b0 = _interp(0.0, ev, ef) * allowed[0] + _interp(0.0, av, af)
                 l0 = ra + grav[0]
                 hold0 = min(max(l0, -b0), f0)
                 slope = max((fT * f0 - fB * b0 + fK * hold0 - l0) / m, 0.0)
@@ -116,7 +117,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 c1 = ce
             v_kmh = math.sqrt(max(e_mid, 0.0) * 25.92)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = _interp(v_kmh, bv, bf)
+            b_max = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = min(max(load, -b_max), f_max)
             full = fT * f_max
