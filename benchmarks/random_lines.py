@@ -143,22 +143,29 @@ def main() -> None:
                 continue
             s = run.summary
             on_time = schedule_verdict(ctx, run) is None
-            gap = None
+            g = None
             if not args.no_gap and s["feasible"]:
-                from locoplan.ocp.bound import gap_to_optimum_percent
-                gap = gap_to_optimum_percent(route, train, ctx.calc.options, s["running_time_s"],
-                                             s["traction_energy_kwh"], calc=ctx.calc)
+                from locoplan.ocp.bound import gap_to_optimum
+                g = gap_to_optimum(route, train, ctx.calc.options, s["running_time_s"], s["traction_energy_kwh"],
+                                   calc=ctx.calc)
             row.update(status="on time" if on_time else "late", t0_s=t0, time_s=s["running_time_s"],
-                       energy_kwh=s["traction_energy_kwh"], gap_percent=gap, solve_s=round(solve, 2))
+                       energy_kwh=s["traction_energy_kwh"], optimum_kwh=None if g is None else g.optimum_kwh,
+                       gap_kwh=None if g is None else g.gap_kwh, gap_percent=None if g is None else g.gap_percent,
+                       solve_s=round(solve, 2))
             rows.append(row)
+            gap_text = "-" if g is None else (f"{g.gap_percent:+.2f}" if g.gap_percent is not None else
+                                              f"{g.gap_kwh:+.2f} kWh over E* {g.optimum_kwh:.2f}")
             print(f"{head} {t0:>8.1f} {s['running_time_s']:>9.1f} {'yes' if on_time else 'NO':>7} "
-                  f"{s['traction_energy_kwh']:>8.2f} {gap if gap is not None else '-':>6} {solve:>7.2f}", flush=True)
+                  f"{s['traction_energy_kwh']:>8.2f} {gap_text:>6} {solve:>7.2f}", flush=True)
     count = {k: sum(r["status"] == k for r in rows) for k in ("on time", "late", "impossible", "failed")}
     gaps = [r["gap_percent"] for r in rows if r.get("gap_percent") is not None]
+    small = [r for r in rows if r.get("gap_percent") is None and r.get("gap_kwh") is not None]
     print(f"\n{len(rows)} cases: " + ", ".join(f"{v} {k}" for k, v in count.items()))
     if gaps:
-        print(f"gap to E*: max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)} cases "
-              f"(E* unavailable on {count['on time'] + count['late'] - len(gaps)})")
+        print(f"gap to E*: max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)} cases")
+    if small:
+        print(f"E* too small for a percentage on {len(small)} (falling lines): gaps "
+              + ", ".join(f"{r['gap_kwh']:+.2f} kWh (E* {r['optimum_kwh']:.2f})" for r in small))
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
 

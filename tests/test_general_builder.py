@@ -164,3 +164,20 @@ def test_a_climb_that_stalls_only_on_the_coarse_search_grid(root):
     assert ctx.search.evaluate(("T",), np.zeros((1, 0))).feasible[0]
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
+
+
+def test_a_falling_line_with_rises_spends_its_spare_time_braking_not_pulling(root):
+    """A 40 km line HXD1 + 30 x C80 coasts from rest in 2,155.8 s (no traction at all), asked for 3 % more:
+    the extra minute must come from holding lower speeds by braking. Holds that ran on to the stop held
+    their speed with traction up every later rise (about 220 kWh for a lighter train); holds that end and
+    coast again cost 5.4 kWh here, under 1 % of the fastest run's 553 kWh."""
+    route = load_route(root / "tests/data/routes/falling-40km.yaml")
+    train = load_train(root / "configs/consists/HXD1-C80x30.yaml")
+    calc = TractionCalculator(route, train)
+    coast = calc.evaluate(("C", "B"), np.array([[np.nan]]))
+    assert coast.feasible[0] and coast.traction_energy_kwh[0] == 0.0  # it coasts the line from rest
+    t0 = round(float(coast.running_time_s[0]) * 1.03, 1)
+    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+    run = run_strategy(ctx, "proposed")
+    assert schedule_verdict(ctx, run) is None, run.summary
+    assert run.summary["traction_energy_kwh"] < 0.01 * calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
