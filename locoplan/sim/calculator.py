@@ -52,6 +52,11 @@ except ImportError:  # pragma: no cover - other numpy layouts
     _interp = np.interp
 
 _E_FLOOR = 1e-6  # keeps a stalled plan's arithmetic finite after it has been marked infeasible
+CRAWL_KMH = 15.0
+"""Below this speed a cell in which the train slows (no braking) is integrated again in sub-steps of at
+most ``CRAWL_STEP_M``: one step over a 50 m cell misjudged whether a weak train crawling over a crest
+stalls (a plan passed on 50 m cells and stalled on 25 m ones); the sub-steps settle it."""
+CRAWL_STEP_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -407,6 +412,7 @@ class TractionCalculator:
         hold_check = self.holds_limit
         # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
         e_hold_max = e_env * (1 + 1e-9) + 1e-9
+        e_crawl = (CRAWL_KMH / 3.6) ** 2 / 2
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
@@ -428,6 +434,15 @@ class TractionCalculator:
             if strict:  # by default the train is held at the limit by braking instead
                 over[k] = (e_pred > e_over[k]) & may_exceed[k]
             capped = e_pred > c1
+            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
+            # (in the last cell too: coasting up to the stop must reach it)
+            crawl = np.zeros(n, dtype=bool)
+            if k > 0:
+                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < e_crawl)
+            if crawl.any():
+                e_c, t_c, w_c = self._crawl(k, e[crawl], fT[k][crawl], fK[k][crawl], k == last)
+                e_pred = e_pred.copy()
+                e_pred[crawl] = e_c
             if capped.any():
                 # The plan's force acts up to where its straight line in e(s) meets the cap line (a
                 # limit, a cruise speed or a braking curve) at fraction phi of the cell; then the train
@@ -453,7 +468,8 @@ class TractionCalculator:
                 stop[k] = e_new <= _E_FLOOR
                 e_new = np.maximum(e_new, _E_FLOOR)
                 v_new = np.sqrt(e_new * 2.0)
-            else:
+            else:  # at rest before the end of the last cell (coasting up to the stop): short of it
+                stop[k] = crawl & (e_new == _E_FLOOR)
                 v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
             if capped.any():
                 # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
@@ -467,6 +483,11 @@ class TractionCalculator:
                 cap_work = 0.0
                 t += (2.0 * hk) / (v + v_new + 1e-12)
                 w_tr = tr * hk
+            if crawl.any():  # the crawling plans' own time and work, from their sub-steps
+                step_t = (2.0 * hk) / (v + v_new + 1e-12)
+                t[crawl] += t_c - step_t[crawl]
+                w_tr = np.broadcast_to(w_tr, (n,)).copy()
+                w_tr[crawl] = w_c
             work += w_tr
             if want_profile:
                 t_nodes[:, k + 1] = t
@@ -485,6 +506,44 @@ class TractionCalculator:
             e, v = e_new, v_new
         return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None)
 
+    def _crawl(self, k: int, e: np.ndarray, fT: np.ndarray, fK: np.ndarray, last: bool):
+        """Cell ``k`` again for crawling plans, in sub-steps of at most ``CRAWL_STEP_M`` (midpoint rule in
+        e): (e at the cell's end, time, traction work); e = _E_FLOOR where a plan comes to rest inside it,
+        except in the route's ``last`` cell within its last sub-step: that is arriving (e = 0)."""
+        n_sub = int(math.ceil(self.h_m[k] / CRAWL_STEP_M - 1e-9))
+        hs = self.h_m[k] / n_sub
+        m = self.m_eff_t
+
+        def accel(e_):
+            v_kmh = np.sqrt(e_ * 2.0) * 3.6
+            f_max = _interp(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k]
+            b_max = self.brake_kn_at(v_kmh, k)
+            ra, rb, rc = self.train.resistance_kn
+            load = v_kmh * (rb + rc * v_kmh) + (ra + self.gravity_kn[k])
+            hold = np.minimum(np.maximum(load, -b_max), f_max)
+            return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * np.maximum(hold, 0.0)
+
+        t = np.zeros_like(e)
+        w = np.zeros_like(e)
+        alive = np.ones(len(e), dtype=bool)
+        for j in range(n_sub):
+            v0 = np.sqrt(2.0 * e)
+            e_half = e + 0.5 * hs * accel(e)[0]
+            a, tr = accel(np.maximum(e_half, 0.0))
+            e1 = e + hs * a
+            w = np.where(alive, w + tr * hs, w)
+            stalled = alive & (e1 <= _E_FLOOR)
+            if last and j == n_sub - 1:  # at rest within the last sub-step of the route: arrived
+                t = np.where(stalled, t + 2.0 * hs / (v0 + 1e-12), t)
+                e = np.where(stalled, 0.0, e)
+                alive &= ~stalled
+                stalled[:] = False
+            e1 = np.where(stalled, _E_FLOOR, e1)
+            t = np.where(alive & ~stalled, t + 2.0 * hs / (v0 + np.sqrt(2.0 * e1) + 1e-12), t)
+            e = np.where(alive, e1, e)
+            alive &= ~stalled
+        return e, t, w
+
     def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m) -> BatchResult:
         """Each plan's first failure decides its verdict; assemble the typed result.
 
@@ -501,12 +560,14 @@ class TractionCalculator:
         cell = np.minimum(first, last)
         # brought to rest by a braking curve that reaches zero mid-route: no speed is safe there, i.e.
         # full braking cannot slow the train enough for a limit further on
-        unholdable = (first_stop == first) & (e_env[cell + 1] <= _E_FLOOR)
+        unholdable = (first_stop == first) & (e_env[cell + 1] <= _E_FLOOR) & (cell < last)
         cannot_hold = (first_hold == first) | unholdable
+        # at rest inside the last cell, short of the stop (coasting up to it: the crawl's sub-steps)
+        short = (first_stop == first) & (cell == last) & ~cannot_hold
         reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
                           np.where(first_over == first, LIMIT_EXCEEDED,
-                                   np.where(braking_at_stop, STOPPED_SHORT, STALLED)))).astype(np.int8)
-        at_node = np.where(cannot_hold & ~unholdable, cell, cell + 1)
+                                   np.where(braking_at_stop | short, STOPPED_SHORT, STALLED)))).astype(np.int8)
+        at_node = np.where((cannot_hold & ~unholdable) | short, cell, cell + 1)
         fail_at = np.where(failed, self.s_m[at_node], np.nan)
         profile = None
         if want_profile:

@@ -17,6 +17,46 @@ from numba import njit
 
 T, K, C, B = 0, 1, 2, 3
 E_FLOOR = 1e-6  # as calculator._E_FLOOR: keeps a stalled plan's arithmetic finite
+E_CRAWL = (15.0 / 3.6) ** 2 / 2  # as calculator.CRAWL_KMH: below it a slowing cell is sub-stepped
+CRAWL_STEP_M = 5.0  # as calculator.CRAWL_STEP_M
+
+
+@njit(cache=True)
+def _crawl(e, hk, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc, last):
+    """A slowing cell at crawling speed, integrated again in sub-steps of at most ``CRAWL_STEP_M``
+    (midpoint rule in e = v^2/2): whether a weak train makes it over a crest, or coasting up to the stop
+    reaches it, is decided here; one step over the whole cell misjudges it. Returns (e at the cell's
+    end, time, traction work); e <= E_FLOOR = came to rest inside the cell, except in the route's ``last``
+    cell within its last sub-step: that is arriving (e = 0)."""
+    n_sub = int(math.ceil(hk / CRAWL_STEP_M - 1e-9))
+    hs = hk / n_sub
+    t = 0.0
+    w = 0.0
+    for j in range(n_sub):
+        v0 = math.sqrt(2.0 * e)
+        e_half = e + 0.5 * hs * _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc)[0]
+        a, tr = _crawl_accel(max(e_half, 0.0), m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc)
+        e1 = e + hs * a
+        w += tr * hs
+        if e1 <= E_FLOOR:
+            if last and j == n_sub - 1:
+                return 0.0, t + 2.0 * hs / (v0 + 1e-12), w
+            return E_FLOOR, t, w
+        v1 = math.sqrt(2.0 * e1)
+        t += 2.0 * hs / (v0 + v1 + 1e-12)
+        e = e1
+    return e, t, w
+
+
+@njit(cache=True)
+def _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc):
+    """de/ds and the traction force [kN] at e under a cell's traction / cruise shares (no braking)."""
+    v_kmh = math.sqrt(e * 2.0) * 3.6
+    f_max = _interp(v_kmh, tv, tf) * allowed_k
+    b_max = _interp(v_kmh, ev, ef) * allowed_k + _interp(v_kmh, av, af)
+    load = v_kmh * (rb + rc * v_kmh) + (ra + g_k)
+    hold = min(max(load, -b_max), f_max)
+    return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * max(hold, 0.0)
 
 
 @njit(cache=True)
@@ -127,6 +167,14 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0:
                     over_at[i] = k
             capped = e_pred > c1
+            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
+            # (in the last cell too: coasting up to the stop must reach it)
+            crawl = (not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+            t_crawl = 0.0
+            w_crawl = 0.0
+            if crawl:
+                e_pred, t_crawl, w_crawl = _crawl(e, hk, m, fT, fK, grav[k], allowed[k], tv, tf, ev, ef, av, af,
+                                                  ra, rb, rc, k == last)
             phi = 1.0
             e_phi = e_pred
             if capped:
@@ -142,7 +190,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                             hold_at[i] = k
             else:
                 e_new = e_pred
-            if k < last:
+            if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
                 if e_new <= E_FLOOR:
                     if stop_at[i] < 0:
                         stop_at[i] = k
@@ -157,6 +205,10 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + om / (v_phi + v_new + 1e-12))
                 cap_work = m * (e_new - e_phi) + (hk * om) * load
                 w_tr = (tr * hk) * phi + max(cap_work, 0.0)
+            elif crawl:
+                cap_work = 0.0
+                t += t_crawl
+                w_tr = w_crawl
             else:
                 cap_work = 0.0
                 t += (2.0 * hk) / (v + v_new + 1e-12)
