@@ -9,7 +9,7 @@ class Strict(BaseModel):
     """Frozen, unknown keys forbidden (a typo is never silently ignored), strict types (a quoted "55" is not a number),
     numbers finite (YAML's .inf and .nan are never a length, a speed or a force)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False, defer_build=True)
 
 
 class RuleViolations(ValueError):
