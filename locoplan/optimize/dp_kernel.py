@@ -11,24 +11,18 @@ import math
 import numpy as np
 from numba import njit
 
+from ..sim.kernel import locate
+
 T_, H_, C_, B_ = 0, 1, 2, 3
 
 
 @njit(cache=True)
 def _interp1(x, xs, ys):
-    n = xs.shape[0]
-    if x <= xs[0]:
-        return ys[0]
-    if x >= xs[n - 1]:
-        return ys[n - 1]
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) >> 1
-        if xs[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    return _blend(ys[lo], ys[hi], (x - xs[lo]) / (xs[hi] - xs[lo]))
+    """np.interp for one value, safe with infinite values (``_blend``)."""
+    lo, hi, w = locate(x, xs)
+    if lo == hi:
+        return ys[lo]
+    return _blend(ys[lo], ys[hi], w)
 
 
 @njit(cache=True)

@@ -60,13 +60,14 @@ def _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, r
 
 
 @njit(cache=True)
-def _interp(x, xs, ys):
-    """np.interp for one value (flat beyond the ends), by bisection."""
+def locate(x, xs):
+    """Where x lies in the rising knots xs, by bisection: (lo, hi, w) with x = xs[lo] + w (xs[hi] - xs[lo]);
+    beyond the ends the end knot itself (lo = hi, w = 0: flat, as np.interp)."""
     n = xs.shape[0]
     if x <= xs[0]:
-        return ys[0]
+        return 0, 0, 0.0
     if x >= xs[n - 1]:
-        return ys[n - 1]
+        return n - 1, n - 1, 0.0
     lo, hi = 0, n - 1
     while hi - lo > 1:
         mid = (lo + hi) >> 1
@@ -74,7 +75,15 @@ def _interp(x, xs, ys):
             lo = mid
         else:
             hi = mid
-    w = (x - xs[lo]) / (xs[hi] - xs[lo])
+    return lo, hi, (x - xs[lo]) / (xs[hi] - xs[lo])
+
+
+@njit(cache=True)
+def _interp(x, xs, ys):
+    """np.interp for one value (flat beyond the ends)."""
+    lo, hi, w = locate(x, xs)
+    if lo == hi:
+        return ys[lo]
     return ys[lo] + w * (ys[hi] - ys[lo])
 
 
