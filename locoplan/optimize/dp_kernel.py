@@ -133,6 +133,21 @@ def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af,
 
 
 @njit(cache=True)
+def _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc):
+    """Control u over cell k from e (speed v): (e at its end, work [kJ], speed at its end); e < 0 = not
+    possible (no hold from rest, a cap it cannot stay under, or no motion at all)."""
+    if u == H_ and e <= 0.0:
+        return -1.0, 0.0, 0.0
+    e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+    if e1 < 0.0:
+        return -1.0, 0.0, 0.0
+    v1 = math.sqrt(2.0 * e1)
+    if v + v1 <= 0.0:
+        return -1.0, 0.0, 0.0
+    return e1, w, v1
+
+
+@njit(cache=True)
 def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc, e_low_next):
     """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
     node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
@@ -216,13 +231,8 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_
             for u in range(4):
                 step_cost[u] = np.inf
                 step_next[u] = -1.0
-                if u == H_ and e <= 0.0:
-                    continue
-                e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+                e1, w, v1 = _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
                 if e1 < 0.0:
-                    continue
-                v1 = math.sqrt(2.0 * e1)
-                if v + v1 <= 0.0:
                     continue
                 step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
                 step_next[u] = v1
@@ -287,15 +297,10 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_g
         best_w = 0.0
         best_run = 0.0
         for u in range(4):
-            if u == H_ and e <= 0.0:
-                continue
             if k > 0 and u != prev and run < min_run - 1e-9:
                 continue
-            e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+            e1, w, v1 = _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
             if e1 < 0.0:
-                continue
-            v1 = math.sqrt(2.0 * e1)
-            if v + v1 <= 0.0:
                 continue
             r1 = (run + h[k]) if (k > 0 and u == prev) else h[k]
             if first and (k == 0 or u == prev):
