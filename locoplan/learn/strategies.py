@@ -17,14 +17,14 @@ from ..model.plan import Plan, runs_from_profile
 from ..sim.result import CODE, OK, BatchResult, Profile
 from ..sim.calculator import TractionCalculator
 from ..strategy.strategies import StrategyContext, StrategyOutcome, register
-from .logs import LoggedRun, load_logs
-from .patterns import good_drivers, load_patterns, tolerance_s
+# the log reader and the pattern fitting are imported when a compare asks for these strategies, not at
+# every command's start (this module is imported to register their names)
 
 MASS_SHARE = 0.01
 """A log counts for the compared train when its mass is within this share of the train's."""
 
 
-def matching_runs(runs: list[LoggedRun], calc: TractionCalculator, t0_s: float) -> list[LoggedRun]:
+def matching_runs(runs: list, calc: TractionCalculator, t0_s: float) -> list:
     """The logged runs of the same job: same route (file contents), train mass within 1 %, planned
     time within 1 s."""
     mass = calc.train.mass_t
@@ -32,7 +32,7 @@ def matching_runs(runs: list[LoggedRun], calc: TractionCalculator, t0_s: float) 
             and abs(r.scheduled_time_s - t0_s) <= 1.0]
 
 
-def log_profile(run: LoggedRun, calc: TractionCalculator) -> Profile:
+def log_profile(run, calc: TractionCalculator) -> Profile:
     """A logged run on the calculator's grid (one row): time and speed at the nodes, and per cell the
     driver's action and mean traction / braking force, so that it plots and tabulates like a plan."""
     d = run.data
@@ -55,6 +55,9 @@ def log_profile(run: LoggedRun, calc: TractionCalculator) -> Profile:
 def drivers(ctx: StrategyContext) -> StrategyOutcome:
     """The drivers' logs for this route, train and planned time: time and energy are the drivers'
     means; the sequence and profile are the best driver's run (the punctual run with the least energy)."""
+    from .logs import load_logs
+    from .patterns import good_drivers, tolerance_s
+
     t_start = time.perf_counter()
     logs = ctx.inputs.get("logs")
     if not logs:
@@ -91,6 +94,7 @@ def drivers(ctx: StrategyContext) -> StrategyOutcome:
 def advice(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 004's advice from the learned patterns (``--patterns``), checked by the calculator."""
     from .advise import advise, check_model
+    from .patterns import load_patterns
 
     path = ctx.inputs.get("patterns")
     if not path:
