@@ -48,6 +48,8 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
         "i8[:]", _A2, _A2, _A1, _B, _B,  # codes starts ends cruise_e has_cruise want_profile
         _A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]",  # t_out work_out over_at stop_at hold_at fb_at
         _A2, _A2, "i1[:, :]", _A2, _A2, _A2)),  # t_nodes v_nodes cond trac brk event
+    "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (
+        _A1, _A1, _A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _F, _F, _F, _I, _A1, _A1)),
     "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (*_DP_HEAD, _A1)),
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
@@ -117,7 +119,8 @@ class _Namespace:
 
 
 def kernels() -> _Namespace:
-    """The compiled entry points (``run_plans``, ``stall_boundary``, ``backward``, ``forward``)."""
+    """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
+    ``forward``)."""
     global _kernels
     if _kernels is None:
         why = "LOCOPLAN_NATIVE=0"

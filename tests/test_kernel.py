@@ -31,6 +31,9 @@ def test_backends_agree(freight, name, options, hilly):
         route = _hilly(freight)
     ref = TractionCalculator(route, train, options, backend="numpy")
     new = TractionCalculator(route, train, options)
+    # the braking envelope too is computed by each backend (Python loop / kernel.braking_envelope)
+    np.testing.assert_array_equal(ref.s_m, new.s_m)
+    np.testing.assert_allclose(ref.e_envelope, new.e_envelope, rtol=1e-12, atol=1e-12)
     rng = np.random.default_rng(11)
     n = 120
     for seq, n_sw, cruise in ((tuple("TKTCTCKCB"), 7, None), (("T", "C", "B"), 1, rng.uniform(40, 80, n)),

@@ -238,10 +238,21 @@ class TractionCalculator:
         Also returns the positions where a braking curve rises through its cell's limit inside a cell
         (the braking-curve entry points), so that they can be made grid nodes.
         """
-        e_env = self.e_limit_node.copy()
-        entries = []
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
+        if self.backend == "numba":  # the same loop compiled (kernel.braking_envelope)
+            from ..native import kernels
+
+            e_env = np.empty_like(self.e_limit_node)
+            found = np.empty(len(self.h_m))
+            tr = self.train
+            count = kernels().braking_envelope(
+                self.s_m, self.h_m, self.e_limit_node, self.e_limit_cell, self.gravity_kn, self.traction_allowed,
+                float(m), self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
+                self.air_brake_kn, *map(float, tr.resistance_kn), n_sub, e_env, found)
+            return e_env, found[:count].copy()
+        e_env = self.e_limit_node.copy()
+        entries = []
         for k in range(len(self.h_m) - 1, -1, -1):
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]

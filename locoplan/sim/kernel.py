@@ -249,3 +249,42 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
             v = v_new
         t_out[i] = t
         work_out[i] = work
+
+
+@njit(cache=True)
+def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, m, ev, ef, av, af, ra, rb, rc, n_sub,
+                     e_env, entries):
+    """The calculator's braking envelope (``TractionCalculator._braking_envelope``, the same arithmetic):
+    from the stop and every limit drop backwards, full braking (the electric brake where traction is
+    allowed, the air brake everywhere) in ``n_sub`` RK2 sub-steps per cell. Writes ``e_env`` (starting
+    from ``e_limit_node``) and the entry points where a braking curve rises through its cell's limit
+    into ``entries``; returns their count."""
+    n_entries = 0
+    for j in range(e_env.shape[0]):
+        e_env[j] = e_limit_node[j]
+    for k in range(h.shape[0] - 1, -1, -1):
+        e = e_env[k + 1]
+        cap = e_limit_cell[k]
+        if e >= cap:  # no braking curve runs through this cell: the limit itself bounds it
+            continue
+        d = h[k] / n_sub
+        for i in range(n_sub):
+            e_mid = e + 0.5 * d * _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
+            e_next = e + d * _decel(e_mid, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
+            if e < cap <= e_next:  # the curve rises through the limit: its entry point
+                entries[n_entries] = s[k + 1] - d * (i + (cap - e) / (e_next - e))
+                n_entries += 1
+                e = e_next
+                break
+            e = e_next
+        e_env[k] = min(e_env[k], max(e, 0.0))
+    return n_entries
+
+
+@njit(cache=True)
+def _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc):
+    """-de/ds under full braking at e in cell k [m/s^2]."""
+    v_kmh = math.sqrt(2.0 * max(e, 0.0)) * 3.6
+    brake = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
+    return (brake + ((ra + v_kmh * (rb + rc * v_kmh)) + grav[k])) / m
+
