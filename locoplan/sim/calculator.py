@@ -424,6 +424,7 @@ class TractionCalculator:
         # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
         e_hold_max = e_env * (1 + 1e-9) + 1e-9
         e_crawl = (CRAWL_KMH / 3.6) ** 2 / 2
+        at_rest = np.zeros(n, dtype=bool)  # plans that have come to rest (stalled): verdict made
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
@@ -447,9 +448,10 @@ class TractionCalculator:
             capped = e_pred > c1
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
+            # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
-                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < e_crawl)
+                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < e_crawl) & ~at_rest
             if crawl.any():
                 e_c, t_c, w_c = self._crawl(k, e[crawl], fT[k][crawl], fK[k][crawl], k == last)
                 e_pred = e_pred.copy()
@@ -477,6 +479,7 @@ class TractionCalculator:
                 e_new = e_pred
             if k < last:
                 stop[k] = e_new <= _E_FLOOR
+                at_rest |= stop[k]
                 e_new = np.maximum(e_new, _E_FLOOR)
                 v_new = np.sqrt(e_new * 2.0)
             else:  # at rest before the end of the last cell (coasting up to the stop): short of it

@@ -178,7 +178,9 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
             capped = e_pred > c1
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
-            crawl = (not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+            # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
+            crawl = ((not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+                     and stop_at[i] < 0)
             t_crawl = 0.0
             w_crawl = 0.0
             if crawl:
