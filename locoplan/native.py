@@ -55,7 +55,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
 }
-_SOURCES = ("sim/kernel.py", "optimize/dp_kernel.py", "native.py")
+_SOURCES = ("sim/constants.py", "sim/kernel.py", "optimize/dp_kernel.py", "native.py")
 BUILD_TIMEOUT_S = 900.0
 
 _kernels = None

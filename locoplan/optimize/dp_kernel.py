@@ -11,7 +11,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..sim.kernel import locate
+from ..sim.kernel import brake_kn, locate
 
 T_, H_, C_, B_ = 0, 1, 2, 3
 
@@ -69,7 +69,7 @@ def _step(e, u, h, m, g_k, allowed, tv, tf, ev, ef, av, af, ra, rb, rc):
     load0 = v_kmh * (rb + rc * v_kmh) + ra + g_k
     if u == H_:
         f_max = _interp1(v_kmh, tv, tf) * allowed
-        b_max = _interp1(v_kmh, ev, ef) * allowed + _interp1(v_kmh, av, af)
+        b_max = brake_kn(v_kmh, allowed, ev, ef, av, af)
         if load0 > f_max or -load0 > b_max:
             return -1.0, 0.0
         return e, max(load0, 0.0) * h
@@ -82,7 +82,7 @@ def _step(e, u, h, m, g_k, allowed, tv, tf, ev, ef, av, af, ra, rb, rc):
         if u == T_:
             f = _interp1(vm, tv, tf) * allowed
         elif u == B_:
-            b = _interp1(vm, ev, ef) * allowed + _interp1(vm, av, af)
+            b = brake_kn(vm, allowed, ev, ef, av, af)
         load = vm * (rb + rc * vm) + ra + g_k
         e1 = e + h / m * (f - b - load)
     if u == T_:

@@ -37,6 +37,7 @@ from ..model.train import Train
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
+from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
 from .result import CANNOT_HOLD, CODE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
 DEFAULT_STEP_M = 50.0
@@ -51,12 +52,6 @@ try:  # numpy's compiled interp without its Python-level argument checks (a thir
 except ImportError:  # pragma: no cover - other numpy layouts
     _interp = np.interp
 
-_E_FLOOR = 1e-6  # keeps a stalled plan's arithmetic finite after it has been marked infeasible
-CRAWL_KMH = 15.0
-"""Below this speed a cell in which the train slows (no braking) is integrated again in sub-steps of at
-most ``CRAWL_STEP_M``: one step over a 50 m cell misjudged whether a weak train crawling over a crest
-stalls (a plan passed on 50 m cells and stalled on 25 m ones); the sub-steps settle it."""
-CRAWL_STEP_M = 5.0
 
 
 @dataclass(frozen=True)
@@ -176,7 +171,6 @@ class TractionCalculator:
             raise InputError(shorter_than_train(route, train, f"route '{route.name}'"))
         # braking: the locomotives' electric brake needs the catenary (none in a neutral section's span,
         # where the main breaker is open, as for traction); the wagons' air brake works everywhere
-        self.brake_speed_kmh, self.brake_kn = train.brake_curve(self.options.air_brake)  # all of it, powered
         self.electric_brake_speed_kmh, self.electric_brake_kn = train.brake_curve(air=False)
         self.air_brake_speed_kmh, self.air_brake_kn = ((train.air_brake_speed_kmh, train.air_brake_kn)
                                                        if self.options.air_brake else (np.array([0.0, 1.0]), np.zeros(2)))
@@ -423,7 +417,6 @@ class TractionCalculator:
         hold_check = self.holds_limit
         # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
         e_hold_max = e_env * (1 + 1e-9) + 1e-9
-        e_crawl = (CRAWL_KMH / 3.6) ** 2 / 2
         at_rest = np.zeros(n, dtype=bool)  # plans that have come to rest (stalled): verdict made
         for k in range(n_cells):
             hk = h[k]
@@ -451,7 +444,7 @@ class TractionCalculator:
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
-                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < e_crawl) & ~at_rest
+                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
             if crawl.any():
                 e_c, t_c, w_c = self._crawl(k, e[crawl], fT[k][crawl], fK[k][crawl], k == last)
                 e_pred = e_pred.copy()
@@ -478,12 +471,12 @@ class TractionCalculator:
                 phi = 1.0
                 e_new = e_pred
             if k < last:
-                stop[k] = e_new <= _E_FLOOR
+                stop[k] = e_new <= E_FLOOR
                 at_rest |= stop[k]
-                e_new = np.maximum(e_new, _E_FLOOR)
+                e_new = np.maximum(e_new, E_FLOOR)
                 v_new = np.sqrt(e_new * 2.0)
             else:  # at rest before the end of the last cell (coasting up to the stop): short of it
-                stop[k] = crawl & (e_new == _E_FLOOR)
+                stop[k] = crawl & (e_new == E_FLOOR)
                 v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
             if capped.any():
                 # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
@@ -522,18 +515,14 @@ class TractionCalculator:
 
     def _crawl(self, k: int, e: np.ndarray, fT: np.ndarray, fK: np.ndarray, last: bool):
         """Cell ``k`` again for crawling plans, in sub-steps of at most ``CRAWL_STEP_M`` (midpoint rule in
-        e): (e at the cell's end, time, traction work); e = _E_FLOOR where a plan comes to rest inside it,
+        e): (e at the cell's end, time, traction work); e = E_FLOOR where a plan comes to rest inside it,
         except in the route's ``last`` cell within its last sub-step: that is arriving (e = 0)."""
         n_sub = int(math.ceil(self.h_m[k] / CRAWL_STEP_M - 1e-9))
         hs = self.h_m[k] / n_sub
         m = self.m_eff_t
 
         def accel(e_):
-            v_kmh = np.sqrt(e_ * 2.0) * 3.6
-            f_max = _interp(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k]
-            b_max = self.brake_kn_at(v_kmh, k)
-            ra, rb, rc = self.train.resistance_kn
-            load = v_kmh * (rb + rc * v_kmh) + (ra + self.gravity_kn[k])
+            f_max, b_max, load = self.forces_kn(np.sqrt(e_ * 2.0), k)
             hold = np.minimum(np.maximum(load, -b_max), f_max)
             return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * np.maximum(hold, 0.0)
 
@@ -546,13 +535,13 @@ class TractionCalculator:
             a, tr = accel(np.maximum(e_half, 0.0))
             e1 = e + hs * a
             w = np.where(alive, w + tr * hs, w)
-            stalled = alive & (e1 <= _E_FLOOR)
+            stalled = alive & (e1 <= E_FLOOR)
             if last and j == n_sub - 1:  # at rest within the last sub-step of the route: arrived
                 t = np.where(stalled, t + 2.0 * hs / (v0 + 1e-12), t)
                 e = np.where(stalled, 0.0, e)
                 alive &= ~stalled
                 stalled[:] = False
-            e1 = np.where(stalled, _E_FLOOR, e1)
+            e1 = np.where(stalled, E_FLOOR, e1)
             t = np.where(alive & ~stalled, t + 2.0 * hs / (v0 + np.sqrt(2.0 * e1) + 1e-12), t)
             e = np.where(alive, e1, e)
             alive &= ~stalled
@@ -574,7 +563,7 @@ class TractionCalculator:
         cell = np.minimum(first, last)
         # brought to rest by a braking curve that reaches zero mid-route: no speed is safe there, i.e.
         # full braking cannot slow the train enough for a limit further on
-        unholdable = (first_stop == first) & (e_env[cell + 1] <= _E_FLOOR) & (cell < last)
+        unholdable = (first_stop == first) & (e_env[cell + 1] <= E_FLOOR) & (cell < last)
         cannot_hold = (first_hold == first) | unholdable
         # at rest inside the last cell, short of the stop (coasting up to it: the crawl's sub-steps)
         short = (first_stop == first) & (cell == last) & ~cannot_hold

@@ -15,10 +15,17 @@ import math
 import numpy as np
 from numba import njit
 
+from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
+
 T, K, C, B = 0, 1, 2, 3
-E_FLOOR = 1e-6  # as calculator._E_FLOOR: keeps a stalled plan's arithmetic finite
-E_CRAWL = (15.0 / 3.6) ** 2 / 2  # as calculator.CRAWL_KMH: below it a slowing cell is sub-stepped
-CRAWL_STEP_M = 5.0  # as calculator.CRAWL_STEP_M
+
+
+@njit(cache=True)
+def brake_kn(v_kmh, allowed_k, ev, ef, av, af):
+    """Full braking [kN] at ``v_kmh``: the electric brake (ev, ef) where traction is allowed (it needs the
+    catenary: ``allowed_k`` is 0 in a neutral section's span) plus the air brake (av, af) everywhere; the
+    calculator's ``brake_kn_at``."""
+    return _interp(v_kmh, ev, ef) * allowed_k + _interp(v_kmh, av, af)
 
 
 @njit(cache=True)
@@ -53,7 +60,7 @@ def _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, r
     """de/ds and the traction force [kN] at e under a cell's traction / cruise shares (no braking)."""
     v_kmh = math.sqrt(e * 2.0) * 3.6
     f_max = _interp(v_kmh, tv, tf) * allowed_k
-    b_max = _interp(v_kmh, ev, ef) * allowed_k + _interp(v_kmh, av, af)
+    b_max = brake_kn(v_kmh, allowed_k, ev, ef, av, af)
     load = v_kmh * (rb + rc * v_kmh) + (ra + g_k)
     hold = min(max(load, -b_max), f_max)
     return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * max(hold, 0.0)
@@ -152,7 +159,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
             if k == 0:
                 # de/ds at the start, from rest, to extrapolate the first cell's mid-speed
                 f0 = _interp(0.0, tv, tf) * allowed[0]
-                b0 = _interp(0.0, ev, ef) * allowed[0] + _interp(0.0, av, af)
+                b0 = brake_kn(0.0, allowed[0], ev, ef, av, af)
                 l0 = ra + grav[0]
                 hold0 = min(max(l0, -b0), f0)
                 slope = max((fT * f0 - fB * b0 + fK * hold0 - l0) / m, 0.0)
@@ -166,7 +173,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 c1 = ce
             v_kmh = math.sqrt(max(e_mid, 0.0) * 25.92)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
+            b_max = brake_kn(v_kmh, allowed[k], ev, ef, av, af)
             load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
             hold = min(max(load, -b_max), f_max)
             full = fT * f_max
@@ -287,6 +294,6 @@ def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, m, ev, ef,
 def _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc):
     """-de/ds under full braking at e in cell k [m/s^2]."""
     v_kmh = math.sqrt(2.0 * max(e, 0.0)) * 3.6
-    brake = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
+    brake = brake_kn(v_kmh, allowed[k], ev, ef, av, af)
     return (brake + ((ra + v_kmh * (rb + rc * v_kmh)) + grav[k])) / m
 
