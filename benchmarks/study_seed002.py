@@ -38,7 +38,8 @@ def main() -> None:
     args = ap.parse_args()
     route = load_route(ROOT / "routes/freight-20km.yaml")
     options = ModelOptions.seeds() if args.point_mass else ModelOptions()
-    spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options)
+    spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options,
+                   builder="seed002" if args.point_mass else None)
     t0 = time.perf_counter()
     baselines = run_many(compare_specs(spec, ["time-saving", "four-stage", "energy-saving"]))
     e_min = next(iter(baselines.e_min_kwh.values()))

@@ -191,7 +191,7 @@ SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same
 ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
 TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
 WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
-BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
+BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default, in every train model; any line) or seed002 (seed 002 section 2 to the letter: with --point-mass it reproduces the seed's tables).", show_default=False)
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
 GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
 WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")

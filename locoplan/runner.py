@@ -87,8 +87,8 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if not math.isnan(t0):
         tol = tolerance_s if tolerance_s is not None else (
             route.schedule.tolerance_s if route.schedule else max(1.0, DEFAULT_TOLERANCE_SHARE * t0))
-    if builder is None:  # the seeds' train model goes with seed 002's own builder (their tables)
-        builder = "seed002" if options.point_mass else "general"
+    if builder is None:  # the model (--point-mass) does not choose the method: seed 002's own is asked for by name
+        builder = "general"
     if builder not in BUILDERS:
         raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,

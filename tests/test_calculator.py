@@ -8,7 +8,7 @@ from scipy.optimize import brentq
 
 from locoplan.model.plan import parse_sequence
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import CANNOT_HOLD, CODE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
+from locoplan.sim.result import CANNOT_HOLD, CODE, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
 
 G = 9.81
 
@@ -197,13 +197,18 @@ def test_point_mass_and_rotating_mass_change_the_run(freight):
 
 def test_cannot_hold_when_full_braking_is_too_weak(freight):
     """On a 25 per-mille down-grade gravity on 5200 t (1275 kN) beats the HXD1's 461 kN of electric
-    braking: no plan can keep the train under the limit, and the reason says so with the numbers."""
+    braking at every speed: even from rest at the start the train speeds up under full braking, so no
+    entry speed works and no plan can keep the train under the limit; the reason says so with the numbers."""
     route, train = freight
     steep = route.model_copy(update={"gradients": [route.gradients[0].model_copy(update={"to_m": 20000.0, "permille": -25.0})]})
     assert 5200 * 9.81 * 0.025 > 461 + 47.8728 + 80 * (0.2429 + 0.00672 * 80)
-    res = TractionCalculator(steep, train, ModelOptions.seeds()).evaluate(("T",), np.zeros((1, 0)))
-    assert res.reason_code[0] == CANNOT_HOLD and not res.feasible[0]
-    assert res.reason(0).startswith("full braking (461 kN) cannot hold ") and "on -25.0 per mille" in res.reason(0)
+    for backend in ("numba", "numpy"):
+        calc = TractionCalculator(steep, train, ModelOptions.seeds(), backend=backend)
+        res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 9000.0], [0.0, 1000.0]]))
+        assert (res.reason_code == IMPOSSIBLE).all() and not res.feasible.any()
+        assert np.isnan(res.running_time_s).all()
+        assert res.reason(0).startswith("full braking (461 kN) cannot hold ")
+        assert "on -25.0 per mille: even entering at 0 km/h at 0 m, full braking reaches " in res.reason(0)
 
 
 def test_neutral_section_cuts_traction_with_its_coasting_margins(freight):

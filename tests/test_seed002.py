@@ -149,7 +149,7 @@ def test_time_below_fastest_is_exit_1_with_the_fastest_time(root, monkeypatch, f
     assert f"below the fastest possible run, {fastest:.1f} s" in res.stderr
 
 
-SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--no-gap"]
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--builder", "seed002", "--no-gap"]
 
 
 def test_optimize_json(root, monkeypatch):
@@ -172,7 +172,7 @@ def test_compare_explain_and_json(root, monkeypatch, tmp_path):
         assert word in res.stdout
     assert (tmp_path / "c.png").stat().st_size > 10000
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--json", "--strategies", "time-saving,four-stage",
-                              "--e-min", "580", "--point-mass", "--no-gap"])
+                              "--e-min", "580", "--point-mass", "--builder", "seed002", "--no-gap"])
     d = json.loads(res.stdout)
     assert [r["strategy"] for r in d["results"]] == ["time-saving", "four-stage"]
 
@@ -184,7 +184,7 @@ def test_sweep_and_study(root, monkeypatch):
     rows = json.loads(res.stdout)["results"]
     assert [r["planned_time_s"] for r in rows] == [1470, 1530] and rows[0]["energy_reduction_percent"] == 0
     res = runner.invoke(app, ["study", "routes/freight-20km.yaml", "--algorithms", "issa,pso", "--runs", "2", "--json",
-                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass", "--no-gap"])
+                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass", "--builder", "seed002", "--no-gap"])
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     assert [r["algorithm"] for r in d["table"]] == ["issa", "pso"] and len(d["results"]) == 4

@@ -85,8 +85,8 @@ class RunSpec:
 
     @property
     def resolved_builder(self) -> str:
-        """The builder the run uses: the seeds' model goes with seed 002's own builder (runner.make_context)."""
-        return self.builder or ("seed002" if self.options.point_mass else "general")
+        """The builder the run uses: the general one unless seed 002's is named (runner.make_context)."""
+        return self.builder or "general"
 
 
 def _plain(value: Any) -> Any:

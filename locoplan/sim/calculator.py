@@ -38,7 +38,7 @@ from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
-from .result import CANNOT_HOLD, CODE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+from .result import CANNOT_HOLD, CODE, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -203,8 +203,15 @@ class TractionCalculator:
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
         self.e_limit_node[-1] = 0.0  # the train stops at the end
         self.e_envelope, self._entry_m = self._braking_envelope()
+        # cells where full braking holds the limit (else the envelope below them is the speed from which
+        # full braking reaches the limit no earlier than where braking can hold again)
+        lim_kmh = np.sqrt(2.0 * e_cell) * 3.6
+        cells = np.arange(len(mid))
+        self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells) + train_resistance_kn(lim_kmh, train.resistance_kn)
+                                  + self.gravity_kn) >= 0.0
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
-        self.holds_limit = self.e_envelope[1:] >= e_cell * (1 - 1e-9)
+        self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
+        self.impossible = self._impossible_descent()
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -250,19 +257,52 @@ class TractionCalculator:
         for k in range(len(self.h_m) - 1, -1, -1):
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]
-            if e >= cap:  # no braking curve runs through this cell: the limit itself bounds it
-                continue
-            d = self.h_m[k] / n_sub
             decel = lambda e_: float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+            holds = decel(cap) >= 0.0
+            if e >= cap:
+                if holds:  # no braking curve runs through this cell: the limit itself bounds it
+                    continue
+                e = cap  # full braking cannot hold the limit here: the train must enter the cell slower
+            d = self.h_m[k] / n_sub
             for i in range(n_sub):
                 e_next = e + d * decel(e + 0.5 * d * decel(e))
-                if e < cap <= e_next:  # the curve rises through the limit: its entry point
+                if holds and e < cap <= e_next:  # the curve rises through the limit: its entry point
                     entries.append(self.s_m[k + 1] - d * (i + (cap - e) / (e_next - e)))
                     e = e_next
                     break
-                e = e_next
+                e = min(max(e_next, 0.0), cap) if not holds else e_next
             e_env[k] = min(e_env[k], max(e, 0.0))
         return e_env, np.array(entries)
+
+    def _impossible_descent(self) -> str | None:
+        """Why no plan can keep the limits, or None: where the envelope falls to rest before the end, even a
+        train entering there at 0 km/h passes a limit under full braking further on. The message gives that
+        run's worst excess, found by integrating full braking forwards from rest there."""
+        e_env = self.e_envelope
+        zero = np.flatnonzero(e_env[:-1] <= E_FLOOR)
+        if not zero.size:
+            return None
+        k0 = int(zero[0])
+        n_sub = ENVELOPE_SUBSTEPS
+        m = self.m_eff_t
+        e, worst = 0.0, (0.0, k0, 0.0)  # (excess [km/h], cell, position [m])
+        for k in range(k0, len(self.h_m)):
+            accel = lambda e_: -float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # noqa: E731
+            d = self.h_m[k] / n_sub
+            for i in range(n_sub):
+                e = max(e + d * accel(e + 0.5 * d * accel(e)), 0.0)
+                excess = math.sqrt(2 * e) * 3.6 - self.limit_kmh[k]
+                if excess > worst[0]:
+                    worst = (excess, k, self.s_m[k] + (i + 1) * d)
+            if worst[0] > 0 and (math.sqrt(2 * e) * 3.6 < self.limit_kmh[k]
+                                 or (k + 1 < len(self.h_m) and self.brake_holds_limit[k + 1])):
+                break  # back under the limit, or at the foot of the descent: the excursion is over
+        excess, k, at = worst
+        lim = float(self.limit_kmh[k])
+        steepest = k0 + int(np.argmin(self.gradient_permille[k0:k + 1]))  # the descent's steepest cell
+        return (f"full braking ({self.brake_kn_at(lim, steepest):,.0f} kN) cannot hold {lim:g} km/h on "
+                f"{self.gradient_permille[steepest]:+.1f} per mille: even entering at 0 km/h at {self.s_m[k0]:,.0f} m, "
+                f"full braking reaches {lim + excess:.1f} km/h > {lim:g} km/h at {at:,.0f} m")
 
     def _braking_curve_entries(self) -> np.ndarray:
         """Braking-curve entry points strictly inside cells (nodes already there are left out)."""
@@ -465,8 +505,11 @@ class TractionCalculator:
                     e_fb = e_phi + (hk * one_minus / m) * (-b_max - load)
                     slip = capped & (e_fb > c1) & (hold_check[k] | (c1 < c1_env))
                     if slip.any():
-                        e_new = np.where(slip, e_fb, e_new)
-                        nohold[k] = slip & (e_fb > e_hold_max[k + 1])
+                        if self.brake_holds_limit[k]:
+                            e_new = np.where(slip, e_fb, e_new)
+                            nohold[k] = slip & (e_fb > e_hold_max[k + 1])
+                        else:  # under the envelope full braking keeps every limit ahead: it caps the slip
+                            e_new = np.where(slip, np.minimum(e_fb, c1_env), e_new)
             else:  # no plan meets a cap in this cell: phi = 1 throughout
                 phi = 1.0
                 e_new = e_pred
@@ -507,6 +550,7 @@ class TractionCalculator:
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node
+                falling = falling | ~self.brake_holds_limit[k]  # a descent full braking cannot hold
                 cond[:, k] = np.where(on_cap, np.where(falling, CODE["B"], CODE["K"]), dominant)
                 event[:, k] = np.where(capped & (np.asarray(phi) > 0) & (np.asarray(phi) < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk
@@ -570,6 +614,15 @@ class TractionCalculator:
         reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
                           np.where(first_over == first, LIMIT_EXCEEDED,
                                    np.where(braking_at_stop | short, STOPPED_SHORT, STALLED)))).astype(np.int8)
+        if self.impossible is not None:  # no plan keeps the limits: every one fails where the route does
+            k0 = int(np.flatnonzero(e_env[:-1] <= E_FLOOR)[0])
+            first = np.minimum(first, k0)
+            failed = np.ones_like(failed)
+            cell = first.copy()
+            reason = np.full_like(reason, IMPOSSIBLE)
+            cannot_hold = np.zeros_like(cannot_hold)
+            unholdable = np.zeros_like(unholdable)
+            short = np.zeros_like(short)
         at_node = np.where((cannot_hold & ~unholdable) | short, cell, cell + 1)
         fail_at = np.where(failed, self.s_m[at_node], np.nan)
         profile = None
@@ -583,7 +636,7 @@ class TractionCalculator:
                 event[sel, at] = np.where(np.isnan(event[sel, at]), x[sel], event[sel, at])
             # a failed plan's profile ends where it failed (at rest where it stalled or stopped short;
             # before the cell where it broke or could not hold a limit): what follows is not a run
-            stopped = (reason == STALLED) | (reason == STOPPED_SHORT)
+            stopped = (reason == STALLED) | (reason == STOPPED_SHORT) | (reason == IMPOSSIBLE)
             end = np.where(failed, np.where(stopped, cell + 1, np.minimum(first, at_node)), n_cells)
             for i in np.flatnonzero(failed):
                 t_nodes[i, end[i] + 1:] = np.nan
@@ -592,10 +645,11 @@ class TractionCalculator:
                 brk[i, end[i]:] = np.nan
                 cond[i, end[i]:] = -1
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
-        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason == CANNOT_HOLD), np.nan, t)  # never arrived
+        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason >= CANNOT_HOLD), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]
         return BatchResult(running_time_s=t, traction_energy_kwh=work / 3600.0, feasible=reason == OK,
                            reason_code=reason, failure_m=fail_at, profile=profile,
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
-                           failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan))
+                           failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan),
+                           impossible=self.impossible)

@@ -203,9 +203,12 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 if holds_limit[k] or has_cruise:
                     e_fb = e_phi + (hk * (1.0 - phi) / m) * (-b_max - load)
                     if e_fb > c1 and (holds_limit[k] or c1 < c1_env):
-                        e_new = e_fb
-                        if hold_at[i] < 0 and e_fb > e_env[k + 1] * (1 + 1e-9) + 1e-9:
-                            hold_at[i] = k
+                        if _decel(e_limit_cell[k], k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) >= 0.0:
+                            e_new = e_fb
+                            if hold_at[i] < 0 and e_fb > e_env[k + 1] * (1 + 1e-9) + 1e-9:
+                                hold_at[i] = k
+                        else:  # under the envelope full braking keeps every limit ahead: it caps the slip
+                            e_new = min(e_fb, c1_env)
             else:
                 e_new = e_pred
             if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
@@ -246,7 +249,11 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 if allowed[k] == 0.0 and dom == T:  # no traction in a neutral section: coasting
                     dom = C
                 if capped and phi < 0.5:
-                    cond[i, k] = B if c1 < c0 - 1e-5 * max(c0, 1.0) else K
+                    # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
+                    # (B); on a level cap it holds the limit (K)
+                    braking = (c1 < c0 - 1e-5 * max(c0, 1.0)
+                               or _decel(e_limit_cell[k], k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) < 0.0)
+                    cond[i, k] = B if braking else K
                 else:
                     cond[i, k] = dom
                 if capped and 0.0 < phi < 1.0:
@@ -274,18 +281,23 @@ def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, m, ev, ef,
     for k in range(h.shape[0] - 1, -1, -1):
         e = e_env[k + 1]
         cap = e_limit_cell[k]
-        if e >= cap:  # no braking curve runs through this cell: the limit itself bounds it
-            continue
+        holds = _decel(cap, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) >= 0.0
+        if e >= cap:
+            if holds:  # no braking curve runs through this cell: the limit itself bounds it
+                continue
+            e = cap  # full braking cannot hold the limit here: the train must enter the cell slower
         d = h[k] / n_sub
         for i in range(n_sub):
             e_mid = e + 0.5 * d * _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
             e_next = e + d * _decel(e_mid, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
-            if e < cap <= e_next:  # the curve rises through the limit: its entry point
+            if holds and e < cap <= e_next:  # the curve rises through the limit: its entry point
                 entries[n_entries] = s[k + 1] - d * (i + (cap - e) / (e_next - e))
                 n_entries += 1
                 e = e_next
                 break
-            e = e_next
+            # (where braking cannot hold, the curve falls backwards: it is kept under the limit and at or
+            # above rest, 0 = not even a train at rest here keeps every limit ahead)
+            e = min(max(e_next, 0.0), cap) if not holds else e_next
         e_env[k] = min(e_env[k], max(e, 0.0))
     return n_entries
 

@@ -11,9 +11,10 @@ CONDITIONS = ("T", "K", "C", "B")
 C coast (no force), B brake (max braking). Index = code used in arrays."""
 CODE = {c: i for i, c in enumerate(CONDITIONS)}
 
-OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD = 0, 1, 2, 3, 4
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE = 0, 1, 2, 3, 4, 5
 REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",
-           CANNOT_HOLD: "full braking cannot hold the limit"}
+           CANNOT_HOLD: "full braking cannot hold the limit",
+           IMPOSSIBLE: "no entry speed keeps the limit under full braking"}
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,9 @@ class BatchResult:
     failure_limit_kmh: np.ndarray | None = None
     failure_gradient_permille: np.ndarray | None = None
     failure_brake_kn: np.ndarray | None = None
+    impossible: str | None = None
+    """Why no plan at all can run the route (the train passes a limit under full braking even from rest
+    at the top of a descent); every plan then has the reason code ``IMPOSSIBLE``."""
 
     def failures(self) -> str:
         """Why the infeasible plans of this batch failed, most common first, each with an example:
@@ -82,6 +86,8 @@ class BatchResult:
         where = float(self.failure_m[i])
         grad = None if self.failure_gradient_permille is None else float(self.failure_gradient_permille[i])
         on = "" if grad is None else f" on {grad:+.1f} per mille"
+        if code == IMPOSSIBLE:
+            return self.impossible or REASONS[IMPOSSIBLE]
         if code == CANNOT_HOLD:
             brake = float(self.failure_brake_kn[i]) if self.failure_brake_kn is not None else float("nan")
             limit = float(self.failure_limit_kmh[i]) if self.failure_limit_kmh is not None else float("nan")
