@@ -1,6 +1,7 @@
 """Seed 002 on lines and trains nobody tuned it on: randomly generated routes x randomly sized consists.
 
     python benchmarks/random_lines.py [--cases 40] [--seed 7] [--no-gap] [--json out.json]
+                                      [--max-grade 20] [--point-mass | --no-air-brake] [--fastest]
 
 Each case draws (numpy Generator, ``--seed``) a route of 4-60 km (station throats, 2-8 speed limits of
 40-100 km/h, a random walk of gradients up to +-20 per mille with steeper pitches now and then, curves,
@@ -11,6 +12,11 @@ proposed plan (ISSA seed 1, window +-1 % of T0), whether it is on time, and the 
 (seed 001) at its own running time. Prints one line per case and a summary: on time, failures (with
 their reasons), gap max and median. Expected: every possible case on time, no failure, gaps like the
 real lines' (docs/real-lines.md).
+
+``--max-grade 30`` draws steeper lines (pitches up to +-30 per mille, steep ones of 22.5-37.5), which with
+``--no-air-brake`` (or ``--point-mass``) have descents the locomotive's brake cannot hold; ``--fastest``
+checks only the fastest run of every case against an independent fine-step computation
+(benchmarks/fastest_check.py), in the chosen model: target within 0.05 %.
 """
 
 from __future__ import annotations
@@ -32,12 +38,16 @@ from locoplan.errors import LocoplanError  # noqa: E402
 from locoplan.io.load import load_train  # noqa: E402
 from locoplan.model.route import Route  # noqa: E402
 from locoplan.runner import make_context, run_strategy, schedule_verdict  # noqa: E402
-from locoplan.sim.calculator import TractionCalculator  # noqa: E402
+from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
+_sys.path.insert(0, str(_Path(__file__).resolve().parent))  # fastest_check, beside this file
 
 LIMITS_KMH = np.arange(40, 101, 5)
 
 
-def random_route(rng: np.random.Generator, i: int) -> Route:
+def random_route(rng: np.random.Generator, i: int, max_grade_permille: float = 20.0) -> Route:
+    """A random line; ``max_grade_permille`` scales its gradients (20: pitches up to +-20, steep ones of
+    15-25 per mille now and then; 30: up to +-30 and 22.5-37.5)."""
+    scale = max_grade_permille / 20.0
     L = float(np.round(rng.uniform(4_000, 60_000), -2))
     # speed limits: throats at both ends, 0-6 inner changes at least 800 m apart
     n_inner = int(rng.integers(0, 7))
@@ -58,9 +68,9 @@ def random_route(rng: np.random.Generator, i: int) -> Route:
         b = min(L, s + length)
         if L - b < 200:
             b = L
-        g = float(np.clip(0.6 * g + rng.normal(0, 6), -20, 20))
+        g = float(np.clip(0.6 * g + rng.normal(0, 6 * scale), -max_grade_permille, max_grade_permille))
         if rng.random() < 0.08:
-            g = float(rng.choice([-1, 1]) * rng.uniform(15, 25))
+            g = float(rng.choice([-1, 1]) * min(rng.uniform(15, 25) * scale, 40.0))
         grads.append({"from_m": s, "to_m": b, "permille": round(g, 1)})
         s = b
     curves = []
@@ -110,8 +120,17 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--no-gap", action="store_true", help="skip E* (seed 001's optimum)")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--max-grade", type=float, default=20.0, help="scale of the gradients [per mille]")
+    model = ap.add_mutually_exclusive_group()
+    model.add_argument("--point-mass", action="store_true", help="the seeds' model: point mass, electric brake alone")
+    model.add_argument("--no-air-brake", action="store_true", help="the train-length model, electric brake alone")
+    ap.add_argument("--fastest", action="store_true", help="check the fastest run against the fine-step oracle only")
     args = ap.parse_args()
+    options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+               else ModelOptions())
     rng = np.random.default_rng(args.seed)
+    if args.fastest:
+        return fastest_cases(args, rng, options)
     rows = []
     print(f"{'case':>4} {'km':>5} {'train':26} {'x':>5} {'T0 [s]':>8} {'time [s]':>9} {'on time':>7} {'E [kWh]':>8} "
           f"{'gap %':>6} {'solve s':>7}")
@@ -124,7 +143,7 @@ def main() -> None:
             head = f"{i:>4} {route.length_m / 1000:>5.1f} {train.name[:26]:26} {factor:>5.2f}"
             if route.length_m < 2 * train.length_m:
                 continue
-            fastest = TractionCalculator(route, train).evaluate(("T",), np.zeros((1, 0)))
+            fastest = TractionCalculator(route, train, options).evaluate(("T",), np.zeros((1, 0)))
             if not fastest.feasible[0]:
                 row["status"] = "impossible"
                 print(f"{head} impossible: {fastest.reason(0)}", flush=True)
@@ -132,7 +151,7 @@ def main() -> None:
                 continue
             t0 = round(factor * float(fastest.running_time_s[0]), 1)
             try:
-                ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+                ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.01 * t0)
                 start = time.perf_counter()
                 run = run_strategy(ctx, "proposed")
                 solve = time.perf_counter() - start
@@ -168,6 +187,32 @@ def main() -> None:
               + ", ".join(f"{r['gap_kwh']:+.2f} kWh (E* {r['optimum_kwh']:.2f})" for r in small))
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
+
+
+def fastest_cases(args, rng: np.random.Generator, options: ModelOptions) -> None:
+    """``--fastest``: the fastest run of every case against the independent fine-step computation."""
+    from fastest_check import check, summarise  # noqa: PLC0415
+
+    rows = []
+    print(f"{'case':>4} {'km':>5} {'train':26} {'fastest [s]':>11} {'oracle [s]':>11} {'diff %':>8} {'steep':>6} "
+          f"{'enter -km/h':>11}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.cases):
+            route = random_route(rng, i, args.max_grade)
+            train = random_train(rng, Path(tmp), i)
+            rng.uniform(1.05, 1.6)  # the factor the optimising run would draw: same lines for the same seed
+            if route.length_m < 2 * train.length_m:
+                continue
+            r = check(TractionCalculator(route, train, options))
+            r.update(case=i, km=route.length_m / 1000, train=train.name)
+            rows.append(r)
+            t = "impossible" if np.isnan(r["time_s"]) else f"{r['time_s']:.2f}"
+            o = "impossible" if np.isnan(r["oracle_s"]) else f"{r['oracle_s']:.2f}"
+            print(f"{i:>4} {r['km']:>5.1f} {train.name[:26]:26} {t:>11} {o:>11} {r['diff_percent']:>8.4f} "
+                  f"{r['steep_cells']:>6} {r['entry_below_kmh']:>11.1f}", flush=True)
+    summarise(rows)
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1, default=float))
 
 
 if __name__ == "__main__":

@@ -1,13 +1,16 @@
-"""Seed 002 on real lines (issue 8): `optimize` on the six TTOBench lines x two trains x two times.
+"""Seed 002 on real lines: `optimize` on the six TTOBench lines x two trains x two times, in any train model.
 
     python benchmarks/real_lines.py [--lines ...] [--consists HXD1-C80x30,HXD1-C80x50] [--factors 1.1,1.2]
-                                    [--json out.json]
+                                    [--point-mass | --no-air-brake] [--json out.json]
 
 For every case: the fastest run, T0 = factor x fastest, the proposed plan (ISSA seed 1, window +-1 % of
 T0) with its running time, energy and whether it is on time, four-stage beside it, and the gap to the
 optimum, (E - E*) / E*, with E* the minimum traction energy at the plan's own running time from
 `locoplan.ocp` (seed 001's optimal control) when it is installed. Prints a table and the maximum and
 median gap. Targets: every case on time and within 1 % of T0, gap <= 3 % everywhere, median <= 1.5 %.
+``--point-mass`` runs the seeds' train model (point mass, electric brake alone), ``--no-air-brake`` the
+train-length model with the electric brake alone: the locomotive then holds long descents by itself, and
+plans enter them slower where it cannot (the braking envelope, docs/model.md).
 
     python benchmarks/real_lines.py --compare [--strategies time-saving,energy-saving,four-stage,proposed]
 
@@ -30,21 +33,21 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context, run_strategy, schedule_verdict
-from locoplan.sim.calculator import TractionCalculator
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
 ROOT = Path(__file__).resolve().parents[1]
 LINES = ["00_var_speed_limit_100", "CH_Fribourg_Bern", "CH_StGallen_Wil", "CH_Stadelhofen_Altstetten-leg1",
          "CN_Songjiazhuang_Yizhuang-leg1", "SE_Vasteras_Kolback"]
 
 
-def optimum_kwh(route, train, time_s: float):
+def optimum_kwh(route, train, time_s: float, options=None):
     """E* at ``time_s`` from seed 001's optimal control, or None where it is not available."""
     try:
         from locoplan.ocp.bound import energy_bound  # noqa: PLC0415  (seed 001: optional here)
     except ImportError:
         return None
     try:
-        return float(energy_bound(route, train, time_s=time_s).energy_kwh)
+        return float(energy_bound(route, train, options, time_s=time_s).energy_kwh)
     except Exception:  # an unconfirmed optimum is reported as missing, not as a number
         return None
 
@@ -57,7 +60,13 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--compare", action="store_true", help="run `locoplan compare` on every case instead")
     ap.add_argument("--strategies", default="time-saving,energy-saving,four-stage,proposed")
+    model = ap.add_mutually_exclusive_group()
+    model.add_argument("--point-mass", action="store_true", help="the seeds' model: point mass, electric brake alone")
+    model.add_argument("--no-air-brake", action="store_true", help="the train-length model, electric brake alone")
     args = ap.parse_args()
+    args.options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+                    else ModelOptions())
+    args.model_flags = ["--point-mass"] if args.point_mass else ["--no-air-brake"] if args.no_air_brake else []
     if args.compare:
         return compare_cases(args)
     rows = []
@@ -68,17 +77,17 @@ def main() -> None:
         route = load_route(ROOT / "routes/real" / f"{line}.yaml")
         for consist in args.consists.split(","):
             train = load_train(ROOT / "configs/consists" / f"{consist}.yaml")
-            fastest = TractionCalculator(route, train).fastest_time_s
+            fastest = TractionCalculator(route, train, args.options).fastest_time_s
             for factor in (float(x) for x in args.factors.split(",")):
                 t0 = round(factor * fastest, 1)
-                ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+                ctx = make_context(route, train, args.options, time_s=t0, tolerance_s=0.01 * t0)
                 start = time.perf_counter()
                 run = run_strategy(ctx, "proposed")
                 solve = time.perf_counter() - start
                 four = run_strategy(ctx, "four-stage").summary
                 s = run.summary
                 on_time = schedule_verdict(ctx, run) is None
-                e_star = optimum_kwh(route, train, s["running_time_s"]) if s["feasible"] else None
+                e_star = optimum_kwh(route, train, s["running_time_s"], args.options) if s["feasible"] else None
                 gap = None if e_star is None else 100.0 * (s["traction_energy_kwh"] / e_star - 1.0)
                 rows.append({"line": line, "consist": consist, "mass_t": train.mass_t, "factor": factor,
                              "planned_time_s": t0, "running_time_s": s["running_time_s"], "on_time": on_time,
@@ -110,10 +119,10 @@ def compare_cases(args) -> None:
         route = load_route(path)
         for consist in args.consists.split(","):
             train = load_train(ROOT / "configs/consists" / f"{consist}.yaml")
-            fastest = TractionCalculator(route, train).fastest_time_s
+            fastest = TractionCalculator(route, train, args.options).fastest_time_s
             for factor in (float(x) for x in args.factors.split(",")):
                 t0 = round(factor * fastest, 1)
-                p = subprocess.run([sys.executable, "-m", "locoplan", "compare", str(path), "--consist", consist,
+                p = subprocess.run([sys.executable, "-m", "locoplan", "compare", str(path), *args.model_flags, "--consist", consist,
                                     "--time", str(t0), "--tolerance", str(round(0.01 * t0, 2)), "--strategies",
                                     args.strategies, "--json", "--no-gap"], cwd=ROOT, capture_output=True, text=True)
                 try:

@@ -56,6 +56,20 @@ class PricedDrive:
     energy_kwh: float
 
 
+def dp_caps(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
+    """The cap e = v^2/2 at each DP node (calculator nodes ``idx``): the lowest envelope since the previous
+    node, so that a short restriction inside a DP cell is not jumped over. Where the envelope rises along a
+    descent full braking cannot hold (the train speeds up under full braking, following it), that rise is
+    reachable within the cell, so it is added back: at the node the cap is the envelope there, not the
+    lower value a cell-length behind it (which would make the drive brake where it need not)."""
+    env = calc.e_envelope
+    rise = np.where(~calc.brake_holds_limit, np.maximum(np.diff(env), 0.0), 0.0)
+    climb = np.concatenate([[0.0], np.cumsum(rise)])  # saturated rise from node 0 to each node
+    shifted = env - climb  # env[j] + (climb[b] - climb[j]) = shifted[j] + climb[b]
+    return np.array([env[idx[0]]] + [shifted[a + 1:b + 1].min() + climb[b] if rise[a:b].any() else env[a + 1:b + 1].min()
+                                     for a, b in zip(idx[:-1], idx[1:])])
+
+
 class PricedDriveSolver:
     """DP over one calculator's route; ``solve(price)`` gives the priced optimum.
 
@@ -88,7 +102,7 @@ class PricedDriveSolver:
         work = np.concatenate([[0.0], np.cumsum(calc.gravity_kn * calc.h_m)])
         gravity = np.diff(work[idx]) / h
         allowed = np.array([calc.traction_allowed[a:b].min() for a, b in zip(idx[:-1], idx[1:])])
-        cap = np.array([calc.e_envelope[idx[0]]] + [calc.e_envelope[a + 1:b + 1].min() for a, b in zip(idx[:-1], idx[1:])])
+        cap = dp_caps(calc, idx)
         top = float(np.sqrt(2.0 * max(calc.e_envelope.max(), 0.0)) * 3.6)
         self.v_grid = np.arange(0.0, top + speed_step_kmh, speed_step_kmh) / 3.6
         tr = calc.train

@@ -230,15 +230,28 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
         x = _confirmed(ctx, problem, result, prefer_best=True)
         return StrategyOutcome(_plan(conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t)
-    drive = drive_solver(ctx).solve(LEAST_PRICE_KWH_PER_S)
-    if drive is None:
-        raise InfeasibleError(no_drive_message(ctx))
-    seq = sequence_from_drive(drive_solver(ctx).calc, drive)
-    return StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None, solve_time_s=time.perf_counter() - t)
+    solver = drive_solver(ctx)
+    price = LEAST_PRICE_KWH_PER_S
+    for attempt in range(ENERGY_SAVING_PRICE_STEPS):
+        drive = solver.solve(price)
+        if drive is None:
+            raise InfeasibleError(no_drive_message(ctx))
+        seq = sequence_from_drive(solver.calc, drive)
+        out = StrategyOutcome(_plan(seq.conditions, seq.nominal_m), algorithm=None)
+        if attempt == ENERGY_SAVING_PRICE_STEPS - 1 or evaluate_outcome(ctx.calc, out).feasible[0]:
+            break
+        # the grid's drive crawls over a crest that the exact calculator stalls on: a little more speed
+        price *= ENERGY_SAVING_PRICE_FACTOR
+    return replace(out, solve_time_s=time.perf_counter() - t)
 
 
 LEAST_PRICE_KWH_PER_S = 1e-4
 """The price of time [kWh/s] of the energy-saving drive: low enough that no energy is spent to save time."""
+ENERGY_SAVING_PRICE_STEPS = 8
+ENERGY_SAVING_PRICE_FACTOR = 3.0
+"""Where the least-price drive's plan stalls on the exact calculator (the DP's 0.5 km/h speed grid lets it
+crawl over a crest at a speed the calculator's sub-steps do not keep), the price rises by this factor, at
+most ``ENERGY_SAVING_PRICE_STEPS - 1`` times (1e-4 to 0.07 kWh/s), until the plan reaches the stop."""
 
 
 DP_MIN_CELLS = 300
