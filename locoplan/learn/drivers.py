@@ -284,7 +284,10 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         act = hist_label[rows, back]
         # --- the final stop: brake to stop exactly at the end, once it takes a share of full braking
         a_req = v * v / (2 * np.maximum(L - s, 0.05))
-        stopping |= live & (v > 0) & (a_req * m >= p.brake_in * np.maximum(b_max + load, 1e-3 * m))
+        # (not where full braking cannot even slow the train: on a descent it cannot hold, a_req is always
+        # "reached", and the final brake would begin kilometres early)
+        can_slow = b_max + load > 1e-3 * m
+        stopping |= live & (v > 0) & can_slow & (a_req * m >= p.brake_in * (b_max + load))
         # forces: fractions of the curves, evaluated again at the step's mid speed (RK2)
         trac_frac = np.where(stopping | (notch <= 0), 0.0, notch / NOTCHES * allowed[k])
         brake_frac = np.where(stopping, np.minimum(np.maximum(m * a_req - load, 0.0), b_max) / b_max,
@@ -315,7 +318,10 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         ds = np.where(halts, 0.5 * v * t_halt, 0.5 * (v + np.maximum(v_new, 0.0)) * DT_S)
         dt_step = np.where(halts, t_halt, DT_S)
         v_new = np.maximum(v_new, 0.0)
-        arrive = live & ((s + ds >= L - 0.5) | (halts & stopping & (s + ds >= L - 5.0)))
+        # at rest within a few metres of the stop is arriving: the supervision's margin (0.5 m^2/s^2 under
+        # the braking envelope) halts a train 0.5 / a_brake short of it, 5 m with the electric brake alone
+        a_brake = np.maximum((b_max + load) / m, 1e-3)
+        arrive = live & ((s + ds >= L - 0.5) | (halts & stopping & (s + ds >= L - np.maximum(5.0, 0.5 / a_brake + 1.0))))
         if arrive.any():  # the last step ends exactly at the end of the route, at rest
             dt_arrive = 2 * np.maximum(L - s, 0.0) / np.maximum(v, 1e-9)
             dt_step = np.where(arrive, np.minimum(dt_arrive, dt_step * 4), dt_step)
