@@ -33,6 +33,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context, run_strategy, schedule_verdict
+from locoplan.ocp.bound import percent_floor_kwh
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,19 +90,27 @@ def main() -> None:
                 on_time = schedule_verdict(ctx, run) is None
                 e_star = optimum_kwh(route, train, s["running_time_s"], args.options) if s["feasible"] else None
                 gap = None if e_star is None else 100.0 * (s["traction_energy_kwh"] / e_star - 1.0)
+                gap_kwh = None if e_star is None else s["traction_energy_kwh"] - e_star
+                if e_star is not None and e_star < percent_floor_kwh(route, train):
+                    gap = None  # a falling line the train can nearly coast: E* too small for a percentage
                 rows.append({"line": line, "consist": consist, "mass_t": train.mass_t, "factor": factor,
                              "planned_time_s": t0, "running_time_s": s["running_time_s"], "on_time": on_time,
                              "traction_energy_kwh": s["traction_energy_kwh"], "optimum_kwh": e_star,
                              "gap_to_optimum_percent": None if gap is None else round(gap, 2),
+                             "gap_kwh": None if gap_kwh is None else round(gap_kwh, 2),
                              "four_stage_kwh": four["traction_energy_kwh"], "solve_time_s": round(solve, 2),
                              "plan": s["plan"]})
                 print(f"{line:32} {train.mass_t:>6.0f} {factor:>4} {t0:>8.1f} {s['running_time_s']:>9.1f} "
                       f"{'yes' if on_time else 'NO':>7} {s['traction_energy_kwh']:>9.2f} "
-                      f"{'-' if e_star is None else f'{e_star:.2f}':>9} {'-' if gap is None else f'{gap:.2f}':>6} "
+                      f"{'-' if e_star is None else f'{e_star:.2f}':>9} "
+                      f"{('-' if gap_kwh is None else f'{gap_kwh:+.2f} kWh') if gap is None else f'{gap:.2f}':>6} "
                       f"{four['traction_energy_kwh']:>9.2f} {solve:>8.2f}", flush=True)
     gaps = [r["gap_to_optimum_percent"] for r in rows if r["gap_to_optimum_percent"] is not None]
+    small = [r for r in rows if r["gap_to_optimum_percent"] is None and r["gap_kwh"] is not None]
     print(f"cases {len(rows)}, on time {sum(r['on_time'] for r in rows)}"
-          + (f", gap max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)}" if gaps else ""))
+          + (f", gap max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)}" if gaps else "")
+          + (f"; E* too small for a percentage on {len(small)} (falling lines): gaps "
+             + ", ".join(f"{r['gap_kwh']:+.2f} kWh (E* {r['optimum_kwh']:.2f})" for r in small) if small else ""))
     if args.json:
         args.json.write_text(json.dumps({"results": rows}, indent=2) + "\n")
 

@@ -163,3 +163,16 @@ def test_every_model_plans_the_hand_case(root, monkeypatch, options):
     assert abs(s["running_time_s"] - 1000) <= 10
     assert -0.05 <= s["gap_to_optimum_percent"] <= 1.0  # E* exists for it, and the plan is near it
     assert np.nanmax(out.result.profile.v_kmh[0]) <= 60.0 + 1e-9
+
+
+def test_point_mass_chooses_the_model_not_the_method(freight):
+    """--point-mass is the seeds' train model; the sequence builder stays the general one unless seed 002's
+    own is named (it cannot run most real lines), in a context and in a batch run alike."""
+    from locoplan.runner import make_context
+    from locoplan.runs.spec import RunSpec
+
+    route, train = freight
+    assert make_context(route, train, SEEDS).builder == "general"
+    assert make_context(route, train, SEEDS, builder="seed002").builder == "seed002"
+    assert RunSpec("r.yaml", "c.yaml", options=SEEDS).resolved_builder == "general"
+    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "seed002"
