@@ -22,6 +22,7 @@ Target: exit 0 on every case, every strategy present, each feasible or marked in
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import statistics
 import time
@@ -30,6 +31,8 @@ from pathlib import Path
 import sys as _sys
 from pathlib import Path as _Path
 _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
+
+import numpy as np
 
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context, run_strategy, schedule_verdict
@@ -78,7 +81,13 @@ def main() -> None:
         route = load_route(ROOT / "routes/real" / f"{line}.yaml")
         for consist in args.consists.split(","):
             train = load_train(ROOT / "configs/consists" / f"{consist}.yaml")
-            fastest = TractionCalculator(route, train, args.options).fastest_time_s
+            calc = TractionCalculator(route, train, args.options)
+            fastest = calc.fastest_time_s
+            if not math.isfinite(fastest):  # not even the fastest run gets there: what every command says
+                why = calc.evaluate(("T",), np.zeros((1, 0))).reason(0)
+                rows.append({"line": line, "consist": consist, "mass_t": train.mass_t, "impossible": why})
+                print(f"{line:32} {train.mass_t:>6.0f} impossible: {why}", flush=True)
+                continue
             for factor in (float(x) for x in args.factors.split(",")):
                 t0 = round(factor * fastest, 1)
                 ctx = make_context(route, train, args.options, time_s=t0, tolerance_s=0.01 * t0)
@@ -105,14 +114,17 @@ def main() -> None:
                       f"{'-' if e_star is None else f'{e_star:.2f}':>9} "
                       f"{('-' if gap_kwh is None else f'{gap_kwh:+.2f} kWh') if gap is None else f'{gap:.2f}':>6} "
                       f"{four['traction_energy_kwh']:>9.2f} {solve:>8.2f}", flush=True)
+    impossible = [r for r in rows if "impossible" in r]
+    rows = [r for r in rows if "impossible" not in r]
     gaps = [r["gap_to_optimum_percent"] for r in rows if r["gap_to_optimum_percent"] is not None]
     small = [r for r in rows if r["gap_to_optimum_percent"] is None and r["gap_kwh"] is not None]
     print(f"cases {len(rows)}, on time {sum(r['on_time'] for r in rows)}"
+          + (f", {len(impossible)} line x train impossible (not even the fastest run)" if impossible else "")
           + (f", gap max {max(gaps):.2f} %, median {statistics.median(gaps):.2f} % over {len(gaps)}" if gaps else "")
           + (f"; E* too small for a percentage on {len(small)} (falling lines): gaps "
              + ", ".join(f"{r['gap_kwh']:+.2f} kWh (E* {r['optimum_kwh']:.2f})" for r in small) if small else ""))
     if args.json:
-        args.json.write_text(json.dumps({"results": rows}, indent=2) + "\n")
+        args.json.write_text(json.dumps({"results": rows, "impossible": impossible}, indent=2) + "\n")
 
 
 def compare_cases(args) -> None:

@@ -176,3 +176,25 @@ def test_point_mass_chooses_the_model_not_the_method(freight):
     assert make_context(route, train, SEEDS, builder="seed002").builder == "seed002"
     assert RunSpec("r.yaml", "c.yaml", options=SEEDS).resolved_builder == "general"
     assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "seed002"
+
+
+def test_a_stop_full_braking_cannot_reach(freight):
+    """A line that ends on 400 m of -20 per mille, the electric brake alone: gravity (1,020.2 kN) beats
+    461 kN + R at every speed, so not even a train entering at 0 km/h at the top can stop at the end; it
+    reaches the stop at the speed solve_ivp gives from (almost) rest, and the message says so."""
+    _, train = freight
+    route = hand_made_route([(5000, 60)], [(4600, 0.0), (5000, -20.0)], 5000)
+    assert M_T * G * 0.020 - 461.0 - resistance_kn(40.0) > 0
+    a0 = (M_T * G * 0.020 - 461.0 - DAVIS[0]) / M_T
+    v0 = 0.01
+    accel = lambda s, y: [(M_T * G * 0.020 - 461.0 - resistance_kn(3.6 * y[0])) / (M_T * y[0])]  # noqa: E731
+    sol = solve_ivp(accel, (4600.0 + v0 ** 2 / 2 / a0, 5000.0), [v0], rtol=1e-10, atol=1e-12)
+    end_kmh = sol.y[0, -1] * 3.6
+    assert 20 < end_kmh < 60
+    for backend in ("numba", "numpy"):
+        res = TractionCalculator(route, train, SEEDS, backend=backend).evaluate(("T",), np.zeros((1, 0)))
+        assert res.reason_code[0] == IMPOSSIBLE
+        m = re.fullmatch(r"full braking \(461 kN at rest\) cannot stop the train on -20\.0 per mille: even entering at "
+                         r"0 km/h at 4,600 m, full braking reaches the stop at 5,000 m at ([\d.]+) km/h", res.reason(0))
+        assert m, res.reason(0)
+        assert float(m.group(1)) == pytest.approx(end_kmh, abs=0.1)

@@ -283,6 +283,13 @@ class TractionCalculator:
         if not zero.size:
             return None
         k0 = int(zero[0])
+        # the run from rest starts where full braking cannot even hold a train at rest (above it, on the
+        # top of the descent, a standing train stays put)
+        k = k0
+        while k < len(self.h_m) - 1 and e_env[k] <= E_FLOOR and sum(self.forces_kn(np.float64(0.0), k)[1:]) >= 0.0:
+            k += 1
+        if e_env[k] <= E_FLOOR:
+            k0 = k
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
         e, worst = 0.0, (0.0, k0, 0.0)  # (excess [km/h], cell, position [m])
@@ -298,6 +305,11 @@ class TractionCalculator:
                                  or (k + 1 < len(self.h_m) and self.brake_holds_limit[k + 1])):
                 break  # back under the limit, or at the foot of the descent: the excursion is over
         excess, k, at = worst
+        if excess <= 0.0:  # no limit is passed: the stop at the end is what full braking cannot reach
+            steepest = k0 + int(np.argmin(self.gradient_permille[k0:]))
+            return (f"full braking ({self.brake_kn_at(0.0, steepest):,.0f} kN at rest) cannot stop the train on "
+                    f"{self.gradient_permille[steepest]:+.1f} per mille: even entering at 0 km/h at {self.s_m[k0]:,.0f} m, "
+                    f"full braking reaches the stop at {self.route.length_m:,.0f} m at {math.sqrt(2 * e) * 3.6:.1f} km/h")
         lim = float(self.limit_kmh[k])
         steepest = k0 + int(np.argmin(self.gradient_permille[k0:k + 1]))  # the descent's steepest cell
         return (f"full braking ({self.brake_kn_at(lim, steepest):,.0f} kN) cannot hold {lim:g} km/h on "
