@@ -84,13 +84,17 @@ def main() -> None:
                 r = check(TractionCalculator(route, train, MODELS[model]), args.ds)
                 r.update(line=line, consist=consist, mass_t=train.mass_t, model=model)
                 rows.append(r)
-                t = "impossible" if math.isnan(r["time_s"]) else f"{r['time_s']:.2f}"
-                o = "impossible" if math.isnan(r["oracle_s"]) else f"{r['oracle_s']:.2f}"
-                print(f"{line:36} {train.mass_t:>6.0f} {model:12} {t:>11} {o:>11} {r['diff_percent']:>8.4f} "
-                      f"{r['steep_cells']:>11} {r['entry_below_kmh']:>11.1f}", flush=True)
+                print(f"{line:36} {train.mass_t:>6.0f} {model:12} {row_text(r)}", flush=True)
     summarise(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1, default=float) + "\n")
+
+
+def row_text(r: dict) -> str:
+    """A case's numbers as the tables print them: both times, their difference, the descents."""
+    t = "impossible" if math.isnan(r["time_s"]) else f"{r['time_s']:.2f}"
+    o = "impossible" if math.isnan(r["oracle_s"]) else f"{r['oracle_s']:.2f}"
+    return f"{t:>11} {o:>11} {r['diff_percent']:>8.4f} {r['steep_cells']:>11} {r['entry_below_kmh']:>11.1f}"
 
 
 def summarise(rows: list[dict]) -> None:

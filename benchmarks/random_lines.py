@@ -191,10 +191,10 @@ def main() -> None:
 
 def fastest_cases(args, rng: np.random.Generator, options: ModelOptions) -> None:
     """``--fastest``: the fastest run of every case against the independent fine-step computation."""
-    from fastest_check import check, summarise  # noqa: PLC0415
+    from fastest_check import check, row_text, summarise  # noqa: PLC0415
 
     rows = []
-    print(f"{'case':>4} {'km':>5} {'train':26} {'fastest [s]':>11} {'oracle [s]':>11} {'diff %':>8} {'steep':>6} "
+    print(f"{'case':>4} {'km':>5} {'train':26} {'fastest [s]':>11} {'oracle [s]':>11} {'diff %':>8} {'steep cells':>11} "
           f"{'enter -km/h':>11}")
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.cases):
@@ -206,10 +206,7 @@ def fastest_cases(args, rng: np.random.Generator, options: ModelOptions) -> None
             r = check(TractionCalculator(route, train, options))
             r.update(case=i, km=route.length_m / 1000, train=train.name)
             rows.append(r)
-            t = "impossible" if np.isnan(r["time_s"]) else f"{r['time_s']:.2f}"
-            o = "impossible" if np.isnan(r["oracle_s"]) else f"{r['oracle_s']:.2f}"
-            print(f"{i:>4} {r['km']:>5.1f} {train.name[:26]:26} {t:>11} {o:>11} {r['diff_percent']:>8.4f} "
-                  f"{r['steep_cells']:>6} {r['entry_below_kmh']:>11.1f}", flush=True)
+            print(f"{i:>4} {r['km']:>5.1f} {train.name[:26]:26} {row_text(r)}", flush=True)
     summarise(rows)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1, default=float))
