@@ -50,6 +50,20 @@ def _progress_printer(err, enabled: bool, label: str = "runs"):
     return line, lambda: None
 
 
+def _warn_damaged(err, store, then: str, limit: int = 10) -> None:
+    """Name each damaged record of ``store`` (its key, what is wrong) and what was done about it; at most
+    ``limit`` lines, then how many more."""
+    from rich.markup import escape
+
+    items = list(store.damaged.items()) + [(k, w) for k, w in getattr(store, "replaced", {}).items()]
+    for key, why in items[:limit]:
+        err.print(f"[bold yellow]warning:[/] {escape(f'{store.name}: run {key}: {why}; {then}')}", highlight=False,
+                  markup=True, soft_wrap=True)
+    if len(items) > limit:
+        err.print(f"[bold yellow]warning:[/] {escape(f'{store.name}: {len(items) - limit:,} more damaged records, {then}')}",
+                  highlight=False, markup=True, soft_wrap=True)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
@@ -83,6 +97,7 @@ def register(app: typer.Typer) -> None:
                 close()
                 executor.close()
             wall = time.perf_counter() - t
+            _warn_damaged(err, store, "its run was done again and written over it")
             n, ran = len(study.specs), len(result.ran)
             report = {"store": str(store_path), "runs": n, "distinct_runs": len(set(r.key for r in result.records)),
                       "from_store": result.reused, "ran": ran, "workers": executor.workers, "executor": executor.name,
@@ -126,7 +141,8 @@ def register(app: typer.Typer) -> None:
         check_outputs(plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
         group = _names(by, "--by")
         with Store(store_path, create=False) as store:
-            rows = rows_of(store.records(), where)
+            rows = rows_of(store.iter_records(), where)  # streamed: one chunk of records at a time
+            _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
         fields = set().union(*(r.keys() for r in rows)) if rows else set()
         unknown = [g for g in group if rows and g not in fields]
         if unknown:

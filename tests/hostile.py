@@ -43,6 +43,7 @@ class Case:
     expect_out: tuple[str, ...] = ()  # each must appear in stdout
     after: Callable[[], str | None] | None = None  # extra check after the run; returns a complaint or None
     umask: int | None = None
+    fsize: int | None = None  # RLIMIT_FSIZE [bytes]: writes past it fail as on a full disk (run alone only)
     stdin_ok: bool = False
     note: str = ""
 
@@ -520,21 +521,189 @@ def build(tmp: Path) -> list[Case]:
                                                                                 "[[speed_kmh, force_kn], ...]")))
     markup_route = write("[m]route.yaml", route(length="abc"))
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
+
+    _schema_cases(cases, write, good_route, tmp)
+    _store_cases(cases, write, good_route, tmp)
     return cases
 
 
+def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """``schema:`` as a list, a mapping or a number, in every kind of file every loader reads."""
+    text = Path(good_route).read_text(encoding="utf-8")
+    manifest = (ROOT / "tests/data/bad_logs/mph/manifest.yaml").read_text(encoding="utf-8").replace(
+        "../../learn/line-6km.yaml", str(ROOT / "tests/data/learn/line-6km.yaml"))
+    kinds = {
+        "route": (text, lambda p: ["validate", p]),
+        "route_simulate": (text, lambda p: ["simulate", p, "--consist", SMALL]),
+        "consist": (CONSIST.format(loco="HXD1-seed000", count="1", load=""),
+                    lambda p: ["simulate", good_route, "--consist", p]),
+        "vehicle": (VEHICLE.format(name="V", mass="200", a="2.23", force="532"), lambda p: ["validate", p]),
+        "params": (PARAMS.format(pop="10", iters="5", extra=""),
+                   lambda p: ["optimize", good_route, "--consist", SMALL, "--params", p]),
+        "study": (f"schema: locoplan/study@1\nroutes: [{good_route}]\ntimes: [200]\n",
+                  lambda p: ["batch", p, "--store", str(tmp / "schema_study.sqlite"), "--workers", "1"]),
+        "manifest": (manifest, lambda p: ["learn", p, "--out", str(tmp / "schema_patterns.json")]),
+        "railtoolkit": ("schema: railtoolkit/path\nschema_version: '2022.05'\npaths: []\n",
+                        lambda p: ["import", "railtoolkit", p, "--out", str(tmp / "schema_import")]),
+    }
+    import re as _re
+
+    (tmp / "schema_import").mkdir(exist_ok=True)
+
+    for kind, (body, argv) in kinds.items():
+        for form, value, said in (("list", "[a, b]", "a list"), ("map", "{a: 1}", "a mapping"), ("number", "7", "a number")):
+            if kind not in ("route", "study", "manifest", "railtoolkit") and form == "number":
+                continue
+            changed = _re.sub(r"(?m)^schema: .*$", f"schema: {value}", body, count=1)
+            folder = tmp / "files" / f"schema_{kind}_{form}"
+            folder.mkdir(exist_ok=True)
+            path = folder / ("manifest.yaml" if kind == "manifest" else f"{kind}.yaml")
+            path.write_text(changed, encoding="utf-8")
+            if kind == "manifest":
+                (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
+            cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
+                              (str(path), "schema", said), note="a schema that is not text crashed every loader"))
+
+
+def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """Result stores that are not files, are damaged, lose a table, fill the disk or have a writer."""
+    import json
+    import shutil
+    import sqlite3
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.runs.spec import RunRecord
+    from locoplan.runs.store import Store
+
+    stores = tmp / "stores"
+    stores.mkdir(exist_ok=True)
+    study = write("store_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                      "times: [200, 210]\nstrategies: [time-saving, four-stage]\n")
+
+    def batch(store: str, *more: str) -> list[str]:
+        return ["batch", study, "--store", store, "--workers", "1", "--quiet", *more]
+
+    def made(name: str, n: int = 3) -> Path:
+        path = stores / name
+        for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+            if p.exists():
+                p.unlink()
+        with Store(path) as s:
+            for i in range(n):
+                s.put(RunRecord(f"key{i:04d}", {"route": "hostile", "consist": "c", "strategy": "time-saving", "algorithm": None,
+                                                "planned_time_s": 200.0 + i, "feasible": True, "running_time_s": 99.0,
+                                                "traction_energy_kwh": 15.0 + i},
+                                {"route": good_route, "consist": SMALL}, None, 0.1, {"locoplan": s.meta["locoplan"]},
+                                "host:1"))
+        return path
+
+    def readable(path: Path, n: int):
+        def check():
+            with sqlite3.connect(path) as conn:
+                rows = conn.execute("SELECT record FROM runs").fetchall()
+            bad = [t for (t,) in rows if not _is_record(t)]
+            return None if len(rows) >= n and not bad else f"{path.name}: {len(rows)} rows, {len(bad)} unreadable"
+        return check
+
+    folder = stores / "a_folder.sqlite"
+    folder.mkdir(exist_ok=True)
+    for dev in ("/dev/null", "/dev/full"):
+        cases.append(Case(f"store_{dev[5:]}", "store", batch(dev), 2, (dev, "not a regular file")))
+        cases.append(Case(f"results_{dev[5:]}", "store", ["results", dev], 2, (dev, "not a regular file")))
+    cases.append(Case("store_folder", "store", batch(str(folder)), 2, (str(folder), "is a folder")))
+    cases.append(Case("results_folder", "store", ["results", str(folder)], 2, (str(folder), "is a folder")))
+    cases.append(Case("results_not_sqlite", "store", ["results", good_route], 2, (good_route, "not a locoplan result store")))
+    fifo = stores / "fifo.sqlite"
+    if not fifo.exists():
+        os.mkfifo(fifo)
+    cases.append(Case("store_fifo", "store", batch(str(fifo)), 2, (str(fifo), "not a regular file")))
+
+    # damaged records: reported by key and what is wrong; the rest is used; batch runs them again
+    broken = made("broken_records.sqlite", 4)
+    with sqlite3.connect(broken) as conn:
+        conn.execute("UPDATE runs SET record = '{bad' WHERE key = 'key0000'")
+        conn.execute("UPDATE runs SET record = '{}' WHERE key = 'key0001'")
+        conn.execute("UPDATE runs SET record = '[1, 2]' WHERE key = 'key0002'")
+    cases.append(Case("results_broken_records", "store", ["results", str(broken), "--json"], 0,
+                      ("key0000", "not valid JSON", "key0001", "lacks 'key', 'summary'", "key0002", "not a JSON object",
+                       "left out"), expect_out=('"runs": 1',)))
+    cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 0,
+                      ("key0000", "left out"), expect_out=("key0003",)))
+    # a dropped table, garbage over the file's first page
+    dropped = made("dropped.sqlite")
+    with sqlite3.connect(dropped) as conn:
+        conn.execute("DROP TABLE runs")
+    cases.append(Case("results_dropped_runs", "store", ["results", str(dropped)], 2, (str(dropped), "runs table is missing")))
+    cases.append(Case("batch_dropped_runs", "store", batch(str(dropped)), 2, (str(dropped), "runs table is missing")))
+    garbled = made("garbled.sqlite", 40)
+    data = bytearray(garbled.read_bytes())
+    data[4096:] = _garbage(len(data) - 4096, 7)  # every page but the first (the schema)
+    garbled.write_bytes(bytes(data))
+    cases.append(Case("results_malformed", "store", ["results", str(garbled)], 2, (str(garbled), "damaged", "malformed")))
+    cases.append(Case("batch_malformed", "store", batch(str(garbled)), 2, (str(garbled), "damaged", "malformed")))
+    empty_meta = made("no_format.sqlite")
+    with sqlite3.connect(empty_meta) as conn:
+        conn.execute("DELETE FROM meta")
+    cases.append(Case("results_meta_emptied", "store", ["results", str(empty_meta)], 2, (str(empty_meta), "format")))
+
+    # a full disk after the store is open: the committed runs survive, the message says how to go on
+    full = made("full.sqlite", 30)
+    size = full.stat().st_size
+    cases.append(Case("batch_disk_full", "store", batch(str(full)), 2,
+                      (str(full), "run the same command again"), fsize=size + 1024, after=readable(full, 30),
+                      note="RLIMIT_FSIZE: the store cannot grow past its size"))
+    cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full), "--json"], 0, (), fsize=size + 1024,
+                      expect_out=('"runs": 30',), note="reading needs no space"))
+
+    # a second writer: another process holds the store's writer lock
+    held = made("held.sqlite")
+    import fcntl
+
+    fd = os.open(held, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    _HELD.append(fd)
+    cases.append(Case("batch_second_writer", "store", batch(str(held)), 2, (str(held), "another locoplan batch")))
+    cases.append(Case("results_while_writing", "store", ["results", str(held), "--json"], 0, (), expect_out=('"runs": 3',)))
+
+    # WAL: the store file alone holds every committed run (checkpointed after each commit)
+    alone = made("alone.sqlite", 5)
+    copy = stores / "alone_copy.sqlite"
+    shutil.copy(alone, copy)
+    cases.append(Case("store_file_alone_has_every_run", "store", ["results", str(copy), "--json"], 0, (),
+                      expect_out=('"runs": 5',)))
+
+
+_HELD: list[int] = []
+"""File descriptors holding store locks for the corpus's whole life (a 'second writer')."""
+
+
+def _is_record(text) -> bool:
+    import json
+
+    try:
+        return isinstance(json.loads(text).get("summary"), dict)
+    except (ValueError, AttributeError, TypeError):
+        return False
+
+
 # ------------------------------------------------------------------------------------------ running
-def _limits(umask: int | None):
+def _limits(umask: int | None, fsize: int | None = None):
     def apply():
         resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        if fsize is not None:  # a file that would grow past it fails with EFBIG, as a full disk fails
+            import signal
+
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
         os.setsid()
         if umask is not None:
             os.umask(umask)
     return apply
 
 
-def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan"):
+def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
+        fsize: int | None = None):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT))
@@ -542,7 +711,7 @@ def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float =
     t = time.perf_counter()
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask))
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask, fsize))
     chunks: dict[str, bytes] = {}
     readers = [threading.Thread(target=lambda k=k, f=f: chunks.__setitem__(k, f.read()))
                for k, f in (("out", proc.stdout), ("err", proc.stderr))]
@@ -592,7 +761,7 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:
-    return judge(case, *run(case.argv, cwd, case.umask))
+    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:

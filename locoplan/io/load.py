@@ -337,7 +337,14 @@ def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
         raise InputError(duplicates)
     if not isinstance(data, dict):
         raise InputError(Problem(name, "", f"expected a mapping of keys (schema: ..., name: ...), got {type(data).__name__}", 1))
-    return data, _line_map(node)
+    lines = _line_map(node)
+    schema = data.get("schema")
+    if schema is not None and not isinstance(schema, str):
+        # every loader looks the schema up in a table: a list or mapping there is unhashable, a number no name
+        kind = {list: "a list", dict: "a mapping", bool: "a boolean", int: "a number", float: "a number"}.get(type(schema), f"a {type(schema).__name__}")
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got {kind} "
+                                 f"({short_repr(schema)})", _line_for(lines, ("schema",))))
+    return data, lines
 
 
 def _allowed_keys(model: type[BaseModel], loc: tuple) -> list[str]:
