@@ -93,6 +93,7 @@ def guarded(fn):
         try:
             # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
             with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
+                bounds.check_command(fn, kwargs)  # every option's value, before any work
                 return fn(*args, **kwargs)
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)

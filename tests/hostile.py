@@ -522,9 +522,65 @@ def build(tmp: Path) -> list[Case]:
     markup_route = write("[m]route.yaml", route(length="abc"))
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
 
+    _every_numeric_option(cases, tmp)
     _schema_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
     return cases
+
+
+def commands():
+    """(command words, click command) of every command of the app, subcommands included."""
+    import typer
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.cli import app
+
+    def walk(group, prefix=()):
+        for name, cmd in group.commands.items():
+            if hasattr(cmd, "commands"):
+                yield from walk(cmd, prefix + (name,))
+            else:
+                yield prefix + (name,), cmd
+    return list(walk(typer.main.get_command(app)))
+
+
+def numeric_options(cmd) -> list[tuple[str, str]]:
+    """(flag, 'int' or 'float') of every numeric option of a click command."""
+    out = []
+    for p in cmd.params:
+        ann = getattr(getattr(p, "type_descriptor", None), "annotation", None)
+        if p.opts and p.opts[0].startswith("--") and ann in (int, float):
+            out.append((p.opts[0], "int" if ann is int else "float"))
+    return out
+
+
+def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
+    """Every numeric option of every command, given nan, inf, a negative, zero and a huge value: refused by its
+    bound before any file is read (the arguments name files that do not exist), naming the option."""
+    sys.path.insert(0, str(ROOT))
+    from locoplan import bounds
+
+    for words, cmd in commands():
+        args = []
+        for p in cmd.params:
+            if p.required and not p.opts[0].startswith("--"):
+                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
+            elif p.required:
+                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        for flag, kind in numeric_options(cmd):
+            entry = bounds.OPTIONS.get(f"{' '.join(words)} {flag}") or bounds.OPTIONS[flag]
+            lo, hi = entry[1], entry[2]
+            values = ["-1", "1e30"] + (["nan", "inf", "-inf"] if kind == "float" else [str(10**40)])
+            if lo > 0 or entry[3]:
+                values.append("0")
+            for v in values:
+                if kind == "int" and v == "1e30":
+                    v = str(int(hi) + 1)
+                if kind == "float" and float(v) == hi + 1:
+                    continue
+                name = f"every_option_{'_'.join(words)}_{flag[2:]}_{v}"
+                cases.append(Case(name, "option", [*words, *args, flag, v], 2, (flag,),
+                                  note="every numeric option through the bounds module"))
 
 
 def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:

@@ -45,6 +45,15 @@ def test_corpus_covers_every_class(corpus):
     assert all(c.expect or c.expect_out or c.exit == 0 for c in cases)
 
 
+def test_every_numeric_option_of_every_command_has_a_bound():
+    """A numeric option added to a command without an entry in bounds.OPTIONS fails here."""
+    from locoplan import bounds
+
+    missing = [f"{' '.join(words)} {flag}" for words, cmd in hostile.commands() for flag, _ in hostile.numeric_options(cmd)
+               if flag not in bounds.OPTIONS and f"{' '.join(words)} {flag}" not in bounds.OPTIONS]
+    assert not missing, missing
+
+
 def test_corpus_no_traceback_hang_or_wrong_success(corpus):
     tmp, cases = corpus
     batched = [c for c in cases if c.umask is None and c.fsize is None]

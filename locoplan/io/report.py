@@ -37,10 +37,10 @@ def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...]
 
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     name = str(path)
+    if path.is_dir():  # before the suffix: a folder has none, and 'unknown output type' would not say what is wrong
+        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
     if suffixes and path.suffix.lower() not in suffixes:
         raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
-    if path.is_dir():
-        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
     if path.exists() and not path.is_file():
         raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
     folder = path.parent if str(path.parent) else Path(".")
