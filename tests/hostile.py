@@ -708,7 +708,9 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     cases.append(Case("batch_disk_full", "store", batch(str(full)), 2,
                       (str(full), "run the same command again"), fsize=size + 1024, after=readable(full, 30),
                       note="RLIMIT_FSIZE: the store cannot grow past its size"))
-    cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full), "--json"], 0, (), fsize=size + 1024,
+    full_read = made("full_read.sqlite", 30)
+    cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full_read), "--json"], 0, (),
+                      fsize=full_read.stat().st_size + 1024,
                       expect_out=('"runs": 30',), note="reading needs no space"))
 
     # a second writer: another process holds the store's writer lock
