@@ -44,8 +44,17 @@ class Case:
     after: Callable[[], str | None] | None = None  # extra check after the run; returns a complaint or None
     umask: int | None = None
     fsize: int | None = None  # RLIMIT_FSIZE [bytes]: writes past it fail as on a full disk (run alone only)
+    stdout_file: str | None = None  # stdout goes here (e.g. /dev/full) instead of a pipe (run alone only)
+    forbid: tuple[str, ...] = ()  # none may appear in stderr (a forged line, an ANSI escape)
+    max_stderr_chars: int | None = None  # stderr stays shorter (messages capped and summarised)
     stdin_ok: bool = False
     note: str = ""
+
+
+    @property
+    def alone_only(self) -> bool:
+        """The case sets up its own process (umask, file-size limit, stdout): never run in a shared batch."""
+        return self.umask is not None or self.fsize is not None or self.stdout_file is not None
 
 
 @dataclass
@@ -523,6 +532,7 @@ def build(tmp: Path) -> list[Case]:
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
 
     _every_numeric_option(cases, tmp)
+    _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
     return cases
@@ -581,6 +591,43 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
                 name = f"every_option_{'_'.join(words)}_{flag[2:]}_{v}"
                 cases.append(Case(name, "option", [*words, *args, flag, v], 2, (flag,),
                                   note="every numeric option through the bounds module"))
+
+
+def _output_and_message_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """stdout on a full device; empty option values; messages that must stay one line each, short and plain."""
+    sim = ["simulate", good_route, "--consist", SMALL]
+    full = "/dev/full"
+    for name, argv in (("validate", ["validate", good_route]), ("validate_json", ["validate", good_route, "--json"]),
+                       ("simulate_json", sim + ["--json"]), ("optimize_json", ["optimize", good_route, "--consist", SMALL, "--json"]),
+                       ("simulate_table", sim)):
+        cases.append(Case(f"stdout_dev_full_{name}", "output", argv, 2, ("<stdout>", "No space left"), stdout_file=full))
+    for name, argv, flag in (("bound_times", ["bound", good_route, "--times", ""], "--times"),
+                             ("pareto_factors", ["pareto", good_route, "--factors", ""], "--factors"),
+                             ("drivers_times", ["drivers", "simulate", good_route, "--out", str(tmp / "logs_e"), "--times", ""], "--times"),
+                             ("consist", sim[:2] + ["--consist", ""], "--consist"),
+                             ("strategy_blank", sim + ["--strategy", "  "], "--strategy"),
+                             ("weights", ["optimize", good_route, "--weights", ""], "--weights"),
+                             ("sweep_times", ["sweep", good_route, "--times", ""], "--times"),
+                             ("seeds", ["pareto", good_route, "--seeds", ""], "--seeds")):
+        cases.append(Case(f"empty_value_{name}", "option", argv, 2, (CMDLINE, flag, "is empty")))
+    out_dir = tmp / "out"
+    out_dir.mkdir(exist_ok=True)
+    cases.append(Case("out_is_existing_folder_no_suffix", "output", sim + ["--out", str(out_dir)], 2, ("--out", "is a folder"),
+                      forbid=("unknown output type",)))
+    # a newline in a file name must not forge an 'error:' line, an ANSI escape must not reach the terminal
+    forged = "bad\nerror: forged.yaml"
+    cases.append(Case("newline_in_file_name", "message", ["simulate", str(tmp / forged), "--consist", SMALL], 2,
+                      ("\\nerror: forged.yaml", "no such file"), forbid=("\nerror: forged",)))
+    cases.append(Case("ansi_in_option", "message", sim[:2] + ["--consist", "\x1b[31mred\x1b[0m"], 2, ("\\x1b[31mred",),
+                      forbid=("\x1b",)))
+    huge = "T:0," + "K" * 100_000
+    cases.append(Case("option_100kb", "message", sim + ["--sequence", huge], 2, (CMDLINE, "--sequence", "characters"),
+                      max_stderr_chars=3_000))
+    keys = write("unknown_30000_keys.yaml", route() + "".join(f"k{i}: 1\n" for i in range(30_000)))
+    cases.append(Case("unknown_30000_keys", "message", ["validate", keys], 2, ("unknown key", "29,950 more problems"),
+                      max_stderr_chars=30_000))
+    cases.append(Case("unknown_30000_keys_simulate", "message", ["simulate", keys, "--consist", SMALL], 2,
+                      ("unknown key", "29,950 more problems"), max_stderr_chars=30_000))
 
 
 def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
@@ -761,18 +808,21 @@ def _limits(umask: int | None, fsize: int | None = None):
 
 
 def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
-        fsize: int | None = None):
+        fsize: int | None = None, stdout_file: str | None = None):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT))
     env.pop("FORCE_COLOR", None)
     t = time.perf_counter()
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
+    sink = open(stdout_file, "wb") if stdout_file else None
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask, fsize))
-    chunks: dict[str, bytes] = {}
+                            stdout=sink or subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask, fsize))
+    if sink:
+        sink.close()
+    chunks: dict[str, bytes] = {"out": b""}
     readers = [threading.Thread(target=lambda k=k, f=f: chunks.__setitem__(k, f.read()))
-               for k, f in (("out", proc.stdout), ("err", proc.stderr))]
+               for k, f in (("out", proc.stdout), ("err", proc.stderr)) if f is not None]
     for r in readers:
         r.start()
     # wait4 (not Popen.wait) so that the peak memory is this child's own
@@ -809,6 +859,11 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
     for text in case.expect_out:
         if text not in out:
             o.problems.append(f"stdout lacks {text!r}")
+    for text in case.forbid:
+        if text in err:
+            o.problems.append(f"stderr holds {text!r}")
+    if case.max_stderr_chars is not None and len(err) > case.max_stderr_chars:
+        o.problems.append(f"stderr is {len(err):,} characters, more than {case.max_stderr_chars:,}")
     if case.exit != 0 and "error: : " in err:
         o.problems.append("a message with an empty file field")
     if case.after is not None:
@@ -819,7 +874,7 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:
-    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize))
+    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize, stdout_file=case.stdout_file))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:

@@ -56,7 +56,7 @@ def test_every_numeric_option_of_every_command_has_a_bound():
 
 def test_corpus_no_traceback_hang_or_wrong_success(corpus):
     tmp, cases = corpus
-    batched = [c for c in cases if c.umask is None and c.fsize is None]
+    batched = [c for c in cases if not c.alone_only]
     chunks = [batched[i::6] for i in range(6)]
     with ThreadPoolExecutor(2) as pool:
         outcomes = [o for part in pool.map(lambda ch: hostile.run_batch(ch, tmp), chunks) for o in part]
@@ -68,7 +68,7 @@ def test_corpus_no_traceback_hang_or_wrong_success(corpus):
 def test_process_level_cases_alone(corpus):
     """The cases about the process itself, each as its own ``python -m locoplan`` under the caps."""
     tmp, cases = corpus
-    alone = [c for c in cases if c.name in ALONE or c.fsize is not None]
+    alone = [c for c in cases if c.name in ALONE or c.alone_only]
     assert len([c for c in alone if c.name in ALONE]) == len(ALONE)
     with ThreadPoolExecutor(2) as pool:
         outcomes = list(pool.map(lambda c: hostile.run_case(c, tmp), alone))
