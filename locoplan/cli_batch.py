@@ -134,11 +134,8 @@ def register(app: typer.Typer) -> None:
             from .errors import InputError, Problem
 
             raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
-        if fmt is not None:
-            check_outputs(out=(out_file, (f".{fmt}",)))
-        else:
-            check_outputs(out=(out_file, (".json", ".csv")))
-        check_outputs(plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
+        check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
+                      plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
         group = _names(by, "--by")
         with Store(store_path, create=False) as store:
             rows = rows_of(store.iter_records(), where)  # streamed: one chunk of records at a time

@@ -243,17 +243,24 @@ PLOT_SUFFIXES = (".png", ".svg")
 
 
 def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
-    """Check every output path of a command before any work (name -> (path or None, suffixes))."""
+    """Check every output path of a command before any work (name -> (path or None, suffixes)); no two may
+    name the same file."""
+    from .io.report import check_distinct
+
     for name, (path, suffixes) in outputs.items():
         check_output_path(path, name, suffixes)
+    check_distinct({FLAGS.get(name, name): path for name, (path, _) in outputs.items()})
 
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
     """Refuse bad output names (type, folder, writable) before any long computation."""
     from .io.plot import check_plot_path
 
+    from .io.report import check_distinct
+
     check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
     check_output(plot and check_plot_path(plot), "--plot")
+    check_distinct({"--out": out_file, "--plot": plot})
 
 
 # Options shared by the commands (typer has no option groups; these keep them identical)

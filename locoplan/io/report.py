@@ -57,6 +57,23 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     return path
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    return os.path.abspath(a) == os.path.abspath(b) or (a.exists() and b.exists() and os.path.samefile(a, b))
+
+
+def check_distinct(outputs: dict[str, Path | None]) -> None:
+    """Before any work: no two of a command's outputs (option -> path) name the same file."""
+    seen: list[tuple[str, Path]] = []
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        for other, p in seen:
+            if _same_file(Path(path), p):
+                raise InputError(Problem(str(path), option, f"names the same file as {other}: one output would be "
+                                         "lost; name each output differently"))
+        seen.append((option, Path(path)))
+
+
 def _temp_prefix(path: Path) -> str:
     """A hidden temporary name beside ``path``: short enough for any name the folder takes."""
     return f".{path.name[:40]}."
@@ -90,6 +107,10 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
+    pending = _PENDING.get()
+    if pending is not None and any(_same_file(path, target) for _, target in pending):
+        raise InputError(Problem(str(path), "", "two outputs of this command name the same file: one would be lost; "
+                                 "name each output differently"))
     try:
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
         os.close(fd)
