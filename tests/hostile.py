@@ -535,6 +535,8 @@ def build(tmp: Path) -> list[Case]:
     _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
+    _study_cases(cases, write, good_route, steep, tmp)
+    _import_and_json_cases(cases, write, good_route, tmp)
     return cases
 
 
@@ -628,6 +630,143 @@ def _output_and_message_cases(cases: list[Case], write, good_route: str, tmp: Pa
                       max_stderr_chars=30_000))
     cases.append(Case("unknown_30000_keys_simulate", "message", ["simulate", keys, "--consist", SMALL], 2,
                       ("unknown key", "29,950 more problems"), max_stderr_chars=30_000))
+
+
+def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Path) -> None:
+    """Study files: every value the command line bounds, bounded the same, but named at the file's line."""
+    def study(name: str, body: str, *why: str, exit: int = 2, route: str = good_route, field_: str = "",
+              consist: str = SMALL):
+        path = write(name, f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{consist}]\n{body}")
+        store = str(tmp / "stores" / f"{name}.sqlite")
+        cases.append(Case(name, "study", ["batch", path, "--store", store, "--workers", "1", "--quiet"], exit,
+                          (f"{path}:", field_) + why if field_ else (f"{path}:",) + why))
+
+    study("study_weights_nan.yaml", "times: [200]\nweights: [.nan, .nan]\n", "finite", field_="weights[0]")
+    study("study_weights_inf.yaml", "times: [200]\nweights: [.inf, 0]\n", "finite", field_="weights[0]")
+    study("study_times_true.yaml", "times: [true]\n", "expected seconds", field_="times[0]")
+    study("study_times_null.yaml", "times: [~]\n", "expected seconds", field_="times[0]")
+    study("study_times_list.yaml", "times: [[200]]\n", "expected seconds", field_="times[0]")
+    study("study_times_huge.yaml", "times: [1.0e+9]\n", "a week", field_="times[0]")
+    study("study_times_zero.yaml", "times: [0]\n", "a second", field_="times[0]")
+    study("study_times_nan.yaml", "times: [.nan]\n", "finite", field_="times[0]")
+    study("study_times_base60.yaml", "times: [3:20]\n", "base-60", field_="times[0]")
+    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 100", field_="times[0]")
+    study("study_tolerance_above_t0.yaml", "times: [200]\ntolerance_s: 1000\n", "not below the planned running time",
+          field_="tolerance_s")
+    study("study_tolerance_inf.yaml", "times: [200]\ntolerance_s: .inf\n", "finite", field_="tolerance_s")
+    study("study_step_tiny.yaml", "times: [200]\nmodel: {step_m: 0.0001}\n", "0.1", field_="model.step_m")
+    study("study_seed_huge.yaml", f"times: [200]\nseeds: [{2**64}]\n", "2**63", field_="seeds[0]")
+    study("study_seed_negative.yaml", "times: [200]\nseeds: [-1]\n", "2**63", field_="seeds[0]")
+    study("study_rotating_nan.yaml", "times: [200]\nmodel: {rotating_mass: .nan}\n", "finite",
+          field_="model.rotating_mass")
+    study("study_factor_unclimbable.yaml", "times: [1.1x]\n", "times[0]", "stalled at", exit=1, route=steep,
+          consist="HXD1-C80x50")
+
+
+def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """Imports and JSON inputs: all files or none, names a file system takes, JSON that blows up parsers."""
+    import json
+
+    ext = ROOT.parent / "shared" / "data" / "external"
+    if not ext.is_dir():
+        ext = Path("/work/shared/data/external")
+    track = ext / "ttobench" / "tracks" / "00_var_speed_limit_100.json"
+    rt_path, rt_train = ext / "railtoolkit" / "paths" / "slope.yaml", ext / "railtoolkit" / "trains" / "freight.yaml"
+    imports = tmp / "imports"
+    imports.mkdir(exist_ok=True)
+
+    def folder(name: str) -> Path:
+        d = imports / name
+        d.mkdir(exist_ok=True)
+        return d
+
+    def unchanged(d: Path, *allowed: str):
+        def check():
+            extra = sorted(p.name for p in d.iterdir() if p.name not in allowed)
+            return f"left in {d.name}: {extra}" if extra else None
+        return check
+
+    if track.is_file():
+        text = track.read_text()
+        data = json.loads(text)
+        j = imports / "json"
+        j.mkdir(exist_ok=True)
+        (j / "int_5000.json").write_text(text.replace('"value": 0', '"value": ' + "9" * 5000, 1))
+        (j / "deep.json").write_text(text.rstrip()[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}\n")
+        (j / "nan.json").write_text(text.replace('"value": 0', '"value": NaN', 1))
+        long_id = dict(data, metadata=dict(data["metadata"], id="x" * 300))
+        (j / "long_id.json").write_text(json.dumps(long_id))
+        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255")):
+            d = folder(f"tto_{name}")
+            cases.append(Case(f"ttobench_{name}", "json", ["import", "ttobench", str(j / f"{name}.json"), "--out", str(d)], 2,
+                              (str(j / f"{name}.json"), why), after=unchanged(d)))
+        d = folder("tto_fifo")
+        fifo = d / "00_var_speed_limit_100.yaml"
+        if not fifo.exists():
+            os.mkfifo(fifo)
+        cases.append(Case("ttobench_onto_fifo", "json", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          (str(fifo), "not a regular file"), after=unchanged(d, fifo.name)))
+        d = folder("tto_full")
+        cases.append(Case("ttobench_disk_full", "json", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          ("--out", "none was written"), fsize=1000, after=unchanged(d)))
+        pat = imports / "patterns_deep.json"
+        pat.write_text("{" + '"a": [' * 50_000 + "]" * 50_000 + "}")
+        cases.append(Case("patterns_deep", "json", ["advise", good_route, "--patterns", str(pat)], 2,
+                          (str(pat), "nested deeper")))
+        pat2 = imports / "patterns_int.json"
+        pat2.write_text('{"schema": ' + "7" * 5000 + "}")
+        cases.append(Case("patterns_int_5000", "json", ["advise", good_route, "--patterns", str(pat2)], 2,
+                          (str(pat2), "5,000 digits")))
+    if rt_path.is_file():
+        d = folder("rt_stock_is_file")
+        (d / "rolling_stock").write_text("in the way\n")
+        cases.append(Case("railtoolkit_folder_is_a_file", "json", ["import", "railtoolkit", str(rt_path), str(rt_train),
+                                                                    "--out", str(d)], 2,
+                          (str(d / "rolling_stock"), "is a file where the folder"), after=unchanged(d, "rolling_stock")))
+        d = folder("rt_consists_is_file")
+        (d / "consists").write_text("in the way\n")
+        cases.append(Case("railtoolkit_consists_is_a_file", "json", ["import", "railtoolkit", str(rt_path), str(rt_train),
+                                                                      "--out", str(d)], 2,
+                          (str(d / "consists"), "is a file where the folder"), after=unchanged(d, "consists")))
+        d = folder("rt_fifo")
+        if not (d / "slope.yaml").exists():
+            os.mkfifo(d / "slope.yaml")
+        cases.append(Case("railtoolkit_onto_fifo", "json", ["import", "railtoolkit", str(rt_path), "--out", str(d)], 2,
+                          (str(d / "slope.yaml"), "not a regular file"), after=unchanged(d, "slope.yaml")))
+        d = folder("rt_full")
+        cases.append(Case("railtoolkit_disk_full", "json", ["import", "railtoolkit", str(rt_path), str(rt_train), "--out",
+                                                             str(d)], 2, ("--out", "none was written"), fsize=1000,
+                          after=unchanged(d)))
+    # YAML 1.1 numbers: octal read as YAML 1.2 (060 is sixty), base-60 refused
+    oct_route = write("octal_length.yaml", route(length="01500", kmh="060"))
+    cases.append(Case("yaml11_octal_is_decimal", "number", ["validate", oct_route, "--json"], 0, (),
+                      expect_out=('"length_m": 1500.0',), note="YAML 1.1 would read 832 m"))
+    base60 = write("base60_time.yaml", route(schedule="schedule: {run_time_s: 3:20}\n"))
+    cases.append(Case("yaml11_base60_time", "number", ["validate", base60], 2, (base60, "schedule.run_time_s", "base-60")))
+    base60f = write("base60_length.yaml", route(length="1:05.5"))
+    cases.append(Case("yaml11_base60_float", "number", ["validate", base60f], 2, (base60f, "length_m", "base-60")))
+    # outputs: two naming one file, the logs folder's mode, the logs on a full disk
+    out_dir = tmp / "out"
+    store = tmp / "stores" / "for_plots.sqlite"
+    cases.append(Case("results_plot_and_boxplot_same_file", "output",
+                      ["results", str(store), "--plot", str(out_dir / "same.png"), "--boxplot", str(out_dir / "same.png")],
+                      2, ("--boxplot", "same file as --plot")))
+    cases.append(Case("simulate_out_and_plot_same_file", "output",
+                      ["simulate", good_route, "--consist", SMALL, "--out", str(out_dir / "x.svg"), "--plot", str(out_dir / "x.svg")],
+                      2, ("--out",)))
+    logs = tmp / "logs_mode"
+    cases.append(Case("drivers_folder_mode", "output", ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2",
+                                                        "--runs", "1"], 0, (), umask=0o022,
+                      after=lambda: None if logs.is_dir() and stat.S_IMODE(logs.stat().st_mode) == 0o755
+                      else f"logs folder mode {oct(stat.S_IMODE(logs.stat().st_mode)) if logs.exists() else 'missing'}"))
+    logs_full = tmp / "logs_full"
+    cases.append(Case("drivers_disk_full", "output", ["drivers", "simulate", good_route, "--out", str(logs_full), "--drivers",
+                                                      "2", "--runs", "1"], 2, (str(logs_full), "nothing was written"),
+                      fsize=3000, after=lambda: "logs left" if logs_full.exists() else None))
+    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"]):
+        cases.append(Case(f"tolerance_above_t0_{cmd[0]}", "option", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
+                                                                     "--tolerance", "1000"], 2,
+                          (CMDLINE, "--tolerance", "not below the planned running time")))
 
 
 def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
