@@ -169,8 +169,8 @@ OPTIONS: dict[str, tuple] = {
     "--runs": ("int", 1, LIMITS["runs"], False, False, "", "each run is an optimisation"),
     "drivers simulate --runs": ("int", 1, 100, False, False, "", "runs per driver at every mass and time"),
     "--drivers": ("int", 1, 1000, False, False, "", "simulated drivers"),
-    "--workers": ("int", 1, 1024, False, False, "", "worker processes (more than the cores do not help; they are "
-                  "capped at the core count and the runs to do)"),
+    "--workers": ("int", 1, 1024, False, False, "", "worker processes (more than the cores do not help: up to 1,024 "
+                  "are taken and capped at the cores this process may use)"),
     "--mesh-tol": ("float", 1e-8, 0.1, False, False, "", "the relative discretisation error the mesh refinement "
                    "reaches (default 1e-5): below 1e-8 it chases the NLP's own round-off (IPOPT solves to 1e-6) and "
                    "runs on, above 0.1 is no accuracy at all"),

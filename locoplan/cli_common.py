@@ -31,6 +31,7 @@ FLAGS = {
     "runs": "--runs", "algorithm": "--algorithm", "algorithms": "--algorithms", "out": "--out", "plot": "--plot",
     "workers": "--workers", "scheduler": "--scheduler", "where": "--where", "format": "--format", "by": "--by",
     "step_m": "--step", "rotating_mass": "--rotating-mass", "boxplot": "--boxplot", "seed": "--seed",
+    "seeds": "--seeds", "factors": "--factors",
 }
 """Library argument names -> this command line's flags. The library names its arguments in errors
 (``time_s``); the command line shows the flag the user typed (``--time``)."""

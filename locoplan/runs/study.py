@@ -112,6 +112,36 @@ def _time_value(value, where: str) -> tuple[str, float]:
     return _time_value(seconds, where)
 
 
+MAX_GLOB_ENTRIES = 100_000
+"""A route glob looks at no more files and folders than this (a '**' over a whole disk is a mistake)."""
+
+
+def safe_glob(pattern: str) -> list[str]:
+    """``glob.glob(pattern, recursive=True)``, but a ``**`` walks folders without following links to folders
+    (a link to a parent folder would loop without end) and looks at most at ``MAX_GLOB_ENTRIES`` entries
+    (ValueError beyond)."""
+    import fnmatch
+    import os
+
+    if "**" not in pattern:
+        return _glob.glob(pattern)
+    head, _, _ = pattern.partition("**")
+    roots = _glob.glob(head) if _glob.has_magic(head) else [head or "."]
+    flat = pattern.replace("/**/", "/").replace("**/", "")
+    wide = pattern.replace("**", "*")
+    out, seen = [], 0
+    for root in roots:
+        for folder, dirs, files in os.walk(root or ".", followlinks=False):
+            seen += len(dirs) + len(files)
+            if seen > MAX_GLOB_ENTRIES:
+                raise ValueError(f"looks at more than {MAX_GLOB_ENTRIES:,} files and folders: name a narrower folder")
+            for f in files:
+                path = os.path.join(folder, f)
+                if fnmatch.fnmatchcase(path, wide) or fnmatch.fnmatchcase(path, flat):
+                    out.append(path)
+    return out
+
+
 def short(value) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:55] + " ...>"
@@ -177,7 +207,11 @@ def load_study(path: str | Path) -> Study:
     for i, pattern in enumerate(study.routes):
         full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
         if any(c in pattern for c in "*?["):
-            found = sorted(Path(p) for p in _glob.glob(str(full), recursive=True) if p.endswith((".yaml", ".yml")))
+            try:
+                found = sorted(Path(p) for p in safe_glob(str(full)) if p.endswith((".yaml", ".yml")))
+            except ValueError as exc:
+                problems.append(Problem(name, f"routes[{i}]", f"{pattern!r}: {exc}", where("routes", i)))
+                continue
             if not found:
                 problems.append(Problem(name, f"routes[{i}]", f"{pattern!r} matches no route file (looked in {full.parent})",
                                         where("routes", i)))
