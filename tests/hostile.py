@@ -537,6 +537,7 @@ def build(tmp: Path) -> list[Case]:
     _store_cases(cases, write, good_route, tmp)
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
+    _hang_cases(cases, write, good_route, tmp)
     return cases
 
 
@@ -767,6 +768,74 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
         cases.append(Case(f"tolerance_above_t0_{cmd[0]}", "option", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
                                                                      "--tolerance", "1000"], 2,
                           (CMDLINE, "--tolerance", "not below the planned running time")))
+
+
+_SERVERS: list = []
+"""Sockets and servers the corpus keeps open for its whole life (a silent server, an HTTP server)."""
+
+
+def _servers() -> dict[str, int]:
+    """Ports on 127.0.0.1: 'silent' accepts (the kernel does) and never answers, 'http' is an HTTP server,
+    'closed' had a listener a moment ago and has none now."""
+    import http.server
+    import socket
+
+    if not _SERVERS:
+        silent = socket.socket()
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(16)
+        class Quiet(http.server.BaseHTTPRequestHandler):
+            def do_GET(self):
+                self.send_response(200)
+                self.end_headers()
+
+            def log_message(self, *args):
+                pass
+        http_server = http.server.HTTPServer(("127.0.0.1", 0), Quiet)
+        threading.Thread(target=http_server.serve_forever, daemon=True).start()
+        gone = socket.socket()
+        gone.bind(("127.0.0.1", 0))
+        closed_port = gone.getsockname()[1]
+        gone.close()
+        _SERVERS.extend([silent, http_server, closed_port])
+    silent, http_server, closed_port = _SERVERS
+    return {"silent": silent.getsockname()[1], "http": http_server.server_address[1], "closed": closed_port}
+
+
+def _hang_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """What once hung or did work before refusing: a Dask address that is no scheduler, a seed range past
+    2**63 - 1, too many seeds or workers, a route glob over a loop of links."""
+    study = write("hang_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                     "times: [200]\nstrategies: [time-saving]\n")
+    for kind, why in (("silent", "says nothing"), ("http", "HTTP server"), ("closed", "cannot reach")):
+        port = _servers()[kind]
+        cases.append(Case(f"scheduler_{kind}", "option", ["batch", study, "--store", str(tmp / "stores" / f"dask_{kind}.sqlite"),
+                                                          "--scheduler", f"tcp://127.0.0.1:{port}", "--quiet"], 2,
+                          (CMDLINE, "--scheduler", why), note="once: hung past 300 s / 60 s, or 31 s"))
+    cases.append(Case("scheduler_no_port", "option", ["batch", study, "--store", str(tmp / "stores" / "dask_np.sqlite"),
+                                                      "--scheduler", "tcp://127.0.0.1", "--quiet"], 2, ("--scheduler", "port")))
+    top = 2**63 - 1
+    cases.append(Case("study_seed_range_past_limit", "option", ["study", good_route, "--consist", SMALL, "--runs", "6",
+                                                                "--seed", str(top - 2)], 2, (CMDLINE, "--seed", "2**63 - 1")))
+    cases.append(Case("pareto_seeds_too_many", "option", ["pareto", good_route, "--consist", SMALL, "--seeds",
+                                                          ",".join(str(i) for i in range(900))], 2, (CMDLINE, "--seeds", "1,000 runs")))
+    cases.append(Case("pareto_seeds_negative", "option", ["pareto", good_route, "--consist", SMALL, "--seeds", "1,-1"], 2,
+                      (CMDLINE, "--seeds", "2**63 - 1")))
+    cases.append(Case("pareto_strategies_named", "message", ["pareto", good_route, "--consist", SMALL, "--strategies", "bogus"],
+                      2, (CMDLINE, "--strategies", "unknown strategy")))
+    cases.append(Case("workers_10000", "option", ["batch", study, "--store", str(tmp / "stores" / "w.sqlite"), "--workers",
+                                                  "10000"], 2, (CMDLINE, "--workers", "1,024")))
+    # a loop of links under a recursive glob: walked once, not forever
+    tree = tmp / "files" / "glob_loop"
+    (tree / "a" / "b").mkdir(parents=True, exist_ok=True)
+    Path(tree / "a" / "b" / "r.yaml").write_text(Path(good_route).read_text())
+    for link, target in ((tree / "a" / "b" / "up", ".."), (tree / "a" / "loop", "../..")):
+        if not link.is_symlink():
+            os.symlink(target, link)
+    looped = write("glob_loop_study.yaml", f"schema: locoplan/study@1\nroutes: ['{tree}/**/*.yaml']\nconsists: [{SMALL}]\n"
+                                           "times: [200]\nstrategies: [time-saving]\n")
+    cases.append(Case("route_glob_symlink_loop", "file", ["batch", looped, "--store", str(tmp / "stores" / "loop.sqlite"),
+                                                          "--workers", "1", "--json"], 0, (), expect_out=('"runs": 1',)))
 
 
 def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:

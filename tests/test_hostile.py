@@ -74,3 +74,50 @@ def test_process_level_cases_alone(corpus):
         outcomes = list(pool.map(lambda c: hostile.run_case(c, tmp), alone))
     assert not any(o.problems for o in outcomes), _report(outcomes)
     assert all(o.peak_rss_bytes < hostile.MEMORY_CAP_BYTES for o in outcomes)
+
+
+def test_workers_end_with_their_parent(tmp_path):
+    """kill -9 of a batch parent: its worker processes end too (they would live on, reparented)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    route = tmp_path / "r.yaml"
+    route.write_text(hostile.route())
+    study = tmp_path / "s.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{hostile.SMALL}]\n"
+                     "times: [200, 205, 210, 215, 220, 225]\nstrategies: [proposed]\nseeds: [1, 2, 3]\n")
+    env = dict(os.environ, PYTHONPATH=str(hostile.ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "locoplan", "batch", str(study), "--store", str(tmp_path / "s.sqlite"),
+                             "--workers", "2", "--quiet"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def children() -> list[int]:
+        out = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout
+        return [int(x) for x in out.split()]
+
+    deadline = time.monotonic() + 60
+    kids: list[int] = []
+    while time.monotonic() < deadline and proc.poll() is None:
+        kids = children()
+        if len(kids) >= 2:  # the resource tracker and at least one worker
+            break
+        time.sleep(0.2)
+    assert proc.poll() is None and len(kids) >= 2, "the batch ended before it started its workers"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 10
+    alive = kids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [k for k in alive if _running(k)]
+    assert not alive, f"workers alive after their parent was killed: {alive}"
+
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has ended
+    except OSError:
+        return False
