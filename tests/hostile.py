@@ -538,6 +538,20 @@ def build(tmp: Path) -> list[Case]:
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
     _hang_cases(cases, write, good_route, tmp)
+    merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
+                                                       "  - {<<: *c, from_m: 300, to_m: 400}\n"))
+    cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
+                      note="an explicit key overrides a merged one (YAML's rule): no duplicate"))
+    merge_dup = write("merge_dup.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
+                                                    "  - {<<: *c, from_m: 300, to_m: 400, from_m: 310}\n"))
+    cases.append(Case("merge_key_real_duplicate", "message", ["validate", merge_dup], 2, (merge_dup, "curves[1].from_m",
+                                                                                        "duplicate key")))
+    tiny_route = write("route_100m.yaml", route(length="100"))
+    cases.append(Case("route_shorter_than_train_not_step", "message", ["simulate", tiny_route], 2,
+                      (tiny_route, "not longer than the train"), forbid=("--step",)))
+    ns_start = write("neutral_at_start.yaml", route(extra="neutral_sections:\n  - {from_m: 0, to_m: 50}\n"))
+    cases.append(Case("neutral_section_at_start", "message", ["simulate", ns_start, "--consist", SMALL], 2,
+                      (ns_start, "neutral_sections[0]", "can never start"), forbid=("stalled at",)))
     return cases
 
 

@@ -52,6 +52,8 @@ def _duplicate_keys(node: yaml.Node, name: str, path: tuple = ()) -> list[Proble
     if isinstance(node, yaml.MappingNode):
         seen: dict = {}
         for key, value in node.value:
+            if not node.start_mark.index <= key.start_mark.index <= node.end_mark.index:
+                continue  # brought in by a merge key ('<<: *x'): an explicit key may override it, as YAML says
             k = key.value
             if k in seen:
                 out.append(Problem(name, field_name(path + (k,)),
