@@ -128,7 +128,7 @@ def register(app: typer.Typer) -> None:
         from .io.plot_runs import plot_boxes, plot_energy_time
         from .io.tables import store_summary_table
         from .runs import Store
-        from .runs.results import FORMATS, export, rows_of, summarize_rows
+        from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
 
         if fmt is not None and fmt not in FORMATS:
             from .errors import InputError, Problem
@@ -137,10 +137,12 @@ def register(app: typer.Typer) -> None:
         check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
                       plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
         group = _names(by, "--by")
+        summary_only = fmt is None and not plot and not boxplot
         with Store(store_path, create=False) as store:
-            rows = rows_of(store.iter_records(), where)  # streamed: one chunk of records at a time
+            # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
+            rows, fields = stream_rows(store.iter_records(), where,
+                                       tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
             _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
-        fields = set().union(*(r.keys() for r in rows)) if rows else set()
         unknown = [g for g in group if rows and g not in fields]
         if unknown:
             from .errors import InputError, Problem
