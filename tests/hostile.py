@@ -45,6 +45,7 @@ class Case:
     umask: int | None = None
     fsize: int | None = None  # RLIMIT_FSIZE [bytes]: writes past it fail as on a full disk (run alone only)
     stdout_file: str | None = None  # stdout goes here (e.g. /dev/full) instead of a pipe (run alone only)
+    permissions: bool = False  # file permissions hold even for root (CAP_DAC_OVERRIDE dropped; run alone only)
     forbid: tuple[str, ...] = ()  # none may appear in stderr (a forged line, an ANSI escape)
     max_stderr_chars: int | None = None  # stderr stays shorter (messages capped and summarised)
     stdin_ok: bool = False
@@ -54,7 +55,7 @@ class Case:
     @property
     def alone_only(self) -> bool:
         """The case sets up its own process (umask, file-size limit, stdout): never run in a shared batch."""
-        return self.umask is not None or self.fsize is not None or self.stdout_file is not None
+        return self.umask is not None or self.fsize is not None or self.stdout_file is not None or self.permissions
 
 
 @dataclass
@@ -992,6 +993,21 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     cases.append(Case("batch_second_writer", "store", batch(str(held)), 2, (str(held), "another locoplan batch")))
     cases.append(Case("results_while_writing", "store", ["results", str(held), "--json"], 0, (), expect_out=('"runs": 3',)))
 
+    # read-only: a store file, a folder (batch refuses before any run; results reads)
+    ro_dir = stores / "read_only_folder"
+    ro_dir.mkdir(exist_ok=True)
+    os.chmod(ro_dir, 0o755)
+    in_ro = made("read_only_folder/s.sqlite")
+    os.chmod(ro_dir, 0o555)
+    ro_file = made("read_only_file.sqlite")
+    os.chmod(ro_file, 0o444)
+    for name, path, why in (("batch_read_only_folder", in_ro, "is read-only"),
+                            ("batch_new_store_read_only_folder", ro_dir / "new.sqlite", "is read-only"),
+                            ("batch_read_only_store", ro_file, "read-only")):
+        cases.append(Case(name, "store", batch(str(path)), 2, (str(path), why), permissions=True))
+    for name, path in (("results_read_only_folder", in_ro), ("results_read_only_store", ro_file)):
+        cases.append(Case(name, "store", ["results", str(path), "--json"], 0, (), expect_out=('"runs": 3',), permissions=True))
+
     # WAL: the store file alone holds every committed run (checkpointed after each commit)
     alone = made("alone.sqlite", 5)
     copy = stores / "alone_copy.sqlite"
@@ -1014,8 +1030,14 @@ def _is_record(text) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ running
-def _limits(umask: int | None, fsize: int | None = None):
+def _limits(umask: int | None, fsize: int | None = None, permissions: bool = False):
     def apply():
+        if permissions and os.geteuid() == 0:  # as root, a read-only file is read-only only without these
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            for cap in (1, 2, 3):  # CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH, CAP_FOWNER
+                libc.prctl(24, cap, 0, 0, 0)  # PR_CAPBSET_DROP: gone from the bounding set, so at exec
         resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
         if fsize is not None:  # a file that would grow past it fails with EFBIG, as a full disk fails
@@ -1030,7 +1052,7 @@ def _limits(umask: int | None, fsize: int | None = None):
 
 
 def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
-        fsize: int | None = None, stdout_file: str | None = None):
+        fsize: int | None = None, stdout_file: str | None = None, permissions: bool = False):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT))
@@ -1039,7 +1061,8 @@ def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float =
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
     sink = open(stdout_file, "wb") if stdout_file else None
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=sink or subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask, fsize))
+                            stdout=sink or subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=_limits(umask, fsize, permissions))
     if sink:
         sink.close()
     chunks: dict[str, bytes] = {"out": b""}
@@ -1104,7 +1127,8 @@ def warm_up(cwd: Path) -> None:
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:
-    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize, stdout_file=case.stdout_file))
+    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize, stdout_file=case.stdout_file,
+                            permissions=case.permissions))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:
