@@ -21,6 +21,7 @@ and the other records stay usable (``batch`` runs the damaged ones again and wri
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -238,7 +239,10 @@ class Store:
             fd = os.open(self.path, os.O_RDONLY | os.O_CLOEXEC)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
+            except OSError as exc:
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    self._lock_fd = fd  # a file system without locks (some network mounts): go on unguarded
+                    return
                 os.close(fd)
                 raise InputError(Problem(self.name, "", "another locoplan batch is adding runs to this store now: two "
                                          "would compute every run twice; wait for it to finish (then this command "
