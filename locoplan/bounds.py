@@ -176,8 +176,10 @@ OPTIONS: dict[str, tuple] = {
                    "runs on, above 0.1 is no accuracy at all"),
     "--max-phase-degree": ("int", 3, 40, False, False, "", "LGR points per mesh interval (default 10): 3 is the "
                            "fewest the refinement makes, and more than 40 only grow the NLP (an interval is split instead)"),
-    "--nodes": ("int", 2, 1000, False, False, "", "collocation nodes"),
-    "--state-nodes": ("int", 2, 1000, False, False, "", "state collocation points"),
+    # "own": bounded by the command's own check, which says more (ocp.study.check_options: 2 .. MAX_NODES,
+    # even for two-stage, equal to --nodes for gpm, none for cvp)
+    "--nodes": ("own", 2, 1000, False, False, "", "collocation nodes"),
+    "--state-nodes": ("own", 2, 1000, False, False, "", "state collocation points"),
     "--regen": ("float", 0.0, 1.0, False, False, "", "the credited share of the electric brake's work"),
     "--comfort": ("float", 0.0, 5.0, True, False, "m/s^2", "an acceleration bound (a freight train manages 0.5)"),
     "--repeats": ("int", 1, 100, False, False, "", "solves per row (each row takes seconds)"),
@@ -206,6 +208,8 @@ def check_option(flag: str, value, command: str = "") -> None:
     kind, lo, hi, lo_open, hi_open, unit, why = entry
     if kind == "seed":
         seed(value, flag)
+        return
+    if kind == "own":
         return
     u = f" {unit}" if unit else ""
     if kind == "int":
