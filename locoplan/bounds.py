@@ -149,3 +149,125 @@ def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: st
             raise InputError(Problem(CMDLINE, option, f"value {x:g}{u} is outside [{number(lo)}, {number(hi)}]{u}"
                                      f"{': ' + why if why else ''}"))
     return out
+
+
+# ------------------------------------------------------------------------------------------ every option
+# Every numeric option of every command, checked by ``check_command`` (called by the CLI's error guard before
+# a command's body runs, so before any file is read or any work starts). A test walks every command's
+# options and fails on a numeric one missing here. An entry: (kind, lo, hi, lo_open, hi_open, unit, why);
+# "COMMAND --flag" overrides "--flag" for one command. The commands keep their own, finer checks
+# (a step against the route's length, a tolerance against T0), which come after these.
+_WEEK = LIMITS["time_s"][1]
+OPTIONS: dict[str, tuple] = {
+    "--step": ("float", *LIMITS["step_m"], False, False, "m", "the reporting grid spacing"),
+    "--time": ("float", *LIMITS["time_s"], False, False, "s",
+               "a planned running time (no stop-to-stop run is planned longer than a week)"),
+    "--tolerance": ("float", 0.0, _WEEK, False, False, "s", "a punctuality window"),
+    "--e-min": ("float", *LIMITS["e_min_kwh"], False, False, "kWh", "more than any run's traction energy"),
+    "--seed": ("seed", *LIMITS["seed"], False, False, "", "see seed()"),
+    "--rotating-mass": ("float", 0.0, 1.0, False, True, "", "a rotating-mass allowance gamma (real ones are 0.04 .. 0.1)"),
+    "--runs": ("int", 1, LIMITS["runs"], False, False, "", "each run is an optimisation"),
+    "drivers simulate --runs": ("int", 1, 100, False, False, "", "runs per driver at every mass and time"),
+    "--drivers": ("int", 1, 1000, False, False, "", "simulated drivers"),
+    "--workers": ("int", 1, 1024, False, False, "", "worker processes (more than the cores do not help: up to 1,024 "
+                  "are taken and capped at the cores this process may use)"),
+    "--mesh-tol": ("float", 1e-8, 0.1, False, False, "", "the relative discretisation error the mesh refinement "
+                   "reaches (default 1e-5): below 1e-8 it chases the NLP's own round-off (IPOPT solves to 1e-6) and "
+                   "runs on, above 0.1 is no accuracy at all"),
+    "--max-phase-degree": ("int", 3, 40, False, False, "", "LGR points per mesh interval (default 10): 3 is the "
+                           "fewest the refinement makes, and more than 40 only grow the NLP (an interval is split instead)"),
+    # "own": bounded by the command's own check, which says more (ocp.study.check_options: 2 .. MAX_NODES,
+    # even for two-stage, equal to --nodes for gpm, none for cvp)
+    "--nodes": ("own", 2, 1000, False, False, "", "collocation nodes"),
+    "--state-nodes": ("own", 2, 1000, False, False, "", "state collocation points"),
+    "--regen": ("float", 0.0, 1.0, False, False, "", "the credited share of the electric brake's work"),
+    "--comfort": ("float", 0.0, 5.0, True, False, "m/s^2", "an acceleration bound (a freight train manages 0.5)"),
+    "--repeats": ("int", 1, 100, False, False, "", "solves per row (each row takes seconds)"),
+    "--cap-kmh": ("float", 1.0, 400.0, False, False, "km/h", "a speed limit"),
+    "--leg": ("int", 1, 100_000, False, False, "", "a stop-to-stop leg, 1 = first stop to second"),
+    "--load-fraction": ("float", 0.0, 1.0, False, False, "", "the share of each wagon's load limit put on"),
+    "--divisions": ("int", 1, 100, False, False, "", "equal divisions per section (seed 004 uses 8)"),
+    "--max-order": ("int", 1, 6, False, False, "", "the highest polynomial order tried"),
+    "--folds": ("int", 2, 100, False, False, "", "cross-validation folds"),
+    "--holdout": ("float", 0.0, 0.9, False, True, "", "the share of the good runs held out of the fit"),
+    "--load-class": ("float", 0.0, 100_000.0, True, False, "t", "the width of a load class"),
+    "--level": ("float", 0.0, 40.0, False, False, "per mille", "the |equivalent gradient| at or below which a section is level"),
+    "--mass": ("float", 0.0, 100_000.0, True, False, "t", "a train's mass (the heaviest ever run is 100,000 t)"),
+}
+
+MAX_OPTION_CHARS = 10_000
+"""An option's value longer than this is refused before it is parsed: nothing the commands take comes near
+(a 1,000-value list is 8,000 characters), and a message never echoes it whole."""
+
+
+def check_option(flag: str, value, command: str = "") -> None:
+    """``value`` of ``flag`` (of ``command``) inside its entry of ``OPTIONS``; else ``InputError``."""
+    entry = OPTIONS.get(f"{command} {flag}") or OPTIONS.get(flag)
+    if entry is None or value is None or isinstance(value, bool):
+        return
+    kind, lo, hi, lo_open, hi_open, unit, why = entry
+    if kind == "seed":
+        seed(value, flag)
+        return
+    if kind == "own":
+        return
+    u = f" {unit}" if unit else ""
+    if kind == "int":
+        if not isinstance(value, int):
+            raise InputError(Problem(CMDLINE, flag, f"must be a whole number (got {value!r})"))
+        bad = value < lo or value > hi or (lo_open and value == lo) or (hi_open and value == hi)
+        if bad:
+            got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
+            span = f"{number(lo)} .. {number(hi)}" if not (lo_open or hi_open) else _span(lo, hi, lo_open, hi_open)
+            raise InputError(Problem(CMDLINE, flag, f"must be {span}{u} (got {got}): {why}"))
+        return
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(Problem(CMDLINE, flag, f"must be a finite number{', in ' + unit if unit else ''} (got {value}): {why}"))
+    bad = value < lo or value > hi or (lo_open and value == lo) or (hi_open and value == hi)
+    if bad:
+        raise InputError(Problem(CMDLINE, flag, f"must be in {_span(lo, hi, lo_open, hi_open)}{u} (got {value:g}): {why}"))
+
+
+def _span(lo, hi, lo_open: bool, hi_open: bool) -> str:
+    return f"{'(' if lo_open else '['}{number(lo)}, {number(hi)}{')' if hi_open else ']'}"
+
+
+def check_text(flag: str, value: str) -> None:
+    """A text option: not empty (an empty value never means the default: leave the option out) and not
+    longer than ``MAX_OPTION_CHARS``."""
+    if not value.strip():
+        raise InputError(Problem(CMDLINE, flag, f"is empty ({value!r}): give a value, or leave the option out for "
+                                 "its default"))
+    if len(value) > MAX_OPTION_CHARS:
+        raise InputError(Problem(CMDLINE, flag, f"a value of {len(value):,} characters is longer than the limit of "
+                                 f"{MAX_OPTION_CHARS:,} (starts {value[:40]!r})"))
+
+
+def check_command(fn, kwargs: dict) -> None:
+    """Every option value a command function ``fn`` was called with (``kwargs``), against ``OPTIONS`` and
+    ``check_text``: numeric ones inside their bounds, text ones not empty or huge."""
+    import inspect
+    from pathlib import PurePath
+
+    command = fn.__name__.rstrip("_").replace("_", "-")
+    if fn.__module__.endswith("cli_learn") and command == "simulate":
+        command = "drivers simulate"
+    try:
+        params = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        return
+    for name, value in kwargs.items():
+        p = params.get(name)
+        decls = getattr(p.default, "param_decls", None) if p is not None else None
+        flags = [d for d in (decls or ()) if d.startswith("--")]
+        if not flags:
+            continue
+        flag = flags[0].split("/")[0]
+        values = value if isinstance(value, (list, tuple)) else [value]
+        for v in values:
+            if isinstance(v, str):
+                check_text(flag, v)
+            elif isinstance(v, PurePath):
+                check_text(flag, str(v))
+            else:
+                check_option(flag, v, command)

@@ -18,7 +18,8 @@ from rich.markup import escape
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
                          STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
-                         _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
+                         _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress,
+                         MAX_PROBLEMS, plain)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
 from .io.report import to_json
@@ -51,6 +52,7 @@ def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **
 
 # ------------------------------------------------------------------------------------------ validate
 @app.command()
+@guarded
 def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or consist YAML files."),
              stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
              as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout.")):
@@ -84,8 +86,11 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
         for s in summaries:
             if s["valid"]:
                 out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
-        for p in problems:
-            err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
+        for p in problems[:MAX_PROBLEMS]:
+            err.print(f"[bold red]error:[/] {escape(plain(str(p)))}", highlight=False, soft_wrap=True)
+        if len(problems) > MAX_PROBLEMS:
+            err.print(f"[bold red]error:[/] ... and {len(problems) - MAX_PROBLEMS:,} more problems (the first "
+                      f"{MAX_PROBLEMS} are shown; --json lists every one)", highlight=False, soft_wrap=True)
     if problems:
         raise typer.Exit(2)
 

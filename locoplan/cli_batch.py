@@ -50,6 +50,20 @@ def _progress_printer(err, enabled: bool, label: str = "runs"):
     return line, lambda: None
 
 
+def _warn_damaged(err, store, then: str, limit: int = 10) -> None:
+    """Name each damaged record of ``store`` (its key, what is wrong) and what was done about it; at most
+    ``limit`` lines, then how many more."""
+    from rich.markup import escape
+
+    items = list(store.damaged.items()) + [(k, w) for k, w in getattr(store, "replaced", {}).items()]
+    for key, why in items[:limit]:
+        err.print(f"[bold yellow]warning:[/] {escape(f'{store.name}: run {key}: {why}; {then}')}", highlight=False,
+                  markup=True, soft_wrap=True)
+    if len(items) > limit:
+        err.print(f"[bold yellow]warning:[/] {escape(f'{store.name}: {len(items) - limit:,} more damaged records, {then}')}",
+                  highlight=False, markup=True, soft_wrap=True)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
@@ -83,6 +97,7 @@ def register(app: typer.Typer) -> None:
                 close()
                 executor.close()
             wall = time.perf_counter() - t
+            _warn_damaged(err, store, "its run was done again and written over it")
             n, ran = len(study.specs), len(result.ran)
             report = {"store": str(store_path), "runs": n, "distinct_runs": len(set(r.key for r in result.records)),
                       "from_store": result.reused, "ran": ran, "workers": executor.workers, "executor": executor.name,
@@ -113,21 +128,21 @@ def register(app: typer.Typer) -> None:
         from .io.plot_runs import plot_boxes, plot_energy_time
         from .io.tables import store_summary_table
         from .runs import Store
-        from .runs.results import FORMATS, export, rows_of, summarize_rows
+        from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
 
         if fmt is not None and fmt not in FORMATS:
             from .errors import InputError, Problem
 
             raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
-        if fmt is not None:
-            check_outputs(out=(out_file, (f".{fmt}",)))
-        else:
-            check_outputs(out=(out_file, (".json", ".csv")))
-        check_outputs(plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
+        check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
+                      plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
         group = _names(by, "--by")
+        summary_only = fmt is None and not plot and not boxplot
         with Store(store_path, create=False) as store:
-            rows = rows_of(store.records(), where)
-        fields = set().union(*(r.keys() for r in rows)) if rows else set()
+            # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
+            rows, fields = stream_rows(store.iter_records(), where,
+                                       tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
+            _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
         unknown = [g for g in group if rows and g not in fields]
         if unknown:
             from .errors import InputError, Problem

@@ -31,6 +31,7 @@ FLAGS = {
     "runs": "--runs", "algorithm": "--algorithm", "algorithms": "--algorithms", "out": "--out", "plot": "--plot",
     "workers": "--workers", "scheduler": "--scheduler", "where": "--where", "format": "--format", "by": "--by",
     "step_m": "--step", "rotating_mass": "--rotating-mass", "boxplot": "--boxplot", "seed": "--seed",
+    "seeds": "--seeds", "factors": "--factors",
 }
 """Library argument names -> this command line's flags. The library names its arguments in errors
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
@@ -91,15 +92,97 @@ def guarded(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
-            with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
-                return fn(*args, **kwargs)
+            try:
+                # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
+                try:
+                    with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
+                        bounds.check_command(fn, kwargs)  # every option's value, before any work
+                        result = fn(*args, **kwargs)
+                except typer.Exit:
+                    _flush_stdout()
+                    raise
+                _flush_stdout()
+                return result
+            except OSError as exc:  # stdout on a full disk or /dev/full, a file that vanished while being read
+                raise _os_problem(exc) from None
+        except _StdoutClosed:
+            raise typer.Exit(0) from None  # the reader of a pipe stopped (`| head`): not an error
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)
-            for text in ([str(as_flags(p)) for p in problems] if problems else [str(exc)]):  # an infeasible request has no file
-                err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
+            texts = [str(as_flags(p)) for p in problems] if problems else [str(exc)]  # an infeasible request has no file
+            for text in texts[:MAX_PROBLEMS]:
+                err.print(f"[bold red]error:[/] {escape(plain(text))}", highlight=False, markup=True, soft_wrap=True)
+            if len(texts) > MAX_PROBLEMS:
+                err.print(f"[bold red]error:[/] ... and {len(texts) - MAX_PROBLEMS:,} more problems of the same input(s) "
+                          f"(the first {MAX_PROBLEMS} are shown)", highlight=False, markup=True, soft_wrap=True)
             raise typer.Exit(exc.exit_code) from None
     return wrapper
+
+
+MAX_PROBLEMS = 50
+"""At most this many problems are printed (a file of 30,000 unknown keys gets 50 lines and a count)."""
+MAX_MESSAGE_CHARS = 2_000
+"""A message longer than this (a 100 KB value quoted whole) is cut in its middle, saying how much."""
+
+
+class _StdoutClosed(Exception):
+    pass
+
+
+def plain(text: str) -> str:
+    """``text`` as one line of printable text: control characters (a newline in a file name that would start a
+    forged ``error:`` line, ANSI escapes that would recolour the terminal) written as escapes, and a huge
+    message cut in the middle."""
+    out = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
+    if len(out) > MAX_MESSAGE_CHARS:
+        half = MAX_MESSAGE_CHARS // 2
+        out = f"{out[:half]} ...[{len(out) - 2 * half:,} characters left out]... {out[-half:]}"
+    return out
+
+
+def _flush_stdout() -> None:
+    import sys
+
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        _silence_stdout()
+        raise _StdoutClosed() from None
+    except OSError:
+        _silence_stdout()
+        raise
+
+
+def _silence_stdout() -> None:
+    """Point fd 1 at /dev/null, so that the interpreter's own flush at exit finds nothing to fail on."""
+    import os
+
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.close(null)
+    except OSError:
+        pass
+
+
+def _os_problem(exc: OSError) -> LocoplanError:
+    import errno
+    import sys
+
+    if isinstance(exc, BrokenPipeError):
+        _silence_stdout()
+        return _StdoutClosed()
+    why = exc.strerror or str(exc)
+    if exc.filename is None and exc.errno in (errno.ENOSPC, errno.EIO, errno.EFBIG, errno.EDQUOT, errno.EBADF, errno.EINVAL):
+        _silence_stdout()
+        where = "<stdout>"
+        try:
+            if sys.stdout.isatty():
+                where = "<terminal>"
+        except (OSError, ValueError):
+            pass
+        return InputError(Problem(where, "", f"cannot write the output: {why} (nothing else was written)"))
+    return InputError(Problem(str(exc.filename or "<command line>"), "", f"cannot read or write: {why}"))
 
 
 def _fail_if(messages: list) -> None:
@@ -161,17 +244,24 @@ PLOT_SUFFIXES = (".png", ".svg")
 
 
 def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
-    """Check every output path of a command before any work (name -> (path or None, suffixes))."""
+    """Check every output path of a command before any work (name -> (path or None, suffixes)); no two may
+    name the same file."""
+    from .io.report import check_distinct
+
     for name, (path, suffixes) in outputs.items():
         check_output_path(path, name, suffixes)
+    check_distinct({FLAGS.get(name, name): path for name, (path, _) in outputs.items()})
 
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
     """Refuse bad output names (type, folder, writable) before any long computation."""
     from .io.plot import check_plot_path
 
+    from .io.report import check_distinct
+
     check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
     check_output(plot and check_plot_path(plot), "--plot")
+    check_distinct({"--out": out_file, "--plot": plot})
 
 
 # Options shared by the commands (typer has no option groups; these keep them identical)

@@ -87,6 +87,9 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if not math.isnan(t0):
         tol = tolerance_s if tolerance_s is not None else (
             route.schedule.tolerance_s if route.schedule else max(1.0, DEFAULT_TOLERANCE_SHARE * t0))
+        if tolerance_s is not None and tol >= t0:  # as a route file's schedule.tolerance_s is refused (model/route.py)
+            raise InputError(Problem("", "tolerance_s", f"a punctuality window of +-{tol:g} s is not below the planned "
+                                     f"running time {t0:g} s: the window would open at or before departure"))
     if builder is None:  # the model (--point-mass) does not choose the method: seed 002's own is asked for by name
         builder = "general"
     if builder not in BUILDERS:

@@ -43,8 +43,19 @@ class Case:
     expect_out: tuple[str, ...] = ()  # each must appear in stdout
     after: Callable[[], str | None] | None = None  # extra check after the run; returns a complaint or None
     umask: int | None = None
+    fsize: int | None = None  # RLIMIT_FSIZE [bytes]: writes past it fail as on a full disk (run alone only)
+    stdout_file: str | None = None  # stdout goes here (e.g. /dev/full) instead of a pipe (run alone only)
+    permissions: bool = False  # file permissions hold even for root (CAP_DAC_OVERRIDE dropped; run alone only)
+    forbid: tuple[str, ...] = ()  # none may appear in stderr (a forged line, an ANSI escape)
+    max_stderr_chars: int | None = None  # stderr stays shorter (messages capped and summarised)
     stdin_ok: bool = False
     note: str = ""
+
+
+    @property
+    def alone_only(self) -> bool:
+        """The case sets up its own process (umask, file-size limit, stdout): never run in a shared batch."""
+        return self.umask is not None or self.fsize is not None or self.stdout_file is not None or self.permissions
 
 
 @dataclass
@@ -520,32 +531,543 @@ def build(tmp: Path) -> list[Case]:
                                                                                 "[[speed_kmh, force_kn], ...]")))
     markup_route = write("[m]route.yaml", route(length="abc"))
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
+
+    _every_numeric_option(cases, tmp)
+    _output_and_message_cases(cases, write, good_route, tmp)
+    _schema_cases(cases, write, good_route, tmp)
+    _store_cases(cases, write, good_route, tmp)
+    _study_cases(cases, write, good_route, steep, tmp)
+    _import_and_json_cases(cases, write, good_route, tmp)
+    _hang_cases(cases, write, good_route, tmp)
+    merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
+                                                       "  - {<<: *c, from_m: 300, to_m: 400}\n"))
+    cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
+                      note="an explicit key overrides a merged one (YAML's rule): no duplicate"))
+    merge_dup = write("merge_dup.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
+                                                    "  - {<<: *c, from_m: 300, to_m: 400, from_m: 310}\n"))
+    cases.append(Case("merge_key_real_duplicate", "message", ["validate", merge_dup], 2, (merge_dup, "curves[1].from_m",
+                                                                                        "duplicate key")))
+    tiny_route = write("route_100m.yaml", route(length="100"))
+    cases.append(Case("route_shorter_than_train_not_step", "message", ["simulate", tiny_route], 2,
+                      (tiny_route, "not longer than the train"), forbid=("--step",)))
+    ns_start = write("neutral_at_start.yaml", route(extra="neutral_sections:\n  - {from_m: 0, to_m: 50}\n"))
+    cases.append(Case("neutral_section_at_start", "message", ["simulate", ns_start, "--consist", SMALL], 2,
+                      (ns_start, "neutral_sections[0]", "can never start"), forbid=("stalled at",)))
     return cases
 
 
+def commands():
+    """(command words, click command) of every command of the app, subcommands included."""
+    import typer
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.cli import app
+
+    def walk(group, prefix=()):
+        for name, cmd in group.commands.items():
+            if hasattr(cmd, "commands"):
+                yield from walk(cmd, prefix + (name,))
+            else:
+                yield prefix + (name,), cmd
+    return list(walk(typer.main.get_command(app)))
+
+
+def numeric_options(cmd) -> list[tuple[str, str]]:
+    """(flag, 'int' or 'float') of every numeric option of a click command."""
+    out = []
+    for p in cmd.params:
+        ann = getattr(getattr(p, "type_descriptor", None), "annotation", None)
+        if p.opts and p.opts[0].startswith("--") and ann in (int, float):
+            out.append((p.opts[0], "int" if ann is int else "float"))
+    return out
+
+
+def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
+    """Every numeric option of every command, given nan, inf, a negative, zero and a huge value: refused by its
+    bound before any file is read (the arguments name files that do not exist), naming the option."""
+    sys.path.insert(0, str(ROOT))
+    from locoplan import bounds
+
+    for words, cmd in commands():
+        args = []
+        for p in cmd.params:
+            if p.required and not p.opts[0].startswith("--"):
+                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
+            elif p.required:
+                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        for flag, kind in numeric_options(cmd):
+            entry = bounds.OPTIONS.get(f"{' '.join(words)} {flag}") or bounds.OPTIONS[flag]
+            lo, hi = entry[1], entry[2]
+            values = ["-1", "1e30"] + (["nan", "inf", "-inf"] if kind == "float" else [str(10**40)])
+            if lo > 0 or entry[3]:
+                values.append("0")
+            for v in values:
+                if kind == "int" and v == "1e30":
+                    v = str(int(hi) + 1)
+                if kind == "float" and float(v) == hi + 1:
+                    continue
+                name = f"every_option_{'_'.join(words)}_{flag[2:]}_{v}"
+                cases.append(Case(name, "option", [*words, *args, flag, v], 2, (flag,),
+                                  note="every numeric option through the bounds module"))
+
+
+def _output_and_message_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """stdout on a full device; empty option values; messages that must stay one line each, short and plain."""
+    sim = ["simulate", good_route, "--consist", SMALL]
+    full = "/dev/full"
+    for name, argv in (("validate", ["validate", good_route]), ("validate_json", ["validate", good_route, "--json"]),
+                       ("simulate_json", sim + ["--json"]), ("optimize_json", ["optimize", good_route, "--consist", SMALL, "--json"]),
+                       ("simulate_table", sim)):
+        cases.append(Case(f"stdout_dev_full_{name}", "output", argv, 2, ("<stdout>", "No space left"), stdout_file=full))
+    for name, argv, flag in (("bound_times", ["bound", good_route, "--times", ""], "--times"),
+                             ("pareto_factors", ["pareto", good_route, "--factors", ""], "--factors"),
+                             ("drivers_times", ["drivers", "simulate", good_route, "--out", str(tmp / "logs_e"), "--times", ""], "--times"),
+                             ("consist", sim[:2] + ["--consist", ""], "--consist"),
+                             ("strategy_blank", sim + ["--strategy", "  "], "--strategy"),
+                             ("weights", ["optimize", good_route, "--weights", ""], "--weights"),
+                             ("sweep_times", ["sweep", good_route, "--times", ""], "--times"),
+                             ("seeds", ["pareto", good_route, "--seeds", ""], "--seeds")):
+        cases.append(Case(f"empty_value_{name}", "option", argv, 2, (CMDLINE, flag, "is empty")))
+    out_dir = tmp / "out"
+    out_dir.mkdir(exist_ok=True)
+    cases.append(Case("out_is_existing_folder_no_suffix", "output", sim + ["--out", str(out_dir)], 2, ("--out", "is a folder"),
+                      forbid=("unknown output type",)))
+    # a newline in a file name must not forge an 'error:' line, an ANSI escape must not reach the terminal
+    forged = "bad\nerror: forged.yaml"
+    cases.append(Case("newline_in_file_name", "message", ["simulate", str(tmp / forged), "--consist", SMALL], 2,
+                      ("\\nerror: forged.yaml", "no such file"), forbid=("\nerror: forged",)))
+    cases.append(Case("ansi_in_option", "message", sim[:2] + ["--consist", "\x1b[31mred\x1b[0m"], 2, ("\\x1b[31mred",),
+                      forbid=("\x1b",)))
+    huge = "T:0," + "K" * 100_000
+    cases.append(Case("option_100kb", "message", sim + ["--sequence", huge], 2, (CMDLINE, "--sequence", "characters"),
+                      max_stderr_chars=3_000))
+    keys = write("unknown_30000_keys.yaml", route() + "".join(f"k{i}: 1\n" for i in range(30_000)))
+    cases.append(Case("unknown_30000_keys", "message", ["validate", keys], 2, ("unknown key", "29,950 more problems"),
+                      max_stderr_chars=30_000))
+    cases.append(Case("unknown_30000_keys_simulate", "message", ["simulate", keys, "--consist", SMALL], 2,
+                      ("unknown key", "29,950 more problems"), max_stderr_chars=30_000))
+
+
+def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Path) -> None:
+    """Study files: every value the command line bounds, bounded the same, but named at the file's line."""
+    def study(name: str, body: str, *why: str, exit: int = 2, route: str = good_route, field_: str = "",
+              consist: str = SMALL):
+        path = write(name, f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{consist}]\n{body}")
+        store = str(tmp / "stores" / f"{name}.sqlite")
+        cases.append(Case(name, "study", ["batch", path, "--store", store, "--workers", "1", "--quiet"], exit,
+                          (f"{path}:", field_) + why if field_ else (f"{path}:",) + why))
+
+    study("study_weights_nan.yaml", "times: [200]\nweights: [.nan, .nan]\n", "finite", field_="weights[0]")
+    study("study_weights_inf.yaml", "times: [200]\nweights: [.inf, 0]\n", "finite", field_="weights[0]")
+    study("study_times_true.yaml", "times: [true]\n", "expected seconds", field_="times[0]")
+    study("study_times_null.yaml", "times: [~]\n", "expected seconds", field_="times[0]")
+    study("study_times_list.yaml", "times: [[200]]\n", "expected seconds", field_="times[0]")
+    study("study_times_huge.yaml", "times: [1.0e+9]\n", "a week", field_="times[0]")
+    study("study_times_zero.yaml", "times: [0]\n", "a second", field_="times[0]")
+    study("study_times_nan.yaml", "times: [.nan]\n", "finite", field_="times[0]")
+    study("study_times_base60.yaml", "times: [3:20]\n", "base-60", field_="times[0]")
+    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 100", field_="times[0]")
+    study("study_tolerance_above_t0.yaml", "times: [200]\ntolerance_s: 1000\n", "not below the planned running time",
+          field_="tolerance_s")
+    study("study_tolerance_inf.yaml", "times: [200]\ntolerance_s: .inf\n", "finite", field_="tolerance_s")
+    study("study_step_tiny.yaml", "times: [200]\nmodel: {step_m: 0.0001}\n", "0.1", field_="model.step_m")
+    study("study_seed_huge.yaml", f"times: [200]\nseeds: [{2**64}]\n", "2**63", field_="seeds[0]")
+    study("study_seed_negative.yaml", "times: [200]\nseeds: [-1]\n", "2**63", field_="seeds[0]")
+    study("study_rotating_nan.yaml", "times: [200]\nmodel: {rotating_mass: .nan}\n", "finite",
+          field_="model.rotating_mass")
+    study("study_factor_unclimbable.yaml", "times: [1.1x]\n", "times[0]", "stalled at", exit=1, route=steep,
+          consist="HXD1-C80x50")
+
+
+def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """Imports and JSON inputs: all files or none, names a file system takes, JSON that blows up parsers."""
+    import json
+
+    ext = ROOT.parent / "shared" / "data" / "external"
+    if not ext.is_dir():
+        ext = Path("/work/shared/data/external")
+    track = ext / "ttobench" / "tracks" / "00_var_speed_limit_100.json"
+    rt_path, rt_train = ext / "railtoolkit" / "paths" / "slope.yaml", ext / "railtoolkit" / "trains" / "freight.yaml"
+    imports = tmp / "imports"
+    imports.mkdir(exist_ok=True)
+
+    def folder(name: str) -> Path:
+        d = imports / name
+        d.mkdir(exist_ok=True)
+        return d
+
+    def unchanged(d: Path, *allowed: str):
+        def check():
+            extra = sorted(p.name for p in d.iterdir() if p.name not in allowed)
+            return f"left in {d.name}: {extra}" if extra else None
+        return check
+
+    if track.is_file():
+        text = track.read_text()
+        data = json.loads(text)
+        j = imports / "json"
+        j.mkdir(exist_ok=True)
+        (j / "int_5000.json").write_text(text.replace('"value": 0', '"value": ' + "9" * 5000, 1))
+        (j / "deep.json").write_text(text.rstrip()[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}\n")
+        (j / "nan.json").write_text(text.replace('"value": 0', '"value": NaN', 1))
+        long_id = dict(data, metadata=dict(data["metadata"], id="x" * 300))
+        (j / "long_id.json").write_text(json.dumps(long_id))
+        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255")):
+            d = folder(f"tto_{name}")
+            cases.append(Case(f"ttobench_{name}", "json", ["import", "ttobench", str(j / f"{name}.json"), "--out", str(d)], 2,
+                              (str(j / f"{name}.json"), why), after=unchanged(d)))
+        d = folder("tto_fifo")
+        fifo = d / "00_var_speed_limit_100.yaml"
+        if not fifo.exists():
+            os.mkfifo(fifo)
+        cases.append(Case("ttobench_onto_fifo", "json", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          (str(fifo), "not a regular file"), after=unchanged(d, fifo.name)))
+        d = folder("tto_full")
+        cases.append(Case("ttobench_disk_full", "json", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          ("--out", "none was written"), fsize=1000, after=unchanged(d)))
+        pat = imports / "patterns_deep.json"
+        pat.write_text("{" + '"a": [' * 50_000 + "]" * 50_000 + "}")
+        cases.append(Case("patterns_deep", "json", ["advise", good_route, "--patterns", str(pat)], 2,
+                          (str(pat), "nested deeper")))
+        pat2 = imports / "patterns_int.json"
+        pat2.write_text('{"schema": ' + "7" * 5000 + "}")
+        cases.append(Case("patterns_int_5000", "json", ["advise", good_route, "--patterns", str(pat2)], 2,
+                          (str(pat2), "5,000 digits")))
+    if rt_path.is_file():
+        d = folder("rt_stock_is_file")
+        (d / "rolling_stock").write_text("in the way\n")
+        cases.append(Case("railtoolkit_folder_is_a_file", "json", ["import", "railtoolkit", str(rt_path), str(rt_train),
+                                                                    "--out", str(d)], 2,
+                          (str(d / "rolling_stock"), "is a file where the folder"), after=unchanged(d, "rolling_stock")))
+        d = folder("rt_consists_is_file")
+        (d / "consists").write_text("in the way\n")
+        cases.append(Case("railtoolkit_consists_is_a_file", "json", ["import", "railtoolkit", str(rt_path), str(rt_train),
+                                                                      "--out", str(d)], 2,
+                          (str(d / "consists"), "is a file where the folder"), after=unchanged(d, "consists")))
+        d = folder("rt_fifo")
+        if not (d / "slope.yaml").exists():
+            os.mkfifo(d / "slope.yaml")
+        cases.append(Case("railtoolkit_onto_fifo", "json", ["import", "railtoolkit", str(rt_path), "--out", str(d)], 2,
+                          (str(d / "slope.yaml"), "not a regular file"), after=unchanged(d, "slope.yaml")))
+        d = folder("rt_full")
+        cases.append(Case("railtoolkit_disk_full", "json", ["import", "railtoolkit", str(rt_path), str(rt_train), "--out",
+                                                             str(d)], 2, ("--out", "none was written"), fsize=1000,
+                          after=unchanged(d)))
+    # YAML 1.1 numbers: octal read as YAML 1.2 (060 is sixty), base-60 refused
+    oct_route = write("octal_length.yaml", route(length="01500", kmh="060"))
+    cases.append(Case("yaml11_octal_is_decimal", "number", ["validate", oct_route, "--json"], 0, (),
+                      expect_out=('"length_m": 1500.0',), note="YAML 1.1 would read 832 m"))
+    base60 = write("base60_time.yaml", route(schedule="schedule: {run_time_s: 3:20}\n"))
+    cases.append(Case("yaml11_base60_time", "number", ["validate", base60], 2, (base60, "schedule.run_time_s", "base-60")))
+    base60f = write("base60_length.yaml", route(length="1:05.5"))
+    cases.append(Case("yaml11_base60_float", "number", ["validate", base60f], 2, (base60f, "length_m", "base-60")))
+    # outputs: two naming one file, the logs folder's mode, the logs on a full disk
+    out_dir = tmp / "out"
+    store = tmp / "stores" / "for_plots.sqlite"
+    cases.append(Case("results_plot_and_boxplot_same_file", "output",
+                      ["results", str(store), "--plot", str(out_dir / "same.png"), "--boxplot", str(out_dir / "same.png")],
+                      2, ("--boxplot", "same file as --plot")))
+    cases.append(Case("simulate_out_and_plot_same_file", "output",
+                      ["simulate", good_route, "--consist", SMALL, "--out", str(out_dir / "x.svg"), "--plot", str(out_dir / "x.svg")],
+                      2, ("--out",)))
+    logs = tmp / "logs_mode"
+    cases.append(Case("drivers_folder_mode", "output", ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2",
+                                                        "--runs", "1"], 0, (), umask=0o022,
+                      after=lambda: None if logs.is_dir() and stat.S_IMODE(logs.stat().st_mode) == 0o755
+                      else f"logs folder mode {oct(stat.S_IMODE(logs.stat().st_mode)) if logs.exists() else 'missing'}"))
+    logs_full = tmp / "logs_full"
+    cases.append(Case("drivers_disk_full", "output", ["drivers", "simulate", good_route, "--out", str(logs_full), "--drivers",
+                                                      "2", "--runs", "1"], 2, (str(logs_full), "nothing was written"),
+                      fsize=3000, after=lambda: "logs left" if logs_full.exists() else None))
+    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"]):
+        cases.append(Case(f"tolerance_above_t0_{cmd[0]}", "option", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
+                                                                     "--tolerance", "1000"], 2,
+                          (CMDLINE, "--tolerance", "not below the planned running time")))
+
+
+_SERVERS: list = []
+"""Sockets and servers the corpus keeps open for its whole life (a silent server, an HTTP server)."""
+
+
+def _servers() -> dict[str, int]:
+    """Ports on 127.0.0.1: 'silent' accepts (the kernel does) and never answers, 'http' is an HTTP server,
+    'closed' had a listener a moment ago and has none now."""
+    import http.server
+    import socket
+
+    if not _SERVERS:
+        silent = socket.socket()
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(16)
+        class Quiet(http.server.BaseHTTPRequestHandler):
+            def do_GET(self):
+                self.send_response(200)
+                self.end_headers()
+
+            def log_message(self, *args):
+                pass
+        http_server = http.server.HTTPServer(("127.0.0.1", 0), Quiet)
+        threading.Thread(target=http_server.serve_forever, daemon=True).start()
+        gone = socket.socket()
+        gone.bind(("127.0.0.1", 0))
+        closed_port = gone.getsockname()[1]
+        gone.close()
+        _SERVERS.extend([silent, http_server, closed_port])
+    silent, http_server, closed_port = _SERVERS
+    return {"silent": silent.getsockname()[1], "http": http_server.server_address[1], "closed": closed_port}
+
+
+def _hang_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """What once hung or did work before refusing: a Dask address that is no scheduler, a seed range past
+    2**63 - 1, too many seeds or workers, a route glob over a loop of links."""
+    study = write("hang_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                     "times: [200]\nstrategies: [time-saving]\n")
+    for kind, why in (("silent", "says nothing"), ("http", "HTTP server"), ("closed", "cannot reach")):
+        port = _servers()[kind]
+        cases.append(Case(f"scheduler_{kind}", "option", ["batch", study, "--store", str(tmp / "stores" / f"dask_{kind}.sqlite"),
+                                                          "--scheduler", f"tcp://127.0.0.1:{port}", "--quiet"], 2,
+                          (CMDLINE, "--scheduler", why), note="once: hung past 300 s / 60 s, or 31 s"))
+    cases.append(Case("scheduler_no_port", "option", ["batch", study, "--store", str(tmp / "stores" / "dask_np.sqlite"),
+                                                      "--scheduler", "tcp://127.0.0.1", "--quiet"], 2, ("--scheduler", "port")))
+    top = 2**63 - 1
+    cases.append(Case("study_seed_range_past_limit", "option", ["study", good_route, "--consist", SMALL, "--runs", "6",
+                                                                "--seed", str(top - 2)], 2, (CMDLINE, "--seed", "2**63 - 1")))
+    cases.append(Case("pareto_seeds_too_many", "option", ["pareto", good_route, "--consist", SMALL, "--seeds",
+                                                          ",".join(str(i) for i in range(900))], 2, (CMDLINE, "--seeds", "1,000 runs")))
+    cases.append(Case("pareto_seeds_negative", "option", ["pareto", good_route, "--consist", SMALL, "--seeds", "1,-1"], 2,
+                      (CMDLINE, "--seeds", "2**63 - 1")))
+    cases.append(Case("pareto_strategies_named", "message", ["pareto", good_route, "--consist", SMALL, "--strategies", "bogus"],
+                      2, (CMDLINE, "--strategies", "unknown strategy")))
+    cases.append(Case("workers_10000", "option", ["batch", study, "--store", str(tmp / "stores" / "w.sqlite"), "--workers",
+                                                  "10000"], 2, (CMDLINE, "--workers", "1,024")))
+    # a loop of links under a recursive glob: walked once, not forever
+    tree = tmp / "files" / "glob_loop"
+    (tree / "a" / "b").mkdir(parents=True, exist_ok=True)
+    Path(tree / "a" / "b" / "r.yaml").write_text(Path(good_route).read_text())
+    for link, target in ((tree / "a" / "b" / "up", ".."), (tree / "a" / "loop", "../..")):
+        if not link.is_symlink():
+            os.symlink(target, link)
+    looped = write("glob_loop_study.yaml", f"schema: locoplan/study@1\nroutes: ['{tree}/**/*.yaml']\nconsists: [{SMALL}]\n"
+                                           "times: [200]\nstrategies: [time-saving]\n")
+    cases.append(Case("route_glob_symlink_loop", "file", ["batch", looped, "--store", str(tmp / "stores" / "loop.sqlite"),
+                                                          "--workers", "1", "--json"], 0, (), expect_out=('"runs": 1',)))
+
+
+def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """``schema:`` as a list, a mapping or a number, in every kind of file every loader reads."""
+    text = Path(good_route).read_text(encoding="utf-8")
+    manifest = (ROOT / "tests/data/bad_logs/mph/manifest.yaml").read_text(encoding="utf-8").replace(
+        "../../learn/line-6km.yaml", str(ROOT / "tests/data/learn/line-6km.yaml"))
+    kinds = {
+        "route": (text, lambda p: ["validate", p]),
+        "route_simulate": (text, lambda p: ["simulate", p, "--consist", SMALL]),
+        "consist": (CONSIST.format(loco="HXD1-seed000", count="1", load=""),
+                    lambda p: ["simulate", good_route, "--consist", p]),
+        "vehicle": (VEHICLE.format(name="V", mass="200", a="2.23", force="532"), lambda p: ["validate", p]),
+        "params": (PARAMS.format(pop="10", iters="5", extra=""),
+                   lambda p: ["optimize", good_route, "--consist", SMALL, "--params", p]),
+        "study": (f"schema: locoplan/study@1\nroutes: [{good_route}]\ntimes: [200]\n",
+                  lambda p: ["batch", p, "--store", str(tmp / "schema_study.sqlite"), "--workers", "1"]),
+        "manifest": (manifest, lambda p: ["learn", p, "--out", str(tmp / "schema_patterns.json")]),
+        "railtoolkit": ("schema: railtoolkit/path\nschema_version: '2022.05'\npaths: []\n",
+                        lambda p: ["import", "railtoolkit", p, "--out", str(tmp / "schema_import")]),
+    }
+    import re as _re
+
+    (tmp / "schema_import").mkdir(exist_ok=True)
+
+    for kind, (body, argv) in kinds.items():
+        for form, value, said in (("list", "[a, b]", "a list"), ("map", "{a: 1}", "a mapping"), ("number", "7", "a number")):
+            if kind not in ("route", "study", "manifest", "railtoolkit") and form == "number":
+                continue
+            changed = _re.sub(r"(?m)^schema: .*$", f"schema: {value}", body, count=1)
+            folder = tmp / "files" / f"schema_{kind}_{form}"
+            folder.mkdir(exist_ok=True)
+            path = folder / ("manifest.yaml" if kind == "manifest" else f"{kind}.yaml")
+            path.write_text(changed, encoding="utf-8")
+            if kind == "manifest":
+                (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
+            cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
+                              (str(path), "schema", said), note="a schema that is not text crashed every loader"))
+
+
+def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """Result stores that are not files, are damaged, lose a table, fill the disk or have a writer."""
+    import json
+    import shutil
+    import sqlite3
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.runs.spec import RunRecord
+    from locoplan.runs.store import Store
+
+    stores = tmp / "stores"
+    stores.mkdir(exist_ok=True)
+    study = write("store_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                      "times: [200, 210]\nstrategies: [time-saving, four-stage]\n")
+
+    def batch(store: str, *more: str) -> list[str]:
+        return ["batch", study, "--store", store, "--workers", "1", "--quiet", *more]
+
+    def made(name: str, n: int = 3) -> Path:
+        path = stores / name
+        for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+            if p.exists():
+                p.unlink()
+        with Store(path) as s:
+            for i in range(n):
+                s.put(RunRecord(f"key{i:04d}", {"route": "hostile", "consist": "c", "strategy": "time-saving", "algorithm": None,
+                                                "planned_time_s": 200.0 + i, "feasible": True, "running_time_s": 99.0,
+                                                "traction_energy_kwh": 15.0 + i},
+                                {"route": good_route, "consist": SMALL}, None, 0.1, {"locoplan": s.meta["locoplan"]},
+                                "host:1"))
+        return path
+
+    def readable(path: Path, n: int):
+        def check():
+            with sqlite3.connect(path) as conn:
+                rows = conn.execute("SELECT record FROM runs").fetchall()
+            bad = [t for (t,) in rows if not _is_record(t)]
+            return None if len(rows) >= n and not bad else f"{path.name}: {len(rows)} rows, {len(bad)} unreadable"
+        return check
+
+    folder = stores / "a_folder.sqlite"
+    folder.mkdir(exist_ok=True)
+    for dev in ("/dev/null", "/dev/full"):
+        cases.append(Case(f"store_{dev[5:]}", "store", batch(dev), 2, (dev, "not a regular file")))
+        cases.append(Case(f"results_{dev[5:]}", "store", ["results", dev], 2, (dev, "not a regular file")))
+    cases.append(Case("store_folder", "store", batch(str(folder)), 2, (str(folder), "is a folder")))
+    cases.append(Case("results_folder", "store", ["results", str(folder)], 2, (str(folder), "is a folder")))
+    cases.append(Case("results_not_sqlite", "store", ["results", good_route], 2, (good_route, "not a locoplan result store")))
+    fifo = stores / "fifo.sqlite"
+    if not fifo.exists():
+        os.mkfifo(fifo)
+    cases.append(Case("store_fifo", "store", batch(str(fifo)), 2, (str(fifo), "not a regular file")))
+
+    # damaged records: reported by key and what is wrong; the rest is used; batch runs them again
+    broken = made("broken_records.sqlite", 4)
+    with sqlite3.connect(broken) as conn:
+        conn.execute("UPDATE runs SET record = '{bad' WHERE key = 'key0000'")
+        conn.execute("UPDATE runs SET record = '{}' WHERE key = 'key0001'")
+        conn.execute("UPDATE runs SET record = '[1, 2]' WHERE key = 'key0002'")
+    cases.append(Case("results_broken_records", "store", ["results", str(broken), "--json"], 0,
+                      ("key0000", "not valid JSON", "key0001", "lacks 'key', 'summary'", "key0002", "not a JSON object",
+                       "left out"), expect_out=('"runs": 1',)))
+    cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 0,
+                      ("key0000", "left out"), expect_out=("key0003",)))
+    # a dropped table, garbage over the file's first page
+    dropped = made("dropped.sqlite")
+    with sqlite3.connect(dropped) as conn:
+        conn.execute("DROP TABLE runs")
+    cases.append(Case("results_dropped_runs", "store", ["results", str(dropped)], 2, (str(dropped), "runs table is missing")))
+    cases.append(Case("batch_dropped_runs", "store", batch(str(dropped)), 2, (str(dropped), "runs table is missing")))
+    garbled = made("garbled.sqlite", 40)
+    data = bytearray(garbled.read_bytes())
+    data[4096:] = _garbage(len(data) - 4096, 7)  # every page but the first (the schema)
+    garbled.write_bytes(bytes(data))
+    cases.append(Case("results_malformed", "store", ["results", str(garbled)], 2, (str(garbled), "damaged", "malformed")))
+    cases.append(Case("batch_malformed", "store", batch(str(garbled)), 2, (str(garbled), "damaged", "malformed")))
+    empty_meta = made("no_format.sqlite")
+    with sqlite3.connect(empty_meta) as conn:
+        conn.execute("DELETE FROM meta")
+    cases.append(Case("results_meta_emptied", "store", ["results", str(empty_meta)], 2, (str(empty_meta), "format")))
+
+    # a full disk after the store is open: the committed runs survive, the message says how to go on
+    full = made("full.sqlite", 30)
+    size = full.stat().st_size
+    cases.append(Case("batch_disk_full", "store", batch(str(full)), 2,
+                      (str(full), "run the same command again"), fsize=size + 1024, after=readable(full, 30),
+                      note="RLIMIT_FSIZE: the store cannot grow past its size"))
+    full_read = made("full_read.sqlite", 30)
+    cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full_read), "--json"], 0, (),
+                      fsize=full_read.stat().st_size + 1024,
+                      expect_out=('"runs": 30',), note="reading needs no space"))
+
+    # a second writer: another process holds the store's writer lock
+    held = made("held.sqlite")
+    import fcntl
+
+    fd = os.open(held, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    _HELD.append(fd)
+    cases.append(Case("batch_second_writer", "store", batch(str(held)), 2, (str(held), "another locoplan batch")))
+    cases.append(Case("results_while_writing", "store", ["results", str(held), "--json"], 0, (), expect_out=('"runs": 3',)))
+
+    # read-only: a store file, a folder (batch refuses before any run; results reads)
+    ro_dir = stores / "read_only_folder"
+    ro_dir.mkdir(exist_ok=True)
+    os.chmod(ro_dir, 0o755)
+    in_ro = made("read_only_folder/s.sqlite")
+    os.chmod(ro_dir, 0o555)
+    ro_file = made("read_only_file.sqlite")
+    os.chmod(ro_file, 0o444)
+    for name, path, why in (("batch_read_only_folder", in_ro, "is read-only"),
+                            ("batch_new_store_read_only_folder", ro_dir / "new.sqlite", "is read-only"),
+                            ("batch_read_only_store", ro_file, "read-only")):
+        cases.append(Case(name, "store", batch(str(path)), 2, (str(path), why), permissions=True))
+    for name, path in (("results_read_only_folder", in_ro), ("results_read_only_store", ro_file)):
+        cases.append(Case(name, "store", ["results", str(path), "--json"], 0, (), expect_out=('"runs": 3',), permissions=True))
+
+    # WAL: the store file alone holds every committed run (checkpointed after each commit)
+    alone = made("alone.sqlite", 5)
+    copy = stores / "alone_copy.sqlite"
+    shutil.copy(alone, copy)
+    cases.append(Case("store_file_alone_has_every_run", "store", ["results", str(copy), "--json"], 0, (),
+                      expect_out=('"runs": 5',)))
+
+
+_HELD: list[int] = []
+"""File descriptors holding store locks for the corpus's whole life (a 'second writer')."""
+
+
+def _is_record(text) -> bool:
+    import json
+
+    try:
+        return isinstance(json.loads(text).get("summary"), dict)
+    except (ValueError, AttributeError, TypeError):
+        return False
+
+
 # ------------------------------------------------------------------------------------------ running
-def _limits(umask: int | None):
+def _limits(umask: int | None, fsize: int | None = None, permissions: bool = False):
     def apply():
+        if permissions and os.geteuid() == 0:  # as root, a read-only file is read-only only without these
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            for cap in (1, 2, 3):  # CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH, CAP_FOWNER
+                libc.prctl(24, cap, 0, 0, 0)  # PR_CAPBSET_DROP: gone from the bounding set, so at exec
         resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP_BYTES, MEMORY_CAP_BYTES))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        if fsize is not None:  # a file that would grow past it fails with EFBIG, as a full disk fails
+            import signal
+
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
         os.setsid()
         if umask is not None:
             os.umask(umask)
     return apply
 
 
-def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan"):
+def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
+        fsize: int | None = None, stdout_file: str | None = None, permissions: bool = False):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT))
     env.pop("FORCE_COLOR", None)
     t = time.perf_counter()
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
+    sink = open(stdout_file, "wb") if stdout_file else None
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_limits(umask))
-    chunks: dict[str, bytes] = {}
+                            stdout=sink or subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=_limits(umask, fsize, permissions))
+    if sink:
+        sink.close()
+    chunks: dict[str, bytes] = {"out": b""}
     readers = [threading.Thread(target=lambda k=k, f=f: chunks.__setitem__(k, f.read()))
-               for k, f in (("out", proc.stdout), ("err", proc.stderr))]
+               for k, f in (("out", proc.stdout), ("err", proc.stderr)) if f is not None]
     for r in readers:
         r.start()
     # wait4 (not Popen.wait) so that the peak memory is this child's own
@@ -582,6 +1104,11 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
     for text in case.expect_out:
         if text not in out:
             o.problems.append(f"stdout lacks {text!r}")
+    for text in case.forbid:
+        if text in err:
+            o.problems.append(f"stderr holds {text!r}")
+    if case.max_stderr_chars is not None and len(err) > case.max_stderr_chars:
+        o.problems.append(f"stderr is {len(err):,} characters, more than {case.max_stderr_chars:,}")
     if case.exit != 0 and "error: : " in err:
         o.problems.append("a message with an empty file field")
     if case.after is not None:
@@ -591,8 +1118,17 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
     return o
 
 
+def warm_up(cwd: Path) -> None:
+    """Build the compiled kernels (``locoplan.native``, once per cache folder: seconds to a minute) before any
+    case is timed: the time limit is a case's, not the first build's."""
+    route_file = Path(cwd) / "warm_up_route.yaml"
+    route_file.write_text(route(), encoding="utf-8")
+    run(["optimize", str(route_file), "--consist", SMALL, "--json"], cwd, timeout_s=900)
+
+
 def run_case(case: Case, cwd: Path) -> Outcome:
-    return judge(case, *run(case.argv, cwd, case.umask))
+    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize, stdout_file=case.stdout_file,
+                            permissions=case.permissions))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:

@@ -119,11 +119,57 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
             raise InputError(Problem(item.source_file, "id", f"two inputs would both be written to {item.relpath} "
                                      f"(also from {seen[item.relpath]}): ids must differ"))
         seen[item.relpath] = item.source_file
-        target = out_dir / item.relpath
-        if target.is_dir():
-            raise InputError(Problem(str(target), "--out", "a folder stands where this file is to be written"))
+        _check_target(out_dir, item)
     licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
+    if licence_name:
+        _check_target(out_dir, ImportedFile(licence_name, "licence", "", "", str(imported.licence)))
+    try:
+        return _write_all(out_dir, imported, licence_name)
+    except OSError as exc:  # a full disk, a folder that turned read-only: nothing is left written
+        raise InputError(Problem(str(exc.filename or out_dir), "--out", f"cannot write the imported files: "
+                                 f"{exc.strerror or exc} (none was written)")) from None
+
+
+NAME_MAX_BYTES = 255
+"""The longest file name (one path component) Linux, macOS and Windows file systems take."""
+
+
+def _check_target(out_dir: Path, item: ImportedFile) -> None:
+    """Before anything is written: the file's name is one the file system takes, every folder on its way is a
+    folder (or can be made), and what stands at its place, if anything, is a regular file to replace."""
+    rel = Path(item.relpath)
+    for part in rel.parts:
+        size = len(part.encode("utf-8", "surrogateescape"))
+        if size > NAME_MAX_BYTES:
+            raise InputError(Problem(item.source_file, "id", f"gives the file name {part[:40]!r}... of {size:,} bytes, "
+                                     f"longer than the {NAME_MAX_BYTES} a file system takes: shorten the id"))
+    folder = out_dir
+    for part in rel.parts[:-1]:
+        folder = folder / part
+        if os.path.lexists(folder) and not folder.is_dir():
+            raise InputError(Problem(str(folder), "--out", f"is a file where the folder {part}/ is to hold the imported "
+                                     f"{item.kind} {rel.name}: move it away (nothing was written)"))
+    target = out_dir / rel
+    if target.is_dir():
+        raise InputError(Problem(str(target), "--out", "a folder stands where this file is to be written"))
+    if os.path.lexists(target):
+        try:
+            mode = os.stat(target).st_mode
+        except OSError as exc:
+            raise InputError(Problem(str(target), "--out", f"cannot replace it: {exc.strerror or exc}")) from None
+        import stat
+
+        if not stat.S_ISREG(mode):
+            raise InputError(Problem(str(target), "--out", "exists and is not a regular file (a pipe, a device or a "
+                                     "socket is never written over): move it away (nothing was written)"))
+
+
+def _write_all(out_dir: Path, imported, licence_name: str | None) -> ImportReport:
+    """Write into a hidden folder, validate, then move every file into place; if a move fails, the files
+    moved so far are put back as they were (old contents restored, new ones removed), and so are the folders."""
     tmp = Path(tempfile.mkdtemp(prefix=".locoplan-import-", dir=out_dir))
+    made: list[Path] = []  # folders made inside out_dir
+    moved: list[tuple[Path, Path | None]] = []  # (target, backup of what stood there, or None)
     try:
         for item in imported.files:
             (tmp / item.relpath).parent.mkdir(parents=True, exist_ok=True)
@@ -131,16 +177,51 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
         _validate(tmp, imported.files)
         if licence_name:
             shutil.copyfile(imported.licence, tmp / licence_name)
-        written = []
-        for item in imported.files:
-            target = out_dir / item.relpath
-            target.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(tmp / item.relpath, target)
-            written.append((target, item.kind, item.summary))
-        licence = None
+        pairs = [(tmp / item.relpath, out_dir / item.relpath) for item in imported.files]
         if licence_name:
-            licence = out_dir / licence_name
-            os.replace(tmp / licence_name, licence)
+            pairs.append((tmp / licence_name, out_dir / licence_name))
+        backups = tmp / ".backup"
+        backups.mkdir()
+        try:
+            for n, (new, target) in enumerate(pairs):
+                folder = target.parent
+                missing = []
+                while not folder.exists():
+                    missing.append(folder)
+                    folder = folder.parent
+                for f in reversed(missing):
+                    f.mkdir()
+                    made.append(f)
+                backup = None
+                if target.exists():
+                    backup = backups / str(n)
+                    os.link(target, backup) if _same_device(target, backups) else shutil.copy2(target, backup)
+                os.replace(new, target)
+                moved.append((target, backup))
+        except BaseException:
+            for target, backup in reversed(moved):
+                try:
+                    if backup is not None:
+                        os.replace(backup, target)
+                    else:
+                        os.unlink(target)
+                except OSError:
+                    pass
+            for f in reversed(made):
+                try:
+                    f.rmdir()
+                except OSError:
+                    pass
+            raise
+        written = [(out_dir / item.relpath, item.kind, item.summary) for item in imported.files]
+        licence = out_dir / licence_name if licence_name else None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return ImportReport(written, licence, imported.notes)
+
+
+def _same_device(a: Path, b: Path) -> bool:
+    try:
+        return os.stat(a).st_dev == os.stat(b).st_dev
+    except OSError:
+        return False

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import codecs
 import difflib
+import json
 import os
 import re
 import stat
@@ -51,6 +52,8 @@ def _duplicate_keys(node: yaml.Node, name: str, path: tuple = ()) -> list[Proble
     if isinstance(node, yaml.MappingNode):
         seen: dict = {}
         for key, value in node.value:
+            if not node.start_mark.index <= key.start_mark.index <= node.end_mark.index:
+                continue  # brought in by a merge key ('<<: *x'): an explicit key may override it, as YAML says
             k = key.value
             if k in seen:
                 out.append(Problem(name, field_name(path + (k,)),
@@ -173,13 +176,43 @@ def read_text(path: str | Path, limit: int = MAX_FILE_BYTES) -> str:
 
 
 # ------------------------------------------------------------------------------------------ YAML
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when present: fast, and its parser does not recurse
+_BASE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when present: fast, and its parser does not recurse
+
+
+class _LOADER(_BASE_LOADER):  # type: ignore[misc,valid-type]
+    """The safe loader, reading integers as YAML 1.2 does: ``060`` is sixty (YAML 1.1 would read the octal 48,
+    a silent 20 % off a speed limit); ``0o60`` is still octal. Base-60 forms (``3:20``) are refused by the scan."""
+
+
+_OCTAL_11 = re.compile(r"^[-+]?0[0-7_]+$")
+_SEXAGESIMAL_11 = re.compile(r"^[-+]?[0-9][0-9_]*(:[0-5]?[0-9])+(\.[0-9_]*)?$")
+
+
+def _construct_int(loader, node):
+    value = loader.construct_scalar(node)
+    if _OCTAL_11.match(value):
+        return int(value.replace("_", ""), 10)
+    return yaml.constructor.SafeConstructor.construct_yaml_int(loader, node)
+
+
+_LOADER.add_constructor("tag:yaml.org,2002:int", _construct_int)
 _RESOLVER = yaml.SafeLoader("")
 _STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
 _NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
 _READ_AS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number",
             "tag:yaml.org,2002:bool": "a boolean", "tag:yaml.org,2002:null": "null",
             "tag:yaml.org,2002:timestamp": "a date"}
+
+
+def _base60(text: str) -> float:
+    """'3:20' -> 200 (what YAML 1.1 reads); huge forms only as far as a float goes."""
+    sign = -1.0 if text.startswith("-") else 1.0
+    value = 0.0
+    for part in text.lstrip("+-").replace("_", "").split(":"):
+        value = value * 60 + float(part)
+        if value > 1e300:
+            return sign * float("inf")
+    return sign * value
 
 
 def _digits(text: str) -> int:
@@ -274,6 +307,11 @@ def _scan(text: str, name: str) -> None:
                 else:
                     tag = event.tag if event.tag and event.tag != "!" else (
                         _RESOLVER.resolve(yaml.ScalarNode, event.value, event.implicit) if event.implicit[0] else _STR)
+                    if tag in _NUMBER_TAGS and _SEXAGESIMAL_11.match(event.value):
+                        fail(event, f"{event.value!r} is a base-60 number to YAML 1.1 (read as "
+                                    f"{_base60(event.value):g}) and text to YAML 1.2: write one plain number "
+                                    "(seconds, metres, ...), e.g. "
+                                    f"{_base60(event.value):g} for {event.value}")
                     if tag in _NUMBER_TAGS:
                         n = _digits(event.value)
                         if n > MAX_NUMBER_DIGITS:
@@ -326,6 +364,55 @@ def parse_yaml(text: str, name: str) -> tuple[Any, yaml.Node | None]:
     return data, node
 
 
+_JSON_STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"')
+_JSON_BRACKETS = re.compile(r"[\[\]{}]")
+
+
+class _BadJsonNumber(Exception):
+    pass
+
+
+def _json_number(kind):
+    def parse(text: str):
+        if _digits(text) > MAX_NUMBER_DIGITS:
+            raise _BadJsonNumber(text)
+        return kind(text)
+    return parse
+
+
+def _json_constant(text: str):
+    raise _BadJsonNumber(text)
+
+
+def parse_json(text: str, name: str) -> Any:
+    """Parse JSON as ``parse_yaml`` parses YAML: nesting deeper than ``MAX_DEPTH`` (checked before parsing,
+    so Python's recursion is never at risk), numbers of more than ``MAX_NUMBER_DIGITS`` digits and the
+    non-standard ``NaN`` / ``Infinity`` are refused with the line; a syntax error names line and column."""
+    depth = top = 0
+    for m in _JSON_BRACKETS.finditer(_JSON_STRING.sub('""', text)):
+        depth += 1 if m.group() in "[{" else -1
+        if depth > top:
+            top = depth
+            if top > MAX_DEPTH:
+                raise InputError(Problem(name, "", f"nested deeper than {MAX_DEPTH} levels (locoplan's JSON inputs need "
+                                         "4); the file is refused before the parser's recursion is at risk"))
+    try:
+        return json.loads(text, parse_int=_json_number(int), parse_float=_json_number(float),
+                          parse_constant=_json_constant)
+    except _BadJsonNumber as exc:
+        literal = str(exc)
+        at = text.find(literal)
+        line = text.count("\n", 0, at) + 1 if at >= 0 else None
+        if literal in ("NaN", "Infinity", "-Infinity"):
+            raise InputError(Problem(name, "", f"{literal} is not a JSON number (nor a finite value)", line)) from None
+        raise InputError(Problem(name, "", f"a number of {_digits(literal):,} digits is not a plausible value (at most "
+                                 f"{MAX_NUMBER_DIGITS} digits)", line)) from None
+    except json.JSONDecodeError as exc:
+        raise InputError(Problem(name, "", f"not valid JSON: {exc.msg} (column {exc.colno})", exc.lineno)) from None
+    except (RecursionError, ValueError) as exc:
+        raise InputError(Problem(name, "", f"not usable JSON: {exc.__class__.__name__}: {str(exc)[:120]}")) from None
+
+
 def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
     """Parse a YAML file; missing, unreadable, empty, malformed or hostile files raise ``InputError``."""
     name = str(path)
@@ -337,7 +424,14 @@ def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
         raise InputError(duplicates)
     if not isinstance(data, dict):
         raise InputError(Problem(name, "", f"expected a mapping of keys (schema: ..., name: ...), got {type(data).__name__}", 1))
-    return data, _line_map(node)
+    lines = _line_map(node)
+    schema = data.get("schema")
+    if schema is not None and not isinstance(schema, str):
+        # every loader looks the schema up in a table: a list or mapping there is unhashable, a number no name
+        kind = {list: "a list", dict: "a mapping", bool: "a boolean", int: "a number", float: "a number"}.get(type(schema), f"a {type(schema).__name__}")
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got {kind} "
+                                 f"({short_repr(schema)})", _line_for(lines, ("schema",))))
+    return data, lines
 
 
 def _allowed_keys(model: type[BaseModel], loc: tuple) -> list[str]:

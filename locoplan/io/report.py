@@ -37,10 +37,10 @@ def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...]
 
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     name = str(path)
+    if path.is_dir():  # before the suffix: a folder has none, and 'unknown output type' would not say what is wrong
+        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
     if suffixes and path.suffix.lower() not in suffixes:
         raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
-    if path.is_dir():
-        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
     if path.exists() and not path.is_file():
         raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
     folder = path.parent if str(path.parent) else Path(".")
@@ -55,6 +55,23 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     except OSError as exc:
         raise InputError(Problem(name, option, f"cannot write into {folder}: {exc.strerror or exc}")) from None
     return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    return os.path.abspath(a) == os.path.abspath(b) or (a.exists() and b.exists() and os.path.samefile(a, b))
+
+
+def check_distinct(outputs: dict[str, Path | None]) -> None:
+    """Before any work: no two of a command's outputs (option -> path) name the same file."""
+    seen: list[tuple[str, Path]] = []
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        for other, p in seen:
+            if _same_file(Path(path), p):
+                raise InputError(Problem(str(path), option, f"names the same file as {other}: one output would be "
+                                         "lost; name each output differently"))
+        seen.append((option, Path(path)))
 
 
 def _temp_prefix(path: Path) -> str:
@@ -90,6 +107,10 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
+    pending = _PENDING.get()
+    if pending is not None and any(_same_file(path, target) for _, target in pending):
+        raise InputError(Problem(str(path), "", "two outputs of this command name the same file: one would be lost; "
+                                 "name each output differently"))
     try:
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
         os.close(fd)

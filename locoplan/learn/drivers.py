@@ -622,9 +622,15 @@ def _write_folder(out_dir: Path, files: dict[str, str]) -> None:
             f = tmp / rel
             f.parent.mkdir(parents=True, exist_ok=True)
             f.write_text(text, encoding="utf-8")
+        mask = os.umask(0o022)
+        os.umask(mask)
+        os.chmod(tmp, 0o777 & ~mask)  # a folder as mkdir makes it, not mkdtemp's 0700
         if out_dir.exists():
             out_dir.rmdir()  # empty (checked): replaced by the complete folder
         os.rename(tmp, out_dir)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise InputError(Problem(str(out_dir), "--out", f"cannot write the logs: {exc.strerror or exc} "
+                                     "(nothing was written)")) from None
         raise

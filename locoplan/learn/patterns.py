@@ -583,12 +583,9 @@ def load_patterns(path: str | Path) -> Patterns:
 
     if not path.exists():
         raise InputError(Problem(name, "--patterns", "no such file"))
-    try:
-        data = json.loads(read_text(path))
-    except RecursionError:
-        raise InputError(Problem(name, "", "not a patterns file: nested too deeply")) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(Problem(name, "", f"not valid JSON: {exc.msg}", exc.lineno)) from None
+    from ..io.load import parse_json
+
+    data = parse_json(read_text(path), name)
 
     class Layer(BaseModel):
         model_config = ConfigDict(extra="forbid")

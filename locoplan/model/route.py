@@ -109,6 +109,11 @@ class Route(Strict):
         problems += _section_problems("gradients", self.gradients, self.length_m, contiguous=True)
         for name in ("curves", "tunnels", "neutral_sections"):
             problems += _section_problems(name, getattr(self, name), self.length_m, contiguous=False)
+        for i, ns in enumerate(self.neutral_sections):
+            if ns.from_m <= 0:
+                problems.append((("neutral_sections", i), f"starts at the departure stop ({ns.from_m:g} .. {ns.to_m:g} m): "
+                                 "a train standing in a neutral section has no traction and can never start; move "
+                                 "the stop, or the section"))
         if problems:
             raise RuleViolations(problems)
         return self

@@ -52,17 +52,24 @@ class ProcessExecutor:
     name = "process"
 
     def __init__(self, workers: int | None = None) -> None:
-        self.workers = int(workers or os.cpu_count() or 1)
-        if self.workers < 1:
+        asked = int(workers or os.cpu_count() or 1)
+        if asked < 1:
             raise InputError(Problem("", "workers", f"must be >= 1 (got {workers})"))
+        # the runs are CPU-bound: more processes than cores only add memory (each holds its calculators)
+        self.workers = min(asked, usable_cores())
+        self.asked = asked
         self._pool = None
 
-    def _get_pool(self):
+    def _get_pool(self, n_items: int):
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+            # concurrent.futures starts a process per submitted task up to this count, so a short batch
+            # starts no more processes than it has tasks
+            self._pool = ProcessPoolExecutor(self.workers,
+                                             mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_worker_start, initargs=(os.getpid(),))
         return self._pool
 
     def imap_unordered(self, fn, items):
@@ -70,7 +77,7 @@ class ProcessExecutor:
 
         if not items:
             return
-        pool = self._get_pool()
+        pool = self._get_pool(len(items))
         futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
         try:
             for fut in as_completed(futures):
@@ -85,6 +92,96 @@ class ProcessExecutor:
             self._pool = None
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity mask, else the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _worker_start(parent_pid: int) -> None:
+    """In each worker process: end with the parent. A worker blocked on its task queue never learns that
+    the parent was killed (kill -9 runs no clean-up), so it would live on, reparented; on Linux the kernel
+    sends it SIGKILL when the parent dies, elsewhere a thread checks the parent every second."""
+    import signal
+    import threading
+
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        PR_SET_PDEATHSIG = 1
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent_pid:  # the parent died before the signal was asked for
+        os._exit(1)
+
+    def watch() -> None:
+        import time
+
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+    threading.Thread(target=watch, name="locoplan-parent-watch", daemon=True).start()
+
+
+def probe_scheduler(address: str, timeout_s: float = 3.0) -> None:
+    """Before a Dask client connects (which can wait minutes on a server that accepts and never answers):
+    connect with a short timeout and read what the server says first. A Dask scheduler sends its handshake
+    at once; a closed port, a silent server or an HTTP server is named, exit 2."""
+    import socket
+    from urllib.parse import urlsplit
+
+    text = str(address)
+    url = urlsplit(text if "://" in text else f"tcp://{text}")
+    if url.scheme not in ("tcp", "tls"):
+        raise InputError(Problem("", "scheduler", f"expected tcp://HOST:PORT or tls://HOST:PORT, got {text!r}"))
+    try:
+        host, port = url.hostname, url.port
+    except ValueError:
+        host, port = None, None
+    if not host or not port:
+        raise InputError(Problem("", "scheduler", f"expected tcp://HOST:PORT (a port number, e.g. 8786), got {text!r}"))
+    if url.scheme == "tls":
+        return  # the TLS handshake comes first; the client's own timeout covers it
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except socket.timeout:
+        raise InputError(Problem("", "scheduler", f"no answer from {host}:{port} within {timeout_s:g} s (a firewall, "
+                                 "or no such host?): start the scheduler (dask scheduler) or check the address")) from None
+    except OSError as exc:
+        raise InputError(Problem("", "scheduler", f"cannot reach the Dask scheduler at {host}:{port}: "
+                                 f"{exc.strerror or exc} (is it running? start it with: dask scheduler)")) from None
+    try:
+        sock.settimeout(timeout_s)
+        try:
+            first = sock.recv(64)
+        except socket.timeout:
+            first = None
+        if first is None:
+            # nothing said: an HTTP server waits for a request, so ask it what it is
+            try:
+                sock.sendall(b"GET / HTTP/1.0\r\n\r\n")
+                reply = sock.recv(64)
+            except OSError:
+                reply = b""
+            what = "an HTTP server" if reply.startswith(b"HTTP/") else "a server that says nothing"
+            raise InputError(Problem("", "scheduler", f"{host}:{port} is {what}, not a Dask scheduler (a scheduler "
+                                     f"greets at once; nothing came within {timeout_s:g} s): check the port (the "
+                                     "scheduler's is 8786 by default; 8787 is its dashboard)"))
+        if first.startswith(b"HTTP/") or first[:1] == b"<":
+            raise InputError(Problem("", "scheduler", f"{host}:{port} is an HTTP server, not a Dask scheduler: check "
+                                     "the port (the scheduler's is 8786 by default; 8787 is its dashboard)"))
+        if not first:
+            raise InputError(Problem("", "scheduler", f"{host}:{port} closed the connection at once: not a Dask "
+                                     "scheduler, or one refusing clients"))
+    finally:
+        sock.close()
+
+
 class DaskExecutor:
     """A Dask distributed cluster: ``scheduler`` is its address (``tcp://HOST:PORT``) or a
     ``distributed.Client``. Needs the ``dask`` extra (``pip install 'locoplan[dask]'``). Every worker
@@ -93,7 +190,9 @@ class DaskExecutor:
 
     name = "dask"
 
-    def __init__(self, scheduler: Any, timeout_s: float = 30.0) -> None:
+    def __init__(self, scheduler: Any, timeout_s: float = 10.0) -> None:
+        if isinstance(scheduler, str):
+            probe_scheduler(scheduler)  # seconds, where a client could wait minutes
         try:
             from distributed import Client
         except ImportError:
@@ -106,6 +205,13 @@ class DaskExecutor:
                 self.client, self._own = Client(str(scheduler), timeout=timeout_s), True
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(Problem("", "scheduler", f"cannot reach the Dask scheduler at {scheduler}: {exc}")) from None
+        if self._own and not self.client.scheduler_info()["workers"]:
+            try:  # a cluster whose workers are still starting: give them a moment, never forever
+                self.client.wait_for_workers(1, timeout=timeout_s)
+            except (TimeoutError, OSError, ValueError):
+                self.client.close()
+                raise InputError(Problem("", "scheduler", f"the Dask scheduler at {scheduler} has no workers (none "
+                                         f"joined within {timeout_s:g} s): start some (dask worker {scheduler})")) from None
         self.workers = max(1, sum(w.get("nthreads", 1) for w in self.client.scheduler_info()["workers"].values()))
 
     def imap_unordered(self, fn, items):

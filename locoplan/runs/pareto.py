@@ -56,9 +56,21 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     per time, solved in this process, each warm-started from the previous one).
     Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
     best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""
+    from .. import bounds
     from ..io.load import load_route_and_train
     from ..sim.calculator import TractionCalculator
 
+    from ..strategy.strategies import STRATEGIES
+
+    for s in strategies:
+        if s not in STRATEGIES:
+            raise InputError(Problem("", "strategies", f"unknown strategy {s!r} (one of: {', '.join(STRATEGIES)})"))
+    for seed in seeds:
+        bounds.seed(seed, "seeds")
+    n_times = len(times_s) if times_s else len(factors or DEFAULT_FACTORS)
+    per_time = sum(len(seeds) if s == "proposed" else 1 for s in strategies)
+    bounds.runs(len(ENDS) + n_times * per_time, "seeds" if len(seeds) > 1 else "strategies",
+                f"runs ({n_times} planned times x {per_time} plans each)")
     route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
     fastest = TractionCalculator(route, train, base.options).fastest_time_s
     grid = time_grid(fastest, factors, times_s)

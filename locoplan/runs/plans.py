@@ -54,6 +54,10 @@ def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str
         raise InputError(Problem("", "algorithms", "name at least one optimiser"))
     bounds.count(runs, "runs", 1, bounds.LIMITS["runs"], "independent runs per optimiser")
     bounds.runs(runs * len(algorithms), "runs")
+    last = base.seed + runs - 1
+    if last > bounds.LIMITS["seed"][1]:
+        raise InputError(Problem("", "seed", f"{runs} runs take the seeds {base.seed} .. {last}, past the largest seed "
+                                 f"2**63 - 1: give a --seed at most {bounds.LIMITS['seed'][1] - runs + 1}"))
     return [replace(base, strategy="proposed", algorithm=a, seed=base.seed + i,
                     params=str(Path(params_dir) / f"{a}.yaml") if params_dir else base.params)
             for a in algorithms for i in range(runs)]

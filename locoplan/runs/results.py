@@ -80,6 +80,30 @@ def rows_of(records, where: list[str] | None = None) -> list[dict]:
     return rows
 
 
+SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent")
+"""The fields :func:`summarize_rows` reads besides its ``by`` fields."""
+
+
+def stream_rows(records, where: list[str] | None = None, fields=None) -> tuple[list[dict], set[str]]:
+    """As :func:`rows_of`, over an iterable of records read one at a time (a store of any size), keeping of
+    each row only ``fields`` if given (a summary needs a few of a row's 35); also returns every field name
+    seen (a ``--where`` or ``--by`` naming none of them is an InputError)."""
+    keep = parse_where(where, set()) if where else None
+    seen: set[str] = set()
+    out = []
+    for r in records:
+        row = r.row()
+        seen.update(row)
+        if keep is not None and not keep(row):
+            continue
+        out.append({k: row.get(k) for k in fields} if fields is not None else row)
+    for text in where or ():
+        name = _WHERE.match(text).group(1)
+        if seen and name not in seen:
+            raise InputError(Problem("", "where", f"unknown field {name!r} (fields: {', '.join(sorted(seen))})"))
+    return out, seen
+
+
 def _flat(value):
     """A cell of a CSV / Parquet column: lists and dicts as JSON text."""
     return json.dumps(clean(value)) if isinstance(value, (list, dict)) else value

@@ -120,6 +120,24 @@ def _params(algorithm: str, path: str | None) -> dict:
     return load_optimizer_params(algorithm, path).model_dump()
 
 
+def _check_values(spec: RunSpec) -> None:
+    """A spec's numbers inside the bounds a command line's would be held to (``bounds``), so that a bad one
+    (a seed past 2**63 - 1 as seed + run, a NaN weight) stops the batch before any run, not at its turn."""
+    from .. import bounds
+
+    bounds.seed(spec.seed, "seed")
+    if spec.time_s is not None:
+        bounds.planned_time(spec.time_s, "time_s")
+    if spec.tolerance_s is not None:
+        bounds.finite(spec.tolerance_s, "tolerance_s", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
+    if spec.e_min_kwh is not None:
+        bounds.finite(spec.e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+    w = tuple(spec.weights)
+    if len(w) != 2 or not all(isinstance(x, (int, float)) and math.isfinite(x) and x >= 0 for x in w) \
+            or abs(sum(w) - 1) > 1e-9:
+        raise InputError(Problem("", "weights", f"expected two finite non-negative weights summing to 1, got {list(w)}"))
+
+
 def load_inputs(specs: list[RunSpec]) -> Inputs:
     """Load every distinct route, consist and optimiser parameter file of ``specs`` once.
 
@@ -142,6 +160,7 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
             problems.append(Problem("", "builder", f"unknown sequence builder {spec.builder!r} (one of: {', '.join(BUILDERS)})"))
         if problems:
             raise InputError(problems[:1])
+        _check_values(spec)  # every run's numbers, before the first run starts
         if spec.route not in route_of:
             r = load_route(spec.route)
             h = canonical_hash(r.model_dump(mode="json"))

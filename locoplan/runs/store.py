@@ -3,19 +3,32 @@
 Why SQLite: one file a user can copy, no server, and transactions: each finished run is one
 ``INSERT`` committed on its own (WAL journal, ``synchronous=FULL``), so killing the batch at any
 moment leaves every committed run whole and no half-written row; a restart asks the store which keys
-it has and runs only the rest. Many readers may read while the batch writes.
+it has and runs only the rest. Many readers may read while the batch writes. After each commit the
+journal is checkpointed into the file (and truncated on close), so the ``.sqlite`` file alone holds
+every committed run even after a kill.
 
 Tables: ``meta`` (store format, the locoplan version that created it), ``runs`` (key, a few columns to
 filter on, the record as JSON), ``refs`` (per-group references computed once: E_min, the optimum).
 A store of another format is refused (exit 2, naming it); :meth:`Store.check_writer` also refuses to
-add runs of another locoplan version to a store (a resumed batch would mix two programs' results).
+add runs of another locoplan version to a store (a resumed batch would mix two programs' results), and
+a second writer while one batch holds the store (it would compute every run twice).
+
+Every SQLite failure after opening (a full disk, a read-only file, a damaged file, a dropped table) is an
+:class:`~locoplan.errors.InputError` that names the store, says what SQLite found and how to go on; a
+damaged record (broken JSON, missing fields) is set aside in :attr:`Store.damaged` with what is wrong,
+and the other records stay usable (``batch`` runs the damaged ones again and writes them over).
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
+import os
 import sqlite3
+import stat
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import InputError, Problem
@@ -36,28 +49,107 @@ CREATE TABLE IF NOT EXISTS runs (
 );
 CREATE TABLE IF NOT EXISTS refs (key TEXT PRIMARY KEY, kind TEXT NOT NULL, value REAL, note TEXT);
 """
+_TABLES = ("meta", "runs", "refs")
+
+_KEEP = "the runs committed so far are kept"
+
+
+def _why(exc: sqlite3.Error, writing: bool) -> str:
+    """What an SQLite failure means for the user, and what to do."""
+    text = str(exc)
+    low = text.lower()
+    go_on = "run the same command again to continue (it runs only what the store lacks)" if writing else "run it again"
+    if "full" in low:
+        return f"the disk holding the store is full (SQLite: {text}); {_KEEP}: free some space and {go_on}"
+    if "readonly" in low or "read-only" in low:
+        return (f"the store cannot be written (SQLite: {text}): the file or its folder is read-only; {_KEEP}: "
+                f"make it writable, or copy it to a writable place, and {go_on}")
+    if "malformed" in low or "not a database" in low or "corrupt" in low:
+        return (f"the store file is damaged (SQLite: {text}); save what is readable with "
+                "'sqlite3 STORE .recover | sqlite3 new.sqlite', or start a new store")
+    if "no such table" in low or "no such column" in low:
+        return f"not a locoplan result store, or a damaged one (SQLite: {text}); start a new store"
+    if "locked" in low or "busy" in low:
+        return f"the store is locked by another process (SQLite: {text}); wait for it to finish, or use another store"
+    if "disk i/o" in low or "unable to open" in low:
+        return (f"the store cannot be used (SQLite: {text}): an I/O error (a full disk, a device, a vanished "
+                f"file?); {_KEEP}; check the disk and {go_on}")
+    return f"the store failed (SQLite: {text})"
+
+
+def _record_problem(raw) -> tuple[RunRecord | None, str | None]:
+    """(record, None) or (None, what is wrong with the stored JSON)."""
+    if not isinstance(raw, str):
+        return None, f"the record is not JSON text (it is {type(raw).__name__})"
+    try:
+        data = json.loads(raw)
+    except (ValueError, RecursionError) as exc:
+        return None, f"the record is not valid JSON ({str(exc)[:80]})"
+    if not isinstance(data, dict):
+        return None, f"the record is not a JSON object (it is {type(data).__name__})"
+    missing = [k for k in ("key", "summary", "spec", "wall_time_s", "versions", "worker") if k not in data]
+    if missing:
+        return None, f"the record lacks {', '.join(repr(k) for k in missing)}"
+    if not isinstance(data["summary"], dict) or not isinstance(data["spec"], dict):
+        return None, "the record's 'summary' or 'spec' is not a JSON object"
+    try:
+        return RunRecord.from_json(data), None
+    except (KeyError, TypeError, ValueError) as exc:
+        return None, f"the record is incomplete ({exc.__class__.__name__}: {str(exc)[:80]})"
 
 
 class Store:
-    """Open (or create) the store at ``path``. ``create=False``: the file must exist (``results``)."""
+    """Open (or create) the store at ``path``. ``create=False``: the file must exist, and it is opened
+    read-only (``results``)."""
 
     def __init__(self, path: str | Path, create: bool = True) -> None:
         self.path = Path(path)
-        name = str(self.path)
-        if not create and not self.path.is_file():
+        self.name = name = str(self.path)
+        self.writable = create
+        self.damaged: dict[str, str] = {}
+        """key (or 'rowid N' when the key itself is unreadable) -> what is wrong with that stored record."""
+        self.replaced: dict[str, str] = {}
+        """key -> what was wrong with the damaged record that :meth:`put` wrote over."""
+        self._lock_fd: int | None = None
+        try:
+            st = os.stat(self.path)
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            raise InputError(Problem(name, "", f"cannot open the store: {exc.strerror or exc}")) from None
+        if st is None and not create:
             raise InputError(Problem(name, "", "no such store"))
+        if st is not None and stat.S_ISDIR(st.st_mode):
+            raise InputError(Problem(name, "", "is a folder, not a store: name a file, e.g. "
+                                     f"{self.path / 'runs.sqlite'}"))
+        if st is not None and not stat.S_ISREG(st.st_mode):
+            raise InputError(Problem(name, "", "is not a regular file (a device, a pipe or a socket): a store is an "
+                                     "SQLite file with its journal beside it; name a file"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir():
             raise InputError(Problem(name, "", f"folder {folder} does not exist"))
-        fresh = not self.path.exists() or self.path.stat().st_size == 0
+        if create and not os.access(folder, os.W_OK):
+            raise InputError(Problem(name, "", f"folder {folder} is read-only: a store writes its file and its journal "
+                                     "(-wal, -shm) there; choose a writable folder"))
+        if create and st is not None and not os.access(self.path, os.W_OK):
+            raise InputError(Problem(name, "", "the store file is read-only: batch adds runs to it; make it "
+                                     "writable (chmod u+w), or read it with locoplan results"))
+        fresh = st is None or st.st_size == 0
         try:
-            self.conn = sqlite3.connect(str(self.path), timeout=60.0, isolation_level=None)
-            self.conn.execute("PRAGMA journal_mode=WAL")
-            self.conn.execute("PRAGMA synchronous=FULL")
+            if create:
+                self.conn = sqlite3.connect(name, timeout=60.0, isolation_level=None)
+                self.conn.execute("PRAGMA journal_mode=WAL")
+                self.conn.execute("PRAGMA synchronous=FULL")
+            else:
+                self.conn = self._open_read_only(folder)
             tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
         except sqlite3.DatabaseError as exc:
+            if "malformed" in str(exc) or isinstance(exc, sqlite3.OperationalError):
+                raise InputError(Problem(name, "", _why(exc, create))) from None
             raise InputError(Problem(name, "", f"not a locoplan result store (SQLite says: {exc})")) from None
-        if fresh or not tables:
+        except sqlite3.Error as exc:
+            raise InputError(Problem(name, "", _why(exc, create))) from None
+        if create and (fresh or not tables):
             from .. import __version__
 
             with self._transaction():
@@ -67,82 +159,209 @@ class Store:
                 self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('format', ?)", (str(STORE_FORMAT),))
                 self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('locoplan', ?)", (__version__,))
                 self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('created_utc', ?)", (_now(),))
-        elif "meta" not in tables:
+            tables = set(_TABLES)
+        if "meta" not in tables:
             raise InputError(Problem(name, "", "not a locoplan result store (no meta table)"))
-        self.meta = dict(self.conn.execute("SELECT name, value FROM meta"))
+        with self._sql():
+            self.meta = {str(k): str(v) for k, v in self.conn.execute("SELECT name, value FROM meta")}
         if self.meta.get("format") != str(STORE_FORMAT):
             raise InputError(Problem(name, "format", f"store format {self.meta.get('format')!r} (written by locoplan "
                                      f"{self.meta.get('locoplan', '?')}); this locoplan reads format {STORE_FORMAT}: "
                                      "export it with the locoplan that wrote it, or start a new store"))
+        missing = [t for t in _TABLES if t not in tables]
+        if missing:
+            raise InputError(Problem(name, "", f"a damaged locoplan result store: its {' and '.join(missing)} "
+                                     f"table{'s are' if len(missing) > 1 else ' is'} missing (dropped?), so its runs "
+                                     "are gone; start a new store"))
+
+    def _open_read_only(self, folder: Path) -> sqlite3.Connection:
+        """A read-only connection; in a read-only folder (no -shm can be made) the file is read as it is."""
+        uri = "file:" + _uri_path(self.path)
+        conn = sqlite3.connect(uri + "?mode=ro", uri=True, timeout=60.0, isolation_level=None)
+        try:
+            conn.execute("SELECT name FROM sqlite_master").fetchall()
+            return conn
+        except sqlite3.OperationalError:
+            conn.close()
+            if os.access(folder, os.W_OK):
+                raise
+        wal = Path(self.name + "-wal")
+        if wal.exists() and wal.stat().st_size > 0:
+            raise InputError(Problem(self.name, "", f"the store's newest runs are still in its journal {wal.name}, and its "
+                                     f"folder {folder} is read-only, so SQLite cannot read them: copy the store "
+                                     f"with its -wal file to a writable folder"))
+        return sqlite3.connect(uri + "?mode=ro&immutable=1", uri=True, isolation_level=None)
+
+    @contextmanager
+    def _sql(self, writing: bool = False):
+        """Every SQLite failure as an InputError naming the store, what SQLite found and how to go on."""
+        try:
+            yield
+        except sqlite3.Error as exc:
+            raise InputError(Problem(self.name, "", _why(exc, writing))) from None
 
     def _transaction(self):
-        conn = self.conn
+        conn, store = self.conn, self
 
         class _Tx:
             def __enter__(self):
-                conn.execute("BEGIN IMMEDIATE")
+                try:
+                    conn.execute("BEGIN IMMEDIATE")
+                except sqlite3.Error as exc:
+                    raise InputError(Problem(store.name, "", _why(exc, True))) from None
 
-            def __exit__(self, kind, *_):
-                conn.execute("COMMIT" if kind is None else "ROLLBACK")
+            def __exit__(self, kind, exc, tb):
+                try:
+                    conn.execute("COMMIT" if kind is None else "ROLLBACK")
+                except sqlite3.Error as err:
+                    if kind is None:
+                        try:
+                            conn.execute("ROLLBACK")
+                        except sqlite3.Error:
+                            pass
+                        raise InputError(Problem(store.name, "", _why(err, True))) from None
+                if isinstance(exc, sqlite3.Error):
+                    raise InputError(Problem(store.name, "", _why(exc, True))) from None
+                return False
         return _Tx()
 
     def check_writer(self) -> None:
-        """Refuse to add this locoplan's runs to a store another locoplan version began."""
+        """Refuse to add this locoplan's runs to a store another locoplan version began, or that another
+        process is adding runs to (a lock on the file, released by the system when that process ends,
+        even by kill -9)."""
         from .. import __version__
 
         if self.meta.get("locoplan") != __version__:
             raise InputError(Problem(str(self.path), "locoplan", f"store begun by locoplan {self.meta.get('locoplan')}, "
                                      f"this is {__version__}: its runs would mix two versions' results; "
                                      "start a new store (or finish it with that version)"))
+        if self._lock_fd is None:
+            fd = os.open(self.path, os.O_RDONLY | os.O_CLOEXEC)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    self._lock_fd = fd  # a file system without locks (some network mounts): go on unguarded
+                    return
+                os.close(fd)
+                raise InputError(Problem(self.name, "", "another locoplan batch is adding runs to this store now: two "
+                                         "would compute every run twice; wait for it to finish (then this command "
+                                         "runs only what is left), or use another store")) from None
+            self._lock_fd = fd
 
     # ---------------------------------------------------------------- runs
     def keys(self) -> set[str]:
-        return {r[0] for r in self.conn.execute("SELECT key FROM runs")}
+        with self._sql():
+            return {str(r[0]) for r in self.conn.execute("SELECT key FROM runs")}
 
     def put(self, record: RunRecord) -> bool:
-        """Commit one run (one transaction). False if the key was already there (nothing written)."""
+        """Commit one run (one transaction). False if the key was already there (nothing written); a
+        damaged record under the same key is written over."""
         s = record.summary
+        verb = "INSERT OR REPLACE" if record.key in self.damaged else "INSERT OR IGNORE"
         with self._transaction():
             cur = self.conn.execute(
-                "INSERT OR IGNORE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                f"{verb} INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
                 (record.key, s.get("route"), s.get("consist"), s.get("strategy"), s.get("algorithm"), s.get("seed"),
                  s.get("planned_time_s"), None if s.get("feasible") is None else int(bool(s["feasible"])),
                  s.get("running_time_s"), s.get("traction_energy_kwh"),
                  json.dumps(clean(record.to_json()), allow_nan=False, default=str), _now()))
+        if record.key in self.damaged:
+            self.replaced[record.key] = self.damaged.pop(record.key)
+        self._checkpoint()
         return cur.rowcount == 1
 
-    def get(self, keys: list[str]) -> dict[str, RunRecord]:
-        out = {}
-        for i in range(0, len(keys), 500):
-            chunk = keys[i:i + 500]
-            q = f"SELECT key, record FROM runs WHERE key IN ({','.join('?' * len(chunk))})"
-            for k, text in self.conn.execute(q, chunk):
-                out[k] = RunRecord.from_json(json.loads(text))
+    def _checkpoint(self) -> None:
+        """Copy the journal's commits into the store file (PASSIVE: never waits for a reader), so that the
+        file alone holds them, also after a kill."""
+        try:
+            self.conn.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchall()
+        except sqlite3.Error:
+            pass  # a later checkpoint (or the next open) does it; the commit itself is safe in the journal
+
+    def _parsed(self, rows) -> dict[str, RunRecord]:
+        out: dict[str, RunRecord] = {}
+        for rowid, key, text in rows:
+            record, why = _record_problem(text)
+            label = str(key) if isinstance(key, str) and key else f"rowid {rowid}"
+            if record is None:
+                self.damaged[label] = why
+            elif record.key != key:
+                self.damaged[label] = f"the record's own key is {short(record.key)!r}, not its row's"
+            else:
+                out[key] = record
         return out
 
+    def get(self, keys: list[str]) -> dict[str, RunRecord]:
+        """The stored records of ``keys`` (those it has and can read; damaged ones go to :attr:`damaged`)."""
+        out: dict[str, RunRecord] = {}
+        with self._sql():
+            for i in range(0, len(keys), 500):
+                chunk = keys[i:i + 500]
+                q = f"SELECT rowid, key, record FROM runs WHERE key IN ({','.join('?' * len(chunk))})"
+                out.update(self._parsed(self.conn.execute(q, chunk)))
+        return out
+
+    def iter_records(self, chunk: int = 1000):
+        """Every readable run, in the order they finished, ``chunk`` rows at a time (memory stays bounded
+        on a store of any size); damaged records go to :attr:`damaged`."""
+        last = -1
+        while True:
+            with self._sql():
+                rows = self.conn.execute("SELECT rowid, key, record FROM runs WHERE rowid > ? ORDER BY rowid LIMIT ?",
+                                         (last, chunk)).fetchall()
+            if not rows:
+                return
+            last = rows[-1][0]
+            yield from self._parsed(rows).values()
+
     def records(self) -> list[RunRecord]:
-        """Every run, in the order they finished."""
-        return [RunRecord.from_json(json.loads(t)) for (t,) in self.conn.execute("SELECT record FROM runs ORDER BY rowid")]
+        """Every readable run, in the order they finished."""
+        return list(self.iter_records())
 
     def __len__(self) -> int:
-        return int(self.conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
+        with self._sql():
+            return int(self.conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
 
     # ---------------------------------------------------------------- references (E_min, optimum)
     def refs(self, kind: str) -> dict[str, tuple[float | None, str | None]]:
-        return {k: (v, n) for k, v, n in self.conn.execute("SELECT key, value, note FROM refs WHERE kind = ?", (kind,))}
+        with self._sql():
+            rows = self.conn.execute("SELECT key, value, note FROM refs WHERE kind = ?", (kind,)).fetchall()
+        # a damaged reference is computed again rather than trusted
+        return {k: (v, n) for k, v, n in rows if isinstance(k, str) and (v is None or isinstance(v, (int, float)))}
 
     def put_ref(self, key: str, kind: str, value: float | None, note: str | None = None) -> None:
         with self._transaction():
             self.conn.execute("INSERT OR REPLACE INTO refs VALUES (?,?,?,?)", (key, kind, value, note))
+        self._checkpoint()
 
     def close(self) -> None:
-        self.conn.close()
+        try:
+            if self.writable:
+                self.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
+        except sqlite3.Error:
+            pass
+        finally:
+            self.conn.close()
+            if self._lock_fd is not None:
+                os.close(self._lock_fd)
+                self._lock_fd = None
 
     def __enter__(self) -> "Store":
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def short(text: str, limit: int = 40) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _uri_path(path: Path) -> str:
+    from urllib.parse import quote
+
+    return quote(str(path.absolute()), safe="/")
 
 
 def _now() -> str:

@@ -27,7 +27,7 @@ import glob as _glob
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Union
+from typing import Any, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -41,7 +41,7 @@ SEARCHED = frozenset({"proposed"})
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     step_m: float = Field(DEFAULT_STEP_M, gt=0, le=1000)
     point_mass: bool = False
@@ -53,12 +53,12 @@ class _Model(BaseModel):
 class StudyFile(BaseModel):
     """The study file's keys (unknown keys are errors, with a 'did you mean')."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     schema_: Optional[str] = Field(None, alias="schema")
     routes: list[str] = Field(min_length=1)
     consists: list[str] = Field(default_factory=lambda: [DEFAULT_CONSIST], min_length=1)
-    times: Optional[list[Union[float, str]]] = Field(None, min_length=1)
+    times: Optional[list[Any]] = Field(None, min_length=1)  # checked by _time_value (a bool is no time)
     strategies: list[str] = Field(default_factory=lambda: ["proposed"], min_length=1)
     algorithms: list[str] = Field(default_factory=lambda: ["issa"], min_length=1)
     seeds: list[int] = Field(default_factory=lambda: [1], min_length=1)
@@ -82,11 +82,17 @@ class Study:
 
 def _time_value(value, where: str) -> tuple[str, float]:
     """('s', seconds) or ('x', factor) from a study file's ``times`` entry; ValueError says why not."""
-    if isinstance(value, bool):
-        raise ValueError(f"expected seconds or a factor such as '1.1x', got {value!r}")
+    from .. import bounds
+
+    if isinstance(value, bool) or value is None or isinstance(value, (list, dict)):
+        raise ValueError(f"expected seconds or a factor such as '1.1x', got {short(value)}")
     if isinstance(value, (int, float)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"a running time must be > 0 s (got {value:g})")
+        lo, hi = bounds.LIMITS["time_s"]
+        if not math.isfinite(value):
+            raise ValueError(f"a running time must be a finite number of seconds (got {value})")
+        if not lo <= value <= hi:
+            raise ValueError(f"a running time must be in [{lo:g}, {hi:,.0f}] s (got {value:g}): no stop-to-stop run "
+                             "is planned shorter than a second or longer than a week")
         return "s", float(value)
     text = str(value).strip().lower()
     if text.endswith("x"):
@@ -96,11 +102,49 @@ def _time_value(value, where: str) -> tuple[str, float]:
             raise ValueError(f"expected a factor such as '1.1x', got {value!r}") from None
         if not (math.isfinite(f) and f >= 1):
             raise ValueError(f"a factor of the fastest run must be >= 1 (got {value!r}: no train runs faster than its fastest run)")
+        if f > 100:
+            raise ValueError(f"a factor of the fastest run must be at most 100 (got {value!r}): give seconds instead")
         return "x", f
     try:
-        return _time_value(float(text), where)
+        seconds = float(text)
     except ValueError:
-        raise ValueError(f"expected seconds or a factor such as '1.1x', got {value!r}") from None
+        raise ValueError(f"expected seconds or a factor such as '1.1x', got {short(value)}") from None
+    return _time_value(seconds, where)
+
+
+MAX_GLOB_ENTRIES = 100_000
+"""A route glob looks at no more files and folders than this (a '**' over a whole disk is a mistake)."""
+
+
+def safe_glob(pattern: str) -> list[str]:
+    """``glob.glob(pattern, recursive=True)``, but a ``**`` walks folders without following links to folders
+    (a link to a parent folder would loop without end) and looks at most at ``MAX_GLOB_ENTRIES`` entries
+    (ValueError beyond)."""
+    import fnmatch
+    import os
+
+    if "**" not in pattern:
+        return _glob.glob(pattern)
+    head, _, _ = pattern.partition("**")
+    roots = _glob.glob(head) if _glob.has_magic(head) else [head or "."]
+    flat = pattern.replace("/**/", "/").replace("**/", "")
+    wide = pattern.replace("**", "*")
+    out, seen = [], 0
+    for root in roots:
+        for folder, dirs, files in os.walk(root or ".", followlinks=False):
+            seen += len(dirs) + len(files)
+            if seen > MAX_GLOB_ENTRIES:
+                raise ValueError(f"looks at more than {MAX_GLOB_ENTRIES:,} files and folders: name a narrower folder")
+            for f in files:
+                path = os.path.join(folder, f)
+                if fnmatch.fnmatchcase(path, wide) or fnmatch.fnmatchcase(path, flat):
+                    out.append(path)
+    return out
+
+
+def short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:55] + " ...>"
 
 
 def load_study(path: str | Path) -> Study:
@@ -135,9 +179,21 @@ def load_study(path: str | Path) -> Study:
     if min(w) < 0 or abs(sum(w) - 1) > 1e-9:
         problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {list(w)}",
                                 where("weights")))
+    from .. import bounds
+
+    lo_seed, hi_seed = bounds.LIMITS["seed"]
     for i, seed in enumerate(study.seeds):
-        if seed < 0:
-            problems.append(Problem(name, f"seeds[{i}]", f"a seed is a whole number >= 0 (got {seed})", where("seeds", i)))
+        if not lo_seed <= seed <= hi_seed:
+            problems.append(Problem(name, f"seeds[{i}]", f"a seed is a whole number 0 .. 2**63 - 1 (got "
+                                    f"{seed if abs(seed) < 10**30 else 'an integer of %d digits' % len(str(abs(seed)))})",
+                                    where("seeds", i)))
+    if study.tolerance_s is not None and study.tolerance_s > bounds.LIMITS["time_s"][1]:
+        problems.append(Problem(name, "tolerance_s", f"must be at most a week, {bounds.LIMITS['time_s'][1]:,.0f} s "
+                                f"(got {study.tolerance_s:g})", where("tolerance_s")))
+    lo_step, hi_step = bounds.LIMITS["step_m"]
+    if not lo_step <= study.model.step_m <= hi_step:
+        problems.append(Problem(name, "model.step_m", f"must be in [{lo_step:g}, {hi_step:,.0f}] m (got "
+                                f"{study.model.step_m:g}): the reporting grid spacing", where("model", "step_m")))
     if len(set(study.seeds)) != len(study.seeds):
         problems.append(Problem(name, "seeds", "a seed is listed twice", where("seeds")))
     times = []
@@ -151,7 +207,11 @@ def load_study(path: str | Path) -> Study:
     for i, pattern in enumerate(study.routes):
         full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
         if any(c in pattern for c in "*?["):
-            found = sorted(Path(p) for p in _glob.glob(str(full), recursive=True) if p.endswith((".yaml", ".yml")))
+            try:
+                found = sorted(Path(p) for p in safe_glob(str(full)) if p.endswith((".yaml", ".yml")))
+            except ValueError as exc:
+                problems.append(Problem(name, f"routes[{i}]", f"{pattern!r}: {exc}", where("routes", i)))
+                continue
             if not found:
                 problems.append(Problem(name, f"routes[{i}]", f"{pattern!r} matches no route file (looked in {full.parent})",
                                         where("routes", i)))
@@ -171,7 +231,7 @@ def load_study(path: str | Path) -> Study:
     consists = [c if not (Path(c).suffix in (".yaml", ".yml") or "/" in c) or Path(c).is_absolute() else str(base / c)
                 for c in study.consists]
     stock = None if study.stock_dir is None else str(base / study.stock_dir)
-    planned = _planned_times(name, routes, consists, stock, options, times, where)
+    planned = _planned_times(name, routes, consists, stock, options, times, where, study.tolerance_s)
     common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
                   builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap)
     specs: list[RunSpec] = []
@@ -186,9 +246,12 @@ def load_study(path: str | Path) -> Study:
     return Study(path, study, specs)
 
 
-def _planned_times(name, routes, consists, stock, options, times, where) -> dict:
+def _planned_times(name, routes, consists, stock, options, times, where, tolerance_s=None) -> dict:
     """(route, consist) -> [(T0 [s] or None, label)]: factors times the fastest run, rounded up to 0.1 s
     (rounding down could put T0 below the fastest run)."""
+    import numpy as np
+
+    from ..errors import InfeasibleError
     from ..io.load import load_route, load_train
     from ..sim.calculator import TractionCalculator
 
@@ -205,12 +268,27 @@ def _planned_times(name, routes, consists, stock, options, times, where) -> dict
                 continue
             fastest = None
             rows = []
-            for (kind, value), raw in times:
+            for i, ((kind, value), raw) in enumerate(times):
                 if kind == "x":
                     if fastest is None:
-                        fastest = TractionCalculator(route, trains[c], options).fastest_time_s
+                        calc = TractionCalculator(route, trains[c], options)
+                        run = calc.evaluate(("T",), np.zeros((1, 0)))
+                        fastest = float(run.running_time_s[0])
+                        if not (bool(run.feasible[0]) and math.isfinite(fastest)):
+                            # no fastest run, so no factor of it: say why, as a command on this route would
+                            raise InfeasibleError(
+                                f"{name}:{where('times', i) or '?'}: times[{i}]: {raw!r} is a factor of the fastest "
+                                f"run, but no run of '{route.name}' ({r}) with '{trains[c].name}' reaches the stop "
+                                f"(the fastest run: {run.reason(0)}); drop that route or consist, or give seconds")
                     rows.append((math.ceil(value * fastest * 10 - 1e-9) / 10, f"{value:g}x"))
                 else:
                     rows.append((value, f"{value:g}s"))
+                t0 = rows[-1][0]
+                tol = tolerance_s if tolerance_s is not None else (route.schedule.tolerance_s if route.schedule else None)
+                if tol is not None and t0 is not None and tol >= t0:
+                    raise InputError(Problem(name, "tolerance_s" if tolerance_s is not None else f"times[{i}]",
+                                             f"a punctuality window of +-{tol:g} s is not below the planned running time "
+                                             f"{t0:g} s ({r}): the window would open at or before departure",
+                                             where("tolerance_s") if tolerance_s is not None else where("times", i)))
             out[(r, c)] = rows
     return out

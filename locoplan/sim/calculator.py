@@ -166,9 +166,9 @@ class TractionCalculator:
         self.backend = backend
         self.route, self.train = route, train
         self.options = options or ModelOptions()
-        bounds.step(self.options.step_m, route.length_m)
-        if train.length_m >= route.length_m:
+        if train.length_m >= route.length_m:  # first: a grid message would not say what is wrong
             raise InputError(shorter_than_train(route, train, f"route '{route.name}'"))
+        bounds.step(self.options.step_m, route.length_m)
         # braking: the locomotives' electric brake needs the catenary (none in a neutral section's span,
         # where the main breaker is open, as for traction); the wagons' air brake works everywhere
         self.electric_brake_speed_kmh, self.electric_brake_kn = train.brake_curve(air=False)

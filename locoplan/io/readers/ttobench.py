@@ -16,7 +16,6 @@ average instead of the ramp). Straight sections give no curve. A result sharper 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -38,11 +37,9 @@ MIN_RADIUS_M = 100.0
 def load_json(path: Path) -> dict:
     """Parse a JSON file; a missing, unreadable or malformed file raises ``InputError`` (with the line)."""
     name = str(path)
-    text = read_text(path)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(Problem(name, "", f"not valid JSON: {exc.msg} (column {exc.colno})", exc.lineno)) from None
+    from ..load import parse_json
+
+    data = parse_json(read_text(path), name)
     if not isinstance(data, dict):
         raise InputError(Problem(name, "", f"expected a JSON object with metadata, stops, speed limits, ...; got {type(data).__name__}"))
     return data

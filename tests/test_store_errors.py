@@ -1,0 +1,101 @@
+"""The result store after it is opened: damaged records named and run again, a store that cannot be
+written, commits in the file itself after a kill (WAL checkpointed), one writer at a time. The corpus
+(tests/hostile.py, class ``store``) covers the command-line side: devices, folders, a full disk, a dropped
+table, a garbled file."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import hostile
+from locoplan.cli import app
+from locoplan.errors import InputError
+from locoplan.runs.spec import RunRecord
+from locoplan.runs.store import Store
+
+ROOT = Path(__file__).resolve().parents[1]
+cli = CliRunner()
+
+
+def _record(key: str, store: Store) -> RunRecord:
+    return RunRecord(key, {"route": "r", "consist": "c", "strategy": "time-saving", "algorithm": None, "feasible": True,
+                           "running_time_s": 99.0, "traction_energy_kwh": 15.0, "planned_time_s": 200.0},
+                     {"route": "r.yaml", "consist": "c"}, None, 0.1, {"locoplan": store.meta["locoplan"]}, "host:1")
+
+
+@pytest.fixture()
+def study(tmp_path):
+    route = tmp_path / "r.yaml"
+    route.write_text(hostile.route())
+    path = tmp_path / "s.yaml"
+    path.write_text(f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{hostile.SMALL}]\ntimes: [200, 210]\n"
+                    "strategies: [time-saving, four-stage]\n")
+    return path
+
+
+def test_damaged_records_are_named_and_batch_runs_them_again(study, tmp_path):
+    store = tmp_path / "runs.sqlite"
+    res = cli.invoke(app, ["batch", str(study), "--store", str(store), "--workers", "1", "--quiet", "--json"])
+    assert res.exit_code == 0, res.output
+    with sqlite3.connect(store) as conn:
+        keys = [k for (k,) in conn.execute("SELECT key FROM runs ORDER BY rowid")]
+        conn.execute("UPDATE runs SET record = '{bad' WHERE key = ?", (keys[0],))
+        conn.execute("UPDATE runs SET record = '{}' WHERE key = ?", (keys[1],))
+    res = cli.invoke(app, ["results", str(store), "--json"])
+    assert res.exit_code == 0, res.output
+    assert keys[0] in res.stderr and "not valid JSON" in res.stderr and keys[1] in res.stderr and "lacks" in res.stderr
+    assert '"runs": 2' in res.stdout  # the two readable ones
+    res = cli.invoke(app, ["batch", str(study), "--store", str(store), "--workers", "1", "--quiet", "--json"])
+    assert res.exit_code == 0, res.output
+    assert "written over" in res.stderr and keys[0] in res.stderr
+    with Store(store, create=False) as s:
+        assert len(s.records()) == 4 and not s.damaged
+
+
+def test_a_store_that_cannot_be_written_says_so_and_keeps_its_runs(tmp_path):
+    path = tmp_path / "ro.sqlite"
+    with Store(path) as s:
+        s.put(_record("k1", s))
+    s = Store(path)
+    s.conn.execute("PRAGMA query_only = 1")  # writes fail as on a read-only file (root ignores chmod)
+    with pytest.raises(InputError) as err:
+        s.put(_record("k2", s))
+    s.close()
+    text = str(err.value)
+    assert str(path) in text and "read-only" in text and "runs committed so far are kept" in text
+    with Store(path, create=False) as s:
+        assert [r.key for r in s.records()] == ["k1"]
+
+
+def test_commits_are_in_the_store_file_itself_after_a_kill(tmp_path):
+    """Killed with no clean-up (os._exit), the .sqlite file alone (copied without its -wal) holds every run."""
+    path = tmp_path / "runs.sqlite"
+    code = (f"import os, sys; sys.path.insert(0, {str(ROOT)!r}); sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+            "from test_store_errors import _record\nfrom locoplan.runs.store import Store\n"
+            f"s = Store({str(path)!r})\nfor i in range(8):\n    s.put(_record(f'k{{i}}', s))\nos._exit(0)\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    alone = tmp_path / "copy.sqlite"
+    shutil.copyfile(path, alone)
+    with sqlite3.connect(alone) as conn:
+        assert conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0] == 8
+
+
+def test_a_second_writer_is_refused_and_the_lock_dies_with_its_holder(tmp_path):
+    path = tmp_path / "runs.sqlite"
+    first = Store(path)
+    first.check_writer()
+    second = Store(path)
+    with pytest.raises(InputError, match="another locoplan batch"):
+        second.check_writer()
+    first.close()
+    second.check_writer()  # free once the first has gone
+    second.close()
+    os.unlink(path)
