@@ -149,3 +149,45 @@ def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: st
             raise InputError(Problem(CMDLINE, option, f"value {x:g}{u} is outside [{number(lo)}, {number(hi)}]{u}"
                                      f"{': ' + why if why else ''}"))
     return out
+
+
+TIME_FORMS = "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)"
+"""The forms a planned running time takes on the command line (and in a study file's ``times``)."""
+
+
+def time_request(text: str | float | None, option: str = "--time") -> tuple[str, float] | None:
+    """A planned running time as typed: ``('s', seconds)``, ``('x', factor of the fastest run)``; ``+10%``
+    (a running-time supplement on the fastest run, as timetables state it) is the factor 1.1.
+    None stays None (the route's schedule). Raises ``InputError`` naming ``option`` and the forms."""
+    if text is None:
+        return None
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        return "s", planned_time(float(text), option)
+    raw = str(text).strip()
+    t = raw.lower().replace(" ", "")
+    try:
+        if t.endswith("x"):
+            kind, value = "x", float(t[:-1])
+        elif t.endswith("%"):
+            if not t.startswith("+"):
+                raise ValueError
+            kind, value = "x", 1.0 + float(t[1:-1]) / 100.0
+        else:
+            kind, value = "s", float(t[:-1] if t.endswith("s") else t)
+    except ValueError:
+        raise InputError(Problem(CMDLINE, option, f"expected {TIME_FORMS}, got {raw!r}")) from None
+    if kind == "s":
+        return "s", planned_time(value, option)
+    if not math.isfinite(value) or value < 1.0 or value > 10.0:
+        raise InputError(Problem(CMDLINE, option, f"{raw!r} is not a factor of the fastest run in 1 .. 10 (no train runs "
+                                 "faster than its fastest run; +0% .. +900% is the same range as a supplement)"))
+    return "x", value
+
+
+def time_of(request: tuple[str, float], fastest_s: float) -> float:
+    """Seconds of a :func:`time_request`, given the fastest run [s]: a factor's time is rounded up to 0.1 s
+    (so that 1x is never below the fastest run by a rounding)."""
+    kind, value = request
+    if kind == "s":
+        return value
+    return math.ceil(value * fastest_s * 10 - 1e-9) / 10

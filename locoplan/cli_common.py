@@ -150,6 +150,31 @@ def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, poi
     return (*load_route_and_train(route, consist, stock_dir), opts)
 
 
+def _time(text: Optional[str], route, consist: str = DEFAULT_CONSIST, stock_dir: Optional[Path] = None,
+          options: Optional[ModelOptions] = None, quiet: bool = False, option: str = "--time") -> Optional[float]:
+    """``--time`` in seconds: seconds as given; a factor (``1.1x``) or a supplement (``+10%``) of the fastest
+    run of this route and train (``route``: a loaded Route, or a file path loaded with ``consist``; then
+    ``train`` is loaded too). None stays None (the route's schedule). A note on stderr says what a factor
+    came to, unless ``quiet``."""
+    req = bounds.time_request(text, option)
+    if req is None or req[0] == "s":
+        return None if req is None else req[1]
+    from .sim.calculator import TractionCalculator
+
+    if isinstance(route, (str, Path)):
+        from .io.load import load_route_and_train
+
+        route, train = load_route_and_train(route, consist, stock_dir)
+    else:
+        route, train = route
+    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    t = bounds.time_of(req, fastest)
+    if not quiet:
+        err.print(f"note: {option} {text}: T0 = {t:g} s ({req[1]:g} x the fastest run, {fastest:.1f} s)",
+                  highlight=False, markup=False, soft_wrap=True)
+    return t
+
+
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
     if out_file:
         write_output(out_file, summary_or_results, profile)
@@ -184,7 +209,7 @@ POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The seeds
 AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
 ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
 STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
-TIME = typer.Option(None, "--time", help="Planned running time T0 [s] (default: the route's schedule).")
+TIME = typer.Option(None, "--time", help="Planned running time T0: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
 EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")

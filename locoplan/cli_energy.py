@@ -88,7 +88,7 @@ def _optimum_columns(run) -> dict:
     return cols
 
 
-def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], time_s: Optional[float], mesh_tol: float,
+def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], time_s: Optional[str], mesh_tol: float,
                    max_degree: int, efficiency: Optional[str], regen: float, comfort: Optional[float], step: float,
                    point_mass: bool, air_brake: Optional[bool], rotating_mass: Optional[float], strict_limits: bool,
                    as_json: bool, out_file: Optional[Path], plot: Optional[Path], nodes, state_nodes) -> None:
@@ -113,7 +113,9 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     energy = energy_options(efficiency, regen, comfort)
     _check_outputs(out_file, plot)
     r, train, opts = _load(route_path, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    t0 = planned_time(r, time_s)
+    from .cli_common import _time
+
+    t0 = planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))
     with err.status("solving the multi-phase optimal control problem"):
         run = run_mpoc(r, train, opts, t0, energy=energy, mesh_tol=mesh_tol, max_degree=max_degree)
     s = run.summary
@@ -141,12 +143,12 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load, _time,
                       _range, guarded, out)
 
     @app.command("bound")
     @guarded
-    def bound(route: Path = ROUTE, time_s: Optional[float] = TIME,
+    def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
               times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
               consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
               out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
@@ -175,7 +177,7 @@ def register(app: typer.Typer) -> None:
         if out_file is not None:
             _check_outputs(out_file.with_suffix(".json"), None)
         r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-        ts = values if values is not None else [planned_time(r, time_s)]
+        ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
         rows = []
         from .cli_common import step_progress
 

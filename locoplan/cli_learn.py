@@ -93,7 +93,7 @@ def _sections_table(sections: list[dict]) -> Table:
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options,
                              err, guarded, out)
     from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
@@ -183,7 +183,7 @@ def register(app: typer.Typer) -> None:
     @guarded
     def advise(route: Path = ROUTE,
                patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
-               time_s: Optional[float] = typer.Option(None, "--time", help="Planned running time [s] (default: the route's schedule)."),
+               time_s: Optional[str] = TIME,
                mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
                consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
@@ -213,7 +213,9 @@ def register(app: typer.Typer) -> None:
         else:
             base, vehicles, *_ = load_consist(consist, stock_dir)
             train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
-        ctx = make_context(r, train, opts, time_s=time_s, tolerance_s=tolerance)
+        from .cli_common import _time
+
+        ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
         a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
         outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
         summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)

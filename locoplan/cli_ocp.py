@@ -117,7 +117,7 @@ def register(app: typer.Typer) -> None:
             nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
             state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
             stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
-            time_s: Optional[float] = typer.Option(None, "--time", help="Energy: planned running time T [s] (default: the route's schedule)."),
+            time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
             mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
             max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
             efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),

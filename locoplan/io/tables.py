@@ -176,6 +176,23 @@ def key_value_table(title: str, rows: list[tuple[str, str]], width: int = 80, wh
     return [table] + below
 
 
+def _punctuality(summary: dict) -> str:
+    """'76.7 s early, outside the window 1470 .. 1530 s (planned 1500 s)': how far a run is off its
+    planned time, in which direction, and whether that is inside the punctuality window."""
+    planned = f"(planned {summary['planned_time_s']:g} s)"
+    t = summary.get("running_time_s")
+    if t is None or summary.get("punctuality_error_s") is None:
+        return f"- {planned}"
+    off = t - summary["planned_time_s"]
+    side = "late" if off > 0 else "early"
+    text = f"{abs(off):.1f} s {side}" if round(abs(off), 1) else "0.0 s"
+    window = summary.get("window_s")
+    if window:
+        inside = "inside" if summary.get("punctual") else "[red]outside[/]"
+        text += f", {inside} the window {window[0]:g} .. {window[1]:g} s"
+    return f"{text} {planned}"
+
+
 def summary_table(summary: dict, width: int = 80) -> list:
     """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
     long for the table's value column follows the table on a line of its own, whole)."""
@@ -186,7 +203,7 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
     if summary.get("planned_time_s") is not None:
-        rows.append(("punctuality error", f"{_num(summary['punctuality_error_s'], '.1f', ' s')} (planned {summary['planned_time_s']:g} s)"))
+        rows.append(("punctuality", _punctuality(summary)))
     if summary.get("fitness") is not None:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
