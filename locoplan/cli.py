@@ -17,7 +17,7 @@ from rich.markup import escape
 
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
-                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time,
+                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, json_out,
                          _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
@@ -51,6 +51,7 @@ def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **
 
 # ------------------------------------------------------------------------------------------ validate
 @app.command()
+@guarded
 def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or consist YAML files."),
              stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
              as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout.")):
@@ -79,7 +80,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
             problems += exc.problems
             summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
     if as_json:
-        print(to_json({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]}))
+        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]})
     else:
         for s in summaries:
             if s["valid"]:
@@ -229,7 +230,7 @@ def compare(route: Path = ROUTE,
     """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
     from .runner import proposed_sequence
     from .runs import make_executor, run_many
-    from .runs.plans import compare_specs
+    from .runs.plans import compare_fields, compare_specs, energies_at_planned_time
 
     names = _names(strategies or COMPARE_DEFAULT, "--strategies")
     w = _weights(weights)
@@ -246,7 +247,10 @@ def compare(route: Path = ROUTE,
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
     with run_progress(f"compare: strategies run ({', '.join(names)})", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
-    results = {"results": [x.summary for x in batch.records]}
+    results = {"results": compare_fields([x.summary for x in batch.records])}
+    if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
+        r_, train_ = load_route(route), load_train(consist, stock_dir)
+        results["optimum_at_t0_kwh"] = energies_at_planned_time(results["results"], r_, train_, opts)
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:

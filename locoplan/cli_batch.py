@@ -55,6 +55,7 @@ def register(app: typer.Typer) -> None:
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
                              TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
     from .io.tables import show
+    from .cli_common import json_out
     from .io.report import to_json
 
     @app.command("batch")
@@ -89,7 +90,7 @@ def register(app: typer.Typer) -> None:
                       "wall_time_s": round(wall, 2), "runs_per_s": round(ran / wall, 3) if ran else None,
                       "fail_their_job": len(result.failures), "ran_keys": result.ran}
             if as_json:
-                print(to_json(report))
+                json_out(report)
                 return
             rows = summarize_rows(rows_of(result.records))
             show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
@@ -148,7 +149,7 @@ def register(app: typer.Typer) -> None:
             print(text, end="")
         elif fmt is None:
             if as_json:
-                print(to_json({"store": str(store_path), "runs": len(rows), "summary": summary}))
+                json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
             else:
                 show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
 
@@ -202,7 +203,7 @@ def register(app: typer.Typer) -> None:
             if plot:
                 plot_pareto(front, plot)
         if as_json:
-            print(to_json(front))
+            json_out(front)
         else:
             show(out, pareto_table(front, out.width))
             out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)

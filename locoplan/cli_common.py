@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Optional
 
@@ -14,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from . import bounds
+from . import __version__, bounds
 from .errors import InputError, LocoplanError, Problem
 from .io.report import all_or_none, check_output, check_output_path, to_json, write_output
 from .optimize.registry import ALGORITHMS
@@ -82,23 +83,86 @@ def as_flags(problem: Problem) -> Problem:
     """A library problem about an argument, restated with the command line's flag."""
     if problem.field in FLAGS and (problem.file in ("", "<command line>") or problem.field in ("out", "plot", "boxplot")):
         return Problem(problem.file or "<command line>", FLAGS[problem.field], problem.message, problem.line)
+    if not problem.file:  # an argument's value: on the command line, an option's
+        return Problem("<command line>", problem.field, problem.message, problem.line)
     return problem
 
 
+VERDICTS = {0: "ok", 1: "failed", 2: "invalid input"}
+"""Exit code -> the ``verdict`` of every --json object: 0 every result does its job; 1 a valid request
+with no result that does (no feasible plan, or a timetabled plan outside its window); 2 invalid input."""
+
+_RUN: ContextVar[Optional[dict]] = ContextVar("locoplan_cli_run", default=None)
+_OUTPUTS = ("out_file", "plot", "boxplot", "out_dir")
+
+
+def _inputs(kwargs: dict) -> dict:
+    """The files (and catalogue names) a command read, as given: ``{"route": "routes/x.yaml", ...}``."""
+    found = {}
+    for key, value in kwargs.items():
+        if key in _OUTPUTS or value is None:
+            continue
+        if isinstance(value, Path) or key == "consist":
+            found[key] = str(value)
+        elif isinstance(value, (list, tuple)) and value and all(isinstance(v, Path) for v in value):
+            found[key] = [str(v) for v in value]
+    return found
+
+
+def json_out(obj: dict) -> None:
+    """The --json object of a command: printed on stdout when the command ends, with its ``verdict``,
+    ``exit_code`` and ``errors`` (the reasons of exit 1 or 2), the ``locoplan_version`` and the ``inputs``
+    (see :func:`guarded`). Outside a guarded command it is printed at once."""
+    run = _RUN.get()
+    if run is None:
+        print(to_json(obj))
+    else:
+        run["json"] = obj
+
+
+def _finish_json(run: dict, code: int) -> None:
+    obj = run["json"]
+    if obj is None:  # nothing was computed: the object says why
+        obj = {"command": run["command"], "reason": "\n".join(run["errors"]) or None}
+        if run.get("problems"):
+            obj["problems"] = [{"file": p.file, "line": p.line, "field": p.field, "message": p.message}
+                               for p in run["problems"]]
+    print(to_json({**obj, "verdict": VERDICTS.get(code, "failed"), "exit_code": code, "errors": run["errors"],
+                   "locoplan_version": __version__, "inputs": run["inputs"]}))
+
+
 def guarded(fn):
-    """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code."""
+    """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code; with --json
+    (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        run = {"json": None, "errors": [], "command": fn.__name__.replace("_", "-"), "inputs": _inputs(kwargs)}
+        token = _RUN.set(run)
+        code = None
         try:
             # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
             with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
-                return fn(*args, **kwargs)
+                result = fn(*args, **kwargs)
+            code = 0
+            return result
+        except typer.Exit as exc:
+            code = exc.exit_code
+            raise
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)
-            for text in ([str(as_flags(p)) for p in problems] if problems else [str(exc)]):  # an infeasible request has no file
+            texts = [str(as_flags(p)) for p in problems] if problems else [str(exc)]  # an infeasible request has no file
+            for text in texts:
                 err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
+            run["errors"] += texts
+            if problems:
+                run["problems"] = [as_flags(p) for p in problems]
+            code = exc.exit_code
             raise typer.Exit(exc.exit_code) from None
+        finally:
+            _RUN.reset(token)
+            if code is not None and kwargs.get("as_json"):
+                _finish_json(run, code)
     return wrapper
 
 
@@ -107,6 +171,9 @@ def _fail_if(messages: list) -> None:
     messages = [m for m in messages if m]
     for m in messages:
         err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
+    run = _RUN.get()
+    if run is not None:
+        run["errors"] += messages
     if messages:
         raise typer.Exit(1)
 
@@ -179,7 +246,7 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
     if out_file:
         write_output(out_file, summary_or_results, profile)
     if as_json:
-        print(to_json(summary_or_results))
+        json_out(summary_or_results)
 
 
 PLOT_SUFFIXES = (".png", ".svg")
@@ -209,7 +276,7 @@ POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The seeds
 AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
 ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
 STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
-TIME = typer.Option(None, "--time", help="Planned running time T0: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
+TIME = typer.Option(None, "--time", help="Planned running time T0 [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
 EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
@@ -221,4 +288,4 @@ PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default:
 GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
 WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")
 
-__all__ = ["out", "err", "guarded", "all_or_none", "check_outputs"]
+__all__ = ["out", "err", "guarded", "all_or_none", "check_outputs", "json_out"]

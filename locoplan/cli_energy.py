@@ -93,7 +93,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
                    point_mass: bool, air_brake: Optional[bool], rotating_mass: Optional[float], strict_limits: bool,
                    as_json: bool, out_file: Optional[Path], plot: Optional[Path], nodes, state_nodes) -> None:
     """``locoplan ocp ROUTE --objective energy``: solve, print, write; exit 1 if not confirmed."""
-    from .cli_common import _check_outputs, _load, err, out
+    from .cli_common import _check_outputs, _load, err, json_out, out
     from .errors import InputError, Problem
     from .io.report import to_json, write_output
     from .ocp.mpoc import run_mpoc
@@ -129,7 +129,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
         plot_energy_run(plot, run)
     if as_json:
-        print(to_json(s))
+        json_out(s)
     else:
         from .io.tables import fit, show
 
@@ -143,7 +143,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load, _time,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load, _time, json_out,
                       _range, guarded, out)
 
     @app.command("bound")
@@ -208,7 +208,7 @@ def register(app: typer.Typer) -> None:
 
             plot_energy_time(plot, data)
         if as_json:
-            print(to_json(data if values is not None else {**data, **rows[0]}))
+            json_out(data if values is not None else {**data, **rows[0]})
         elif values is None:
             row = rows[0]
             out.print(f"E* = {row['energy_kwh']:.2f} kWh  ({escape(r.name)}, {escape(train.name)}, {row['time_s']:g} s; "

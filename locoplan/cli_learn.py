@@ -93,7 +93,7 @@ def _sections_table(sections: list[dict]) -> Table:
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options, json_out,
                              err, guarded, out)
     from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
@@ -133,8 +133,8 @@ def register(app: typer.Typer) -> None:
         with err.status("simulating drivers") as status:
             summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
         if as_json:
-            print(to_json({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
-                           "groups": summary.groups, "drivers": summary.drivers}))
+            json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
+                           "groups": summary.groups, "drivers": summary.drivers})
         else:
             out.print(_groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
 
@@ -172,8 +172,8 @@ def register(app: typer.Typer) -> None:
             plot_fit(plot, learned)
         atomic_write_text(out_file, to_json(data) + "\n")
         if as_json:
-            print(to_json({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
-                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}}))
+            json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
+                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
         else:
             for table in _fit_tables(data["report"]):
                 out.print(table)

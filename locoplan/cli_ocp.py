@@ -102,7 +102,7 @@ def _ratio_table(study) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
-    from .cli_common import err, guarded, out
+    from .cli_common import err, guarded, json_out, out
     from .io.report import to_json
 
     methods = ", ".join(OCP_METHODS)
@@ -117,7 +117,7 @@ def register(app: typer.Typer) -> None:
             nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
             state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
             stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
-            time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
+            time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
             mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
             max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
             efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),
@@ -164,7 +164,7 @@ def register(app: typer.Typer) -> None:
 
             plot_run(plot, run)
         if as_json:
-            print(to_json(run.summary))
+            json_out(run.summary)
         else:
             from .io.tables import show
 
@@ -203,7 +203,7 @@ def register(app: typer.Typer) -> None:
 
             plot_study(plot, study)
         if as_json:
-            print(to_json(study.to_dict()))
+            json_out(study.to_dict())
         else:
             from .io.tables import fit, show
 

@@ -98,4 +98,101 @@ def test_simulate_timetabled_strategy_outside_the_window_exits_1(freight):
                               "--json"])
     assert res.exit_code == 1
     data = json.loads(res.stdout)
-    assert data["verdict"] == "infeasible" and "below the fastest possible run" in data["reason"]
+    assert data["verdict"] == "failed" and "below the fastest possible run" in data["reason"]
+
+
+# ------------------------------------------------------------------------------------ JSON on failure
+def test_json_on_an_infeasible_request_is_an_object_with_verdict_reason_and_exit_code():
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", "1000", "--json", *SMALL])
+    assert res.exit_code == 1
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "failed" and data["exit_code"] == 1
+    assert "below the fastest possible run" in data["reason"] and data["errors"] == [data["reason"]]
+
+
+def test_json_on_invalid_input_names_file_field_and_why(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema: locoplan/route@1\nname: x\nlength_m: 1000\nspeed_limits: []\ngradients: []\n")
+    res = runner.invoke(app, ["simulate", str(bad), "--json"])
+    assert res.exit_code == 2
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2
+    assert data["problems"] and all(p["file"] == str(bad) for p in data["problems"])
+    assert {"file", "line", "field", "message"} <= set(data["problems"][0])
+    assert "Traceback" not in res.output
+
+
+def test_json_of_a_result_has_verdict_version_and_inputs():
+    from locoplan import __version__
+
+    ok = json.loads(runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--json"]).stdout)
+    assert ok["verdict"] == "ok" and ok["exit_code"] == 0 and ok["errors"] == []
+    assert ok["locoplan_version"] == __version__
+    assert ok["inputs"] == {"route": "routes/freight-20km.yaml", "consist": "configs/consists/HXD1-C80x50.yaml"}
+    bad = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:1000,C:4000,B", "--json"])
+    data = json.loads(bad.stdout)
+    assert bad.exit_code == data["exit_code"] == 1 and data["verdict"] == "failed"
+    assert data["feasible"] is False and data["errors"][0].startswith("sequence: no feasible plan (stalled")
+
+
+def test_validate_json_has_the_verdict_too(tmp_path):
+    res = runner.invoke(app, ["validate", "routes/freight-20km.yaml", "--json"])
+    data = json.loads(res.stdout)
+    assert res.exit_code == 0 and data["valid"] and data["verdict"] == "ok"
+    assert data["inputs"] == {"files": ["routes/freight-20km.yaml"]}
+
+
+def test_library_errors_name_the_argument_not_the_command_line(freight):
+    from locoplan.errors import InputError
+    from locoplan.runner import make_context
+
+    with pytest.raises(InputError) as exc:
+        make_context(*freight, time_s=-5)
+    assert str(exc.value).startswith("time_s: must be in") and "<command line>" not in str(exc.value)
+
+
+# ------------------------------------------------------------------------------------ compare, fairly
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory, root):
+    import os
+    out = tmp_path_factory.mktemp("cmp") / "c.csv"
+    old = os.getcwd()
+    os.chdir(root)
+    try:
+        res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
+                                  "--json", "--out", str(out)])
+        table = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage"],
+                              env={"COLUMNS": "80"})
+    finally:
+        os.chdir(old)
+    return res, table, out
+
+
+def test_compare_json_has_the_fields_its_table_shows(compared):
+    res, _, _ = compared
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    rows = {r["strategy"]: r for r in data["results"]}
+    fast, four = rows["time-saving"], rows["four-stage"]
+    assert (fast["switches"], fast["coasts"]) == (0, 0)
+    conds = [c.split(":")[0] for c in four["plan"].split(",")]
+    assert four["switches"] == len(conds) - 1 and four["coasts"] == conds.count("C")
+    assert fast["energy_reduction_percent"] == 0
+    assert four["energy_reduction_percent"] == pytest.approx(
+        100 * (1 - four["traction_energy_kwh"] / fast["traction_energy_kwh"]), abs=0.01)
+
+
+def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
+    res, table, out = compared
+    data = json.loads(res.stdout)
+    rows = {r["strategy"]: r for r in data["results"]}
+    four = rows["four-stage"]
+    assert four["punctual"] and four["energy_at_t0_kwh"] == pytest.approx(
+        data["optimum_at_t0_kwh"] + four["gap_to_optimum_kwh"], abs=0.011)
+    assert rows["time-saving"]["energy_at_t0_kwh"] is None  # 270 s early: its gap says nothing about T0
+    text = table.stdout
+    assert "at T0" in text and f"{four['energy_at_t0_kwh']:.2f}" in text
+    assert max(len(line) for line in text.splitlines()) <= 80
+    import csv
+    csv_rows = list(csv.DictReader(out.open()))
+    assert {"switches", "coasts", "energy_reduction_percent", "energy_at_t0_kwh"} <= set(csv_rows[0])

@@ -203,7 +203,7 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
     if summary.get("planned_time_s") is not None:
-        rows.append(("punctuality", _punctuality(summary)))
+        rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
@@ -249,11 +249,14 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     t8.add_column("strategy")
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"))
-    t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
-    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
+    at_t0 = any(r.get("energy_at_t0_kwh") is not None for r in rows)
+    t9 = Table(title="Table 9: running time and traction energy"
+               + ("; at T0: a punctual plan's energy carried to T0 (its gap over E* added to E* at T0)" if at_t0 else
+                  ", each at its own running time"), title_justify="left")
+    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]") + (("at T0 [kWh]",) if at_t0 else ()) + (
+        "saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
     for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
-    base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving" and r["feasible"]), None)
     notes, plans = [], []
     for s in rows:
         if not s["feasible"]:
@@ -273,12 +276,14 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
         if s.get("punctual") is False and s["running_time_s"] is not None:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
         e = s["traction_energy_kwh"]
-        rel = "-" if not base or e is None or not s["feasible"] else f"{100 * (e / base - 1):+.1f}"
         name = escape(s["strategy"]) + ("" if s["feasible"] else " [red](infeasible)[/]")
-        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"), rel,
-                   _num(s.get("gap_to_optimum_percent"), "+.2f"), str(len(conds) - 1), str(conds.count("C")),
+        # the derived columns are the rows' fields (runs.plans.compare_fields), as --json and --out have them
+        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"),
+                   *((_num(s.get("energy_at_t0_kwh"), ".2f"),) if at_t0 else ()), _num(s.get("energy_reduction_percent"), ".1f"),
+                   _num(s.get("gap_to_optimum_percent"), "+.2f"), _num(s.get("switches"), "d"), _num(s.get("coasts"), "d"),
                    _num(s["fitness"], ".4f"))
-    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6, 7, 5, 4, 8), wrap=(0,)) + notes
+    k = 1 if at_t0 else 0  # the columns after "energy" move one right when "at T0" is there
+    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 5 + k, 4 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))
         blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))
