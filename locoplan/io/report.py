@@ -159,6 +159,37 @@ def clean(value: Any) -> Any:
     return value
 
 
+def csv_cell(value: Any) -> Any:
+    """A CSV cell that spreadsheets and ``pandas.read_csv`` read as what it is: numbers as numbers,
+    booleans as ``true`` / ``false``, no value (None, NaN) as an empty cell, a list or a dict as JSON
+    text (``[0.5, 0.5]`` in JSON, never Python's ``True`` or ``(0.5, 0.5)``)."""
+    value = clean(value)
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return json.dumps(value)
+    return value
+
+
+SPLIT_COLUMNS = {"weights": ("w_time", "w_energy"), "window_s": ("window_from_s", "window_to_s")}
+"""Lists of a fixed length that a CSV row gives as columns of their own."""
+
+
+def csv_row(row: dict) -> dict:
+    """A run's fields as CSV cells, :data:`SPLIT_COLUMNS` split into their columns."""
+    out = {}
+    for key, value in row.items():
+        if key in SPLIT_COLUMNS and isinstance(value, (list, tuple)) and len(value) == len(SPLIT_COLUMNS[key]):
+            out.update({k: csv_cell(v) for k, v in zip(SPLIT_COLUMNS[key], value)})
+        elif key in SPLIT_COLUMNS and value is None:
+            out.update(dict.fromkeys(SPLIT_COLUMNS[key], ""))
+        else:
+            out[key] = csv_cell(value)
+    return out
+
+
 def to_json(obj: Any) -> str:
     return json.dumps(clean(obj), indent=2, allow_nan=False)
 
@@ -215,9 +246,9 @@ def run_rows_csv(rows: list[dict]) -> str:
     writer.writeheader()
     for r in rows:
         w = r.get("weights") or (None, None)
-        row = {k: clean(r.get(k)) for k in RUN_COLUMNS}
+        row = {k: r.get(k) for k in RUN_COLUMNS}
         row.update(w_time=w[0], w_energy=w[1])
-        writer.writerow({k: "" if v is None else v for k, v in row.items()})
+        writer.writerow({k: csv_cell(v) for k, v in row.items()})
     return buf.getvalue()
 
 
