@@ -96,15 +96,16 @@ def _progress(enabled: bool):
     """A rich progress bar on stderr for optimiser iterations (a no-op callback when disabled)."""
     from contextlib import contextmanager
 
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import TextColumn
+
+    from .cli_common import progress_bar
 
     @contextmanager
     def cm(label: str, total: int):
         if not enabled or not err.is_terminal:
             yield None
             return
-        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                      TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+        with progress_bar(TextColumn("best {task.fields[best]}")) as bar:
             task = bar.add_task(label, total=total, best="-")
 
             def callback(iteration: int, best: float) -> None:
@@ -172,7 +173,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
-    with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
+    with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
                            tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
@@ -245,7 +246,7 @@ def compare(route: Path = ROUTE,
         specs = [replace(x, fitness=False) for x in specs]
     if explain and not as_json:
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
-    with run_progress(f"compare: strategies run ({', '.join(names)})", len(specs), not as_json) as progress:
+    with run_progress("compare runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {"results": compare_fields([x.summary for x in batch.records])}
     if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
@@ -313,8 +314,7 @@ def sweep(route: Path = ROUTE,
                       yardstick=gap)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
-    what = "time weights" if weights else "planned running times"
-    with run_progress(f"sweep: proposed-strategy runs over {len(specs)} {what}", len(specs), not as_json) as progress:
+    with run_progress("sweep runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     rows = [x.summary for x in batch.records]
     if times:
@@ -363,7 +363,7 @@ def study(route: Path = ROUTE,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
-    with run_progress(f"study: optimiser runs ({', '.join(algs)} x {runs} seeds)", len(specs), not as_json) as progress:
+    with run_progress("study runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {a: [x for x in batch.records if x.spec["algorithm"] == a] for a in algs}
     first = batch.records[0].summary

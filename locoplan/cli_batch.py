@@ -14,25 +14,25 @@ import typer
 __all__ = ["register"]
 
 
-def _progress_printer(err, enabled: bool, label: str = "runs"):
+def _progress_printer(err, enabled: bool, label: str = "batch runs"):
     """A progress callback for run_many on stderr: a rich bar (counts, rate, ETA) on a terminal, a
     plain line at most every 10 s otherwise (a log file), nothing when disabled. Returns (callback, close)."""
     if not enabled:
         return None, lambda: None
     if err.is_terminal:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+        from rich.progress import TextColumn
 
-        bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                       TextColumn("{task.fields[note]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                       console=err, transient=False)
+        from .cli_common import progress_bar
+
+        bar = progress_bar(TextColumn("{task.fields[note]}"), transient=False)
         bar.start()
         tasks: dict = {}
 
         def cb(ev):
-            name = "E_min per route and consist" if ev.phase == "e_min" else label
+            name = "E_min runs" if ev.phase == "e_min" else label
             if ev.phase not in tasks:
                 tasks[ev.phase] = bar.add_task(name, total=ev.total, note="")
-            note = "" if ev.phase == "e_min" else f"({ev.reused} from the store, {ev.failed} fail their job)"
+            note = "" if ev.phase == "e_min" else f"{ev.reused} stored, {ev.failed} failed"
             bar.update(tasks[ev.phase], completed=ev.done, total=ev.total, note=note)
         return cb, bar.stop
     start, last = time.monotonic(), [0.0]
@@ -190,7 +190,7 @@ def register(app: typer.Typer) -> None:
         base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                        builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
         executor = make_executor(workers)
-        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto: strategy runs over the planned times")
+        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
                                seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)

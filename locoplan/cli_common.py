@@ -37,24 +37,35 @@ FLAGS = {
 (``time_s``); the command line shows the flag the user typed (``--time``)."""
 
 
+BAR_WIDTH = 20
+"""Columns of a progress bar's bar: with a short label, the count and the ETA a line fits 80 columns."""
+
+
+def progress_bar(*extra, transient: bool = True):
+    """A rich progress display on stderr that reads at 80 columns: short label, count, bar, ETA (then
+    ``extra`` columns, e.g. the best fitness). Labels are a few words ("compare runs"); what they count
+    is the command's help."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    return Progress(TextColumn("{task.description}"), MofNCompleteColumn(), BarColumn(bar_width=BAR_WIDTH),
+                    TextColumn("ETA"), TimeRemainingColumn(), *extra, console=err, transient=transient)
+
+
 @contextmanager
 def run_progress(label: str, total: int, enabled: bool):
     """A progress bar on stderr for a command's runs (``run_many``'s progress events), only when stderr
-    is a terminal and never with --json (stdout stays clean either way): ``label`` says what is counted
-    (e.g. "compare: strategies run"); E_min's energy-saving run, when one is needed, has its own line.
+    is a terminal and never with --json (stdout stays clean either way): ``label`` is short and says what
+    is counted ("compare runs"); E_min's energy-saving run, when one is needed, has its own line.
     Yields the callback for ``run_many(progress=...)`` (None when there is no bar)."""
     if not enabled or not err.is_terminal:
         yield None
         return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), console=err, transient=True) as bar:
+    with progress_bar() as bar:
         tasks = {"runs": bar.add_task(label, total=total)}
 
         def callback(ev) -> None:
             if ev.phase not in tasks:
-                tasks[ev.phase] = bar.add_task("E_min: the energy-saving run (once per route and train)", total=ev.total)
+                tasks[ev.phase] = bar.add_task("E_min run", total=ev.total)
             bar.update(tasks[ev.phase], completed=ev.done, total=ev.total)
         yield callback
 
@@ -62,14 +73,14 @@ def run_progress(label: str, total: int, enabled: bool):
 @contextmanager
 def step_progress(label: str, total: int, enabled: bool):
     """A progress bar on stderr over ``total`` steps (terminal only, never with --json). Yields
-    ``step(text)``, called as each step starts: the bar counts the steps before it and shows ``text``."""
+    ``step(text)``, called as each step starts: the bar counts the steps before it and shows ``text``
+    (a few words) after the ETA."""
     if not enabled or not err.is_terminal:
         yield lambda text: None
         return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import TextColumn
 
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[now]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+    with progress_bar(TextColumn("{task.fields[now]}")) as bar:
         task = bar.add_task(label, total=total, now="")
         started = [0]
 

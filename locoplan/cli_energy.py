@@ -181,7 +181,7 @@ def register(app: typer.Typer) -> None:
         rows = []
         from .cli_common import step_progress
 
-        with step_progress("bound: E*, the least energy, per running time", len(ts), not as_json) as step:
+        with step_progress("bound solves", len(ts), not as_json) as step:
             for t in ts:
                 step(f"E* at {t:g} s")
                 try:

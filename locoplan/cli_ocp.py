@@ -193,7 +193,7 @@ def register(app: typer.Typer) -> None:
         from .cli_common import step_progress
         from .ocp.study import STUDY_ROUTES, STUDY_RUNS
 
-        with step_progress("ocp-study: optimal-control solves (seed 000 Tables 2-3)", len(STUDY_RUNS) * len(STUDY_ROUTES),
+        with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
                            not as_json) as step:
             study = run_study(consist=consist, repeats=repeats, progress=step)
         if out_file:
