@@ -175,8 +175,8 @@ def register(app: typer.Typer) -> None:
             json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
                            "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
         else:
-            for table in _fit_tables(data["report"]):
-                out.print(table)
+            for table in _fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
+                show(out, fit(table, out.width, wrap=(0,)))
             out.print(f"patterns written to {out_file}", highlight=False, markup=False)
 
     @app.command("advise")

@@ -210,7 +210,9 @@ def register(app: typer.Typer) -> None:
             # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
             for table in _study_tables(study):
                 show(out, fit(table, out.width, drop=(9, 8, 2)))
-            show(out, fit(_ratio_table(study), out.width, drop=(8, 7)))
+            ratios = _ratio_table(study)
+            n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, seed mean, seed claim
+            show(out, fit(ratios, out.width, drop=(n + 4, n + 3, *range(n + 1, 1, -1))))  # the mean stays
             out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
             for r in study.rows:
                 if not r["feasible"]:

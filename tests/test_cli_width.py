@@ -196,3 +196,24 @@ def test_plot_of_a_stalled_plan_ends_where_it_stalls(root, tmp_path):
     plot_profiles(out, [("stalls", prof)], title, histories=[("issa", np.array([0.3, 0.2])),
                                                              ("energy-saving", np.array([600.0, 580.0]), ENERGY)])
     assert out.stat().st_size > 1000 and FITNESS != ENERGY
+
+
+def test_fit_leaves_out_columns_rather_than_split_a_number():
+    """A table wider than the terminal even after its listed columns are left out (ocp-study's at 80
+    columns): more whole columns go, the last first, and every number stays on one line."""
+    from rich.table import Table
+
+    from locoplan.io.tables import fit
+
+    t = Table(title="wide")
+    numbers = [f"{-13.123456 * (k + 1):.6f}" for k in range(12)]
+    for k in range(12):
+        t.add_column(f"column {k}", justify="right")
+    t.add_row(*numbers)
+    text = _render(fit(t, 80, drop=(11,)), 80)
+    assert max(len(x) for x in text.splitlines()) <= 80
+    shown = [n for n in numbers if n in text]
+    assert shown and numbers[0] in text
+    assert "left out at 80 columns" in text
+    for n in numbers:  # a number is whole or absent, never split over lines
+        assert n in text or n[:4] not in text.replace(n, "")

@@ -12,6 +12,7 @@ import csv
 import dataclasses
 import io
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -284,3 +285,15 @@ def test_registry_drives_the_choices(app):
     assert res.exit_code == 0
     for key in OCP_METHODS:
         assert key in res.stdout
+
+
+def test_ocp_study_tables_at_80_columns_keep_numbers_whole(app):
+    res = runner.invoke(app, ["ocp-study"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    tables = res.stdout.split("stage 2 u / x: control")[0]
+    lines = tables.splitlines()
+    assert max(len(x) for x in lines) <= 80
+    # no number folded over two lines ("-116." over "5"), no header cut ("two-stag" over "e", "CV" over "P")
+    assert not any(re.search(r"\d\.\s*$", x) for x in lines)
+    assert " two-stage " in tables and " CVP " in tables and " GPM " in tables and " mean" in tables
+    assert "left out at 80 columns" in tables

@@ -75,6 +75,13 @@ def fit(table: Table, width: int, drop: tuple[int, ...] = (), wrap: tuple[int, .
         for k, c in enumerate(table.columns):
             c._index = k
         dropped.append(" ".join(_plain(col.header).split()))
+    # still too wide (a narrow terminal): leave out more columns, the last first, rather than cut a number
+    while sum(low[id(c)] for c in table.columns) + overhead() > width and len(table.columns) > 2:
+        col = next((c for c in reversed(table.columns[1:]) if cols.index(c) not in wrap), table.columns[-1])
+        table.columns[:] = [c for c in table.columns if c is not col]
+        for k, c in enumerate(table.columns):
+            c._index = k
+        dropped.append(" ".join(_plain(col.header).split()))
     # widths: each column's minimum, then what is left shared out up to each column's natural width
     room = width - overhead()
     widths = {id(c): low[id(c)] for c in table.columns}
