@@ -26,7 +26,7 @@ from .io.tables import compare_tables, describe, explain_tables, sequence_table,
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
+app = typer.Typer(add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 
 
@@ -37,7 +37,7 @@ def _version(value: bool):
 
 
 @app.callback()
-def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Show the version.")):
+def _root(version: bool = typer.Option(False, "--version", "-V", callback=_version, is_eager=True, help="Show the version.")):
     pass
 
 
@@ -122,7 +122,7 @@ def simulate(route: Path = ROUTE,
              sequence: Optional[str] = typer.Option(None, "--sequence", help='Conditions and switching points, e.g. "T:0,K:2200,C:9000,B" (bare final B: brake where the braking curve begins).'),
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
-             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png or .svg."),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png, .svg or .pdf."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
              builder: Optional[str] = BUILDER):
@@ -161,10 +161,12 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
              seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
-             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png, .svg or .pdf."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
-    """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
+    """The least-energy plan on time: a condition sequence built from the limits and grades, its switching
+    points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
+    optimisation of freight trains on complex lines (ISSA switching points)."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
 
@@ -222,13 +224,15 @@ def compare(route: Path = ROUTE,
             e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS, consist: str = CONSIST,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits, .png, .svg or .pdf."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
             workers: int = WORKERS):
-    """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
+    """Strategies side by side: sequence, switching points, running time, energy (every punctual plan's
+    energy also at T0). Method: Li Wang et al., multi-objective optimisation of freight trains on complex
+    lines (its Tables 8-9)."""
     from .runner import proposed_sequence
     from .runs import make_executor, run_many
     from .runs.plans import compare_fields, compare_specs, energies_at_planned_time
@@ -283,9 +287,9 @@ def compare(route: Path = ROUTE,
 @app.command()
 @guarded
 def sweep(route: Path = ROUTE,
-          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
+          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list, e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
           old_weights: Optional[str] = typer.Option(None, "--weights", hidden=True, help="Old name of --weight-grid."),
-          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
+          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], e.g. 1470,1500,1530."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[str] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
@@ -293,7 +297,8 @@ def sweep(route: Path = ROUTE,
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
-    """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
+    """The optimised plan across fitness weights or planned running times. Method: Li Wang et al.,
+    multi-objective optimisation of freight trains on complex lines (its Tables 6-7)."""
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
@@ -343,11 +348,12 @@ def study(route: Path = ROUTE,
           params_dir: Optional[Path] = typer.Option(None, "--params-dir", help="Folder of <algorithm>.yaml parameter files."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results (runs and the table) as .json, or .csv: one row per run (columns: docs/cli.md)."),
-          plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves, .png, .svg or .pdf."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
-    """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
+    """Each optimiser over several random seeds: best, worst, mean, punctual-and-best. Method: Li Wang et
+    al., multi-objective optimisation of freight trains on complex lines (its Tables 10-12)."""
     from .runner import study_table as study_rows
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, study_specs

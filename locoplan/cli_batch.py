@@ -107,8 +107,8 @@ def register(app: typer.Typer) -> None:
                 out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
                 where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
                 by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
-                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png/.svg)."),
-                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png/.svg)."),
+                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png, .svg or .pdf)."),
+                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
                 as_json: bool = JSON):
         """Export, summarise and plot a result store (from the stored runs, no re-run)."""
         from .io.plot_runs import plot_boxes, plot_energy_time
@@ -162,13 +162,13 @@ def register(app: typer.Typer) -> None:
                seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
                algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png/.svg)."),
+               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png, .svg or .pdf)."),
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
                window: bool = WINDOW, builder: Optional[str] = BUILDER,
-               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E* at each planned time from seed 001's bound (a few seconds per time)."),
+               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
                workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
-        """The energy-time front: the best on-time plan at a grid of running times, and the optimum E* (seed 001)."""
+        """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
         from .errors import InputError, Problem
         from .io.plot_runs import plot_pareto
         from .io.report import atomic_write_text

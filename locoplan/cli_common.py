@@ -260,7 +260,7 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
         json_out(summary_or_results)
 
 
-PLOT_SUFFIXES = (".png", ".svg")
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # as io.plot.FIGURE_SUFFIXES
 
 
 def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
@@ -283,20 +283,20 @@ CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or 
 STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
 JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
 STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
-POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The seeds' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
+POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The papers' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
 AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
 ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
 STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
 TIME = typer.Option(None, "--time", help="Planned running time T0 [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
-WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy of seed 002 eq. 10.")
-EMIN = typer.Option(None, "--e-min", help="E_min of eq. 11 [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
+WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy: fitness = w_time |T - T0| / T0 + w_energy |E - E_min| / E_min.")
+EMIN = typer.Option(None, "--e-min", help="E_min, the energy the fitness measures against [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
 ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
 TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
-WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance (seed 002 eq. 3); --no-window ranks by eq. 10 alone.")
-BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (seed 002 section 2 to the letter; the default with --point-mass).", show_default=False)
+WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance; --no-window ranks by the fitness alone.")
+BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default; any line) or seed002 (the ISSA paper's own rules to the letter; the default with --point-mass).", show_default=False)
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
-GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (seed 001's optimum; a few seconds per plan).")
+GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (a minimum-energy optimal control; a few seconds per plan).")
 WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")
 
 __all__ = ["out", "err", "guarded", "all_or_none", "check_outputs", "json_out"]

@@ -152,12 +152,14 @@ def register(app: typer.Typer) -> None:
               times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
               consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
               out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png or .svg."),
+              plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
               mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
               max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
-        """The least traction energy E* for a running time (seed 001's optimum): the yardstick of every plan."""
+        """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
+        Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
+        train operation."""
         import csv
         import io
 

@@ -97,7 +97,7 @@ def register(app: typer.Typer) -> None:
                              err, guarded, out)
     from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
-    drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
+    drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
     app.add_typer(drivers_app, name="drivers")
 
     @drivers_app.command("simulate")
@@ -142,9 +142,9 @@ def register(app: typer.Typer) -> None:
     @guarded
     def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
               out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png or .svg."),
+              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
               seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
-              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (eq. II)."),
+              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
               max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
               folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
               holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
@@ -152,7 +152,8 @@ def register(app: typer.Typer) -> None:
               level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
               stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, step: float = STEP, point_mass: bool = POINT_MASS,
               air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT):
-        """Seed 004: learn the double-layer pattern curves from the good drivers' logs."""
+        """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
+        Method: the patent on locomotive operation sequences from double-layer pattern curves."""
         from .io.report import atomic_write_text, to_json
         from .learn.logs import load_logs
         from .learn.patterns import LearnSettings
@@ -187,11 +188,12 @@ def register(app: typer.Typer) -> None:
                mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
                consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png or .svg."),
+               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
                tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
-        """Seed 004: time shares, speed curve and operation sequence from learned patterns, checked by the calculator."""
+        """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
+        calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
         from .cli_common import _emit, _fail_if
         from .io.load import build_train, load_consist, load_route, load_train
         from .learn.advise import advise as run_advise

@@ -196,3 +196,43 @@ def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
     import csv
     csv_rows = list(csv.DictReader(out.open()))
     assert {"switches", "coasts", "energy_reduction_percent", "energy_at_t0_kwh"} <= set(csv_rows[0])
+
+
+# ------------------------------------------------------------------------------------ help, version, completion
+HELP_COMMANDS = [["validate"], ["simulate"], ["optimize"], ["compare"], ["sweep"], ["study"], ["ocp"], ["ocp-study"],
+                 ["learn"], ["advise"], ["import", "ttobench"], ["import", "railtoolkit"], ["bound"], ["batch"],
+                 ["results"], ["pareto"], ["drivers", "simulate"]]
+
+
+def test_top_help_lists_every_command_whole_at_80_columns():
+    res = runner.invoke(app, ["--help"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0
+    commands = res.stdout.split("Commands:")[1]
+    assert "..." not in commands and "…" not in commands
+    assert max(len(x) for x in res.stdout.splitlines()) <= 80
+    for name in ("validate", "simulate", "optimize", "compare", "sweep", "study", "ocp", "ocp-study", "learn",
+                 "advise", "import", "bound", "batch", "results", "pareto", "drivers"):
+        assert re.search(rf"^  {re.escape(name)} +\S", commands, re.M), name
+
+
+@pytest.mark.parametrize("path", HELP_COMMANDS, ids=" ".join)
+def test_help_names_methods_not_paper_sections(path):
+    """No 'Seed 002', 'eq. 10', 'Fig. 15' in help: methods by what they do, the paper cited once."""
+    text = " ".join(runner.invoke(app, [*path, "--help"], env={"COLUMNS": "200"}).stdout.split())
+    assert not re.search(r"\bseed 00\d|\bseed's\b|\bseeds'|\beq\. ?\d|\bfigs?\. ?\d", text, re.I), text
+    assert len(re.findall(r"Method(s)?:", text)) <= 1
+
+
+def test_short_version_flag_and_shell_completion():
+    from locoplan import __version__
+
+    assert runner.invoke(app, ["-V"]).stdout.strip() == f"locoplan {__version__}"
+    text = runner.invoke(app, ["--help"]).stdout
+    assert "--install-completion" in text and "--show-completion" in text
+
+
+def test_plots_as_pdf(tmp_path):
+    out = tmp_path / "p.pdf"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--plot", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.read_bytes()[:5] == b"%PDF-"

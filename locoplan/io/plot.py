@@ -13,10 +13,14 @@ from .report import atomic_write
 COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
 
 
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+"""A figure's file types, by extension (PDF and SVG for papers, PNG for a look)."""
+
+
 def check_plot_path(path: str | Path) -> Path:
     path = Path(path)
-    if path.suffix.lower() not in (".png", ".svg"):
-        raise InputError(Problem(str(path), "plot", "use a .png or .svg file name"))
+    if path.suffix.lower() not in FIGURE_SUFFIXES:
+        raise InputError(Problem(str(path), "plot", "use a .png, .svg or .pdf file name"))
     return path
 
 

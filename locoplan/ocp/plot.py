@@ -24,8 +24,8 @@ _GLOBAL = "#9467bd"  # two-stage with the seed's global stage 2
 
 def _figure_path(path) -> tuple[Path, str]:
     path = Path(path)
-    if path.suffix.lower() not in (".png", ".svg"):
-        raise InputError(Problem(str(path), "--plot", "use a .png or .svg file name"))
+    if path.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise InputError(Problem(str(path), "--plot", "use a .png, .svg or .pdf file name"))
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(Problem(str(path), "--plot", f"folder {folder} does not exist"))
