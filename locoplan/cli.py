@@ -139,13 +139,14 @@ def simulate(route: Path = ROUTE,
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile)
+        _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
             from .io.plot import plot_profiles
 
             from .io.plot import run_title
 
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary))
+            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary),
+                          route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
@@ -185,7 +186,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     summary = run.summary
     summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile)
+        _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
             from .io.plot import plot_profiles
 
@@ -193,7 +194,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
 
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
-                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None)
+                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None,
+                          route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
@@ -268,7 +270,8 @@ def compare(route: Path = ROUTE,
                     if x.history is not None]
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
-                          f"{first['route']} — {first['consist']}: strategies", histories=hist or None)
+                          f"{first['route']} — {first['consist']}: strategies", histories=hist or None,
+                          route=load_route(route))
     if not as_json:
         first = results["results"][0]
         show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
@@ -332,7 +335,7 @@ def sweep(route: Path = ROUTE,
 
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
-                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep")
+                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route))
     if not as_json:
         show(out, sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
                               by_weights=bool(weights), width=out.width))
@@ -390,7 +393,8 @@ def study(route: Path = ROUTE,
             shown = [(a, b) for a, b in zip(algs, best) if b.profile is not None]
             plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.profile) for a, b in shown],
                           f"{first['route']} — {first['consist']}: best run of each optimiser",
-                          histories=[(a, b.history) for a, b in shown if b.history is not None] or None)
+                          histories=[(a, b.history) for a, b in shown if b.history is not None] or None,
+                          route=load_route(route))
     if not as_json:
         show(out, study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
                                     + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh"), out.width))

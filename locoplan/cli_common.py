@@ -253,9 +253,9 @@ def _time(text: Optional[str], route, consist: str = DEFAULT_CONSIST, stock_dir:
     return t
 
 
-def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None) -> None:
+def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None, route=None) -> None:
     if out_file:
-        write_output(out_file, summary_or_results, profile)
+        write_output(out_file, summary_or_results, profile, route)
     if as_json:
         json_out(summary_or_results)
 

@@ -123,7 +123,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
         data = dict(s)
         if out_file.suffix.lower() == ".json":
             data["optimum"] = _optimum_columns(run)
-        write_output(out_file, data, run.check.result.profile)
+        write_output(out_file, data, run.check.result.profile, r)
     if plot:
         from .ocp.plot import plot_energy_run
 

@@ -222,7 +222,7 @@ def register(app: typer.Typer) -> None:
         outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
         summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
         summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
-        _emit(summary, as_json, out_file, a.result.profile)
+        _emit(summary, as_json, out_file, a.result.profile, r)
         if plot:
             from .learn.plot import plot_advice
 

@@ -236,3 +236,63 @@ def test_plots_as_pdf(tmp_path):
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--plot", str(out)])
     assert res.exit_code == 0, res.output
     assert out.read_bytes()[:5] == b"%PDF-"
+
+
+# ------------------------------------------------------------------------------------ plots and profiles
+def test_profile_csv_has_the_files_limit_and_gradient_beside_the_trains(tmp_path, freight):
+    import csv
+
+    from locoplan.io.report import section_values
+
+    out = tmp_path / "p.csv"
+    assert runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out)]).exit_code == 0
+    rows = list(csv.DictReader(out.open()))
+    route, _ = freight
+    s = [float(r["s_m"]) for r in rows]
+    file_limit = [float(r["limit_file_kmh"]) for r in rows]
+    train_limit = [float(r["limit_kmh"]) for r in rows]
+    assert file_limit[:-1] == list(section_values(route.speed_limits, "kmh", s[:-1]))
+    assert all(t <= f + 1e-9 for t, f in zip(train_limit, file_limit))
+    # a rise in the file's limit reaches the train only once its tail (635.2 m) has cleared the lower one
+    rise = next(x for x in route.speed_limits[1:] if x.kmh > section_values(route.speed_limits, "kmh", [x.from_m - 1])[0])
+    at = s.index(rise.from_m)
+    assert file_limit[at] == rise.kmh and train_limit[at] < rise.kmh
+    assert [float(r["gradient_file_permille"]) for r in rows][:-1] == list(section_values(route.gradients, "permille", s[:-1]))
+
+
+def test_plot_marks_the_line_and_labels_both_limits(root):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from locoplan.io.load import load_route, load_train
+    from locoplan.io.plot import draw_profiles
+
+    route = load_route(root / "routes/freight-20km-ns.yaml")
+    calc = TractionCalculator(route, load_train(root / "configs/consists/HXD1-C80x50.yaml"), ModelOptions())
+    prof = calc.evaluate(("T",), np.zeros((1, 0)), profile=True).profile
+    fig, (ax, axg) = plt.subplots(2, 1)
+    draw_profiles(ax, axg, [("time-saving", prof)], "t", route)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    for want in ("neutral section", "tunnel", "curve", "station (stop)", "speed limit (route file)",
+                 "speed limit for the train (held until its tail clears)"):
+        assert want in labels, labels
+    assert [t.get_text() for t in axg.get_legend().get_texts()] == ["equivalent gradient over the train",
+                                                                   "gradient (route file)"]
+    # the legend sits beside the axes, not over the limit line
+    fig.canvas.draw()
+    box, axes = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert box.x0 >= axes.x1
+    bands = [p for p in ax.patches if p.get_label() == "neutral section"]
+    assert len(route.neutral_sections) >= 1 and bands
+    plt.close(fig)
+
+
+def test_one_colour_per_strategy_in_a_figure():
+    from locoplan.io.plot import _colour
+
+    profiles = [("time-saving", None), ("four-stage", None), ("proposed", None)]
+    assert _colour("proposed", profiles) == _colour("proposed", profiles)
+    assert len({_colour(n, profiles) for n, _ in profiles}) == 3

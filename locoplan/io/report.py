@@ -195,13 +195,32 @@ def to_json(obj: Any) -> str:
 
 
 PROFILE_COLUMNS = ("s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn")
+FILE_COLUMNS = ("limit_file_kmh", "gradient_file_permille")
+"""The route file's own limit and gradient at each node, beside ``limit_kmh`` / ``gradient_permille``,
+which are what the train meets: the lowest of the limits under its length (held until the tail clears
+a lower one) and its top speed, and the equivalent gradient (averaged over the train, with curves and
+tunnels). Written when the route is known (simulate, optimize, advise, ocp --objective energy)."""
 
 
-def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
+def section_values(sections, attr: str, s_m) -> np.ndarray:
+    """The value ``attr`` of the contiguous ``sections`` (from_m, to_m) at each position ``s_m`` [m]
+    (the section that starts at or before it; the last one holds at the end of the line)."""
+    starts = np.array([x.from_m for x in sections], dtype=float)
+    values = np.array([getattr(x, attr) for x in sections], dtype=float)
+    k = np.clip(np.searchsorted(starts, np.asarray(s_m, dtype=float), side="right") - 1, 0, len(values) - 1)
+    return values[k]
+
+
+def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
     """One row per grid node; cell quantities (condition, forces, limit, gradient) are those of the cell
-    that starts at the node (the last node, the stop, repeats the last cell's limit and gradient)."""
+    that starts at the node (the last node, the stop, repeats the last cell's limit and gradient). With
+    ``route``, also the file's own limit and gradient (:data:`FILE_COLUMNS`)."""
     rows = []
     n_cells = len(profile.s_m) - 1
+    if route is not None:
+        starts = profile.s_m[np.minimum(np.arange(len(profile.s_m)), n_cells - 1)]
+        file_limit = section_values(route.speed_limits, "kmh", starts)
+        file_grade = section_values(route.gradients, "permille", starts)
     for k, s in enumerate(profile.s_m):
         if np.isnan(profile.v_kmh[plan, k]):  # a failed plan's profile ends where it failed
             break
@@ -216,6 +235,8 @@ def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
             "condition": "" if last else CONDITIONS[int(profile.condition[plan, c])],
             "traction_kn": 0.0 if last else round(float(profile.traction_kn[plan, c]), 3),
             "brake_kn": 0.0 if last else round(float(profile.brake_kn[plan, c]), 3),
+            **({} if route is None else {"limit_file_kmh": float(file_limit[k]),
+                                         "gradient_file_permille": round(float(file_grade[k]), 4)}),
         })
     return rows
 
@@ -252,7 +273,7 @@ def run_rows_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_output(path: str | Path, summary: dict, profile: Profile | None) -> None:
+def write_output(path: str | Path, summary: dict, profile: Profile | None, route=None) -> None:
     """``--out``: ``.csv`` writes the profile (or, for several runs ``{"results": [...]}``, one row per
     run, :data:`RUN_COLUMNS`), ``.json`` the summary plus the profile's columns."""
     path = Path(path)
@@ -263,15 +284,16 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
         if profile is None:
             raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ()),
+                                lineterminator="\n")
         writer.writeheader()
-        writer.writerows(profile_rows(profile))
+        writer.writerows(profile_rows(profile, route=route))
         atomic_write_text(path, buf.getvalue())
     elif suffix == ".json":
         data = dict(summary)
         if profile is not None:
-            rows = profile_rows(profile)
-            data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS}
+            rows = profile_rows(profile, route=route)
+            data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ())}
         atomic_write_text(path, to_json(data) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))

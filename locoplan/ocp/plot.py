@@ -43,7 +43,7 @@ def _pyplot():
 
 def _save(fig, path: Path, fmt: str, plt) -> None:
     try:
-        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
+        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130, bbox_inches="tight"))
     finally:
         plt.close(fig)
 
