@@ -296,3 +296,22 @@ def test_one_colour_per_strategy_in_a_figure():
     profiles = [("time-saving", None), ("four-stage", None), ("proposed", None)]
     assert _colour("proposed", profiles) == _colour("proposed", profiles)
     assert len({_colour(n, profiles) for n, _ in profiles}) == 3
+
+
+# ------------------------------------------------------------------------------------ small habits
+def test_output_folders_are_created(tmp_path):
+    out, plot = tmp_path / "new" / "deep" / "p.csv", tmp_path / "figs" / "p.svg"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    assert out.is_file() and plot.is_file()
+    logs = tmp_path / "logs" / "freight"
+    res = runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--out", str(logs), "--drivers", "1",
+                              "--runs", "1"])
+    assert res.exit_code == 0, res.output
+    assert logs.is_dir() and any(logs.rglob("*.csv"))
+
+
+def test_a_failed_command_creates_no_output_folder(tmp_path):
+    out = tmp_path / "never" / "p.csv"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--sequence", "T:0,C:nan"])
+    assert res.exit_code == 2 and not (tmp_path / "never").exists()

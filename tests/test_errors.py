@@ -98,7 +98,7 @@ def _simulate(*args):
     (["routes/seed000-flat.yaml", "--step", "0"], "--step: must be in [0.1, 1,000] m"),
     (["routes/seed000-flat.yaml", "--out", "profile.txt"], "unknown output type '.txt'"),
     (["routes/seed000-flat.yaml", "--plot", "profile.jpg"], "use a .png, .svg or .pdf file name"),
-    (["routes/seed000-flat.yaml", "--out", "no/such/dir/p.csv"], "folder no/such/dir does not exist"),
+    (["routes/seed000-flat.yaml", "--out", "routes/seed000-flat.yaml/p.csv"], "routes/seed000-flat.yaml is not a folder"),
     ([str(BAD / "route_gap.yaml")], "speed_limits[1].from_m: gap"),
 ])
 def test_simulate_bad_input_exit_2(root, monkeypatch, tmp_path, args, why):

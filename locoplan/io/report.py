@@ -23,9 +23,32 @@ from ..sim.result import CONDITIONS, Profile
 _PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
 
 
+def existing_folder(folder: Path, name: str, option: str) -> Path:
+    """The nearest folder of ``folder`` (itself or an ancestor) that exists: the one rule for output
+    folders is that missing ones are created when the output is written, so a check before the work
+    looks at the folder they will be created in. A file standing in the way is an input error."""
+    probe = folder
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise InputError(Problem(name, option, f"{probe} is not a folder"))
+    return probe
+
+
+def make_folder(folder: Path, name: str, option: str = "") -> None:
+    """Create an output's folder (and its parents) if missing; an OSError becomes an input error."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot create folder {folder}: {exc.strerror or exc}")) from None
+
+
 def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...] = ()) -> Path | None:
-    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder exists
-    and takes a new file (tried by creating and removing an empty temporary file there)."""
+    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder (or,
+    where that is still to be created, the folder it will be created in) takes a new file (tried by
+    creating and removing an empty temporary file there)."""
     if path is None:
         return None
     path = Path(path)
@@ -43,11 +66,7 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
         raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
     if path.exists() and not path.is_file():
         raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.exists():
-        raise InputError(Problem(name, option, f"folder {folder} does not exist"))
-    if not folder.is_dir():
-        raise InputError(Problem(name, option, f"{folder} is not a folder"))
+    folder = existing_folder(path.parent if str(path.parent) else Path("."), name, option)
     try:
         fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
         os.close(fd)
@@ -84,12 +103,13 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place (inside
     ``all_or_none()``: when the whole command has succeeded).
 
-    A failure leaves no partial file behind; a missing folder is an input error, not a traceback.
+    A failure leaves no partial file behind; a missing folder is created (with its parents).
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
+        existing_folder(folder, str(path), "")
+        make_folder(folder, str(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
         os.close(fd)

@@ -26,9 +26,9 @@ def _figure_path(path) -> tuple[Path, str]:
     path = Path(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise InputError(Problem(str(path), "--plot", "use a .png, .svg or .pdf file name"))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(Problem(str(path), "--plot", f"folder {folder} does not exist"))
+    from ..io.report import existing_folder
+
+    existing_folder(path.parent if str(path.parent) else Path("."), str(path), "--plot")  # created on writing
     return path, path.suffix.lower().lstrip(".")
 
 

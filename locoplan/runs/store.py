@@ -47,8 +47,11 @@ class Store:
         if not create and not self.path.is_file():
             raise InputError(Problem(name, "", "no such store"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
-        if not folder.is_dir():
-            raise InputError(Problem(name, "", f"folder {folder} does not exist"))
+        if not folder.is_dir() and create:  # a new store's folder is created (the rule for every output)
+            from ..io.report import existing_folder, make_folder
+
+            existing_folder(folder, name, "")
+            make_folder(folder, name)
         fresh = not self.path.exists() or self.path.stat().st_size == 0
         try:
             self.conn = sqlite3.connect(str(self.path), timeout=60.0, isolation_level=None)
