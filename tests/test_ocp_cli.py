@@ -241,7 +241,7 @@ def test_bad_inputs(app, tmp_path, args, words):
 
 @pytest.mark.parametrize("args, words", [
     (["ocp", "routes/seed000-flat.yaml", "--out", "x.txt"], ["--out", ".csv or .json"]),
-    (["ocp", "routes/seed000-flat.yaml", "--plot", "x.jpg"], ["--plot", ".png, .svg or .pdf"]),
+    (["ocp", "routes/seed000-flat.yaml", "--plot", "x.jpg"], ["--plot", "unknown output type '.jpg'"]),
     (["ocp", "routes/seed000-flat.yaml", "--out", "routes/seed000-flat.yaml/o.csv"], ["is not a folder"]),
     (["ocp-study", "--repeats", "0"], ["--repeats"]),
     (["ocp-study", "--out", "study.xlsx"], ["--out"]),
