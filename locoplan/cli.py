@@ -20,7 +20,7 @@ from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, P
                          STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, json_out,
                          _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
 from .errors import InputError, Problem
-from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
+from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
 from .io.report import to_json
 from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES, TIMETABLED
@@ -63,6 +63,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     from .io.tables import describe_data
 
     problems: list[Problem] = []
+    warnings: list[Problem] = []
     summaries = []
     try:
         if stock_dir is not None:
@@ -74,17 +75,23 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
             data, lines = read_yaml(f)
             model = validate_data(data, str(f), lines)
             d = describe_data(model, str(f), stock_dir)
+            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
             summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
-                              "description": d})
+                              "description": d, "warnings": [asdict(w) for w in warns]})
+            warnings += warns
         except InputError as exc:
             problems += exc.problems
             summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
     if as_json:
-        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]})
+        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems],
+                  "warnings": [asdict(w) for w in warnings]})
     else:
         for s in summaries:
             if s["valid"]:
                 out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+    for w in warnings:  # implausible but valid: exit 0, on stderr (with --json too: the object has them)
+        err.print(f"[bold yellow]warning:[/] {escape(str(w))}", highlight=False, soft_wrap=True)
+    if not as_json:
         for p in problems:
             err.print(f"[bold red]error:[/] {escape(str(p))}", highlight=False, soft_wrap=True)
     if problems:

@@ -315,3 +315,32 @@ def test_a_failed_command_creates_no_output_folder(tmp_path):
     out = tmp_path / "never" / "p.csv"
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--sequence", "T:0,C:nan"])
     assert res.exit_code == 2 and not (tmp_path / "never").exists()
+
+
+def test_validate_warns_about_a_route_written_in_km(tmp_path):
+    km = tmp_path / "km.yaml"
+    km.write_text("schema: locoplan/route@1\nname: km line\nlength_m: 12\nspeed_limits:\n"
+                  "  - {from_m: 0, to_m: 1, kmh: 55}\n  - {from_m: 1, to_m: 12, kmh: 80}\n"
+                  "gradients:\n  - {from_m: 0, to_m: 12, permille: 0}\n")
+    res = runner.invoke(app, ["validate", str(km)])
+    assert res.exit_code == 0
+    text = " ".join(res.stderr.split())
+    assert f"warning: {km}:3: length_m: 12 m is shorter than any freight train" in text and "in km?" in text
+    assert "speed_limits[0]: 1 of 2 sections are shorter than 10 m" in text
+    data = json.loads(runner.invoke(app, ["validate", str(km), "--json"]).stdout)
+    assert [w["field"] for w in data["warnings"]] == ["length_m", "speed_limits[0]"]
+    plain = runner.invoke(app, ["validate", "routes/freight-20km.yaml"])
+    assert "warning" not in plain.stderr
+
+
+@pytest.mark.parametrize("key, hint", [("mps: 20", "km/h: m/s x 3.6, in 'kmh'"), ("kph: 70", "km/h, in 'kmh'")])
+def test_unit_keys_get_a_hint_at_the_unit_the_format_wants(tmp_path, key, hint):
+    f = tmp_path / "r.yaml"
+    f.write_text(f"schema: locoplan/route@1\nname: x\nlength_m: 2000\nspeed_limits:\n  - {{from_m: 0, to_m: 2000, {key}}}\n"
+                 "gradients:\n  - {from_m: 0, to_km: 2, percent: 0.5}\n")
+    res = runner.invoke(app, ["validate", str(f)])
+    assert res.exit_code == 2
+    text = " ".join(res.stderr.split())
+    assert f"speed_limits[0].{key.split(':')[0]}: unknown key; units live in key names and the format wants {hint}" in text
+    assert "gradients[0].percent: unknown key; units live in key names and the format wants per mille: % x 10, in 'permille'" in text
+    assert "gradients[0].to_km: unknown key; units live in key names and the format wants metres: km x 1000, in 'to_m'" in text
