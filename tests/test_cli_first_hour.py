@@ -333,14 +333,15 @@ def test_validate_warns_about_a_route_written_in_km(tmp_path):
     assert "warning" not in plain.stderr
 
 
-@pytest.mark.parametrize("key, hint", [("mps: 20", "km/h: m/s x 3.6, in 'kmh'"), ("kph: 70", "km/h, in 'kmh'")])
-def test_unit_keys_get_a_hint_at_the_unit_the_format_wants(tmp_path, key, hint):
+@pytest.mark.parametrize("key, meant, how", [("mps: 20", "kmh", "km/h: m/s x 3.6"), ("kph: 70", "kmh", "km/h")])
+def test_unit_keys_get_a_hint_at_the_unit_the_format_wants(tmp_path, key, meant, how):
     f = tmp_path / "r.yaml"
     f.write_text(f"schema: locoplan/route@1\nname: x\nlength_m: 2000\nspeed_limits:\n  - {{from_m: 0, to_m: 2000, {key}}}\n"
                  "gradients:\n  - {from_m: 0, to_km: 2, percent: 0.5}\n")
     res = runner.invoke(app, ["validate", str(f)])
     assert res.exit_code == 2
     text = " ".join(res.stderr.split())
-    assert f"speed_limits[0].{key.split(':')[0]}: unknown key; units live in key names and the format wants {hint}" in text
-    assert "gradients[0].percent: unknown key; units live in key names and the format wants per mille: % x 10, in 'permille'" in text
-    assert "gradients[0].to_km: unknown key; units live in key names and the format wants metres: km x 1000, in 'to_m'" in text
+    units = "(units live in key names: _m, _kmh, _s, _t, _kn, _permille)"
+    assert f"speed_limits[0].{key.split(':')[0]}: unknown key; did you mean '{meant}'? {units}; the format wants {how}" in text
+    assert f"gradients[0].percent: unknown key; did you mean 'permille'? {units}; the format wants per mille: % x 10" in text
+    assert f"gradients[0].to_km: unknown key; did you mean 'to_m'? {units}; the format wants metres: km x 1000" in text

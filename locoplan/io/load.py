@@ -376,15 +376,16 @@ UNIT_HINTS = {
 """Unit words in an unknown key (``mps:``, ``percent:``, ``from_km:``) and what the format wants instead."""
 
 
-def _unit_hint(key: str, allowed: list[str]) -> str:
-    """'; the format wants km/h: m/s x 3.6, in 'kmh'' for a key whose name is a unit the format does not use."""
+def _unit_hint(key: str, allowed: list[str]) -> tuple[str | None, str]:
+    """(the allowed key meant, the unit the format wants and how to convert) for a key whose name is a
+    unit the format does not use (``mps``, ``percent``, ``from_km``); (None, "") otherwise."""
     unit = key.lower().rsplit("_", 1)[-1]
     if unit not in UNIT_HINTS:
-        return ""
+        return None, ""
     want, how = UNIT_HINTS[unit]
     stem = key.rsplit("_", 1)[0] + "_" + want if "_" in key else None
     target = stem if stem in allowed else next((k for k in allowed if k == want or k.endswith("_" + want)), None)
-    return f"; units live in key names and the format wants {how}" + (f", in '{target}'" if target else "")
+    return target, f"; the format wants {how}"
 
 
 def _message(model: type[BaseModel], err: dict) -> str:
@@ -395,12 +396,11 @@ def _message(model: type[BaseModel], err: dict) -> str:
         stem = key.rsplit("_", 1)[0]
         same_stem = [k for k in allowed if k.rsplit("_", 1)[0] == stem and k != key]
         close = same_stem or difflib.get_close_matches(key, allowed, n=1)
-        unit = _unit_hint(key, allowed)
-        hint = f"; did you mean '{close[0]}'?" if close and not unit else ""
-        if unit:
-            hint = unit
-        elif same_stem:
-            hint += " (units live in key names: _m, _kmh, _s, _t, _kn, _permille)"
+        target, how = _unit_hint(key, allowed)
+        meant = target or (close[0] if close else None)
+        hint = f"; did you mean '{meant}'?" if meant else ""
+        if same_stem or how:
+            hint += " (units live in key names: _m, _kmh, _s, _t, _kn, _permille)" + how
         return f"unknown key{hint} (allowed: {', '.join(allowed)})"
     if kind == "missing":
         return "required field is missing"
