@@ -17,7 +17,7 @@ from rich.markup import escape
 
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
-                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, json_out,
+                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, group_reasons, json_out, locate_schedule,
                          _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
@@ -261,6 +261,9 @@ def compare(route: Path = ROUTE,
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
     with run_progress("compare runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
+    for x in batch.records:  # a reason about the route's own schedule names the file and line it came from
+        if x.summary.get("reason"):
+            x.summary["reason"] = locate_schedule(x.summary["reason"])
     results = {"results": compare_fields([x.summary for x in batch.records])}
     if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
         r_, train_ = load_route(route), load_train(consist, stock_dir)
@@ -288,7 +291,7 @@ def compare(route: Path = ROUTE,
                   for x in batch.records)
     if strategies is None and on_time:
         # no strategy asked for by name and the timetable is met: a failed one is its row and a note, not exit 1
-        for m in failures:
+        for m in group_reasons(failures):
             err.print(f"note: {escape(m)}", highlight=False, soft_wrap=True)
     else:
         _fail_if(failures)

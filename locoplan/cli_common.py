@@ -142,13 +142,51 @@ def _finish_json(run: dict, code: int) -> None:
                    "locoplan_version": __version__, "inputs": run["inputs"]}))
 
 
+def _schedule_line(route: Path) -> str:
+    """``routes/x.yaml:9: schedule.run_time_s`` of a route file (its line, when it can be read)."""
+    from .io.load import read_yaml
+
+    try:
+        _, lines = read_yaml(route)
+    except (LocoplanError, OSError):
+        return f"{route}: schedule.run_time_s"
+    line = lines.get(("schedule", "run_time_s")) or lines.get(("schedule",))
+    return f"{route}:{line}: schedule.run_time_s" if line else f"{route}: schedule.run_time_s"
+
+
+def locate_schedule(text: str) -> str:
+    """A "planned running time ... is below the fastest possible run" about the route's own schedule
+    (no --time was given) restated with the file and line the time came from."""
+    run = _RUN.get()
+    if not run or not run.get("schedule_from") or "is below the fastest possible run" not in text:
+        return text
+    import re
+
+    return re.sub(r"planned running time (\S+ s)", lambda m: f"planned running time {m.group(1)} (the route's schedule, "
+                  f"{_schedule_line(run['schedule_from'])})", text, count=1)
+
+
+def group_reasons(messages: list[str]) -> list[str]:
+    """``['four-stage: R', 'proposed: R']`` -> ``['four-stage, proposed: R']``: a reason shared by several
+    strategies is said once, naming them all (order kept)."""
+    groups: dict[str, list[str]] = {}
+    for m in messages:
+        name, sep, reason = m.partition(": ")
+        if not sep or " " in name:
+            name, reason = "", m
+        groups.setdefault(reason, []).append(name)
+    return [(", ".join(n for n in names if n) + ": " if any(names) else "") + reason for reason, names in groups.items()]
+
+
 def guarded(fn):
     """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code; with --json
     (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        run = {"json": None, "errors": [], "command": fn.__name__.replace("_", "-"), "inputs": _inputs(kwargs)}
+        run = {"json": None, "errors": [], "command": fn.__name__.replace("_", "-"), "inputs": _inputs(kwargs),
+               "schedule_from": kwargs.get("route") if "time_s" in kwargs and kwargs.get("time_s") is None
+               and isinstance(kwargs.get("route"), Path) else None}
         token = _RUN.set(run)
         code = None
         try:
@@ -162,7 +200,7 @@ def guarded(fn):
             raise
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)
-            texts = [str(as_flags(p)) for p in problems] if problems else [str(exc)]  # an infeasible request has no file
+            texts = [str(as_flags(p)) for p in problems] if problems else [locate_schedule(str(exc))]  # an infeasible request has no file
             for text in texts:
                 err.print(f"[bold red]error:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
             run["errors"] += texts
@@ -179,7 +217,7 @@ def guarded(fn):
 
 def _fail_if(messages: list) -> None:
     """After every output is written: name each result that failed its job, exit 1 if any did."""
-    messages = [m for m in messages if m]
+    messages = group_reasons([locate_schedule(m) for m in messages if m])
     for m in messages:
         err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
     run = _RUN.get()

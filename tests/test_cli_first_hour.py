@@ -345,3 +345,30 @@ def test_unit_keys_get_a_hint_at_the_unit_the_format_wants(tmp_path, key, meant,
     assert f"speed_limits[0].{key.split(':')[0]}: unknown key; did you mean '{meant}'? {units}; the format wants {how}" in text
     assert f"gradients[0].percent: unknown key; did you mean 'permille'? {units}; the format wants per mille: % x 10" in text
     assert f"gradients[0].to_km: unknown key; did you mean 'to_m'? {units}; the format wants metres: km x 1000" in text
+
+
+def test_a_tight_schedule_names_its_file_and_line_and_is_said_once(tmp_path, root):
+    tight = tmp_path / "tight.yaml"
+    text = (root / "routes/freight-20km.yaml").read_text()
+    text = re.sub(r"^schedule:.*$", "schedule: {run_time_s: 1100, tolerance_s: 30}", text, flags=re.M)
+    tight.write_text(text)
+    line = text.splitlines().index("schedule: {run_time_s: 1100, tolerance_s: 30}") + 1
+    where = f"planned running time 1100 s (the route's schedule, {tight}:{line}: schedule.run_time_s) is below"
+    res = runner.invoke(app, ["compare", str(tight), "--strategies", "time-saving,four-stage,proposed", "--no-gap",
+                              "--e-min", "580"], env={"COLUMNS": "80"})
+    assert res.exit_code == 1
+    out, errs = " ".join(res.stdout.split()), " ".join(res.stderr.split())
+    assert out.count("below the fastest possible run") == 1 and errs.count("below the fastest possible run") == 1
+    assert "four-stage, proposed: no feasible plan: " + where in out
+    assert "error: four-stage, proposed: " + where in errs
+    one = runner.invoke(app, ["optimize", str(tight), "--json", *SMALL])
+    assert one.exit_code == 1 and where in json.loads(one.stdout)["reason"]
+    asked = runner.invoke(app, ["optimize", str(tight), "--time", "1100", "--json", *SMALL])
+    assert "route's schedule" not in asked.stdout  # a --time is the user's, not the file's
+
+
+def test_unknown_consist_lists_the_catalogue():
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--consist", "HXD1-C80x40"])
+    assert res.exit_code == 2
+    assert "HXD1-C80x40: consist: no such file, nor a consist of that name; the catalogue has: " in res.stderr
+    assert "HXD1-C80x50" in res.stderr and "HXD1-C80x30" in res.stderr

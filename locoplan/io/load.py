@@ -534,7 +534,17 @@ def resolve_consist_path(spec: str | Path) -> Path:
         candidate = folder / f"{spec}.yaml"
         if candidate.exists():
             return candidate
-    return path
+    raise InputError(Problem(str(spec), "consist", "no such file, nor a consist of that name; the catalogue has: "
+                             + ", ".join(consist_names())))
+
+
+def consist_names() -> list[str]:
+    """The consists a bare ``--consist NAME`` finds: ``configs/consists/`` here, then the shipped catalogue."""
+    names = set()
+    for folder in (Path("configs/consists"), Path(str(CATALOGUE / "consists"))):
+        if folder.is_dir():
+            names.update(p.stem for p in folder.glob("*.yaml"))
+    return sorted(names)
 
 
 def load_route_and_train(route_path: str | Path, consist_spec: str | Path,

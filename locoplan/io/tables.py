@@ -265,9 +265,12 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
     notes, plans = [], []
+    why: dict[str, list[str]] = {}  # a reason shared by several strategies is said once, naming them all
     for s in rows:
         if not s["feasible"]:
-            notes.append(Note(f"{s['strategy']}: no feasible plan: {s['reason']}"))
+            why.setdefault(str(s["reason"]), []).append(s["strategy"])
+    notes = [Note(f"{', '.join(names)}: no feasible plan: {reason}") for reason, names in why.items()]
+    for s in rows:
         if s["plan"] is None:  # no plan at all (the run was infeasible before it planned)
             t8.add_row(escape(s["strategy"]), "-", "-")
             t9.add_row(escape(s["strategy"]) + " [red](no plan)[/]", *(["-"] * (len(heads) - 1)))
