@@ -293,7 +293,8 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
                    _num(s.get("gap_to_optimum_percent"), "+.2f"), _num(s.get("switches"), "d"), _num(s.get("coasts"), "d"),
                    _num(s["fitness"], ".4f"))
     k = 1 if at_t0 else 0  # the columns after "energy" move one right when "at T0" is there
-    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 5 + k, 4 + k, 8 + k), wrap=(0,)) + notes
+    # left out first at a narrow width: switches, coasts, the saving against the fastest run; the gap to E* stays longest
+    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))
         blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))
