@@ -201,7 +201,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
 
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
-                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None,
+                          histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
+                          if run.outcome.history is not None else None,
                           route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
@@ -276,8 +277,9 @@ def compare(route: Path = ROUTE,
             recs = [x for x in batch.records if x.profile is not None]
             from .io.plot import history_quantity
 
-            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"])) for x in recs
-                    if x.history is not None]
+            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
+                     x.summary["traction_energy_kwh"] if x.summary["strategy"] == "energy-saving" else x.summary.get("fitness"))
+                    for x in recs if x.history is not None]
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
                           f"{first['route']} — {first['consist']}: strategies", histories=hist or None,

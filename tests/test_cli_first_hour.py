@@ -372,3 +372,55 @@ def test_unknown_consist_lists_the_catalogue():
     assert res.exit_code == 2
     assert "HXD1-C80x40: consist: no such file, nor a consist of that name; the catalogue has: " in res.stderr
     assert "HXD1-C80x50" in res.stderr and "HXD1-C80x30" in res.stderr
+
+
+def test_box_plot_axis_reads_plain_per_cents():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from locoplan.io.plot_runs import _plain_ticks
+
+    fig, ax = plt.subplots()
+    ax.boxplot([[0.1, 0.5, 3.0, 40.0]])
+    ax.set_yscale("symlog", linthresh=2.0)
+    _plain_ticks(ax, 40.0)
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_yticklabels()]
+    assert labels[:6] == ["0", "1", "2", "5", "10", "20"] and not any("^" in x or "10^" in x for x in labels)
+    plt.close(fig)
+
+
+def test_convergence_curve_ends_at_the_reported_value(tmp_path):
+    import numpy as np
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from locoplan.io.load import load_route, load_train
+    from locoplan.io.plot import plot_profiles
+    from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+    route = load_route("routes/freight-20km.yaml")
+    prof = TractionCalculator(route, load_train("configs/consists/HXD1-C80x50.yaml"), ModelOptions()).evaluate(
+        ("T",), np.zeros((1, 0)), profile=True).profile
+    captured = {}
+    import matplotlib.figure
+
+    original = matplotlib.figure.Figure.savefig
+
+    def keep(self, *a, **k):
+        captured["fig"] = self
+        return original(self, *a, **k)
+
+    matplotlib.figure.Figure.savefig = keep
+    try:
+        plot_profiles(tmp_path / "p.png", [("proposed", prof)], "t", histories=[("issa", np.array([0.2, 0.1280]), None, 0.12814)])
+    finally:
+        matplotlib.figure.Figure.savefig = original
+    axc = captured["fig"].axes[-1]
+    labels = [t.get_text() for t in axc.get_legend().get_texts()]
+    assert "issa: 0.12814 reported (reporting grid)" in labels
+    end = [line for line in axc.lines if line.get_label().startswith("issa: ")][0]
+    assert list(end.get_ydata()) == [0.12814] and list(end.get_xdata()) == [2]

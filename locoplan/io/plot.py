@@ -49,7 +49,8 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
     equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
     (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
-    quantity) e.g. :data:`ENERGY`; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,
+    quantity) e.g. :data:`ENERGY`, or (label, history, quantity, reported value): the value the table
+    reports, drawn at the curve's end; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,
     written atomically. A plan that failed (stalled, overshot) is drawn up to where it failed. With
     ``route``, the file's own limit and gradient are drawn beside the train's, and the stations, neutral
     sections, tunnels and curves are marked."""
@@ -64,15 +65,22 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         groups: dict[str, list] = {}
         for item in histories:
             label, hist = item[0], item[1]
-            groups.setdefault(item[2] if len(item) > 2 else FITNESS, []).append((label, hist))
+            final = item[3] if len(item) > 3 else None
+            groups.setdefault(item[2] if len(item) > 2 and item[2] else FITNESS, []).append((label, hist, final))
         fig = plt.figure(figsize=(11, 9))
         grid = fig.add_gridspec(3, len(groups), height_ratios=[3, 1, 2], hspace=0.35, wspace=0.25)
         ax = fig.add_subplot(grid[0, :])
         axg = fig.add_subplot(grid[1, :], sharex=ax)
         for k, (quantity, items) in enumerate(groups.items()):
             axc = fig.add_subplot(grid[2, k])
-            for label, hist in items:
-                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label, color=_colour(label, profiles))
+            for label, hist, final in items:
+                colour = _colour(label, profiles)
+                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label, color=colour)
+                if final is not None and np.isfinite(final):
+                    # the search runs on a coarser grid: the value reported (re-simulated on the reporting
+                    # grid, as in the table) ends the curve, so figure and table agree
+                    axc.plot([len(hist)], [final], "o", color=colour, ms=5,
+                             label=f"{label}: {final:.5g} reported (reporting grid)")
             axc.set_xlabel("iteration")
             axc.set_ylabel(quantity)
             axc.grid(alpha=0.3)
