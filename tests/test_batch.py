@@ -230,7 +230,7 @@ def test_results_summary_is_the_stores_statistics_and_plots(filled_store, refere
     assert png.stat().st_size > 10_000 and box.stat().st_size > 5_000
     # a bad plot name fails before anything is written (all outputs or none)
     res = cli.invoke(app, ["results", str(filled_store), "--format", "csv", "--out", str(tmp_path / "x.csv"),
-                           "--plot", str(tmp_path / "p.pdf")])
+                           "--plot", str(tmp_path / "p.jpg")])
     assert res.exit_code == 2 and not (tmp_path / "x.csv").exists()
 
 
