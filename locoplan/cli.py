@@ -26,7 +26,26 @@ from .io.tables import compare_tables, describe, explain_tables, sequence_table,
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
+class _Group(typer.core.TyperGroup):
+    """The command group: a usage error (an option's value of the wrong type, an unknown option) with
+    --json among the arguments also gives stdout its one JSON object, as every other failure does."""
+
+    def invoke(self, ctx):
+        args = [*getattr(ctx, "_protected_args", []), *ctx.args]  # click empties them as it goes
+        try:
+            return super().invoke(ctx)
+        except Exception as exc:
+            # typer 0.29 carries its own copy of click: know its usage errors by their class name
+            if not any(c.__name__ == "UsageError" for c in type(exc).__mro__):
+                raise
+            if "--json" in args:
+                from .cli_common import usage_error_json
+
+                usage_error_json(exc, args)
+            raise
+
+
+app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 
 

@@ -215,6 +215,17 @@ def guarded(fn):
     return wrapper
 
 
+def usage_error_json(exc, args: list[str]) -> None:
+    """The --json object of a command line click refused before the command ran (exit 2)."""
+    option = next((p.opts[0] for p in [getattr(exc, "param", None)] if p is not None and getattr(p, "opts", None)), "")
+    message = exc.format_message()
+    command = next((a for a in args if not a.startswith("-")), "")
+    print(to_json({"command": command, "reason": f"<command line>: {option + ': ' if option else ''}{message}",
+                   "problems": [{"file": "<command line>", "line": None, "field": option, "message": message}],
+                   "verdict": VERDICTS[2], "exit_code": 2, "errors": [message], "locoplan_version": __version__,
+                   "inputs": {}}))
+
+
 def _fail_if(messages: list) -> None:
     """After every output is written: name each result that failed its job, exit 1 if any did."""
     messages = group_reasons([locate_schedule(m) for m in messages if m])

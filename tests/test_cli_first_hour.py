@@ -424,3 +424,12 @@ def test_convergence_curve_ends_at_the_reported_value(tmp_path):
     assert "issa: 0.12814 reported (reporting grid)" in labels
     end = [line for line in axc.lines if line.get_label().startswith("issa: ")][0]
     assert list(end.get_ydata()) == [0.12814] and list(end.get_xdata()) == [2]
+
+
+@pytest.mark.parametrize("argv, field", [(["simulate", "routes/freight-20km.yaml", "--seed", "abc"], "--seed"),
+                                         (["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "x"], "--drivers")])
+def test_json_when_the_command_line_itself_is_refused(argv, field):
+    res = runner.invoke(app, [*argv, "--json"])
+    assert res.exit_code == 2
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2 and data["problems"][0]["field"] == field
