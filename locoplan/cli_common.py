@@ -41,13 +41,13 @@ BAR_WIDTH = 20
 """Columns of a progress bar's bar: with a short label, the count and the ETA a line fits 80 columns."""
 
 
-def progress_bar(*extra, transient: bool = True):
+def progress_bar(*extra, transient: bool = True, bar_width: int = BAR_WIDTH):
     """A rich progress display on stderr that reads at 80 columns: short label, count, bar, ETA (then
     ``extra`` columns, e.g. the best fitness). Labels are a few words ("compare runs"); what they count
     is the command's help."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    return Progress(TextColumn("{task.description}"), MofNCompleteColumn(), BarColumn(bar_width=BAR_WIDTH),
+    return Progress(TextColumn("{task.description}"), MofNCompleteColumn(), BarColumn(bar_width=bar_width),
                     TextColumn("ETA"), TimeRemainingColumn(), *extra, console=err, transient=transient)
 
 
@@ -80,7 +80,7 @@ def step_progress(label: str, total: int, enabled: bool):
         return
     from rich.progress import TextColumn
 
-    with progress_bar(TextColumn("{task.fields[now]}")) as bar:
+    with progress_bar(TextColumn("{task.fields[now]}"), bar_width=BAR_WIDTH // 2) as bar:  # room for the step's text
         task = bar.add_task(label, total=total, now="")
         started = [0]
 

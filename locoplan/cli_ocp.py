@@ -221,4 +221,4 @@ def register(app: typer.Typer) -> None:
             for r in study.rows:
                 if not r["feasible"]:
                     out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {escape(r['reason'])}",
-                              highlight=False, soft_wrap=True)
+                              highlight=False)  # wrapped at spaces to the width
