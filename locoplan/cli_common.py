@@ -103,6 +103,9 @@ VERDICTS = {0: "ok", 1: "failed", 2: "invalid input"}
 """Exit code -> the ``verdict`` of every --json object: 0 every result does its job; 1 a valid request
 with no result that does (no feasible plan, or a timetabled plan outside its window); 2 invalid input."""
 
+ENVELOPE = ("verdict", "exit_code", "errors", "locoplan_version", "inputs")
+"""Keys every --json object on stdout has besides the result (a --out .json file holds the result alone)."""
+
 _RUN: ContextVar[Optional[dict]] = ContextVar("locoplan_cli_run", default=None)
 _OUTPUTS = ("out_file", "plot", "boxplot", "out_dir")
 

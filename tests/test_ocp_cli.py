@@ -179,7 +179,11 @@ def test_ocp_study(app, tmp_path):
     res = _invoke(app, ["ocp-study", "--json", "--out", str(out), "--plot", str(png)])
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
-    assert json.loads(out.read_text()) == data and png.stat().st_size > 10_000
+    from locoplan.cli_common import ENVELOPE
+
+    # stdout's object is the result and the envelope (verdict, exit code, version, inputs); the file, the result
+    assert json.loads(out.read_text()) == {k: v for k, v in data.items() if k not in ENVELOPE}
+    assert data["verdict"] == "ok" and png.stat().st_size > 10_000
     rows = data["results"]
     assert len(rows) == 16
     seen = {(r["table"], r["algorithm"], r["control_nodes"], r["stage2"]) for r in rows}
@@ -233,7 +237,10 @@ def test_bad_inputs(app, tmp_path, args, words):
     res = _invoke(app, ["ocp", *args, "--json", "--out", str(out), "--plot", str(plot)])
     assert res.exit_code == 2, res.output
     assert "Traceback" not in res.output and isinstance(res.exception, SystemExit)
-    assert res.stdout == ""  # no JSON for a user mistake
+    # a user mistake with --json: stdout holds one object saying so (verdict, exit code, the problems), no result
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2 and data["errors"]
+    assert "objective" not in data and "results" not in data
     for w in words:
         assert w in res.stderr, (w, res.stderr)
     assert list(tmp_path.iterdir()) == []  # no partial (or temporary) output files
