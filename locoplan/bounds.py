@@ -18,6 +18,12 @@ from .model.common import number
 
 CMDLINE = "<command line>"
 
+
+def _where(option: str) -> str:
+    """Where a value came from: a flag (``--time``) from the command line; an argument name (``time_s``)
+    from a Python caller, whose message then names the argument alone (the CLI restates it as its flag)."""
+    return CMDLINE if option.startswith("--") else ""
+
 LIMITS = {
     # reporting grid [m]: finer than 0.1 m resolves nothing the train model has; coarser than 1 km skips limits
     "step_m": (0.1, 1000.0),
@@ -42,12 +48,12 @@ def finite(value: float, option: str, lo: float | None = None, hi: float | None 
     """``value`` as a float if it is finite and inside [lo, hi] (``lo_open``: (lo, hi]); else ``InputError``."""
     u = f" {unit}" if unit else ""
     if not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(Problem(CMDLINE, option, f"must be a finite number{', in ' + unit if unit else ''} (got {value})"))
+        raise InputError(Problem(_where(option), option, f"must be a finite number{', in ' + unit if unit else ''} (got {value})"))
     low_bad = lo is not None and (value <= lo if lo_open else value < lo)
     if low_bad or (hi is not None and value > hi):
         left = "(" if lo_open else "["
         span = f"{left}{number(lo) if lo is not None else '-inf'}, {number(hi) if hi is not None else 'inf'}]{u}"
-        raise InputError(Problem(CMDLINE, option, f"must be in {span} (got {value:g}){': ' + why if why else ''}"))
+        raise InputError(Problem(_where(option), option, f"must be in {span} (got {value:g}){': ' + why if why else ''}"))
     return float(value)
 
 
@@ -55,7 +61,7 @@ def count(value: int, option: str, lo: int, hi: int, why: str) -> int:
     """An integer option inside [lo, hi]."""
     if not lo <= value <= hi:
         got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
-        raise InputError(Problem(CMDLINE, option, f"must be {number(lo)} .. {number(hi)} (got {got}): {why}"))
+        raise InputError(Problem(_where(option), option, f"must be {number(lo)} .. {number(hi)} (got {got}): {why}"))
     return value
 
 
@@ -64,7 +70,7 @@ def seed(value: int, option: str = "--seed") -> int:
     lo, hi = LIMITS["seed"]
     if not lo <= value <= hi:
         got = f"{value:,}" if abs(value) < 10**30 else f"an integer of {len(str(abs(value)))} digits"
-        raise InputError(Problem(CMDLINE, option, f"must be an integer 0 .. 2**63 - 1 (got {got}): numpy's "
+        raise InputError(Problem(_where(option), option, f"must be an integer 0 .. 2**63 - 1 (got {got}): numpy's "
                                  "random generators take no negative seeds, and a seed is a label, not a quantity"))
     return value
 
@@ -73,7 +79,7 @@ def runs(n: int, option: str, what: str = "runs") -> int:
     """The number of optimisation runs one command would start, at most ``LIMITS['runs']``."""
     limit = LIMITS["runs"]
     if n > limit:
-        raise InputError(Problem(CMDLINE, option, f"{n:,} {what} is more than the limit of {limit:,} runs per "
+        raise InputError(Problem(_where(option), option, f"{n:,} {what} is more than the limit of {limit:,} runs per "
                                  "command (each run is an optimisation; split the study into several commands)"))
     return n
 
@@ -106,9 +112,9 @@ def weights(text: str, option: str = "--weights") -> tuple[float, float]:
     try:
         parts = [float(x) for x in text.split(",")]
     except ValueError:
-        raise InputError(Problem(CMDLINE, option, f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
+        raise InputError(Problem(_where(option), option, f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
     if len(parts) != 2 or not all(math.isfinite(x) and x >= 0 for x in parts) or abs(sum(parts) - 1) > 1e-9:
-        raise InputError(Problem(CMDLINE, option, "expected two non-negative weights summing to 1 "
+        raise InputError(Problem(_where(option), option, "expected two non-negative weights summing to 1 "
                                  f"(finite numbers, seed 002 eq. 10), got {text!r}"))
     return parts[0], parts[1]
 
@@ -124,29 +130,29 @@ def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: st
         try:
             a, b, c = (float(x) for x in text.split(":"))
         except ValueError:
-            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}")) from None
+            raise InputError(Problem(_where(option), option, f"{form}, got {text!r}")) from None
         if not all(math.isfinite(x) for x in (a, b, c)):
-            raise InputError(Problem(CMDLINE, option, f"start, stop and step must be finite numbers, got {text!r}"))
+            raise InputError(Problem(_where(option), option, f"start, stop and step must be finite numbers, got {text!r}"))
         if c <= 0 or b < a:
-            raise InputError(Problem(CMDLINE, option, f"needs start <= stop and a step > 0, got {text!r}"))
+            raise InputError(Problem(_where(option), option, f"needs start <= stop and a step > 0, got {text!r}"))
         n = (b - a) / c
         if not n + 1 <= max_values:
-            raise InputError(Problem(CMDLINE, option, f"{text!r} gives {n + 1:,.0f} values: more than the limit of "
+            raise InputError(Problem(_where(option), option, f"{text!r} gives {n + 1:,.0f} values: more than the limit of "
                                      f"{max_values:,} runs per command (each is an optimisation); use a larger step"))
         out = [round(a + i * c, 10) for i in range(int(round(n)) + 1)]
     else:
         try:
             out = [float(x) for x in text.split(",") if x.strip()]
         except ValueError:
-            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}")) from None
+            raise InputError(Problem(_where(option), option, f"{form}, got {text!r}")) from None
         if not out:
-            raise InputError(Problem(CMDLINE, option, f"{form}, got {text!r}"))
+            raise InputError(Problem(_where(option), option, f"{form}, got {text!r}"))
         if len(out) > max_values:
-            raise InputError(Problem(CMDLINE, option, f"{len(out):,} values: more than the limit of {max_values:,} "
+            raise InputError(Problem(_where(option), option, f"{len(out):,} values: more than the limit of {max_values:,} "
                                      "runs per command"))
     for x in out:
         if not math.isfinite(x) or not lo <= x <= hi:
-            raise InputError(Problem(CMDLINE, option, f"value {x:g}{u} is outside [{number(lo)}, {number(hi)}]{u}"
+            raise InputError(Problem(_where(option), option, f"value {x:g}{u} is outside [{number(lo)}, {number(hi)}]{u}"
                                      f"{': ' + why if why else ''}"))
     return out
 
@@ -271,3 +277,43 @@ def check_command(fn, kwargs: dict) -> None:
                 check_text(flag, str(v))
             else:
                 check_option(flag, v, command)
+TIME_FORMS = "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)"
+"""The forms a planned running time takes on the command line (and in a study file's ``times``)."""
+
+
+def time_request(text: str | float | None, option: str = "--time") -> tuple[str, float] | None:
+    """A planned running time as typed: ``('s', seconds)``, ``('x', factor of the fastest run)``; ``+10%``
+    (a running-time supplement on the fastest run, as timetables state it) is the factor 1.1.
+    None stays None (the route's schedule). Raises ``InputError`` naming ``option`` and the forms."""
+    if text is None:
+        return None
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        return "s", planned_time(float(text), option)
+    raw = str(text).strip()
+    t = raw.lower().replace(" ", "")
+    try:
+        if t.endswith("x"):
+            kind, value = "x", float(t[:-1])
+        elif t.endswith("%"):
+            if not t.startswith("+"):
+                raise ValueError
+            kind, value = "x", 1.0 + float(t[1:-1]) / 100.0
+        else:
+            kind, value = "s", float(t[:-1] if t.endswith("s") else t)
+    except ValueError:
+        raise InputError(Problem(_where(option), option, f"expected {TIME_FORMS}, got {raw!r}")) from None
+    if kind == "s":
+        return "s", planned_time(value, option)
+    if not math.isfinite(value) or value < 1.0 or value > 10.0:
+        raise InputError(Problem(_where(option), option, f"{raw!r} is not a factor of the fastest run in 1 .. 10 (no train runs "
+                                 "faster than its fastest run; +0% .. +900% is the same range as a supplement)"))
+    return "x", value
+
+
+def time_of(request: tuple[str, float], fastest_s: float) -> float:
+    """Seconds of a :func:`time_request`, given the fastest run [s]: a factor's time is rounded up to 0.1 s
+    (so that 1x is never below the fastest run by a rounding)."""
+    kind, value = request
+    if kind == "s":
+        return value
+    return math.ceil(value * fastest_s * 10 - 1e-9) / 10

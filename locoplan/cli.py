@@ -17,17 +17,36 @@ from rich.markup import escape
 
 from . import __version__
 from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
-                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load,
-                         _names, _options, _range, _weights, all_or_none, err, guarded, out, run_progress,
-                         MAX_PROBLEMS, plain)
+                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time,
+                         group_reasons, json_out, locate_schedule, _names, _options, _range, _weights, all_or_none, err,
+                         guarded, out, run_progress, MAX_PROBLEMS, plain)
 from .errors import InputError, Problem
-from .io.load import check_folder, load_route, load_train, read_yaml, validate_data
+from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
 from .io.report import to_json
 from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
+class _Group(typer.core.TyperGroup):
+    """The command group: a usage error (an option's value of the wrong type, an unknown option) with
+    --json among the arguments also gives stdout its one JSON object, as every other failure does."""
+
+    def invoke(self, ctx):
+        args = [*getattr(ctx, "_protected_args", []), *ctx.args]  # click empties them as it goes
+        try:
+            return super().invoke(ctx)
+        except Exception as exc:
+            # typer 0.29 carries its own copy of click: know its usage errors by their class name
+            if not any(c.__name__ == "UsageError" for c in type(exc).__mro__):
+                raise
+            if "--json" in args:
+                from .cli_common import usage_error_json
+
+                usage_error_json(exc, args)
+            raise
+
+
+app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
 
 
@@ -38,7 +57,7 @@ def _version(value: bool):
 
 
 @app.callback()
-def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Show the version.")):
+def _root(version: bool = typer.Option(False, "--version", "-V", callback=_version, is_eager=True, help="Show the version.")):
     pass
 
 
@@ -64,6 +83,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     from .io.tables import describe_data
 
     problems: list[Problem] = []
+    warnings: list[Problem] = []
     summaries = []
     try:
         if stock_dir is not None:
@@ -75,17 +95,23 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
             data, lines = read_yaml(f)
             model = validate_data(data, str(f), lines)
             d = describe_data(model, str(f), stock_dir)
+            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
             summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
-                              "description": d})
+                              "description": d, "warnings": [asdict(w) for w in warns]})
+            warnings += warns
         except InputError as exc:
             problems += exc.problems
             summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
     if as_json:
-        print(to_json({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems]}))
+        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems],
+                  "warnings": [asdict(w) for w in warnings]})
     else:
         for s in summaries:
             if s["valid"]:
                 out.print(f"[green]ok[/]  {escape(s['file'])}: {escape(s['summary'])}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+    for w in warnings:  # implausible but valid: exit 0, on stderr (with --json too: the object has them)
+        err.print(f"[bold yellow]warning:[/] {escape(plain(str(w)))}", highlight=False, soft_wrap=True)
+    if not as_json:
         for p in problems[:MAX_PROBLEMS]:
             err.print(f"[bold red]error:[/] {escape(plain(str(p)))}", highlight=False, soft_wrap=True)
         if len(problems) > MAX_PROBLEMS:
@@ -100,15 +126,16 @@ def _progress(enabled: bool):
     """A rich progress bar on stderr for optimiser iterations (a no-op callback when disabled)."""
     from contextlib import contextmanager
 
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import TextColumn
+
+    from .cli_common import progress_bar
 
     @contextmanager
     def cm(label: str, total: int):
         if not enabled or not err.is_terminal:
             yield None
             return
-        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                      TextColumn("best {task.fields[best]}"), TimeElapsedColumn(), console=err, transient=True) as bar:
+        with progress_bar(TextColumn("best {task.fields[best]}")) as bar:
             task = bar.add_task(label, total=total, best="-")
 
             def callback(iteration: int, best: float) -> None:
@@ -125,9 +152,9 @@ def simulate(route: Path = ROUTE,
              sequence: Optional[str] = typer.Option(None, "--sequence", help='Conditions and switching points, e.g. "T:0,K:2200,C:9000,B" (bare final B: brake where the braking curve begins).'),
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
-             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png or .svg."),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png, .svg or .pdf."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
-             time_s: Optional[float] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
+             time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
              builder: Optional[str] = BUILDER):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
     from .runner import make_context, run_sequence, run_strategy
@@ -136,36 +163,41 @@ def simulate(route: Path = ROUTE,
         raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
+    time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
                        builder=builder, yardstick=False)
     run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
     summary = run.summary
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile)
+        _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
             from .io.plot import plot_profiles
 
             from .io.plot import run_title
 
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary))
+            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary),
+                          route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
 
-    # a plan is checked against the window only when a running time was asked for (--time)
-    _fail_if([schedule_verdict(ctx, run, strict=time_s is not None)])
+    # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
+    # T0 +- tolerance too; a --sequence, time-saving and energy-saving are measured, their punctuality reported
+    _fail_if([schedule_verdict(ctx, run)])
 
 
 @app.command()
 @guarded
-def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS,
+def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] = TIME, weights: str = WEIGHTS,
              seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
-             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png or .svg."),
+             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png, .svg or .pdf."),
              step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
              tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
-    """Seed 002: the condition sequence from limits and grades, switching points by ISSA / SSA / PSO."""
+    """The least-energy plan on time: a condition sequence built from the limits and grades, its switching
+    points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
+    optimisation of freight trains on complex lines (ISSA switching points)."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
 
@@ -173,7 +205,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     w = _weights(weights)
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    with _progress(not as_json)(f"{algorithm} switching points", _iterations(algorithm, params)) as cb:
+    time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
+    with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
         ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
                            seed=seed, params_path=str(params) if params else None, callback=cb,
                            tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
@@ -183,7 +216,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
     summary = run.summary
     summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile)
+        _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
             from .io.plot import plot_profiles
 
@@ -191,7 +224,9 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[float]
 
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
-                          histories=[(algorithm, run.outcome.history)] if run.outcome.history is not None else None)
+                          histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
+                          if run.outcome.history is not None else None,
+                          route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     from .runner import schedule_verdict
@@ -218,25 +253,28 @@ def compare(route: Path = ROUTE,
                                                           "--strategies, only when no timetabled strategy is on time "
                                                           "(a failed one is its row and a note)."),
             explain: bool = typer.Option(False, "--explain", help="Show the limit and grade classification behind the proposed sequence."),
-            algorithm: str = ALGO, time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED,
+            algorithm: str = ALGO, time_s: Optional[str] = TIME, weights: str = WEIGHTS, seed: int = SEED,
             e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS, consist: str = CONSIST,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits (Fig. 15)."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits, .png, .svg or .pdf."),
             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
             workers: int = WORKERS):
-    """Seed 002 Tables 8-9: strategies side by side (sequence, switching points, time, energy)."""
+    """Strategies side by side: sequence, switching points, running time, energy (every punctual plan's
+    energy also at T0). Method: Li Wang et al., multi-objective optimisation of freight trains on complex
+    lines (its Tables 8-9)."""
     from .runner import proposed_sequence
     from .runs import make_executor, run_many
-    from .runs.plans import compare_specs
+    from .runs.plans import compare_fields, compare_specs, energies_at_planned_time
 
     names = _names(strategies or COMPARE_DEFAULT, "--strategies")
     w = _weights(weights)
     _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
                       params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
@@ -245,9 +283,15 @@ def compare(route: Path = ROUTE,
         specs = [replace(x, fitness=False) for x in specs]
     if explain and not as_json:
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
-    with run_progress(f"compare: strategies run ({', '.join(names)})", len(specs), not as_json) as progress:
+    with run_progress("compare runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
-    results = {"results": [x.summary for x in batch.records]}
+    for x in batch.records:  # a reason about the route's own schedule names the file and line it came from
+        if x.summary.get("reason"):
+            x.summary["reason"] = locate_schedule(x.summary["reason"])
+    results = {"results": compare_fields([x.summary for x in batch.records])}
+    if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
+        r_, train_ = load_route(route), load_train(consist, stock_dir)
+        results["optimum_at_t0_kwh"] = energies_at_planned_time(results["results"], r_, train_, opts)
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
@@ -256,11 +300,13 @@ def compare(route: Path = ROUTE,
             recs = [x for x in batch.records if x.profile is not None]
             from .io.plot import history_quantity
 
-            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"])) for x in recs
-                    if x.history is not None]
+            hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
+                     x.summary["traction_energy_kwh"] if x.summary["strategy"] == "energy-saving" else x.summary.get("fitness"))
+                    for x in recs if x.history is not None]
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
-                          f"{first['route']} — {first['consist']}: strategies", histories=hist or None)
+                          f"{first['route']} — {first['consist']}: strategies", histories=hist or None,
+                          route=load_route(route))
     if not as_json:
         first = results["results"][0]
         show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
@@ -270,7 +316,7 @@ def compare(route: Path = ROUTE,
                   for x in batch.records)
     if strategies is None and on_time:
         # no strategy asked for by name and the timetable is met: a failed one is its row and a note, not exit 1
-        for m in failures:
+        for m in group_reasons(failures):
             err.print(f"note: {escape(m)}", highlight=False, soft_wrap=True)
     else:
         _fail_if(failures)
@@ -279,17 +325,18 @@ def compare(route: Path = ROUTE,
 @app.command()
 @guarded
 def sweep(route: Path = ROUTE,
-          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list (Table 6), e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
+          weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list, e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
           old_weights: Optional[str] = typer.Option(None, "--weights", hidden=True, help="Old name of --weight-grid."),
-          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s] (Table 7), e.g. 1470,1500,1530."),
+          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], e.g. 1470,1500,1530."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
-          time_s: Optional[float] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+          time_s: Optional[str] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
-    """Seed 002 Tables 6-7: the proposed strategy across fitness weights or planned running times."""
+    """The optimised plan across fitness weights or planned running times. Method: Li Wang et al.,
+    multi-objective optimisation of freight trains on complex lines (its Tables 6-7)."""
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
@@ -304,13 +351,13 @@ def sweep(route: Path = ROUTE,
     values = _range(weights or times, "--weight-grid" if weights else "--times")
     _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
                       params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
                       yardstick=gap)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
-    what = "time weights" if weights else "planned running times"
-    with run_progress(f"sweep: proposed-strategy runs over {len(specs)} {what}", len(specs), not as_json) as progress:
+    with run_progress("sweep runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     rows = [x.summary for x in batch.records]
     if times:
@@ -323,7 +370,7 @@ def sweep(route: Path = ROUTE,
 
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
-                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep")
+                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route))
     if not as_json:
         show(out, sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
                               by_weights=bool(weights), width=out.width))
@@ -335,15 +382,16 @@ def sweep(route: Path = ROUTE,
 def study(route: Path = ROUTE,
           algorithms: str = typer.Option("issa,ssa,pso", "--algorithms", help="Comma list of optimisers."),
           runs: int = typer.Option(10, "--runs", help="Independent runs per optimiser (seeds seed .. seed+runs-1)."),
-          time_s: Optional[float] = TIME, weights: str = WEIGHTS, seed: int = SEED, e_min: Optional[float] = EMIN,
+          time_s: Optional[str] = TIME, weights: str = WEIGHTS, seed: int = SEED, e_min: Optional[float] = EMIN,
           params_dir: Optional[Path] = typer.Option(None, "--params-dir", help="Folder of <algorithm>.yaml parameter files."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results (runs and the table) as .json, or .csv: one row per run (columns: docs/cli.md)."),
-          plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves (Figs. 15, 17)."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves, .png, .svg or .pdf."),
           step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
-    """Seed 002 Tables 10-12: each optimiser over several seeds: best, worst, mean, punctual-and-best."""
+    """Each optimiser over several random seeds: best, worst, mean, punctual-and-best. Method: Li Wang et
+    al., multi-objective optimisation of freight trains on complex lines (its Tables 10-12)."""
     from .runner import study_table as study_rows
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, study_specs
@@ -354,11 +402,12 @@ def study(route: Path = ROUTE,
         check_folder(params_dir, "--params-dir")
     _check_outputs(out_file, plot)
     opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
-    with run_progress(f"study: optimiser runs ({', '.join(algs)} x {runs} seeds)", len(specs), not as_json) as progress:
+    with run_progress("study runs", len(specs), not as_json) as progress:
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {a: [x for x in batch.records if x.spec["algorithm"] == a] for a in algs}
     first = batch.records[0].summary
@@ -379,7 +428,8 @@ def study(route: Path = ROUTE,
             shown = [(a, b) for a, b in zip(algs, best) if b.profile is not None]
             plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.profile) for a, b in shown],
                           f"{first['route']} — {first['consist']}: best run of each optimiser",
-                          histories=[(a, b.history) for a, b in shown if b.history is not None] or None)
+                          histories=[(a, b.history) for a, b in shown if b.history is not None] or None,
+                          route=load_route(route))
     if not as_json:
         show(out, study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
                                     + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh"), out.width))

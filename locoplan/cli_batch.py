@@ -14,25 +14,25 @@ import typer
 __all__ = ["register"]
 
 
-def _progress_printer(err, enabled: bool, label: str = "runs"):
+def _progress_printer(err, enabled: bool, label: str = "batch runs"):
     """A progress callback for run_many on stderr: a rich bar (counts, rate, ETA) on a terminal, a
     plain line at most every 10 s otherwise (a log file), nothing when disabled. Returns (callback, close)."""
     if not enabled:
         return None, lambda: None
     if err.is_terminal:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+        from rich.progress import TextColumn
 
-        bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                       TextColumn("{task.fields[note]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                       console=err, transient=False)
+        from .cli_common import progress_bar
+
+        bar = progress_bar(TextColumn("{task.fields[note]}"), transient=False)
         bar.start()
         tasks: dict = {}
 
         def cb(ev):
-            name = "E_min per route and consist" if ev.phase == "e_min" else label
+            name = "E_min runs" if ev.phase == "e_min" else label
             if ev.phase not in tasks:
                 tasks[ev.phase] = bar.add_task(name, total=ev.total, note="")
-            note = "" if ev.phase == "e_min" else f"({ev.reused} from the store, {ev.failed} fail their job)"
+            note = "" if ev.phase == "e_min" else f"{ev.reused} stored, {ev.failed} failed"
             bar.update(tasks[ev.phase], completed=ev.done, total=ev.total, note=note)
         return cb, bar.stop
     start, last = time.monotonic(), [0.0]
@@ -69,6 +69,7 @@ def register(app: typer.Typer) -> None:
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
                              TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
     from .io.tables import show
+    from .cli_common import json_out
     from .io.report import to_json
 
     @app.command("batch")
@@ -104,7 +105,7 @@ def register(app: typer.Typer) -> None:
                       "wall_time_s": round(wall, 2), "runs_per_s": round(ran / wall, 3) if ran else None,
                       "fail_their_job": len(result.failures), "ran_keys": result.ran}
             if as_json:
-                print(to_json(report))
+                json_out(report)
                 return
             rows = summarize_rows(rows_of(result.records))
             show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
@@ -121,8 +122,8 @@ def register(app: typer.Typer) -> None:
                 out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
                 where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
                 by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
-                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png/.svg)."),
-                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png/.svg)."),
+                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png, .svg or .pdf)."),
+                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
                 as_json: bool = JSON):
         """Export, summarise and plot a result store (from the stored runs, no re-run)."""
         from .io.plot_runs import plot_boxes, plot_energy_time
@@ -163,7 +164,7 @@ def register(app: typer.Typer) -> None:
             print(text, end="")
         elif fmt is None:
             if as_json:
-                print(to_json({"store": str(store_path), "runs": len(rows), "summary": summary}))
+                json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
             else:
                 show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
 
@@ -176,13 +177,13 @@ def register(app: typer.Typer) -> None:
                seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
                algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png/.svg)."),
+               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png, .svg or .pdf)."),
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
                window: bool = WINDOW, builder: Optional[str] = BUILDER,
-               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E* at each planned time from seed 001's bound (a few seconds per time)."),
+               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
                workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
-        """The energy-time front: the best on-time plan at a grid of running times, and the optimum E* (seed 001)."""
+        """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
         from .errors import InputError, Problem
         from .io.plot_runs import plot_pareto
         from .io.report import atomic_write_text
@@ -204,7 +205,7 @@ def register(app: typer.Typer) -> None:
         base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                        builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
         executor = make_executor(workers)
-        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto: strategy runs over the planned times")
+        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
                                seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
@@ -217,7 +218,7 @@ def register(app: typer.Typer) -> None:
             if plot:
                 plot_pareto(front, plot)
         if as_json:
-            print(to_json(front))
+            json_out(front)
         else:
             show(out, pareto_table(front, out.width))
             out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)

@@ -88,12 +88,12 @@ def _optimum_columns(run) -> dict:
     return cols
 
 
-def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], time_s: Optional[float], mesh_tol: float,
+def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], time_s: Optional[str], mesh_tol: float,
                    max_degree: int, efficiency: Optional[str], regen: float, comfort: Optional[float], step: float,
                    point_mass: bool, air_brake: Optional[bool], rotating_mass: Optional[float], strict_limits: bool,
                    as_json: bool, out_file: Optional[Path], plot: Optional[Path], nodes, state_nodes) -> None:
     """``locoplan ocp ROUTE --objective energy``: solve, print, write; exit 1 if not confirmed."""
-    from .cli_common import _check_outputs, _load, err, out
+    from .cli_common import _check_outputs, _load, err, json_out, out
     from .errors import InputError, Problem
     from .io.report import to_json, write_output
     from .ocp.mpoc import run_mpoc
@@ -113,7 +113,9 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     energy = energy_options(efficiency, regen, comfort)
     _check_outputs(out_file, plot)
     r, train, opts = _load(route_path, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    t0 = planned_time(r, time_s)
+    from .cli_common import _time
+
+    t0 = planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))
     with err.status("solving the multi-phase optimal control problem"):
         run = run_mpoc(r, train, opts, t0, energy=energy, mesh_tol=mesh_tol, max_degree=max_degree)
     s = run.summary
@@ -121,13 +123,13 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
         data = dict(s)
         if out_file.suffix.lower() == ".json":
             data["optimum"] = _optimum_columns(run)
-        write_output(out_file, data, run.check.result.profile)
+        write_output(out_file, data, run.check.result.profile, r)
     if plot:
         from .ocp.plot import plot_energy_run
 
         plot_energy_run(plot, run)
     if as_json:
-        print(to_json(s))
+        json_out(s)
     else:
         from .io.tables import fit, show
 
@@ -141,21 +143,23 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _load, _time, json_out,
                       _range, guarded, out)
 
     @app.command("bound")
     @guarded
-    def bound(route: Path = ROUTE, time_s: Optional[float] = TIME,
+    def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
               times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
               consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
               out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png or .svg."),
+              plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
               mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
               max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
-        """The least traction energy E* for a running time (seed 001's optimum): the yardstick of every plan."""
+        """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
+        Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
+        train operation."""
         import csv
         import io
 
@@ -175,11 +179,11 @@ def register(app: typer.Typer) -> None:
         if out_file is not None:
             _check_outputs(out_file.with_suffix(".json"), None)
         r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-        ts = values if values is not None else [planned_time(r, time_s)]
+        ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
         rows = []
         from .cli_common import step_progress
 
-        with step_progress("bound: E*, the least energy, per running time", len(ts), not as_json) as step:
+        with step_progress("bound solves", len(ts), not as_json) as step:
             for t in ts:
                 step(f"E* at {t:g} s")
                 try:
@@ -206,7 +210,7 @@ def register(app: typer.Typer) -> None:
 
             plot_energy_time(plot, data)
         if as_json:
-            print(to_json(data if values is not None else {**data, **rows[0]}))
+            json_out(data if values is not None else {**data, **rows[0]})
         elif values is None:
             row = rows[0]
             out.print(f"E* = {row['energy_kwh']:.2f} kWh  ({escape(r.name)}, {escape(train.name)}, {row['time_s']:g} s; "

@@ -30,6 +30,28 @@ METAVARS = {
 """Flag -> the name of its value in help (units in capitals: S seconds, M metres, KWH, KMH, T tonnes)."""
 
 
+SUMMARIES = {
+    "validate": "Check route, vehicle and consist files; list every problem",
+    "simulate": "Traction calculation of one plan: a strategy or a sequence",
+    "optimize": "The least-energy plan on time (switching points by ISSA)",
+    "compare": "Strategies side by side: plans, running times, energies",
+    "sweep": "The optimised plan across fitness weights or planned times",
+    "study": "Each optimiser over many random seeds: best, worst, mean",
+    "ocp": "Optimal control: minimum running time or minimum energy",
+    "ocp-study": "Minimum-time collocation methods side by side",
+    "learn": "Learn pattern curves from good drivers' logs",
+    "advise": "A plan from learned pattern curves, checked by simulation",
+    "import": "Public track, path and train files to locoplan files",
+    "bound": "The least traction energy E* for a running time",
+    "batch": "Many runs from a study file on a process pool; resumable",
+    "results": "Export, summarise and plot a result store",
+    "pareto": "The energy-time front of the strategies' plans",
+    "drivers": "Synthetic drivers' logs (labelled synthetic)",
+}
+"""Each command's line in ``locoplan --help``: what it does, short enough for 80 columns (click would
+cut the docstring's first sentence with "...")."""
+
+
 def _flag(info) -> str:
     return info.param_decls[0].split("/")[0] if info.param_decls else ""
 
@@ -53,12 +75,22 @@ def _tidy_command(fn) -> None:
             info.metavar = name.upper() + ("..." if plural else "")
 
 
-def tidy(app: typer.Typer) -> None:
-    """Name every option's and argument's value in ``app`` (and its sub-apps) that has no metavar yet."""
+def _name(info) -> str:
+    return info.name or info.callback.__name__.replace("_", "-")
+
+
+def tidy(app: typer.Typer, top: bool = True) -> None:
+    """Name every option's and argument's value in ``app`` (and its sub-apps) that has no metavar yet,
+    and give each top-level command its one-line summary from :data:`SUMMARIES`."""
     for cmd in app.registered_commands:
         _tidy_command(cmd.callback)
+        if top and cmd.short_help is None and _name(cmd) in SUMMARIES:
+            cmd.short_help = SUMMARIES[_name(cmd)]
     for group in app.registered_groups:
-        tidy(group.typer_instance)
+        tidy(group.typer_instance, top=False)
+        name = group.name or group.typer_instance.info.name
+        if top and name in SUMMARIES:
+            group.short_help = SUMMARIES[name]
 
 
 def _patch_typer_arguments() -> None:

@@ -24,7 +24,7 @@ def _command(fmt: str, sources: list[Path], out_dir: Path, flags: list[str]) -> 
 
 def register(app: typer.Typer) -> None:
     """Add the ``import`` command to ``app``."""
-    from .cli_common import err, guarded, out
+    from .cli_common import err, guarded, json_out, out
     from .io.readers import READERS
 
     formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())
@@ -58,8 +58,8 @@ def register(app: typer.Typer) -> None:
                                 command=_command(fmt, sources, out_dir, flags))
         report = run_import(fmt, list(sources), out_dir, options)
         if as_json:
-            print(to_json({"format": fmt, "files": [{"path": str(p), "kind": k, "summary": s} for p, k, s in report.written],
-                           "licence": str(report.licence) if report.licence else None, "notes": report.notes}))
+            json_out({"format": fmt, "files": [{"path": str(p), "kind": k, "summary": s} for p, k, s in report.written],
+                           "licence": str(report.licence) if report.licence else None, "notes": report.notes})
         else:
             for path, kind, summary in report.written:
                 out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False)  # wrapped at spaces to the width (80 in a pipe)

@@ -93,11 +93,11 @@ def _sections_table(sections: list[dict]) -> Table:
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, _check_outputs, _options,
+    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options, json_out,
                              err, guarded, out)
     from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
-    drivers_app = typer.Typer(no_args_is_help=True, help="Seed 004: synthetic drivers' logs (labelled synthetic).")
+    drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
     app.add_typer(drivers_app, name="drivers")
 
     @drivers_app.command("simulate")
@@ -133,8 +133,8 @@ def register(app: typer.Typer) -> None:
         with err.status("simulating drivers") as status:
             summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
         if as_json:
-            print(to_json({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
-                           "groups": summary.groups, "drivers": summary.drivers}))
+            json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
+                           "groups": summary.groups, "drivers": summary.drivers})
         else:
             out.print(_groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
 
@@ -142,9 +142,9 @@ def register(app: typer.Typer) -> None:
     @guarded
     def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
               out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png or .svg."),
+              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
               seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
-              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (eq. II)."),
+              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
               max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
               folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
               holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
@@ -152,7 +152,8 @@ def register(app: typer.Typer) -> None:
               level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
               stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, step: float = STEP, point_mass: bool = POINT_MASS,
               air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT):
-        """Seed 004: learn the double-layer pattern curves from the good drivers' logs."""
+        """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
+        Method: the patent on locomotive operation sequences from double-layer pattern curves."""
         from .io.report import atomic_write_text, to_json
         from .learn.logs import load_logs
         from .learn.patterns import LearnSettings
@@ -172,26 +173,27 @@ def register(app: typer.Typer) -> None:
             plot_fit(plot, learned)
         atomic_write_text(out_file, to_json(data) + "\n")
         if as_json:
-            print(to_json({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
-                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}}))
+            json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
+                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
         else:
-            for table in _fit_tables(data["report"]):
-                out.print(table)
+            for table in _fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
+                show(out, fit(table, out.width, wrap=(0,)))
             out.print(f"patterns written to {out_file}", highlight=False, markup=False)
 
     @app.command("advise")
     @guarded
     def advise(route: Path = ROUTE,
                patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
-               time_s: Optional[float] = typer.Option(None, "--time", help="Planned running time [s] (default: the route's schedule)."),
+               time_s: Optional[str] = TIME,
                mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
                consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png or .svg."),
+               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
                tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
                step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
                rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
-        """Seed 004: time shares, speed curve and operation sequence from learned patterns, checked by the calculator."""
+        """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
+        calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
         from .cli_common import _emit, _fail_if
         from .io.load import build_train, load_consist, load_route, load_train
         from .learn.advise import advise as run_advise
@@ -213,12 +215,14 @@ def register(app: typer.Typer) -> None:
         else:
             base, vehicles, *_ = load_consist(consist, stock_dir)
             train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
-        ctx = make_context(r, train, opts, time_s=time_s, tolerance_s=tolerance)
+        from .cli_common import _time
+
+        ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
         a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
         outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
         summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
         summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
-        _emit(summary, as_json, out_file, a.result.profile)
+        _emit(summary, as_json, out_file, a.result.profile, r)
         if plot:
             from .learn.plot import plot_advice
 

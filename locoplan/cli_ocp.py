@@ -102,7 +102,7 @@ def _ratio_table(study) -> Table:
 
 def register(app: typer.Typer) -> None:
     """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
-    from .cli_common import err, guarded, out
+    from .cli_common import err, guarded, json_out, out
     from .io.report import to_json
 
     methods = ", ".join(OCP_METHODS)
@@ -114,26 +114,28 @@ def register(app: typer.Typer) -> None:
             stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
             objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)}."),
             method: Optional[str] = typer.Option(None, "--method", help=f"Transcription: {methods} (default: two-stage for time, radau for energy).", show_default=False),
-            nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the seed's 17 / 34 / 20)."),
+            nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the paper's 17 / 34 / 20)."),
             state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
-            stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the seed's)."),
-            time_s: Optional[float] = typer.Option(None, "--time", help="Energy: planned running time T [s] (default: the route's schedule)."),
+            stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the paper's)."),
+            time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
             mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
             max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
             efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),
             regen: float = typer.Option(0.0, "--regen", help="Energy: credited share of the electric brake's work (the air brake returns nothing)."),
-            comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (seed 001's comfort bound; off by default)."),
+            comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (a comfort bound; off by default)."),
             step: float = typer.Option(50.0, "--step", help="Energy: grid of the traction calculator that checks the plan [m]."),
-            point_mass: bool = typer.Option(False, "--point-mass/--no-point-mass", help="Energy: the seeds' point-mass train, braked by its locomotives alone."),
+            point_mass: bool = typer.Option(False, "--point-mass/--no-point-mass", help="Energy: the papers' point-mass train, braked by its locomotives alone."),
             air_brake: Optional[bool] = typer.Option(None, "--air-brake/--no-air-brake", help="Energy: brake with the wagons' air brakes too (default: on, off with --point-mass).", show_default=False),
             rotating_mass: Optional[float] = typer.Option(None, "--rotating-mass", help="Energy: uniform rotating-mass allowance gamma (default: each vehicle's own factor).", show_default=False),
             strict_limits: bool = typer.Option(False, "--strict-limits/--no-strict-limits", help="Energy: the checking calculator fails a plan that coasts up to a limit."),
             as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
             out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png or .svg."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png, .svg or .pdf."),
             ):
-        """Optimal control: seed 000's minimum running time, or seed 001's minimum traction energy in a
-        running time (--objective energy); checked by re-simulation (exit 1 if not confirmed)."""
+        """Optimal control: the minimum running time, or the minimum traction energy in a running time
+        (--objective energy); checked by re-simulation (exit 1 if not confirmed). Methods: Liu Ping et al.,
+        two-stage adaptive Gauss collocation pseudospectral method (time); multi-phase Radau control after
+        Bai Yun et al., energy-saving high-speed train operation (energy)."""
         from .io.load import load_route, load_train
         from .ocp.study import check_options, check_output_path, solve_ocp, write_ocp_output
 
@@ -148,7 +150,7 @@ def register(app: typer.Typer) -> None:
             return
         check_options(method, nodes, state_nodes, stage2, objective)
         check_output_path(out_file, "--out", (".csv", ".json"))
-        check_output_path(plot, "--plot", (".png", ".svg"))
+        check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
         r = load_route(route)
         train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
         run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
@@ -164,7 +166,7 @@ def register(app: typer.Typer) -> None:
 
             plot_run(plot, run)
         if as_json:
-            print(to_json(run.summary))
+            json_out(run.summary)
         else:
             from .io.tables import show
 
@@ -180,20 +182,22 @@ def register(app: typer.Typer) -> None:
                   repeats: int = typer.Option(1, "--repeats", help="Solves per row; the solve time is their median."),
                   as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
                   out_file: Optional[Path] = typer.Option(None, "--out", help="Study as .json, .csv (one line per row) or .md."),
-                  plot: Optional[Path] = typer.Option(None, "--plot", help="Control curves and solve times, .png or .svg."),
+                  plot: Optional[Path] = typer.Option(None, "--plot", help="Control curves and solve times, .png, .svg or .pdf."),
                   ):
-        """Seed 000 Tables 2-3: CVP 20/40, GPM 34/48, two-stage 17/24 (hp and the seed's global stage 2)."""
+        """Minimum running time by CVP 20/40, GPM 34/48 and two-stage 17/24 collocation (hp and the paper's
+        global stage 2), side by side. Method: Liu Ping et al., optimal operation of electric locomotives by a
+        two-stage adaptive Gauss collocation pseudospectral method (its Tables 2-3)."""
         from .ocp.study import check_output_path, run_study, write_study_output
 
         from .bounds import count
 
         count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
-        check_output_path(plot, "--plot", (".png", ".svg"))
+        check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
         from .cli_common import step_progress
         from .ocp.study import STUDY_ROUTES, STUDY_RUNS
 
-        with step_progress("ocp-study: optimal-control solves (seed 000 Tables 2-3)", len(STUDY_RUNS) * len(STUDY_ROUTES),
+        with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
                            not as_json) as step:
             study = run_study(consist=consist, repeats=repeats, progress=step)
         if out_file:
@@ -203,16 +207,18 @@ def register(app: typer.Typer) -> None:
 
             plot_study(plot, study)
         if as_json:
-            print(to_json(study.to_dict()))
+            json_out(study.to_dict())
         else:
             from .io.tables import fit, show
 
             # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
             for table in _study_tables(study):
                 show(out, fit(table, out.width, drop=(9, 8, 2)))
-            show(out, fit(_ratio_table(study), out.width, drop=(8, 7)))
+            ratios = _ratio_table(study)
+            n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, seed mean, seed claim
+            show(out, fit(ratios, out.width, drop=(n + 4, n + 3, *range(n + 1, 1, -1))))  # the mean stays
             out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
             for r in study.rows:
                 if not r["feasible"]:
                     out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {escape(r['reason'])}",
-                              highlight=False, soft_wrap=True)
+                              highlight=False)  # wrapped at spaces to the width

@@ -21,8 +21,11 @@ class Problem:
     line: int | None = None
 
     def __str__(self) -> str:
-        file = self.file or "<command line>"  # a problem with no file is one with an option's value
-        where = f"{file}:{self.line}" if self.line else file
+        # a problem with no file is one with an argument's value: from Python it names the argument
+        # (``time_s: ...``); the command line restates it as ``<command line>: --time: ...`` (cli_common.as_flags)
+        if not self.file:
+            return f"{self.field}: {self.message}" if self.field else self.message
+        where = f"{self.file}:{self.line}" if self.line else self.file
         return f"{where}: {self.field}: {self.message}" if self.field else f"{where}: {self.message}"
 
 

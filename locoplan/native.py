@@ -194,7 +194,7 @@ def _locked(lock_path: Path):
 def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
     """Compile in a subprocess into a temporary folder, then rename into place (or write ``.failed``)."""
     if sys.stderr is not None and sys.stderr.isatty():
-        print("locoplan: compiling the traction and DP kernels for this machine (once, about a minute)...",
+        print("locoplan: compiling the kernels for this machine (once, about a minute)...",
               file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
         cmd = [sys.executable, "-m", "locoplan.native", tmp, name]

@@ -44,7 +44,8 @@ def planned_time(route: Route, time_s: float | None) -> float:
     if time_s is not None:
         return bounds.planned_time(time_s, "time_s")
     if route.schedule is None:
-        raise InputError(Problem("", "time_s", f"route '{route.name}' has no schedule: give the planned running time"))
+        raise InputError(Problem("", "time_s", f"route '{route.name}' has no schedule: give the planned running time as "
+                                 f"{bounds.TIME_FORMS}"))
     return float(route.schedule.run_time_s)
 
 

@@ -463,7 +463,10 @@ def build(tmp: Path) -> list[Case]:
     option("out_is_folder", sim + ["--out", str(dir_json)], str(dir_json), "--out", "folder", cls="output")
     option("out_dot", sim + ["--out", str(out_dir)], "--out", cls="output")
     option("out_unwritable", sim + ["--out", "/proc/locoplan.json"], "/proc/locoplan.json", "--out", "cannot write", cls="output")
-    option("out_missing_folder", sim + ["--out", str(out_dir / "no/such/x.json")], "--out", "does not exist", cls="output")
+    in_the_way = out_dir / "a-file"
+    in_the_way.write_text("")
+    # a missing folder is created; a file where a folder must be is refused
+    option("out_folder_is_a_file", sim + ["--out", str(in_the_way / "no/such/x.json")], "--out", "is not a folder", cls="output")
     option("out_name_too_long", sim + ["--out", str(out_dir / ("x" * 300 + ".json"))], "--out", "cannot write", cls="output")
     pipe_json = out_dir / "pipe.json"
     if not pipe_json.exists():
@@ -488,8 +491,8 @@ def build(tmp: Path) -> list[Case]:
     cases.append(Case("out_ok_plot_unwritable", "output", sim + ["--out", str(first), "--plot", "/proc/locoplan.png"], 2,
                       ("/proc/locoplan.png", "--plot"), after=nothing_written(first)))
     second = out_dir / "second.csv"
-    cases.append(Case("out_ok_plot_missing_folder", "output", opt + ["--out", str(second), "--plot", str(out_dir / "nope/p.png")],
-                      2, ("--plot", "does not exist"), after=nothing_written(second)))
+    cases.append(Case("out_ok_plot_folder_is_a_file", "output", opt + ["--out", str(second), "--plot", str(in_the_way / "nope/p.png")],
+                      2, ("--plot", "is not a folder"), after=nothing_written(second)))
     third = out_dir / "third.json"
     cases.append(Case("outputs_then_infeasible_input", "output", sim + ["--out", str(third), "--sequence", "T:0,C:nan"], 2,
                       ("--sequence",), after=nothing_written(third)))

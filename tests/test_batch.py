@@ -230,7 +230,7 @@ def test_results_summary_is_the_stores_statistics_and_plots(filled_store, refere
     assert png.stat().st_size > 10_000 and box.stat().st_size > 5_000
     # a bad plot name fails before anything is written (all outputs or none)
     res = cli.invoke(app, ["results", str(filled_store), "--format", "csv", "--out", str(tmp_path / "x.csv"),
-                           "--plot", str(tmp_path / "p.pdf")])
+                           "--plot", str(tmp_path / "p.jpg")])
     assert res.exit_code == 2 and not (tmp_path / "x.csv").exists()
 
 
@@ -295,3 +295,22 @@ def test_ocp_study_routes_resolve_outside_the_checkout(tmp_path, monkeypatch):
     for rel in STUDY_ROUTES.values():
         path = _default_path(rel)
         assert "catalogue" in str(path) and load_route(path).length_m == 1500
+
+
+def test_results_csv_is_read_as_numbers_and_booleans(filled_store):
+    """``results --format csv``: a spreadsheet's and pandas' CSV (true/false, numbers, empty cells, the
+    weights and the window as columns of their own), never Python's 'True' or '[0.5, 0.5]'."""
+    import csv
+    import io
+
+    res = cli.invoke(app, ["results", str(filled_store), "--format", "csv"])
+    assert res.exit_code == 0, res.stderr
+    rows = list(csv.DictReader(io.StringIO(res.stdout)))
+    text = res.stdout
+    assert "True" not in text and "False" not in text and "None" not in text and "nan" not in text.lower()
+    assert {"w_time", "w_energy", "window_from_s", "window_to_s"} <= set(rows[0]) and "weights" not in rows[0]
+    assert {r["feasible"] for r in rows} <= {"true", "false"}
+    weighted = [r for r in rows if r["w_time"] != ""]
+    assert weighted and all(float(r["w_time"]) + float(r["w_energy"]) == pytest.approx(1) for r in weighted)
+    for col in ("planned_time_s", "traction_energy_kwh", "seed", "window_from_s"):
+        [float(r[col]) for r in rows if r[col] != ""]  # every value a number

@@ -53,7 +53,8 @@ def test_out_csv_profile_agrees_with_summary(tmp_path):
     assert res.exit_code == 0
     summary = json.loads(res.stdout)
     rows = list(csv.DictReader(io.StringIO(out.read_text())))
-    assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn"]
+    assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn",
+                             "limit_file_kmh", "gradient_file_permille"]
     s = np.array([float(r["s_m"]) for r in rows])
     f = np.array([float(r["traction_kn"]) for r in rows])
     assert s[0] == 0 and s[-1] == 20000

@@ -108,5 +108,6 @@ def test_profile_csv_columns_start_with_s_and_t(tmp_path):
         out = tmp_path / "p.csv"
         res = runner.invoke(app, [*args, "--out", str(out)])
         assert res.exit_code == 0, res.output
-        assert out.read_text().splitlines()[0] == ",".join(PROFILE_COLUMNS)
+        # every profile has these columns first; the route file's own limit and gradient may follow
+        assert out.read_text().splitlines()[0].split(",")[:len(PROFILE_COLUMNS)] == list(PROFILE_COLUMNS)
         assert PROFILE_COLUMNS[:2] == ("s_m", "t_s")

@@ -152,12 +152,17 @@ def _in_pty(args, root, timeout=120) -> tuple[int, str]:
 def test_progress_bar_on_a_terminal_only_and_never_with_json(root):
     args = ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage", "--no-gap"]
     code, text = _in_pty(args, root)
-    assert code == 0 and "compare: strategies run (time-saving, four-stage)" in text
+    assert code == 0 and "compare runs" in text
+    # at 80 columns the bar reads: short label, count, bar, ETA, no line wider than the terminal
+    frames = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n").splitlines()
+    bars = [f for f in frames if "compare runs" in f]
+    assert any(re.search(r"compare runs +[0-2]/2 .*━.* ETA", f) for f in bars), bars
+    assert max(len(f.rstrip()) for f in frames) <= 80
     code, text = _in_pty(args + ["--json"], root)
-    assert code == 0 and "strategies run" not in text
+    assert code == 0 and "compare runs" not in text
     json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))  # nothing but the JSON
     res = subprocess.run([sys.executable, "-m", "locoplan", *args], capture_output=True, text=True, cwd=root, timeout=120)
-    assert res.returncode == 0 and "strategies run" not in res.stderr  # piped: no bar
+    assert res.returncode == 0 and "compare runs" not in res.stderr  # piped: no bar
 
 
 def test_plot_of_a_stalled_plan_ends_where_it_stalls(root, tmp_path):
@@ -191,3 +196,24 @@ def test_plot_of_a_stalled_plan_ends_where_it_stalls(root, tmp_path):
     plot_profiles(out, [("stalls", prof)], title, histories=[("issa", np.array([0.3, 0.2])),
                                                              ("energy-saving", np.array([600.0, 580.0]), ENERGY)])
     assert out.stat().st_size > 1000 and FITNESS != ENERGY
+
+
+def test_fit_leaves_out_columns_rather_than_split_a_number():
+    """A table wider than the terminal even after its listed columns are left out (ocp-study's at 80
+    columns): more whole columns go, the last first, and every number stays on one line."""
+    from rich.table import Table
+
+    from locoplan.io.tables import fit
+
+    t = Table(title="wide")
+    numbers = [f"{-13.123456 * (k + 1):.6f}" for k in range(12)]
+    for k in range(12):
+        t.add_column(f"column {k}", justify="right")
+    t.add_row(*numbers)
+    text = _render(fit(t, 80, drop=(11,)), 80)
+    assert max(len(x) for x in text.splitlines()) <= 80
+    shown = [n for n in numbers if n in text]
+    assert shown and numbers[0] in text
+    assert "left out at 80 columns" in text
+    for n in numbers:  # a number is whole or absent, never split over lines
+        assert n in text or n[:4] not in text.replace(n, "")

@@ -97,8 +97,8 @@ def _simulate(*args):
     (["routes/seed000-flat.yaml", "--strategy", "fastest"], "unknown strategy 'fastest' (one of:"),
     (["routes/seed000-flat.yaml", "--step", "0"], "--step: must be in [0.1, 1,000] m"),
     (["routes/seed000-flat.yaml", "--out", "profile.txt"], "unknown output type '.txt'"),
-    (["routes/seed000-flat.yaml", "--plot", "profile.pdf"], "use a .png or .svg file name"),
-    (["routes/seed000-flat.yaml", "--out", "no/such/dir/p.csv"], "folder no/such/dir does not exist"),
+    (["routes/seed000-flat.yaml", "--plot", "profile.jpg"], "use a .png, .svg or .pdf file name"),
+    (["routes/seed000-flat.yaml", "--out", "routes/seed000-flat.yaml/p.csv"], "routes/seed000-flat.yaml is not a folder"),
     ([str(BAD / "route_gap.yaml")], "speed_limits[1].from_m: gap"),
 ])
 def test_simulate_bad_input_exit_2(root, monkeypatch, tmp_path, args, why):
@@ -115,6 +115,6 @@ def test_bad_plot_name_is_refused_before_anything_is_written(root, monkeypatch, 
     """--out is fine but --plot is not: the command stops before computing, and writes nothing."""
     monkeypatch.chdir(tmp_path)
     route = str(root / "routes/seed000-flat.yaml")
-    res = _simulate(route, "--consist", "HXD1-C64-seed000", "--out", "p.csv", "--plot", "p.pdf")
-    assert res.exit_code == 2 and "use a .png or .svg file name" in res.stderr
+    res = _simulate(route, "--consist", "HXD1-C64-seed000", "--out", "p.csv", "--plot", "p.jpg")
+    assert res.exit_code == 2 and "use a .png, .svg or .pdf file name" in res.stderr
     assert list(tmp_path.iterdir()) == []

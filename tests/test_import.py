@@ -413,7 +413,16 @@ def test_all_or_nothing_when_a_later_source_is_bad(tmp_path):
     assert list(out.iterdir()) == []
 
 
-@pytest.mark.parametrize("case", ["missing", "file", "unwritable"])
+def test_a_missing_out_folder_is_created(tmp_path):
+    src = tmp_path / "t.json"
+    src.write_text(_track())
+    out = tmp_path / "new" / "out"
+    res = _invoke(["import", "ttobench", str(src), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.is_dir() and any(out.rglob("*.yaml"))
+
+
+@pytest.mark.parametrize("case", ["file", "unwritable"])
 def test_out_must_be_a_writable_folder(case, tmp_path, monkeypatch):
     src = tmp_path / "t.json"
     src.write_text(_track())
@@ -426,7 +435,7 @@ def test_out_must_be_a_writable_folder(case, tmp_path, monkeypatch):
         monkeypatch.setattr("locoplan.io.importer._writable", lambda folder: False)
     res = _invoke(["import", "ttobench", str(src), "--out", str(out)])
     assert res.exit_code == 2
-    why = {"missing": "folder does not exist", "file": "is a file, not a folder", "unwritable": "folder is not writable"}[case]
+    why = {"file": "is a file, not a folder", "unwritable": "folder is not writable"}[case]
     assert f"{out}: --out: {why}" in res.stderr, res.stderr
 
 

@@ -375,3 +375,16 @@ def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
     res = runner.invoke(app, ["compare", str(LINE), "--strategies", "drivers", "--logs", str(out), "--time", "999",
                               "--e-min", "100"])
     assert res.exit_code == 2 and "no logged run of 'Learning test line, 6 km'" in res.output
+
+
+def test_learn_tables_at_80_columns_keep_headers_and_numbers_whole(sim_logs, tmp_path):
+    out, _ = sim_logs
+    res = runner.invoke(app, ["learn", str(out), "--out", str(tmp_path / "p.json"), "--divisions", "4",
+                              "--max-order", "2", "--folds", "3"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    lines = res.stdout.splitlines()
+    assert max(len(x) for x in lines) <= 80 and "…" not in res.stdout and "..." not in res.stdout
+    text = res.stdout.replace("┃", " ").replace("│", " ")
+    assert "planned" in text and "drivers" in text  # headers whole (never "plan…", "driv…")
+    data = json.loads((tmp_path / "p.json").read_text())["report"]["data"]
+    assert str(data["good_runs"]) in text

@@ -12,6 +12,7 @@ import csv
 import dataclasses
 import io
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -178,7 +179,11 @@ def test_ocp_study(app, tmp_path):
     res = _invoke(app, ["ocp-study", "--json", "--out", str(out), "--plot", str(png)])
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
-    assert json.loads(out.read_text()) == data and png.stat().st_size > 10_000
+    from locoplan.cli_common import ENVELOPE
+
+    # stdout's object is the result and the envelope (verdict, exit code, version, inputs); the file, the result
+    assert json.loads(out.read_text()) == {k: v for k, v in data.items() if k not in ENVELOPE}
+    assert data["verdict"] == "ok" and png.stat().st_size > 10_000
     rows = data["results"]
     assert len(rows) == 16
     seen = {(r["table"], r["algorithm"], r["control_nodes"], r["stage2"]) for r in rows}
@@ -232,7 +237,10 @@ def test_bad_inputs(app, tmp_path, args, words):
     res = _invoke(app, ["ocp", *args, "--json", "--out", str(out), "--plot", str(plot)])
     assert res.exit_code == 2, res.output
     assert "Traceback" not in res.output and isinstance(res.exception, SystemExit)
-    assert res.stdout == ""  # no JSON for a user mistake
+    # a user mistake with --json: stdout holds one object saying so (verdict, exit code, the problems), no result
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2 and data["errors"]
+    assert "objective" not in data and "results" not in data
     for w in words:
         assert w in res.stderr, (w, res.stderr)
     assert list(tmp_path.iterdir()) == []  # no partial (or temporary) output files
@@ -240,8 +248,8 @@ def test_bad_inputs(app, tmp_path, args, words):
 
 @pytest.mark.parametrize("args, words", [
     (["ocp", "routes/seed000-flat.yaml", "--out", "x.txt"], ["--out", ".csv or .json"]),
-    (["ocp", "routes/seed000-flat.yaml", "--plot", "x.pdf"], ["--plot", ".png or .svg"]),
-    (["ocp", "routes/seed000-flat.yaml", "--out", "no/such/folder/o.csv"], ["does not exist"]),
+    (["ocp", "routes/seed000-flat.yaml", "--plot", "x.jpg"], ["--plot", "unknown output type '.jpg'"]),
+    (["ocp", "routes/seed000-flat.yaml", "--out", "routes/seed000-flat.yaml/o.csv"], ["is not a folder"]),
     (["ocp-study", "--repeats", "0"], ["--repeats"]),
     (["ocp-study", "--out", "study.xlsx"], ["--out"]),
 ])
@@ -284,3 +292,15 @@ def test_registry_drives_the_choices(app):
     assert res.exit_code == 0
     for key in OCP_METHODS:
         assert key in res.stdout
+
+
+def test_ocp_study_tables_at_80_columns_keep_numbers_whole(app):
+    res = runner.invoke(app, ["ocp-study"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    tables = res.stdout.split("stage 2 u / x: control")[0]
+    lines = tables.splitlines()
+    assert max(len(x) for x in res.stdout.splitlines()) <= 80  # tables, and the reasons wrapped at spaces
+    # no number folded over two lines ("-116." over "5"), no header cut ("two-stag" over "e", "CV" over "P")
+    assert not any(re.search(r"\d\.\s*$", x) for x in lines)
+    assert " two-stage " in tables and " CVP " in tables and " GPM " in tables and " mean" in tables
+    assert "left out at 80 columns" in tables

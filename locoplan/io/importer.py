@@ -65,14 +65,17 @@ def _writable(folder: Path) -> bool:
 
 
 def check_out_dir(out_dir: Path) -> None:
-    """The output folder must exist and be writable (nothing is created on a guess)."""
+    """The output folder is a writable folder, or is missing and can be created (the one rule for output
+    folders: created when the files are written)."""
+    from .report import existing_folder
+
     where = str(out_dir)
-    if not out_dir.exists():
-        raise InputError(Problem(where, "--out", "folder does not exist (create it first)"))
-    if not out_dir.is_dir():
+    if out_dir.exists() and not out_dir.is_dir():
         raise InputError(Problem(where, "--out", "is a file, not a folder"))
-    if not _writable(out_dir):
-        raise InputError(Problem(where, "--out", "folder is not writable"))
+    folder = existing_folder(out_dir, where, "--out")
+    if not _writable(folder):
+        raise InputError(Problem(where, "--out", "folder is not writable" if folder == out_dir
+                                 else f"folder {folder} is not writable"))
 
 
 def _top_key(field: str) -> str:
@@ -123,6 +126,9 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
     licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
     if licence_name:
         _check_target(out_dir, ImportedFile(licence_name, "licence", "", "", str(imported.licence)))
+    from .report import make_folder
+
+    make_folder(out_dir, str(out_dir), "--out")  # a missing output folder is made (nothing was refused)
     try:
         return _write_all(out_dir, imported, licence_name)
     except OSError as exc:  # a full disk, a folder that turned read-only: nothing is left written

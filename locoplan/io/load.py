@@ -460,6 +460,28 @@ def _allowed_keys(model: type[BaseModel], loc: tuple) -> list[str]:
     return [f.alias or n for n, f in fields.items()]
 
 
+UNIT_HINTS = {
+    # a key's unit as people write it -> (the unit the format wants in key names, how to convert)
+    "mps": ("kmh", "km/h: m/s x 3.6"), "ms": ("kmh", "km/h: m/s x 3.6"), "kph": ("kmh", "km/h"),
+    "kmph": ("kmh", "km/h"), "mph": ("kmh", "km/h: mph x 1.609"), "percent": ("permille", "per mille: % x 10"),
+    "pct": ("permille", "per mille: % x 10"), "km": ("m", "metres: km x 1000"), "kg": ("t", "tonnes: kg / 1000"),
+    "n": ("kn", "kN: N / 1000"), "min": ("s", "seconds: min x 60"), "h": ("s", "seconds: h x 3600"),
+}
+"""Unit words in an unknown key (``mps:``, ``percent:``, ``from_km:``) and what the format wants instead."""
+
+
+def _unit_hint(key: str, allowed: list[str]) -> tuple[str | None, str]:
+    """(the allowed key meant, the unit the format wants and how to convert) for a key whose name is a
+    unit the format does not use (``mps``, ``percent``, ``from_km``); (None, "") otherwise."""
+    unit = key.lower().rsplit("_", 1)[-1]
+    if unit not in UNIT_HINTS:
+        return None, ""
+    want, how = UNIT_HINTS[unit]
+    stem = key.rsplit("_", 1)[0] + "_" + want if "_" in key else None
+    target = stem if stem in allowed else next((k for k in allowed if k == want or k.endswith("_" + want)), None)
+    return target, f"; the format wants {how}"
+
+
 def _message(model: type[BaseModel], err: dict) -> str:
     kind, loc = err["type"], err["loc"]
     if kind == "extra_forbidden":
@@ -468,9 +490,11 @@ def _message(model: type[BaseModel], err: dict) -> str:
         stem = key.rsplit("_", 1)[0]
         same_stem = [k for k in allowed if k.rsplit("_", 1)[0] == stem and k != key]
         close = same_stem or difflib.get_close_matches(key, allowed, n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        if same_stem:
-            hint += " (units live in key names: _m, _kmh, _s, _t, _kn, _permille)"
+        target, how = _unit_hint(key, allowed)
+        meant = target or (close[0] if close else None)
+        hint = f"; did you mean '{meant}'?" if meant else ""
+        if same_stem or how:
+            hint += " (units live in key names: _m, _kmh, _s, _t, _kn, _permille)" + how
         return f"unknown key{hint} (allowed: {', '.join(allowed)})"
     if kind == "missing":
         return "required field is missing"
@@ -604,7 +628,17 @@ def resolve_consist_path(spec: str | Path) -> Path:
         candidate = folder / f"{spec}.yaml"
         if candidate.exists():
             return candidate
-    return path
+    raise InputError(Problem(str(spec), "consist", "no such file, nor a consist of that name; the catalogue has: "
+                             + ", ".join(consist_names())))
+
+
+def consist_names() -> list[str]:
+    """The consists a bare ``--consist NAME`` finds: ``configs/consists/`` here, then the shipped catalogue."""
+    names = set()
+    for folder in (Path("configs/consists"), Path(str(CATALOGUE / "consists"))):
+        if folder.is_dir():
+            names.update(p.stem for p in folder.glob("*.yaml"))
+    return sorted(names)
 
 
 def load_route_and_train(route_path: str | Path, consist_spec: str | Path,
@@ -692,3 +726,30 @@ def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", 
     if problems:
         raise InputError(problems)
     return train
+
+
+SHORTEST_LINE_M = 200.0
+"""A route shorter than this is not a freight line (the shortest train of the catalogue is longer):
+its lengths were most likely written in kilometres."""
+SHORTEST_SECTION_M = 10.0
+"""Speed limits or gradients changing every few metres: positions most likely in kilometres."""
+
+
+def route_warnings(route, path: str, lines: dict | None = None) -> list[Problem]:
+    """Implausible but valid values in a route file, as problems to warn about (``validate``): a line
+    shorter than any train, sections of a few metres, both the marks of a route written in km."""
+    lines = lines or {}
+    out = []
+    if route.length_m < SHORTEST_LINE_M:
+        out.append(Problem(path, "length_m", f"{route.length_m:g} m is shorter than any freight train (a 50-wagon "
+                           f"train is about 635 m): was the route written in km? The format wants metres "
+                           f"(length_m: {route.length_m * 1000:g} for {route.length_m:g} km)", lines.get(("length_m",))))
+    for name in ("speed_limits", "gradients"):
+        sections = getattr(route, name)
+        short = [k for k, x in enumerate(sections) if x.to_m - x.from_m < SHORTEST_SECTION_M]
+        if short:
+            k = short[0]
+            out.append(Problem(path, f"{name}[{k}]", f"{len(short)} of {len(sections)} sections are shorter than "
+                               f"{SHORTEST_SECTION_M:g} m (e.g. {sections[k].from_m:g} .. {sections[k].to_m:g} m): "
+                               "positions in km? The format wants metres (from_m, to_m)", lines.get((name, k))))
+    return out

@@ -13,10 +13,14 @@ from .report import atomic_write
 COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
 
 
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+"""A figure's file types, by extension (PDF and SVG for papers, PNG for a look)."""
+
+
 def check_plot_path(path: str | Path) -> Path:
     path = Path(path)
-    if path.suffix.lower() not in (".png", ".svg"):
-        raise InputError(Problem(str(path), "plot", "use a .png or .svg file name"))
+    if path.suffix.lower() not in FIGURE_SUFFIXES:
+        raise InputError(Problem(str(path), "plot", "use a .png, .svg or .pdf file name"))
     return path
 
 
@@ -41,12 +45,15 @@ def run_title(route: str, train: str, label: str, summary: dict) -> str:
 
 
 def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str,
-                  histories: list[tuple] | None = None) -> None:
+                  histories: list[tuple] | None = None, route=None) -> None:
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
     equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
     (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
-    quantity) e.g. :data:`ENERGY`; one panel per quantity); ``.png`` or ``.svg`` by extension, written
-    atomically. A plan that failed (stalled, overshot) is drawn up to where it failed."""
+    quantity) e.g. :data:`ENERGY`, or (label, history, quantity, reported value): the value the table
+    reports, drawn at the curve's end; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,
+    written atomically. A plan that failed (stalled, overshot) is drawn up to where it failed. With
+    ``route``, the file's own limit and gradient are drawn beside the train's, and the stations, neutral
+    sections, tunnels and curves are marked."""
     path = check_plot_path(path)
     import matplotlib
 
@@ -58,27 +65,34 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         groups: dict[str, list] = {}
         for item in histories:
             label, hist = item[0], item[1]
-            groups.setdefault(item[2] if len(item) > 2 else FITNESS, []).append((label, hist))
+            final = item[3] if len(item) > 3 else None
+            groups.setdefault(item[2] if len(item) > 2 and item[2] else FITNESS, []).append((label, hist, final))
         fig = plt.figure(figsize=(11, 9))
         grid = fig.add_gridspec(3, len(groups), height_ratios=[3, 1, 2], hspace=0.35, wspace=0.25)
         ax = fig.add_subplot(grid[0, :])
         axg = fig.add_subplot(grid[1, :], sharex=ax)
         for k, (quantity, items) in enumerate(groups.items()):
             axc = fig.add_subplot(grid[2, k])
-            for label, hist in items:
-                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label)
+            for label, hist, final in items:
+                colour = _colour(label, profiles)
+                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label, color=colour)
+                if final is not None and np.isfinite(final):
+                    # the search runs on a coarser grid: the value reported (re-simulated on the reporting
+                    # grid, as in the table) ends the curve, so figure and table agree
+                    axc.plot([len(hist)], [final], "o", color=colour, ms=5,
+                             label=f"{label}: {final:.5g} reported (reporting grid)")
             axc.set_xlabel("iteration")
             axc.set_ylabel(quantity)
             axc.grid(alpha=0.3)
             axc.legend(fontsize=8)
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    draw_profiles(ax, axg, profiles, title)
+    draw_profiles(ax, axg, profiles, title, route)
     if not histories:
         fig.tight_layout()
     fmt = path.suffix.lower().lstrip(".")
-    try:
-        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
+    try:  # bbox "tight": the legends beside the axes and a long title are inside the figure, never cut
+        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130, bbox_inches="tight"))
     finally:
         plt.close(fig)
 
@@ -96,14 +110,52 @@ def _until_failure(v_kmh: np.ndarray) -> np.ndarray:
     return v
 
 
-def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str) -> None:
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf")
+
+
+def _colour(label: str, profiles) -> str:
+    """One colour per strategy in a figure (its profile and its convergence curve alike)."""
+    names = [name for name, _ in profiles]
+    base = label.split(" (")[0]
+    k = names.index(label) if label in names else next((i for i, n in enumerate(names) if n.split(" (")[0] == base),
+                                                       len(names) + sum(map(ord, label)) % len(PALETTE))
+    return PALETTE[k % len(PALETTE)]
+
+
+FEATURES = (("neutral_sections", "neutral section", "#ff7f0e", 0.25), ("tunnels", "tunnel", "#7f7f7f", 0.18),
+            ("curves", "curve", "#17becf", 0.12))
+"""What of the line is marked on a profile: attribute of the route, label, colour, opacity."""
+
+
+def _mark_line(ax, axg, route) -> None:
+    """Stations (the route's ends), neutral sections, tunnels and curves as bands over both panels."""
+    for attr, label, colour, alpha in FEATURES:
+        for k, sec in enumerate(getattr(route, attr)):
+            for a in (ax, axg):
+                a.axvspan(sec.from_m / 1000, sec.to_m / 1000, color=colour, alpha=alpha, lw=0,
+                          label=label if (k == 0 and a is ax) else None)
+    for k, at in enumerate((0.0, route.length_m)):
+        ax.axvline(at / 1000, color="black", lw=1.0, ls=":", label="station (stop)" if k == 0 else None)
+        ax.annotate("▼", (at / 1000, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=9)
+
+
+def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, route=None) -> None:
     """Speed profiles over the limits on ``ax`` (one profile: coloured by condition), the equivalent
-    gradient on ``axg``."""
+    gradient on ``axg``. With ``route``: the file's limit and gradient too (labelled as such, where they
+    differ from the train's), and the line's stations, neutral sections, tunnels and curves."""
     from ..sim.result import CONDITIONS
+    from .report import section_values
 
     ref = profiles[0][1]
     s_km = ref.s_m / 1000.0
-    ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label="speed limit")
+    if route is not None:
+        _mark_line(ax, axg, route)
+        file_limit = section_values(route.speed_limits, "kmh", ref.s_m[:-1])
+        if not np.allclose(file_limit, ref.limit_kmh):
+            ax.step(s_km[:-1], file_limit, where="post", color="#555555", lw=1.0, ls="--",
+                    label="speed limit (route file)")
+    train_limit = "speed limit for the train (held until its tail clears)" if route is not None else "speed limit"
+    ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label=train_limit)
     single = len(profiles) == 1
     for label, prof in profiles:
         v = _until_failure(prof.v_kmh[0])
@@ -118,14 +170,20 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str) -> N
                 ys = np.column_stack([v[cells], v[cells + 1], np.full(cells.size, np.nan)]).ravel()
                 ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
         else:
-            ax.plot(s_km, v, lw=1.6, label=label)
+            ax.plot(s_km, v, lw=1.6, label=label, color=_colour(label, profiles))
     ax.set_ylabel("speed [km/h]")
     ax.set_ylim(0, max(float(ref.limit_kmh.max()), max(float(np.nanmax(p.v_kmh)) for _, p in profiles)) * 1.12)
-    ax.set_title(title)
+    ax.set_title(title, wrap=True)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", ncol=3, fontsize=8)
-    axg.fill_between(s_km[:-1], ref.gradient_permille, step="post", color="#8c564b", alpha=0.5)
+    # beside the axes, never over the limit line
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
+    axg.fill_between(s_km[:-1], ref.gradient_permille, step="post", color="#8c564b", alpha=0.5,
+                     label="equivalent gradient over the train" if route is not None else "equivalent gradient")
+    if route is not None:
+        grade = section_values(route.gradients, "permille", ref.s_m[:-1])
+        axg.step(s_km[:-1], grade, where="post", color="#3b1f17", lw=0.9, ls="--", label="gradient (route file)")
+        axg.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
     axg.axhline(0, color="black", lw=0.6)
-    axg.set_ylabel("equiv. gradient [‰]")
+    axg.set_ylabel("gradient [‰]")
     axg.set_xlabel("position [km]")
     axg.grid(alpha=0.3)

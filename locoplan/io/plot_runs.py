@@ -84,11 +84,25 @@ def plot_boxes(rows: list[dict], path: str | Path) -> None:
     ax.boxplot(data)
     ax.set_xticks(range(1, len(algs) + 1), [f"{a}\n({len(d)} runs)" for a, d in zip(algs, data)])
     ax.set_yscale("symlog", linthresh=2.0)  # most runs lie within a few per cent, a few far above
+    _plain_ticks(ax, max((max(d) for d in data if d), default=1.0))
     ax.set_ylabel("energy above the group's best run [%]")
     ax.set_title("per optimiser, over every (route, consist, planned time)")
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     _save(fig, path)
+
+
+def _plain_ticks(ax, top: float) -> None:
+    """Ticks of a symlog axis as plain per cents (0, 1, 2, 5, 10, 20, 50 ...), never "10^0, 10^1"."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
+
+    ticks, decade = [0.0], 1.0
+    while ticks[-1] < top:  # 1, 2, 5 in every decade up to the largest value
+        ticks += [decade, 2 * decade, 5 * decade]
+        decade *= 10
+    ax.yaxis.set_major_locator(FixedLocator([t for t in ticks if t <= max(2 * top, 2.0)]))
+    ax.yaxis.set_minor_locator(NullLocator())
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda y, _: f"{y:g}"))
 
 
 def plot_pareto(front: dict, path: str | Path) -> None:

@@ -23,9 +23,32 @@ from ..sim.result import CONDITIONS, Profile
 _PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
 
 
+def existing_folder(folder: Path, name: str, option: str) -> Path:
+    """The nearest folder of ``folder`` (itself or an ancestor) that exists: the one rule for output
+    folders is that missing ones are created when the output is written, so a check before the work
+    looks at the folder they will be created in. A file standing in the way is an input error."""
+    probe = folder
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise InputError(Problem(name, option, f"{probe} is not a folder"))
+    return probe
+
+
+def make_folder(folder: Path, name: str, option: str = "") -> None:
+    """Create an output's folder (and its parents) if missing; an OSError becomes an input error."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot create folder {folder}: {exc.strerror or exc}")) from None
+
+
 def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...] = ()) -> Path | None:
-    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder exists
-    and takes a new file (tried by creating and removing an empty temporary file there)."""
+    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder (or,
+    where that is still to be created, the folder it will be created in) takes a new file (tried by
+    creating and removing an empty temporary file there)."""
     if path is None:
         return None
     path = Path(path)
@@ -43,11 +66,7 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
         raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
     if path.exists() and not path.is_file():
         raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.exists():
-        raise InputError(Problem(name, option, f"folder {folder} does not exist"))
-    if not folder.is_dir():
-        raise InputError(Problem(name, option, f"{folder} is not a folder"))
+    folder = existing_folder(path.parent if str(path.parent) else Path("."), name, option)
     try:
         fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
         os.close(fd)
@@ -101,12 +120,13 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place (inside
     ``all_or_none()``: when the whole command has succeeded).
 
-    A failure leaves no partial file behind; a missing folder is an input error, not a traceback.
+    A failure leaves no partial file behind; a missing folder is created (with its parents).
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise InputError(Problem(str(path), "", f"folder {folder} does not exist"))
+        existing_folder(folder, str(path), "")
+        make_folder(folder, str(path))
     pending = _PENDING.get()
     if pending is not None and any(_same_file(path, target) for _, target in pending):
         raise InputError(Problem(str(path), "", "two outputs of this command name the same file: one would be lost; "
@@ -180,18 +200,68 @@ def clean(value: Any) -> Any:
     return value
 
 
+def csv_cell(value: Any) -> Any:
+    """A CSV cell that spreadsheets and ``pandas.read_csv`` read as what it is: numbers as numbers,
+    booleans as ``true`` / ``false``, no value (None, NaN) as an empty cell, a list or a dict as JSON
+    text (``[0.5, 0.5]`` in JSON, never Python's ``True`` or ``(0.5, 0.5)``)."""
+    value = clean(value)
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return json.dumps(value)
+    return value
+
+
+SPLIT_COLUMNS = {"weights": ("w_time", "w_energy"), "window_s": ("window_from_s", "window_to_s")}
+"""Lists of a fixed length that a CSV row gives as columns of their own."""
+
+
+def csv_row(row: dict) -> dict:
+    """A run's fields as CSV cells, :data:`SPLIT_COLUMNS` split into their columns."""
+    out = {}
+    for key, value in row.items():
+        if key in SPLIT_COLUMNS and isinstance(value, (list, tuple)) and len(value) == len(SPLIT_COLUMNS[key]):
+            out.update({k: csv_cell(v) for k, v in zip(SPLIT_COLUMNS[key], value)})
+        elif key in SPLIT_COLUMNS and value is None:
+            out.update(dict.fromkeys(SPLIT_COLUMNS[key], ""))
+        else:
+            out[key] = csv_cell(value)
+    return out
+
+
 def to_json(obj: Any) -> str:
     return json.dumps(clean(obj), indent=2, allow_nan=False)
 
 
 PROFILE_COLUMNS = ("s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn")
+FILE_COLUMNS = ("limit_file_kmh", "gradient_file_permille")
+"""The route file's own limit and gradient at each node, beside ``limit_kmh`` / ``gradient_permille``,
+which are what the train meets: the lowest of the limits under its length (held until the tail clears
+a lower one) and its top speed, and the equivalent gradient (averaged over the train, with curves and
+tunnels). Written when the route is known (simulate, optimize, advise, ocp --objective energy)."""
 
 
-def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
+def section_values(sections, attr: str, s_m) -> np.ndarray:
+    """The value ``attr`` of the contiguous ``sections`` (from_m, to_m) at each position ``s_m`` [m]
+    (the section that starts at or before it; the last one holds at the end of the line)."""
+    starts = np.array([x.from_m for x in sections], dtype=float)
+    values = np.array([getattr(x, attr) for x in sections], dtype=float)
+    k = np.clip(np.searchsorted(starts, np.asarray(s_m, dtype=float), side="right") - 1, 0, len(values) - 1)
+    return values[k]
+
+
+def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
     """One row per grid node; cell quantities (condition, forces, limit, gradient) are those of the cell
-    that starts at the node (the last node, the stop, repeats the last cell's limit and gradient)."""
+    that starts at the node (the last node, the stop, repeats the last cell's limit and gradient). With
+    ``route``, also the file's own limit and gradient (:data:`FILE_COLUMNS`)."""
     rows = []
     n_cells = len(profile.s_m) - 1
+    if route is not None:
+        starts = profile.s_m[np.minimum(np.arange(len(profile.s_m)), n_cells - 1)]
+        file_limit = section_values(route.speed_limits, "kmh", starts)
+        file_grade = section_values(route.gradients, "permille", starts)
     for k, s in enumerate(profile.s_m):
         if np.isnan(profile.v_kmh[plan, k]):  # a failed plan's profile ends where it failed
             break
@@ -206,14 +276,16 @@ def profile_rows(profile: Profile, plan: int = 0) -> list[dict]:
             "condition": "" if last else CONDITIONS[int(profile.condition[plan, c])],
             "traction_kn": 0.0 if last else round(float(profile.traction_kn[plan, c]), 3),
             "brake_kn": 0.0 if last else round(float(profile.brake_kn[plan, c]), 3),
+            **({} if route is None else {"limit_file_kmh": float(file_limit[k]),
+                                         "gradient_file_permille": round(float(file_grade[k]), 4)}),
         })
     return rows
 
 
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
-               "reason", "running_time_s", "traction_energy_kwh", "punctuality_error_s", "punctual", "fitness",
+               "reason", "running_time_s", "traction_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
                "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "cruise_kmh",
-               "energy_reduction_percent", "n_evaluations",
+               "switches", "coasts", "energy_reduction_percent", "n_evaluations",
                "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
 run, the ``--json`` summary's fields of the same names (weights split into w_time, w_energy; empty when
@@ -236,13 +308,13 @@ def run_rows_csv(rows: list[dict]) -> str:
     writer.writeheader()
     for r in rows:
         w = r.get("weights") or (None, None)
-        row = {k: clean(r.get(k)) for k in RUN_COLUMNS}
+        row = {k: r.get(k) for k in RUN_COLUMNS}
         row.update(w_time=w[0], w_energy=w[1])
-        writer.writerow({k: "" if v is None else v for k, v in row.items()})
+        writer.writerow({k: csv_cell(v) for k, v in row.items()})
     return buf.getvalue()
 
 
-def write_output(path: str | Path, summary: dict, profile: Profile | None) -> None:
+def write_output(path: str | Path, summary: dict, profile: Profile | None, route=None) -> None:
     """``--out``: ``.csv`` writes the profile (or, for several runs ``{"results": [...]}``, one row per
     run, :data:`RUN_COLUMNS`), ``.json`` the summary plus the profile's columns."""
     path = Path(path)
@@ -253,15 +325,16 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None) -> No
         if profile is None:
             raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ()),
+                                lineterminator="\n")
         writer.writeheader()
-        writer.writerows(profile_rows(profile))
+        writer.writerows(profile_rows(profile, route=route))
         atomic_write_text(path, buf.getvalue())
     elif suffix == ".json":
         data = dict(summary)
         if profile is not None:
-            rows = profile_rows(profile)
-            data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS}
+            rows = profile_rows(profile, route=route)
+            data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ())}
         atomic_write_text(path, to_json(data) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))

@@ -75,6 +75,13 @@ def fit(table: Table, width: int, drop: tuple[int, ...] = (), wrap: tuple[int, .
         for k, c in enumerate(table.columns):
             c._index = k
         dropped.append(" ".join(_plain(col.header).split()))
+    # still too wide (a narrow terminal): leave out more columns, the last first, rather than cut a number
+    while sum(low[id(c)] for c in table.columns) + overhead() > width and len(table.columns) > 2:
+        col = next((c for c in reversed(table.columns[1:]) if cols.index(c) not in wrap), table.columns[-1])
+        table.columns[:] = [c for c in table.columns if c is not col]
+        for k, c in enumerate(table.columns):
+            c._index = k
+        dropped.append(" ".join(_plain(col.header).split()))
     # widths: each column's minimum, then what is left shared out up to each column's natural width
     room = width - overhead()
     widths = {id(c): low[id(c)] for c in table.columns}
@@ -176,6 +183,23 @@ def key_value_table(title: str, rows: list[tuple[str, str]], width: int = 80, wh
     return [table] + below
 
 
+def _punctuality(summary: dict) -> str:
+    """'76.7 s early, outside the window 1470 .. 1530 s (planned 1500 s)': how far a run is off its
+    planned time, in which direction, and whether that is inside the punctuality window."""
+    planned = f"(planned {summary['planned_time_s']:g} s)"
+    t = summary.get("running_time_s")
+    if t is None or summary.get("punctuality_error_s") is None:
+        return f"- {planned}"
+    off = t - summary["planned_time_s"]
+    side = "late" if off > 0 else "early"
+    text = f"{abs(off):.1f} s {side}" if round(abs(off), 1) else "0.0 s"
+    window = summary.get("window_s")
+    if window:
+        inside = "inside" if summary.get("punctual") else "[red]outside[/]"
+        text += f", {inside} the window {window[0]:g} .. {window[1]:g} s"
+    return f"{text} {planned}"
+
+
 def summary_table(summary: dict, width: int = 80) -> list:
     """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
     long for the table's value column follows the table on a line of its own, whole)."""
@@ -186,7 +210,7 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
     if summary.get("planned_time_s") is not None:
-        rows.append(("punctuality error", f"{_num(summary['punctuality_error_s'], '.1f', ' s')} (planned {summary['planned_time_s']:g} s)"))
+        rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
@@ -232,15 +256,21 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     t8.add_column("strategy")
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"))
-    t9 = Table(title="Table 9: running time and traction energy", title_justify="left")
-    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
+    at_t0 = any(r.get("energy_at_t0_kwh") is not None for r in rows)
+    t9 = Table(title="Table 9: running time and traction energy"
+               + ("; at T0: a punctual plan's energy carried to T0 (its gap over E* added to E* at T0)" if at_t0 else
+                  ", each at its own running time"), title_justify="left")
+    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]") + (("at T0 [kWh]",) if at_t0 else ()) + (
+        "saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
     for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
-    base = next((r["traction_energy_kwh"] for r in rows if r["strategy"] == "time-saving" and r["feasible"]), None)
     notes, plans = [], []
+    why: dict[str, list[str]] = {}  # a reason shared by several strategies is said once, naming them all
     for s in rows:
         if not s["feasible"]:
-            notes.append(Note(f"{s['strategy']}: no feasible plan: {s['reason']}"))
+            why.setdefault(str(s["reason"]), []).append(s["strategy"])
+    notes = [Note(f"{', '.join(names)}: no feasible plan: {reason}") for reason, names in why.items()]
+    for s in rows:
         if s["plan"] is None:  # no plan at all (the run was infeasible before it planned)
             t8.add_row(escape(s["strategy"]), "-", "-")
             t9.add_row(escape(s["strategy"]) + " [red](no plan)[/]", *(["-"] * (len(heads) - 1)))
@@ -256,12 +286,15 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
         if s.get("punctual") is False and s["running_time_s"] is not None:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
         e = s["traction_energy_kwh"]
-        rel = "-" if not base or e is None or not s["feasible"] else f"{100 * (e / base - 1):+.1f}"
         name = escape(s["strategy"]) + ("" if s["feasible"] else " [red](infeasible)[/]")
-        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"), rel,
-                   _num(s.get("gap_to_optimum_percent"), "+.2f"), str(len(conds) - 1), str(conds.count("C")),
+        # the derived columns are the rows' fields (runs.plans.compare_fields), as --json and --out have them
+        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"),
+                   *((_num(s.get("energy_at_t0_kwh"), ".2f"),) if at_t0 else ()), _num(s.get("energy_reduction_percent"), ".1f"),
+                   _num(s.get("gap_to_optimum_percent"), "+.2f"), _num(s.get("switches"), "d"), _num(s.get("coasts"), "d"),
                    _num(s["fitness"], ".4f"))
-    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6, 7, 5, 4, 8), wrap=(0,)) + notes
+    k = 1 if at_t0 else 0  # the columns after "energy" move one right when "at T0" is there
+    # left out first at a narrow width: switches, coasts, the saving against the fastest run; the gap to E* stays longest
+    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))
         blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))

@@ -527,9 +527,10 @@ def check_out_dir(out_dir: Path) -> None:
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise InputError(Problem(str(out_dir), "--out", "exists and is not an empty folder: choose a new folder "
                                  "(logs are never written over or mixed)"))
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(Problem(str(out_dir), "--out", f"folder {parent} does not exist"))
+    from ..io.report import existing_folder
+
+    # a missing parent is created when the logs are written (the one rule for output folders)
+    parent = existing_folder(out_dir.parent if str(out_dir.parent) else Path("."), str(out_dir), "--out")
     try:  # the logs go into a temporary folder beside it first: can one be made there?
         import tempfile
 
@@ -615,7 +616,10 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
 
 def _write_folder(out_dir: Path, files: dict[str, str]) -> None:
     """Write every file into a temporary sibling folder, then rename it into place."""
+    from ..io.report import make_folder
+
     parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    make_folder(parent, str(out_dir), "--out")
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
         for rel, text in files.items():

@@ -24,11 +24,11 @@ _GLOBAL = "#9467bd"  # two-stage with the seed's global stage 2
 
 def _figure_path(path) -> tuple[Path, str]:
     path = Path(path)
-    if path.suffix.lower() not in (".png", ".svg"):
-        raise InputError(Problem(str(path), "--plot", "use a .png or .svg file name"))
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(Problem(str(path), "--plot", f"folder {folder} does not exist"))
+    if path.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise InputError(Problem(str(path), "--plot", "use a .png, .svg or .pdf file name"))
+    from ..io.report import existing_folder
+
+    existing_folder(path.parent if str(path.parent) else Path("."), str(path), "--plot")  # created on writing
     return path, path.suffix.lower().lstrip(".")
 
 
@@ -43,7 +43,7 @@ def _pyplot():
 
 def _save(fig, path: Path, fmt: str, plt) -> None:
     try:
-        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130))
+        atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130, bbox_inches="tight"))
     finally:
         plt.close(fig)
 

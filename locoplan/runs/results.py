@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..io.report import atomic_write, atomic_write_text, clean, to_json
+from ..io.report import atomic_write, atomic_write_text, clean, csv_row, to_json
 
 FORMATS = ("csv", "parquet", "json")
 _OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt,
@@ -123,11 +123,12 @@ def export(rows: list[dict], path: str | Path | None, fmt: str) -> str | None:
     cols = _columns(rows)
     if fmt == "json":
         text = to_json({"results": rows}) + "\n"
-    elif fmt == "csv":
+    elif fmt == "csv":  # numbers, true/false, empty cells; weights and window as columns of their own
+        flat = [csv_row(r) for r in rows]
         buf = io.StringIO()
-        w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
+        w = csv.DictWriter(buf, fieldnames=_columns(flat), lineterminator="\n", restval="")
         w.writeheader()
-        w.writerows({k: _flat(r.get(k)) for k in cols} for r in rows)
+        w.writerows(flat)
         text = buf.getvalue()
     else:
         if path is None:

@@ -126,6 +126,11 @@ class Store:
             raise InputError(Problem(name, "", "is not a regular file (a device, a pipe or a socket): a store is an "
                                      "SQLite file with its journal beside it; name a file"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
+        if not folder.is_dir() and create:  # a new store's folder is created (the rule for every output)
+            from ..io.report import existing_folder, make_folder
+
+            existing_folder(folder, name, "")
+            make_folder(folder, name)
         if not folder.is_dir():
             raise InputError(Problem(name, "", f"folder {folder} does not exist"))
         if create and not os.access(folder, os.W_OK):

@@ -94,7 +94,12 @@ def _time_value(value, where: str) -> tuple[str, float]:
             raise ValueError(f"a running time must be in [{lo:g}, {hi:,.0f}] s (got {value:g}): no stop-to-stop run "
                              "is planned shorter than a second or longer than a week")
         return "s", float(value)
-    text = str(value).strip().lower()
+    text = str(value).strip().lower().replace(" ", "")
+    if text.startswith("+") and text.endswith("%"):  # a running-time supplement on the fastest run: +10% is 1.1x
+        try:
+            text = f"{1 + float(text[1:-1]) / 100!r}x"
+        except ValueError:
+            raise ValueError(f"expected a supplement such as '+10%', got {value!r}") from None
     if text.endswith("x"):
         try:
             f = float(text[:-1])
@@ -263,7 +268,7 @@ def _planned_times(name, routes, consists, stock, options, times, where, toleran
             if not times:
                 if route.schedule is None:
                     raise InputError(Problem(name, "times", f"route {r} has no schedule: give the planned running "
-                                             "times (seconds, or factors of the fastest run such as '1.1x')", where("routes")))
+                                             "times (seconds, factors of the fastest run such as '1.1x', or supplements on it such as '+10%')", where("routes")))
                 out[(r, c)] = [(None, "schedule")]
                 continue
             fastest = None

@@ -1,0 +1,435 @@
+"""What a railway engineer meets in the first hour: time forms, exit codes, JSON on failure, CSV that
+a spreadsheet reads, readable output at 80 columns, and commands that work as documented."""
+
+import json
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+from locoplan.cli import app
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+runner = CliRunner()
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--e-min", "580", "--no-gap"]
+
+
+@pytest.fixture(autouse=True)
+def _in_repo(root, monkeypatch):
+    monkeypatch.chdir(root)
+
+
+@pytest.fixture()
+def unscheduled(tmp_path, root):
+    """freight-20km without its schedule (as the real lines in routes/real/ are)."""
+    text = (root / "routes/freight-20km.yaml").read_text()
+    text = re.sub(r"^schedule:.*\n", "", text, flags=re.M)
+    assert "\nschedule" not in text
+    path = tmp_path / "line.yaml"
+    path.write_text(text)
+    return path
+
+
+def _fastest(freight):
+    return TractionCalculator(*freight, ModelOptions()).fastest_time_s
+
+
+# ------------------------------------------------------------------------------------ --time forms
+@pytest.mark.parametrize("form, factor", [("1.1x", 1.1), ("+10%", 1.1), ("1.25X", 1.25), ("+5 %", 1.05)])
+def test_time_takes_a_factor_or_a_supplement_of_the_fastest_run(form, factor, freight):
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--strategy", "four-stage", "--time", form, "--json"])
+    assert res.exit_code == 0, res.output
+    import math
+    expected = math.ceil(factor * _fastest(freight) * 10 - 1e-9) / 10
+    assert json.loads(res.stdout)["planned_time_s"] == pytest.approx(expected)
+
+
+def test_time_in_seconds_still_works():
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--time", "1500s", "--json"])
+    assert json.loads(res.stdout)["planned_time_s"] == 1500
+
+
+@pytest.mark.parametrize("form, why", [("abc", "expected seconds (1500), a factor of the fastest run (1.1x)"),
+                                       ("0.9x", "not a factor of the fastest run in 1 .. 10"),
+                                       ("-10%", "expected seconds"), ("0", "must be in")])
+def test_bad_time_forms_are_input_errors(form, why):
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--time", form])
+    assert res.exit_code == 2 and "--time" in res.stderr and why in res.stderr
+    assert "Traceback" not in res.output
+
+
+@pytest.mark.parametrize("cmd", [["optimize", *SMALL], ["sweep", "--weight-grid", "0.5", *SMALL],
+                                 ["compare", "--strategies", "four-stage", "--no-gap"], ["bound"]])
+def test_every_command_with_time_takes_the_forms(cmd, unscheduled):
+    """A route without a schedule says which forms to give; every command that takes --time takes them."""
+    res = runner.invoke(app, [cmd[0], str(unscheduled), *cmd[1:], "--json"])
+    assert res.exit_code == 2
+    assert "has no schedule" in res.stderr and "1.1x" in res.stderr and "+10%" in res.stderr
+    if cmd[0] == "bound":
+        return  # a solve of seconds: the parsing is the same helper as the others'
+    res = runner.invoke(app, [cmd[0], str(unscheduled), *cmd[1:], "--time", "+15%", "--json"])
+    assert res.exit_code in (0, 1), res.output
+    data = json.loads(res.stdout)
+    row = data["results"][0] if "results" in data else data
+    assert row["planned_time_s"] > 1000
+
+
+def test_help_of_time_names_the_forms():
+    for cmd in ("simulate", "optimize", "compare", "sweep", "study", "bound", "advise", "ocp"):
+        text = " ".join(runner.invoke(app, [cmd, "--help"], env={"COLUMNS": "200"}).stdout.split())
+        assert "1.1x" in text and "+10%" in text, cmd
+
+
+# ------------------------------------------------------------------------------------ one exit rule
+def test_simulate_sequence_reports_late_and_follows_the_one_rule():
+    """A --sequence is measured, not planned to T0: exit 0, but the table says how late and that it is
+    outside the window (the JSON has punctual false)."""
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:2200,C:17540,B"])
+    assert res.exit_code == 0
+    text = " ".join(res.stdout.replace("│", " ").split())
+    assert "76.7 s early, outside the window 1470 .. 1530 s" in text
+    same = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:2200,C:17540,B",
+                               "--time", "1500"])
+    assert same.exit_code == res.exit_code  # --time equal to the schedule: the same verdict
+
+
+def test_simulate_timetabled_strategy_outside_the_window_exits_1(freight):
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--strategy", "four-stage", "--time", "1000",
+                              "--json"])
+    assert res.exit_code == 1
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "failed" and "below the fastest possible run" in data["reason"]
+
+
+# ------------------------------------------------------------------------------------ JSON on failure
+def test_json_on_an_infeasible_request_is_an_object_with_verdict_reason_and_exit_code():
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--time", "1000", "--json", *SMALL])
+    assert res.exit_code == 1
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "failed" and data["exit_code"] == 1
+    assert "below the fastest possible run" in data["reason"] and data["errors"] == [data["reason"]]
+
+
+def test_json_on_invalid_input_names_file_field_and_why(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema: locoplan/route@1\nname: x\nlength_m: 1000\nspeed_limits: []\ngradients: []\n")
+    res = runner.invoke(app, ["simulate", str(bad), "--json"])
+    assert res.exit_code == 2
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2
+    assert data["problems"] and all(p["file"] == str(bad) for p in data["problems"])
+    assert {"file", "line", "field", "message"} <= set(data["problems"][0])
+    assert "Traceback" not in res.output
+
+
+def test_json_of_a_result_has_verdict_version_and_inputs():
+    from locoplan import __version__
+
+    ok = json.loads(runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--json"]).stdout)
+    assert ok["verdict"] == "ok" and ok["exit_code"] == 0 and ok["errors"] == []
+    assert ok["locoplan_version"] == __version__
+    assert ok["inputs"] == {"route": "routes/freight-20km.yaml", "consist": "configs/consists/HXD1-C80x50.yaml"}
+    bad = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:1000,C:4000,B", "--json"])
+    data = json.loads(bad.stdout)
+    assert bad.exit_code == data["exit_code"] == 1 and data["verdict"] == "failed"
+    assert data["feasible"] is False and data["errors"][0].startswith("sequence: no feasible plan (stalled")
+
+
+def test_validate_json_has_the_verdict_too(tmp_path):
+    res = runner.invoke(app, ["validate", "routes/freight-20km.yaml", "--json"])
+    data = json.loads(res.stdout)
+    assert res.exit_code == 0 and data["valid"] and data["verdict"] == "ok"
+    assert data["inputs"] == {"files": ["routes/freight-20km.yaml"]}
+
+
+def test_library_errors_name_the_argument_not_the_command_line(freight):
+    from locoplan.errors import InputError
+    from locoplan.runner import make_context
+
+    with pytest.raises(InputError) as exc:
+        make_context(*freight, time_s=-5)
+    assert str(exc.value).startswith("time_s: must be in") and "<command line>" not in str(exc.value)
+
+
+# ------------------------------------------------------------------------------------ compare, fairly
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory, root):
+    import os
+    out = tmp_path_factory.mktemp("cmp") / "c.csv"
+    old = os.getcwd()
+    os.chdir(root)
+    try:
+        res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
+                                  "--json", "--out", str(out)])
+        table = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage"],
+                              env={"COLUMNS": "80"})
+    finally:
+        os.chdir(old)
+    return res, table, out
+
+
+def test_compare_json_has_the_fields_its_table_shows(compared):
+    res, _, _ = compared
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    rows = {r["strategy"]: r for r in data["results"]}
+    fast, four = rows["time-saving"], rows["four-stage"]
+    assert (fast["switches"], fast["coasts"]) == (0, 0)
+    conds = [c.split(":")[0] for c in four["plan"].split(",")]
+    assert four["switches"] == len(conds) - 1 and four["coasts"] == conds.count("C")
+    assert fast["energy_reduction_percent"] == 0
+    assert four["energy_reduction_percent"] == pytest.approx(
+        100 * (1 - four["traction_energy_kwh"] / fast["traction_energy_kwh"]), abs=0.01)
+
+
+def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
+    res, table, out = compared
+    data = json.loads(res.stdout)
+    rows = {r["strategy"]: r for r in data["results"]}
+    four = rows["four-stage"]
+    assert four["punctual"] and four["energy_at_t0_kwh"] == pytest.approx(
+        data["optimum_at_t0_kwh"] + four["gap_to_optimum_kwh"], abs=0.011)
+    assert rows["time-saving"]["energy_at_t0_kwh"] is None  # 270 s early: its gap says nothing about T0
+    text = table.stdout
+    assert "at T0" in text and f"{four['energy_at_t0_kwh']:.2f}" in text
+    assert max(len(line) for line in text.splitlines()) <= 80
+    import csv
+    csv_rows = list(csv.DictReader(out.open()))
+    assert {"switches", "coasts", "energy_reduction_percent", "energy_at_t0_kwh"} <= set(csv_rows[0])
+
+
+# ------------------------------------------------------------------------------------ help, version, completion
+HELP_COMMANDS = [["validate"], ["simulate"], ["optimize"], ["compare"], ["sweep"], ["study"], ["ocp"], ["ocp-study"],
+                 ["learn"], ["advise"], ["import", "ttobench"], ["import", "railtoolkit"], ["bound"], ["batch"],
+                 ["results"], ["pareto"], ["drivers", "simulate"]]
+
+
+def test_top_help_lists_every_command_whole_at_80_columns():
+    res = runner.invoke(app, ["--help"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0
+    commands = res.stdout.split("Commands:")[1]
+    assert "..." not in commands and "…" not in commands
+    assert max(len(x) for x in res.stdout.splitlines()) <= 80
+    for name in ("validate", "simulate", "optimize", "compare", "sweep", "study", "ocp", "ocp-study", "learn",
+                 "advise", "import", "bound", "batch", "results", "pareto", "drivers"):
+        assert re.search(rf"^  {re.escape(name)} +\S", commands, re.M), name
+
+
+@pytest.mark.parametrize("path", HELP_COMMANDS, ids=" ".join)
+def test_help_names_methods_not_paper_sections(path):
+    """No 'Seed 002', 'eq. 10', 'Fig. 15' in help: methods by what they do, the paper cited once."""
+    text = " ".join(runner.invoke(app, [*path, "--help"], env={"COLUMNS": "200"}).stdout.split())
+    assert not re.search(r"\bseed 00\d|\bseed's\b|\bseeds'|\beq\. ?\d|\bfigs?\. ?\d", text, re.I), text
+    assert len(re.findall(r"Method(s)?:", text)) <= 1
+
+
+def test_short_version_flag_and_shell_completion():
+    from locoplan import __version__
+
+    assert runner.invoke(app, ["-V"]).stdout.strip() == f"locoplan {__version__}"
+    text = runner.invoke(app, ["--help"]).stdout
+    assert "--install-completion" in text and "--show-completion" in text
+
+
+def test_plots_as_pdf(tmp_path):
+    out = tmp_path / "p.pdf"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--plot", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.read_bytes()[:5] == b"%PDF-"
+
+
+# ------------------------------------------------------------------------------------ plots and profiles
+def test_profile_csv_has_the_files_limit_and_gradient_beside_the_trains(tmp_path, freight):
+    import csv
+
+    from locoplan.io.report import section_values
+
+    out = tmp_path / "p.csv"
+    assert runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out)]).exit_code == 0
+    rows = list(csv.DictReader(out.open()))
+    route, _ = freight
+    s = [float(r["s_m"]) for r in rows]
+    file_limit = [float(r["limit_file_kmh"]) for r in rows]
+    train_limit = [float(r["limit_kmh"]) for r in rows]
+    assert file_limit[:-1] == list(section_values(route.speed_limits, "kmh", s[:-1]))
+    assert all(t <= f + 1e-9 for t, f in zip(train_limit, file_limit))
+    # a rise in the file's limit reaches the train only once its tail (635.2 m) has cleared the lower one
+    rise = next(x for x in route.speed_limits[1:] if x.kmh > section_values(route.speed_limits, "kmh", [x.from_m - 1])[0])
+    at = s.index(rise.from_m)
+    assert file_limit[at] == rise.kmh and train_limit[at] < rise.kmh
+    assert [float(r["gradient_file_permille"]) for r in rows][:-1] == list(section_values(route.gradients, "permille", s[:-1]))
+
+
+def test_plot_marks_the_line_and_labels_both_limits(root):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from locoplan.io.load import load_route, load_train
+    from locoplan.io.plot import draw_profiles
+
+    route = load_route(root / "routes/freight-20km-ns.yaml")
+    calc = TractionCalculator(route, load_train(root / "configs/consists/HXD1-C80x50.yaml"), ModelOptions())
+    prof = calc.evaluate(("T",), np.zeros((1, 0)), profile=True).profile
+    fig, (ax, axg) = plt.subplots(2, 1)
+    draw_profiles(ax, axg, [("time-saving", prof)], "t", route)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    for want in ("neutral section", "tunnel", "curve", "station (stop)", "speed limit (route file)",
+                 "speed limit for the train (held until its tail clears)"):
+        assert want in labels, labels
+    assert [t.get_text() for t in axg.get_legend().get_texts()] == ["equivalent gradient over the train",
+                                                                   "gradient (route file)"]
+    # the legend sits beside the axes, not over the limit line
+    fig.canvas.draw()
+    box, axes = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert box.x0 >= axes.x1
+    bands = [p for p in ax.patches if p.get_label() == "neutral section"]
+    assert len(route.neutral_sections) >= 1 and bands
+    plt.close(fig)
+
+
+def test_one_colour_per_strategy_in_a_figure():
+    from locoplan.io.plot import _colour
+
+    profiles = [("time-saving", None), ("four-stage", None), ("proposed", None)]
+    assert _colour("proposed", profiles) == _colour("proposed", profiles)
+    assert len({_colour(n, profiles) for n, _ in profiles}) == 3
+
+
+# ------------------------------------------------------------------------------------ small habits
+def test_output_folders_are_created(tmp_path):
+    out, plot = tmp_path / "new" / "deep" / "p.csv", tmp_path / "figs" / "p.svg"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    assert out.is_file() and plot.is_file()
+    logs = tmp_path / "logs" / "freight"
+    res = runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--out", str(logs), "--drivers", "1",
+                              "--runs", "1"])
+    assert res.exit_code == 0, res.output
+    assert logs.is_dir() and any(logs.rglob("*.csv"))
+
+
+def test_a_failed_command_creates_no_output_folder(tmp_path):
+    out = tmp_path / "never" / "p.csv"
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--sequence", "T:0,C:nan"])
+    assert res.exit_code == 2 and not (tmp_path / "never").exists()
+
+
+def test_validate_warns_about_a_route_written_in_km(tmp_path):
+    km = tmp_path / "km.yaml"
+    km.write_text("schema: locoplan/route@1\nname: km line\nlength_m: 12\nspeed_limits:\n"
+                  "  - {from_m: 0, to_m: 1, kmh: 55}\n  - {from_m: 1, to_m: 12, kmh: 80}\n"
+                  "gradients:\n  - {from_m: 0, to_m: 12, permille: 0}\n")
+    res = runner.invoke(app, ["validate", str(km)])
+    assert res.exit_code == 0
+    text = " ".join(res.stderr.split())
+    assert f"warning: {km}:3: length_m: 12 m is shorter than any freight train" in text and "in km?" in text
+    assert "speed_limits[0]: 1 of 2 sections are shorter than 10 m" in text
+    data = json.loads(runner.invoke(app, ["validate", str(km), "--json"]).stdout)
+    assert [w["field"] for w in data["warnings"]] == ["length_m", "speed_limits[0]"]
+    plain = runner.invoke(app, ["validate", "routes/freight-20km.yaml"])
+    assert "warning" not in plain.stderr
+
+
+@pytest.mark.parametrize("key, meant, how", [("mps: 20", "kmh", "km/h: m/s x 3.6"), ("kph: 70", "kmh", "km/h")])
+def test_unit_keys_get_a_hint_at_the_unit_the_format_wants(tmp_path, key, meant, how):
+    f = tmp_path / "r.yaml"
+    f.write_text(f"schema: locoplan/route@1\nname: x\nlength_m: 2000\nspeed_limits:\n  - {{from_m: 0, to_m: 2000, {key}}}\n"
+                 "gradients:\n  - {from_m: 0, to_km: 2, percent: 0.5}\n")
+    res = runner.invoke(app, ["validate", str(f)])
+    assert res.exit_code == 2
+    text = " ".join(res.stderr.split())
+    units = "(units live in key names: _m, _kmh, _s, _t, _kn, _permille)"
+    assert f"speed_limits[0].{key.split(':')[0]}: unknown key; did you mean '{meant}'? {units}; the format wants {how}" in text
+    assert f"gradients[0].percent: unknown key; did you mean 'permille'? {units}; the format wants per mille: % x 10" in text
+    assert f"gradients[0].to_km: unknown key; did you mean 'to_m'? {units}; the format wants metres: km x 1000" in text
+
+
+def test_a_tight_schedule_names_its_file_and_line_and_is_said_once(tmp_path, root):
+    tight = tmp_path / "tight.yaml"
+    text = (root / "routes/freight-20km.yaml").read_text()
+    text = re.sub(r"^schedule:.*$", "schedule: {run_time_s: 1100, tolerance_s: 30}", text, flags=re.M)
+    tight.write_text(text)
+    line = text.splitlines().index("schedule: {run_time_s: 1100, tolerance_s: 30}") + 1
+    where = f"planned running time 1100 s (the route's schedule, {tight}:{line}: schedule.run_time_s) is below"
+    res = runner.invoke(app, ["compare", str(tight), "--strategies", "time-saving,four-stage,proposed", "--no-gap",
+                              "--e-min", "580"], env={"COLUMNS": "80"})
+    assert res.exit_code == 1
+    out, errs = " ".join(res.stdout.split()), " ".join(res.stderr.split())
+    assert out.count("below the fastest possible run") == 1 and errs.count("below the fastest possible run") == 1
+    assert "four-stage, proposed: no feasible plan: " + where in out
+    assert "error: four-stage, proposed: " + where in errs
+    one = runner.invoke(app, ["optimize", str(tight), "--json", *SMALL])
+    assert one.exit_code == 1 and where in json.loads(one.stdout)["reason"]
+    asked = runner.invoke(app, ["optimize", str(tight), "--time", "1100", "--json", *SMALL])
+    assert "route's schedule" not in asked.stdout  # a --time is the user's, not the file's
+
+
+def test_unknown_consist_lists_the_catalogue():
+    res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--consist", "HXD1-C80x40"])
+    assert res.exit_code == 2
+    assert "HXD1-C80x40: consist: no such file, nor a consist of that name; the catalogue has: " in res.stderr
+    assert "HXD1-C80x50" in res.stderr and "HXD1-C80x30" in res.stderr
+
+
+def test_box_plot_axis_reads_plain_per_cents():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from locoplan.io.plot_runs import _plain_ticks
+
+    fig, ax = plt.subplots()
+    ax.boxplot([[0.1, 0.5, 3.0, 40.0]])
+    ax.set_yscale("symlog", linthresh=2.0)
+    _plain_ticks(ax, 40.0)
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_yticklabels()]
+    assert labels[:6] == ["0", "1", "2", "5", "10", "20"] and not any("^" in x or "10^" in x for x in labels)
+    plt.close(fig)
+
+
+def test_convergence_curve_ends_at_the_reported_value(tmp_path):
+    import numpy as np
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from locoplan.io.load import load_route, load_train
+    from locoplan.io.plot import plot_profiles
+    from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+    route = load_route("routes/freight-20km.yaml")
+    prof = TractionCalculator(route, load_train("configs/consists/HXD1-C80x50.yaml"), ModelOptions()).evaluate(
+        ("T",), np.zeros((1, 0)), profile=True).profile
+    captured = {}
+    import matplotlib.figure
+
+    original = matplotlib.figure.Figure.savefig
+
+    def keep(self, *a, **k):
+        captured["fig"] = self
+        return original(self, *a, **k)
+
+    matplotlib.figure.Figure.savefig = keep
+    try:
+        plot_profiles(tmp_path / "p.png", [("proposed", prof)], "t", histories=[("issa", np.array([0.2, 0.1280]), None, 0.12814)])
+    finally:
+        matplotlib.figure.Figure.savefig = original
+    axc = captured["fig"].axes[-1]
+    labels = [t.get_text() for t in axc.get_legend().get_texts()]
+    assert "issa: 0.12814 reported (reporting grid)" in labels
+    end = [line for line in axc.lines if line.get_label().startswith("issa: ")][0]
+    assert list(end.get_ydata()) == [0.12814] and list(end.get_xdata()) == [2]
+
+
+@pytest.mark.parametrize("argv, field", [(["simulate", "routes/freight-20km.yaml", "--seed", "abc"], "--seed"),
+                                         (["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "x"], "--drivers")])
+def test_json_when_the_command_line_itself_is_refused(argv, field):
+    res = runner.invoke(app, [*argv, "--json"])
+    assert res.exit_code == 2
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and data["exit_code"] == 2 and data["problems"][0]["field"] == field
