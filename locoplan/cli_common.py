@@ -230,8 +230,24 @@ def guarded(fn):
         finally:
             _RUN.reset(token)
             if code is not None and kwargs.get("as_json"):
-                _finish_json(run, code)
+                _print_json(run, code)
     return wrapper
+
+
+def _print_json(run: dict, code: int) -> None:
+    """The --json object, as the command ends; stdout on a full disk or /dev/full is a message and exit 2, a
+    closed pipe a quiet end, as for every other output."""
+    try:
+        _finish_json(run, code)
+        _flush_stdout()
+    except _StdoutClosed:
+        raise typer.Exit(0) from None
+    except OSError as exc:
+        problem = _os_problem(exc)
+        if isinstance(problem, _StdoutClosed):
+            raise typer.Exit(0) from None
+        err.print(f"[bold red]error:[/] {escape(plain(str(problem)))}", highlight=False, markup=True, soft_wrap=True)
+        raise typer.Exit(2) from None
 
 
 MAX_PROBLEMS = 50
