@@ -238,3 +238,21 @@ def test_energy_options_are_validated():
     assert "--efficiency" in text and "--regen" in text and "--comfort" in text
     opts = energy_options("0:0.8,60:0.9", 0.3, 0.5)
     assert opts.energy.efficiency == ((0.0, 0.8), (60.0, 0.9)) and opts.comfort_ms2 == 0.5 and not math.isnan(opts.energy.regen_credit)
+
+
+def test_the_force_axis_is_not_squashed_by_the_braking_bound(small_run, tmp_path):
+    """The energy plot's force axis spans the traction bound and the braking used, down to at most the
+    traction bound below zero; the consist's braking bound (about 1,700 kN with the air brakes against
+    760 kN of traction) and a full-braking stop are cut there and named."""
+    from locoplan.ocp.plot import force_axis_kn, plot_energy_run
+
+    lo, hi, note = force_axis_kn(np.array([0.0, 500.0]), np.array([0.0, 120.0]), np.array([760.0, 600.0]),
+                                 np.array([1700.0, 1600.0]))
+    assert hi == pytest.approx(760 * 1.12) and lo == pytest.approx(-0.25 * 760 * 1.12)  # 120 kN used < 190
+    assert note == "-B max(v) reaches -1,700 kN, below the axis"
+    lo, _, note = force_axis_kn(np.array([700.0]), np.array([600.0]), np.array([760.0]), np.array([650.0]))
+    assert lo == pytest.approx(-600 * 1.12) and note == ""  # the braking used sets it, the bound fits
+    lo, _, note = force_axis_kn(np.array([700.0]), np.array([1900.0]), np.array([760.0]), np.array([1950.0]))
+    assert lo == pytest.approx(-760 * 1.12) and note == "braking reaches -1,900 kN, below the axis"
+    plot_energy_run(tmp_path / "e.png", small_run)
+    assert (tmp_path / "e.png").stat().st_size > 20000

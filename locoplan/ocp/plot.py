@@ -164,6 +164,20 @@ def plot_study(path, study) -> None:
     _save(fig, path, fmt, plt)
 
 
+def force_axis_kn(traction_kn, brake_kn, traction_cap_kn, brake_cap_kn, margin: float = 0.12, depth: float = 1.0):
+    """The force axis of the energy plot: (lowest, highest, note) [kN]. It spans the traction bound and the
+    braking used, but reaches below zero at most ``depth`` x the traction bound: the braking bound (electric
+    + air, up to three times the traction) and a final stop at full braking would otherwise squash the
+    traction into a strip; the note says how deep what is cut goes."""
+    top = max(float(np.max(traction_cap_kn)), float(np.max(traction_kn)), 1.0)
+    used = float(np.max(brake_kn)) if np.size(brake_kn) else 0.0
+    lo, hi = -min(max(used, 0.25 * top), depth * top) * (1 + margin), top * (1 + margin)
+    deepest = max(used, float(np.max(brake_cap_kn)) if np.size(brake_cap_kn) else 0.0)
+    what = "braking" if used * (1 + margin) > -lo else "-B max(v)"
+    note = f"{what} reaches -{deepest if what != 'braking' else used:,.0f} kN, below the axis" if -deepest < lo else ""
+    return lo, hi, note
+
+
 def plot_energy_run(path, run, title: str | None = None) -> None:
     """Seed 001 Fig. 6/7 for one MPOC run: speed over distance (the optimum, its re-simulated plan and
     the limit, neutral sections shaded), the optimum's traction and braking forces with the consist's
@@ -200,8 +214,14 @@ def plot_energy_run(path, run, title: str | None = None) -> None:
     axf.plot(s * km, sol.U[0], ".", color="#d62728", ms=3, label="traction F")
     brake = sol.U[1] + (sol.U[2] if sol.U.shape[0] > 2 else 0.0)
     axf.plot(s * km, -brake, ".", color="#7f7f7f", ms=3, label="braking B (as -B)")
-    axf.plot(s * km, max_force_kn(v, *tm.traction_curve), "-", color="#d62728", lw=0.6, alpha=0.6, label="F max(v)")
-    axf.plot(s * km, -max_force_kn(v, *tm.brake_curve), "-", color="#7f7f7f", lw=0.6, alpha=0.6, label="-B max(v)")
+    f_cap = max_force_kn(v, *tm.traction_curve)
+    b_cap = max_force_kn(v, *tm.brake_curve)
+    axf.plot(s * km, f_cap, "-", color="#d62728", lw=0.6, alpha=0.6, label="F max(v)")
+    axf.plot(s * km, -b_cap, "-", color="#7f7f7f", lw=0.6, alpha=0.6, label="-B max(v)")
+    lo, hi, note = force_axis_kn(sol.U[0], brake, f_cap, b_cap)
+    axf.set_ylim(lo, hi)
+    if note:
+        axf.text(0.005, 0.03, note, transform=axf.transAxes, fontsize=7, color="#555555", va="bottom")
     axf.axhline(0, color="black", lw=0.5)
     axf.set_ylabel("force [kN]")
     axf.grid(alpha=0.3)
