@@ -44,12 +44,12 @@ _DP_HEAD = (_A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F)  #
 ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
     # name: (module, function, return type, argument types)
     "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (
-        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
+        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
         "i8[:]", _A2, _A2, _A1, _B, _B,  # codes starts ends cruise_e has_cruise want_profile
         _A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]",  # t_out work_out over_at stop_at hold_at fb_at
         _A2, _A2, "i1[:, :]", _A2, _A2, _A2)),  # t_nodes v_nodes cond trac brk event
     "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (
-        _A1, _A1, _A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _F, _F, _F, _I, _A1, _A1)),
+        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _F, _F, _F, _I, _A1, _A1)),
     "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (*_DP_HEAD, _A1)),
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",

@@ -202,13 +202,13 @@ class TractionCalculator:
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
         self.e_limit_node[-1] = 0.0  # the train stops at the end
-        self.e_envelope, self._entry_m = self._braking_envelope()
         # cells where full braking holds the limit (else the envelope below them is the speed from which
         # full braking reaches the limit no earlier than where braking can hold again)
         lim_kmh = np.sqrt(2.0 * e_cell) * 3.6
         cells = np.arange(len(mid))
         self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells) + train_resistance_kn(lim_kmh, train.resistance_kn)
                                   + self.gravity_kn) >= 0.0
+        self.e_envelope, self._entry_m = self._braking_envelope()
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
         self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
         self.impossible = self._impossible_descent()
@@ -249,7 +249,7 @@ class TractionCalculator:
             tr = self.train
             count = kernels().braking_envelope(
                 self.s_m, self.h_m, self.e_limit_node, self.e_limit_cell, self.gravity_kn, self.traction_allowed,
-                float(m), self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
+                self.brake_holds_limit, float(m), self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
                 self.air_brake_kn, *map(float, tr.resistance_kn), n_sub, e_env, found)
             return e_env, found[:count].copy()
         e_env = self.e_limit_node.copy()
@@ -258,7 +258,7 @@ class TractionCalculator:
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]
             decel = lambda e_: float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
-            holds = decel(cap) >= 0.0
+            holds = bool(self.brake_holds_limit[k])
             if e >= cap:
                 if holds:  # no braking curve runs through this cell: the limit itself bounds it
                     continue
@@ -290,6 +290,7 @@ class TractionCalculator:
             k += 1
         if e_env[k] <= E_FLOOR:
             k0 = k
+        self._impossible_cell = int(zero[0])  # where every plan fails
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
         e, worst = 0.0, (0.0, k0, 0.0)  # (excess [km/h], cell, position [m])
@@ -404,7 +405,7 @@ class TractionCalculator:
         trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
         tr = self.train
         kernels().run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
-                  self.holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
+                  self.holds_limit, self.brake_holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
                   self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh, self.air_brake_kn,
                   *map(float, tr.resistance_kn), bool(self.options.strict_limits),
                   codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n),
@@ -627,8 +628,7 @@ class TractionCalculator:
                           np.where(first_over == first, LIMIT_EXCEEDED,
                                    np.where(braking_at_stop | short, STOPPED_SHORT, STALLED)))).astype(np.int8)
         if self.impossible is not None:  # no plan keeps the limits: every one fails where the route does
-            k0 = int(np.flatnonzero(e_env[:-1] <= E_FLOOR)[0])
-            first = np.minimum(first, k0)
+            first = np.minimum(first, self._impossible_cell)
             failed = np.ones_like(failed)
             cell = first.copy()
             reason = np.full_like(reason, IMPOSSIBLE)

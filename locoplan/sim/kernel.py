@@ -122,7 +122,7 @@ def _shares(s0, s1, codes, starts, ends, j0, out):
 
 
 @njit(cache=True)
-def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, ev, ef, av, af, ra, rb, rc, strict,
+def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds, m, tv, tf, ev, ef, av, af, ra, rb, rc, strict,
               codes, starts, ends, cruise_e, has_cruise, want_profile,
               t_out, work_out, over_at, stop_at, hold_at, fb_at,
               t_nodes, v_nodes, cond, trac, brk, event):
@@ -132,7 +132,8 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
     begins and ends [m] (inf = never); cruise_e (n,) e = v^2/2 of the plan's cruise speed (with
     ``has_cruise``): the seeds' cruise, T and K capped at that speed and held there by braking if need
     be. (ev, ef) the electric brake, cut with traction where ``allowed`` is 0 (a neutral section's span),
-    (av, af) the air brake. Profile arrays are written only when ``want_profile``.
+    (av, af) the air brake. ``brake_holds`` (per cell): full braking holds the limit there (else the envelope,
+    which the train follows under full braking, lies below it). Profile arrays are written only when ``want_profile``.
     """
     n = starts.shape[0]
     n_cells = h.shape[0]
@@ -203,7 +204,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 if holds_limit[k] or has_cruise:
                     e_fb = e_phi + (hk * (1.0 - phi) / m) * (-b_max - load)
                     if e_fb > c1 and (holds_limit[k] or c1 < c1_env):
-                        if _decel(e_limit_cell[k], k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) >= 0.0:
+                        if brake_holds[k]:
                             e_new = e_fb
                             if hold_at[i] < 0 and e_fb > e_env[k + 1] * (1 + 1e-9) + 1e-9:
                                 hold_at[i] = k
@@ -251,8 +252,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
                 if capped and phi < 0.5:
                     # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
                     # (B); on a level cap it holds the limit (K)
-                    braking = (c1 < c0 - 1e-5 * max(c0, 1.0)
-                               or _decel(e_limit_cell[k], k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) < 0.0)
+                    braking = c1 < c0 - 1e-5 * max(c0, 1.0) or not brake_holds[k]
                     cond[i, k] = B if braking else K
                 else:
                     cond[i, k] = dom
@@ -268,7 +268,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, m, tv, tf, 
 
 
 @njit(cache=True)
-def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, m, ev, ef, av, af, ra, rb, rc, n_sub,
+def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, brake_holds, m, ev, ef, av, af, ra, rb, rc, n_sub,
                      e_env, entries):
     """The calculator's braking envelope (``TractionCalculator._braking_envelope``, the same arithmetic):
     from the stop and every limit drop backwards, full braking (the electric brake where traction is
@@ -281,7 +281,7 @@ def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, m, ev, ef,
     for k in range(h.shape[0] - 1, -1, -1):
         e = e_env[k + 1]
         cap = e_limit_cell[k]
-        holds = _decel(cap, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc) >= 0.0
+        holds = brake_holds[k]  # full braking holds the limit in this cell (the calculator's brake_holds_limit)
         if e >= cap:
             if holds:  # no braking curve runs through this cell: the limit itself bounds it
                 continue
