@@ -1,0 +1,44 @@
+"""Units and constants, once (SPEC section 1). Plain numbers and scalar functions: numpy arrays, numba
+kernels and CasADi symbols all take them (every operation here is arithmetic, nothing else)."""
+
+from __future__ import annotations
+
+G_MS2 = 9.81
+"""Gravitational acceleration [m/s^2]."""
+KMH_PER_MS = 3.6
+"""1 m/s = 3.6 km/h."""
+KJ_PER_KWH = 3600.0
+"""1 kWh = 3600 kJ (a force in kN over a distance in m is a work in kJ)."""
+S_PER_H = 3600.0
+"""Seconds in an hour."""
+
+
+def ms(speed_kmh):
+    """Speed [km/h] -> [m/s]."""
+    return speed_kmh / KMH_PER_MS
+
+
+def kmh(speed_ms):
+    """Speed [m/s] -> [km/h]."""
+    return speed_ms * KMH_PER_MS
+
+
+def kinetic_e(speed_kmh):
+    """e = v^2/2 [m^2/s^2] (kinetic energy per unit mass) of a speed in km/h: the calculator's state."""
+    v = speed_kmh / KMH_PER_MS
+    return v * v / 2.0
+
+
+def kmh_from_e(e):
+    """Speed [km/h] of a kinetic energy per unit mass e = v^2/2 [m^2/s^2] (e >= 0)."""
+    return (2.0 * e) ** 0.5 * KMH_PER_MS
+
+
+def kwh(work_kj):
+    """Work [kJ] (e.g. kN x m) -> [kWh]."""
+    return work_kj / KJ_PER_KWH
+
+
+def weight_kn(mass_t):
+    """Weight [kN] of a mass in tonnes: m g."""
+    return mass_t * G_MS2
