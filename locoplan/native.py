@@ -16,9 +16,10 @@ extension module in the cache folder; every later process imports that module, w
   functions (``cache=True``) are used instead; same code, same results (``tests/test_native.py``). A
   failed build leaves a ``.failed`` file with its log and is not retried until that file is removed.
 
-The ahead-of-time functions check nothing about their arguments (a float32 array would be read as
-float64), so every call goes through :class:`_Checked`, which verifies each array's dtype, rank and
-contiguity first.
+The entry points take records (``sim/records.py``); their signatures are built from the records' field
+types, written once there. The ahead-of-time functions check nothing about their arguments (a float32
+array would be read as float64), so every call goes through :class:`_Checked`, which verifies each
+array's dtype, rank and contiguity first, inside records too.
 """
 
 from __future__ import annotations
@@ -37,25 +38,21 @@ from pathlib import Path
 
 import numpy as np
 
-_F, _I, _I1, _B = "f8", "i8", "i1", "b1"
-_A1, _A2, _A4 = "f8[:]", "f8[:, :]", "f8[:, :, :, :]"
-_DP_HEAD = (_A1, _A1, _A1, _A1, _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F)  # h grav allowed e_cap m tv tf ev ef av af ra rb rc
+from .sim.records import FIELD_TYPES, Cells, DPCells, Forces, Outputs, Plans
 
-ENTRY_POINTS: dict[str, tuple[str, str, str, tuple[str, ...]]] = {
-    # name: (module, function, return type, argument types)
-    "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (
-        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _F, _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F, _B,  # s .. strict
-        "i8[:]", _A2, _A2, _A1, _B, _B,  # codes starts ends cruise_e has_cruise want_profile
-        _A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]",  # t_out work_out over_at stop_at hold_at fb_at
-        _A2, _A2, "i1[:, :]", _A2, _A2, _A2)),  # t_nodes v_nodes cond trac brk event
-    "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (
-        _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", _F, _A1, _A1, _A1, _A1, _F, _F, _F, _I, _A1, _A1)),
-    "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (*_DP_HEAD, _A1)),
-    "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1)),
+_F, _I, _A1, _A4 = "f8", "i8", "f8[:]", "f8[:, :, :, :]"
+
+ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
+    # name: (module, function, return type, argument types: a type string or a record class)
+    "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (Cells, Forces, Plans, Outputs)),
+    "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (Cells, Forces, _I, _A1, _A1)),
+    "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (DPCells, Forces, _A1)),
+    "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
-                (*_DP_HEAD, _A1, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
+                (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
 }
-_SOURCES = ("sim/constants.py", "sim/kernel.py", "optimize/dp_kernel.py", "native.py")
+_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "native.py",
+            "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py")
 BUILD_TIMEOUT_S = 900.0
 
 _kernels = None
@@ -87,29 +84,36 @@ class _Checked:
 
     _DTYPES = {"f8": np.float64, "i8": np.int64, "i1": np.int8, "b1": np.bool_}
 
-    def __init__(self, name: str, fn, arg_types: tuple[str, ...]):
+    def __init__(self, name: str, fn, arg_types: tuple):
         self.name, self.fn = name, fn
-        self.spec = []
-        for a in arg_types:
-            base = a.split("[")[0]
-            rank = a.count(":") if "[" in a else 0
-            self.spec.append((self._DTYPES[base], rank))
+        self.spec = [self._spec(a) for a in arg_types]
+
+    @classmethod
+    def _spec(cls, a):
+        if isinstance(a, type):  # a record: the spec of each field
+            return (a, [cls._spec(f) for f in FIELD_TYPES[a]])
+        base = a.split("[")[0]
+        return (cls._DTYPES[base], a.count(":") if "[" in a else 0)
 
     def __call__(self, *args):
         if len(args) != len(self.spec):
             raise TypeError(f"{self.name}: expected {len(self.spec)} arguments, got {len(args)}")
-        conv = []
-        for i, (a, (dtype, rank)) in enumerate(zip(args, self.spec)):
-            if rank:
-                if not (isinstance(a, np.ndarray) and a.dtype == dtype and a.ndim == rank and a.flags.c_contiguous
-                        and a.flags.aligned):
-                    got = f"{a.dtype} rank {a.ndim}" if isinstance(a, np.ndarray) else type(a).__name__
-                    raise TypeError(f"{self.name}: argument {i} must be a C-contiguous {np.dtype(dtype)} array of "
-                                    f"rank {rank}, not {got}")
-                conv.append(a)
-            else:
-                conv.append(dtype(a).item())
-        return self.fn(*conv)
+        return self.fn(*(self._convert(a, spec, f"argument {i}") for i, (a, spec) in enumerate(zip(args, self.spec))))
+
+    def _convert(self, a, spec, where: str):
+        kind, rank = spec
+        if isinstance(rank, list):  # a record
+            if type(a) is not kind:
+                raise TypeError(f"{self.name}: {where} must be a {kind.__name__}, not {type(a).__name__}")
+            return kind(*(self._convert(x, s, f"{where}.{f}") for x, s, f in zip(a, rank, kind._fields)))
+        if rank:
+            if not (isinstance(a, np.ndarray) and a.dtype == kind and a.ndim == rank and a.flags.c_contiguous
+                    and a.flags.aligned):
+                got = f"{a.dtype} rank {a.ndim}" if isinstance(a, np.ndarray) else type(a).__name__
+                raise TypeError(f"{self.name}: {where} must be a C-contiguous {np.dtype(kind)} array of "
+                                f"rank {rank}, not {got}")
+            return a
+        return kind(a).item()
 
 
 class _Namespace:
@@ -224,8 +228,28 @@ def _compile_here(out_dir: str, name: str) -> None:
     cc.verbose = False
     for export, (mod, fn, ret, args) in ENTRY_POINTS.items():
         func = getattr(importlib.import_module(mod), fn)
-        cc.export(export, f"{ret}({', '.join(args)})")(func.py_func)
+        cc.export(export, _signature(ret, args))(func.py_func)
     cc.compile()
+
+
+def _numba_type(a):
+    """A numba type of an argument spec: a type string ("f8[:]" = a C-contiguous float64 vector) or a
+    record class (a ``NamedTuple`` of its fields' types)."""
+    from numba import types
+
+    if isinstance(a, type):
+        return types.NamedTuple([_numba_type(f) for f in FIELD_TYPES[a]], a)
+    ty = eval(a, {}, vars(types))  # noqa: S307 (our own type strings: "f8", "f8[:, :]", ...)
+    if isinstance(ty, types.Array):
+        ty = ty.copy(layout="C")
+    return ty
+
+
+def _signature(ret: str, args: tuple):
+    from numba import types
+    from numba.core.typing import signature
+
+    return signature(eval(ret, {}, vars(types)), *(_numba_type(a) for a in args))  # noqa: S307
 
 
 if __name__ == "__main__":

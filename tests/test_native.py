@@ -16,6 +16,7 @@ import pytest
 from locoplan import native
 from locoplan.optimize.dp import PricedDriveSolver
 from locoplan.sim.calculator import TractionCalculator
+from locoplan.sim.records import DPCells, Forces
 
 ROOT = Path(__file__).resolve().parents[1]
 RTOL = 1e-12
@@ -76,15 +77,22 @@ def test_dp_agrees_with_the_jit_kernel(freight, both, monkeypatch):
 
 
 def test_wrong_argument_types_are_refused(both):
+    """The ahead-of-time functions read memory as their signature says: every array, inside the records
+    too, is checked for dtype, rank and contiguity before the call."""
     nat, _ = both
     h = np.full(4, 100.0)
-    args = [h, h, np.ones(4), np.full(5, 100.0), 5000.0, h, h, h, h, h, h, 1.0, 0.1, 0.01, np.zeros(5)]
-    with pytest.raises(TypeError, match="argument 0 must be a C-contiguous float64 array of rank 1, not float32"):
-        nat.stall_boundary(h.astype(np.float32), *args[1:])
-    with pytest.raises(TypeError, match="argument 14"):
-        nat.stall_boundary(*args[:14], np.zeros(10)[::2])  # not contiguous: an output must not be a copy
-    with pytest.raises(TypeError, match="expected 15 arguments"):
-        nat.stall_boundary(*args[:14])
+    cells = DPCells(h, h, np.ones(4), np.full(5, 100.0), np.arange(5.0))
+    forces = Forces(5000.0, h, h, h, h, h, h, 1.0, 0.1, 0.01)
+    with pytest.raises(TypeError, match=r"argument 0.h must be a C-contiguous float64 array of rank 1, not float32"):
+        nat.stall_boundary(cells._replace(h=h.astype(np.float32)), forces, np.zeros(5))
+    with pytest.raises(TypeError, match=r"argument 1.tf must be a C-contiguous float64 array"):
+        nat.stall_boundary(cells, forces._replace(tf=np.zeros(8)[::2]), np.zeros(5))
+    with pytest.raises(TypeError, match="argument 2"):
+        nat.stall_boundary(cells, forces, np.zeros(10)[::2])  # not contiguous: an output must not be a copy
+    with pytest.raises(TypeError, match="argument 0 must be a DPCells, not tuple"):
+        nat.stall_boundary(tuple(cells), forces, np.zeros(5))
+    with pytest.raises(TypeError, match="expected 3 arguments"):
+        nat.stall_boundary(cells, forces)
 
 
 def test_a_failed_build_falls_back_to_jit_and_is_not_retried(tmp_path, monkeypatch, freight):

@@ -7,10 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
+from ..physics.braking import air_brake_curve_kn
+from ..physics.resistance import unit_to_train_coefficients_kn
+from ..physics.units import G_MS2  # noqa: F401  (re-exported: where a Train's numbers come from)
 from .consist import Consist, Vehicle
-
-G_MS2 = 9.81
-"""Gravitational acceleration [m/s^2] (SPEC section 1)."""
 
 
 @dataclass(frozen=True)
@@ -68,8 +68,6 @@ class Train:
 
     @classmethod
     def from_consist(cls, consist: Consist, vehicles: dict[str, Vehicle]) -> "Train":
-        from ..physics.braking import air_brake_curve_kn
-
         mass = inertial = length = 0.0
         coeffs = np.zeros(3)
         n = 0
@@ -83,7 +81,7 @@ class Train:
             inertial += entry.count * m * veh.rotating_mass_factor
             length += entry.count * veh.length_m
             r = veh.resistance_n_per_kn
-            coeffs += entry.count * m * G_MS2 / 1000.0 * np.array([r.a, r.b, r.c])
+            coeffs += np.array(unit_to_train_coefficients_kn(r.a, r.b, r.c, entry.count * m))
             vmax = min(vmax, veh.max_speed_kmh)
             n += entry.count
             if veh.kind == "locomotive":

@@ -26,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..native import kernels
+from ..physics.units import kmh_from_e, kwh, ms
 from ..sim.calculator import TractionCalculator
+from ..sim.records import DPCells, contiguous
 
 T_, H_, C_, B_ = 0, 1, 2, 3
 DP_CONDITIONS = "TKCB"  # H holds the speed at which it starts: the calculator's K
@@ -103,29 +105,25 @@ class PricedDriveSolver:
         gravity = np.diff(work[idx]) / h
         allowed = np.array([calc.traction_allowed[a:b].min() for a, b in zip(idx[:-1], idx[1:])])
         cap = dp_caps(calc, idx)
-        top = float(np.sqrt(2.0 * max(calc.e_envelope.max(), 0.0)) * 3.6)
-        self.v_grid = np.arange(0.0, top + speed_step_kmh, speed_step_kmh) / 3.6
-        tr = calc.train
-        self._args = (np.ascontiguousarray(h), np.ascontiguousarray(gravity), np.ascontiguousarray(allowed),
-                      np.ascontiguousarray(cap), float(calc.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
-                      calc.electric_brake_speed_kmh, calc.electric_brake_kn, calc.air_brake_speed_kmh,
-                      calc.air_brake_kn, *map(float, tr.resistance_kn), self.v_grid)
+        top = float(kmh_from_e(max(calc.e_envelope.max(), 0.0)))
+        self.v_grid = ms(np.arange(0.0, top + speed_step_kmh, speed_step_kmh))
+        self._cells = contiguous(DPCells(h, gravity, allowed, cap, self.v_grid))
         if run_buckets is None:  # a bucket no longer than the shortest cell (a run advances a bucket per cell)
             run_buckets = int(min(MAX_RUN_BUCKETS, max(RUN_BUCKETS, math.ceil(self.min_run_m / max(h.min(), 1e-9) - 1e-9))))
         self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))
         self._low = np.zeros(len(h) + 1)  # each node's lowest feasible e = v^2/2 under full traction
-        kernels().stall_boundary(*self._args[:14], self._low)
+        kernels().stall_boundary(self._cells, calc.forces, self._low)
 
     def solve(self, price_kwh_per_s: float) -> PricedDrive | None:
         n = len(self.s_m) - 1
-        kernels().backward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg, self._low)
+        kernels().backward(self._cells, self.calc.forces, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg, self._low)
         controls = np.zeros(n, dtype=np.int64)
         speeds = np.zeros(n + 1)
-        t, work = kernels().forward(*self._args, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg,
+        t, work = kernels().forward(self._cells, self.calc.forces, float(price_kwh_per_s), self.switch_penalty_kwh, self.min_run_m, self._ctg,
                            self._low, controls, speeds)
         if not math.isfinite(t):
             return None
-        return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), float(work) / 3600.0)
+        return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), kwh(float(work)))
 
     def for_time(self, t0_s: float, n_bisect: int = 12, price_range=(1e-4, 50.0), timer=None,
                  close_s: float = 0.0) -> PricedDrive | None:

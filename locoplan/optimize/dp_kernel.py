@@ -11,9 +11,13 @@ import math
 import numpy as np
 from numba import njit
 
-from ..sim.kernel import brake_kn, locate
+from ..model.conditions import B as B_
+from ..model.conditions import K as H_
+from ..model.conditions import T as T_
+from ..physics.units import KJ_PER_KWH
+from ..sim.kernel import brake_kn, e_from_ms, kmh, load_kn, locate, ms_from_e
 
-T_, H_, C_, B_ = 0, 1, 2, 3
+# (controls: T_ full traction, H_ hold the speed (cruise, K), C coast, B_ full braking)
 
 
 @njit(cache=True)
@@ -63,31 +67,31 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
 
 
 @njit(cache=True)
-def _step(e, u, h, m, g_k, allowed, tv, tf, ev, ef, av, af, ra, rb, rc):
+def _step(e, u, h, g_k, allowed, fo):
     """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
-    v_kmh = math.sqrt(2.0 * e) * 3.6
-    load0 = v_kmh * (rb + rc * v_kmh) + ra + g_k
+    v_kmh = kmh(ms_from_e(e))
+    load0 = load_kn(v_kmh, g_k, fo)
     if u == H_:
-        f_max = _interp1(v_kmh, tv, tf) * allowed
-        b_max = brake_kn(v_kmh, allowed, ev, ef, av, af)
+        f_max = _interp1(v_kmh, fo.tv, fo.tf) * allowed
+        b_max = brake_kn(v_kmh, allowed, fo)
         if load0 > f_max or -load0 > b_max:
             return -1.0, 0.0
         return e, max(load0, 0.0) * h
     # predictor at the start speed, forces again at the mid-speed (the calculator's second-order step)
     e1 = e
     for _ in range(2):
-        vm = math.sqrt(max(e + e1, 0.0)) * 3.6  # sqrt(2 (e + e1) / 2) in km/h
+        vm = kmh(ms_from_e(max(0.5 * (e + e1), 0.0)))  # at the mean of e and e1
         f = 0.0
         b = 0.0
         if u == T_:
-            f = _interp1(vm, tv, tf) * allowed
+            f = _interp1(vm, fo.tv, fo.tf) * allowed
         elif u == B_:
-            b = brake_kn(vm, allowed, ev, ef, av, af)
-        load = vm * (rb + rc * vm) + ra + g_k
-        e1 = e + h / m * (f - b - load)
+            b = brake_kn(vm, allowed, fo)
+        load = load_kn(vm, g_k, fo)
+        e1 = e + h / fo.m * (f - b - load)
     if u == T_:
-        vm = math.sqrt(max(e + e1, 0.0)) * 3.6
-        return e1, _interp1(vm, tv, tf) * allowed * h
+        vm = kmh(ms_from_e(max(0.5 * (e + e1), 0.0)))
+        return e1, _interp1(vm, fo.tv, fo.tf) * allowed * h
     return e1, 0.0
 
 
@@ -112,17 +116,17 @@ def _bracket(v1, dv, nv, v_cap):
 
 
 @njit(cache=True)
-def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc):
+def _capped_step(e, u, k, n, dp, fo):
     """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
     calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
     = not possible. The last cell ends at rest."""
-    e1, w = _step(e, u, h[k], m, grav[k], allowed[k], tv, tf, ev, ef, av, af, ra, rb, rc)
-    cap = 0.0 if k == n - 1 else e_cap[k + 1]
+    e1, w = _step(e, u, dp.h[k], dp.grav[k], dp.allowed[k], fo)
+    cap = 0.0 if k == n - 1 else dp.e_cap[k + 1]
     if e1 > cap * (1.0 + 1e-9) + 1e-9:
         if u == B_:
             e_b = e1
         else:
-            e_b, _ = _step(e, B_, h[k], m, grav[k], allowed[k], tv, tf, ev, ef, av, af, ra, rb, rc)
+            e_b, _ = _step(e, B_, dp.h[k], dp.grav[k], dp.allowed[k], fo)
         # full braking keeps the train at or under the cap (a tolerance for the envelope's finer steps)
         if e_b > cap + 0.02 * (e - cap if e > cap else 0.0) + 1e-3 * max(e, 1.0):
             return -1.0, 0.0
@@ -133,22 +137,22 @@ def _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af,
 
 
 @njit(cache=True)
-def _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc):
+def _move(e, v, u, k, n, dp, fo):
     """Control u over cell k from e (speed v): (e at its end, work [kJ], speed at its end); e < 0 = not
     possible (no hold from rest, a cap it cannot stay under, or no motion at all)."""
     if u == H_ and e <= 0.0:
         return -1.0, 0.0, 0.0
-    e1, w = _capped_step(e, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+    e1, w = _capped_step(e, u, k, n, dp, fo)
     if e1 < 0.0:
         return -1.0, 0.0, 0.0
-    v1 = math.sqrt(2.0 * e1)
+    v1 = ms_from_e(e1)
     if v + v1 <= 0.0:
         return -1.0, 0.0, 0.0
     return e1, w, v1
 
 
 @njit(cache=True)
-def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc, e_low_next):
+def _lowest_energy(k, n, dp, fo, e_low_next):
     """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
     node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
     does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
@@ -157,10 +161,10 @@ def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra,
         return np.inf
 
     def ok(e):
-        e1, _ = _capped_step(e, T_, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+        e1, _ = _capped_step(e, T_, k, n, dp, fo)
         return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
 
-    hi = max(e_cap[k], 0.0)
+    hi = max(dp.e_cap[k], 0.0)
     if not ok(hi):
         return np.inf
     lo = 0.0
@@ -176,13 +180,13 @@ def _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra,
 
 
 @njit(cache=True)
-def _stall_boundary(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, e_low):
+def _stall_boundary(dp, fo, e_low):
     """Every node's lowest feasible e (``_lowest_energy``), from the stop backwards; it depends on the
     route and the train only, not on the price, so it is computed once per solver."""
-    n = h.shape[0]
+    n = dp.h.shape[0]
     e_low[n] = 0.0
     for k in range(n - 1, -1, -1):
-        e_low[k] = _lowest_energy(k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc, e_low[k + 1])
+        e_low[k] = _lowest_energy(k, n, dp, fo, e_low[k + 1])
 
 
 @njit(cache=True)
@@ -194,12 +198,12 @@ def _run_bucket(r, min_run, n_buckets):
 
 
 @njit(cache=True)
-def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
-              e_low):  # e_low: _stall_boundary's
+def _backward(dp, fo, price, penalty, min_run, cost_to_go, e_low):  # e_low: _stall_boundary's
     """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
     at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
     progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
     none). A run may end only once it is ``min_run`` long (seed 002 eq. 3), except the final braking."""
+    h, e_cap, v_grid = dp.h, dp.e_cap, dp.v_grid
     n = h.shape[0]
     nv = v_grid.shape[0]
     nb = cost_to_go.shape[2] - 1
@@ -214,12 +218,12 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_
     w_i = np.zeros(4)
     dv = v_grid[1] - v_grid[0]
     for k in range(n - 1, -1, -1):
-        v_cap_next = math.sqrt(2.0 * max(e_cap[k + 1], 0.0))
-        v_low_next = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
+        v_cap_next = ms_from_e(max(e_cap[k + 1], 0.0))
+        v_low_next = ms_from_e(e_low[k + 1]) if math.isfinite(e_low[k + 1]) else np.inf
         for j in range(nv + 1):
             if j < nv:
                 v = v_grid[j]
-                e = 0.5 * v * v
+                e = e_from_ms(v)
                 if e > e_cap[k] * (1.0 + 1e-9) + 1e-9:
                     for c in range(4):
                         for b in range(nb + 1):
@@ -227,14 +231,14 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_
                     continue
             else:
                 e = max(e_cap[k], 0.0)
-                v = math.sqrt(2.0 * e)
+                v = ms_from_e(e)
             for u in range(4):
                 step_cost[u] = np.inf
                 step_next[u] = -1.0
-                e1, w, v1 = _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+                e1, w, v1 = _move(e, v, u, k, n, dp, fo)
                 if e1 < 0.0:
                     continue
-                step_cost[u] = w / 3600.0 + price * 2.0 * h[k] / (v + v1)
+                step_cost[u] = w / KJ_PER_KWH + price * 2.0 * h[k] / (v + v1)
                 step_next[u] = v1
             for u in range(4):
                 if step_next[u] >= 0.0 and k < n - 1:
@@ -277,9 +281,9 @@ def _backward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_
 
 
 @njit(cache=True)
-def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_grid, price, penalty, min_run, cost_to_go,
-             e_low, controls, speeds):
+def _forward(dp, fo, price, penalty, min_run, cost_to_go, e_low, controls, speeds):
     """The drive from rest: each cell's best control at the actual speed and run; returns (time [s], work [kJ])."""
+    h, e_cap, v_grid = dp.h, dp.e_cap, dp.v_grid
     n = h.shape[0]
     nb = cost_to_go.shape[2] - 1
     e = 0.0
@@ -290,7 +294,7 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_g
     run = min_run  # before the first cell any condition may start
     first = True
     for k in range(n):
-        v = math.sqrt(2.0 * e)
+        v = ms_from_e(e)
         best = np.inf
         best_u = -1
         best_e = 0.0
@@ -299,7 +303,7 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_g
         for u in range(4):
             if k > 0 and u != prev and run < min_run - 1e-9:
                 continue
-            e1, w, v1 = _move(e, v, u, k, n, h, m, grav, allowed, e_cap, tv, tf, ev, ef, av, af, ra, rb, rc)
+            e1, w, v1 = _move(e, v, u, k, n, dp, fo)
             if e1 < 0.0:
                 continue
             r1 = (run + h[k]) if (k > 0 and u == prev) else h[k]
@@ -307,10 +311,10 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_g
                 r1 = min_run  # the departure run may end anywhere (see the module docstring)
             b1 = _run_bucket(r1, min_run, nb)
             # the stall boundary holds for a state that may take full traction next (_stall_boundary)
-            v_low = math.sqrt(2.0 * e_low[k + 1]) if math.isfinite(e_low[k + 1]) and (u == T_ or b1 == nb) else np.inf
-            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], math.sqrt(2.0 * max(e_cap[k + 1], 0.0)),
+            v_low = ms_from_e(e_low[k + 1]) if math.isfinite(e_low[k + 1]) and (u == T_ or b1 == nb) else np.inf
+            rest = _interp_node(v1, v_grid, cost_to_go[k + 1, u, b1], ms_from_e(max(e_cap[k + 1], 0.0)),
                                 v_low) if k < n - 1 else 0.0
-            c = w / 3600.0 + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
+            c = w / KJ_PER_KWH + price * 2.0 * h[k] / (v + v1) + rest + (penalty if (k > 0 and u != prev) else 0.0)
             if c < best:
                 best, best_u, best_e, best_w, best_run = c, u, e1, w, r1
         if best_u < 0:
@@ -320,8 +324,8 @@ def _forward(h, grav, allowed, e_cap, m, tv, tf, ev, ef, av, af, ra, rb, rc, v_g
         controls[k] = best_u
         prev = best_u
         run = best_run
-        t += 2.0 * h[k] / (v + math.sqrt(2.0 * best_e))
+        t += 2.0 * h[k] / (v + ms_from_e(best_e))
         work += best_w
         e = best_e
-        speeds[k + 1] = math.sqrt(2.0 * e) * 3.6
+        speeds[k + 1] = kmh(ms_from_e(e))
     return t, work

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.train import G_MS2
+from .units import G_MS2
 
 AIR_BRAKE_SAMPLE_KMH = 2.0
 """Speed spacing [km/h] at which a braking-ratio brake is tabulated into a piecewise-linear curve
@@ -24,6 +24,19 @@ def composite_shoe_friction(speed_kmh):
 
 
 SHOE_FRICTION = {"composite": composite_shoe_friction}
+
+
+def full_brake_kn(electric_kn, air_kn, catenary):
+    """Full braking [kN]: the locomotives' electric brake where the catenary feeds it (``catenary`` 1,
+    0 in a neutral section's span, where the main breaker is open) plus the wagons' air brake, which
+    works everywhere. Plain arithmetic (numbers, arrays, the compiled kernels)."""
+    return electric_kn * catenary + air_kn
+
+
+def electric_share_kn(brake_kn, electric_max_kn):
+    """The electric brake's part of a braking force [kN] (blended braking: the electric brake takes its
+    share first, up to what it has at that speed, the air brake the rest)."""
+    return np.minimum(brake_kn, electric_max_kn)
 
 
 def air_brake_curve_kn(braking_ratio: float, shoe: str, loaded_mass_t: float, max_speed_kmh: float):

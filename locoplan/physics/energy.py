@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backend import as_operand, piecewise_linear
-
-KJ_PER_KWH = 3600.0
+from .braking import electric_share_kn
+from .units import KJ_PER_KWH
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,6 @@ def profile_energy_kwh(s_m, v_kmh, traction_kn, brake_kn, electric_brake_curve, 
     v = np.asarray(v_kmh, dtype=float)
     v_mid = 0.5 * (v[1:] + v[:-1])
     brake = np.asarray(brake_kn, dtype=float)
-    b_e = np.minimum(brake, piecewise_linear(v_mid, *electric_brake_curve))
+    b_e = electric_share_kn(brake, piecewise_linear(v_mid, *electric_brake_curve))
     rate = energy_rate_kn(np.asarray(traction_kn, dtype=float), b_e, v_mid, model)
     return float(np.sum(rate * np.diff(s)) / KJ_PER_KWH)

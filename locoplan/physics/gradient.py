@@ -7,9 +7,20 @@ spreads it over the train: 600 * Lc / (Rc * L_train).
 
 from __future__ import annotations
 
+from typing import Protocol, Sequence
+
 import numpy as np
 
-from ..model.route import Route
+
+class Track(Protocol):
+    """What the gradient functions read of a line (``model.route.Route`` is one): its length and its
+    gradient, curve and tunnel sections, each with ``from_m`` / ``to_m`` and ``permille`` (gradients) or
+    ``radius_m`` (curves)."""
+
+    length_m: float
+    gradients: Sequence
+    curves: Sequence
+    tunnels: Sequence
 
 
 def curve_gradient_permille(radius_m, curve_length_m=None, train_length_m=None):
@@ -36,7 +47,7 @@ def _step_function(edges_from, edges_to, values, s_m):
     return out
 
 
-def point_gradient_permille(route: Route, s_m, train_length_m: float | None = None):
+def point_gradient_permille(route: Track, s_m, train_length_m: float | None = None):
     """Equivalent gradient at the train's head position ``s_m`` for a point-mass train [per mille].
 
     A curve longer than the train counts 600/R over its own extent; a shorter one counts
@@ -61,7 +72,7 @@ def point_gradient_permille(route: Route, s_m, train_length_m: float | None = No
     return total
 
 
-def point_gradient_knots(route: Route) -> tuple[np.ndarray, np.ndarray]:
+def point_gradient_knots(route: Track) -> tuple[np.ndarray, np.ndarray]:
     """The point-mass equivalent gradient (curves at 600/R over their own extent) as a step function:
     knots [m] (every section boundary) and the value on each piece between them [per mille]."""
     knots = {0.0, float(route.length_m)}
@@ -72,7 +83,7 @@ def point_gradient_knots(route: Route) -> tuple[np.ndarray, np.ndarray]:
     return x, point_gradient_permille(route, 0.5 * (x[1:] + x[:-1]))
 
 
-def strip_gradient_permille(route: Route, s_m, train_length_m: float):
+def strip_gradient_permille(route: Track, s_m, train_length_m: float):
     """Equivalent gradient averaged over the train's body [s - L, s] (train as a uniform strip) [per mille].
 
     A 650 m train on a 600 m curve is not a point: this is the mean of the point-mass equivalent
@@ -89,7 +100,7 @@ def strip_gradient_permille(route: Route, s_m, train_length_m: float):
     return (np.interp(s, xs, cs) - np.interp(s - train_length_m, xs, cs)) / train_length_m
 
 
-def equivalent_gradient_permille(route: Route, s_m, train_length_m: float, strip: bool = False):
+def equivalent_gradient_permille(route: Track, s_m, train_length_m: float, strip: bool = False):
     """Equivalent gradient along the route at head positions ``s_m`` [per mille]."""
     if strip:
         return strip_gradient_permille(route, s_m, train_length_m)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.train import G_MS2
 from .backend import as_operand, piecewise_linear
+from .units import G_MS2
 
 
 def max_force_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray):

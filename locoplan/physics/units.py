@@ -1,7 +1,10 @@
-"""Units and constants, once (SPEC section 1). Plain numbers and scalar functions: numpy arrays, numba
-kernels and CasADi symbols all take them (every operation here is arithmetic, nothing else)."""
+"""Units and constants, once (SPEC section 1). Plain numbers and scalar functions that numbers, numpy
+arrays and (compiled with ``numba.njit``) the kernels all take; every one but ``kmh_from_e`` is plain
+arithmetic, so CasADi symbols take them too."""
 
 from __future__ import annotations
+
+import numpy as np
 
 G_MS2 = 9.81
 """Gravitational acceleration [m/s^2]."""
@@ -29,9 +32,19 @@ def kinetic_e(speed_kmh):
     return v * v / 2.0
 
 
+def e_from_ms(speed_ms):
+    """e = v^2/2 [m^2/s^2] of a speed in m/s."""
+    return speed_ms * speed_ms / 2.0
+
+
+def ms_from_e(e):
+    """Speed [m/s] of e = v^2/2 [m^2/s^2] (e >= 0)."""
+    return np.sqrt(2.0 * e)
+
+
 def kmh_from_e(e):
     """Speed [km/h] of a kinetic energy per unit mass e = v^2/2 [m^2/s^2] (e >= 0)."""
-    return (2.0 * e) ** 0.5 * KMH_PER_MS
+    return np.sqrt(2.0 * e) * KMH_PER_MS
 
 
 def kwh(work_kj):

@@ -34,11 +34,15 @@ from .. import bounds
 from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import Train
+from ..model.conditions import CODE
+from ..physics.braking import full_brake_kn
 from ..physics.gradient import equivalent_gradient_permille
-from ..physics.resistance import train_resistance_kn
+from ..physics.resistance import running_load_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
+from ..physics.units import kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
-from .result import CANNOT_HOLD, CODE, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+from .records import Cells, Forces, Outputs, Plans, contiguous
+from .result import CANNOT_HOLD, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -98,7 +102,7 @@ def neutral_spans_m(route: Route, train_length_m: float = 0.0) -> list[tuple[flo
 
     def limit_ms(x: float) -> float:
         i = int(np.clip(np.searchsorted(starts, x, side="right") - 1, 0, len(sl) - 1))
-        return sl[i].kmh / 3.6
+        return ms(sl[i].kmh)
 
     spans = []
     for ns in route.neutral_sections:
@@ -174,6 +178,12 @@ class TractionCalculator:
         self.electric_brake_speed_kmh, self.electric_brake_kn = train.brake_curve(air=False)
         self.air_brake_speed_kmh, self.air_brake_kn = ((train.air_brake_speed_kmh, train.air_brake_kn)
                                                        if self.options.air_brake else (np.array([0.0, 1.0]), np.zeros(2)))
+        gamma = self.options.rotating_mass
+        self.m_eff_t = train.inertial_mass_t if gamma is None else train.mass_t * (1.0 + gamma)
+        self.forces = contiguous(Forces(self.m_eff_t, train.traction_speed_kmh, train.traction_kn,
+                                        self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
+                                        self.air_brake_kn, *train.resistance_kn))
+        """The train's force model as the compiled loops take it (``records.Forces``)."""
         s = _grid(route, train, self.options)
         self._build(s)
         kinks = self._braking_curve_entries()
@@ -191,27 +201,31 @@ class TractionCalculator:
         # midpoint value is the exact mean in both modes.
         self.gradient_permille = equivalent_gradient_permille(route, mid, train.length_m, self.options.strip)
         self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
-        gamma = self.options.rotating_mass
-        self.m_eff_t = train.inertial_mass_t if gamma is None else train.mass_t * (1.0 + gamma)
         self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
         # 1.0 where traction is allowed, 0.0 in neutral sections and their coasting margins
         self.traction_allowed = np.ones(len(mid))
         for a, b in neutral_spans_m(route, train.length_m if self.options.strip else 0.0):
             self.traction_allowed[(mid > a) & (mid < b)] = 0.0
-        e_cell = (self.limit_kmh / 3.6) ** 2 / 2
+        e_cell = kinetic_e(self.limit_kmh)
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
         self.e_limit_node[-1] = 0.0  # the train stops at the end
         # cells where full braking holds the limit (else the envelope below them is the speed from which
         # full braking reaches the limit no earlier than where braking can hold again)
-        lim_kmh = np.sqrt(2.0 * e_cell) * 3.6
+        lim_kmh = kmh_from_e(e_cell)
         cells = np.arange(len(mid))
-        self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells) + train_resistance_kn(lim_kmh, train.resistance_kn)
-                                  + self.gravity_kn) >= 0.0
+        self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells)
+                                  + running_load_kn(lim_kmh, *train.resistance_kn, self.gravity_kn)) >= 0.0
         self.e_envelope, self._entry_m = self._braking_envelope()
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
         self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
         self.impossible = self._impossible_descent()
+        self.cells = self._cells(self.e_envelope, self.holds_limit)
+        """The grid as the compiled loops take it."""
+
+    def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray) -> Cells:
+        return contiguous(Cells(self.s_m, self.h_m, e_env, self.e_limit_node, self.e_limit_cell, self.traction_allowed,
+                                self.gravity_kn, holds_limit, self.brake_holds_limit))
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -221,16 +235,16 @@ class TractionCalculator:
     def brake_kn_at(self, v_kmh, k):
         """Max braking force [kN] at ``v_kmh`` in cell ``k``: the electric brake where traction is allowed
         (it needs the catenary) plus the air brake (everywhere, with the air-brake model)."""
-        return (max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed[k]
-                + max_force_kn(v_kmh, self.air_brake_speed_kmh, self.air_brake_kn))
+        return full_brake_kn(max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn),
+                             max_force_kn(v_kmh, self.air_brake_speed_kmh, self.air_brake_kn), self.traction_allowed[k])
 
     def forces_kn(self, v_ms: np.ndarray, k: int | np.ndarray):
         """(max traction, max braking, resistance + gravity) [kN] at speed ``v_ms`` in cell ``k`` (traction
         and the electric brake cut in a neutral section's span)."""
-        v_kmh = v_ms * 3.6
+        v_kmh = kmh(v_ms)
         return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k],
                 self.brake_kn_at(v_kmh, k),
-                train_resistance_kn(v_kmh, self.train.resistance_kn) + self.gravity_kn[k])
+                running_load_kn(v_kmh, *self.train.resistance_kn, self.gravity_kn[k]))
 
     def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
         """Highest e at each node from which max braking still respects every later limit and stops at
@@ -246,18 +260,15 @@ class TractionCalculator:
 
             e_env = np.empty_like(self.e_limit_node)
             found = np.empty(len(self.h_m))
-            tr = self.train
-            count = kernels().braking_envelope(
-                self.s_m, self.h_m, self.e_limit_node, self.e_limit_cell, self.gravity_kn, self.traction_allowed,
-                self.brake_holds_limit, float(m), self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
-                self.air_brake_kn, *map(float, tr.resistance_kn), n_sub, e_env, found)
+            cells = self._cells(self.e_limit_node, self.brake_holds_limit)  # (neither read by the envelope)
+            count = kernels().braking_envelope(cells, self.forces, n_sub, e_env, found)
             return e_env, found[:count].copy()
         e_env = self.e_limit_node.copy()
         entries = []
         for k in range(len(self.h_m) - 1, -1, -1):
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]
-            decel = lambda e_: float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+            decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
             holds = bool(self.brake_holds_limit[k])
             if e >= cap:
                 if holds:  # no braking curve runs through this cell: the limit itself bounds it
@@ -295,14 +306,14 @@ class TractionCalculator:
         m = self.m_eff_t
         e, worst = 0.0, (0.0, k0, 0.0)  # (excess [km/h], cell, position [m])
         for k in range(k0, len(self.h_m)):
-            accel = lambda e_: -float(sum(self.forces_kn(math.sqrt(2 * max(e_, 0.0)), k)[1:])) / m  # noqa: E731
+            accel = lambda e_: -float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # noqa: E731
             d = self.h_m[k] / n_sub
             for i in range(n_sub):
                 e = max(e + d * accel(e + 0.5 * d * accel(e)), 0.0)
-                excess = math.sqrt(2 * e) * 3.6 - self.limit_kmh[k]
+                excess = kmh_from_e(e) - self.limit_kmh[k]
                 if excess > worst[0]:
                     worst = (excess, k, self.s_m[k] + (i + 1) * d)
-            if worst[0] > 0 and (math.sqrt(2 * e) * 3.6 < self.limit_kmh[k]
+            if worst[0] > 0 and (kmh_from_e(e) < self.limit_kmh[k]
                                  or (k + 1 < len(self.h_m) and self.brake_holds_limit[k + 1])):
                 break  # back under the limit, or at the foot of the descent: the excursion is over
         excess, k, at = worst
@@ -310,7 +321,7 @@ class TractionCalculator:
             steepest = k0 + int(np.argmin(self.gradient_permille[k0:]))
             return (f"full braking ({self.brake_kn_at(0.0, steepest):,.0f} kN at rest) cannot stop the train on "
                     f"{self.gradient_permille[steepest]:+.1f} per mille: even entering at 0 km/h at {self.s_m[k0]:,.0f} m, "
-                    f"full braking reaches the stop at {self.route.length_m:,.0f} m at {math.sqrt(2 * e) * 3.6:.1f} km/h")
+                    f"full braking reaches the stop at {self.route.length_m:,.0f} m at {kmh_from_e(e):.1f} km/h")
         lim = float(self.limit_kmh[k])
         steepest = k0 + int(np.argmin(self.gradient_permille[k0:k + 1]))  # the descent's steepest cell
         return (f"full braking ({self.brake_kn_at(lim, steepest):,.0f} kN) cannot hold {lim:g} km/h on "
@@ -379,7 +390,7 @@ class TractionCalculator:
             raise InputError(Problem("", "conditions", f"unknown condition {bad[0]!r} (use T, K, C, B)"))
         cap = None
         if cruise_kmh is not None:
-            cap = np.ascontiguousarray(np.broadcast_to(np.asarray(cruise_kmh, dtype=float) / 3.6, (sw.shape[0],)) ** 2 / 2)
+            cap = np.ascontiguousarray(kinetic_e(np.broadcast_to(np.asarray(cruise_kmh, dtype=float), (sw.shape[0],))))
         if self.backend == "numba":
             return self._run_kernel(conditions, sw, profile, cap)
         frac = self.condition_fractions(conditions, sw)
@@ -403,13 +414,10 @@ class TractionCalculator:
         t_nodes, v_nodes = np.zeros(shape_nodes), np.zeros(shape_nodes)
         cond = np.zeros(shape_cells, dtype=np.int8)
         trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
-        tr = self.train
-        kernels().run_plans(self.s_m, self.h_m, self.e_envelope, self.e_limit_cell, self.traction_allowed, self.gravity_kn,
-                  self.holds_limit, self.brake_holds_limit, float(self.m_eff_t), tr.traction_speed_kmh, tr.traction_kn,
-                  self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh, self.air_brake_kn,
-                  *map(float, tr.resistance_kn), bool(self.options.strict_limits),
-                  codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n),
-                  cruise_e is not None, want_profile, t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event)
+        plans = Plans(codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n), cruise_e is not None,
+                      bool(self.options.strict_limits), bool(want_profile))
+        kernels().run_plans(self.cells, self.forces, plans,
+                            Outputs(t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event))
         never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
         prof = (t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw)
@@ -480,10 +488,10 @@ class TractionCalculator:
             e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
             if cruise_e is not None:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
-            v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * 25.92)  # sqrt(2 e) * 3.6
+            v_kmh = kmh_from_e(np.maximum(e_mid, 0.0))
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = _interp(v_kmh, ev, ef) * allowed[k] + _interp(v_kmh, av, af)
-            load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
+            b_max = full_brake_kn(_interp(v_kmh, ev, ef), _interp(v_kmh, av, af), allowed[k])
+            load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
             hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
             fk = fK[k]
             full = fT[k] * f_max
@@ -530,14 +538,14 @@ class TractionCalculator:
                 stop[k] = e_new <= E_FLOOR
                 at_rest |= stop[k]
                 e_new = np.maximum(e_new, E_FLOOR)
-                v_new = np.sqrt(e_new * 2.0)
+                v_new = ms_from_e(e_new)
             else:  # at rest before the end of the last cell (coasting up to the stop): short of it
                 stop[k] = crawl & (e_new == E_FLOOR)
-                v_new = np.sqrt(np.maximum(e_new, 0.0) * 2.0)
+                v_new = ms_from_e(np.maximum(e_new, 0.0))
             if capped.any():
                 # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
                 # depend on the others in its batch)
-                v_phi = np.where(capped, np.sqrt(np.maximum(e_phi, 0.0) * 2.0), v_new)
+                v_phi = np.where(capped, ms_from_e(np.maximum(e_phi, 0.0)), v_new)
                 t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + one_minus / (v_phi + v_new + 1e-12))
                 # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking
                 cap_work = np.where(capped, m * (e_new - e_phi) + (hk * one_minus) * load, 0.0)
@@ -554,7 +562,7 @@ class TractionCalculator:
             work += w_tr
             if want_profile:
                 t_nodes[:, k + 1] = t
-                v_nodes[:, k + 1] = v_new * 3.6
+                v_nodes[:, k + 1] = kmh(v_new)
                 trac[:, k] = w_tr / hk
                 brk[:, k] = (fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
                 dominant = np.argmax(frac[:, :, k], axis=0)
@@ -579,7 +587,7 @@ class TractionCalculator:
         m = self.m_eff_t
 
         def accel(e_):
-            f_max, b_max, load = self.forces_kn(np.sqrt(e_ * 2.0), k)
+            f_max, b_max, load = self.forces_kn(ms_from_e(e_), k)
             hold = np.minimum(np.maximum(load, -b_max), f_max)
             return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * np.maximum(hold, 0.0)
 
@@ -587,7 +595,7 @@ class TractionCalculator:
         w = np.zeros_like(e)
         alive = np.ones(len(e), dtype=bool)
         for j in range(n_sub):
-            v0 = np.sqrt(2.0 * e)
+            v0 = ms_from_e(e)
             e_half = e + 0.5 * hs * accel(e)[0]
             a, tr = accel(np.maximum(e_half, 0.0))
             e1 = e + hs * a
@@ -599,7 +607,7 @@ class TractionCalculator:
                 alive &= ~stalled
                 stalled[:] = False
             e1 = np.where(stalled, E_FLOOR, e1)
-            t = np.where(alive & ~stalled, t + 2.0 * hs / (v0 + np.sqrt(2.0 * e1) + 1e-12), t)
+            t = np.where(alive & ~stalled, t + 2.0 * hs / (v0 + ms_from_e(e1) + 1e-12), t)
             e = np.where(alive, e1, e)
             alive &= ~stalled
         return e, t, w
@@ -659,7 +667,7 @@ class TractionCalculator:
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
         t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason >= CANNOT_HOLD), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]
-        return BatchResult(running_time_s=t, traction_energy_kwh=work / 3600.0, feasible=reason == OK,
+        return BatchResult(running_time_s=t, traction_energy_kwh=kwh(work), feasible=reason == OK,
                            reason_code=reason, failure_m=fail_at, profile=profile,
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),

@@ -4,8 +4,10 @@ Same arithmetic as the vectorised numpy loop in ``calculator.py`` (``backend="nu
 plan and per cell with scalar branches: a cell costs a few dozen floating-point operations instead of
 dozens of numpy calls. ``tests/test_kernel.py`` holds the two backends to 1e-9 relative on random plans.
 
-Inputs are plain arrays (see ``TractionCalculator._kernel_inputs``); per plan the kernel walks its
-condition runs alongside the cells, so the (plans x cells) condition shares are never materialised.
+Inputs are records of arrays (``records.py``: the train's ``Forces``, the grid's ``Cells``, the batch's
+``Plans`` and its ``Outputs``); per plan the kernel walks its condition runs alongside the cells, so the
+(plans x cells) condition shares are never materialised. The physics is ``locoplan.physics``' own
+functions, compiled here: resistance, full braking and the units.
 """
 
 from __future__ import annotations
@@ -15,21 +17,34 @@ import math
 import numpy as np
 from numba import njit
 
+from ..model.conditions import B, C, K, T
+from ..physics import braking, resistance, units
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
 
-T, K, C, B = 0, 1, 2, 3
+# the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
+full_brake_kn = njit(cache=True)(braking.full_brake_kn)
+running_load_kn = njit(cache=True)(resistance.running_load_kn)
+kmh_from_e = njit(cache=True)(units.kmh_from_e)
+ms_from_e = njit(cache=True)(units.ms_from_e)
+e_from_ms = njit(cache=True)(units.e_from_ms)
+kmh = njit(cache=True)(units.kmh)
 
 
 @njit(cache=True)
-def brake_kn(v_kmh, allowed_k, ev, ef, av, af):
-    """Full braking [kN] at ``v_kmh``: the electric brake (ev, ef) where traction is allowed (it needs the
-    catenary: ``allowed_k`` is 0 in a neutral section's span) plus the air brake (av, af) everywhere; the
-    calculator's ``brake_kn_at``."""
-    return _interp(v_kmh, ev, ef) * allowed_k + _interp(v_kmh, av, af)
+def brake_kn(v_kmh, allowed_k, fo):
+    """Full braking [kN] at ``v_kmh`` (the calculator's ``brake_kn_at``): the electric brake where the
+    catenary feeds it (``allowed_k`` 0 in a neutral section's span) plus the air brake everywhere."""
+    return full_brake_kn(_interp(v_kmh, fo.ev, fo.ef), _interp(v_kmh, fo.av, fo.af), allowed_k)
 
 
 @njit(cache=True)
-def _crawl(e, hk, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc, last):
+def load_kn(v_kmh, g_k, fo):
+    """Resistance plus gravity [kN] at ``v_kmh`` in a cell of gravity force ``g_k``."""
+    return running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, g_k)
+
+
+@njit(cache=True)
+def _crawl(e, hk, fT, fK, g_k, allowed_k, fo, last):
     """A slowing cell at crawling speed, integrated again in sub-steps of at most ``CRAWL_STEP_M``
     (midpoint rule in e = v^2/2): whether a weak train makes it over a crest, or coasting up to the stop
     reaches it, is decided here; one step over the whole cell misjudges it. Returns (e at the cell's
@@ -40,30 +55,30 @@ def _crawl(e, hk, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc,
     t = 0.0
     w = 0.0
     for j in range(n_sub):
-        v0 = math.sqrt(2.0 * e)
-        e_half = e + 0.5 * hs * _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc)[0]
-        a, tr = _crawl_accel(max(e_half, 0.0), m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc)
+        v0 = ms_from_e(e)
+        e_half = e + 0.5 * hs * _crawl_accel(e, fT, fK, g_k, allowed_k, fo)[0]
+        a, tr = _crawl_accel(max(e_half, 0.0), fT, fK, g_k, allowed_k, fo)
         e1 = e + hs * a
         w += tr * hs
         if e1 <= E_FLOOR:
             if last and j == n_sub - 1:
                 return 0.0, t + 2.0 * hs / (v0 + 1e-12), w
             return E_FLOOR, t, w
-        v1 = math.sqrt(2.0 * e1)
+        v1 = ms_from_e(e1)
         t += 2.0 * hs / (v0 + v1 + 1e-12)
         e = e1
     return e, t, w
 
 
 @njit(cache=True)
-def _crawl_accel(e, m, fT, fK, g_k, allowed_k, tv, tf, ev, ef, av, af, ra, rb, rc):
+def _crawl_accel(e, fT, fK, g_k, allowed_k, fo):
     """de/ds and the traction force [kN] at e under a cell's traction / cruise shares (no braking)."""
-    v_kmh = math.sqrt(e * 2.0) * 3.6
-    f_max = _interp(v_kmh, tv, tf) * allowed_k
-    b_max = brake_kn(v_kmh, allowed_k, ev, ef, av, af)
-    load = v_kmh * (rb + rc * v_kmh) + (ra + g_k)
+    v_kmh = kmh_from_e(e)
+    f_max = _interp(v_kmh, fo.tv, fo.tf) * allowed_k
+    b_max = brake_kn(v_kmh, allowed_k, fo)
+    load = load_kn(v_kmh, g_k, fo)
     hold = min(max(load, -b_max), f_max)
-    return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * max(hold, 0.0)
+    return (fT * f_max + fK * hold - load) / fo.m, fT * f_max + fK * max(hold, 0.0)
 
 
 @njit(cache=True)
@@ -122,19 +137,23 @@ def _shares(s0, s1, codes, starts, ends, j0, out):
 
 
 @njit(cache=True)
-def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds, m, tv, tf, ev, ef, av, af, ra, rb, rc, strict,
-              codes, starts, ends, cruise_e, has_cruise, want_profile,
-              t_out, work_out, over_at, stop_at, hold_at, fb_at,
-              t_nodes, v_nodes, cond, trac, brk, event):
-    """Integrate every plan; per plan the first cell where each failure happens (-1 = never).
+def run_plans(ce_, fo, pl, out):
+    """Integrate every plan of ``pl`` (``Plans``) over the grid ``ce_`` (``Cells``) with the train's
+    forces ``fo`` (``Forces``), into ``out`` (``Outputs``): per plan its time, work and the first cell
+    where each failure happens (-1 = never).
 
-    codes (n_runs,) condition codes of the shared sequence; starts / ends (n, n_runs) where each run
-    begins and ends [m] (inf = never); cruise_e (n,) e = v^2/2 of the plan's cruise speed (with
-    ``has_cruise``): the seeds' cruise, T and K capped at that speed and held there by braking if need
-    be. (ev, ef) the electric brake, cut with traction where ``allowed`` is 0 (a neutral section's span),
-    (av, af) the air brake. ``brake_holds`` (per cell): full braking holds the limit there (else the envelope,
-    which the train follows under full braking, lies below it). Profile arrays are written only when ``want_profile``.
+    The cruise speed (``pl.cruise_e`` with ``has_cruise``): the seeds' cruise, T and K capped at that speed
+    and held there by braking if need be. The electric brake is cut with traction where ``allowed`` is 0
+    (a neutral section's span). ``brake_holds`` (per cell): full braking holds the limit there (else the
+    envelope, which the train follows under full braking, lies below it).
     """
+    s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
+    holds_limit, brake_holds = ce_.holds_limit, ce_.brake_holds
+    m, tv, tf = fo.m, fo.tv, fo.tf
+    codes, starts, ends, cruise_e = pl.codes, pl.starts, pl.ends, pl.cruise_e
+    has_cruise, strict, want_profile = pl.has_cruise, pl.strict, pl.want_profile
+    t_out, work_out, over_at, stop_at, hold_at, fb_at = out.t, out.work, out.over_at, out.stop_at, out.hold_at, out.fb_at
+    t_nodes, v_nodes, cond, trac, brk, event = out.t_nodes, out.v_nodes, out.cond, out.trac, out.brk, out.event
     n = starts.shape[0]
     n_cells = h.shape[0]
     last = n_cells - 1
@@ -160,8 +179,8 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
             if k == 0:
                 # de/ds at the start, from rest, to extrapolate the first cell's mid-speed
                 f0 = _interp(0.0, tv, tf) * allowed[0]
-                b0 = brake_kn(0.0, allowed[0], ev, ef, av, af)
-                l0 = ra + grav[0]
+                b0 = brake_kn(0.0, allowed[0], fo)
+                l0 = load_kn(0.0, grav[0], fo)
                 hold0 = min(max(l0, -b0), f0)
                 slope = max((fT * f0 - fB * b0 + fK * hold0 - l0) / m, 0.0)
             e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1))
@@ -172,10 +191,10 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
                 c0 = ce
             if ce < c1:
                 c1 = ce
-            v_kmh = math.sqrt(max(e_mid, 0.0) * 25.92)
+            v_kmh = kmh_from_e(max(e_mid, 0.0))
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = brake_kn(v_kmh, allowed[k], ev, ef, av, af)
-            load = v_kmh * (rb + rc * v_kmh) + (ra + grav[k])
+            b_max = brake_kn(v_kmh, allowed[k], fo)
+            load = load_kn(v_kmh, grav[k], fo)
             hold = min(max(load, -b_max), f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
@@ -192,8 +211,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
             t_crawl = 0.0
             w_crawl = 0.0
             if crawl:
-                e_pred, t_crawl, w_crawl = _crawl(e, hk, m, fT, fK, grav[k], allowed[k], tv, tf, ev, ef, av, af,
-                                                  ra, rb, rc, k == last)
+                e_pred, t_crawl, w_crawl = _crawl(e, hk, fT, fK, grav[k], allowed[k], fo, k == last)
             phi = 1.0
             e_phi = e_pred
             if capped:
@@ -218,12 +236,12 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
                         stop_at[i] = k
                         fb_at[i] = 1 if fB > 0.0 else 0
                     e_new = E_FLOOR
-                v_new = math.sqrt(e_new * 2.0)
+                v_new = ms_from_e(e_new)
             else:
-                v_new = math.sqrt(max(e_new, 0.0) * 2.0)
+                v_new = ms_from_e(max(e_new, 0.0))
             if capped:
                 om = 1.0 - phi
-                v_phi = math.sqrt(max(e_phi, 0.0) * 2.0)
+                v_phi = ms_from_e(max(e_phi, 0.0))
                 t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + om / (v_phi + v_new + 1e-12))
                 cap_work = m * (e_new - e_phi) + (hk * om) * load
                 w_tr = (tr * hk) * phi + max(cap_work, 0.0)
@@ -238,7 +256,7 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
             work += w_tr
             if want_profile:
                 t_nodes[i, k + 1] = t
-                v_nodes[i, k + 1] = v_new * 3.6
+                v_nodes[i, k + 1] = kmh(v_new)
                 trac[i, k] = w_tr / hk
                 brk[i, k] = (fB * b_max - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
                 dom = 0
@@ -268,13 +286,13 @@ def run_plans(s, h, e_env, e_limit_cell, allowed, grav, holds_limit, brake_holds
 
 
 @njit(cache=True)
-def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, brake_holds, m, ev, ef, av, af, ra, rb, rc, n_sub,
-                     e_env, entries):
+def braking_envelope(ce_, fo, n_sub, e_env, entries):
     """The calculator's braking envelope (``TractionCalculator._braking_envelope``, the same arithmetic):
     from the stop and every limit drop backwards, full braking (the electric brake where traction is
     allowed, the air brake everywhere) in ``n_sub`` RK2 sub-steps per cell. Writes ``e_env`` (starting
     from ``e_limit_node``) and the entry points where a braking curve rises through its cell's limit
-    into ``entries``; returns their count."""
+    into ``entries``; returns their count. (``ce_.e_env`` is not read: ``e_env`` is the output.)"""
+    s, h, e_limit_node, e_limit_cell, brake_holds = ce_.s, ce_.h, ce_.e_limit_node, ce_.e_limit_cell, ce_.brake_holds
     n_entries = 0
     for j in range(e_env.shape[0]):
         e_env[j] = e_limit_node[j]
@@ -288,8 +306,8 @@ def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, brake_hold
             e = cap  # full braking cannot hold the limit here: the train must enter the cell slower
         d = h[k] / n_sub
         for i in range(n_sub):
-            e_mid = e + 0.5 * d * _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
-            e_next = e + d * _decel(e_mid, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc)
+            e_mid = e + 0.5 * d * _decel(e, k, ce_, fo)
+            e_next = e + d * _decel(e_mid, k, ce_, fo)
             if holds and e < cap <= e_next:  # the curve rises through the limit: its entry point
                 entries[n_entries] = s[k + 1] - d * (i + (cap - e) / (e_next - e))
                 n_entries += 1
@@ -303,9 +321,8 @@ def braking_envelope(s, h, e_limit_node, e_limit_cell, grav, allowed, brake_hold
 
 
 @njit(cache=True)
-def _decel(e, k, grav, allowed, m, ev, ef, av, af, ra, rb, rc):
+def _decel(e, k, ce_, fo):
     """-de/ds under full braking at e in cell k [m/s^2]."""
-    v_kmh = math.sqrt(2.0 * max(e, 0.0)) * 3.6
-    brake = brake_kn(v_kmh, allowed[k], ev, ef, av, af)
-    return (brake + ((ra + v_kmh * (rb + rc * v_kmh)) + grav[k])) / m
+    v_kmh = kmh_from_e(max(e, 0.0))
+    return (brake_kn(v_kmh, ce_.allowed[k], fo) + load_kn(v_kmh, ce_.grav[k], fo)) / fo.m
 

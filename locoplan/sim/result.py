@@ -6,10 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-CONDITIONS = ("T", "K", "C", "B")
-"""Condition codes (seed 002): T traction (max effort, held at the limit), K cruise (hold speed),
-C coast (no force), B brake (max braking). Index = code used in arrays."""
-CODE = {c: i for i, c in enumerate(CONDITIONS)}
+from ..model.conditions import CODE, CONDITIONS  # noqa: F401  (the codes of ``Profile.condition``)
 
 OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE = 0, 1, 2, 3, 4, 5
 REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",

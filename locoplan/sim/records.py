@@ -1,0 +1,115 @@
+"""The compiled loops' inputs and outputs, each one record (a ``NamedTuple`` of arrays and numbers).
+
+The calculator's distance loop (``kernel.run_plans``), its braking envelope and the DP drive's passes
+(``optimize/dp_kernel.py``) take these instead of dozens of positional arrays. ``FIELD_TYPES`` gives
+every field's type once: ``locoplan.native`` builds the ahead-of-time signatures from it and checks each
+call's arrays against it. A plain module (no numba), so building a record costs nothing.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Forces(NamedTuple):
+    """The train's force model for the kernels: inertial mass [t], traction (tv, tf), electric brake
+    (ev, ef) and air brake (av, af) curves [km/h, kN], and the Davis coefficients (ra, rb, rc) [kN]."""
+
+    m: float
+    tv: np.ndarray
+    tf: np.ndarray
+    ev: np.ndarray
+    ef: np.ndarray
+    av: np.ndarray
+    af: np.ndarray
+    ra: float
+    rb: float
+    rc: float
+
+
+class Cells(NamedTuple):
+    """The calculator's grid: node positions ``s`` [m], cell lengths ``h``, the braking envelope ``e_env``
+    and the limits (``e_limit_node``, ``e_limit_cell``) as e = v^2/2 [m^2/s^2], ``allowed`` (1 where the
+    catenary feeds traction and the electric brake), ``grav`` the cell's gravity force [kN],
+    ``holds_limit`` (the cell's cap is its limit, to be held) and ``brake_holds`` (full braking holds the
+    limit there)."""
+
+    s: np.ndarray
+    h: np.ndarray
+    e_env: np.ndarray
+    e_limit_node: np.ndarray
+    e_limit_cell: np.ndarray
+    allowed: np.ndarray
+    grav: np.ndarray
+    holds_limit: np.ndarray
+    brake_holds: np.ndarray
+
+
+class Plans(NamedTuple):
+    """A batch of plans sharing one condition sequence: ``codes`` (n_runs,), where each run starts and
+    ends (n, n_runs) [m, inf = never], the cruise speed's e per plan (with ``has_cruise``), whether a plan
+    coasting up to a limit is infeasible (``strict``), and whether to write the profile."""
+
+    codes: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    cruise_e: np.ndarray
+    has_cruise: bool
+    strict: bool
+    want_profile: bool
+
+
+class Outputs(NamedTuple):
+    """What ``run_plans`` writes per plan: time [s], traction work [kJ], the first cell of each failure
+    (-1 = never) and whether it was braking where it came to rest; per plan and node / cell (written only
+    with ``want_profile``, else (1, 1) placeholders) the time, speed, condition, forces and events."""
+
+    t: np.ndarray
+    work: np.ndarray
+    over_at: np.ndarray
+    stop_at: np.ndarray
+    hold_at: np.ndarray
+    fb_at: np.ndarray
+    t_nodes: np.ndarray
+    v_nodes: np.ndarray
+    cond: np.ndarray
+    trac: np.ndarray
+    brk: np.ndarray
+    event: np.ndarray
+
+
+class DPCells(NamedTuple):
+    """The DP drive's coarser grid: cell lengths [m], mean gravity force [kN], traction allowed (0/1),
+    the cap at each node (e = v^2/2) and the shared speed grid [m/s]."""
+
+    h: np.ndarray
+    grav: np.ndarray
+    allowed: np.ndarray
+    e_cap: np.ndarray
+    v_grid: np.ndarray
+
+
+_F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
+FIELD_TYPES: dict[type, tuple[str, ...]] = {
+    Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
+    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]"),
+    Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B),
+    Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2),
+    DPCells: (_A1, _A1, _A1, _A1, _A1),
+}
+"""Each record's field types, in field order ("f8[:]" = a C-contiguous float64 vector)."""
+assert all(len(t) == len(r._fields) for r, t in FIELD_TYPES.items())
+
+
+def contiguous(record):
+    """The record with every array C-contiguous and scalars as Python numbers (what the compiled
+    functions read)."""
+    out = []
+    for value, kind in zip(record, FIELD_TYPES[type(record)]):
+        if "[" in kind:
+            out.append(np.ascontiguousarray(value))
+        else:
+            out.append({"f8": float, "b1": bool, "i8": int}[kind](value))
+    return type(record)(*out)
