@@ -39,6 +39,7 @@ from ..errors import InfeasibleError, InputError, Problem
 from ..model.plan import Plan
 from ..model.route import Route
 from ..model.train import Train
+from ..physics.units import kinetic_e, kmh_from_e, ms_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..sim.result import BatchResult
 from .patterns import LineModel, Patterns, line_model
@@ -67,7 +68,7 @@ class Follower:
         self.last = len(calc.h_m) - 1
 
     def _slope(self, cond: str, e: float, k: int) -> float:
-        f_max, b_max, load = (float(x) for x in self.calc.forces_kn(np.float64(math.sqrt(2 * max(e, 0.0))), k))
+        f_max, b_max, load = (float(x) for x in self.calc.forces_kn(ms_from_e(np.float64(max(e, 0.0))), k))
         force = {"T": f_max, "C": 0.0, "B": -b_max, "K": min(max(load, -b_max), f_max)}[cond]
         return (force - load) / self.m
 
@@ -99,7 +100,7 @@ class Follower:
     def reaches_limit(self, x: np.ndarray, e: np.ndarray, margin_kmh: float = 0.5) -> float | None:
         """First position of a trajectory within ``margin_kmh`` of the static limit (None if never)."""
         cell = np.clip(np.searchsorted(self.s, x, side="right") - 1, 0, self.last)
-        e_lim = (np.maximum(self.calc.limit_kmh[cell] - margin_kmh, 0.0) / 3.6) ** 2 / 2
+        e_lim = kinetic_e(np.maximum(self.calc.limit_kmh[cell] - margin_kmh, 0.0))
         hit = np.flatnonzero(e >= e_lim)
         return float(x[hit[0]]) if hit.size else None
 
@@ -135,7 +136,7 @@ def operations(calc: TractionCalculator, points_m: np.ndarray, target_kmh: np.nd
     docstring); the final condition is a bare B (NaN start). Also returns the follower's speeds at
     the points [km/h]."""
     fol = follower or Follower(calc)
-    same = lambda v: (v / 3.6) ** 2 / 2  # noqa: E731  (km/h -> e)
+    same = kinetic_e  # km/h -> e
     conds: list[str] = []
     starts: list[float] = []
 
@@ -161,7 +162,7 @@ def operations(calc: TractionCalculator, points_m: np.ndarray, target_kmh: np.nd
             add("C" if e > 0 else "T", xa)
             xs, es = fol.run("C" if e > 0 else "T", xa, xb, e)
             e = float(es[-1])
-            reached.append(math.sqrt(2 * e) * 3.6)
+            reached.append(float(kmh_from_e(e)))
             break
         xc, ec = fol.run("C", xa, xb, e)
         if e <= 0.0:  # at rest: the train has to start
@@ -205,7 +206,7 @@ def operations(calc: TractionCalculator, points_m: np.ndarray, target_kmh: np.nd
             add("K", xa)
             xk, ek = fol.run("K", xa, xb, e)
             e = float(ek[-1])
-        reached.append(math.sqrt(2 * max(e, 0.0)) * 3.6)
+        reached.append(float(kmh_from_e(max(e, 0.0))))
     if conds[-1] == "B":  # a braking run at the end becomes the final bare B
         conds.pop()
         starts.pop()

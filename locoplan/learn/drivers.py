@@ -53,6 +53,7 @@ from ..errors import InputError, Problem
 from ..io.load import build_train
 from ..model.consist import Consist, ConsistEntry, Vehicle
 from ..model.route import Route
+from ..physics.units import kinetic_e, kmh, kmh_from_e, ms_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..strategy.sequence import classify_grades
 from .logs import MANIFEST_NAME, LogData, log_csv_text, manifest_text
@@ -169,18 +170,18 @@ def route_tables(calc: TractionCalculator) -> RouteTables:
     m = calc.m_eff_t
     n = len(h)
     e_coast = calc.e_limit_node.copy()
-    e_in = (BRAKE_IN_KMH / 3.6) ** 2 / 2
+    e_in = kinetic_e(BRAKE_IN_KMH)
     for k in range(n - 1, -1, -1):  # backward from every lower limit and the stop
         e1 = e_coast[k + 1]
-        _, b_max, load = (float(x) for x in calc.forces_kn(np.float64(math.sqrt(2 * e1)), k))
+        _, b_max, load = (float(x) for x in calc.forces_kn(ms_from_e(np.float64(e1)), k))
         if e1 >= e_in and load > 0:  # coasting slows the train: start coasting earlier, from lower down
             e0 = e1 + h[k] * load / m
         else:  # into the station, or where coasting does not slow the train: a service brake (half of full)
             e0 = e1 + h[k] * max(0.5 * b_max + load, 0.0) / m
         e_coast[k] = min(e_coast[k], e0)
     # nobody coasts for kilometres to lose a few km/h: the curve stays within COAST_SPAN_KMH of the braking curve
-    floor_kmh = np.maximum(np.sqrt(2 * calc.e_envelope) * 3.6 - COAST_SPAN_KMH, 0.0)
-    e_coast = np.minimum(np.maximum(e_coast, (floor_kmh / 3.6) ** 2 / 2), calc.e_envelope)
+    floor_kmh = np.maximum(kmh_from_e(calc.e_envelope) - COAST_SPAN_KMH, 0.0)
+    e_coast = np.minimum(np.maximum(e_coast, kinetic_e(floor_kmh)), calc.e_envelope)
     mid = 0.5 * (s[1:] + s[:-1])
     to_up = np.full(n, np.inf)
     to_down = np.full(n, np.inf)
@@ -257,7 +258,7 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
     live = np.ones(n, dtype=bool)
     for i in range(n_steps):
         k = np.minimum(np.searchsorted(nodes, s, side="right") - 1, n_cells - 1)
-        v_kmh = v * 3.6
+        v_kmh = kmh(v)
         f_max, b_max, load = calc.forces_kn(v, k)
         lim = limit[k]
         # --- the target speed the driver has in mind
@@ -265,7 +266,7 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         e_ant = coast_share * np.interp(look, nodes, e_coast) + brake_share * np.interp(look, nodes, e_brake)
         base = np.where(on_up[k] | (to_up[k] < p.charge_up_m), lim, cruise_kmh)  # power on up a long up-grade
         base = np.where(to_down[k] < p.coast_down_m, np.minimum(base, cruise_kmh - 0.7 * down_gain[k]), base)
-        v_tgt = np.minimum(np.minimum(base, lim - p.margin_kmh), np.sqrt(2 * e_ant) * 3.6 - half_margin)
+        v_tgt = np.minimum(np.minimum(base, lim - p.margin_kmh), kmh_from_e(e_ant) - half_margin)
         # --- the handle: accelerate, hold, coast or brake, on the speed as the driver judges it
         v_seen = v_kmh + noise[:, i]
         err = v_tgt - v_seen
@@ -378,7 +379,7 @@ def drive_to_schedule(calc: TractionCalculator, tables: RouteTables, p: DriverPa
     that cannot make its time even at the line speed runs at it (and arrives late, as drivers sometimes
     do)."""
     v_top = float(np.max(tables.limit_kmh))
-    mean_kmh = 3.6 * calc.route.length_m / aim_s
+    mean_kmh = kmh(calc.route.length_m / aim_s)
     max_time = 3.0 * aim_s
     x_fast, x_slow = np.full(len(aim_s), 1.0 / v_top), 1.0 / np.maximum(0.8 * mean_kmh, 10.0)
 

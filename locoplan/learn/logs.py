@@ -51,6 +51,7 @@ from ..errors import InputError, Problem
 from ..model.common import Strict
 from ..model.route import Route
 from ..model.train import Train
+from ..physics.units import KJ_PER_KWH
 
 REQUIRED_COLUMNS = ("time_s", "position_m", "speed_kmh", "force_kn")
 OPTIONAL_COLUMNS = ("notch", "action")
@@ -144,7 +145,7 @@ class LogData:
     def traction_energy_kwh(self) -> float:
         """Traction work sum F+ ds at the wheel [kWh] (each row's force held until the next row)."""
         ds = np.diff(self.position_m)
-        return float(np.sum(np.maximum(self.force_kn[:-1], 0.0) * ds)) / 3600.0
+        return float(np.sum(np.maximum(self.force_kn[:-1], 0.0) * ds)) / KJ_PER_KWH
 
 
 def _column_problem(name: str, known: tuple[str, ...]) -> str | None:

@@ -45,6 +45,7 @@ from .. import __version__
 from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import Train
+from ..physics.units import kmh, kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .logs import LoggedRun
 from .segments import LEVEL_PERMILLE, SECTION_TYPES, Section, segment_route
@@ -136,7 +137,7 @@ class LineModel:
     def lower_inputs(self, i: int, k: int, entry_kmh: float, share: float, mass_t: float, time_s: float) -> np.ndarray:
         """Eq. II inputs of division k (1..p) of section i."""
         sec = self.sections[i]
-        mean_speed = 3.6 * sec.length_m / max(share * time_s, 1e-9)
+        mean_speed = kmh(sec.length_m / max(share * time_s, 1e-9))
         ahead = self.sections[i + 1].gradient_permille if i + 1 < len(self.sections) else 0.0
         return np.array([entry_kmh, k / self.divisions, share, sec.length_m, sec.gradient_permille, mass_t,
                          time_s / self.fastest_time_s, mean_speed, self.division_limit_kmh[i, k - 1],
@@ -154,7 +155,7 @@ def line_model(route: Route, train: Train, options: ModelOptions, settings: Lear
         for k in range(p):
             cells = (s[1:] > points[i, k] + 1e-9) & (s[:-1] < points[i, k + 1] - 1e-9)
             limits[i, k] = lim[cells].min() if cells.any() else lim[min(int(np.searchsorted(s, points[i, k])), len(lim) - 1)]
-    envelope = np.sqrt(2 * np.interp(points, s, calc.e_envelope)) * 3.6
+    envelope = kmh_from_e(np.interp(points, s, calc.e_envelope))
     return LineModel(route, train, calc, sections, p, points, limits, envelope)
 
 

@@ -97,6 +97,8 @@ class Vehicle(Strict):
     traction_kn: ForceCurve | None = None
     brake_kn: ForceCurve | None = Field(default=None, description="locomotives: max electric brake [kN] vs km/h")
     air_brake: AirBrake | None = None
+    regen_efficiency: float | None = Field(default=None, gt=0, le=1, description=(
+        "locomotives: share of the electric brake's work at the wheel returned to the line [-]"))
 
     @model_validator(mode="after")
     def _check(self) -> "Vehicle":
@@ -116,6 +118,8 @@ class Vehicle(Strict):
                 if getattr(self, field) is None:
                     problems.append(((field,), "a locomotive needs its max force curve [[speed_kmh, force_kn], ...]"))
         else:
+            if self.regen_efficiency is not None:
+                problems.append((("regen_efficiency",), "a wagon has no electric brake to regenerate with"))
             for field in ("traction_kn", "brake_kn"):
                 if getattr(self, field) is not None:
                     what = "traction" if field == "traction_kn" else "an electric brake"

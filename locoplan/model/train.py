@@ -40,6 +40,9 @@ class Train:
     air_brake_kn: np.ndarray
     n_vehicles: int
     inertial_mass_t: float = 0.0
+    regen_efficiency: float = 0.0
+    """Share of the electric brake's work returned to the line (0: none; the locomotives' own
+    ``regen_efficiency``, weighted by their electric brake force when they differ)."""
 
     def __post_init__(self):
         if not self.inertial_mass_t:
@@ -91,6 +94,8 @@ class Train:
                 curve = (np.asarray(ab.force_kn, float) if ab.force_kn is not None
                          else air_brake_curve_kn(ab.braking_ratio, ab.shoe, m, veh.max_speed_kmh))
                 air.append((curve, entry.count))
+        peak = [(c * max(f for _, f in v.brake_kn), v.regen_efficiency or 0.0) for v, c in locos]
+        regen = sum(w * r for w, r in peak) / sum(w for w, _ in peak) if peak and sum(w for w, _ in peak) > 0 else 0.0
         tv, tf = _sum_curves([(v.traction_kn, c) for v, c in locos])
         ev, ef = _sum_curves([(v.brake_kn, c) for v, c in locos])
         av, af = _sum_curves(air)
@@ -104,7 +109,7 @@ class Train:
         for a in (av, af):
             a.setflags(write=False)
         return cls(consist.name, mass, length, float(vmax), tuple(float(x) for x in coeffs),
-                   tv, tf, ev, ef, av, af, n, inertial)
+                   tv, tf, ev, ef, av, af, n, inertial, float(regen))
 
 
 def _sum_curves(curves: list[tuple[list | np.ndarray, int]]) -> tuple[np.ndarray, np.ndarray]:

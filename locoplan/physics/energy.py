@@ -78,3 +78,13 @@ def profile_energy_kwh(s_m, v_kmh, traction_kn, brake_kn, electric_brake_curve, 
     b_e = electric_share_kn(brake, piecewise_linear(v_mid, *electric_brake_curve))
     rate = energy_rate_kn(np.asarray(traction_kn, dtype=float), b_e, v_mid, model)
     return float(np.sum(rate * np.diff(s)) / KJ_PER_KWH)
+
+
+def recovered_energy_kwh(s_m, brake_kn, electric_max_kn, efficiency: float):
+    """Energy the electric brake returns to the line [kWh]: ``efficiency`` x sum B_e ds over the cells of
+    ``s_m``, with B_e = min(B, B_e,max) the electric part of each cell's mean braking force ``brake_kn``
+    (blended braking: the electric brake takes its share first) and ``electric_max_kn`` what it has there
+    at the cell's speed (0 where the catenary is off, in a neutral section's span). Arrays of cells, or of
+    (plans, cells) rows."""
+    b_e = electric_share_kn(np.asarray(brake_kn, dtype=float), np.asarray(electric_max_kn, dtype=float))
+    return efficiency * np.sum(b_e * np.diff(np.asarray(s_m, dtype=float)), axis=-1) / KJ_PER_KWH

@@ -36,6 +36,7 @@ from ..model.route import Route
 from ..model.train import Train
 from ..model.conditions import CODE
 from ..physics.braking import full_brake_kn
+from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import running_load_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
@@ -245,6 +246,14 @@ class TractionCalculator:
         return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k],
                 self.brake_kn_at(v_kmh, k),
                 running_load_kn(v_kmh, *self.train.resistance_kn, self.gravity_kn[k]))
+
+    def recovered_energy_kwh(self, v_nodes_kmh: np.ndarray, brake_kn: np.ndarray) -> np.ndarray:
+        """Energy the electric brake returns to the line [kWh] on runs given by their node speeds and cell
+        braking forces ((plans, nodes) and (plans, cells)): the train's ``regen_efficiency`` times the
+        electric part of the braking work, the electric brake cut where the catenary is (physics.energy)."""
+        v_mid = 0.5 * (v_nodes_kmh[:, 1:] + v_nodes_kmh[:, :-1])
+        electric = max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
+        return recovered_energy_kwh(self.s_m, brake_kn, electric, self.train.regen_efficiency)
 
     def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
         """Highest e at each node from which max braking still respects every later limit and stops at
@@ -665,6 +674,7 @@ class TractionCalculator:
                 brk[i, end[i]:] = np.nan
                 cond[i, end[i]:] = -1
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
+            recovered = self.recovered_energy_kwh(v_nodes, brk)
         t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason >= CANNOT_HOLD), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]
         return BatchResult(running_time_s=t, traction_energy_kwh=kwh(work), feasible=reason == OK,
@@ -672,4 +682,4 @@ class TractionCalculator:
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
                            failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan),
-                           impossible=self.impossible)
+                           impossible=self.impossible, recovered_energy_kwh=recovered if want_profile else None)

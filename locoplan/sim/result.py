@@ -61,6 +61,9 @@ class BatchResult:
     impossible: str | None = None
     """Why no plan at all can run the route (the train passes a limit under full braking even from rest
     at the top of a descent); every plan then has the reason code ``IMPOSSIBLE``."""
+    recovered_energy_kwh: np.ndarray | None = None
+    """Energy the electric brake returned to the line [kWh] per plan (``physics.energy.recovered_energy_kwh``,
+    0 for locomotives without ``regen_efficiency``); computed with the profile, None without one."""
 
     def failures(self) -> str:
         """Why the infeasible plans of this batch failed, most common first, each with an example:
