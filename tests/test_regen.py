@@ -1,0 +1,122 @@
+"""Regenerative braking: the energy the locomotives' electric brake returns to the line.
+
+One physics function (``physics.energy.recovered_energy_kwh``) and one vehicle field
+(``regen_efficiency``); the calculator reports it beside the traction energy. Checked against the
+physics: with the electric brake alone, what it returns is the efficiency times the braking work, and
+that work is the train's kinetic energy at the start of braking less the resistance on the way down.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from locoplan.errors import InputError
+from locoplan.io.load import load_train, load_vehicle
+from locoplan.physics.units import G_MS2, KJ_PER_KWH, kinetic_e
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from routes import hand_made_route
+
+ROOT = Path(__file__).resolve().parents[1]
+STOCK = ROOT / "configs" / "rolling_stock"
+
+
+def _stock(tmp_path: Path, regen: float | None) -> Path:
+    """The shipped HXD1 + 50 x C80 with the locomotive's regen_efficiency set (None: as shipped)."""
+    d = tmp_path / "stock"
+    d.mkdir()
+    for f in ("HXD1.yaml", "C80.yaml"):
+        text = (STOCK / f).read_text()
+        if f == "HXD1.yaml" and regen is not None:
+            text += f"\nregen_efficiency: {regen}\n"
+        (d / f).write_text(text)
+    shutil.copy(ROOT / "configs" / "consists" / "HXD1-C80x50.yaml", tmp_path / "consist.yaml")
+    return d
+
+
+def _level_line():
+    return hand_made_route([(8000.0, 80.0)], [(8000.0, 0.0)])
+
+
+PLAN = (("T", "C", "B"), np.array([[3000.0, np.nan]]))  # up to speed, coast, brake on the stop's braking curve
+
+
+def _run(tmp_path, regen, air_brake, route=None):
+    stock = _stock(tmp_path, regen)
+    train = load_train(tmp_path / "consist.yaml", stock)
+    calc = TractionCalculator(route or _level_line(), train, ModelOptions(air_brake=air_brake))
+    return calc, calc.evaluate(*PLAN, profile=True)
+
+
+def test_without_the_field_nothing_is_recovered(tmp_path):
+    calc, res = _run(tmp_path, None, air_brake=True)
+    assert calc.train.regen_efficiency == 0.0
+    assert res.feasible[0] and res.recovered_energy_kwh[0] == 0.0
+
+
+def test_electric_brake_alone_returns_efficiency_times_its_work(tmp_path):
+    """--no-air-brake: every kN of braking is electric, so recovered = eta x sum B ds exactly; and that work
+    is the kinetic energy where braking began less the basic resistance's work while braking (level line),
+    within the calculator's discretisation (0.5 %)."""
+    calc, res = _run(tmp_path, 0.8, air_brake=False)
+    p = res.profile
+    brake_work_kwh = float(np.sum(p.brake_kn[0] * np.diff(p.s_m))) / KJ_PER_KWH
+    assert brake_work_kwh > 10.0  # it did brake to the stop
+    # (1e-5: the cell's electric share is capped at B_e,max of the mean of its node speeds, while the
+    # calculator took the force at its own mid-cell speed estimate: a few cells clip by far below 0.1 kN)
+    assert res.recovered_energy_kwh[0] == pytest.approx(0.8 * brake_work_kwh, rel=1e-5)
+    braking = np.flatnonzero(p.brake_kn[0] > 0)
+    k0 = braking[0]
+    v0 = p.v_kmh[0, k0]
+    mid = 0.5 * (p.v_kmh[0, 1:] + p.v_kmh[0, :-1])
+    a, b, c = calc.train.resistance_kn
+    resist_kwh = float(np.sum((a + b * mid[braking] + c * mid[braking] ** 2) * np.diff(p.s_m)[braking])) / KJ_PER_KWH
+    kinetic_kwh = calc.m_eff_t * kinetic_e(v0) / KJ_PER_KWH  # t x m^2/s^2 = kJ
+    assert brake_work_kwh == pytest.approx(kinetic_kwh - resist_kwh, rel=5e-3)
+    assert res.traction_energy_kwh[0] > res.recovered_energy_kwh[0] > 0
+
+
+def test_blended_braking_returns_only_the_electric_share(tmp_path):
+    """With the wagons' air brake, full braking is electric + air: the electric brake takes its share first
+    (at most its curve at each speed), the rest is air and returns nothing."""
+    calc, res = _run(tmp_path, 1.0, air_brake=True)
+    p = res.profile
+    total_kwh = float(np.sum(p.brake_kn[0] * np.diff(p.s_m))) / KJ_PER_KWH
+    mid = 0.5 * (p.v_kmh[0, 1:] + p.v_kmh[0, :-1])
+    e_max = np.interp(mid, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
+    expect = float(np.sum(np.minimum(p.brake_kn[0], e_max) * np.diff(p.s_m))) / KJ_PER_KWH
+    assert res.recovered_energy_kwh[0] == pytest.approx(expect, rel=1e-12)
+    assert 0 < res.recovered_energy_kwh[0] < total_kwh  # the air brake took part
+
+
+def test_no_regeneration_where_the_catenary_is_off(tmp_path):
+    """In a neutral section's span the main breaker is open: no electric brake, nothing returned; the same
+    braking outside it returns energy."""
+    base = _level_line().model_dump(by_alias=True)
+    base["neutral_sections"] = [{"from_m": 7400.0, "to_m": 7450.0}]
+    from locoplan.model.route import Route
+
+    calc, res = _run(tmp_path, 1.0, air_brake=True, route=Route.model_validate(base))
+    p = res.profile
+    off = calc.traction_allowed == 0
+    assert off.any() and np.any(p.brake_kn[0][off] > 0)  # it brakes there ...
+    mid = 0.5 * (p.v_kmh[0, 1:] + p.v_kmh[0, :-1])
+    e_max = np.interp(mid, calc.electric_brake_speed_kmh, calc.electric_brake_kn) * calc.traction_allowed
+    per_cell = np.minimum(p.brake_kn[0], e_max) * np.diff(p.s_m)
+    assert np.all(per_cell[off] == 0)  # ... and returns nothing there
+    assert res.recovered_energy_kwh[0] == pytest.approx(float(per_cell.sum()) / KJ_PER_KWH, rel=1e-12)
+
+
+def test_the_field_is_checked(tmp_path):
+    wagon = (STOCK / "C80.yaml").read_text() + "\nregen_efficiency: 0.8\n"
+    (tmp_path / "C80.yaml").write_text(wagon)
+    with pytest.raises(InputError, match="regen_efficiency: a wagon has no electric brake"):
+        load_vehicle(tmp_path / "C80.yaml")
+    loco = (STOCK / "HXD1.yaml").read_text() + "\nregen_efficiency: 1.2\n"
+    (tmp_path / "HXD1.yaml").write_text(loco)
+    with pytest.raises(InputError, match="regen_efficiency"):
+        load_vehicle(tmp_path / "HXD1.yaml")
+    assert G_MS2 == 9.81
