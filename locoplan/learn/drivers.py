@@ -53,7 +53,7 @@ from ..errors import InputError, Problem
 from ..io.load import build_train
 from ..model.consist import Consist, ConsistEntry, Vehicle
 from ..model.route import Route
-from ..physics.units import kinetic_e, kmh, kmh_from_e, ms_from_e
+from ..physics.units import KMH_PER_MS, kinetic_e, kmh, kmh_from_e, ms_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..strategy.sequence import classify_grades
 from .logs import MANIFEST_NAME, LogData, log_csv_text, manifest_text
@@ -379,7 +379,7 @@ def drive_to_schedule(calc: TractionCalculator, tables: RouteTables, p: DriverPa
     that cannot make its time even at the line speed runs at it (and arrives late, as drivers sometimes
     do)."""
     v_top = float(np.max(tables.limit_kmh))
-    mean_kmh = kmh(calc.route.length_m / aim_s)
+    mean_kmh = KMH_PER_MS * calc.route.length_m / aim_s
     max_time = 3.0 * aim_s
     x_fast, x_slow = np.full(len(aim_s), 1.0 / v_top), 1.0 / np.maximum(0.8 * mean_kmh, 10.0)
 

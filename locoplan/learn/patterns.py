@@ -45,7 +45,7 @@ from .. import __version__
 from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import Train
-from ..physics.units import kmh, kmh_from_e
+from ..physics.units import KMH_PER_MS, kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .logs import LoggedRun
 from .segments import LEVEL_PERMILLE, SECTION_TYPES, Section, segment_route
@@ -137,7 +137,7 @@ class LineModel:
     def lower_inputs(self, i: int, k: int, entry_kmh: float, share: float, mass_t: float, time_s: float) -> np.ndarray:
         """Eq. II inputs of division k (1..p) of section i."""
         sec = self.sections[i]
-        mean_speed = kmh(sec.length_m / max(share * time_s, 1e-9))
+        mean_speed = KMH_PER_MS * sec.length_m / max(share * time_s, 1e-9)
         ahead = self.sections[i + 1].gradient_permille if i + 1 < len(self.sections) else 0.0
         return np.array([entry_kmh, k / self.divisions, share, sec.length_m, sec.gradient_permille, mass_t,
                          time_s / self.fastest_time_s, mean_speed, self.division_limit_kmh[i, k - 1],

@@ -15,7 +15,7 @@ from ..model.conditions import B as B_
 from ..model.conditions import K as H_
 from ..model.conditions import T as T_
 from ..physics.units import KJ_PER_KWH
-from ..sim.kernel import brake_kn, e_from_ms, kmh, load_kn, locate, ms_from_e
+from ..sim.kernel import brake_kn, davis_kn, e_from_ms, kmh, locate, ms_from_e
 
 # (controls: T_ full traction, H_ hold the speed (cruise, K), C coast, B_ full braking)
 
@@ -70,7 +70,7 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
 def _step(e, u, h, g_k, allowed, fo):
     """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
     v_kmh = kmh(ms_from_e(e))
-    load0 = load_kn(v_kmh, g_k, fo)
+    load0 = davis_kn(v_kmh, fo.ra, fo.rb, fo.rc) + g_k
     if u == H_:
         f_max = _interp1(v_kmh, fo.tv, fo.tf) * allowed
         b_max = brake_kn(v_kmh, allowed, fo)
@@ -87,7 +87,7 @@ def _step(e, u, h, g_k, allowed, fo):
             f = _interp1(vm, fo.tv, fo.tf) * allowed
         elif u == B_:
             b = brake_kn(vm, allowed, fo)
-        load = load_kn(vm, g_k, fo)
+        load = davis_kn(vm, fo.ra, fo.rb, fo.rc) + g_k
         e1 = e + h / fo.m * (f - b - load)
     if u == T_:
         vm = kmh(ms_from_e(max(0.5 * (e + e1), 0.0)))

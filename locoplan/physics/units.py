@@ -14,6 +14,9 @@ KJ_PER_KWH = 3600.0
 """1 kWh = 3600 kJ (a force in kN over a distance in m is a work in kJ)."""
 S_PER_H = 3600.0
 """Seconds in an hour."""
+KMH2_PER_E = 2.0 * KMH_PER_MS**2
+"""v [km/h] = sqrt(e * KMH2_PER_E) for e = v^2/2 [m^2/s^2] (= 25.92, one multiplication for the
+calculator's mid-cell speed)."""
 
 
 def ms(speed_kmh):
@@ -28,8 +31,7 @@ def kmh(speed_ms):
 
 def kinetic_e(speed_kmh):
     """e = v^2/2 [m^2/s^2] (kinetic energy per unit mass) of a speed in km/h: the calculator's state."""
-    v = speed_kmh / KMH_PER_MS
-    return v * v / 2.0
+    return (speed_kmh / KMH_PER_MS) ** 2 / 2
 
 
 def e_from_ms(speed_ms):

@@ -35,12 +35,13 @@ from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import Train
 from ..model.conditions import CODE
+from ..native import kernels
 from ..physics.braking import full_brake_kn
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
-from ..physics.resistance import running_load_kn
+from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
-from ..physics.units import kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
+from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import CANNOT_HOLD, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
@@ -215,8 +216,8 @@ class TractionCalculator:
         # full braking reaches the limit no earlier than where braking can hold again)
         lim_kmh = kmh_from_e(e_cell)
         cells = np.arange(len(mid))
-        self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells)
-                                  + running_load_kn(lim_kmh, *train.resistance_kn, self.gravity_kn)) >= 0.0
+        self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells) + train_resistance_kn(lim_kmh, train.resistance_kn)
+                                  + self.gravity_kn) >= 0.0
         self.e_envelope, self._entry_m = self._braking_envelope()
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
         self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
@@ -245,7 +246,7 @@ class TractionCalculator:
         v_kmh = kmh(v_ms)
         return (max_force_kn(v_kmh, self.train.traction_speed_kmh, self.train.traction_kn) * self.traction_allowed[k],
                 self.brake_kn_at(v_kmh, k),
-                running_load_kn(v_kmh, *self.train.resistance_kn, self.gravity_kn[k]))
+                train_resistance_kn(v_kmh, self.train.resistance_kn) + self.gravity_kn[k])
 
     def recovered_energy_kwh(self, v_nodes_kmh: np.ndarray, brake_kn: np.ndarray) -> np.ndarray:
         """Energy the electric brake returns to the line [kWh] on runs given by their node speeds and cell
@@ -265,8 +266,6 @@ class TractionCalculator:
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
         if self.backend == "numba":  # the same loop compiled (kernel.braking_envelope)
-            from ..native import kernels
-
             e_env = np.empty_like(self.e_limit_node)
             found = np.empty(len(self.h_m))
             cells = self._cells(self.e_limit_node, self.brake_holds_limit)  # (neither read by the envelope)
@@ -407,8 +406,6 @@ class TractionCalculator:
 
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
-        from ..native import kernels
-
         n, n_cells = sw.shape[0], len(self.h_m)
         starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
         ends = np.concatenate([starts[:, 1:], np.full((n, 1), np.inf)], axis=1)
@@ -497,7 +494,7 @@ class TractionCalculator:
             e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
             if cruise_e is not None:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
-            v_kmh = kmh_from_e(np.maximum(e_mid, 0.0))
+            v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
             b_max = full_brake_kn(_interp(v_kmh, ev, ef), _interp(v_kmh, av, af), allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])

@@ -19,11 +19,13 @@ from numba import njit
 
 from ..model.conditions import B, C, K, T
 from ..physics import braking, resistance, units
+from ..physics.units import KMH2_PER_E
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
 
 # the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
 full_brake_kn = njit(cache=True)(braking.full_brake_kn)
 running_load_kn = njit(cache=True)(resistance.running_load_kn)
+davis_kn = njit(cache=True)(resistance.davis_kn)
 kmh_from_e = njit(cache=True)(units.kmh_from_e)
 ms_from_e = njit(cache=True)(units.ms_from_e)
 e_from_ms = njit(cache=True)(units.e_from_ms)
@@ -191,7 +193,7 @@ def run_plans(ce_, fo, pl, out):
                 c0 = ce
             if ce < c1:
                 c1 = ce
-            v_kmh = kmh_from_e(max(e_mid, 0.0))
+            v_kmh = math.sqrt(max(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
             b_max = brake_kn(v_kmh, allowed[k], fo)
             load = load_kn(v_kmh, grav[k], fo)
@@ -324,5 +326,5 @@ def braking_envelope(ce_, fo, n_sub, e_env, entries):
 def _decel(e, k, ce_, fo):
     """-de/ds under full braking at e in cell k [m/s^2]."""
     v_kmh = kmh_from_e(max(e, 0.0))
-    return (brake_kn(v_kmh, ce_.allowed[k], fo) + load_kn(v_kmh, ce_.grav[k], fo)) / fo.m
+    return (brake_kn(v_kmh, ce_.allowed[k], fo) + (davis_kn(v_kmh, fo.ra, fo.rb, fo.rc) + ce_.grav[k])) / fo.m
 
