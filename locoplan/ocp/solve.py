@@ -12,7 +12,7 @@ section 5, Tables 2-3):
   ``stage2="global"`` keeps the single global interval exactly as in the seed; ``stage2="hp"``
   (default, our extension) also cuts the *state* mesh at the detected jumps into segments whose
   break points are NLP variables (a moving hp mesh, see
-  :func:`~locoplan.ocp.transcription.recollocate`), and merges the control to one value per smooth
+  :func:`~locoplan.ocp.recollocation.recollocate`), and merges the control to one value per smooth
   segment (eq. 31). A single global polynomial cannot resolve the bang-bang optimum to 0.02 s; the
   hp mesh puts a break point on each switch and reproduces the exact optimum. If a break point ends
   on its bound, stage 2 is re-solved with the break points free in (0, 1) (Fig. 4's re-selection);
@@ -26,7 +26,6 @@ section 5, Tables 2-3):
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -36,16 +35,13 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..errors import InfeasibleError, InputError
+from ..physics.units import kmh
 from . import nodes as _nodes
-from .problems import KMH_PER_MS, MinTimeTrainProblem
-from .transcription import (
-    Mesh,
-    NlpSolution,
-    paired_control_map,
-    recollocate,
-    solve_cvp,
-    solve_gauss,
-)
+from .cvp import solve_cvp
+from .gauss import GaussSolution, paired_control_map, single_mesh, solve_gauss
+from .mesh import Mesh
+from .min_time import MinTimeTrainProblem
+from .recollocation import recollocate
 
 __all__ = [
     "METHODS",
@@ -178,7 +174,7 @@ def _check_nlp(result, problem: MinTimeTrainProblem, method: str, nodes: int):
         )
 
 
-def _gauss_solution(method, problem, nlp: NlpSolution, stages, wall, status: str | None = None) -> OcpSolution:
+def _gauss_solution(method, problem, nlp: GaussSolution, stages, wall, status: str | None = None) -> OcpSolution:
     bounds = (-problem.b_max_kn, problem.f_max_kn)
     pieces = tuple(
         ControlPiece(s.t0, s.t1, "lagrange", _ro(s.lg_times), _ro(s.controls[0])) for s in nlp.segments
@@ -215,7 +211,7 @@ def _gauss_solution(method, problem, nlp: NlpSolution, stages, wall, status: str
 
 
 def _stage(name: str, nlp) -> StageReport:
-    if isinstance(nlp, NlpSolution):
+    if isinstance(nlp, GaussSolution):
         cn, sn, ns = nlp.mesh.n_control_params, nlp.mesh.n_state_nodes, len(nlp.segments)
     else:
         cn, sn, ns = nlp.params.shape[1], 0, 1
@@ -292,7 +288,7 @@ def solve_min_time(
     if method == "gpm":
         if state_nodes is not None and state_nodes != nodes:
             raise InputError(f"gpm: states and control share the LG points; state_nodes {state_nodes} != nodes {nodes}")
-        res = solve_gauss(ocp, Mesh.single(nodes), guess, ipopt_options=ipopt_options)
+        res = solve_gauss(ocp, single_mesh(nodes), guess, ipopt_options=ipopt_options)
         _check_nlp(res, problem, method, nodes)
         return _gauss_solution(method, problem, res, [_stage("gpm", res)], _time.perf_counter() - t_wall)
 
@@ -306,7 +302,7 @@ def solve_min_time(
                 f"two-stage: stage 1 pairs the control (U_(2l-1) = U_(2l)), so {state_nodes} state nodes "
                 f"give {state_nodes // 2} control nodes, not {nodes}"
             )
-    mesh1 = Mesh.single(state_nodes, paired_control_map(state_nodes))  # InputError for odd counts
+    mesh1 = single_mesh(state_nodes, paired_control_map(state_nodes))  # InputError for odd counts
     res1 = solve_gauss(ocp, mesh1, guess, ipopt_options=ipopt_options)
     _check_nlp(res1, problem, "two-stage (stage 1)", state_nodes // 2)
     stages = [_stage("stage 1", res1)]
@@ -317,7 +313,7 @@ def solve_min_time(
         for widen in (1.0, math.inf):  # Fig. 4: re-select if a break point ends on its bound
             mesh2 = recollocate(res1, u_range, eps_upper=eps, eps_lower=eps_lower, mode=stage2, widen=widen)
             if bps2 is not None and len(bps2) == len(mesh2.breakpoints):
-                mesh2 = dataclasses.replace(mesh2, breakpoints=bps2)  # continue from the last solve
+                mesh2 = mesh2.with_breakpoints(bps2)  # continue from the last solve
             res2 = solve_gauss(ocp, mesh2, guess2, ipopt_options=ipopt_options)
             stages.append(_stage("stage 2" if widen == 1.0 else "stage 2 (free break points)", res2))
             if res2.success:
@@ -332,7 +328,7 @@ def solve_min_time(
     return _gauss_solution(method, problem, final, stages, _time.perf_counter() - t_wall, status)
 
 
-def _breakpoint_at_bound(res: NlpSolution, mesh: Mesh) -> bool:
+def _breakpoint_at_bound(res: GaussSolution, mesh: Mesh) -> bool:
     sig = res.breakpoints / res.final_time
     for s, (lo, hi) in zip(sig, mesh.breakpoint_bounds):
         if hi - lo > 1e-6 and (s - lo < 1e-6 or hi - s < 1e-6):
@@ -491,7 +487,7 @@ def resimulate(
         time_to_length_s=t_len,
         distance_at_tf_m=float(at_tf[0]),
         final_speed_ms=float(at_tf[1]),
-        max_overspeed_kmh=max(0.0, over * KMH_PER_MS),
+        max_overspeed_kmh=max(0.0, kmh(over)),
         max_control_excess_kn=excess,
         stop_time_s=t_stop,
         stop_position_m=s_stop,
