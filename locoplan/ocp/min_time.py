@@ -8,7 +8,7 @@ gradient force, the equation of motion of ``physics.motion``, units), shared wit
 
 Model (seed eq. 1-3, point mass, ideal tractive effort):
 
-    ds/dt = v,     dv/dt = (F_u - (R(v) + G)) / M
+    ds/dt = v,     dv/dt = (F_u - R(v) - G) / M
 
 with ``M`` in t and forces in kN (kN / t = m/s^2), ``R(v) = r0 + r1 V + r2 V^2`` the whole-train
 basic resistance in kN with ``V`` the speed in km/h, and ``G = M g i / 1000`` the grade resistance in
@@ -162,7 +162,7 @@ class MinTimeTrainProblem:
     def acceleration(self, v_ms, force_kn):
         """``dv/dt`` [m/s^2] for traction (+) / brake (-) force ``force_kn``: the equation of motion
         of ``physics.motion``, as in the energy problem."""
-        return acceleration_ms2(force_kn, kmh(v_ms), tuple(self.resistance_kn), self.grade_force_kn, self.mass_t)
+        return acceleration_ms2(force_kn, self.mass_t, self.resistance(v_ms), self.grade_force_kn)
 
     def rhs(self, t, x, u):
         """``(ds/dt, dv/dt)`` for state ``x = (s, v)`` and control ``u`` [kN] (plain numbers)."""

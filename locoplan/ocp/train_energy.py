@@ -155,7 +155,8 @@ class TrainModel:
     def accel(self, x, u, p, speed_kmh):
         """The equation of motion of ``physics.motion`` (shared with the minimum-time problem)."""
         brake, _ = self.brakes(u)
-        return acceleration_ms2(u[0] - brake, speed_kmh, self.resistance_kn, p["gravity_kn"], self.inertial_mass_t)
+        load = train_resistance_kn(speed_kmh, self.resistance_kn) + p["gravity_kn"]
+        return acceleration_ms2(u[0], self.inertial_mass_t, brake, load)
 
     def dynamics(self, x, u, s, p):
         v = _speed(x[0])

@@ -1,22 +1,22 @@
 """The train's equation of motion along the track, once for every optimal-control problem.
 
-M a = F - (R(v) + G): ``F`` the net force of the controls (traction minus braking) [kN], ``R`` the
-basic running resistance and ``G`` the gravity component on the (equivalent) gradient [kN], ``M``
-the (inertial) mass [t]; kN / t = m/s^2. Numbers, numpy arrays and CasADi symbols alike (arithmetic
-only), as :mod:`locoplan.physics.backend` asks of every formula here.
+M a = F - W: ``F`` the driving force [kN] (traction; in the minimum-time problem the signed net
+control force), ``W`` the forces against it (braking, basic running resistance, gravity on the
+equivalent gradient) [kN], ``M`` the (inertial) mass [t]; kN / t = m/s^2. Numbers, numpy arrays and
+CasADi symbols alike (arithmetic only), as :mod:`locoplan.physics.backend` asks of every formula.
 """
 
 from __future__ import annotations
 
-from .resistance import train_resistance_kn
 
+def acceleration_ms2(force_kn, mass_t, *resisting_kn):
+    """``(F - W_1 - W_2 - ...) / M`` [m/s^2]: ``force_kn`` the driving force [kN], ``mass_t`` [t], then
+    the resisting forces [kN] (e.g. ``brake_kn, resistance_kn + gravity_kn``).
 
-def running_load_kn(speed_kmh, resistance_kn: tuple[float, float, float], gravity_kn):
-    """What the train runs against [kN]: basic resistance ``A + B v + C v^2`` at ``speed_kmh`` plus the
-    gravity force ``gravity_kn`` (positive up-grade)."""
-    return train_resistance_kn(speed_kmh, resistance_kn) + gravity_kn
-
-
-def acceleration_ms2(force_kn, speed_kmh, resistance_kn: tuple[float, float, float], gravity_kn, mass_t):
-    """``(F - (R(v) + G)) / M`` [m/s^2] for the net control force ``force_kn`` [kN] at ``speed_kmh``."""
-    return (force_kn - running_load_kn(speed_kmh, resistance_kn, gravity_kn)) / mass_t
+    They are subtracted one after the other in the order given: the callers' NLPs depend on that
+    order at the last bit (the energy problem's hp refinement turns a rounding difference into a
+    different mesh), so each caller keeps the grouping it was validated with."""
+    net = force_kn
+    for w in resisting_kn:
+        net = net - w
+    return net / mass_t
