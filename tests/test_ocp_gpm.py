@@ -275,3 +275,49 @@ def test_infeasible_and_invalid_problems():
     # a valid problem, but 2 paired control values cannot go rest-to-rest: too coarse a transcription
     with pytest.raises(InfeasibleError, match="try more nodes"):
         solve_min_time(dataclasses.replace(base, f_max_kn=100.0), "two-stage", 2)
+
+
+# ---- one framework: the shared problem, mesh and equation of motion -------------------------------------
+
+
+def test_gauss_mesh_is_the_shared_mesh():
+    from locoplan.ocp.mesh import Mesh
+
+    mesh = gauss_mesh((5, 6), (0.5,), ((0.2, 0.8),))
+    assert isinstance(mesh, Mesh) and mesh.n_state_nodes == 11 and mesh.n_control_params == 11
+    assert mesh.free_breakpoints and mesh.breakpoints == (0.5,) and mesh.breakpoint_bounds == ((0.2, 0.8),)
+    moved = mesh.with_breakpoints((0.4,))
+    assert moved.breakpoints == (0.4,) and moved.breakpoint_bounds == ((0.2, 0.8),)
+    assert moved.intervals[0].s_b == moved.intervals[1].s_a == 0.4
+    with pytest.raises(InputError, match="increase strictly"):
+        gauss_mesh((5, 5), (1.2,))
+    with pytest.raises(InputError, match="its bounds"):
+        gauss_mesh((5, 5), (0.5,), ((0.6, 0.8),))
+    with pytest.raises(InputError, match="control map"):
+        gauss_interval(4, np.ones((3, 1)))
+
+
+def test_radau_takes_fixed_end_problems_only():
+    from locoplan.ocp.mesh import Interval, Mesh
+    from locoplan.ocp.radau import RadauTranscription
+
+    with pytest.raises(InputError, match="Gauss transcription"):
+        RadauTranscription(seed000_problem(0.0).to_ocp(), Mesh((Interval(0, 0.0, 1.0, 4),)))
+
+
+def test_min_time_problem_is_one_free_end_phase():
+    ocp = seed000_problem(30.0).to_ocp()
+    assert len(ocp.phases) == 1 and ocp.free_end[0] == pytest.approx(1500.0 / (39.96 / 3.6))
+    assert ocp.phase.model.states == ("s", "v") and ocp.phase.model.integrand is None and ocp.mayer is not None
+    with pytest.raises(InputError, match="free end"):
+        dataclasses.replace(ocp, phases=ocp.phases * 2)
+
+
+def test_equation_of_motion_keeps_the_order_of_its_forces():
+    from locoplan.physics.motion import acceleration_ms2
+
+    assert acceleration_ms2(100.0, 50.0, 20.0, 30.0) == pytest.approx(1.0)
+    f, r, g = 0.1, 0.2, 0.3  # (f - r) - g and f - (r + g) differ in the last bit: the callers' NLPs depend on it
+    assert acceleration_ms2(f, 1.0, r, g) == (f - r) - g and acceleration_ms2(f, 1.0, r + g) == f - (r + g)
+    x = ca.SX.sym("x")
+    assert float(ca.Function("a", [x], [acceleration_ms2(x, 2.0, 1.0)])(3.0)) == 1.0

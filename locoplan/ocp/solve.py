@@ -1,6 +1,7 @@
 """Solve the minimum-time train problem and check the answer by re-simulation.
 
-Layer 4 of the optimal-control stack (nodes -> transcription -> problem -> solve). Methods (seed 000
+On the shared machinery (problem: ``phase.MultiPhaseProblem``, mesh: ``mesh.Mesh``, transcriptions:
+``gauss``, method ``cvp``); one function per method in :data:`METHOD_SOLVERS`. Methods (seed 000
 section 5, Tables 2-3):
 
 * ``"gpm"``: the classical Gauss pseudospectral method, one global interval, ``nodes`` LG points for
@@ -53,7 +54,6 @@ __all__ = [
     "solve_min_time",
 ]
 
-METHODS = ("gpm", "two-stage", "cvp")
 DEFAULT_NODES = {"gpm": 34, "two-stage": 17, "cvp": 20}
 _INFEASIBLE = {"Infeasible_Problem_Detected", "Restoration_Failed"}
 
@@ -259,40 +259,61 @@ def solve_min_time(
     if nodes is not None:
         nodes = _nodes._check_n(nodes, f"{method} control nodes")
     t_wall = _time.perf_counter()
-    ocp = problem.to_ocp()
-    guess = problem.initial_guess()
+    settings = _Settings(state_nodes, eps, eps_lower, stage2, substeps, ipopt_options, t_wall)
+    return METHOD_SOLVERS[method](problem, problem.to_ocp(), problem.initial_guess(), nodes, settings)
 
-    if method == "cvp":
-        res = solve_cvp(ocp, nodes, guess, substeps=substeps, ipopt_options=ipopt_options)
-        _check_nlp(res, problem, method, nodes)
-        wall = _time.perf_counter() - t_wall
-        k = res.substeps
-        return OcpSolution(
-            method=method,
-            objective_s=res.final_time,
-            time_s=_ro(res.grid),
-            position_m=_ro(res.step_states[0, ::k]),
-            speed_ms=_ro(res.step_states[1, ::k]),
-            control_kn=_ro(res.params[0]),
-            control_nodes=res.params.shape[1],
-            state_nodes=0,
-            solve_time_s=wall,
-            iterations=res.iterations,
-            status=res.status,
-            success=res.success,
-            control_pieces=(ControlPiece(0.0, res.final_time, "linear", _ro(res.grid), _ro(res.params[0])),),
-            control_bounds_kn=(-problem.b_max_kn, problem.f_max_kn),
-            stages=(_stage("cvp", res),),
-        )
 
-    if method == "gpm":
-        if state_nodes is not None and state_nodes != nodes:
-            raise InputError(f"gpm: states and control share the LG points; state_nodes {state_nodes} != nodes {nodes}")
-        res = solve_gauss(ocp, single_mesh(nodes), guess, ipopt_options=ipopt_options)
-        _check_nlp(res, problem, method, nodes)
-        return _gauss_solution(method, problem, res, [_stage("gpm", res)], _time.perf_counter() - t_wall)
+@dataclass(frozen=True)
+class _Settings:
+    """The options of :func:`solve_min_time` a method may read, and when its wall time started."""
 
-    # two-stage
+    state_nodes: int | None
+    eps: float
+    eps_lower: float | None
+    stage2: str
+    substeps: int
+    ipopt_options: dict | None
+    t_wall: float
+
+
+def _solve_cvp(problem: MinTimeTrainProblem, ocp, guess, nodes: int, st: _Settings) -> OcpSolution:
+    """Control vector parameterisation (:mod:`~locoplan.ocp.cvp`)."""
+    res = solve_cvp(ocp, nodes, guess, substeps=st.substeps, ipopt_options=st.ipopt_options)
+    _check_nlp(res, problem, "cvp", nodes)
+    wall = _time.perf_counter() - st.t_wall
+    k = res.substeps
+    return OcpSolution(
+        method="cvp",
+        objective_s=res.final_time,
+        time_s=_ro(res.grid),
+        position_m=_ro(res.step_states[0, ::k]),
+        speed_ms=_ro(res.step_states[1, ::k]),
+        control_kn=_ro(res.params[0]),
+        control_nodes=res.params.shape[1],
+        state_nodes=0,
+        solve_time_s=wall,
+        iterations=res.iterations,
+        status=res.status,
+        success=res.success,
+        control_pieces=(ControlPiece(0.0, res.final_time, "linear", _ro(res.grid), _ro(res.params[0])),),
+        control_bounds_kn=(-problem.b_max_kn, problem.f_max_kn),
+        stages=(_stage("cvp", res),),
+    )
+
+
+def _solve_gpm(problem: MinTimeTrainProblem, ocp, guess, nodes: int, st: _Settings) -> OcpSolution:
+    """The classical GPM: one global Gauss interval, states and control on the same LG points."""
+    if st.state_nodes is not None and st.state_nodes != nodes:
+        raise InputError(f"gpm: states and control share the LG points; state_nodes {st.state_nodes} != nodes {nodes}")
+    res = solve_gauss(ocp, single_mesh(nodes), guess, ipopt_options=st.ipopt_options)
+    _check_nlp(res, problem, "gpm", nodes)
+    return _gauss_solution("gpm", problem, res, [_stage("gpm", res)], _time.perf_counter() - st.t_wall)
+
+
+def _solve_two_stage(problem: MinTimeTrainProblem, ocp, guess, nodes: int | None, st: _Settings) -> OcpSolution:
+    """Seed 000's two-stage method: paired stage 1, then the re-collocated stage 2
+    (:mod:`~locoplan.ocp.recollocation`) warm-started from it."""
+    state_nodes, ipopt_options = st.state_nodes, st.ipopt_options
     if state_nodes is None:
         state_nodes = 2 * nodes
     else:
@@ -311,7 +332,7 @@ def solve_min_time(
         u_range = problem.f_max_kn + problem.b_max_kn
         guess2, bps2 = res1.to_guess(), None
         for widen in (1.0, math.inf):  # Fig. 4: re-select if a break point ends on its bound
-            mesh2 = recollocate(res1, u_range, eps_upper=eps, eps_lower=eps_lower, mode=stage2, widen=widen)
+            mesh2 = recollocate(res1, u_range, eps_upper=st.eps, eps_lower=st.eps_lower, mode=st.stage2, widen=widen)
             if bps2 is not None and len(bps2) == len(mesh2.breakpoints):
                 mesh2 = mesh2.with_breakpoints(bps2)  # continue from the last solve
             res2 = solve_gauss(ocp, mesh2, guess2, ipopt_options=ipopt_options)
@@ -325,7 +346,13 @@ def solve_min_time(
     status = None
     if final is res1 and len(stages) > 1:
         status = f"{res1.status} (stage 2 failed: {stages[-1].status}; stage-1 result)"
-    return _gauss_solution(method, problem, final, stages, _time.perf_counter() - t_wall, status)
+    return _gauss_solution("two-stage", problem, final, stages, _time.perf_counter() - st.t_wall, status)
+
+
+METHOD_SOLVERS = {"gpm": _solve_gpm, "two-stage": _solve_two_stage, "cvp": _solve_cvp}
+"""The minimum-time methods by name (the keys of ``registry.OCP_METHODS`` that solve ``time``); a new
+method is one function here (or its own module) and one entry."""
+METHODS = tuple(METHOD_SOLVERS)
 
 
 def _breakpoint_at_bound(res: GaussSolution, mesh: Mesh) -> bool:
