@@ -25,7 +25,10 @@ import sys as _sys
 from pathlib import Path as _Path
 _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
 
-from locoplan.ocp.study import run_study, study_markdown
+from locoplan.io.load import load_route, load_train
+from locoplan.ocp.registry import DEFAULT_OCP_CONSIST, study_route_files
+from locoplan.ocp.seed000 import run_study
+from locoplan.reporting.ocp_study import study_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,7 +49,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="also write the markdown to this file")
     args = ap.parse_args()
     os.chdir(ROOT)
-    study = run_study(repeats=args.repeats)
+    routes = {k: (load_route(p), p) for k, p in study_route_files().items()}
+    study = run_study(load_train(DEFAULT_OCP_CONSIST), routes, repeats=args.repeats)
     head = (f"Measured {datetime.date.today().isoformat()} on {_cpu()} ({os.cpu_count()} CPUs), Python "
             f"{platform.python_version()}, CasADi {casadi.__version__} / IPOPT, median of {args.repeats} solves "
             f"(`python benchmarks/ocp_study.py --repeats {args.repeats}`).\n\n")

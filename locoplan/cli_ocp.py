@@ -1,6 +1,6 @@
 """``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (seeds 000, 001).
 
-Thin commands over :mod:`locoplan.ocp.study`; :func:`register` adds them to a typer app (the main
+Thin commands over :mod:`locoplan.ocp.min_time_run` and :mod:`locoplan.ocp.seed000`; :func:`register` adds them to a typer app (the main
 app in :mod:`locoplan.cli`, or a fresh one in tests).
 """
 
@@ -137,7 +137,8 @@ def register(app: typer.Typer) -> None:
         two-stage adaptive Gauss collocation pseudospectral method (time); multi-phase Radau control after
         Bai Yun et al., energy-saving high-speed train operation (energy)."""
         from .io.load import load_route, load_train
-        from .ocp.study import check_options, check_output_path, solve_ocp, write_ocp_output
+        from .ocp.min_time_run import check_options, solve_ocp
+        from .reporting.ocp_study import check_output_path, write_ocp_output
 
         method = method or DEFAULT_METHOD.get(objective, "two-stage")
         if objective == "energy":
@@ -187,7 +188,9 @@ def register(app: typer.Typer) -> None:
         """Minimum running time by CVP 20/40, GPM 34/48 and two-stage 17/24 collocation (hp and the paper's
         global stage 2), side by side. Method: Liu Ping et al., optimal operation of electric locomotives by a
         two-stage adaptive Gauss collocation pseudospectral method (its Tables 2-3)."""
-        from .ocp.study import check_output_path, run_study, write_study_output
+        from .io.load import load_route, load_train
+        from .ocp.seed000 import run_study
+        from .reporting.ocp_study import check_output_path, write_study_output
 
         from .bounds import count
 
@@ -195,11 +198,14 @@ def register(app: typer.Typer) -> None:
         check_output_path(out_file, "--out", (".json", ".csv", ".md"))
         check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
         from .cli_common import step_progress
-        from .ocp.study import STUDY_ROUTES, STUDY_RUNS
+        from .ocp.registry import STUDY_ROUTES, study_route_files
+        from .ocp.seed000 import STUDY_RUNS
 
         with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
                            not as_json) as step:
-            study = run_study(consist=consist, repeats=repeats, progress=step)
+            train = load_train(consist)
+            routes = {k: (load_route(p), p) for k, p in study_route_files().items()}
+            study = run_study(train, routes, repeats=repeats, progress=step)
         if out_file:
             write_study_output(out_file, study)
         if plot:

@@ -289,7 +289,7 @@ def test_public_api_is_lazy_and_complete():
 def test_ocp_study_routes_resolve_outside_the_checkout(tmp_path, monkeypatch):
     """ocp-study's default routes come from the package catalogue when the folder has no routes/."""
     from locoplan.io.load import load_route
-    from locoplan.ocp.study import STUDY_ROUTES, _default_path
+    from locoplan.ocp.registry import STUDY_ROUTES, study_route_file as _default_path
 
     monkeypatch.chdir(tmp_path)
     for rel in STUDY_ROUTES.values():

@@ -23,14 +23,10 @@ from typer.testing import CliRunner
 from locoplan.errors import InputError
 from locoplan.io.load import load_route, load_train
 from locoplan.ocp import seed000_problem
-from locoplan.ocp.study import (
-    OCP_METHODS,
-    SEED000_TABLES,
-    exact_minimum,
-    exact_minimum_time,
-    run_ocp,
-    train_problem,
-)
+from locoplan.ocp.min_time import exact_minimum, exact_minimum_time, train_problem
+from locoplan.ocp.min_time_run import run_ocp
+from locoplan.ocp.registry import OCP_METHODS
+from locoplan.ocp.seed000 import SEED000_TABLES
 from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
 
 runner = CliRunner()

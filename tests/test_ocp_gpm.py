@@ -17,18 +17,18 @@ import pytest
 
 from locoplan.errors import InfeasibleError, InputError, LocoplanError
 from locoplan.ocp import MinTimeTrainProblem, resimulate, seed000_problem, solve_min_time
-from locoplan.ocp.transcription import (
-    Guess,
-    Mesh,
-    OcpDescription,
-    Segment,
+from locoplan.ocp.cvp import solve_cvp
+from locoplan.ocp.gauss import (
+    gauss_interval,
+    gauss_mesh,
     lagrange_control_map,
     paired_control_map,
-    recollocated_groups,
-    slope_changes,
-    solve_cvp,
+    single_mesh,
     solve_gauss,
 )
+from locoplan.ocp.nlp import Guess
+from locoplan.ocp.phase import MultiPhaseProblem, Phase, PhaseModel
+from locoplan.ocp.recollocation import recollocated_groups, slope_changes
 from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
 
 GRADES = (0.0, 30.0)
@@ -172,15 +172,15 @@ def test_solution_is_frozen_and_read_only(runs):
 # ---- the transcription layer on a smooth problem with a known answer --------------------------------
 
 
-def _lq(tf=1.0):
-    """min int_0^1 (x^2 + u^2) dt, x' = u, x(0) = 1, x(1) free: J = tanh(1), x = cosh(1-t)/cosh(1)."""
-    return OcpDescription(
-        state_names=("x",), control_names=("u",),
-        dynamics=lambda x, u, t: [u[0]],
-        state_lower=(-10.0,), state_upper=(10.0,), control_lower=(-10.0,), control_upper=(10.0,),
-        initial_state=(1.0,), final_state=(None,), final_time_bounds=(tf, tf),
-        lagrange=lambda x, u, t: x[0] ** 2 + u[0] ** 2,
-    )
+def _lq(tf=1.0, dynamics=lambda x, u, t, p: [u[0]]):
+    """min int_0^1 (x^2 + u^2) dt, x' = u, x(0) = 1, x(1) free: J = tanh(1), x = cosh(1-t)/cosh(1).
+    One phase with a free end held at ``tf`` by its bounds (the problem notion of every transcription)."""
+    model = PhaseModel(states=("x",), controls=("u",), dynamics=dynamics,
+                       integrand=lambda x, u, t, p: x[0] ** 2 + u[0] ** 2, state_scale=(1.0,), control_scale=(1.0,))
+    phase = Phase("lq", 0.0, tf, model, lambda t: {}, state_lower=(-10.0,), state_upper=(10.0,),
+                  control_lower=(-10.0,), control_upper=(10.0,))
+    return MultiPhaseProblem((phase,), initial_state=(1.0,), final_lower=(-math.inf,), final_upper=(math.inf,),
+                             free_end=(tf, tf))
 
 
 def _flat_guess():
@@ -191,11 +191,11 @@ def test_gpm_transcription_is_spectrally_accurate():
     exact = math.tanh(1.0)
     errors = []
     for n in (3, 5, 8):
-        r = solve_gauss(_lq(), Mesh.single(n), _flat_guess())
+        r = solve_gauss(_lq(), single_mesh(n), _flat_guess())
         assert r.success
         errors.append(abs(r.objective - exact))
     assert errors[-1] < 1e-10 and errors[0] > errors[1] > errors[2]
-    r = solve_gauss(_lq(), Mesh.single(10), _flat_guess())
+    r = solve_gauss(_lq(), single_mesh(10), _flat_guess())
     seg = r.segments[0]
     t = seg.lg_times
     np.testing.assert_allclose(seg.support_states[0, 1:], np.cosh(1 - t) / np.cosh(1.0), atol=1e-9)
@@ -206,13 +206,13 @@ def test_separate_control_nodes_and_hp_mesh():
     exact = math.tanh(1.0)
     # the control on its own 6-node set, the state on 12 LG points
     c_map = lagrange_control_map(12, np.cos(np.linspace(np.pi, 0, 6)))
-    r = solve_gauss(_lq(), Mesh.single(12, c_map), _flat_guess())
+    r = solve_gauss(_lq(), single_mesh(12, c_map), _flat_guess())
     assert r.success and r.mesh.n_control_params == 6 and r.objective == pytest.approx(exact, abs=1e-6)
     # three fixed segments; and the same with free break points
-    mesh = Mesh((Segment(5), Segment(5), Segment(5)), (0.3, 0.6))
+    mesh = gauss_mesh((gauss_interval(5), 5, 5), (0.3, 0.6))
     r = solve_gauss(_lq(), mesh, _flat_guess())
     assert r.success and r.objective == pytest.approx(exact, abs=1e-10)
-    mesh = Mesh((Segment(5), Segment(5)), (0.5,), ((0.2, 0.8),))
+    mesh = gauss_mesh((5, 5), (0.5,), ((0.2, 0.8),))
     r = solve_gauss(_lq(), mesh, _flat_guess())
     assert r.success and r.objective == pytest.approx(exact, abs=1e-9)
 
@@ -223,8 +223,8 @@ def test_cvp_transcription():
 
 
 def test_description_takes_casadi_dynamics():
-    ocp = dataclasses.replace(_lq(), dynamics=lambda x, u, t: ca.vertcat(ca.sin(0.0 * x[0]) + u[0]))
-    assert solve_gauss(ocp, Mesh.single(6), _flat_guess()).success
+    ocp = _lq(dynamics=lambda x, u, t, p: ca.vertcat(ca.sin(0.0 * x[0]) + u[0]))
+    assert solve_gauss(ocp, single_mesh(6), _flat_guess()).success
 
 
 def test_pairing_and_slope_change():
@@ -275,3 +275,49 @@ def test_infeasible_and_invalid_problems():
     # a valid problem, but 2 paired control values cannot go rest-to-rest: too coarse a transcription
     with pytest.raises(InfeasibleError, match="try more nodes"):
         solve_min_time(dataclasses.replace(base, f_max_kn=100.0), "two-stage", 2)
+
+
+# ---- one framework: the shared problem, mesh and equation of motion -------------------------------------
+
+
+def test_gauss_mesh_is_the_shared_mesh():
+    from locoplan.ocp.mesh import Mesh
+
+    mesh = gauss_mesh((5, 6), (0.5,), ((0.2, 0.8),))
+    assert isinstance(mesh, Mesh) and mesh.n_state_nodes == 11 and mesh.n_control_params == 11
+    assert mesh.free_breakpoints and mesh.breakpoints == (0.5,) and mesh.breakpoint_bounds == ((0.2, 0.8),)
+    moved = mesh.with_breakpoints((0.4,))
+    assert moved.breakpoints == (0.4,) and moved.breakpoint_bounds == ((0.2, 0.8),)
+    assert moved.intervals[0].s_b == moved.intervals[1].s_a == 0.4
+    with pytest.raises(InputError, match="increase strictly"):
+        gauss_mesh((5, 5), (1.2,))
+    with pytest.raises(InputError, match="its bounds"):
+        gauss_mesh((5, 5), (0.5,), ((0.6, 0.8),))
+    with pytest.raises(InputError, match="control map"):
+        gauss_interval(4, np.ones((3, 1)))
+
+
+def test_radau_takes_fixed_end_problems_only():
+    from locoplan.ocp.mesh import Interval, Mesh
+    from locoplan.ocp.radau import RadauTranscription
+
+    with pytest.raises(InputError, match="Gauss transcription"):
+        RadauTranscription(seed000_problem(0.0).to_ocp(), Mesh((Interval(0, 0.0, 1.0, 4),)))
+
+
+def test_min_time_problem_is_one_free_end_phase():
+    ocp = seed000_problem(30.0).to_ocp()
+    assert len(ocp.phases) == 1 and ocp.free_end[0] == pytest.approx(1500.0 / (39.96 / 3.6))
+    assert ocp.phase.model.states == ("s", "v") and ocp.phase.model.integrand is None and ocp.mayer is not None
+    with pytest.raises(InputError, match="free end"):
+        dataclasses.replace(ocp, phases=ocp.phases * 2)
+
+
+def test_equation_of_motion_keeps_the_order_of_its_forces():
+    from locoplan.physics.motion import acceleration_ms2
+
+    assert acceleration_ms2(100.0, 50.0, 20.0, 30.0) == pytest.approx(1.0)
+    f, r, g = 0.1, 0.2, 0.3  # (f - r) - g and f - (r + g) differ in the last bit: the callers' NLPs depend on it
+    assert acceleration_ms2(f, 1.0, r, g) == (f - r) - g and acceleration_ms2(f, 1.0, r + g) == f - (r + g)
+    x = ca.SX.sym("x")
+    assert float(ca.Function("a", [x], [acceleration_ms2(x, 2.0, 1.0)])(3.0)) == 1.0

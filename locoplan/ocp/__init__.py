@@ -1,25 +1,29 @@
-"""Optimal control of a train run: seed 000's minimum time (Gauss pseudospectral, two-stage
-re-collocation, CVP) and seed 001's multi-phase minimum energy (Radau, hp mesh refinement).
+"""Optimal control of a train run: one framework for seed 000's minimum time (Gauss pseudospectral,
+two-stage re-collocation, CVP) and seed 001's multi-phase minimum energy (Radau, hp refinement).
 
-Seed 001 (multi-phase): :mod:`~locoplan.ocp.phase` (phases, linkage) -> :mod:`~locoplan.ocp.mesh`
-(meshes, hp refinement) -> :mod:`~locoplan.ocp.radau` (LGR transcription, IPOPT) ->
-:mod:`~locoplan.ocp.train_energy` (the train problem from route breakpoints) ->
-:mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.drive` (drivable plan, checked
-by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and :mod:`~locoplan.ocp.bound`
-(the yardstick E*).
+Layers, each using only the ones before it:
 
-Seed 000 layers, each using only the ones before it:
+* :mod:`~locoplan.ocp.nodes`: LG / LGR nodes and weights (Golub-Welsch), differentiation matrices;
+* :mod:`~locoplan.ocp.phase`: the problem notion, phases of a model (``MultiPhaseProblem``; one
+  phase with a free end for the minimum-time problem);
+* :mod:`~locoplan.ocp.mesh`: the mesh (intervals with collocation points, hp refinement);
+* transcriptions, each a module taking a problem and a mesh: :mod:`~locoplan.ocp.radau` (LGR,
+  multi-phase), :mod:`~locoplan.ocp.gauss` (LG, free end); the method :mod:`~locoplan.ocp.cvp`
+  (control vector parameterisation); :mod:`~locoplan.ocp.recollocation` (seed 000's stage 2);
+* train problems: :mod:`~locoplan.ocp.min_time` (seed 000) and :mod:`~locoplan.ocp.train_energy`
+  (seed 001), both on ``physics``' formulas (``physics.motion`` for the equation of motion);
+* solving: :mod:`~locoplan.ocp.solve` (``solve_min_time``, ``resimulate``),
+  :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.seed000`
+  (Tables 2-3); :mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.drive`
+  (drivable plan, checked by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and
+  :mod:`~locoplan.ocp.bound` (the yardstick E*).
 
-* :mod:`locoplan.ocp.nodes`: LG / LGR nodes and weights (Golub-Welsch), differentiation matrices;
-* :mod:`locoplan.ocp.transcription`: generic problem description, GPM (single / hp mesh, separate
-  control node sets) and CVP transcriptions to a CasADi/IPOPT NLP, the two-stage re-collocation;
-* :mod:`locoplan.ocp.problems`: the minimum-time train problem (numbers only);
-* :mod:`locoplan.ocp.solve`: :func:`solve_min_time` and :func:`resimulate`.
+Rendering lives in :mod:`locoplan.reporting.ocp_study`.
 """
 
 import importlib
 
-_LAZY = {"MinTimeTrainProblem": "problems", "davis_resistance_kn": "problems", "seed000_problem": "problems",
+_LAZY = {"MinTimeTrainProblem": "min_time", "davis_resistance_kn": "min_time", "seed000_problem": "min_time",
          "METHODS": "solve", "OcpSolution": "solve", "Resimulation": "solve", "resimulate": "solve",
          "solve_min_time": "solve"}
 

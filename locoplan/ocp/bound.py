@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import LocoplanError
 from ..model.route import Route
 from ..model.train import Train
+from ..physics.units import kwh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergyOptions, build_problem, check_runnable
 
@@ -156,8 +157,8 @@ class Gap:
 
 def percent_floor_kwh(route: Route, train: Train) -> float:
     """``PERCENT_FLOOR_SHARE`` x the kinetic energy [kWh] of ``train`` at ``route``'s highest limit."""
-    v_top = min(max(x.kmh for x in route.speed_limits), float(train.max_speed_kmh)) / 3.6
-    return PERCENT_FLOOR_SHARE * 0.5 * float(train.inertial_mass_t) * v_top ** 2 / 3600.0
+    v_top = ms(min(max(x.kmh for x in route.speed_limits), float(train.max_speed_kmh)))
+    return kwh(PERCENT_FLOOR_SHARE * 0.5 * float(train.inertial_mass_t) * v_top ** 2)
 
 
 def gap_to_optimum(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..model.plan import Plan, runs_from_profile
 from ..physics.energy import EnergyModel, profile_energy_kwh
+from ..physics.units import kmh
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .radau import RadauSolution, control_activity
@@ -106,7 +107,7 @@ def condition_runs(sol: RadauSolution) -> list[tuple[str, float, float]]:
             r[0] = "T"
         elif r[0] == "T" and near == {"K"}:
             ss = np.linspace(runs[i - 1][1], runs[i + 1][2], 33)
-            v = np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)) * 3.6
+            v = kmh(np.sqrt(2.0 * np.maximum(sol.states_at(ss)[0], 0.0)))
             if np.ptp(v) <= HOLD_KMH:
                 r[0] = "K"
     merged: list[list] = []
@@ -154,7 +155,7 @@ def shoot_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, spa
         if cand[-1] <= cand[0]:
             continue
         q = 0.5 * (x0 + nxt)
-        target = float(np.sqrt(2.0 * max(float(sol.states_at([q])[0, 0]), 0.0)) * 3.6)
+        target = float(kmh(np.sqrt(2.0 * max(float(sol.states_at([q])[0, 0]), 0.0))))
         sw = np.repeat(np.array([starts[1:]]), cand.size, axis=0)
         sw[:, j - 1] = cand
         res = calc.evaluate(conds, sw, profile=True)
@@ -229,7 +230,7 @@ def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_m
     q = np.arange(spacing_m, length - spacing_m / 2, spacing_m)
     xo = sol.states_at(q)
     t_ref = xo[1]
-    v_ref = np.sqrt(2.0 * np.maximum(xo[0], 0.0)) * 3.6
+    v_ref = kmh(np.sqrt(2.0 * np.maximum(xo[0], 0.0)))
     x0 = starts[free]
     ext = np.concatenate([[0.0], x0, [length]])
     lo = np.maximum(x0 - max_move_m, 0.5 * (ext[:-2] + ext[1:-1]) + 0.5)

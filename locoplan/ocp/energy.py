@@ -20,7 +20,8 @@ from ..physics.energy import KJ_PER_KWH
 from ..sim.calculator import TractionCalculator
 from .mesh import Mesh, RefineSettings, initial_mesh, refine
 from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors
-from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, KMH_PER_MS, TrainEnergyProblem
+from ..physics.units import ms
+from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, TrainEnergyProblem
 
 INITIAL_DEGREE = 5
 INITIAL_MAX_INTERVAL_M = 500.0
@@ -115,7 +116,7 @@ def calculator_guess(calc: TractionCalculator, time_s: float):
         cruise = [V[i]]
     prof = calc.evaluate(conds, sw, profile=True, cruise_kmh=cruise).profile
     s_nodes = prof.s_m
-    e_nodes = (prof.v_kmh[0] / KMH_PER_MS) ** 2 / 2
+    e_nodes = ms(prof.v_kmh[0]) ** 2 / 2
     t_nodes = prof.t_s[0]
     # a slower guess than asked: stretch its clock so that it arrives on time
     if np.isfinite(t_nodes[-1]) and t_nodes[-1] > time_s:

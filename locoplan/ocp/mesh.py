@@ -23,7 +23,7 @@ cut into pieces of ``min_degree``, or cut at a kink where raising did not help.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -53,6 +53,10 @@ class Interval:
     """Per control: ``"lower"`` (held at its lower bound), ``"upper"`` (at its upper or speed-dependent
     bound) or ``None`` (free) on the whole interval: the arc the solution showed next to a switch,
     so that the switch has to sit on the moving point between the arcs (seed 000's merging, eq. 31)."""
+    control_map: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """Gauss transcription only: the ``n x m`` matrix ``C`` giving the control at the ``n`` collocation
+    points from the interval's ``m`` control parameters, ``U = C P`` (``None``: one value per point; see
+    :mod:`~locoplan.ocp.gauss`)."""
 
     @property
     def length(self) -> float:
@@ -106,7 +110,48 @@ class Interval:
 
 @dataclass(frozen=True)
 class Mesh:
+    """Intervals in order, each with its collocation points; shared by both transcriptions.
+
+    The Radau transcription lays a mesh over the phases' independent variable (positions [m]); the
+    Gauss transcription of a free-end problem over the fraction ``sigma = s / s_end`` in [0, 1] (its
+    interior interval starts are the break points, moving ones where ``free_start`` is set).
+    ``min_fraction`` is the smallest share of ``[0, 1]`` a Gauss interval may shrink to."""
+
     intervals: tuple[Interval, ...]
+    min_fraction: float = 1e-4
+
+    @property
+    def n_state_nodes(self) -> int:
+        """Collocation points of all intervals (the Gauss transcription's state LG points)."""
+        return self.n_points
+
+    @property
+    def n_control_params(self) -> int:
+        """Control parameters per control: an interval's map columns, else its collocation points."""
+        return sum(iv.n if iv.control_map is None else iv.control_map.shape[1] for iv in self.intervals)
+
+    @property
+    def breakpoints(self) -> tuple[float, ...]:
+        """The interior interval boundaries."""
+        return tuple(iv.s_a for iv in self.intervals[1:])
+
+    @property
+    def breakpoint_bounds(self) -> tuple[tuple[float, float], ...] | None:
+        """The moving range of every interior boundary when all of them move, else ``None``."""
+        free = [iv.free_start for iv in self.intervals[1:]]
+        return tuple(free) if free and all(f is not None for f in free) else None
+
+    @property
+    def free_breakpoints(self) -> bool:
+        return self.breakpoint_bounds is not None
+
+    def with_breakpoints(self, breakpoints) -> "Mesh":
+        """The same intervals with the interior boundaries moved to ``breakpoints`` (bounds kept)."""
+        edges = [self.intervals[0].s_a, *(float(b) for b in breakpoints), self.intervals[-1].s_b]
+        if len(edges) != len(self.intervals) + 1:
+            raise ValueError(f"mesh: {len(self.intervals) - 1} break points needed, got {len(edges) - 2}")
+        return replace(self, intervals=tuple(replace(iv, s_a=a, s_b=b)
+                                             for iv, a, b in zip(self.intervals, edges[:-1], edges[1:])))
 
     @property
     def n_points(self) -> int:
@@ -116,7 +161,8 @@ class Mesh:
     def plain(self) -> "Mesh":
         """The same intervals with no moving points, fixed arcs or error history: a start for a
         neighbouring problem (another running time), whose switches lie elsewhere."""
-        return Mesh(tuple(replace(iv, free_start=None, last_error=None, regime=None) for iv in self.intervals))
+        return replace(self, intervals=tuple(replace(iv, free_start=None, last_error=None, regime=None)
+                                             for iv in self.intervals))
 
     def describe(self) -> str:
         degs = [iv.n for iv in self.intervals]

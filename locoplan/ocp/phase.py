@@ -14,6 +14,13 @@ shaped like dymos' and yapss' phases:
   next (the linkage), the first phase starts from ``initial_state``, the last ends in
   ``final_lower .. final_upper``; the objective is the sum of the phases' integrals.
 
+Free end (seed 000). With ``free_end = (lo, hi)`` the end of the single phase is a decision
+variable in ``[lo, hi]`` (a free final time): ``phases[0].s1`` is then only its nominal value, which
+scales it in the NLP. ``mayer(x0, xf, s_end)`` adds a terminal term to the objective (the running
+time ``t_f`` of the minimum-time problem). The Gauss and CVP transcriptions (:mod:`~locoplan.ocp.gauss`,
+:mod:`~locoplan.ocp.cvp`) solve such single-phase problems, with parameters constant over the phase;
+the Radau transcription (:mod:`~locoplan.ocp.radau`) solves fixed-end multi-phase ones.
+
 Singular ends. A train starts and stops at rest, where ``dt/ds = 1/v`` is infinite. With
 ``rest_start`` / ``rest_end`` the transcription maps the first / last mesh interval quadratically
 (``s - s0 ~ sigma^2``), on which the states are smooth again, and at the very first point uses the
@@ -34,13 +41,14 @@ from ..errors import InputError
 @dataclass(frozen=True)
 class PhaseModel:
     """The physics of a phase. ``path(x, u, s, p)`` returns ``n_path`` expressions bounded above by 0;
-    ``integrand`` the objective per unit of ``s``. ``state_scale`` / ``control_scale`` are nominal
+    ``integrand`` the objective per unit of ``s`` (``None``: no Lagrange term, the problem's ``mayer``
+    is the whole objective). ``state_scale`` / ``control_scale`` are nominal
     magnitudes used to scale the NLP (they do not change the solution)."""
 
     states: tuple[str, ...]
     controls: tuple[str, ...]
     dynamics: Callable
-    integrand: Callable
+    integrand: Callable | None
     state_scale: tuple[float, ...]
     control_scale: tuple[float, ...]
     path: Callable | None = None
@@ -87,7 +95,7 @@ class MultiPhaseProblem:
 
     ``initial_state``: a number fixes a state at the start, ``None`` leaves it free;
     ``final_lower`` / ``final_upper``: bounds on the states at the end; ``objective_scale``: nominal
-    magnitude of the objective (scaling only)."""
+    magnitude of the objective (scaling only); ``free_end`` / ``mayer``: see the module text."""
 
     phases: tuple[Phase, ...]
     initial_state: tuple[float | None, ...]
@@ -96,10 +104,25 @@ class MultiPhaseProblem:
     objective_scale: float = 1.0
     rest_start: bool = False
     rest_end: bool = False
+    free_end: tuple[float, float] | None = None
+    mayer: Callable | None = None
 
     def __post_init__(self):
         if not self.phases:
             raise InputError("multi-phase problem: needs at least one phase")
+        nx = self.phases[0].model.n_x
+        for what, values in (("initial_state", self.initial_state), ("final_lower", self.final_lower),
+                             ("final_upper", self.final_upper)):
+            if len(tuple(values)) != nx:
+                raise InputError(f"multi-phase problem: {what} needs {nx} values, got {len(tuple(values))}")
+        if self.free_end is not None:
+            lo, hi = (float(v) for v in self.free_end)
+            if len(self.phases) != 1:
+                raise InputError("multi-phase problem: a free end needs a single phase")
+            if not self.phases[0].s0 < lo <= hi:
+                raise InputError(f"multi-phase problem: free end bounds need s0 < lower <= upper, got ({lo}, {hi})")
+        if self.phases[0].model.integrand is None and self.mayer is None:
+            raise InputError("multi-phase problem: needs an integrand or a Mayer term")
         model = self.phases[0].model
         for a, b in zip(self.phases, self.phases[1:]):
             if abs(a.s1 - b.s0) > 1e-9 * max(1.0, abs(a.s1)):
@@ -124,6 +147,13 @@ class MultiPhaseProblem:
     @property
     def s1(self) -> float:
         return self.phases[-1].s1
+
+    @property
+    def phase(self) -> Phase:
+        """The only phase of a single-phase problem."""
+        if len(self.phases) != 1:
+            raise InputError(f"expected a single-phase problem, got {len(self.phases)} phases")
+        return self.phases[0]
 
     def phase_at(self, s) -> np.ndarray:
         """Index of the phase holding each position ``s`` (a boundary belongs to the later phase)."""

@@ -26,6 +26,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import InputError
 from . import nodes as _nodes
 from .mesh import Grid, Mesh
 from .phase import MultiPhaseProblem
@@ -255,6 +256,11 @@ class RadauTranscription:
         import casadi as ca
 
         t0 = _time.perf_counter()
+        if problem.free_end is not None or problem.mayer is not None or problem.model.integrand is None:
+            raise InputError("Radau transcription: needs a fixed end and an integrand objective (a free-end "
+                             "or Mayer problem goes to the Gauss transcription, locoplan.ocp.gauss)")
+        if any(iv.control_map is not None for iv in mesh.intervals):
+            raise InputError("Radau transcription: a control map belongs to the Gauss transcription")
         self.problem, self.mesh = problem, mesh
         model = problem.model
         grid = self.grid = Grid(mesh)

@@ -57,3 +57,24 @@ OBJECTIVES: dict[str, str | None] = {
 
 DEFAULT_METHOD = {"time": "two-stage", "energy": "radau"}
 """The method ``--method`` defaults to, per objective."""
+
+STUDY_ROUTES: dict[int, str] = {2: "routes/seed000-flat.yaml", 3: "routes/seed000-grade30.yaml"}
+"""The routes of seed 000's Table 2 (level, test 1) and Table 3 (30 per mille, test 2)."""
+
+
+def study_route_file(rel: str):
+    """A study route's file: the one in the current folder when there is one, else the package's copy
+    (the default works from any directory and from an installed wheel). Resolves the name only;
+    reading it is the caller's (``io.load``)."""
+    from pathlib import Path
+
+    from ..io.load import CATALOGUE
+
+    p = Path(rel)
+    shipped = Path(str(CATALOGUE / "routes")) / p.name
+    return p if p.exists() or not shipped.exists() else shipped
+
+
+def study_route_files(routes: dict[int, str] | None = None) -> dict:
+    """Table number -> route file of :data:`STUDY_ROUTES` (or ``routes``), resolved by :func:`study_route_file`."""
+    return {k: study_route_file(v) for k, v in (routes or STUDY_ROUTES).items()}

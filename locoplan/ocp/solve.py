@@ -1,6 +1,7 @@
 """Solve the minimum-time train problem and check the answer by re-simulation.
 
-Layer 4 of the optimal-control stack (nodes -> transcription -> problem -> solve). Methods (seed 000
+On the shared machinery (problem: ``phase.MultiPhaseProblem``, mesh: ``mesh.Mesh``, transcriptions:
+``gauss``, method ``cvp``); one function per method in :data:`METHOD_SOLVERS`. Methods (seed 000
 section 5, Tables 2-3):
 
 * ``"gpm"``: the classical Gauss pseudospectral method, one global interval, ``nodes`` LG points for
@@ -12,7 +13,7 @@ section 5, Tables 2-3):
   ``stage2="global"`` keeps the single global interval exactly as in the seed; ``stage2="hp"``
   (default, our extension) also cuts the *state* mesh at the detected jumps into segments whose
   break points are NLP variables (a moving hp mesh, see
-  :func:`~locoplan.ocp.transcription.recollocate`), and merges the control to one value per smooth
+  :func:`~locoplan.ocp.recollocation.recollocate`), and merges the control to one value per smooth
   segment (eq. 31). A single global polynomial cannot resolve the bang-bang optimum to 0.02 s; the
   hp mesh puts a break point on each switch and reproduces the exact optimum. If a break point ends
   on its bound, stage 2 is re-solved with the break points free in (0, 1) (Fig. 4's re-selection);
@@ -26,7 +27,6 @@ section 5, Tables 2-3):
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -36,16 +36,13 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..errors import InfeasibleError, InputError
+from ..physics.units import kmh
 from . import nodes as _nodes
-from .problems import KMH_PER_MS, MinTimeTrainProblem
-from .transcription import (
-    Mesh,
-    NlpSolution,
-    paired_control_map,
-    recollocate,
-    solve_cvp,
-    solve_gauss,
-)
+from .cvp import solve_cvp
+from .gauss import GaussSolution, paired_control_map, single_mesh, solve_gauss
+from .mesh import Mesh
+from .min_time import MinTimeTrainProblem
+from .recollocation import recollocate
 
 __all__ = [
     "METHODS",
@@ -57,7 +54,6 @@ __all__ = [
     "solve_min_time",
 ]
 
-METHODS = ("gpm", "two-stage", "cvp")
 DEFAULT_NODES = {"gpm": 34, "two-stage": 17, "cvp": 20}
 _INFEASIBLE = {"Infeasible_Problem_Detected", "Restoration_Failed"}
 
@@ -178,7 +174,7 @@ def _check_nlp(result, problem: MinTimeTrainProblem, method: str, nodes: int):
         )
 
 
-def _gauss_solution(method, problem, nlp: NlpSolution, stages, wall, status: str | None = None) -> OcpSolution:
+def _gauss_solution(method, problem, nlp: GaussSolution, stages, wall, status: str | None = None) -> OcpSolution:
     bounds = (-problem.b_max_kn, problem.f_max_kn)
     pieces = tuple(
         ControlPiece(s.t0, s.t1, "lagrange", _ro(s.lg_times), _ro(s.controls[0])) for s in nlp.segments
@@ -215,7 +211,7 @@ def _gauss_solution(method, problem, nlp: NlpSolution, stages, wall, status: str
 
 
 def _stage(name: str, nlp) -> StageReport:
-    if isinstance(nlp, NlpSolution):
+    if isinstance(nlp, GaussSolution):
         cn, sn, ns = nlp.mesh.n_control_params, nlp.mesh.n_state_nodes, len(nlp.segments)
     else:
         cn, sn, ns = nlp.params.shape[1], 0, 1
@@ -263,40 +259,61 @@ def solve_min_time(
     if nodes is not None:
         nodes = _nodes._check_n(nodes, f"{method} control nodes")
     t_wall = _time.perf_counter()
-    ocp = problem.to_ocp()
-    guess = problem.initial_guess()
+    settings = _Settings(state_nodes, eps, eps_lower, stage2, substeps, ipopt_options, t_wall)
+    return METHOD_SOLVERS[method](problem, problem.to_ocp(), problem.initial_guess(), nodes, settings)
 
-    if method == "cvp":
-        res = solve_cvp(ocp, nodes, guess, substeps=substeps, ipopt_options=ipopt_options)
-        _check_nlp(res, problem, method, nodes)
-        wall = _time.perf_counter() - t_wall
-        k = res.substeps
-        return OcpSolution(
-            method=method,
-            objective_s=res.final_time,
-            time_s=_ro(res.grid),
-            position_m=_ro(res.step_states[0, ::k]),
-            speed_ms=_ro(res.step_states[1, ::k]),
-            control_kn=_ro(res.params[0]),
-            control_nodes=res.params.shape[1],
-            state_nodes=0,
-            solve_time_s=wall,
-            iterations=res.iterations,
-            status=res.status,
-            success=res.success,
-            control_pieces=(ControlPiece(0.0, res.final_time, "linear", _ro(res.grid), _ro(res.params[0])),),
-            control_bounds_kn=(-problem.b_max_kn, problem.f_max_kn),
-            stages=(_stage("cvp", res),),
-        )
 
-    if method == "gpm":
-        if state_nodes is not None and state_nodes != nodes:
-            raise InputError(f"gpm: states and control share the LG points; state_nodes {state_nodes} != nodes {nodes}")
-        res = solve_gauss(ocp, Mesh.single(nodes), guess, ipopt_options=ipopt_options)
-        _check_nlp(res, problem, method, nodes)
-        return _gauss_solution(method, problem, res, [_stage("gpm", res)], _time.perf_counter() - t_wall)
+@dataclass(frozen=True)
+class _Settings:
+    """The options of :func:`solve_min_time` a method may read, and when its wall time started."""
 
-    # two-stage
+    state_nodes: int | None
+    eps: float
+    eps_lower: float | None
+    stage2: str
+    substeps: int
+    ipopt_options: dict | None
+    t_wall: float
+
+
+def _solve_cvp(problem: MinTimeTrainProblem, ocp, guess, nodes: int, st: _Settings) -> OcpSolution:
+    """Control vector parameterisation (:mod:`~locoplan.ocp.cvp`)."""
+    res = solve_cvp(ocp, nodes, guess, substeps=st.substeps, ipopt_options=st.ipopt_options)
+    _check_nlp(res, problem, "cvp", nodes)
+    wall = _time.perf_counter() - st.t_wall
+    k = res.substeps
+    return OcpSolution(
+        method="cvp",
+        objective_s=res.final_time,
+        time_s=_ro(res.grid),
+        position_m=_ro(res.step_states[0, ::k]),
+        speed_ms=_ro(res.step_states[1, ::k]),
+        control_kn=_ro(res.params[0]),
+        control_nodes=res.params.shape[1],
+        state_nodes=0,
+        solve_time_s=wall,
+        iterations=res.iterations,
+        status=res.status,
+        success=res.success,
+        control_pieces=(ControlPiece(0.0, res.final_time, "linear", _ro(res.grid), _ro(res.params[0])),),
+        control_bounds_kn=(-problem.b_max_kn, problem.f_max_kn),
+        stages=(_stage("cvp", res),),
+    )
+
+
+def _solve_gpm(problem: MinTimeTrainProblem, ocp, guess, nodes: int, st: _Settings) -> OcpSolution:
+    """The classical GPM: one global Gauss interval, states and control on the same LG points."""
+    if st.state_nodes is not None and st.state_nodes != nodes:
+        raise InputError(f"gpm: states and control share the LG points; state_nodes {st.state_nodes} != nodes {nodes}")
+    res = solve_gauss(ocp, single_mesh(nodes), guess, ipopt_options=st.ipopt_options)
+    _check_nlp(res, problem, "gpm", nodes)
+    return _gauss_solution("gpm", problem, res, [_stage("gpm", res)], _time.perf_counter() - st.t_wall)
+
+
+def _solve_two_stage(problem: MinTimeTrainProblem, ocp, guess, nodes: int | None, st: _Settings) -> OcpSolution:
+    """Seed 000's two-stage method: paired stage 1, then the re-collocated stage 2
+    (:mod:`~locoplan.ocp.recollocation`) warm-started from it."""
+    state_nodes, ipopt_options = st.state_nodes, st.ipopt_options
     if state_nodes is None:
         state_nodes = 2 * nodes
     else:
@@ -306,7 +323,7 @@ def solve_min_time(
                 f"two-stage: stage 1 pairs the control (U_(2l-1) = U_(2l)), so {state_nodes} state nodes "
                 f"give {state_nodes // 2} control nodes, not {nodes}"
             )
-    mesh1 = Mesh.single(state_nodes, paired_control_map(state_nodes))  # InputError for odd counts
+    mesh1 = single_mesh(state_nodes, paired_control_map(state_nodes))  # InputError for odd counts
     res1 = solve_gauss(ocp, mesh1, guess, ipopt_options=ipopt_options)
     _check_nlp(res1, problem, "two-stage (stage 1)", state_nodes // 2)
     stages = [_stage("stage 1", res1)]
@@ -315,9 +332,9 @@ def solve_min_time(
         u_range = problem.f_max_kn + problem.b_max_kn
         guess2, bps2 = res1.to_guess(), None
         for widen in (1.0, math.inf):  # Fig. 4: re-select if a break point ends on its bound
-            mesh2 = recollocate(res1, u_range, eps_upper=eps, eps_lower=eps_lower, mode=stage2, widen=widen)
+            mesh2 = recollocate(res1, u_range, eps_upper=st.eps, eps_lower=st.eps_lower, mode=st.stage2, widen=widen)
             if bps2 is not None and len(bps2) == len(mesh2.breakpoints):
-                mesh2 = dataclasses.replace(mesh2, breakpoints=bps2)  # continue from the last solve
+                mesh2 = mesh2.with_breakpoints(bps2)  # continue from the last solve
             res2 = solve_gauss(ocp, mesh2, guess2, ipopt_options=ipopt_options)
             stages.append(_stage("stage 2" if widen == 1.0 else "stage 2 (free break points)", res2))
             if res2.success:
@@ -329,10 +346,16 @@ def solve_min_time(
     status = None
     if final is res1 and len(stages) > 1:
         status = f"{res1.status} (stage 2 failed: {stages[-1].status}; stage-1 result)"
-    return _gauss_solution(method, problem, final, stages, _time.perf_counter() - t_wall, status)
+    return _gauss_solution("two-stage", problem, final, stages, _time.perf_counter() - st.t_wall, status)
 
 
-def _breakpoint_at_bound(res: NlpSolution, mesh: Mesh) -> bool:
+METHOD_SOLVERS = {"gpm": _solve_gpm, "two-stage": _solve_two_stage, "cvp": _solve_cvp}
+"""The minimum-time methods by name (the keys of ``registry.OCP_METHODS`` that solve ``time``); a new
+method is one function here (or its own module) and one entry."""
+METHODS = tuple(METHOD_SOLVERS)
+
+
+def _breakpoint_at_bound(res: GaussSolution, mesh: Mesh) -> bool:
     sig = res.breakpoints / res.final_time
     for s, (lo, hi) in zip(sig, mesh.breakpoint_bounds):
         if hi - lo > 1e-6 and (s - lo < 1e-6 or hi - s < 1e-6):
@@ -491,7 +514,7 @@ def resimulate(
         time_to_length_s=t_len,
         distance_at_tf_m=float(at_tf[0]),
         final_speed_ms=float(at_tf[1]),
-        max_overspeed_kmh=max(0.0, over * KMH_PER_MS),
+        max_overspeed_kmh=max(0.0, kmh(over)),
         max_control_excess_kn=excess,
         stop_time_s=t_stop,
         stop_position_m=s_stop,

@@ -43,11 +43,12 @@ from ..physics.backend import is_symbolic
 from ..physics.energy import WHEEL_WORK, EnergyModel, energy_rate_kn
 from ..physics.gradient import equivalent_gradient_permille, point_gradient_knots
 from ..physics.resistance import train_resistance_kn
+from ..physics.motion import acceleration_ms2
 from ..physics.traction import gradient_force_kn, max_force_kn
+from ..physics.units import KMH_PER_MS, ms
 from ..sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at, neutral_spans_m
 from .phase import MultiPhaseProblem, Phase, PhaseModel
 
-KMH_PER_MS = 3.6
 DEFAULT_MESH_TOL = 1e-5
 """hp refinement's tolerance on the relative dynamics error (``energy.solve_energy``)."""
 DEFAULT_MAX_DEGREE = 10
@@ -152,9 +153,10 @@ class TrainModel:
         return u[1], u[1]
 
     def accel(self, x, u, p, speed_kmh):
+        """The equation of motion of ``physics.motion`` (shared with the minimum-time problem)."""
         brake, _ = self.brakes(u)
         load = train_resistance_kn(speed_kmh, self.resistance_kn) + p["gravity_kn"]
-        return (u[0] - brake - load) / self.inertial_mass_t
+        return acceleration_ms2(u[0], self.inertial_mass_t, brake, load)
 
     def dynamics(self, x, u, s, p):
         v = _speed(x[0])
@@ -287,7 +289,7 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
     f_top = float(np.max(tm.traction_curve[1]))
     brake_tops = ([float(np.max(tm.electric_curve[1])), float(np.max(tm.air_curve[1]))] if tm.split_brake
                   else [float(np.max(tm.brake_curve[1]))])
-    e_top = float((np.max(limits) / KMH_PER_MS) ** 2 / 2)
+    e_top = float(ms(np.max(limits)) ** 2 / 2)  # not kinetic_e: v ** 2 is not always v * v
     model = PhaseModel(
         states=("e", "t"), controls=tm.controls, dynamics=tm.dynamics, integrand=tm.integrand,
         state_scale=(e_top, float(time_s)), control_scale=(f_top, *brake_tops),
@@ -297,7 +299,7 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
     for k, (a, b) in enumerate(zip(pts[:-1], pts[1:])):
         params, grads = _gravity_params(route, train, options, float(a), float(b))
         neutral = any(lo < mid[k] < hi for lo, hi in spans)
-        e_lim = float((limits[k] / KMH_PER_MS) ** 2 / 2)
+        e_lim = float(ms(limits[k]) ** 2 / 2)
         if not neutral:
             upper_u = (f_top, *brake_tops)
         elif tm.air_curve is None:  # coasting: no traction, no brake at all
@@ -328,7 +330,7 @@ def _with_power(params, powered: float):
 def _energy_scale_kj(tm: TrainModel, route: Route) -> float:
     """A nominal traction energy [kJ] for scaling the NLP's objective to about 1: the work of the
     starting resistance over the route plus accelerating to the highest limit."""
-    v_top = max(x.kmh for x in route.speed_limits) / KMH_PER_MS
+    v_top = ms(max(x.kmh for x in route.speed_limits))
     return float(tm.resistance_kn[0] * route.length_m + 0.5 * tm.inertial_mass_t * v_top ** 2)
 
 
