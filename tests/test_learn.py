@@ -21,7 +21,7 @@ from locoplan.learn.logs import LogData, load_logs, log_csv_text, manifest_text,
 from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, good_drivers, learn, line_model,
                                      load_patterns, select_order)
 from locoplan.learn.segments import classify_gradient, equivalent_gradient_pieces, segment_route
-from locoplan.model.train import G_MS2
+from locoplan.physics.units import G_MS2
 from locoplan.physics.resistance import train_resistance_kn
 from locoplan.physics.traction import max_force_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator

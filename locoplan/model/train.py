@@ -9,7 +9,6 @@ import numpy as np
 
 from ..physics.braking import air_brake_curve_kn
 from ..physics.resistance import unit_to_train_coefficients_kn
-from ..physics.units import G_MS2  # noqa: F401  (re-exported: where a Train's numbers come from)
 from .consist import Consist, Vehicle
 
 
