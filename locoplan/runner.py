@@ -223,6 +223,7 @@ def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> 
     fn = entry.function()
     if entry.refuses_impossible_time:
         check_time_possible(ctx)
+    ctx.loaded.update(entry.read_inputs(ctx.inputs, ctx.loaded))
     t = time.perf_counter()
     outcome = fn(ctx)
     if not outcome.solve_time_s:

@@ -28,6 +28,7 @@ LINE = ROOT / "tests/data/learn/line-6km.yaml"
 def test_every_entry_names_an_importable_function():
     for entry in registry.BUILT_IN:
         assert callable(entry.function()), entry.name
+        assert all(callable(registry._resolve(reader)) for _, reader in entry.inputs), entry.name
     assert list(registry.STRATEGIES) == ["time-saving", "energy-saving", "four-stage", "proposed", "mpoc", "mpoc-n",
                                          "mpoc-c", "sfs", "drivers", "advice"]
 
@@ -38,7 +39,8 @@ def test_traits_are_the_ones_the_runs_used_to_retype():
     assert registry.names(needs_e_min=True) == registry.names(seeded=True) == ("proposed",)
     assert registry.names(refuses_impossible_time=True) == ("four-stage", "proposed")
     assert registry.names(source=registry.SEED002) == ("time-saving", "energy-saving", "four-stage", "proposed")
-    assert registry.STRATEGIES["drivers"].inputs == ("logs",) and registry.STRATEGIES["advice"].inputs == ("patterns",)
+    assert [n for n, _ in registry.STRATEGIES["drivers"].inputs] == ["logs"]
+    assert [n for n, _ in registry.STRATEGIES["advice"].inputs] == ["patterns"]
     from locoplan.runs.pareto import ENDS, PLANNED
 
     assert PLANNED == ("four-stage", "proposed") and ENDS == ("time-saving", "energy-saving")
@@ -84,15 +86,19 @@ def logs(tmp_path_factory):
     return out
 
 
-SPEC = """RunSpec({line!r}, "HXD1-C80x50", strategy="drivers", time_s=520.0, fitness=False,
-                 inputs=(("logs", ({logs!r},)),))"""
+SETTINGS = dict(strategy="drivers", time_s=520.0, fitness=False)
+"""The run: the drivers' logs for the 6 km line at 520 s (no E_min, so no optimiser: a second or two)."""
+
+
+def _spec_code(logs) -> str:
+    return f"RunSpec({str(LINE)!r}, 'HXD1-C80x50', inputs=(('logs', ({str(logs)!r},)),), **{SETTINGS!r})"
 
 
 @pytest.fixture(scope="module")
 def in_process(logs):
-    from locoplan import RunSpec, run_many  # noqa: F401  (SPEC names RunSpec)
+    from locoplan import RunSpec, run_many
 
-    batch = run_many([eval(SPEC.format(line=str(LINE), logs=str(logs)))])
+    batch = run_many([RunSpec(str(LINE), "HXD1-C80x50", inputs=(("logs", (str(logs),)),), **SETTINGS)])
     record = batch.records[0]
     assert record.summary["feasible"] and record.summary["drivers_runs"] == 2
     return json.loads(json.dumps(record.comparable()))
@@ -108,7 +114,7 @@ def test_process_pool_workers_run_drivers_from_a_library_script(logs, in_process
         from locoplan import RunSpec, run_many, make_executor
         executor = make_executor(2)
         try:
-            batch = run_many([{SPEC.format(line=str(LINE), logs=str(logs))}], executor)
+            batch = run_many([{_spec_code(logs)}], executor)
         finally:
             executor.close()
         record = batch.records[0]
@@ -127,7 +133,7 @@ def test_dask_workers_run_drivers_from_a_library_script(logs, in_process):
         from locoplan import RunSpec, run_many, DaskExecutor
         with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \\
                 Client(cluster) as client:
-            batch = run_many([{SPEC.format(line=str(LINE), logs=str(logs))}], DaskExecutor(client))
+            batch = run_many([{_spec_code(logs)}], DaskExecutor(client))
         record = batch.records[0]
         assert record.worker.rsplit(":", 1)[1] != str(os.getpid()), "ran in the client, not on a worker"
         print(json.dumps([r.comparable() for r in batch.records]))

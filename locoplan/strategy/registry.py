@@ -38,7 +38,9 @@ class StrategyEntry:
     (the energy-saving run) is computed first. seeded: its result depends on the optimiser and its
     seed (a study repeats it per algorithm and seed; the others run once). refuses_impossible_time: a
     planned time below the fastest run is refused before it plans (its search would find nothing).
-    inputs: the ``StrategyContext.inputs`` it reads (``compare --logs``, ``--patterns``)."""
+    inputs: what it needs beyond route and train, as (name, ``"module:reader"``) pairs: the runner reads
+    ``StrategyContext.inputs[name]`` (what was given: ``compare --logs``, ``--patterns``) with the reader
+    into ``StrategyContext.loaded[name]``, so that the strategy itself never opens a file."""
 
     name: str
     plan: Union[str, StrategyFn] = field(repr=False)
@@ -48,14 +50,23 @@ class StrategyEntry:
     needs_e_min: bool = False
     seeded: bool = False
     refuses_impossible_time: bool = False
-    inputs: tuple[str, ...] = ()
+    inputs: tuple[tuple[str, str], ...] = ()
 
     def function(self) -> StrategyFn:
         """The strategy's function (its module imported now if it was not)."""
-        if callable(self.plan):
-            return self.plan
-        module, _, attr = self.plan.partition(":")
-        return getattr(importlib.import_module(module), attr)
+        return _resolve(self.plan)
+
+    def read_inputs(self, given: dict, loaded: dict) -> dict:
+        """The inputs named in ``given`` and not yet in ``loaded``, read by their readers."""
+        return {name: _resolve(reader)(given[name]) for name, reader in self.inputs
+                if given.get(name) and name not in loaded}
+
+
+def _resolve(target):
+    if callable(target):
+        return target
+    module, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 SEED002, SEED001, SEED004 = "seed 002", "seed 001", "seed 004"
@@ -74,8 +85,9 @@ BUILT_IN: tuple[StrategyEntry, ...] = (
     StrategyEntry("mpoc-c", "locoplan.strategy.optimal:mpoc_c", SEED001, timetabled=True),
     StrategyEntry("sfs", "locoplan.strategy.optimal:sfs", SEED001, timetabled=True),
     # seed 004: what the drivers' logs say, and the learned patterns' advice
-    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", SEED004, inputs=("logs",)),
-    StrategyEntry("advice", "locoplan.learn.strategies:advice", SEED004, timetabled=True, inputs=("patterns",)),
+    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", SEED004, inputs=(("logs", "locoplan.learn.logs:load_logs"),)),
+    StrategyEntry("advice", "locoplan.learn.strategies:advice", SEED004, timetabled=True,
+                  inputs=(("patterns", "locoplan.learn.patterns:load_patterns"),)),
 )
 
 STRATEGIES: dict[str, StrategyEntry] = {e.name: e for e in BUILT_IN}

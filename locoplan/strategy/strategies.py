@@ -65,7 +65,11 @@ class StrategyContext:
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
-    """Strategy inputs from the command line beyond route and train (e.g. compare's --logs, --patterns)."""
+    """Strategy inputs from the command line beyond route and train, as given (e.g. compare's --logs and
+    --patterns: paths, named in messages)."""
+    loaded: dict = field(default_factory=dict)
+    """The same inputs read (the drivers' runs, the patterns): ``runner.run_strategy`` reads them with the
+    readers of the strategy's registry entry, so a strategy never opens a file."""
 
     @property
     def ranking_tolerance_s(self) -> float | None:
