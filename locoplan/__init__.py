@@ -22,7 +22,7 @@ _API = {
     "TractionCalculator": "locoplan.sim.calculator",
     # one run
     "make_context": "locoplan.runner", "run_strategy": "locoplan.runner", "run_sequence": "locoplan.runner",
-    "summarize": "locoplan.runner", "STRATEGIES": "locoplan.strategy.strategies",
+    "summarize": "locoplan.runner", "STRATEGIES": "locoplan.strategy.registry",
     # many runs
     "RunSpec": "locoplan.runs.spec", "RunRecord": "locoplan.runs.spec", "run_many": "locoplan.runs.many",
     "make_executor": "locoplan.runs.executors", "SerialExecutor": "locoplan.runs.executors",

@@ -24,8 +24,7 @@ from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
 from .io.report import to_json
 from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
-from .strategy.strategies import STRATEGIES, TIMETABLED
-from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
+from .strategy.registry import STRATEGIES, is_timetabled
 
 class _Group(typer.core.TyperGroup):
     """The command group: a usage error (an option's value of the wrong type, an unknown option) with
@@ -235,7 +234,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
 
 
 def _iterations(algorithm: str, params: Optional[Path]) -> int:
-    from .optimize.registry import load_optimizer_params
+    from .io.optimizer_params import load_optimizer_params
 
     return int(load_optimizer_params(algorithm, str(params) if params else None).max_iter)
 
@@ -312,7 +311,7 @@ def compare(route: Path = ROUTE,
         show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
                                  if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width))
     failures = list(dict.fromkeys(batch.failures))
-    on_time = any(x.summary["strategy"] in TIMETABLED and x.summary["feasible"] and x.summary["punctual"]
+    on_time = any(is_timetabled(x.summary["strategy"]) and x.summary["feasible"] and x.summary["punctual"]
                   for x in batch.records)
     if strategies is None and on_time:
         # no strategy asked for by name and the timetable is met: a failed one is its row and a note, not exit 1

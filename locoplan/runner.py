@@ -17,10 +17,15 @@ from .errors import InfeasibleError, InputError, Problem
 from .model.plan import Plan, parse_sequence, runs_from_profile
 from .model.route import Route
 from .model.train import Train
+from .io.optimizer_params import load_optimizer_params
+from .optimize.base import OptimizerParams
 from .optimize.problem import fitness_eq10
+from .physics.units import KMH_PER_MS, S_PER_H
 from .sim.calculator import ModelOptions, TractionCalculator
 from .sim.result import BatchResult
-from .strategy.strategies import BUILDERS, TIMETABLED, evaluate_outcome, StrategyContext, StrategyOutcome, get_strategy
+from .strategy import registry
+from .strategy.sequence import build_sequence
+from .strategy.strategies import evaluate_outcome, StrategyContext, StrategyOutcome
 
 SEARCH_STEP_M = 100.0
 """Grid the optimisers search on [m]: within 0.05 % of the 50 m reporting grid in time and energy on
@@ -51,7 +56,7 @@ def planned_time(route: Route, time_s: float | None) -> float:
 
 def make_context(route: Route, train: Train, options: ModelOptions | None = None, *, time_s: float | None = None,
                  e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
-                 seed: int = 1, params_path: str | None = None,
+                 seed: int = 1, params_path: str | None = None, params: OptimizerParams | None = None,
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
                  tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
                  yardstick: bool = False,
@@ -61,7 +66,9 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
     ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did.
     ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
-    options, to reuse (a batch's runs share them). Errors name the argument (``time_s``, ``e_min_kwh``...)."""
+    options, to reuse (a batch's runs share them). ``params``: the optimiser's parameters, or
+    ``params_path`` a file to read them from (neither: the algorithm's defaults, seed 002 Table 5).
+    Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
     bounds.seed(seed, "seed")
     if e_min_kwh is not None:
@@ -93,9 +100,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                                      f"running time {t0:g} s: the window would open at or before departure"))
     if builder is None:  # the model (--point-mass) does not choose the method: seed 002's own is asked for by name
         builder = "general"
-    if builder not in BUILDERS:
-        raise InputError(Problem("", "builder", f"unknown sequence builder {builder!r} (one of: {', '.join(BUILDERS)})"))
-    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params_path, callback,
+    registry.check_builder(builder)
+    if params is None and params_path is not None:
+        params = load_optimizer_params(algorithm, params_path)
+    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,
                            tol, window, yardstick, builder)
 
 
@@ -114,7 +122,7 @@ def check_time_possible(ctx: StrategyContext) -> None:
 
 
 def _hours(seconds: float) -> str:
-    return f" = {seconds / 3600:.2f} h" if seconds >= 3600 else (f" = {seconds / 60:.1f} min" if seconds >= 120 else "")
+    return f" = {seconds / S_PER_H:.2f} h" if seconds >= S_PER_H else (f" = {seconds / 60:.1f} min" if seconds >= 120 else "")
 
 
 def slowest_limit(calc: TractionCalculator) -> str:
@@ -123,7 +131,7 @@ def slowest_limit(calc: TractionCalculator) -> str:
     top = calc.train.max_speed_kmh
 
     def at_limit_s(sec) -> float:
-        return (sec.to_m - sec.from_m) / (min(sec.kmh, top) / 3.6)
+        return (sec.to_m - sec.from_m) / (min(sec.kmh, top) / KMH_PER_MS)
 
     total = sum(at_limit_s(s) for s in calc.route.speed_limits)
     sec = max(calc.route.speed_limits, key=at_limit_s)
@@ -197,7 +205,7 @@ def schedule_verdict(ctx: StrategyContext, run: RunResult, strict: bool | None =
     s = run.summary
     if not s["feasible"]:
         return f"{s['strategy']}: no feasible plan ({s['reason']})"
-    must = (run.name in TIMETABLED and ctx.use_window) if strict is None else strict
+    must = (registry.is_timetabled(run.name) and ctx.use_window) if strict is None else strict
     if not must or s["punctual"] is not False:
         return None
     lo, hi = s["window_s"]
@@ -211,9 +219,11 @@ def schedule_verdict(ctx: StrategyContext, run: RunResult, strict: bool | None =
 
 
 def run_strategy(ctx: StrategyContext, name: str, with_fitness: bool = True) -> RunResult:
-    fn = get_strategy(name)
-    if name in ("proposed", "four-stage"):
+    entry = registry.get(name)
+    fn = entry.function()
+    if entry.refuses_impossible_time:
         check_time_possible(ctx)
+    ctx.loaded.update(entry.read_inputs(ctx.inputs, ctx.loaded))
     t = time.perf_counter()
     outcome = fn(ctx)
     if not outcome.solve_time_s:
@@ -234,8 +244,6 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
 def proposed_sequence(route: Route, train: Train, options: ModelOptions | None = None, builder: str | None = None):
     """The limit and grade classification behind seed 002's proposed sequence, with its nominal switching
     points (``compare --explain``), on the optimisers' search grid."""
-    from .strategy.sequence import build_sequence
-
     return build_sequence(make_context(route, train, options, need_time=False, builder=builder).search)
 
 

@@ -62,12 +62,12 @@ def test_compare_default_strategies_a_failed_one_is_a_row_not_an_exit(monkeypatc
     unreachable timetable (every timetabled strategy fails) is still exit 1 (issue 7)."""
     import locoplan.cli as cli
     from locoplan.errors import InfeasibleError
-    from locoplan.strategy import strategies as st
+    from locoplan.strategy import registry
 
     def broken(ctx):
         raise InfeasibleError("broken-for-test: no plan on this line")
 
-    monkeypatch.setitem(st.STRATEGIES, "broken-for-test", broken)
+    monkeypatch.setitem(registry.STRATEGIES, "broken-for-test", registry.StrategyEntry("broken-for-test", broken))
     monkeypatch.setattr(cli, "COMPARE_DEFAULT", "time-saving,four-stage,broken-for-test")
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--no-gap", "--json"])
     assert res.exit_code == 0, res.output

@@ -6,6 +6,5 @@
 - ``patterns``: good drivers (claim 3), the upper layer (eq. I) and the lower layer (eq. II).
 - ``advise``: time shares and speed curve for a new run, turned into a condition sequence (claim 2)
   and checked by the traction calculator.
+- ``strategies``: ``drivers`` and ``advice`` as strategies of ``compare`` (listed in strategy/registry.py).
 """
-
-from . import strategies as _strategies  # noqa: E402,F401  (registers compare's 'drivers' and 'advice')

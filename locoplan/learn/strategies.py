@@ -1,8 +1,10 @@
 """Seed 004 in ``locoplan compare``: the strategies ``drivers`` (what the drivers' logs say for the
-same route, mass and planned time) and ``advice`` (the learned patterns' operation sequence).
+same route, mass and planned time) and ``advice`` (the learned patterns' operation sequence); their
+entries and traits are in ``strategy/registry.py``, which imports this module when one of them runs.
 
-Both read their inputs from ``ctx.inputs``: ``logs`` (log folders or manifests) and ``patterns``
-(a patterns.json), set by ``compare --logs / --patterns``.
+Both take their inputs read: ``ctx.loaded["logs"]`` (the logged runs) and ``ctx.loaded["patterns"]``;
+``runner.run_strategy`` reads them from ``ctx.inputs`` (log folders or manifests, a patterns.json, set by
+``compare --logs / --patterns``) with the readers the registry names.
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ from ..errors import InputError, Problem
 from ..model.plan import Plan, runs_from_profile
 from ..sim.result import CODE, OK, BatchResult, Profile
 from ..sim.calculator import TractionCalculator
-from ..strategy.strategies import StrategyContext, StrategyOutcome, register
-# the log reader and the pattern fitting are imported when a compare asks for these strategies, not at
-# every command's start (this module is imported to register their names)
+from ..strategy.strategies import StrategyContext, StrategyOutcome
+from .advise import advise as advise_run
+from .advise import check_model
+from .patterns import good_drivers, tolerance_s
 
 MASS_SHARE = 0.01
 """A log counts for the compared train when its mass is within this share of the train's."""
@@ -51,18 +54,13 @@ def log_profile(run, calc: TractionCalculator) -> Profile:
                    np.maximum(-force, 0.0)[None, :], calc.limit_kmh, calc.gradient_permille)
 
 
-@register("drivers")
 def drivers(ctx: StrategyContext) -> StrategyOutcome:
     """The drivers' logs for this route, train and planned time: time and energy are the drivers'
     means; the sequence and profile are the best driver's run (the punctual run with the least energy)."""
-    from .logs import load_logs
-    from .patterns import good_drivers, tolerance_s
-
     t_start = time.perf_counter()
-    logs = ctx.inputs.get("logs")
-    if not logs:
+    logs, runs = ctx.inputs.get("logs"), ctx.loaded.get("logs")
+    if not logs or runs is None:
         raise InputError(Problem("<command line>", "--logs", "the 'drivers' strategy needs the drivers' logs: --logs DIR"))
-    runs = load_logs(logs)
     calc = ctx.calc
     same = matching_runs(runs, calc, ctx.t0_s)
     if not same:
@@ -90,16 +88,11 @@ def drivers(ctx: StrategyContext) -> StrategyOutcome:
     return StrategyOutcome(plan, solve_time_s=time.perf_counter() - t_start, result=result, extra=extra)
 
 
-@register("advice", timetabled=True)
 def advice(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 004's advice from the learned patterns (``--patterns``), checked by the calculator."""
-    from .advise import advise, check_model
-    from .patterns import load_patterns
-
-    path = ctx.inputs.get("patterns")
-    if not path:
+    path, pat = ctx.inputs.get("patterns"), ctx.loaded.get("patterns")
+    if not path or pat is None:
         raise InputError(Problem("<command line>", "--patterns", "the 'advice' strategy needs learned patterns: --patterns FILE"))
-    pat = load_patterns(path)
     check_model(pat, ctx.calc.options, str(path))
-    a = advise(pat, ctx.calc.route, ctx.calc.train, ctx.t0_s, ctx.calc.options, calc=ctx.calc)
+    a = advise_run(pat, ctx.calc.route, ctx.calc.train, ctx.t0_s, ctx.calc.options, calc=ctx.calc)
     return StrategyOutcome(a.plan, solve_time_s=a.solve_time_s, extra={"speed_scale": round(a.scale, 4)})

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..sim.result import CODE, CONDITIONS
+from .conditions import CODE, CONDITIONS
 
 
 @dataclass(frozen=True)

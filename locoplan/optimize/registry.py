@@ -1,36 +1,27 @@
-"""Optimiser registry and parameter files.
+"""Optimiser registry: ``ALGORITHMS`` maps a name to its class.
 
-``ALGORITHMS`` maps a name to its class; ``get_algorithm(name)`` looks one up and
-``load_optimizer_params(name, path=None)`` reads its parameters from a YAML file (by default the shipped
-``locoplan/catalogue/optimizers/<name>.yaml``, which holds seed 002's Table 5 values, population 50 and
-100 iterations). Typical use::
+``get_algorithm(name)`` looks one up; ``default_params(name)`` gives its parameters as seed 002 states them
+(Table 5, population 50, 100 iterations: the class's ``Params`` defaults). The optimisers take parameter
+objects; reading a parameter file is :func:`locoplan.io.optimizer_params.load_optimizer_params`'s job::
 
-    params = load_optimizer_params("issa")
+    params = default_params("issa")
     result = get_algorithm("issa")().setup(problem, rng, **params.model_dump()).run()
 
-A parameter file is a YAML mapping with ``schema: locoplan/optimizer@1``, ``algorithm: <name>`` and the
-algorithm's parameters (see its ``Params`` model); unknown keys and bad values raise ``InputError`` naming
-the file, the field and its line.
+Adding an optimiser is one module (an ``Optimizer`` with its ``Params`` model), one line in
+:data:`ALGORITHMS` and its shipped parameter file in ``locoplan/catalogue/optimizers/``.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..errors import InputError, Problem
-from ..io.load import read_yaml, validate_model
 from .base import Optimizer, OptimizerParams
 from .issa import ISSA
 from .pso import PSO
 from .ssa import SSA
 
-__all__ = ["ALGORITHMS", "SCHEMA", "default_params_path", "get_algorithm", "load_optimizer_params"]
-
-SCHEMA = "locoplan/optimizer@1"
+__all__ = ["ALGORITHMS", "default_params", "get_algorithm"]
 
 ALGORITHMS: dict[str, type[Optimizer]] = {"issa": ISSA, "ssa": SSA, "pso": PSO}
-
-_CATALOGUE = Path(__file__).resolve().parent.parent / "catalogue" / "optimizers"
 
 
 def get_algorithm(name: str) -> type[Optimizer]:
@@ -42,41 +33,7 @@ def get_algorithm(name: str) -> type[Optimizer]:
     return ALGORITHMS[key]
 
 
-def default_params_path(name: str) -> Path:
-    """Shipped parameter file of algorithm ``name``: ``locoplan/catalogue/optimizers/<name>.yaml``."""
-    get_algorithm(name)
-    return _CATALOGUE / f"{str(name).strip().lower()}.yaml"
-
-
-def load_optimizer_params(name: str, path: str | Path | None = None) -> OptimizerParams:
-    """Read and validate the parameters of optimiser ``name`` from ``path`` (default: the shipped file).
-
-    Returns the algorithm's frozen ``Params`` model (pop_size, max_iter and the algorithm's parameters);
-    ``params.model_dump()`` gives the keyword arguments of ``Optimizer.setup``. Raises ``InputError`` for an
-    unknown algorithm, a missing/unreadable/malformed file, a wrong ``schema``/``algorithm`` entry, an unknown
-    key or an invalid value, naming file, field and line.
-    """
-    cls = get_algorithm(name)
-    key = str(name).strip().lower()
-    file = Path(path) if path is not None else default_params_path(key)
-    where = str(file)
-    data, all_lines = read_yaml(file)
-    lines = {k[0]: v for k, v in all_lines.items() if len(k) == 1}
-
-    problems = []
-    schema = data.pop("schema", None)
-    if schema != SCHEMA:
-        problems.append(Problem(file=where, field="schema", message=f"expected {SCHEMA!r}, got {schema!r}",
-                                line=lines.get("schema")))
-    algorithm = data.pop("algorithm", None)
-    if str(algorithm).strip().lower() != key:
-        problems.append(Problem(file=where, field="algorithm", message=f"expected {key!r}, got {algorithm!r}",
-                                line=lines.get("algorithm")))
-    params = None
-    try:
-        params = validate_model(cls.Params, data, where, all_lines)
-    except InputError as exc:
-        problems.extend(exc.problems)
-    if problems:
-        raise InputError(problems)
-    return params
+def default_params(name: str) -> OptimizerParams:
+    """The parameters of optimiser ``name`` when no file gives them: its ``Params`` defaults (the shipped
+    ``catalogue/optimizers/<name>.yaml`` holds the same values; tests/test_optimizers.py checks it)."""
+    return get_algorithm(name).Params()

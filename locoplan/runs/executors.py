@@ -10,8 +10,15 @@ Adding an executor is one class here and one line in :data:`EXECUTORS`.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import signal
+import socket
+import threading
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Callable, Iterator, Protocol
+from urllib.parse import urlsplit
 
 from ..errors import InputError, Problem
 
@@ -62,9 +69,6 @@ class ProcessExecutor:
 
     def _get_pool(self, n_items: int):
         if self._pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
             # concurrent.futures starts a process per submitted task up to this count, so a short batch
             # starts no more processes than it has tasks
             self._pool = ProcessPoolExecutor(self.workers,
@@ -73,8 +77,6 @@ class ProcessExecutor:
         return self._pool
 
     def imap_unordered(self, fn, items):
-        from concurrent.futures import as_completed
-
         if not items:
             return
         pool = self._get_pool(len(items))
@@ -104,9 +106,6 @@ def _worker_start(parent_pid: int) -> None:
     """In each worker process: end with the parent. A worker blocked on its task queue never learns that
     the parent was killed (kill -9 runs no clean-up), so it would live on, reparented; on Linux the kernel
     sends it SIGKILL when the parent dies, elsewhere a thread checks the parent every second."""
-    import signal
-    import threading
-
     try:
         import ctypes
 
@@ -119,8 +118,6 @@ def _worker_start(parent_pid: int) -> None:
         os._exit(1)
 
     def watch() -> None:
-        import time
-
         while True:
             time.sleep(1.0)
             if os.getppid() != parent_pid:
@@ -132,9 +129,6 @@ def probe_scheduler(address: str, timeout_s: float = 3.0) -> None:
     """Before a Dask client connects (which can wait minutes on a server that accepts and never answers):
     connect with a short timeout and read what the server says first. A Dask scheduler sends its handshake
     at once; a closed port, a silent server or an HTTP server is named, exit 2."""
-    import socket
-    from urllib.parse import urlsplit
-
     text = str(address)
     url = urlsplit(text if "://" in text else f"tcp://{text}")
     if url.scheme not in ("tcp", "tls"):
@@ -215,7 +209,7 @@ class DaskExecutor:
         self.workers = max(1, sum(w.get("nthreads", 1) for w in self.client.scheduler_info()["workers"].values()))
 
     def imap_unordered(self, fn, items):
-        from distributed import as_completed
+        from distributed import as_completed as finished  # the optional dependency, imported when used
 
         if not items:
             return
@@ -223,7 +217,7 @@ class DaskExecutor:
         futures = self.client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         try:
-            for fut in as_completed(futures):
+            for fut in finished(futures):
                 yield index[fut.key], fut.result()
         finally:
             self.client.cancel(futures)

@@ -17,8 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Iterable
 
+from ..strategy import registry
+from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
 from .executors import Executor, SerialExecutor
-from .spec import EMinTask, RunRecord, RunSpec, Task, execute, execute_e_min, group_key, load_inputs, spec_key
+from .spec import (EMinTask, RunRecord, RunSpec, Task, _e_min_params, execute, execute_e_min, group_key, load_inputs,
+                   spec_key)
 
 
 @dataclass(frozen=True)
@@ -52,8 +55,10 @@ class Batch:
 
 
 def needs_e_min(spec: RunSpec) -> bool:
-    """The run needs E_min: the proposed strategy's fitness is built on it, and any fitness reports it."""
-    return spec.e_min_kwh is None and (spec.fitness or spec.strategy == "proposed")
+    """The run needs E_min: a strategy ranked by eq. 10-11 is built on it (``StrategyEntry.needs_e_min``),
+    and any fitness reports it."""
+    entry = registry.lookup(spec.strategy)
+    return spec.e_min_kwh is None and (spec.fitness or (entry is not None and entry.needs_e_min))
 
 
 def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, store=None,
@@ -82,11 +87,9 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
             continue
         g = group_key(s, inputs)
         if g not in groups:
-            from .spec import _e_min_params
-
             groups[g] = EMinTask(g, inputs.routes[inputs.route_of[s.route]],
                                  inputs.trains[inputs.train_of[(s.consist, s.stock_dir)]], s.options,
-                                 s.resolved_builder, _e_min_params(s))
+                                 s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)))
     known = store.refs("e_min") if store is not None else {}
     e_min = {g: known[g][0] for g in groups if g in known}
     todo = [t for g, t in groups.items() if g not in known]
@@ -107,7 +110,8 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
         seen.add(k)
         rh, th = inputs.route_of[s.route], inputs.train_of[(s.consist, s.stock_dir)]
         e = s.e_min_kwh if s.e_min_kwh is not None else (e_min.get(group_key(s, inputs)) if needs_e_min(s) else None)
-        tasks.append(Task(s, k, inputs.routes[rh], inputs.trains[th], rh, th, e, keep_profiles))
+        tasks.append(Task(s, k, inputs.routes[rh], inputs.trains[th], rh, th, e, keep_profiles,
+                          inputs.params(s.algorithm, s.params)))
     tasks.sort(key=lambda t: -t.route.length_m)
     failed = sum(1 for k in set(keys) if k in done and done[k].verdict)
     for n, (_, record) in enumerate(executor.imap_unordered(execute, tasks), 1):

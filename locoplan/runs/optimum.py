@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from ..errors import LocoplanError
+
 OptimumFn = Callable[[Any, Any, Any, float], "float | None"]
 _PROVIDERS: list[tuple[str, OptimumFn]] = []
 
@@ -39,8 +41,7 @@ def optimum_energy_kwh(route, train, options, time_s: float) -> float | None:
 
 @register_optimum("seed 001 bound (ocp.bound.energy_bound)")
 def _seed001_bound(route, train, options, time_s: float) -> float | None:
-    from ..errors import LocoplanError
-    from ..ocp.bound import energy_bound
+    from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
 
     try:
         return energy_bound(route, train, options, time_s).energy_kwh

@@ -1,7 +1,8 @@
 """``locoplan pareto ROUTE``: the energy-time front of a route and train.
 
-At each planned time of a grid (factors of the fastest run, or seconds) the timetabled strategies
-plan (the proposed one over several seeds); time-saving and energy-saving add the two ends. The
+At each planned time of a grid (factors of the fastest run, or seconds) seed 002's timetabled strategies
+(four-stage, proposed) plan, the seeded one over several seeds; its two that ignore the timetable
+(time-saving, energy-saving) add the two ends. The lists come from :mod:`locoplan.strategy.registry`. The
 result has, per planned time, the best on-time plan found and the optimum's energy E* at that plan's
 own running time (:mod:`locoplan.runs.optimum`, seed 001's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
 other). Until E* is known the front is *the best plans found*, an upper bound of the true front, and
@@ -11,17 +12,24 @@ the result says so (``front_kind``).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
+from .. import bounds
 from ..errors import InputError, Problem
+from ..io.load import load_route_and_train
 from ..ocp.bound import percent_floor_kwh
+from ..sim.calculator import TractionCalculator
+from ..strategy import registry
 from .many import run_many
 from .optimum import optimum_energy_kwh, optimum_providers
 from .spec import RunSpec
 
 DEFAULT_FACTORS = tuple(round(1.05 + 0.05 * i, 2) for i in range(12))
 """1.05 .. 1.6 times the fastest run: from a tight timetable to one with a third more time."""
-TIMETABLED = ("four-stage", "proposed")
-ENDS = ("time-saving", "energy-saving")
+PLANNED = registry.names(source=registry.SEED002, timetabled=True)
+"""The strategies planned at each time by default: seed 002's timetabled ones (four-stage, proposed)."""
+ENDS = registry.names(source=registry.SEED002, needs_time=False)
+"""The two ends of the front: seed 002's strategies that ignore the timetable (time-saving, energy-saving)."""
 
 
 def time_grid(fastest_s: float, factors=None, times_s=None) -> list[tuple[float, float]]:
@@ -47,28 +55,20 @@ def nondominated(points: list[dict]) -> list[dict]:
     return out
 
 
-def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, seeds=(1,), executor=None,
+def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=PLANNED, seeds=(1,), executor=None,
            progress=None, optimum: bool = True) -> dict:
     """The front of ``base.route`` with ``base.consist`` under ``base.options`` (see the module doc).
 
-    ``strategies``: the timetabled strategies planned at each time (the proposed one once per seed).
+    ``strategies``: the strategies planned at each time (a seeded one, ``StrategyEntry.seeded``, once per seed).
     ``optimum``: ask the registered providers for E* at each planned time (seed 001's bound: seconds
     per time, solved in this process, each warm-started from the previous one).
     Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
     best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""
-    from .. import bounds
-    from ..io.load import load_route_and_train
-    from ..sim.calculator import TractionCalculator
-
-    from ..strategy.strategies import STRATEGIES
-
-    for s in strategies:
-        if s not in STRATEGIES:
-            raise InputError(Problem("", "strategies", f"unknown strategy {s!r} (one of: {', '.join(STRATEGIES)})"))
+    seeded = {s: registry.get(s, field="strategies").seeded for s in strategies}
     for seed in seeds:
         bounds.seed(seed, "seeds")
     n_times = len(times_s) if times_s else len(factors or DEFAULT_FACTORS)
-    per_time = sum(len(seeds) if s == "proposed" else 1 for s in strategies)
+    per_time = sum(len(seeds) if seeded[s] else 1 for s in strategies)
     bounds.runs(len(ENDS) + n_times * per_time, "seeds" if len(seeds) > 1 else "strategies",
                 f"runs ({n_times} planned times x {per_time} plans each)")
     route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
@@ -77,7 +77,7 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
     specs = [_with(base, strategy=s, time_s=grid[0][0]) for s in ENDS]
     for t0, _ in grid:
         for s in strategies:
-            for seed in (seeds if s == "proposed" else seeds[:1]):
+            for seed in (seeds if seeded[s] else seeds[:1]):
                 specs.append(_with(base, strategy=s, time_s=t0, seed=seed))
     batch = run_many(specs, executor, progress=progress)
     points = [{"strategy": r.summary["strategy"] + (f" ({r.summary['algorithm']})" if r.summary.get("algorithm") else ""),
@@ -115,6 +115,4 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=TIMETABLED, 
 
 
 def _with(base: RunSpec, **changes) -> RunSpec:
-    from dataclasses import replace
-
     return replace(base, **changes)

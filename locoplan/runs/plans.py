@@ -15,19 +15,19 @@ from dataclasses import replace
 from pathlib import Path
 
 from .. import bounds
-from ..errors import InputError, Problem
+from ..errors import InputError, LocoplanError, Problem
+from ..io.load import load_route_and_train
+from ..runner import check_time_possible as check, make_context, planned_time
+from ..strategy import registry
 from .spec import RunSpec
 
 
 def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
     """Seed 002 Tables 8-9: one run per strategy, all with the same E_min (run_many computes it once)."""
-    from ..strategy.strategies import STRATEGIES
-
     if not strategies:
         raise InputError(Problem("", "strategies", "name at least one strategy"))
-    unknown = [n for n in strategies if n not in STRATEGIES]
-    if unknown:
-        raise InputError(Problem("", "strategies", f"unknown strategy {unknown[0]!r} (one of: {', '.join(STRATEGIES)})"))
+    for n in strategies:
+        registry.get(n, field="strategies")
     return [replace(base, strategy=n) for n in strategies]
 
 
@@ -65,13 +65,12 @@ def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str
 
 def check_time_possible(specs: list[RunSpec]) -> None:
     """Before a study or sweep: a planned time below the fastest run cannot be met by any plan, whatever
-    the seed (InfeasibleError naming the fastest run), so none of the runs is started."""
-    from ..io.load import load_route_and_train
-    from ..runner import check_time_possible as check, make_context, planned_time
-
+    the seed (InfeasibleError naming the fastest run), so none of the runs is started; only for the
+    strategies that refuse such a time (``StrategyEntry.refuses_impossible_time``)."""
     contexts: dict = {}
     for s in specs:
-        if s.strategy not in ("proposed", "four-stage"):
+        entry = registry.lookup(s.strategy)
+        if entry is None or not entry.refuses_impossible_time:
             continue
         k = (s.route, s.consist, s.stock_dir, s.options, s.resolved_builder)
         if k not in contexts:
@@ -110,8 +109,7 @@ def energies_at_planned_time(rows: list[dict], route, train, options) -> float |
     own time T (seed 001's optimum, ``ocp.bound``) carried to T0, for the plans inside the punctuality
     window (None for the others: time-saving's gap at 1227 s says nothing about 1500 s). Needs each row's gap (--gap); returns
     E*(T0) [kWh], or None when there is none (no T0, no gaps, or no optimum at T0)."""
-    from ..errors import LocoplanError
-    from ..ocp.bound import energy_bound
+    from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
 
     t0 = next((r.get("planned_time_s") for r in rows if r.get("planned_time_s") is not None), None)
     if t0 is None or not any(r.get("gap_to_optimum_kwh") is not None for r in rows):

@@ -10,8 +10,10 @@ models (their content, not their file names), the optimiser's parameters and the
 The same key means the same result; a result store is keyed by it (resume, no run done twice).
 
 :func:`execute` runs one :class:`Task` (a spec with its loaded inputs and its group's E_min) in
-whatever process it lands in; it never reads the spec's files again, so a cluster's workers need
-no shared file system (custom optimiser parameter files excepted: they are read where they run).
+whatever process it lands in; it never reads the spec's files again (the optimiser's parameters
+travel inside the task), so a cluster's workers need no shared file system. The strategies' traits
+(whether one needs a planned time, E_min, an optimiser) come from :mod:`locoplan.strategy.registry`,
+which every process knows.
 """
 
 from __future__ import annotations
@@ -23,15 +25,21 @@ import os
 import platform
 import socket
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from .. import bounds
+from ..catalogue import DEFAULT_CONSIST
 from ..errors import InfeasibleError, InputError, Problem
-from ..sim.calculator import ModelOptions
-
-DEFAULT_CONSIST = "HXD1-C80x50"
+from ..io.load import load_route, load_train, resolve_consist_path
+from ..io.optimizer_params import load_optimizer_params
+from ..optimize.registry import ALGORITHMS
+from ..runner import make_context, planned_time, run_strategy, schedule_verdict
+from ..sim.calculator import ModelOptions, shorter_than_train
+from ..strategy import registry
+from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
 RESULTS_FORMAT = 1
 """Version of the record layout (the store refuses another one)."""
 
@@ -44,7 +52,7 @@ class RunSpec:
     """One run. Field names are the library's (``time_s``, ``e_min_kwh``), never a command's flags.
 
     route: route file. consist: catalogue name or consist file. strategy: a name of
-    ``strategy.strategies.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
+    ``strategy.registry.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
     parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
     schedule). weights: (w_time, w_energy) of seed 002 eq. 10. tolerance_s: punctuality window +- [s]
     (None: the route's, else 1 % of T0). window: rank inside the window (seed 002 eq. 3). builder:
@@ -111,20 +119,17 @@ class Inputs:
     trains: dict[str, Any]          # train hash -> Train
     route_of: dict[str, str]        # route file -> route hash
     train_of: dict[tuple, str]      # (consist, stock_dir) -> train hash
-    params_of: dict[tuple, dict]    # (algorithm, params file) -> parameters (validated)
+    params_of: dict[tuple, dict]    # (algorithm, params file) -> parameters (validated), as hashed
+    param_models: dict[tuple, Any] = field(default_factory=dict)  # the same as the optimiser's Params objects
 
-
-def _params(algorithm: str, path: str | None) -> dict:
-    from ..optimize.registry import load_optimizer_params
-
-    return load_optimizer_params(algorithm, path).model_dump()
+    def params(self, algorithm: str, path: str | None):
+        """The optimiser's parameters of a params file (None: no file, the algorithm's defaults)."""
+        return None if path is None else self.param_models[(algorithm, path)]
 
 
 def _check_values(spec: RunSpec) -> None:
     """A spec's numbers inside the bounds a command line's would be held to (``bounds``), so that a bad one
     (a seed past 2**63 - 1 as seed + run, a NaN weight) stops the batch before any run, not at its turn."""
-    from .. import bounds
-
     bounds.seed(spec.seed, "seed")
     if spec.time_s is not None:
         bounds.planned_time(spec.time_s, "time_s")
@@ -143,21 +148,15 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
 
     Raises :class:`InputError` for a bad file (naming file, line and field) or an unknown strategy,
     algorithm or builder (naming the spec field), before any run starts."""
-    from ..io.load import load_route, load_train, resolve_consist_path
-    from ..optimize.registry import ALGORITHMS
-    from ..sim.calculator import shorter_than_train
-    from ..runner import planned_time
-    from ..strategy.strategies import BUILDERS, ENERGY_SAVING_ALGORITHM, STRATEGIES
-
     problems: list[Problem] = []
-    routes, trains, route_of, train_of, params_of = {}, {}, {}, {}, {}
+    routes, trains, route_of, train_of, params_of, models = {}, {}, {}, {}, {}, {}
     for spec in specs:
-        if spec.strategy not in STRATEGIES:
-            problems.append(Problem("", "strategy", f"unknown strategy {spec.strategy!r} (one of: {', '.join(STRATEGIES)})"))
+        if registry.lookup(spec.strategy) is None:
+            problems.append(Problem("", "strategy", registry.unknown_message(spec.strategy)))
         if spec.algorithm not in ALGORITHMS:
             problems.append(Problem("", "algorithm", f"unknown optimiser {spec.algorithm!r} (one of: {', '.join(ALGORITHMS)})"))
-        if spec.resolved_builder not in BUILDERS:
-            problems.append(Problem("", "builder", f"unknown sequence builder {spec.builder!r} (one of: {', '.join(BUILDERS)})"))
+        if spec.resolved_builder not in registry.BUILDERS:
+            problems.append(Problem("", "builder", registry.builder_message(spec.builder)))
         if problems:
             raise InputError(problems[:1])
         _check_values(spec)  # every run's numbers, before the first run starts
@@ -177,23 +176,20 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
             raise InputError(shorter_than_train(route, train, spec.route, str(resolve_consist_path(spec.consist))))
         for pk in ((spec.algorithm, spec.params), (ENERGY_SAVING_ALGORITHM, _e_min_params(spec))):
             if pk not in params_of:
-                params_of[pk] = _params(*pk)
-    return Inputs(routes, trains, route_of, train_of, params_of)
+                models[pk] = load_optimizer_params(*pk)
+                params_of[pk] = models[pk].model_dump()
+    return Inputs(routes, trains, route_of, train_of, params_of, models)
 
 
 def _train_identity(train) -> dict:
     """The resolved train's numbers (what the physics sees), arrays as lists: its content hash does not
     depend on which files or catalogue names it was built from."""
-    from dataclasses import fields
-
     return {f.name: (v.tolist() if hasattr(v := getattr(train, f.name), "tolist") else v) for f in fields(train)}
 
 
 def _e_min_params(spec: RunSpec) -> str | None:
     """The parameter file E_min's ISSA search reads: the spec's own only when its algorithm is ISSA
     (strategies._optimise), so that a batch gives what the same run alone gives."""
-    from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
-
     return spec.params if spec.algorithm == ENERGY_SAVING_ALGORITHM else None
 
 
@@ -204,8 +200,6 @@ def _options_dict(options: ModelOptions) -> dict:
 def group_key(spec: RunSpec, inputs: Inputs) -> str:
     """Key of the spec's E_min group: route, train, model options, builder and E_min's optimiser
     parameters (E_min does not depend on the planned time, the seed or the algorithm studied)."""
-    from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
-
     return canonical_hash({
         "what": "e_min", "route": inputs.route_of[spec.route], "train": inputs.train_of[(spec.consist, spec.stock_dir)],
         "options": _options_dict(spec.options), "builder": spec.resolved_builder,
@@ -237,6 +231,8 @@ class Task:
     train_hash: str
     e_min_kwh: float | None = None
     keep_profile: bool = False
+    params: Any = None
+    """The optimiser's parameters read from ``spec.params`` (None: no file, its defaults)."""
 
 
 @dataclass
@@ -300,8 +296,6 @@ its runs (the DP's work arrays are rewritten by every solve, so reuse cannot cha
 
 
 def _base_context(task: Task):
-    from ..runner import make_context
-
     spec = task.spec
     k = (task.route_hash, task.train_hash, spec.options, spec.resolved_builder)
     ctx = _CONTEXTS.get(k)
@@ -316,13 +310,11 @@ def _base_context(task: Task):
 
 def context_for(task: Task):
     """The run's StrategyContext: a fresh one sharing only the calculators and the DP with earlier runs."""
-    from ..runner import make_context
-
     spec = task.spec
     base = _base_context(task)
     # validate the settings exactly as a single run would (same errors, same defaults)
     ctx = make_context(task.route, task.train, spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh,
-                       weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params_path=spec.params,
+                       weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params=task.params,
                        need_time=needs_time(spec),
                        tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
                        yardstick=spec.yardstick, calculators=(base.calc, base.search))
@@ -333,14 +325,11 @@ def context_for(task: Task):
     return ctx, base
 
 
-_TIMED = ("proposed", "four-stage")
-_UNTIMED = ("time-saving", "energy-saving")
-
-
 def needs_time(spec: RunSpec) -> bool:
-    """A planned time is needed (given, or the route's schedule) by every strategy but the two that
-    ignore the timetable by definition."""
-    return spec.time_s is not None or spec.strategy not in _UNTIMED
+    """A planned time is needed (given, or the route's schedule) by every strategy but those that ignore
+    the timetable by definition (``StrategyEntry.needs_time``)."""
+    entry = registry.lookup(spec.strategy)
+    return spec.time_s is not None or entry is None or entry.needs_time
 
 
 def _worker_name() -> str:
@@ -350,8 +339,6 @@ def _worker_name() -> str:
 def execute(task: Task) -> RunRecord:
     """Run one task (in any process). A run that has no feasible plan (InfeasibleError) is a result,
     recorded with ``feasible`` false and the reason; input errors propagate."""
-    from ..runner import run_strategy, schedule_verdict
-
     t, cpu = time.perf_counter(), time.process_time()
     spec = task.spec
     ctx, base = context_for(task)
@@ -375,9 +362,13 @@ def execute(task: Task) -> RunRecord:
 def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
     """The summary of a run that produced no plan: the SPEC's fields, with nothing measured."""
     t0 = ctx.t0_s
+    entry = registry.lookup(spec.strategy)
+    # the optimiser asked for is named for the strategies checked against the fastest run (four-stage's
+    # record says 'issa' though it searches a grid: kept so that records compare with earlier ones)
+    named = entry is not None and entry.refuses_impossible_time
     return {"route": ctx.calc.route.name, "consist": ctx.calc.train.name, "strategy": spec.strategy,
-            "algorithm": spec.algorithm if spec.strategy in _TIMED else None,
-            "seed": spec.seed if spec.strategy in _TIMED else None, "feasible": False, "reason": reason,
+            "algorithm": spec.algorithm if named else None,
+            "seed": spec.seed if named else None, "feasible": False, "reason": reason,
             "running_time_s": None, "traction_energy_kwh": None,
             "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
             "window_s": None, "fitness": None, "weights": None,
@@ -394,16 +385,15 @@ class EMinTask:
     train: Any
     options: ModelOptions
     builder: str
-    params: str | None
+    params: Any
+    """E_min's optimiser parameters (None: its defaults)."""
 
 
 def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
     (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
-    from ..runner import make_context
-
     ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params_path=task.params, yardstick=False)
+                       params=task.params, yardstick=False)
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:

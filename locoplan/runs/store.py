@@ -30,9 +30,11 @@ import stat
 import time
 from contextlib import contextmanager
 from pathlib import Path
+from urllib.parse import quote
 
+from .. import __version__
 from ..errors import InputError, Problem
-from ..io.report import clean
+from ..io.report import clean, existing_folder, make_folder
 from .spec import RunRecord
 
 STORE_FORMAT = 1
@@ -127,8 +129,6 @@ class Store:
                                      "SQLite file with its journal beside it; name a file"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir() and create:  # a new store's folder is created (the rule for every output)
-            from ..io.report import existing_folder, make_folder
-
             existing_folder(folder, name, "")
             make_folder(folder, name)
         if not folder.is_dir():
@@ -155,8 +155,6 @@ class Store:
         except sqlite3.Error as exc:
             raise InputError(Problem(name, "", _why(exc, create))) from None
         if create and (fresh or not tables):
-            from .. import __version__
-
             with self._transaction():
                 for stmt in _SCHEMA.strip().split(";"):
                     if stmt.strip():
@@ -234,8 +232,6 @@ class Store:
         """Refuse to add this locoplan's runs to a store another locoplan version began, or that another
         process is adding runs to (a lock on the file, released by the system when that process ends,
         even by kill -9)."""
-        from .. import __version__
-
         if self.meta.get("locoplan") != __version__:
             raise InputError(Problem(str(self.path), "locoplan", f"store begun by locoplan {self.meta.get('locoplan')}, "
                                      f"this is {__version__}: its runs would mix two versions' results; "
@@ -364,8 +360,6 @@ def short(text: str, limit: int = 40) -> str:
 
 
 def _uri_path(path: Path) -> str:
-    from urllib.parse import quote
-
     return quote(str(path.absolute()), safe="/")
 
 

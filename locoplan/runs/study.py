@@ -16,28 +16,35 @@ the plan's own running time, seconds per run), and ``model`` (``step_m``, ``poin
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).
 
 The batch is routes x consists x times x strategies x algorithms x seeds, except that algorithms and
-seeds multiply only the strategies that search with an optimiser (:data:`SEARCHED`); the others run
-once per route, consist and time. Every problem is reported as ``file:line: field: message`` (exit 2):
+seeds multiply only the strategies whose result depends on the optimiser and its seed
+(``StrategyEntry.seeded`` in :mod:`locoplan.strategy.registry`); the others run once per route, consist
+and time. Every problem is reported as ``file:line: field: message`` (exit 2):
 an unknown key, strategy or algorithm, a glob that matches nothing, a time factor below 1.
 """
 
 from __future__ import annotations
 
+import fnmatch
 import glob as _glob
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..errors import InputError, Problem
-from ..sim.calculator import DEFAULT_STEP_M, ModelOptions
-from .spec import DEFAULT_CONSIST, RunSpec
+from .. import bounds
+from ..catalogue import DEFAULT_CONSIST
+from ..errors import InfeasibleError, InputError, Problem
+from ..io.load import _line_for, load_route, load_train, read_yaml, validate_model
+from ..optimize.registry import ALGORITHMS
+from ..sim.calculator import DEFAULT_STEP_M, ModelOptions, TractionCalculator
+from ..strategy import registry
+from .spec import RunSpec
 
 STUDY_SCHEMA = "locoplan/study@1"
-SEARCHED = frozenset({"proposed"})
-"""Strategies whose result depends on the optimiser and its seed (the others ignore both)."""
 
 
 class _Model(BaseModel):
@@ -82,8 +89,6 @@ class Study:
 
 def _time_value(value, where: str) -> tuple[str, float]:
     """('s', seconds) or ('x', factor) from a study file's ``times`` entry; ValueError says why not."""
-    from .. import bounds
-
     if isinstance(value, bool) or value is None or isinstance(value, (list, dict)):
         raise ValueError(f"expected seconds or a factor such as '1.1x', got {short(value)}")
     if isinstance(value, (int, float)):
@@ -125,9 +130,6 @@ def safe_glob(pattern: str) -> list[str]:
     """``glob.glob(pattern, recursive=True)``, but a ``**`` walks folders without following links to folders
     (a link to a parent folder would loop without end) and looks at most at ``MAX_GLOB_ENTRIES`` entries
     (ValueError beyond)."""
-    import fnmatch
-    import os
-
     if "**" not in pattern:
         return _glob.glob(pattern)
     head, _, _ = pattern.partition("**")
@@ -154,10 +156,6 @@ def short(value) -> str:
 
 def load_study(path: str | Path) -> Study:
     """Read, check and expand a study file. Raises :class:`InputError` naming file, line and field."""
-    from ..io.load import _line_for, read_yaml, validate_model
-    from ..optimize.registry import ALGORITHMS
-    from ..strategy.strategies import BUILDERS, STRATEGIES
-
     path = Path(path)
     name = str(path)
     data, lines = read_yaml(path)
@@ -170,22 +168,18 @@ def load_study(path: str | Path) -> Study:
     if study.schema_ not in (None, STUDY_SCHEMA):
         problems.append(Problem(name, "schema", f"expected {STUDY_SCHEMA}, got {study.schema_!r}", where("schema")))
     for i, s in enumerate(study.strategies):
-        if s not in STRATEGIES:
-            problems.append(Problem(name, f"strategies[{i}]", f"unknown strategy {s!r} (one of: {', '.join(STRATEGIES)})",
-                                    where("strategies", i)))
+        if registry.lookup(s) is None:
+            problems.append(Problem(name, f"strategies[{i}]", registry.unknown_message(s), where("strategies", i)))
     for i, a in enumerate(study.algorithms):
         if a not in ALGORITHMS:
             problems.append(Problem(name, f"algorithms[{i}]", f"unknown optimiser {a!r} (one of: {', '.join(ALGORITHMS)})",
                                     where("algorithms", i)))
-    if study.builder is not None and study.builder not in BUILDERS:
-        problems.append(Problem(name, "builder", f"unknown sequence builder {study.builder!r} (one of: {', '.join(BUILDERS)})",
-                                where("builder")))
+    if study.builder is not None and study.builder not in registry.BUILDERS:
+        problems.append(Problem(name, "builder", registry.builder_message(study.builder), where("builder")))
     w = study.weights
     if min(w) < 0 or abs(sum(w) - 1) > 1e-9:
         problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {list(w)}",
                                 where("weights")))
-    from .. import bounds
-
     lo_seed, hi_seed = bounds.LIMITS["seed"]
     for i, seed in enumerate(study.seeds):
         if not lo_seed <= seed <= hi_seed:
@@ -244,7 +238,7 @@ def load_study(path: str | Path) -> Study:
         for c in consists:
             for t_s, label in planned[(r, c)]:
                 for s in study.strategies:
-                    pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if s in SEARCHED \
+                    pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if registry.STRATEGIES[s].seeded \
                         else [(study.algorithms[0], study.seeds[0])]
                     for a, seed in pairs:
                         specs.append(RunSpec(str(r), c, s, a, seed, t_s, tags=(("time", label),) if label else (), **common))
@@ -254,12 +248,6 @@ def load_study(path: str | Path) -> Study:
 def _planned_times(name, routes, consists, stock, options, times, where, tolerance_s=None) -> dict:
     """(route, consist) -> [(T0 [s] or None, label)]: factors times the fastest run, rounded up to 0.1 s
     (rounding down could put T0 below the fastest run)."""
-    import numpy as np
-
-    from ..errors import InfeasibleError
-    from ..io.load import load_route, load_train
-    from ..sim.calculator import TractionCalculator
-
     out = {}
     trains = {c: load_train(c, stock) for c in consists}
     for r in routes:

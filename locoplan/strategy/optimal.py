@@ -1,4 +1,5 @@
-"""Seed 001's comparisons (its Tables 3-5) as strategies of ``compare``: mpoc, mpoc-n, mpoc-c, sfs.
+"""Seed 001's comparisons (its Tables 3-5) as strategies of ``compare``: mpoc, mpoc-n, mpoc-c, sfs
+(their entries and traits: ``strategy/registry.py``).
 
 - ``mpoc``: the multi-phase minimum-energy optimum with the neutral sections inside the model
   (``locoplan.ocp.mpoc``), as a drivable plan;
@@ -24,7 +25,8 @@ import numpy as np
 
 from ..errors import InfeasibleError
 from ..model.plan import Plan
-from .strategies import StrategyContext, StrategyOutcome, register
+from ..sim.calculator import TractionCalculator, neutral_spans_m
+from .strategies import StrategyContext, StrategyOutcome
 
 SFS_STEP_M = 1.0
 """Seed 001's brute-force step for the SFS coasting point [m]."""
@@ -32,15 +34,12 @@ SFS_COARSE_M = 100.0
 
 
 def _mpoc_run(ctx: StrategyContext, ignore_neutral: bool):
-    from ..ocp.mpoc import run_mpoc
+    from ..ocp.mpoc import run_mpoc, without_neutral  # CasADi: imported when an optimum is asked for
     from ..ocp.train_energy import EnergyOptions
-    from ..sim.calculator import TractionCalculator
 
     calc = ctx.calc
     run_calc = None
     if ignore_neutral:
-        from ..ocp.mpoc import without_neutral
-
         run_calc = TractionCalculator(without_neutral(calc.route), calc.train, calc.options)
     return run_mpoc(calc.route, calc.train, calc.options, ctx.t0_s, energy=EnergyOptions(ignore_neutral=ignore_neutral),
                     calc=run_calc or calc, strategy="mpoc-n" if ignore_neutral else "mpoc")
@@ -53,14 +52,12 @@ def _outcome(run, t0: float, calc=None) -> StrategyOutcome:
     return StrategyOutcome(run.check.plan, algorithm="radau", solve_time_s=time.perf_counter() - t0, calc=calc)
 
 
-@register("mpoc", timetabled=True)
 def mpoc(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 001's MPOC: the least-energy run with the neutral sections in the model."""
     t0 = time.perf_counter()
     return _outcome(_mpoc_run(ctx, ignore_neutral=False), t0)
 
 
-@register("mpoc-n", timetabled=True)
 def mpoc_n(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 001's MPOC-N: neutral sections ignored; run on the route without them (not drivable)."""
     t0 = time.perf_counter()
@@ -108,12 +105,10 @@ def coast_through_neutral(calc, plan: Plan, spans, route_calc=None) -> Plan:
     return Plan(tuple(c for c, _ in out), tuple(x for _, x in out))
 
 
-@register("mpoc-c", timetabled=True)
 def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 001's MPOC-C: the MPOC-N plan with coasting through every neutral span, re-acceleration
     after it, and the last coasting point moved so that the planned time is met."""
     from ..ocp.drive import tune_coasting_point
-    from ..sim.calculator import neutral_spans_m
 
     t0 = time.perf_counter()
     calc = ctx.calc
@@ -126,7 +121,6 @@ def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
     return StrategyOutcome(plan, algorithm="radau", solve_time_s=time.perf_counter() - t0)
 
 
-@register("sfs", timetabled=True)
 def sfs(ctx: StrategyContext) -> StrategyOutcome:
     """Standard four-stage with neutral-section coasting: T (held at the allowed speed, coasting through
     the neutral spans), C from the coasting point, B; the coasting point by brute force at 1 m."""

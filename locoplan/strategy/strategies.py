@@ -1,8 +1,8 @@
-"""Built-in driving strategies of seed 002 (section 4.2.3, Tables 8-9), in a registry.
+"""Built-in driving strategies of seed 002 (section 4.2.3, Tables 8-9), and the context every strategy gets.
 
 Each strategy takes a ``StrategyContext`` and returns a ``StrategyOutcome`` (a condition sequence,
 its switching points and, for four-stage, a cruise speed). The CLI's ``--strategy`` and
-``--strategies`` choices come from ``STRATEGIES``.
+``--strategies`` choices and each strategy's traits come from ``strategy/registry.py``.
 
 - ``time-saving``: the fastest run (Fig. 4).
 - ``energy-saving``: the least traction energy, timetable ignored (Table 8). Its energy is the default
@@ -32,11 +32,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InfeasibleError, InputError, Problem
+from ..errors import InfeasibleError
 from ..model.plan import Plan
-from ..optimize.base import NoFeasibleCandidateError
+from ..optimize.base import NoFeasibleCandidateError, OptimizerParams
 from ..optimize.problem import SwitchingProblem
-from ..optimize.registry import get_algorithm, load_optimizer_params
+from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
@@ -55,7 +55,8 @@ class StrategyContext:
     weights: tuple[float, float] = (0.5, 0.5)
     algorithm: str = "issa"
     seed: int = 1
-    params_path: str | None = None
+    params: OptimizerParams | None = None
+    """The parameters of ``algorithm`` (None: its defaults, seed 002 Table 5); read from a file by the caller."""
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
@@ -64,7 +65,11 @@ class StrategyContext:
     builder: str = "general"
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
-    """Strategy inputs from the command line beyond route and train (e.g. compare's --logs, --patterns)."""
+    """Strategy inputs from the command line beyond route and train, as given (e.g. compare's --logs and
+    --patterns: paths, named in messages)."""
+    loaded: dict = field(default_factory=dict)
+    """The same inputs read (the drivers' runs, the patterns): ``runner.run_strategy`` reads them with the
+    readers of the strategy's registry entry, so a strategy never opens a file."""
 
     @property
     def ranking_tolerance_s(self) -> float | None:
@@ -118,29 +123,6 @@ def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile
     return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise)
 
 
-StrategyFn = Callable[[StrategyContext], StrategyOutcome]
-STRATEGIES: dict[str, StrategyFn] = {}
-TIMETABLED: set[str] = set()
-"""Strategies whose job is to meet the planned running time (a miss is a failure, exit 1); the others
-(time-saving, energy-saving) ignore the timetable by definition."""
-
-
-def register(name: str, timetabled: bool = False):
-    def deco(fn: StrategyFn) -> StrategyFn:
-        STRATEGIES[name] = fn
-        if timetabled:
-            TIMETABLED.add(name)
-        return fn
-    return deco
-
-
-def get_strategy(name: str) -> StrategyFn:
-    try:
-        return STRATEGIES[name]
-    except KeyError:
-        raise InputError(Problem("", "strategy", f"unknown strategy {name!r} (one of: {', '.join(STRATEGIES)})")) from None
-
-
 def _plan(conditions, switches) -> Plan:
     return Plan(tuple(conditions), (0.0, *[float(x) for x in switches], float("nan")))
 
@@ -151,7 +133,6 @@ lowest energies here), so that E_min does not change with the --algorithm being 
 E_MIN_SEED = 1
 """...nor with --seed: its search always starts from this seed, so that fitness values (eq. 10-11) of
 runs with different seeds are comparable."""
-BUILDERS = ("general", "seed002")
 E_MIN_FLOOR_SHARE = 0.01
 RANKING_MARGIN = 0.9
 
@@ -159,7 +140,8 @@ RANKING_MARGIN = 0.9
 def _optimise(ctx: StrategyContext, problem: SwitchingProblem, salt: int, algorithm: str | None = None,
               seed: int | None = None, x0: np.ndarray | None = None):
     name = algorithm or ctx.algorithm
-    params = load_optimizer_params(name, ctx.params_path if name == ctx.algorithm else None).model_dump()
+    given = ctx.params if name == ctx.algorithm else None
+    params = (given if given is not None else default_params(name)).model_dump()
     opt = get_algorithm(name)()
     try:
         opt.setup(problem, ctx.rng(salt, seed), x0=x0, **params)
@@ -182,7 +164,6 @@ def _confirmed(ctx: StrategyContext, problem: SwitchingProblem, result, prefer_b
     return X[int(np.argmin(fitness))] if np.isfinite(fitness).any() else result.best_x
 
 
-@register("time-saving")
 def time_saving(ctx: StrategyContext) -> StrategyOutcome:
     """The fastest run (seed 002 Fig. 4): max traction everywhere, held at each limit, braking only
     where the braking curves of the limit drops and of the stop demand it. In the calculator this is
@@ -214,7 +195,6 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
     return conditions, nominal, lower, upper
 
 
-@register("energy-saving")
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
     energy-saving strategy), switching points by ISSA; general: the drive at the lowest price of time
@@ -278,7 +258,6 @@ def no_drive_message(ctx: StrategyContext) -> str:
             f"limits (the fastest run: {ctx.calc.evaluate(('T',), np.zeros((1, 0))).reason(0)})")
 
 
-@register("four-stage", timetabled=True)
 def four_stage(ctx: StrategyContext) -> StrategyOutcome:
     """Traction to a cruise speed, cruise (re-accelerating where limits or grades pulled it down),
     coast, brake. Cruise speed and coasting point come from a grid search, refined once: the least
@@ -346,7 +325,6 @@ def _punctual(ctx: StrategyContext, conditions, x) -> bool:
     return bool(res.feasible[0]) and abs(float(res.running_time_s[0]) - ctx.t0_s) <= ctx.tolerance_s
 
 
-@register("proposed", timetabled=True)
 def proposed(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
@@ -398,5 +376,3 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                            e_min_kwh=e_min, time_range_s=problem.time_range_s)
 
-
-from . import optimal  # noqa: E402,F401  (registers seed 001's mpoc, mpoc-n, mpoc-c and sfs)
