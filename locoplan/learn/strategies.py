@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -55,7 +56,7 @@ def log_profile(run, calc: TractionCalculator) -> Profile:
 def drivers(ctx: StrategyContext) -> StrategyOutcome:
     """The drivers' logs for this route, train and planned time: time and energy are the drivers'
     means; the sequence and profile are the best driver's run (the punctual run with the least energy)."""
-    from .logs import load_logs
+    from ..io.logs import load_logs
     from .patterns import good_drivers, tolerance_s
 
     t_start = time.perf_counter()
@@ -94,12 +95,13 @@ def drivers(ctx: StrategyContext) -> StrategyOutcome:
 def advice(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 004's advice from the learned patterns (``--patterns``), checked by the calculator."""
     from .advise import advise, check_model
-    from .patterns import load_patterns
+    from ..io.patterns import read_patterns_file
+    from .patterns import Patterns
 
     path = ctx.inputs.get("patterns")
     if not path:
         raise InputError(Problem("<command line>", "--patterns", "the 'advice' strategy needs learned patterns: --patterns FILE"))
-    pat = load_patterns(path)
+    pat = Patterns.from_dict(read_patterns_file(path), str(Path(path)))
     check_model(pat, ctx.calc.options, str(path))
     a = advise(pat, ctx.calc.route, ctx.calc.train, ctx.t0_s, ctx.calc.options, calc=ctx.calc)
     return StrategyOutcome(a.plan, solve_time_s=a.solve_time_s, extra={"speed_scale": round(a.scale, 4)})
