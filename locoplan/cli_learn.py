@@ -117,7 +117,8 @@ def register(app: typer.Typer) -> None:
         from .errors import InputError, Problem
         from .io.load import load_consist, load_route
         from .io.report import to_json
-        from .learn.drivers import SimulationSpec, check_out_dir, simulate_drivers
+        from .learn.drivers import SimulationSpec
+        from .reporting.logs import check_out_dir, simulate_drivers
 
         if drivers < 1 or runs < 1:
             raise InputError(Problem("<command line>", "--drivers" if drivers < 1 else "--runs", "must be >= 1"))
@@ -155,7 +156,7 @@ def register(app: typer.Typer) -> None:
         """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
         Method: the patent on locomotive operation sequences from double-layer pattern curves."""
         from .io.report import atomic_write_text, to_json
-        from .learn.logs import load_logs
+        from .io.logs import load_logs
         from .learn.patterns import LearnSettings
         from .learn.patterns import learn as run_learn
 
@@ -199,7 +200,8 @@ def register(app: typer.Typer) -> None:
         from .learn.advise import advise as run_advise
         from .learn.advise import check_model
         from .learn.drivers import check_train_mass, consist_for_mass
-        from .learn.patterns import load_patterns
+        from .io.patterns import read_patterns_file
+        from .learn.patterns import Patterns
         from .runner import make_context, schedule_verdict, summarize, RunResult
         from .strategy.strategies import StrategyOutcome
 
@@ -207,7 +209,7 @@ def register(app: typer.Typer) -> None:
         opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
         if mass is not None:
             check_train_mass(mass, "--mass")
-        pat = load_patterns(patterns)
+        pat = Patterns.from_dict(read_patterns_file(patterns), str(patterns))
         check_model(pat, opts, str(patterns))
         r = load_route(route)
         if mass is None:

@@ -16,10 +16,13 @@ from locoplan.cli import app
 from locoplan.errors import InputError
 from locoplan.io.load import build_train, load_consist, load_route
 from locoplan.learn.advise import advise
-from locoplan.learn.drivers import SimulationSpec, consist_for_mass, simulate_drivers
-from locoplan.learn.logs import LogData, load_logs, log_csv_text, manifest_text, read_log_csv
-from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, good_drivers, learn, line_model,
-                                     load_patterns, select_order)
+from locoplan.io.logs import load_logs, read_log_csv
+from locoplan.io.patterns import read_patterns_file
+from locoplan.learn.drivers import SimulationSpec, consist_for_mass
+from locoplan.model.logs import LogData
+from locoplan.reporting.logs import log_csv_text, manifest_text, simulate_drivers
+from locoplan.learn.patterns import (LOWER_FEATURES, LearnSettings, Patterns, good_drivers, learn, line_model,
+                                     select_order)
 from locoplan.learn.segments import classify_gradient, equivalent_gradient_pieces, segment_route
 from locoplan.physics.units import G_MS2
 from locoplan.physics.resistance import train_resistance_kn
@@ -225,7 +228,7 @@ def _known_logs(folder: Path, base) -> dict:
     runs = []
     for mass in (3200, 4200):
         consist = consist_for_mass(base[0], base[1], mass)
-        from locoplan.learn.drivers import consist_yaml
+        from locoplan.reporting.logs import consist_yaml
 
         (folder / f"m{mass}.yaml").write_text(consist_yaml(consist))
         line = line_model(route, build_train(consist, base[1]), ModelOptions(), settings)
@@ -320,14 +323,14 @@ def test_patterns_file_round_trip_and_bad_file(learned, tmp_path):
 
     f = tmp_path / "p.json"
     f.write_text(to_json(learned.patterns.to_dict()))
-    back = load_patterns(f)
+    back = Patterns.from_dict(read_patterns_file(f), str(f))
     line = line_model(load_route(LINE), learned.lines[0].train, ModelOptions(), back.settings)
     assert back.shares(line, 4200, 540) == pytest.approx(learned.patterns.shares(line, 4200, 540))
     data = json.loads(f.read_text())
     data["lower"]["coef"] = data["lower"]["coef"][:3]
     f.write_text(json.dumps(data))
     with pytest.raises(InputError, match="lower.coef"):
-        load_patterns(f)
+        Patterns.from_dict(read_patterns_file(f), str(f))
 
 
 # ------------------------------------------------------------------------------------------ advice

@@ -17,9 +17,9 @@ from pydantic import BaseModel, ValidationError
 
 from ..errors import InputError, Problem
 from ..model.common import RuleViolations
-from ..model.consist import PLAUSIBLE, Consist, Vehicle
+from ..model.consist import Consist, Vehicle
 from ..model.route import Route
-from ..model.train import Train
+from ..model.train import Train, build_train  # noqa: F401  (build_train: re-exported for the loaders' callers)
 
 SCHEMAS: dict[str, type[BaseModel]] = {
     "locoplan/route@1": Route,
@@ -703,29 +703,6 @@ def load_consist(consist_spec: str | Path, stock_dir: str | Path | None = None):
     if problems:
         raise InputError(problems)
     return consist, vehicles, files, path, lines
-
-
-def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", lines: dict | None = None) -> Train:
-    """``Train.from_consist`` with the plausibility bounds on the whole train (mass, length)."""
-    problems: list[Problem] = []
-    train = Train.from_consist(consist, vehicles)
-    where = _line_for(lines or {}, ("vehicles",))
-    if train.mass_t > PLAUSIBLE["train_mass_t"]:
-        problems.append(Problem(name, "vehicles", f"total mass {train.mass_t:,.0f} t is implausible: the heaviest train "
-                                f"ever run weighed 99,734 t (limit {PLAUSIBLE['train_mass_t']:,.0f} t)", where))
-    if train.length_m > PLAUSIBLE["train_length_m"]:
-        problems.append(Problem(name, "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
-                                f"train ever run was 7.35 km (limit {PLAUSIBLE['train_length_m']:,.0f} m)", where))
-    if not max(train.traction_kn, default=0.0) > 0:
-        problems.append(Problem(name, "vehicles", "the train has no traction: no vehicle of kind 'locomotive' gives a "
-                                "traction_kn above 0 kN, so it could never start", where))
-    if not max(train.brake_kn, default=0.0) > 0:
-        problems.append(Problem(name, "vehicles", "the train has no brake: no locomotive gives a brake_kn above 0 kN, "
-                                "no wagon an air_brake, and the consist no brake_deceleration_ms2, so it could never "
-                                "stop", where))
-    if problems:
-        raise InputError(problems)
-    return train
 
 
 SHORTEST_LINE_M = 200.0

@@ -1,5 +1,6 @@
-"""A simulator of human freight-train drivers that writes driver logs (seed 004 needs logs; the
-project has none, so it makes them, and labels every one ``synthetic: true``).
+"""A simulator of human freight-train drivers that makes driver logs (seed 004 needs logs; the
+project has none, so it makes them, and labels every one ``synthetic: true``); ``simulate_logs``
+returns them as data and ``reporting/logs.py`` writes the log folder.
 
 Human driving, not optimal control. Each driver follows a target speed with a handle of discrete
 notches, late by a reaction delay, misjudging the speed by a drifting error; the target comes from
@@ -29,7 +30,7 @@ from ``calc.forces_kn`` (traction, braking, resistance + gravity). Time steps of
 midpoint (RK2) force evaluation. A supervision (the train-protection curve of a real locomotive)
 brakes fully whenever the train reaches the braking envelope, so no run ever breaks a limit; the
 final stop is braked to stop exactly at the end of the route; every run is checked (arrived, never
-stalled, never above a limit) before it is written.
+stalled, never above a limit) before it is returned.
 
 Each driver is given the run's planned time (plus their own punctuality error) and, like a driver
 who knows the line, picks the cruise speed that meets it: a bisection on the cruise speed, all runs
@@ -40,9 +41,6 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -50,13 +48,13 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError, Problem
-from ..io.load import build_train
 from ..model.consist import Consist, ConsistEntry, Vehicle
+from ..model.logs import LogData
 from ..model.route import Route
+from ..model.train import build_train
 from ..physics.units import KMH_PER_MS, kinetic_e, kmh, kmh_from_e, ms_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..strategy.sequence import classify_grades
-from .logs import MANIFEST_NAME, LogData, log_csv_text, manifest_text
 
 DT_S = 1.0
 """Time step and log sampling interval [s] (recorders log at about 1 Hz)."""
@@ -454,18 +452,6 @@ def consist_for_mass(base: Consist, vehicles: dict[str, Vehicle], mass_t: float)
     return base.model_copy(update={"vehicles": entries, "name": f"{names} ({mass_t:g} t)"})
 
 
-def consist_yaml(consist: Consist) -> str:
-    import yaml
-
-    data = {"schema": "locoplan/consist@1", "name": consist.name,
-            "vehicles": [{"type": e.type, "count": e.count, **({"load_t": e.load_t} if e.load_t else {})} for e in consist.vehicles],
-            "service_brake_coefficient": consist.service_brake_coefficient}
-    if consist.brake_deceleration_ms2 is not None:
-        data["brake_deceleration_ms2"] = consist.brake_deceleration_ms2
-    return ("# written by locoplan drivers simulate: the base consist resized to this mass\n"
-            + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=200))
-
-
 # ------------------------------------------------------------------------------------------ the command
 @dataclass(frozen=True)
 class SimulationSpec:
@@ -516,44 +502,31 @@ def check_train_mass(mass_t: float, option: str) -> float:
 
 
 @dataclass(frozen=True)
-class SimulationSummary:
-    out_dir: Path
-    n_runs: int
+class SimulatedLogs:
+    """What ``simulate_logs`` made, as data (``reporting/logs.py`` writes it as a log folder)."""
+
+    logs: dict[str, LogData]  # relative path of each log CSV -> its columns
+    consists: dict[str, Consist]  # relative path of each consist file -> the consist resized to that mass
+    manifest: dict  # manifest.yaml's content (schema locoplan/driver-logs@1)
+    driver_ids: list[str]
+    driver_rows: list[dict]  # each driver's habits (DriverParams.rows)
     groups: list[dict]  # per mass and time: drivers' mean / min / max energy and time, late runs
-    drivers: list[dict]
+
+    @property
+    def n_runs(self) -> int:
+        return len(self.manifest["runs"])
 
 
-def check_out_dir(out_dir: Path) -> None:
-    """Refuse an output folder that holds anything (logs are written whole or not at all)."""
-    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
-        raise InputError(Problem(str(out_dir), "--out", "exists and is not an empty folder: choose a new folder "
-                                 "(logs are never written over or mixed)"))
-    from ..io.report import existing_folder
-
-    # a missing parent is created when the logs are written (the one rule for output folders)
-    parent = existing_folder(out_dir.parent if str(out_dir.parent) else Path("."), str(out_dir), "--out")
-    try:  # the logs go into a temporary folder beside it first: can one be made there?
-        import tempfile
-
-        os.rmdir(tempfile.mkdtemp(prefix=".locoplan-probe-", dir=parent))
-    except OSError as exc:
-        raise InputError(Problem(str(out_dir), "--out", f"cannot write into {parent}: {exc.strerror or exc}")) from None
-
-
-def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> SimulationSummary:
-    """Simulate ``n_drivers`` drivers x ``n_runs`` runs for every mass and planned time and write the
-    log folder (manifest.yaml, route.yaml, consists/, rolling_stock/, logs/, drivers.csv) atomically:
-    into a temporary folder first, renamed into place when complete."""
-    out_dir = Path(out_dir)
+def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
+    """Simulate ``n_drivers`` drivers x ``n_runs`` runs for every mass and planned time: the logs, the
+    consists and the manifest as data (nothing is written here)."""
     spec.check()
-    check_out_dir(out_dir)
     rng = np.random.default_rng(spec.seed)
     drivers = draw_drivers(spec.n_drivers, rng)
     ids = [f"D{i + 1:02d}" for i in range(spec.n_drivers)]
     tol = spec.tolerance_s
-    files: dict[str, str] = {"route.yaml": spec.route_file.read_text(encoding="utf-8")}
-    for name, path in spec.vehicle_files.items():
-        files[f"rolling_stock/{path.name}"] = path.read_text(encoding="utf-8")
+    logs: dict[str, LogData] = {}
+    consists: dict[str, Consist] = {}
     runs_meta: list[dict] = []
     groups: list[dict] = []
     day = 0
@@ -563,7 +536,7 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
         calc = TractionCalculator(spec.route, train, spec.options)
         tables = route_tables(calc)
         cname = f"consists/m{mass:g}.yaml"
-        files[cname] = consist_yaml(consist)
+        consists[cname] = consist
         for t0 in spec.times_s:
             if t0 < calc.fastest_time_s:
                 raise InputError(Problem("<command line>", "--times", f"{t0:g} s is below the fastest possible run of "
@@ -589,7 +562,7 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
             for r in sel:
                 log, d, rep = out.logs[r], idx[r], r % spec.n_runs + 1
                 name = f"logs/{ids[d]}-m{mass:g}-t{t0:g}-r{rep}.csv"
-                files[name] = log_csv_text(log)
+                logs[name] = log
                 runs_meta.append({"log": name, "driver_id": ids[d], "consist": cname, "mass_t": float(mass),
                                   "scheduled_time_s": float(t0), "actual_time_s": round(float(log.running_time_s), 1),
                                   "date": spec.start_date + dt.timedelta(days=day)})
@@ -606,36 +579,4 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
                 "notes": (f"SYNTHETIC: {spec.n_drivers} simulated drivers x {spec.n_runs} runs per mass and time, "
                           f"made by {SIMULATOR} (locoplan {__version__}), not recorded on a real train"),
                 "runs": runs_meta}
-    files[MANIFEST_NAME] = manifest_text(manifest, "# Driver logs made by a simulator: synthetic, not real driving.\n")
-    driver_rows = drivers.rows()
-    head = "driver_id," + ",".join(driver_rows[0]) + "\n"
-    files["drivers.csv"] = head + "".join(f"{ids[i]}," + ",".join(str(x) for x in row.values()) + "\n"
-                                          for i, row in enumerate(driver_rows))
-    _write_folder(out_dir, files)
-    return SimulationSummary(out_dir, len(runs_meta), groups, [{"driver_id": ids[i], **r} for i, r in enumerate(driver_rows)])
-
-
-def _write_folder(out_dir: Path, files: dict[str, str]) -> None:
-    """Write every file into a temporary sibling folder, then rename it into place."""
-    from ..io.report import make_folder
-
-    parent = out_dir.parent if str(out_dir.parent) else Path(".")
-    make_folder(parent, str(out_dir), "--out")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
-    try:
-        for rel, text in files.items():
-            f = tmp / rel
-            f.parent.mkdir(parents=True, exist_ok=True)
-            f.write_text(text, encoding="utf-8")
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o777 & ~mask)  # a folder as mkdir makes it, not mkdtemp's 0700
-        if out_dir.exists():
-            out_dir.rmdir()  # empty (checked): replaced by the complete folder
-        os.rename(tmp, out_dir)
-    except BaseException as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        if isinstance(exc, OSError):
-            raise InputError(Problem(str(out_dir), "--out", f"cannot write the logs: {exc.strerror or exc} "
-                                     "(nothing was written)")) from None
-        raise
+    return SimulatedLogs(logs, consists, manifest, ids, drivers.rows(), groups)

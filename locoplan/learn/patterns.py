@@ -36,18 +36,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from .. import __version__
 from ..errors import InputError, Problem
+from ..model.logs import LoggedRun
 from ..model.route import Route
 from ..model.train import Train
 from ..physics.units import KMH_PER_MS, kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .logs import LoggedRun
 from .segments import LEVEL_PERMILLE, SECTION_TYPES, Section, segment_route
 
 PATTERN_SCHEMA = "locoplan/patterns@1"
@@ -430,6 +429,40 @@ class Patterns:
                 "model": self.model, "upper": {"form": self.upper_form, **self.upper.to_dict()},
                 "lower": self.lower.to_dict(), "report": self.report}
 
+    @classmethod
+    def from_dict(cls, data: dict, name: str) -> "Patterns":
+        """The patterns of a patterns.json's content (``io.patterns.read_patterns_file``: its keys and
+        types checked), checked against this locoplan's inputs; ``name`` is the file's, for the messages.
+        A pattern made for other inputs is an input error (exit 2)."""
+        problems = []
+        if data["schema"] != PATTERN_SCHEMA:
+            problems.append(Problem(name, "schema", f"expected {PATTERN_SCHEMA!r}, got {data['schema']!r}"))
+        for key, features in (("upper", UPPER_FEATURES), ("lower", LOWER_FEATURES)):
+            layer = data[key]
+            if tuple(layer["features"]) != features or tuple(layer["types"]) != SECTION_TYPES:
+                problems.append(Problem(name, f"{key}.features", f"made for other inputs ({layer['features']}); learn "
+                                        f"again with this locoplan ({__version__})"))
+                continue
+            interact, coef = layer["interact"], layer["coef"]
+            n_coef = 1 + len(SECTION_TYPES) + layer["order"] * len(features) + (len(features) - 1 if interact else 0)
+            if interact is not None and interact not in features:
+                problems.append(Problem(name, f"{key}.interact", f"{interact!r} is not one of the inputs"))
+            elif (np.shape(coef)[-1] != n_coef or np.ndim(coef) == 2 and len(coef) != len(SECTION_TYPES)
+                  or len(layer["mean"]) != len(features) or len(layer["std"]) != len(features)):
+                problems.append(Problem(name, f"{key}.coef", f"expected {n_coef} coefficients and {len(features)} means "
+                                        f"and deviations for order {layer['order']}"))
+        if data["upper"]["form"] not in UPPER_FORMS:
+            problems.append(Problem(name, "upper.form", f"one of {', '.join(UPPER_FORMS)} (got {data['upper']['form']!r})"))
+        try:
+            settings = LearnSettings(**data["settings"])
+        except TypeError as exc:
+            problems.append(Problem(name, "settings", str(exc)))
+        if problems:
+            raise InputError(problems)
+        up = dict(data["upper"])
+        form = up.pop("form")
+        return cls(settings, data["model"], form, PolyLayer.from_dict(up), PolyLayer.from_dict(data["lower"]), data["report"])
+
 
 @dataclass(frozen=True)
 class Learned:
@@ -569,75 +602,3 @@ def _rounded(x, digits: int = 6):
     if isinstance(x, np.integer):
         return int(x)
     return x
-
-
-# ------------------------------------------------------------------------------------------ file
-def load_patterns(path: str | Path) -> Patterns:
-    """Read a patterns.json written by ``locoplan learn``; a wrong file is an input error (exit 2)."""
-    import json
-
-    from pydantic import BaseModel, ConfigDict, Field, ValidationError
-
-    path = Path(path)
-    name = str(path)
-    from ..io.load import read_text
-
-    if not path.exists():
-        raise InputError(Problem(name, "--patterns", "no such file"))
-    from ..io.load import parse_json
-
-    data = parse_json(read_text(path), name)
-
-    class Layer(BaseModel):
-        model_config = ConfigDict(extra="forbid")
-        features: list[str]
-        order: int = Field(ge=1)
-        types: list[str]
-        mean: list[float]
-        std: list[float]
-        coef: list[float] | list[list[float]]
-        low: list[float] | None = None
-        high: list[float] | None = None
-        form: str | None = None
-        interact: str | None = None
-
-    class File(BaseModel):
-        model_config = ConfigDict(extra="forbid", populate_by_name=True)
-        schema_: str = Field(alias="schema")
-        locoplan_version: str
-        settings: dict
-        model: dict
-        upper: Layer
-        lower: Layer
-        report: dict
-
-    try:
-        f = File.model_validate(data)
-    except ValidationError as exc:
-        raise InputError([Problem(name, ".".join(str(x) for x in e["loc"]), e["msg"]) for e in exc.errors()]) from None
-    problems = []
-    if f.schema_ != PATTERN_SCHEMA:
-        problems.append(Problem(name, "schema", f"expected {PATTERN_SCHEMA!r}, got {f.schema_!r}"))
-    for key, layer, features in (("upper", f.upper, UPPER_FEATURES), ("lower", f.lower, LOWER_FEATURES)):
-        if tuple(layer.features) != features or tuple(layer.types) != SECTION_TYPES:
-            problems.append(Problem(name, f"{key}.features", f"made for other inputs ({layer.features}); learn again "
-                                    f"with this locoplan ({__version__})"))
-            continue
-        n_coef = 1 + len(SECTION_TYPES) + layer.order * len(features) + (len(features) - 1 if layer.interact else 0)
-        if layer.interact is not None and layer.interact not in features:
-            problems.append(Problem(name, f"{key}.interact", f"{layer.interact!r} is not one of the inputs"))
-        elif (np.shape(layer.coef)[-1] != n_coef or np.ndim(layer.coef) == 2 and len(layer.coef) != len(SECTION_TYPES)
-              or len(layer.mean) != len(features) or len(layer.std) != len(features)):
-            problems.append(Problem(name, f"{key}.coef", f"expected {n_coef} coefficients and {len(features)} means "
-                                    f"and deviations for order {layer.order}"))
-    if f.upper.form not in UPPER_FORMS:
-        problems.append(Problem(name, "upper.form", f"one of {', '.join(UPPER_FORMS)} (got {f.upper.form!r})"))
-    try:
-        settings = LearnSettings(**f.settings)
-    except TypeError as exc:
-        problems.append(Problem(name, "settings", str(exc)))
-    if problems:
-        raise InputError(problems)
-    up = f.upper.model_dump()
-    form = up.pop("form")
-    return Patterns(settings, f.model, form, PolyLayer.from_dict(up), PolyLayer.from_dict(f.lower.model_dump()), f.report)

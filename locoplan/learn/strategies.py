@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from ..sim.calculator import TractionCalculator
 from ..strategy.strategies import StrategyContext, StrategyOutcome
 from .advise import advise as advise_run
 from .advise import check_model
-from .patterns import good_drivers, tolerance_s
+from .patterns import Patterns, good_drivers, tolerance_s
 
 MASS_SHARE = 0.01
 """A log counts for the compared train when its mass is within this share of the train's."""
@@ -90,9 +91,10 @@ def drivers(ctx: StrategyContext) -> StrategyOutcome:
 
 def advice(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 004's advice from the learned patterns (``--patterns``), checked by the calculator."""
-    path, pat = ctx.inputs.get("patterns"), ctx.loaded.get("patterns")
-    if not path or pat is None:
+    path, data = ctx.inputs.get("patterns"), ctx.loaded.get("patterns")
+    if not path or data is None:
         raise InputError(Problem("<command line>", "--patterns", "the 'advice' strategy needs learned patterns: --patterns FILE"))
+    pat = Patterns.from_dict(data, str(Path(path)))  # the file's format was checked by its reader
     check_model(pat, ctx.calc.options, str(path))
     a = advise_run(pat, ctx.calc.route, ctx.calc.train, ctx.t0_s, ctx.calc.options, calc=ctx.calc)
     return StrategyOutcome(a.plan, solve_time_s=a.solve_time_s, extra={"speed_scale": round(a.scale, 4)})

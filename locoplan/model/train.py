@@ -7,9 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import InputError, Problem
 from ..physics.braking import air_brake_curve_kn
 from ..physics.resistance import unit_to_train_coefficients_kn
-from .consist import Consist, Vehicle
+from .consist import PLAUSIBLE, Consist, Vehicle
 
 
 @dataclass(frozen=True)
@@ -124,3 +125,27 @@ def _sum_curves(curves: list[tuple[list | np.ndarray, int]]) -> tuple[np.ndarray
     for a in (speeds, total):
         a.setflags(write=False)
     return speeds, total
+
+
+def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", lines: dict | None = None) -> Train:
+    """``Train.from_consist`` with the plausibility bounds on the whole train (mass, length)."""
+    problems: list[Problem] = []
+    train = Train.from_consist(consist, vehicles)
+    lines = lines or {}
+    where = lines[("vehicles",)] if ("vehicles",) in lines else lines.get(())  # the field's line, else the file's
+    if train.mass_t > PLAUSIBLE["train_mass_t"]:
+        problems.append(Problem(name, "vehicles", f"total mass {train.mass_t:,.0f} t is implausible: the heaviest train "
+                                f"ever run weighed 99,734 t (limit {PLAUSIBLE['train_mass_t']:,.0f} t)", where))
+    if train.length_m > PLAUSIBLE["train_length_m"]:
+        problems.append(Problem(name, "vehicles", f"train length {train.length_m:,.0f} m is implausible: the longest "
+                                f"train ever run was 7.35 km (limit {PLAUSIBLE['train_length_m']:,.0f} m)", where))
+    if not max(train.traction_kn, default=0.0) > 0:
+        problems.append(Problem(name, "vehicles", "the train has no traction: no vehicle of kind 'locomotive' gives a "
+                                "traction_kn above 0 kN, so it could never start", where))
+    if not max(train.brake_kn, default=0.0) > 0:
+        problems.append(Problem(name, "vehicles", "the train has no brake: no locomotive gives a brake_kn above 0 kN, "
+                                "no wagon an air_brake, and the consist no brake_deceleration_ms2, so it could never "
+                                "stop", where))
+    if problems:
+        raise InputError(problems)
+    return train

@@ -85,9 +85,9 @@ BUILT_IN: tuple[StrategyEntry, ...] = (
     StrategyEntry("mpoc-c", "locoplan.strategy.optimal:mpoc_c", SEED001, timetabled=True),
     StrategyEntry("sfs", "locoplan.strategy.optimal:sfs", SEED001, timetabled=True),
     # seed 004: what the drivers' logs say, and the learned patterns' advice
-    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", SEED004, inputs=(("logs", "locoplan.learn.logs:load_logs"),)),
+    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", SEED004, inputs=(("logs", "locoplan.io.logs:load_logs"),)),
     StrategyEntry("advice", "locoplan.learn.strategies:advice", SEED004, timetabled=True,
-                  inputs=(("patterns", "locoplan.learn.patterns:load_patterns"),)),
+                  inputs=(("patterns", "locoplan.io.patterns:read_patterns_file"),)),
 )
 
 STRATEGIES: dict[str, StrategyEntry] = {e.name: e for e in BUILT_IN}

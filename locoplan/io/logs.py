@@ -1,32 +1,5 @@
-"""Drivers' logs: one CSV per run plus a YAML manifest (SPEC section 1, "Driver log").
-
-**Log CSV**, one run per file, a header row, then one row per sample (any sampling rate; rows in time
-order)::
-
-    time_s,position_m,speed_kmh,force_kn,notch,action
-    0.0,0.00,0.000,760.00,8,T
-    1.0,0.07,0.529,760.00,8,T
-
-- ``time_s`` [s], strictly rising; ``position_m`` [m] of the train's head from the route's start,
-  never falling; ``speed_kmh`` [km/h] >= 0; ``force_kn`` [kN] at the wheel, + traction, - braking,
-  the force applied from this row until the next (zero-order hold, as recorders log it).
-- optional ``notch``: the handle position, an integer (+ traction notches, - braking notches, 0 off);
-  optional ``action``: what the driver did, one of T (traction), K (holding a speed), C (coasting),
-  B (braking).
-- Units live in the column names, as in every locoplan file: a column in other units (``speed_mph``,
-  ``position_ft``, ``force_lbf`` ...) is refused with the conversion to use.
-
-**Manifest** ``manifest.yaml`` in the log folder (or a sidecar ``<log>.yaml`` per run, schema
-``locoplan/driver-run@1``, same keys as one run plus ``synthetic``)::
-
-    schema: locoplan/driver-logs@1
-    route: route.yaml                # default for every run; paths relative to this file
-    consist: consists/m5200.yaml     # default for every run
-    synthetic: true                  # required: is this data made by a simulator?
-    generator: {name: locoplan drivers simulate, version: 0.1.0, seed: 1}   # optional
-    runs:
-      - {log: logs/r0001.csv, driver_id: D01, mass_t: 5200, scheduled_time_s: 1500,
-         actual_time_s: 1502.0, date: 2024-03-01}
+"""Drivers' logs, the reading: one log CSV (``read_log_csv``) and whole log sets, manifests or sidecars
+with their routes and consists (``load_logs``). The format is described in ``model/logs.py``.
 
 Every problem is reported as ``file:line: column N (name): why`` (CSV) or ``file:line: field: why``
 (manifest); a log set with any problem is refused as a whole (exit 2).
@@ -35,27 +8,19 @@ Every problem is reported as ``file:line: column N (name): why`` (CSV) or ``file
 from __future__ import annotations
 
 import csv
-import datetime as dt
 import difflib
 import io
 import math
-from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from ..errors import InputError, Problem
-from ..model.common import Strict
+from ..model.logs import (ACTIONS, MANIFEST_NAME, MANIFEST_SCHEMAS, OPTIONAL_COLUMNS, REQUIRED_COLUMNS, DriverRun,
+                          LogData, LoggedRun)
 from ..model.route import Route
 from ..model.train import Train
-from ..physics.units import KJ_PER_KWH
-
-REQUIRED_COLUMNS = ("time_s", "position_m", "speed_kmh", "force_kn")
-OPTIONAL_COLUMNS = ("notch", "action")
-ACTIONS = ("T", "K", "C", "B")
+from .load import _line_for, load_route, load_train, read_text, read_yaml, validate_model
 
 MAX_PROBLEMS_PER_FILE = 20
 """After this many problems in one CSV the rest of it is summarised (a wrong file has thousands)."""
@@ -76,76 +41,6 @@ FOREIGN_UNITS = {
               "n": ("newtons", "force_kn = force_n / 1000"), "kgf": ("kilogram-force", "force_kn = force_kgf x 0.00980665"),
               "tf": ("tonne-force", "force_kn = force_tf x 9.80665")},
 }
-
-
-# ------------------------------------------------------------------------------------------ manifest
-class Generator(Strict):
-    """What made synthetic logs: program, version and random seed."""
-
-    name: str
-    version: str
-    seed: int | None = None
-
-
-class RunEntry(Strict):
-    """One run in a manifest. Paths are relative to the manifest's folder."""
-
-    log: str = Field(min_length=1, description="the run's CSV file")
-    driver_id: str = Field(min_length=1)
-    route: str | None = Field(default=None, description="route file (default: the manifest's)")
-    consist: str | None = Field(default=None, description="consist file or catalogue name (default: the manifest's)")
-    mass_t: float = Field(gt=0, description="total train mass [t]")
-    scheduled_time_s: float = Field(gt=0, description="planned running time [s]")
-    actual_time_s: float = Field(gt=0, description="running time as driven [s]")
-    date: dt.date = Field(strict=False, description="date of the run, YYYY-MM-DD")
-
-
-class DriverLogs(Strict):
-    """A folder's manifest: defaults for its runs and the runs."""
-
-    schema_: Literal["locoplan/driver-logs@1"] = Field(alias="schema")
-    route: str | None = None
-    consist: str | None = None
-    synthetic: bool
-    generator: Generator | None = None
-    notes: str | None = None
-    runs: list[RunEntry] = Field(min_length=1)
-
-
-class DriverRun(RunEntry):
-    """A per-run sidecar ``<log>.yaml``: one run with its own route, consist and ``synthetic`` flag."""
-
-    schema_: Literal["locoplan/driver-run@1"] = Field(alias="schema")
-    synthetic: bool
-    generator: Generator | None = None
-    notes: str | None = None
-
-
-MANIFEST_SCHEMAS = {"locoplan/driver-logs@1": DriverLogs, "locoplan/driver-run@1": DriverRun}
-MANIFEST_NAME = "manifest.yaml"
-
-
-# ------------------------------------------------------------------------------------------ one log
-@dataclass(frozen=True)
-class LogData:
-    """The columns of one log CSV (arrays of equal length, one entry per row)."""
-
-    time_s: np.ndarray
-    position_m: np.ndarray
-    speed_kmh: np.ndarray
-    force_kn: np.ndarray
-    notch: np.ndarray | None = None
-    action: np.ndarray | None = None  # str array of T/K/C/B
-
-    @property
-    def running_time_s(self) -> float:
-        return float(self.time_s[-1] - self.time_s[0])
-
-    @property
-    def traction_energy_kwh(self) -> float:
-        """Traction work sum F+ ds at the wheel [kWh] (each row's force held until the next row)."""
-        ds = np.diff(self.position_m)
-        return float(np.sum(np.maximum(self.force_kn[:-1], 0.0) * ds)) / KJ_PER_KWH
 
 
 def _column_problem(name: str, known: tuple[str, ...]) -> str | None:
@@ -170,8 +65,6 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
     """Read and check one log CSV. Every problem names the file, the line and the column."""
     name = str(path)
     if text is None:
-        from ..io.load import read_text
-
         text = read_text(path)  # a regular UTF-8 file of at most 10 MiB (a FIFO or /dev/zero is refused)
     reader = csv.reader(io.StringIO(text))
     try:
@@ -274,54 +167,8 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
                    np.asarray(values["action"]) if "action" in idx else None)
 
 
-def log_csv_text(data: LogData) -> str:
-    """The CSV text of a log (the format ``read_log_csv`` reads)."""
-    cols = list(REQUIRED_COLUMNS) + (["notch"] if data.notch is not None else []) + (["action"] if data.action is not None else [])
-    out = io.StringIO()
-    out.write(",".join(cols) + "\n")
-    for i in range(len(data.time_s)):
-        row = [f"{data.time_s[i]:.1f}", f"{data.position_m[i]:.2f}", f"{data.speed_kmh[i]:.3f}", f"{data.force_kn[i]:.2f}"]
-        if data.notch is not None:
-            row.append(str(int(data.notch[i])))
-        if data.action is not None:
-            row.append(str(data.action[i]))
-        out.write(",".join(row) + "\n")
-    return out.getvalue()
-
-
-# ------------------------------------------------------------------------------------------ log sets
-@dataclass(frozen=True)
-class LoggedRun:
-    """One run: its log, what the manifest says about it, and the route and train it ran with."""
-
-    log_file: Path
-    manifest_file: Path
-    manifest_line: int | None
-    driver_id: str
-    route_file: Path
-    route: Route
-    consist_file: Path
-    train: Train
-    mass_t: float
-    scheduled_time_s: float
-    actual_time_s: float
-    date: dt.date
-    synthetic: bool
-    data: LogData = field(repr=False)
-
-    @cached_property
-    def traction_energy_kwh(self) -> float:
-        return self.data.traction_energy_kwh
-
-    @property
-    def running_time_s(self) -> float:
-        return self.data.running_time_s
-
-
 def _yaml_entries(path: Path):
     """(model, line map) of a manifest or sidecar file, validated against its schema."""
-    from ..io.load import _line_for, read_yaml, validate_model
-
     data, lines = read_yaml(path)
     schema = data.get("schema")
     if schema not in MANIFEST_SCHEMAS:
@@ -357,8 +204,6 @@ def _manifest_files(path: Path) -> list[Path]:
 def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> list[LoggedRun]:
     """Every run of the given log folders / manifests, checked. All problems are collected and raised
     together (``InputError``, exit 2): a log set is used whole or not at all."""
-    from ..io.load import _line_for, load_route, load_train
-
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     problems: list[Problem] = []
     runs: list[LoggedRun] = []
@@ -445,18 +290,3 @@ def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> 
     return runs
 
 
-def manifest_text(model: dict, header: str = "") -> str:
-    """YAML text of a manifest dict (``schema`` first, one run per line)."""
-    import yaml
-
-    runs = model.get("runs", [])
-    head = {k: v for k, v in model.items() if k != "runs"}
-    text = header
-    for k, v in head.items():
-        flow = isinstance(v, (dict, list))
-        text += f"{k}: " + yaml.safe_dump(v, default_flow_style=flow, width=10_000).strip().removesuffix("\n...").strip() + "\n"
-    if runs:
-        text += "runs:\n"
-        for r in runs:
-            text += "  - " + yaml.safe_dump(r, sort_keys=False, default_flow_style=True, width=10_000).strip() + "\n"
-    return text

@@ -1,0 +1,141 @@
+"""Drivers' logs, the writing: the text of a log CSV and of a manifest (the formats ``io/logs.py``
+reads), and the log folder ``locoplan drivers simulate`` makes, written whole or not at all."""
+
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from ..errors import InputError, Problem
+from ..io.report import existing_folder, make_folder
+from ..learn.drivers import SimulatedLogs, SimulationSpec, simulate_logs
+from ..model.consist import Consist
+from ..model.logs import MANIFEST_NAME, REQUIRED_COLUMNS, LogData
+
+
+# ------------------------------------------------------------------------------------------ texts
+def log_csv_text(data: LogData) -> str:
+    """The CSV text of a log (the format ``read_log_csv`` reads)."""
+    cols = list(REQUIRED_COLUMNS) + (["notch"] if data.notch is not None else []) + (["action"] if data.action is not None else [])
+    out = io.StringIO()
+    out.write(",".join(cols) + "\n")
+    for i in range(len(data.time_s)):
+        row = [f"{data.time_s[i]:.1f}", f"{data.position_m[i]:.2f}", f"{data.speed_kmh[i]:.3f}", f"{data.force_kn[i]:.2f}"]
+        if data.notch is not None:
+            row.append(str(int(data.notch[i])))
+        if data.action is not None:
+            row.append(str(data.action[i]))
+        out.write(",".join(row) + "\n")
+    return out.getvalue()
+
+
+def manifest_text(model: dict, header: str = "") -> str:
+    """YAML text of a manifest dict (``schema`` first, one run per line)."""
+    runs = model.get("runs", [])
+    head = {k: v for k, v in model.items() if k != "runs"}
+    text = header
+    for k, v in head.items():
+        flow = isinstance(v, (dict, list))
+        text += f"{k}: " + yaml.safe_dump(v, default_flow_style=flow, width=10_000).strip().removesuffix("\n...").strip() + "\n"
+    if runs:
+        text += "runs:\n"
+        for r in runs:
+            text += "  - " + yaml.safe_dump(r, sort_keys=False, default_flow_style=True, width=10_000).strip() + "\n"
+    return text
+
+
+def consist_yaml(consist: Consist) -> str:
+    """YAML text of a consist resized by ``drivers simulate`` (the consist file format)."""
+    data = {"schema": "locoplan/consist@1", "name": consist.name,
+            "vehicles": [{"type": e.type, "count": e.count, **({"load_t": e.load_t} if e.load_t else {})} for e in consist.vehicles],
+            "service_brake_coefficient": consist.service_brake_coefficient}
+    if consist.brake_deceleration_ms2 is not None:
+        data["brake_deceleration_ms2"] = consist.brake_deceleration_ms2
+    return ("# written by locoplan drivers simulate: the base consist resized to this mass\n"
+            + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=200))
+
+
+def drivers_csv_text(ids: list[str], rows: list[dict]) -> str:
+    """``drivers.csv``: each simulated driver's habits, one row per driver."""
+    head = "driver_id," + ",".join(rows[0]) + "\n"
+    return head + "".join(f"{ids[i]}," + ",".join(str(x) for x in row.values()) + "\n" for i, row in enumerate(rows))
+
+
+# ------------------------------------------------------------------------------------------ the log folder
+@dataclass(frozen=True)
+class SimulationSummary:
+    out_dir: Path
+    n_runs: int
+    groups: list[dict]  # per mass and time: drivers' mean / min / max energy and time, late runs
+    drivers: list[dict]
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """Refuse an output folder that holds anything (logs are written whole or not at all)."""
+    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
+        raise InputError(Problem(str(out_dir), "--out", "exists and is not an empty folder: choose a new folder "
+                                 "(logs are never written over or mixed)"))
+    # a missing parent is created when the logs are written (the one rule for output folders)
+    parent = existing_folder(out_dir.parent if str(out_dir.parent) else Path("."), str(out_dir), "--out")
+    try:  # the logs go into a temporary folder beside it first: can one be made there?
+        os.rmdir(tempfile.mkdtemp(prefix=".locoplan-probe-", dir=parent))
+    except OSError as exc:
+        raise InputError(Problem(str(out_dir), "--out", f"cannot write into {parent}: {exc.strerror or exc}")) from None
+
+
+def log_folder_files(spec: SimulationSpec, sim: SimulatedLogs) -> dict[str, str]:
+    """Every file of the log folder, relative path -> text: the route and rolling-stock files as given,
+    a consist file per mass, the logs, manifest.yaml and drivers.csv."""
+    files: dict[str, str] = {"route.yaml": spec.route_file.read_text(encoding="utf-8")}
+    for path in spec.vehicle_files.values():
+        files[f"rolling_stock/{path.name}"] = path.read_text(encoding="utf-8")
+    for name, consist in sim.consists.items():
+        files[name] = consist_yaml(consist)
+    for name, log in sim.logs.items():
+        files[name] = log_csv_text(log)
+    files[MANIFEST_NAME] = manifest_text(sim.manifest, "# Driver logs made by a simulator: synthetic, not real driving.\n")
+    files["drivers.csv"] = drivers_csv_text(sim.driver_ids, sim.driver_rows)
+    return files
+
+
+def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> SimulationSummary:
+    """Simulate the drivers (``learn.drivers.simulate_logs``) and write the log folder (manifest.yaml,
+    route.yaml, consists/, rolling_stock/, logs/, drivers.csv) atomically: into a temporary folder
+    first, renamed into place when complete. The folder is checked before any run is simulated."""
+    out_dir = Path(out_dir)
+    spec.check()
+    check_out_dir(out_dir)
+    sim = simulate_logs(spec, progress)
+    write_folder(out_dir, log_folder_files(spec, sim))
+    return SimulationSummary(out_dir, sim.n_runs, sim.groups,
+                             [{"driver_id": i, **r} for i, r in zip(sim.driver_ids, sim.driver_rows)])
+
+
+def write_folder(out_dir: Path, files: dict[str, str]) -> None:
+    """Write every file into a temporary sibling folder, then rename it into place."""
+    parent = out_dir.parent if str(out_dir.parent) else Path(".")
+    make_folder(parent, str(out_dir), "--out")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
+    try:
+        for rel, text in files.items():
+            f = tmp / rel
+            f.parent.mkdir(parents=True, exist_ok=True)
+            f.write_text(text, encoding="utf-8")
+        mask = os.umask(0o022)
+        os.umask(mask)
+        os.chmod(tmp, 0o777 & ~mask)  # a folder as mkdir makes it, not mkdtemp's 0700
+        if out_dir.exists():
+            out_dir.rmdir()  # empty (checked): replaced by the complete folder
+        os.rename(tmp, out_dir)
+    except BaseException as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise InputError(Problem(str(out_dir), "--out", f"cannot write the logs: {exc.strerror or exc} "
+                                     "(nothing was written)")) from None
+        raise
