@@ -77,7 +77,8 @@ def test_a_fresh_process_knows_every_strategy_without_importing_its_module():
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
     from locoplan.io.load import load_consist, load_route
-    from locoplan.learn.drivers import SimulationSpec, simulate_drivers
+    from locoplan.learn.drivers import SimulationSpec
+    from locoplan.reporting.logs import simulate_drivers
 
     consist, vehicles, files, _, _ = load_consist(ROOT / "configs/consists/HXD1-C80x50.yaml")
     out = tmp_path_factory.mktemp("registry") / "logs"
