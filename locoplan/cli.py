@@ -234,7 +234,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
 
 
 def _iterations(algorithm: str, params: Optional[Path]) -> int:
-    from .io.optimizer_params import load_optimizer_params
+    from .runner import load_optimizer_params
 
     return int(load_optimizer_params(algorithm, str(params) if params else None).max_iter)
 

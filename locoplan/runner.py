@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -16,8 +17,9 @@ from . import bounds
 from .errors import InfeasibleError, InputError, Problem
 from .model.plan import Plan, parse_sequence, runs_from_profile
 from .model.route import Route
+from .io.optimizer_params import read_optimizer_params
 from .model.train import Train
-from .io.optimizer_params import load_optimizer_params
+from .optimize import registry as optimizer_registry
 from .optimize.base import OptimizerParams
 from .optimize.problem import fitness_eq10
 from .physics.units import KMH_PER_MS, S_PER_H
@@ -105,6 +107,12 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         params = load_optimizer_params(algorithm, params_path)
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,
                            tol, window, yardstick, builder)
+
+
+def load_optimizer_params(name: str, path: str | Path | None = None):
+    """The parameters of optimiser ``name`` from ``path`` (default: its shipped file), validated with the
+    algorithm's ``Params`` model: an unknown algorithm or a bad file raises ``InputError``."""
+    return read_optimizer_params(path, name, optimizer_registry.get_algorithm(name).Params)
 
 
 def _drives(calc: TractionCalculator) -> bool:

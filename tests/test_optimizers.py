@@ -18,7 +18,7 @@ from locoplan.optimize.base import (
     replace_infeasible,
     sample_feasible,
 )
-from locoplan.io.optimizer_params import load_optimizer_params
+from locoplan.runner import load_optimizer_params
 from locoplan.optimize.registry import ALGORITHMS, get_algorithm
 
 SHIFT = np.array([2.5, -4.0, 6.0, -7.5, 1.0])  # optimum of the toy sphere, away from the origin and the bounds

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 from locoplan.cli import app
 from locoplan.optimize.base import Evaluation
 from locoplan.optimize.problem import SwitchingProblem, fitness_eq10
-from locoplan.io.optimizer_params import load_optimizer_params
+from locoplan.runner import load_optimizer_params
 from locoplan.optimize.registry import get_algorithm
 from locoplan.runner import make_context, run_strategy
 from locoplan.sim.calculator import ModelOptions, TractionCalculator

@@ -19,7 +19,7 @@ from ..errors import InputError, Problem
 from ..model.common import RuleViolations
 from ..model.consist import Consist, Vehicle
 from ..model.route import Route
-from ..model.train import Train, build_train  # noqa: F401  (build_train: re-exported for the loaders' callers)
+from ..model.train import Train, build_train, shorter_than_train  # noqa: F401  (build_train: re-exported for the loaders' callers)
 
 SCHEMAS: dict[str, type[BaseModel]] = {
     "locoplan/route@1": Route,
@@ -27,7 +27,8 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "locoplan/consist@1": Consist,
 }
 
-CATALOGUE = resources.files("locoplan") / "catalogue"
+CATALOGUE = resources.files("locoplan.catalogue")
+"""The shipped catalogue folder (``locoplan/catalogue``)."""
 
 
 def _line_map(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
@@ -644,8 +645,6 @@ def consist_names() -> list[str]:
 def load_route_and_train(route_path: str | Path, consist_spec: str | Path,
                          stock_dir: str | Path | None = None) -> tuple[Route, Train]:
     """A route and a train that can run on it (the route is longer than the train), every problem named."""
-    from ..sim.calculator import shorter_than_train
-
     route = load_route(route_path)
     train = load_train(consist_spec, stock_dir)
     if train.length_m >= route.length_m:

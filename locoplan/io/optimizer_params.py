@@ -1,8 +1,11 @@
 """Optimiser parameter files: read and validated into the algorithm's ``Params`` model.
 
-``load_optimizer_params(name, path=None)`` reads the parameters of optimiser ``name`` from a YAML file (by
-default the shipped ``locoplan/catalogue/optimizers/<name>.yaml``, which holds seed 002's Table 5 values,
-population 50 and 100 iterations, the same as the ``Params`` model's defaults). The optimisers
+``read_optimizer_params(path, name, params_cls)`` reads the parameters of optimiser ``name`` from a YAML
+file and validates them with its ``Params`` model, which lives beside the algorithm (``optimize/``: one
+definition of the defaults and their sources) and is handed in, so that reading stays below the
+algorithms. The shipped files (``default_params_path``: ``locoplan/catalogue/optimizers/<name>.yaml``)
+hold seed 002's Table 5 values, population 50 and 100 iterations, the same as the models' defaults.
+``runner.load_optimizer_params(name, path=None)`` composes the two for callers; the optimisers
 themselves take the parameter object, never a path::
 
     params = load_optimizer_params("issa", "my-issa.yaml")
@@ -18,11 +21,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError, Problem
-from ..optimize.base import OptimizerParams
-from ..optimize.registry import get_algorithm
 from .load import read_yaml, validate_model
 
-__all__ = ["SCHEMA", "default_params_path", "load_optimizer_params"]
+__all__ = ["SCHEMA", "default_params_path", "read_optimizer_params"]
 
 SCHEMA = "locoplan/optimizer@1"
 
@@ -31,19 +32,18 @@ _CATALOGUE = Path(__file__).resolve().parent.parent / "catalogue" / "optimizers"
 
 def default_params_path(name: str) -> Path:
     """Shipped parameter file of algorithm ``name``: ``locoplan/catalogue/optimizers/<name>.yaml``."""
-    get_algorithm(name)
     return _CATALOGUE / f"{str(name).strip().lower()}.yaml"
 
 
-def load_optimizer_params(name: str, path: str | Path | None = None) -> OptimizerParams:
-    """Read and validate the parameters of optimiser ``name`` from ``path`` (default: the shipped file).
+def read_optimizer_params(path: str | Path | None, name: str, params_cls):
+    """Read and validate the parameters of optimiser ``name`` from ``path`` (None: the shipped file) with its
+    ``params_cls`` (the algorithm's ``Params`` model).
 
-    Returns the algorithm's frozen ``Params`` model (pop_size, max_iter and the algorithm's parameters);
-    ``params.model_dump()`` gives the keyword arguments of ``Optimizer.setup``. Raises ``InputError`` for an
-    unknown algorithm, a missing/unreadable/malformed file, a wrong ``schema``/``algorithm`` entry, an unknown
-    key or an invalid value, naming file, field and line.
+    Returns the frozen model (pop_size, max_iter and the algorithm's parameters); ``params.model_dump()``
+    gives the keyword arguments of ``Optimizer.setup``. Raises ``InputError`` for a missing/unreadable/malformed
+    file, a wrong ``schema``/``algorithm`` entry, an unknown key or an invalid value, naming file, field and line.
     """
-    cls = get_algorithm(name)
+    cls = params_cls
     key = str(name).strip().lower()
     file = Path(path) if path is not None else default_params_path(key)
     where = str(file)
@@ -61,7 +61,7 @@ def load_optimizer_params(name: str, path: str | Path | None = None) -> Optimize
                                 line=lines.get("algorithm")))
     params = None
     try:
-        params = validate_model(cls.Params, data, where, all_lines)
+        params = validate_model(cls, data, where, all_lines)
     except InputError as exc:
         problems.extend(exc.problems)
     if problems:

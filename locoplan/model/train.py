@@ -149,3 +149,10 @@ def build_train(consist: Consist, vehicles: dict[str, Vehicle], name: str = "", 
     if problems:
         raise InputError(problems)
     return train
+
+
+def shorter_than_train(route, train: "Train", route_file: str, consist_file: str = "") -> Problem:
+    """The problem of a route no longer than its train (it cannot run from stop to stop)."""
+    of = f" ({consist_file})" if consist_file else ""
+    return Problem(route_file, "length_m", f"{route.length_m:,.0f} m: the route is not longer than the train '{train.name}'"
+                   f"{of}, {train.length_m:,.0f} m long; it cannot run from stop to stop")

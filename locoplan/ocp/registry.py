@@ -4,6 +4,7 @@ CLI's help texts and choices do not load the solver."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import resources
 
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
 """The seed 000 test train: the default of ``--objective time``."""
@@ -68,10 +69,9 @@ def study_route_file(rel: str):
     reading it is the caller's (``io.load``)."""
     from pathlib import Path
 
-    from ..io.load import CATALOGUE
 
     p = Path(rel)
-    shipped = Path(str(CATALOGUE / "routes")) / p.name
+    shipped = Path(str(resources.files("locoplan.catalogue") / "routes")) / p.name
     return p if p.exists() or not shipped.exists() else shipped
 
 

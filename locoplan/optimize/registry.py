@@ -2,7 +2,7 @@
 
 ``get_algorithm(name)`` looks one up; ``default_params(name)`` gives its parameters as seed 002 states them
 (Table 5, population 50, 100 iterations: the class's ``Params`` defaults). The optimisers take parameter
-objects; reading a parameter file is :func:`locoplan.io.optimizer_params.load_optimizer_params`'s job::
+objects; reading a parameter file is :func:`locoplan.runner.load_optimizer_params`'s job (``io.optimizer_params`` reads)::
 
     params = default_params("issa")
     result = get_algorithm("issa")().setup(problem, rng, **params.model_dump()).run()

@@ -34,10 +34,11 @@ from .. import bounds
 from ..catalogue import DEFAULT_CONSIST
 from ..errors import InfeasibleError, InputError, Problem
 from ..io.load import load_route, load_train, resolve_consist_path
-from ..io.optimizer_params import load_optimizer_params
+from ..runner import load_optimizer_params
 from ..optimize.registry import ALGORITHMS
 from ..runner import make_context, planned_time, run_strategy, schedule_verdict
-from ..sim.calculator import ModelOptions, shorter_than_train
+from ..model.train import shorter_than_train
+from ..sim.calculator import ModelOptions
 from ..strategy import registry
 from ..strategy.strategies import ENERGY_SAVING_ALGORITHM
 RESULTS_FORMAT = 1

@@ -33,7 +33,7 @@ import numpy as np
 from .. import bounds
 from ..errors import InputError, Problem
 from ..model.route import Route
-from ..model.train import Train
+from ..model.train import Train, shorter_than_train
 from ..model.conditions import CODE
 from ..native import kernels
 from ..physics.braking import full_brake_kn
@@ -151,13 +151,6 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
     s = s[keep]
     s[-1] = L
     return s
-
-
-def shorter_than_train(route: Route, train: Train, route_file: str, consist_file: str = "") -> Problem:
-    """The problem of a route no longer than its train (it cannot run from stop to stop)."""
-    of = f" ({consist_file})" if consist_file else ""
-    return Problem(route_file, "length_m", f"{route.length_m:,.0f} m: the route is not longer than the train '{train.name}'"
-                   f"{of}, {train.length_m:,.0f} m long; it cannot run from stop to stop")
 
 
 class TractionCalculator:
