@@ -187,6 +187,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "reason": res.reason(0),
         "running_time_s": round(t, 2),
         "traction_energy_kwh": round(e, 2),
+        **recovered_energy(train, res),
         "planned_time_s": None if math.isnan(t0) else t0,
         "punctuality_error_s": None if (math.isnan(t0) or math.isnan(t)) else round(abs(t - t0), 2),
         "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
@@ -205,6 +206,15 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, None if prof.event_m is None else prof.event_m[0]),
         **(outcome.extra or {}),
     }
+
+
+def recovered_energy(train: Train, res: BatchResult) -> dict:
+    """``{"recovered_energy_kwh": ...}`` for a train whose locomotives regenerate (``regen_efficiency``),
+    else nothing (the output of a train without it stays as it was)."""
+    if train.regen_efficiency <= 0 or res.recovered_energy_kwh is None:
+        return {}
+    x = float(res.recovered_energy_kwh[0])
+    return {"recovered_energy_kwh": None if math.isnan(x) else round(x, 2)}
 
 
 def schedule_verdict(ctx: StrategyContext, run: RunResult, strict: bool | None = None) -> str | None:

@@ -120,3 +120,31 @@ def test_the_field_is_checked(tmp_path):
     with pytest.raises(InputError, match="regen_efficiency"):
         load_vehicle(tmp_path / "HXD1.yaml")
     assert G_MS2 == 9.81
+
+
+def test_reported_beside_the_traction_energy(tmp_path):
+    """`simulate --json` carries recovered_energy_kwh right after traction_energy_kwh when the locomotive
+    regenerates, equal to the calculator's number; a train without the field prints no such key."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from locoplan.cli import app
+
+    stock = _stock(tmp_path, 0.85)
+    line = str(ROOT / "routes" / "freight-20km.yaml")
+    out = CliRunner().invoke(app, ["simulate", line, "--strategy", "time-saving", "--consist",
+                                   str(tmp_path / "consist.yaml"), "--stock-dir", str(stock), "--json"])
+    assert out.exit_code == 0, out.output
+    d = json.loads(out.output)
+    keys = list(d)
+    assert keys[keys.index("traction_energy_kwh") + 1] == "recovered_energy_kwh"
+    from locoplan.io.load import load_route
+
+    train = load_train(tmp_path / "consist.yaml", stock)
+    calc = TractionCalculator(load_route(line), train)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)  # time-saving: full traction, braking curves
+    assert d["recovered_energy_kwh"] == pytest.approx(float(res.recovered_energy_kwh[0]), abs=0.006)
+    assert 0 < d["recovered_energy_kwh"] < d["traction_energy_kwh"]
+    plain = CliRunner().invoke(app, ["simulate", line, "--strategy", "time-saving", "--json"])
+    assert "recovered_energy_kwh" not in json.loads(plain.output)
