@@ -39,7 +39,7 @@ t1 = time.perf_counter()
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context
 ctx = make_context(load_route(sys.argv[1]), load_train('HXD1-C80x30'), need_time=False)
-ctx.calc.fastest_time_s          # the calculator's compiled kernel: loaded from the cache (locoplan.native)
+ctx.calc.fastest_time_s          # the calculator's compiled kernel: loaded from the cache (locoplan.sim.native)
 t2 = time.perf_counter()
 from locoplan.strategy.strategies import drive_solver
 drive_solver(ctx).solve(1e-4)    # the priced-drive DP's kernels

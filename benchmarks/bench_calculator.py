@@ -1,6 +1,6 @@
 """Plan evaluations per second of the batch traction calculator on routes/freight-20km.yaml, old (the
 numpy loop, ``backend="numpy"``) against new (the compiled kernel, the default: numba's JIT function and
-the same function compiled ahead of time, ``locoplan.native``, which the commands load), for batches of
+the same function compiled ahead of time, ``locoplan.sim.native``, which the commands load), for batches of
 1, 10, 50 and 200 plans, and peak memory. Targets (issue 12): >= 20,000 plans/s for batches of 50 and
 >= 5,000 plans/s for single plans, on one core.
 
@@ -20,7 +20,7 @@ import sys as _sys
 from pathlib import Path as _Path
 _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
 
-from locoplan import native
+from locoplan.sim import native
 from locoplan.io.load import load_route, load_train
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 

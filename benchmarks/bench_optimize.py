@@ -34,7 +34,7 @@ def main() -> None:
         walls.append(time.perf_counter() - t0)
         data = json.loads(out.stdout)
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", "import locoplan.cli, locoplan.runner, locoplan.native as n; n.kernels()"], cwd=ROOT, check=True)
+    subprocess.run([sys.executable, "-c", "import locoplan.cli, locoplan.runner, locoplan.sim.native as n; n.kernels()"], cwd=ROOT, check=True)
     t_import = time.perf_counter() - t0
     from locoplan.io.load import load_route, load_train
     from locoplan.ocp.bound import energy_bound

@@ -30,7 +30,7 @@ def _private_cache(tmp_path_factory):
 
     old = os.environ.get("LOCOPLAN_CACHE_DIR")
     os.environ["LOCOPLAN_CACHE_DIR"] = str(tmp_path_factory.mktemp("locoplan-cache"))
-    # the ahead-of-time kernels (locoplan.native): built once per session, shared by every test and the
+    # the ahead-of-time kernels (locoplan.sim.native): built once per session, shared by every test and the
     # commands they run (a README example's own cache folder included), unless the caller gave a folder
     native_set = "LOCOPLAN_NATIVE_DIR" in os.environ
     if not native_set:

@@ -1122,7 +1122,7 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
 
 
 def warm_up(cwd: Path) -> None:
-    """Build the compiled kernels (``locoplan.native``, once per cache folder: seconds to a minute) before any
+    """Build the compiled kernels (``locoplan.sim.native``, once per cache folder: seconds to a minute) before any
     case is timed: the time limit is a case's, not the first build's."""
     route_file = Path(cwd) / "warm_up_route.yaml"
     route_file.write_text(route(), encoding="utf-8")

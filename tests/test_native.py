@@ -1,4 +1,4 @@
-"""The ahead-of-time compiled kernels (``locoplan.native``) against numba's JIT functions they are built
+"""The ahead-of-time compiled kernels (``locoplan.sim.native``) against numba's JIT functions they are built
 from: the same source through the same compiler, so the calculator's and the DP's numbers agree to
 1e-12 relative; arguments of the wrong type are refused with a TypeError (the compiled functions check
 nothing themselves); a failed build falls back to the JIT functions and is not retried; parallel first
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from locoplan import native
+from locoplan.sim import native
 from locoplan.optimize.dp import PricedDriveSolver
 from locoplan.sim.calculator import TractionCalculator
 from locoplan.sim.records import DPCells, Forces
@@ -113,7 +113,7 @@ def test_a_failed_build_falls_back_to_jit_and_is_not_retried(tmp_path, monkeypat
 def test_parallel_first_runs_build_the_module_once(tmp_path):
     """Two processes start on an empty folder at once: one builds under the lock, the other waits and loads
     the same module; both then run the calculator on it."""
-    code = ("from locoplan import native; from locoplan.io.load import load_route, load_train; "
+    code = ("from locoplan.sim import native; from locoplan.io.load import load_route, load_train; "
             "from locoplan.sim.calculator import TractionCalculator; import numpy as np; "
             "r = load_route('routes/freight-20km.yaml'); t = load_train('configs/consists/HXD1-C80x50.yaml'); "
             "x = TractionCalculator(r, t).fastest_time_s; "

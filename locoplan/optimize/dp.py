@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..native import kernels
+from ..sim.native import kernels
 from ..physics.units import kmh_from_e, kwh, ms
 from ..sim.calculator import TractionCalculator
 from ..sim.records import DPCells, contiguous

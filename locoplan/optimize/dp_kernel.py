@@ -1,7 +1,7 @@
 """The DP drive's compiled loops (numba): per-cell step, stall boundary, backward and forward passes.
 
 ``dp.py`` holds the method and its documentation; these are its inner loops, called through
-``locoplan.native`` (ahead-of-time compiled where possible, numba's JIT otherwise).
+``locoplan.sim.native`` (ahead-of-time compiled where possible, numba's JIT otherwise).
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ class ProcessExecutor:
     """A local pool of ``workers`` processes (default: the core count).
 
     Processes are *spawned*, not forked: a fork would copy the parent's open result store and its
-    threads' locks. Each worker imports locoplan and loads the compiled kernels (``locoplan.native``)
+    threads' locks. Each worker imports locoplan and loads the compiled kernels (``locoplan.sim.native``)
     once (benchmarks/bench_batch.py measures that start), then keeps its calculators across runs.
     The pool is made lazily, so an executor that is never given work starts no process."""
 

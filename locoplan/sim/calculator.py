@@ -35,7 +35,7 @@ from ..errors import InputError, Problem
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
 from ..model.conditions import CODE
-from ..native import kernels
+from .native import kernels
 from ..physics.braking import full_brake_kn
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille

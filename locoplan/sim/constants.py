@@ -1,7 +1,7 @@
 """Numbers shared by the calculator's numpy loop (``calculator.py``) and its compiled kernel
 (``kernel.py``). A plain module without numba, so that the calculator imports it at no cost; the kernel
 reads them as compile-time constants, so this file is part of the compiled module's hash
-(``locoplan.native``): changing a number here rebuilds the kernels."""
+(``locoplan.sim.native``): changing a number here rebuilds the kernels."""
 
 E_FLOOR = 1e-6
 """e = v^2/2 [m^2/s^2] a stalled plan is held at: keeps its arithmetic finite once it is marked infeasible."""

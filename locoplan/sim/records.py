@@ -2,7 +2,7 @@
 
 The calculator's distance loop (``kernel.run_plans``), its braking envelope and the DP drive's passes
 (``optimize/dp_kernel.py``) take these instead of dozens of positional arrays. ``FIELD_TYPES`` gives
-every field's type once: ``locoplan.native`` builds the ahead-of-time signatures from it and checks each
+every field's type once: ``locoplan.sim.native`` builds the ahead-of-time signatures from it and checks each
 call's arrays against it. A plain module (no numba), so building a record costs nothing.
 """
 

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .sim.records import FIELD_TYPES, Cells, DPCells, Forces, Outputs, Plans
+from .records import FIELD_TYPES, Cells, DPCells, Forces, Outputs, Plans
 
 _F, _I, _A1, _A4 = "f8", "i8", "f8[:]", "f8[:, :, :, :]"
 
@@ -51,7 +51,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
 }
-_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "native.py",
+_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "sim/native.py",
             "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py")
 BUILD_TIMEOUT_S = 900.0
 
@@ -72,7 +72,7 @@ def native_dir() -> Path:
 def module_name() -> str:
     """``locoplan_kernels_<hash>``: the kernels' source, this file's signatures, Python and numpy."""
     digest = hashlib.sha256()
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parents[1]  # the locoplan package
     for rel in _SOURCES:
         digest.update((here / rel).read_bytes())
     digest.update(f"{sys.version}|{np.__version__}|{sys.platform}".encode())
@@ -201,10 +201,10 @@ def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
         print("locoplan: compiling the kernels for this machine (once, about a minute)...",
               file=sys.stderr, flush=True)
     with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
-        cmd = [sys.executable, "-m", "locoplan.native", tmp, name]
+        cmd = [sys.executable, "-m", "locoplan.sim.native", tmp, name]
         try:
             # this very locoplan (the hash is of its source), whatever the child's sys.path would find first
-            path_env = os.pathsep.join(p for p in (str(Path(__file__).resolve().parents[1]),
+            path_env = os.pathsep.join(p for p in (str(Path(__file__).resolve().parents[2]),
                                                    os.environ.get("PYTHONPATH", "")) if p)
             out = subprocess.run(cmd, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S,
                                  env={**os.environ, "LOCOPLAN_NATIVE": "0", "PYTHONPATH": path_env})
@@ -219,7 +219,7 @@ def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
 
 
 def _compile_here(out_dir: str, name: str) -> None:
-    """The build itself (``python -m locoplan.native OUT_DIR NAME``): numba.pycc on the numba functions."""
+    """The build itself (``python -m locoplan.sim.native OUT_DIR NAME``): numba.pycc on the numba functions."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pycc's pending-deprecation notice
         from numba.pycc import CC
