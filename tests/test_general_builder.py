@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from locoplan.io.load import load_route, load_train
-from locoplan.optimize.dp import DP_CONDITIONS, PricedDriveSolver
+from locoplan.model.conditions import CONDITIONS
+from locoplan.optimize.dp import PricedDriveSolver
 from locoplan.runner import make_context, run_strategy, schedule_verdict
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.drive import sequence_from_drive
@@ -76,7 +77,7 @@ def test_every_run_but_the_departure_is_half_a_train_long(freight):
     seq = sequence_from_drive(calc, d)
     assert seq.conditions[-1] == "B" and len(seq.nominal_m) == len(seq.conditions) - 2
     assert np.all(seq.lower_m <= seq.nominal_m + 1e-9) and np.all(seq.nominal_m <= seq.upper_m + 1e-9)
-    assert set(seq.conditions) <= set(DP_CONDITIONS)
+    assert set(seq.conditions) <= set(CONDITIONS)
 
 
 def test_proposed_on_a_line_the_seed_builder_could_not_drive(root):

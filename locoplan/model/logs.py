@@ -46,12 +46,13 @@ from pydantic import Field
 
 from ..physics.units import KJ_PER_KWH
 from .common import Strict
+from .conditions import CONDITIONS
 from .route import Route
 from .train import Train
 
 REQUIRED_COLUMNS = ("time_s", "position_m", "speed_kmh", "force_kn")
 OPTIONAL_COLUMNS = ("notch", "action")
-ACTIONS = ("T", "K", "C", "B")
+ACTIONS = CONDITIONS  # what the driver did: the conditions
 
 
 # ------------------------------------------------------------------------------------------ manifest

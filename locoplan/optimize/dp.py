@@ -31,7 +31,6 @@ from ..sim.calculator import TractionCalculator
 from ..sim.records import DPCells, contiguous
 
 T_, H_, C_, B_ = 0, 1, 2, 3
-DP_CONDITIONS = "TKCB"  # H holds the speed at which it starts: the calculator's K
 SPEED_STEP_KMH = 0.5
 """Speed grid of the cost-to-go [km/h]."""
 DP_CELL_M = 100.0
@@ -48,7 +47,7 @@ eq. 3) do not switch every few metres, and the drive's runs become the sequence'
 @dataclass(frozen=True)
 class PricedDrive:
     """The E + lambda T optimum on the grid: the DP's nodes [m], per-cell controls (indices into
-    ``DP_CONDITIONS``), node speeds [km/h], and its own running time [s] and traction energy [kWh]."""
+    ``model.conditions.CONDITIONS``: the DP's hold is the calculator's K), node speeds [km/h], and its own running time [s] and traction energy [kWh]."""
 
     price_kwh_per_s: float
     s_m: np.ndarray

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.conditions import CONDITIONS
 from ..sim.calculator import TractionCalculator
 
 
@@ -47,11 +48,10 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
     eq. 3) join their predecessor; the last run of braking is the stop's (a bare B).
     Each switching point may move as far as its neighbours' nominal positions (less half a train): the
     drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between."""
-    from ..optimize.dp import DP_CONDITIONS
 
     s, L = drive.s_m, calc.route.length_m
     gap = calc.train.length_m / 2 if min_run_m is None else min_run_m
-    names = [DP_CONDITIONS[u] for u in drive.controls]
+    names = [CONDITIONS[u] for u in drive.controls]
     # the final braking: the last run of B (if any) is the stop's braking curve (a bare B)
     last_b = len(names)
     while last_b > 0 and names[last_b - 1] == "B":
