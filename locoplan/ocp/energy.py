@@ -16,11 +16,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InfeasibleError
-from ..physics.energy import KJ_PER_KWH
+from ..physics.units import KJ_PER_KWH, kinetic_e
 from ..sim.calculator import TractionCalculator
 from .mesh import Mesh, RefineSettings, initial_mesh, refine
 from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors
-from ..physics.units import ms
 from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, TrainEnergyProblem
 
 INITIAL_DEGREE = 5
@@ -116,7 +115,7 @@ def calculator_guess(calc: TractionCalculator, time_s: float):
         cruise = [V[i]]
     prof = calc.evaluate(conds, sw, profile=True, cruise_kmh=cruise).profile
     s_nodes = prof.s_m
-    e_nodes = ms(prof.v_kmh[0]) ** 2 / 2
+    e_nodes = kinetic_e(prof.v_kmh[0])
     t_nodes = prof.t_s[0]
     # a slower guess than asked: stretch its clock so that it arrives on time
     if np.isfinite(t_nodes[-1]) and t_nodes[-1] > time_s:

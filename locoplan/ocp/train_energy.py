@@ -45,7 +45,7 @@ from ..physics.gradient import equivalent_gradient_permille, point_gradient_knot
 from ..physics.resistance import train_resistance_kn
 from ..physics.motion import acceleration_ms2
 from ..physics.traction import gradient_force_kn, max_force_kn
-from ..physics.units import KMH_PER_MS, ms
+from ..physics.units import KMH_PER_MS, kinetic_e, ms
 from ..sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at, neutral_spans_m
 from .phase import MultiPhaseProblem, Phase, PhaseModel
 
@@ -289,7 +289,7 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
     f_top = float(np.max(tm.traction_curve[1]))
     brake_tops = ([float(np.max(tm.electric_curve[1])), float(np.max(tm.air_curve[1]))] if tm.split_brake
                   else [float(np.max(tm.brake_curve[1]))])
-    e_top = float(ms(np.max(limits)) ** 2 / 2)  # not kinetic_e: v ** 2 is not always v * v
+    e_top = float(kinetic_e(np.max(limits)))
     model = PhaseModel(
         states=("e", "t"), controls=tm.controls, dynamics=tm.dynamics, integrand=tm.integrand,
         state_scale=(e_top, float(time_s)), control_scale=(f_top, *brake_tops),
@@ -299,7 +299,7 @@ def build_problem(route: Route, train: Train, options: ModelOptions, time_s: flo
     for k, (a, b) in enumerate(zip(pts[:-1], pts[1:])):
         params, grads = _gravity_params(route, train, options, float(a), float(b))
         neutral = any(lo < mid[k] < hi for lo, hi in spans)
-        e_lim = float(ms(limits[k]) ** 2 / 2)
+        e_lim = float(kinetic_e(limits[k]))
         if not neutral:
             upper_u = (f_top, *brake_tops)
         elif tm.air_curve is None:  # coasting: no traction, no brake at all

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.plan import runs_from_profile
+from ..physics.units import kinetic_e, kmh_from_e
 from ..sim.calculator import TractionCalculator
 
 
@@ -97,12 +98,12 @@ def speed_change_kmh(calc: TractionCalculator, from_m: float, to_m: float, v0_km
         f_max, _, load = calc.forces_kn(math.sqrt(2 * max(e, 0.0)), k)
         return float(traction * f_max - load) / calc.m_eff_t
 
-    e = (v0_kmh / 3.6) ** 2 / 2
+    e = kinetic_e(v0_kmh)
     for k in cells:
         e = e + d * slope(e + 0.5 * d * slope(e, k), k)
         if e <= 0:
             return -v0_kmh
-    return math.sqrt(2 * e) * 3.6 - v0_kmh
+    return float(kmh_from_e(e)) - v0_kmh
 
 
 def classify_grades(calc: TractionCalculator, threshold_kmh: float = 2.0) -> tuple[GradeSection, ...]:

@@ -20,12 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import InputError, Problem
+from ...physics.units import KMH_PER_MS
 from ..load import read_text
 from . import emit
 from .base import Imported, ImportedFile, ImportOptions, SourceChecker, increasing, licence_near
 
 POSITION_UNITS = {"m": 1.0, "km": 1000.0}
-VELOCITY_UNITS = {"km/h": 1.0, "m/s": 3.6}
+VELOCITY_UNITS = {"km/h": 1.0, "m/s": KMH_PER_MS}
 SLOPE_UNITS = {"permil": 1.0, "permille": 1.0, "‰": 1.0, "%": 10.0, "percent": 10.0}
 RADIUS_UNITS = {"m": 1.0, "km": 1000.0}
 STRAIGHT = {"infinity", "+infinity", "-infinity", "inf", "+inf", "-inf"}
