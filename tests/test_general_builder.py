@@ -12,7 +12,7 @@ from locoplan.model.conditions import CONDITIONS
 from locoplan.optimize.dp import PricedDriveSolver
 from locoplan.runner import make_context, run_strategy, schedule_verdict
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.strategy.drive import sequence_from_drive
+from locoplan.strategy.general_builder import sequence_from_drive
 from routes import hand_made_route
 
 

@@ -14,7 +14,7 @@ Layers, each using only the ones before it:
   (seed 001), both on ``physics``' formulas (``physics.motion`` for the equation of motion);
 * solving: :mod:`~locoplan.ocp.solve` (``solve_min_time``, ``resimulate``),
   :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.seed000`
-  (Tables 2-3); :mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.drive`
+  (Tables 2-3); :mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.to_plan`
   (drivable plan, checked by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and
   :mod:`~locoplan.ocp.bound` (the yardstick E*).
 

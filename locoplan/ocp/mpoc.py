@@ -17,9 +17,9 @@ import numpy as np
 from ..model.route import Route
 from ..model.train import Train
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .drive import (PlanCheck, check_plan, condition_runs, fit_switches, plan_from_runs, shoot_switches, sequence_runs,
+from .to_plan import (PlanCheck, check_plan, condition_runs, fit_switches, plan_from_runs, shoot_switches, sequence_runs,
                     tune_coasting_point, tune_last_coast)
-from .drive import TIME_TOL_S
+from .to_plan import TIME_TOL_S
 from .energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergySolution, solve_energy
 from .train_energy import EnergyOptions, TrainEnergyProblem, build_problem, check_runnable
 

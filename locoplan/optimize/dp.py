@@ -1,6 +1,6 @@
 """The drive that minimises E + lambda T, by dynamic programming on a (position, speed) grid.
 
-Used by the general sequence builder (``strategy/drive.py``) to find which condition to use where:
+Used by the general sequence builder (``strategy/general_builder.py``) to find which condition to use where:
 pricing time at lambda [kWh/s] turns the timetabled minimum-energy problem into an unconstrained one
 whose optimum is found globally on a grid (the running time falls as lambda rises, so bisection on
 lambda lands on the planned time). The model is the calculator's: its cells (each with one gradient,

@@ -108,7 +108,7 @@ def coast_through_neutral(calc, plan: Plan, spans, route_calc=None) -> Plan:
 def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 001's MPOC-C: the MPOC-N plan with coasting through every neutral span, re-acceleration
     after it, and the last coasting point moved so that the planned time is met."""
-    from ..ocp.drive import tune_coasting_point
+    from ..ocp.to_plan import tune_coasting_point
 
     t0 = time.perf_counter()
     calc = ctx.calc

@@ -13,7 +13,7 @@ its switching points and, for four-stage, a cruise speed). The CLI's ``--strateg
   minimising eq. 10 inside the punctuality window of eq. 3.
 
 Two sequence builders (``StrategyContext.builder``):
-- ``general`` (the default): ``strategy/drive.py``, the sequence read off the drive that is optimal at a
+- ``general`` (the default): ``strategy/general_builder.py``, the sequence read off the drive that is optimal at a
   price of time (``optimize/dp.py``, bisected to the planned time); energy-saving is the same drive at
   the lowest price (deterministic: E_min does not depend on the seed), four-stage may coast from
   anywhere. Works on any line (issue 8, docs/real-lines.md).
@@ -40,7 +40,7 @@ from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
 from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
-from .drive import sequence_from_drive, with_holds
+from .general_builder import sequence_from_drive, with_holds
 
 
 @dataclass
