@@ -27,7 +27,7 @@ from pathlib import Path as _Path
 _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
 
 from locoplan.io.load import build_train, load_consist, load_route  # noqa: E402
-from locoplan.io.report import to_json  # noqa: E402
+from locoplan.reporting.writers import to_json  # noqa: E402
 from locoplan.learn.drivers import SimulationSpec, consist_for_mass, simulate_drivers  # noqa: E402
 from locoplan.learn.logs import load_logs  # noqa: E402
 from locoplan.learn.patterns import LearnSettings, learn  # noqa: E402

@@ -1,7 +1,7 @@
 """The ``locoplan`` command line: thin typer commands that parse options and call one library function each.
 
 Shared consoles, option declarations and parsing live in :mod:`locoplan.cli_common`; tables in
-:mod:`locoplan.io.tables`; the other command modules (``cli_ocp``, ``cli_learn``, ``cli_import``,
+:mod:`locoplan.reporting.tables`; the other command modules (``cli_ocp``, ``cli_learn``, ``cli_import``,
 ``cli_batch``) register their commands onto :data:`app` at the end of this module.
 """
 
@@ -22,8 +22,8 @@ from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, P
                          guarded, out, run_progress, MAX_PROBLEMS, plain)
 from .errors import InputError, Problem
 from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
-from .io.report import to_json
-from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
+from .reporting.writers import to_json
+from .reporting.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
@@ -80,7 +80,7 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     holds) + "summary" if valid, else "problems": [{"file", "line", "field", "message"}]], "problems": [every one]}."""
     from dataclasses import asdict
 
-    from .io.tables import describe_data
+    from .reporting.tables import describe_data
 
     problems: list[Problem] = []
     warnings: list[Problem] = []
@@ -171,9 +171,9 @@ def simulate(route: Path = ROUTE,
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
-            from .io.plot import plot_profiles
+            from .reporting.plot import plot_profiles
 
-            from .io.plot import run_title
+            from .reporting.plot import run_title
 
             plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary),
                           route=r)
@@ -218,9 +218,9 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
-            from .io.plot import plot_profiles
+            from .reporting.plot import plot_profiles
 
-            from .io.plot import run_title
+            from .reporting.plot import run_title
 
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
@@ -295,10 +295,10 @@ def compare(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
+            from .reporting.plot import plot_profiles
 
             recs = [x for x in batch.records if x.profile is not None]
-            from .io.plot import history_quantity
+            from .reporting.plot import history_quantity
 
             hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
                      x.summary["traction_energy_kwh"] if x.summary["strategy"] == "energy-saving" else x.summary.get("fitness"))
@@ -366,7 +366,7 @@ def sweep(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
+            from .reporting.plot import plot_profiles
 
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
@@ -420,7 +420,7 @@ def study(route: Path = ROUTE,
     with all_or_none():
         _emit(data, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
+            from .reporting.plot import plot_profiles
 
             def fitness(x):
                 return x.summary["fitness"] if x.summary["fitness"] is not None else math.inf

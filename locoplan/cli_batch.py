@@ -68,9 +68,9 @@ def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
     from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
                              TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
-    from .io.tables import show
+    from .reporting.tables import show
     from .cli_common import json_out
-    from .io.report import to_json
+    from .reporting.writers import to_json
 
     @app.command("batch")
     @guarded
@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
               as_json: bool = JSON,
               quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr.")):
         """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
-        from .io.tables import store_summary_table
+        from .reporting.tables import store_summary_table
         from .runs import Store, make_executor, run_many
         from .runs.results import rows_of, summarize_rows
         from .runs.study import load_study
@@ -126,8 +126,8 @@ def register(app: typer.Typer) -> None:
                 boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
                 as_json: bool = JSON):
         """Export, summarise and plot a result store (from the stored runs, no re-run)."""
-        from .io.plot_runs import plot_boxes, plot_energy_time
-        from .io.tables import store_summary_table
+        from .reporting.plot_runs import plot_boxes, plot_energy_time
+        from .reporting.tables import store_summary_table
         from .runs import Store
         from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
 
@@ -185,9 +185,9 @@ def register(app: typer.Typer) -> None:
                workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
         """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
         from .errors import InputError, Problem
-        from .io.plot_runs import plot_pareto
-        from .io.report import atomic_write_text
-        from .io.tables import pareto_table
+        from .reporting.plot_runs import plot_pareto
+        from .reporting.files import atomic_write_text
+        from .reporting.tables import pareto_table
         from .runs import make_executor
         from .runs.pareto import pareto as run_pareto
         from .runs.spec import RunSpec

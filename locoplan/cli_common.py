@@ -17,7 +17,8 @@ from rich.markup import escape
 
 from . import __version__, bounds
 from .errors import InputError, LocoplanError, Problem
-from .io.report import all_or_none, check_output, check_output_path, to_json, write_output
+from .reporting.files import all_or_none, check_output, check_output_path
+from .reporting.writers import to_json, write_output
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
@@ -408,13 +409,13 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
         json_out(summary_or_results)
 
 
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # as io.plot.FIGURE_SUFFIXES
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # as reporting.plot.FIGURE_SUFFIXES
 
 
 def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
     """Check every output path of a command before any work (name -> (path or None, suffixes)); no two may
     name the same file."""
-    from .io.report import check_distinct
+    from .reporting.files import check_distinct
 
     for name, (path, suffixes) in outputs.items():
         check_output_path(path, name, suffixes)
@@ -423,9 +424,9 @@ def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
     """Refuse bad output names (type, folder, writable) before any long computation."""
-    from .io.plot import check_plot_path
+    from .reporting.plot import check_plot_path
 
-    from .io.report import check_distinct
+    from .reporting.files import check_distinct
 
     check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
     check_output(plot and check_plot_path(plot), "--plot")

@@ -18,7 +18,7 @@ __all__ = ["register", "run_energy_ocp"]
 
 
 def _summary_table(s: dict, width: int = 80) -> list:
-    from .io.tables import key_value_table
+    from .reporting.tables import key_value_table
 
     mesh = s["mesh"]
     confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({escape(s['reason'] or '')})"
@@ -95,7 +95,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     """``locoplan ocp ROUTE --objective energy``: solve, print, write; exit 1 if not confirmed."""
     from .cli_common import _check_outputs, _load, err, json_out, out
     from .errors import InputError, Problem
-    from .io.report import to_json, write_output
+    from .reporting.writers import to_json, write_output
     from .ocp.mpoc import run_mpoc
     from .ocp.train_energy import energy_options
     from .runner import planned_time
@@ -125,13 +125,13 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
             data["optimum"] = _optimum_columns(run)
         write_output(out_file, data, run.check.result.profile, r)
     if plot:
-        from .ocp.plot import plot_energy_run
+        from .reporting.plot_ocp import plot_energy_run
 
         plot_energy_run(plot, run)
     if as_json:
         json_out(s)
     else:
-        from .io.tables import fit, show
+        from .reporting.tables import fit, show
 
         show(out, _summary_table(s, out.width) + fit(_sequence_table(s["sequence"]), out.width)
              + fit(_mesh_table(s["mesh_history"]), out.width, drop=(8, 7, 5)))
@@ -164,7 +164,8 @@ def register(app: typer.Typer) -> None:
         import io
 
         from .errors import InputError, LocoplanError, Problem
-        from .io.report import atomic_write_text, to_json
+        from .reporting.files import atomic_write_text
+        from .reporting.writers import to_json
         from .ocp.bound import energy_bound
         from .runner import planned_time
 
@@ -206,7 +207,7 @@ def register(app: typer.Typer) -> None:
                 w.writerows(rows)
                 atomic_write_text(out_file, buf.getvalue())
         if plot:
-            from .ocp.plot import plot_energy_time
+            from .reporting.plot_ocp import plot_energy_time
 
             plot_energy_time(plot, data)
         if as_json:
@@ -226,7 +227,7 @@ def register(app: typer.Typer) -> None:
                 else:
                     table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", "yes" if row["converged"] else "no",
                                   f"{row['solve_time_s']:.2f}")
-            from .io.tables import fit, show
+            from .reporting.tables import fit, show
 
             show(out, fit(table, out.width, wrap=(3,)))
         if all(row["energy_kwh"] is None for row in rows):

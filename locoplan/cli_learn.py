@@ -95,7 +95,7 @@ def register(app: typer.Typer) -> None:
     from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
     from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options, json_out,
                              err, guarded, out)
-    from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
+    from .reporting.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
 
     drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
     app.add_typer(drivers_app, name="drivers")
@@ -116,7 +116,7 @@ def register(app: typer.Typer) -> None:
         """Simulate human drivers on ROUTE and write their logs, every one marked synthetic."""
         from .errors import InputError, Problem
         from .io.load import load_consist, load_route
-        from .io.report import to_json
+        from .reporting.writers import to_json
         from .learn.drivers import SimulationSpec, check_out_dir, simulate_drivers
 
         if drivers < 1 or runs < 1:
@@ -154,7 +154,8 @@ def register(app: typer.Typer) -> None:
               air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT):
         """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
         Method: the patent on locomotive operation sequences from double-layer pattern curves."""
-        from .io.report import atomic_write_text, to_json
+        from .reporting.files import atomic_write_text
+        from .reporting.writers import to_json
         from .learn.logs import load_logs
         from .learn.patterns import LearnSettings
         from .learn.patterns import learn as run_learn
@@ -168,7 +169,7 @@ def register(app: typer.Typer) -> None:
         learned = run_learn(runs, settings, opts)
         data = learned.patterns.to_dict()
         if plot:
-            from .learn.plot import plot_fit
+            from .reporting.plot_learn import plot_fit
 
             plot_fit(plot, learned)
         atomic_write_text(out_file, to_json(data) + "\n")
@@ -224,9 +225,9 @@ def register(app: typer.Typer) -> None:
         summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
         _emit(summary, as_json, out_file, a.result.profile, r)
         if plot:
-            from .learn.plot import plot_advice
+            from .reporting.plot_learn import plot_advice
 
-            from .io.plot import run_title
+            from .reporting.plot import run_title
 
             plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
         if not as_json:

@@ -28,7 +28,7 @@ __all__ = ["register"]
 
 
 def _summary_table(s: dict, width: int = 80) -> list:
-    from .io.tables import key_value_table
+    from .reporting.tables import key_value_table
 
     method = s["algorithm"] + (f" (stage 2: {s['stage2']})" if s["stage2"] else "")
     nodes = f"{s['control_nodes']} control" + (f" / {s['state_nodes']} state" if s["state_nodes"] else "")
@@ -103,7 +103,7 @@ def _ratio_table(study) -> Table:
 def register(app: typer.Typer) -> None:
     """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
     from .cli_common import err, guarded, json_out, out
-    from .io.report import to_json
+    from .reporting.writers import to_json
 
     methods = ", ".join(OCP_METHODS)
 
@@ -156,19 +156,20 @@ def register(app: typer.Typer) -> None:
         run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
                         route_file=route)
         if out_file and out_file.suffix.lower() == ".csv":  # the profile's columns in the order of every command's CSV
-            from .io.report import PROFILE_COLUMNS, atomic_write_text, rows_csv
+            from .reporting.files import atomic_write_text
+            from .reporting.writers import PROFILE_COLUMNS, rows_csv
 
             atomic_write_text(out_file, rows_csv(run.profile_rows(), PROFILE_COLUMNS))
         elif out_file:
             write_ocp_output(out_file, run)
         if plot:
-            from .ocp.plot import plot_run
+            from .reporting.plot_ocp import plot_run
 
             plot_run(plot, run)
         if as_json:
             json_out(run.summary)
         else:
-            from .io.tables import show
+            from .reporting.tables import show
 
             show(out, _summary_table(run.summary, out.width))
         if not run.feasible:
@@ -203,13 +204,13 @@ def register(app: typer.Typer) -> None:
         if out_file:
             write_study_output(out_file, study)
         if plot:
-            from .ocp.plot import plot_study
+            from .reporting.plot_ocp import plot_study
 
             plot_study(plot, study)
         if as_json:
             json_out(study.to_dict())
         else:
-            from .io.tables import fit, show
+            from .reporting.tables import fit, show
 
             # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
             for table in _study_tables(study):

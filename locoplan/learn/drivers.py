@@ -527,7 +527,7 @@ def check_out_dir(out_dir: Path) -> None:
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         raise InputError(Problem(str(out_dir), "--out", "exists and is not an empty folder: choose a new folder "
                                  "(logs are never written over or mixed)"))
-    from ..io.report import existing_folder
+    from ..reporting.files import existing_folder
 
     # a missing parent is created when the logs are written (the one rule for output folders)
     parent = existing_folder(out_dir.parent if str(out_dir.parent) else Path("."), str(out_dir), "--out")
@@ -616,7 +616,7 @@ def simulate_drivers(spec: SimulationSpec, out_dir: Path, progress=None) -> Simu
 
 def _write_folder(out_dir: Path, files: dict[str, str]) -> None:
     """Write every file into a temporary sibling folder, then rename it into place."""
-    from ..io.report import make_folder
+    from ..reporting.files import make_folder
 
     parent = out_dir.parent if str(out_dir.parent) else Path(".")
     make_folder(parent, str(out_dir), "--out")

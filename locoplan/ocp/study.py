@@ -33,7 +33,8 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from ..errors import InputError, Problem
-from ..io.report import atomic_write_text, rows_csv, to_json
+from ..reporting.files import atomic_write_text
+from ..reporting.writers import rows_csv, to_json
 from ..physics.gradient import curve_gradient_permille, tunnel_gradient_permille
 from ..physics.traction import max_force_kn
 from . import nodes as _nodes
@@ -552,7 +553,7 @@ def run_ocp(route, train, method: str = "two-stage", nodes: int | None = None, *
 
 def check_output_path(path: str | Path | None, flag: str, suffixes: tuple[str, ...]) -> None:
     """Fail early (before solving) on an output file with the wrong suffix or a missing folder."""
-    from ..io.report import check_output
+    from ..reporting.files import check_output
 
     check_output(path, flag, suffixes)
 

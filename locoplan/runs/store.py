@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import InputError, Problem
-from ..io.report import clean
+from ..reporting.writers import clean
 from .spec import RunRecord
 
 STORE_FORMAT = 1
@@ -127,7 +127,7 @@ class Store:
                                      "SQLite file with its journal beside it; name a file"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir() and create:  # a new store's folder is created (the rule for every output)
-            from ..io.report import existing_folder, make_folder
+            from ..reporting.files import existing_folder, make_folder
 
             existing_folder(folder, name, "")
             make_folder(folder, name)
