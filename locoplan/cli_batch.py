@@ -11,6 +11,9 @@ from typing import Optional
 
 import typer
 
+from . import api
+from .api import ModelRequest
+
 __all__ = ["register"]
 
 
@@ -66,11 +69,9 @@ def _warn_damaged(err, store, then: str, limit: int = 10) -> None:
 
 def register(app: typer.Typer) -> None:
     """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
-    from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
-                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
+    from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, ROUTE, STOCK, TOL, WINDOW, _names,
+                             _range, all_or_none, check_outputs, err, guarded, json_out, out)
     from .reporting.tables import show
-    from .cli_common import json_out
-    from .reporting.writers import to_json
 
     @app.command("batch")
     @guarded
@@ -131,10 +132,7 @@ def register(app: typer.Typer) -> None:
         from .runs import Store
         from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
 
-        if fmt is not None and fmt not in FORMATS:
-            from .errors import InputError, Problem
-
-            raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
+        api.check_choice(fmt, FORMATS, "format", "format")
         check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
                       plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
         group = _names(by, "--by")
@@ -144,11 +142,8 @@ def register(app: typer.Typer) -> None:
             rows, fields = stream_rows(store.iter_records(), where,
                                        tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
             _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
-        unknown = [g for g in group if rows and g not in fields]
-        if unknown:
-            from .errors import InputError, Problem
-
-            raise InputError(Problem("", "by", f"unknown field {unknown[0]!r} (fields: {', '.join(sorted(fields))})"))
+        if rows:
+            api.check_fields(group, fields, "by")
         summary = summarize_rows(rows, group)
         with all_or_none():
             text = None
@@ -178,43 +173,37 @@ def register(app: typer.Typer) -> None:
                algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
                out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png, .svg or .pdf)."),
-               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
-               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
+               model: ModelRequest = MODEL, tolerance: Optional[float] = TOL,
                window: bool = WINDOW, builder: Optional[str] = BUILDER,
                optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
                workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
         """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
-        from .errors import InputError, Problem
         from .reporting.plot_runs import plot_pareto
-        from .reporting.files import atomic_write_text
         from .reporting.tables import pareto_table
+        from .reporting.writers import write_json
         from .runs import make_executor
         from .runs.pareto import pareto as run_pareto
         from .runs.spec import RunSpec
 
-        if factors is not None and times is not None:
-            raise InputError(Problem("", "--factors", "give --factors or --times, not both"))
+        api.one_of(factors, times, "--factors", "give --factors or --times, not both")
         check_outputs(out=(out_file, (".json",)), plot=(plot, PLOT_SUFFIXES))
         f = _range(factors, "--factors") if factors else None
         ts = _range(times, "--times") if times else None
-        try:
-            seed_list = [int(x) for x in _names(seeds, "--seeds")]
-        except ValueError:
-            raise InputError(Problem("", "--seeds", f"expected whole numbers, e.g. 1,2,3 (got {seeds!r})")) from None
-        opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+        seed_list = api.seed_list(seeds, "--seeds")
+        opts = model.options()
         base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                        builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
         executor = make_executor(workers)
         cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
         try:
             front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
-                               seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
+                               seeds=seed_list, executor=executor, progress=cb, optimum=optimum)
         finally:
             close()
             executor.close()
         with all_or_none():
             if out_file:
-                atomic_write_text(out_file, to_json(front) + "\n")
+                write_json(out_file, front)
             if plot:
                 plot_pareto(front, plot)
         if as_json:

@@ -43,7 +43,6 @@ def register(app: typer.Typer) -> None:
         """Convert public track / path / train files into route, vehicle and consist files (all written, or none)."""
         from .io.importer import run_import
         from .io.readers import ImportOptions
-        from .reporting.writers import to_json
 
         flags = []
         if cap_kmh is not None:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..physics.units import KMH_PER_MS
 from ..sim.result import CONDITIONS, Profile
 from .files import atomic_write_text
 
@@ -168,3 +169,35 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         atomic_write_text(path, to_json(data) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
+
+
+def write_json(path: str | Path, data: Any) -> None:
+    """``data`` as a ``.json`` file (JSON-safe, indented, one final newline)."""
+    atomic_write_text(path, to_json(data) + "\n")
+
+
+def write_rows(path: str | Path, data: dict) -> None:
+    """``{"results": [rows], ...}`` as ``.json`` (the whole object) or ``.csv`` (the rows, their own
+    columns in their order)."""
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        write_json(path, data)
+        return
+    rows = data["results"]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    atomic_write_text(path, buf.getvalue())
+
+
+def optimum_columns(run) -> dict:
+    """The optimum at its collocation points (for ``--out .json``)."""
+    sol = run.solution.solution
+    n = sol.grid.n_col
+    v = np.sqrt(2 * np.maximum(sol.X[0, :n], 0.0)) * KMH_PER_MS
+    cols = {"s_m": np.round(sol.grid.s_col, 3).tolist(), "v_kmh": np.round(v, 4).tolist(),
+            "t_s": np.round(sol.X[1, :n], 4).tolist()}
+    for name, row in zip(sol.problem.model.controls, sol.U):
+        cols[f"{name}_kn"] = np.round(row, 3).tolist()
+    return cols
