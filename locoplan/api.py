@@ -117,6 +117,56 @@ def check_fields(wanted: Iterable[str], fields: Iterable[str], option: str) -> N
         raise InputError(Problem("", option, f"unknown field {unknown[0]!r} (fields: {', '.join(sorted(fields))})"))
 
 
+# ------------------------------------------------------------------------------------------ validate
+@dataclass
+class Validation:
+    """``validate``: per file ``{"file", "valid", ...}`` (valid: ``kind``, ``summary``, ``description``,
+    ``warnings``; else ``problems``), every problem and every warning (implausible but valid)."""
+
+    results: list[dict]
+    problems: list[Problem]
+    warnings: list[Problem]
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_INVALID if self.problems else EXIT_OK
+
+    def to_dict(self) -> dict:
+        from dataclasses import asdict
+
+        return {"valid": not self.problems, "results": self.results, "problems": [asdict(p) for p in self.problems],
+                "warnings": [asdict(w) for w in self.warnings]}
+
+
+def validate_files(files: Iterable, stock_dir=None) -> Validation:
+    """Check route, vehicle and consist files (and the ``--stock-dir`` folder); every problem of every
+    file is collected, none is raised."""
+    from dataclasses import asdict
+
+    from .io.load import check_folder, read_yaml, route_warnings, validate_data
+    from .reporting.tables import describe, describe_data
+
+    report = Validation([], [], [])
+    try:
+        if stock_dir is not None:
+            check_folder(stock_dir, "--stock-dir")
+    except InputError as exc:
+        report.problems += exc.problems
+    for f in files:
+        try:
+            data, lines = read_yaml(f)
+            model = validate_data(data, str(f), lines)
+            d = describe_data(model, str(f), stock_dir)
+            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
+            report.results.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
+                                   "description": d, "warnings": [asdict(w) for w in warns]})
+            report.warnings += warns
+        except InputError as exc:
+            report.problems += exc.problems
+            report.results.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
+    return report
+
+
 # ------------------------------------------------------------------------------------------ planned time
 @dataclass(frozen=True)
 class PlannedTime:
@@ -254,7 +304,7 @@ def check_counts(**counts: int) -> None:
             raise InputError(Problem(CMDLINE, "--" + name.replace("_", "-"), "must be >= 1"))
 
 
-__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "ModelRequest", "PlannedTime", "Verdict",
+__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Validation", "validate_files", "ModelRequest", "PlannedTime", "Verdict",
            "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
            "check_energy_ocp", "bound_times", "energy_curve", "curve_exit_code", "check_counts"]

@@ -21,9 +21,8 @@ from .api import ModelRequest
 from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, PARAMS, ROUTE, SEED, STOCK, TIME, TOL, WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
-from .errors import InputError, Problem
-from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
-from .reporting.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
+from .io.load import check_folder, load_route, load_train
+from .reporting.tables import compare_tables, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
 
@@ -82,33 +81,10 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     """Check files; print every problem as file:line: field: message (exit 2), or a summary per file.
     --json: {"valid": bool, "results": [per file: "file", "valid", and "kind" + "description" (what it
     holds) + "summary" if valid, else "problems": [{"file", "line", "field", "message"}]], "problems": [every one]}."""
-    from dataclasses import asdict
-
-    from .reporting.tables import describe_data
-
-    problems: list[Problem] = []
-    warnings: list[Problem] = []
-    summaries = []
-    try:
-        if stock_dir is not None:
-            check_folder(stock_dir, "--stock-dir")
-    except InputError as exc:
-        problems += exc.problems
-    for f in files:
-        try:
-            data, lines = read_yaml(f)
-            model = validate_data(data, str(f), lines)
-            d = describe_data(model, str(f), stock_dir)
-            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
-            summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
-                              "description": d, "warnings": [asdict(w) for w in warns]})
-            warnings += warns
-        except InputError as exc:
-            problems += exc.problems
-            summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
+    report = api.validate_files(files, stock_dir)
+    summaries, problems, warnings = report.results, report.problems, report.warnings
     if as_json:
-        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems],
-                  "warnings": [asdict(w) for w in warnings]})
+        json_out(report.to_dict())
     else:
         for s in summaries:
             if s["valid"]:
@@ -121,8 +97,8 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
         if len(problems) > MAX_PROBLEMS:
             err.print(f"[bold red]error:[/] ... and {len(problems) - MAX_PROBLEMS:,} more problems (the first "
                       f"{MAX_PROBLEMS} are shown; --json lists every one)", highlight=False, soft_wrap=True)
-    if problems:
-        raise typer.Exit(2)
+    if report.exit_code:
+        raise typer.Exit(report.exit_code)
 
 
 # ------------------------------------------------------------------------------------------ simulate

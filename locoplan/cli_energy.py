@@ -15,6 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
+from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, guarded, json_out, out
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -60,53 +61,53 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
         raise typer.Exit(api.EXIT_FAILED)
 
 
+@guarded
+def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
+          times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
+          consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+          out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
+          mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
+          max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
+          model: ModelRequest = MODEL):
+    """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
+    Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
+    train operation."""
+    from .cli_common import step_progress
+    from .errors import InputError, Problem
+    from .reporting.ocp_tables import energy_bound_line, energy_curve_table
+    from .reporting.tables import fit, show
+    from .reporting.writers import write_rows
+    from .runner import planned_time
+
+    values = api.bound_times(time_s, times)
+    if out_file is not None and out_file.suffix.lower() not in (".csv", ".json"):
+        raise InputError(Problem(str(out_file), "--out", "use .csv or .json"))
+    _check_outputs(None, plot)
+    if out_file is not None:
+        _check_outputs(out_file.with_suffix(".json"), None)
+    r, train, opts = _load(route, consist, stock_dir, model)
+    ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
+    with step_progress("bound solves", len(ts), not as_json) as step:
+        data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
+                                curve=values is not None, step=step)
+    rows = data["results"]
+    if out_file:
+        write_rows(out_file, data)
+    if plot:
+        from .reporting.plot_ocp import plot_energy_time
+
+        plot_energy_time(plot, data)
+    if as_json:
+        json_out(data if values is not None else {**data, **rows[0]})
+    elif values is None:
+        out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
+    else:
+        show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
+    if api.curve_exit_code(rows):
+        raise typer.Exit(api.EXIT_FAILED)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``bound`` to ``app``."""
-    from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, guarded, json_out, out
-
-    @app.command("bound")
-    @guarded
-    def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
-              times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
-              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-              out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
-              mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
-              max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
-              model: ModelRequest = MODEL):
-        """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
-        Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
-        train operation."""
-        from .cli_common import step_progress
-        from .errors import InputError, Problem
-        from .reporting.ocp_tables import energy_bound_line, energy_curve_table
-        from .reporting.tables import fit, show
-        from .reporting.writers import write_rows
-        from .runner import planned_time
-
-        values = api.bound_times(time_s, times)
-        if out_file is not None and out_file.suffix.lower() not in (".csv", ".json"):
-            raise InputError(Problem(str(out_file), "--out", "use .csv or .json"))
-        _check_outputs(None, plot)
-        if out_file is not None:
-            _check_outputs(out_file.with_suffix(".json"), None)
-        r, train, opts = _load(route, consist, stock_dir, model)
-        ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
-        with step_progress("bound solves", len(ts), not as_json) as step:
-            data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
-                                    curve=values is not None, step=step)
-        rows = data["results"]
-        if out_file:
-            write_rows(out_file, data)
-        if plot:
-            from .reporting.plot_ocp import plot_energy_time
-
-            plot_energy_time(plot, data)
-        if as_json:
-            json_out(data if values is not None else {**data, **rows[0]})
-        elif values is None:
-            out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
-        else:
-            show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
-        if api.curve_exit_code(rows):
-            raise typer.Exit(api.EXIT_FAILED)
+    app.command("bound")(bound)

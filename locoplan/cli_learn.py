@@ -12,146 +12,146 @@ from typing import Optional
 import typer
 
 from . import api
+from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
+from .cli_common import CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out, out
+from .reporting.learn_tables import fit_tables, groups_table, sections_table
+from .reporting.tables import fit, sequence_table, show, summary_table
 
 __all__ = ["register"]
 
 
+@guarded
+def simulate(route: Path = ROUTE,
+             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
+             drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
+             runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
+             masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
+             times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], comma list (default: the route's schedule)."),
+             seed: int = typer.Option(1, "--seed", help="Random seed: the same seed gives the same logs."),
+             tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] the drivers aim within (default: the route's)."),
+             consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+             model: ModelRequest = MODEL_NO_STRICT):
+    """Simulate human drivers on ROUTE and write their logs, every one marked synthetic."""
+    from .errors import InputError, Problem
+    from .io.load import load_consist, load_route
+    from .learn.drivers import SimulationSpec, check_out_dir, simulate_drivers
+
+    api.check_counts(drivers=drivers, runs=runs)
+    check_out_dir(out_dir)
+    opts = model.options()
+    r = load_route(route)
+    if times is None and r.schedule is None:
+        raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give --times"))
+    base, vehicles, files, _, _ = load_consist(consist, stock_dir)
+    spec = SimulationSpec(route, r, base, vehicles, files, api.positive_numbers(masses, "--masses"),
+                          api.positive_numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
+                          opts, tolerance)
+    with err.status("simulating drivers") as status:
+        summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
+    if as_json:
+        json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
+                       "groups": summary.groups, "drivers": summary.drivers})
+    else:
+        out.print(groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
+
+@guarded
+def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
+          out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
+          seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
+          divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
+          max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
+          folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
+          holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
+          load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t] (claim 3)."),
+          level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
+          stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL_NO_STRICT):
+    """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
+    Method: the patent on locomotive operation sequences from double-layer pattern curves."""
+    from .learn.logs import load_logs
+    from .reporting.writers import write_json
+    from .learn.patterns import LearnSettings
+    from .learn.patterns import learn as run_learn
+
+    _check_outputs(out_file, plot, csv_ok=False)
+    settings = LearnSettings(divisions=divisions, level_permille=level, max_order=max_order, folds=folds,
+                             holdout_share=holdout, load_class_t=load_class, seed=seed)
+    settings.check()
+    opts = model.options()
+    runs = load_logs(logs, stock_dir)
+    learned = run_learn(runs, settings, opts)
+    data = learned.patterns.to_dict()
+    if plot:
+        from .reporting.plot_learn import plot_fit
+
+        plot_fit(plot, learned)
+    write_json(out_file, data)
+    if as_json:
+        json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
+                       "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
+    else:
+        for table in fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
+            show(out, fit(table, out.width, wrap=(0,)))
+        out.print(f"patterns written to {out_file}", highlight=False, markup=False)
+
+@guarded
+def advise(route: Path = ROUTE,
+           patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
+           time_s: Optional[str] = TIME,
+           mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
+           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+           out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
+           plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
+           tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
+           model: ModelRequest = MODEL):
+    """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
+    calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
+    from .cli_common import _emit, _fail_if
+    from .io.load import build_train, load_consist, load_route, load_train
+    from .learn.advise import advise as run_advise
+    from .learn.advise import check_model
+    from .learn.drivers import check_train_mass, consist_for_mass
+    from .learn.patterns import load_patterns
+    from .runner import make_context, schedule_verdict, summarize, RunResult
+    from .strategy.strategies import StrategyOutcome
+
+    _check_outputs(out_file, plot)
+    opts = model.options()
+    if mass is not None:
+        check_train_mass(mass, "--mass")
+    pat = load_patterns(patterns)
+    check_model(pat, opts, str(patterns))
+    r = load_route(route)
+    if mass is None:
+        train = load_train(consist, stock_dir)
+    else:
+        base, vehicles, *_ = load_consist(consist, stock_dir)
+        train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
+    from .cli_common import _time
+
+    ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
+    a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
+    outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
+    summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
+    summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
+    _emit(summary, as_json, out_file, a.result.profile, r)
+    if plot:
+        from .reporting.plot_learn import plot_advice
+
+        from .reporting.plot import run_title
+
+        plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
+    if not as_json:
+        show(out, summary_table(summary, out.width) + fit(sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
+             + sequence_table(summary["sequence"], out.width))
+    _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
+
+
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
-    from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli_common import CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out, out
-    from .reporting.learn_tables import fit_tables, groups_table, sections_table
-    from .reporting.tables import fit, sequence_table, show, summary_table
-
     drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
+    drivers_app.command("simulate")(simulate)
     app.add_typer(drivers_app, name="drivers")
-
-    @drivers_app.command("simulate")
-    @guarded
-    def simulate(route: Path = ROUTE,
-                 out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
-                 drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
-                 runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
-                 masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
-                 times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], comma list (default: the route's schedule)."),
-                 seed: int = typer.Option(1, "--seed", help="Random seed: the same seed gives the same logs."),
-                 tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] the drivers aim within (default: the route's)."),
-                 consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-                 model: ModelRequest = MODEL_NO_STRICT):
-        """Simulate human drivers on ROUTE and write their logs, every one marked synthetic."""
-        from .errors import InputError, Problem
-        from .io.load import load_consist, load_route
-        from .learn.drivers import SimulationSpec, check_out_dir, simulate_drivers
-
-        api.check_counts(drivers=drivers, runs=runs)
-        check_out_dir(out_dir)
-        opts = model.options()
-        r = load_route(route)
-        if times is None and r.schedule is None:
-            raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give --times"))
-        base, vehicles, files, _, _ = load_consist(consist, stock_dir)
-        spec = SimulationSpec(route, r, base, vehicles, files, api.positive_numbers(masses, "--masses"),
-                              api.positive_numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
-                              opts, tolerance)
-        with err.status("simulating drivers") as status:
-            summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
-        if as_json:
-            json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
-                           "groups": summary.groups, "drivers": summary.drivers})
-        else:
-            out.print(groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
-
-    @app.command("learn")
-    @guarded
-    def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
-              out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
-              seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
-              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
-              max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
-              folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
-              holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
-              load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t] (claim 3)."),
-              level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
-              stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL_NO_STRICT):
-        """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
-        Method: the patent on locomotive operation sequences from double-layer pattern curves."""
-        from .learn.logs import load_logs
-        from .reporting.writers import write_json
-        from .learn.patterns import LearnSettings
-        from .learn.patterns import learn as run_learn
-
-        _check_outputs(out_file, plot, csv_ok=False)
-        settings = LearnSettings(divisions=divisions, level_permille=level, max_order=max_order, folds=folds,
-                                 holdout_share=holdout, load_class_t=load_class, seed=seed)
-        settings.check()
-        opts = model.options()
-        runs = load_logs(logs, stock_dir)
-        learned = run_learn(runs, settings, opts)
-        data = learned.patterns.to_dict()
-        if plot:
-            from .reporting.plot_learn import plot_fit
-
-            plot_fit(plot, learned)
-        write_json(out_file, data)
-        if as_json:
-            json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
-                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
-        else:
-            for table in fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
-                show(out, fit(table, out.width, wrap=(0,)))
-            out.print(f"patterns written to {out_file}", highlight=False, markup=False)
-
-    @app.command("advise")
-    @guarded
-    def advise(route: Path = ROUTE,
-               patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
-               time_s: Optional[str] = TIME,
-               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
-               consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-               out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
-               tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
-               model: ModelRequest = MODEL):
-        """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
-        calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
-        from .cli_common import _emit, _fail_if
-        from .io.load import build_train, load_consist, load_route, load_train
-        from .learn.advise import advise as run_advise
-        from .learn.advise import check_model
-        from .learn.drivers import check_train_mass, consist_for_mass
-        from .learn.patterns import load_patterns
-        from .runner import make_context, schedule_verdict, summarize, RunResult
-        from .strategy.strategies import StrategyOutcome
-
-        _check_outputs(out_file, plot)
-        opts = model.options()
-        if mass is not None:
-            check_train_mass(mass, "--mass")
-        pat = load_patterns(patterns)
-        check_model(pat, opts, str(patterns))
-        r = load_route(route)
-        if mass is None:
-            train = load_train(consist, stock_dir)
-        else:
-            base, vehicles, *_ = load_consist(consist, stock_dir)
-            train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
-        from .cli_common import _time
-
-        ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
-        a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
-        outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
-        summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
-        summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
-        _emit(summary, as_json, out_file, a.result.profile, r)
-        if plot:
-            from .reporting.plot_learn import plot_advice
-
-            from .reporting.plot import run_title
-
-            plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
-        if not as_json:
-            show(out, summary_table(summary, out.width) + fit(sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
-                 + sequence_table(summary["sequence"], out.width))
-        _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
+    app.command("learn")(learn)
+    app.command("advise")(advise)
