@@ -197,6 +197,65 @@ def window_half_width(summary: dict) -> Optional[float]:
     return None if window is None else (window[1] - window[0]) / 2
 
 
+# ------------------------------------------------------------------------------------------ one plan
+@dataclass
+class Plan:
+    """One plan of ``simulate`` or ``optimize``: the loaded route and train, the strategy context and the
+    run (``run.summary`` is the --json object, ``run.result.profile`` the profile); ``failures`` is the
+    schedule's verdict (infeasible; a timetabled strategy outside T0 +- tolerance)."""
+
+    route: object
+    train: object
+    context: object
+    run: object
+
+    @property
+    def summary(self) -> dict:
+        return self.run.summary
+
+    @property
+    def failures(self) -> list[Optional[str]]:
+        from .runner import schedule_verdict
+
+        return [schedule_verdict(self.context, self.run)]
+
+
+def simulate(route, train, options: ModelOptions, *, strategy: Optional[str] = None, sequence: Optional[str] = None,
+             time_s: Optional[float] = None, e_min_kwh: Optional[float] = None, seed: int = 1,
+             algorithm: str = "issa", builder: Optional[str] = None) -> Plan:
+    """``simulate``: the traction calculation of a ``sequence`` ("T:0,K:2200,C:9000,B") or of a built-in
+    ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window."""
+    from .runner import make_context, run_sequence, run_strategy
+
+    one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
+    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed, algorithm=algorithm,
+                       need_time=False, builder=builder, yardstick=False)
+    run = (run_sequence(ctx, sequence) if sequence is not None
+           else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min_kwh is not None))
+    return Plan(route, train, ctx, run)
+
+
+def optimize(route, train, options: ModelOptions, *, time_s: Optional[float] = None,
+             weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa", seed: int = 1,
+             e_min_kwh: Optional[float] = None, params: Optional[str] = None, tolerance_s: Optional[float] = None,
+             window: bool = True, builder: Optional[str] = None, gap: bool = True,
+             callback: Optional[Callable[[int, float], None]] = None) -> Plan:
+    """``optimize``: the proposed strategy (condition sequence + optimised switching points); E_min, when
+    not given, from the energy-saving run first. ``callback(iteration, best)`` follows the search."""
+    from .optimize.registry import get_algorithm
+    from .runner import make_context, run_strategy
+
+    get_algorithm(algorithm)
+    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights, algorithm=algorithm,
+                       seed=seed, params_path=params, callback=callback, tolerance_s=tolerance_s, window=window,
+                       builder=builder, yardstick=gap)
+    if e_min_kwh is None:
+        ctx.e_min()  # the energy-saving run first, so that a progress bar then shows the proposed run alone
+    run = run_strategy(ctx, "proposed")
+    run.summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
+    return Plan(route, train, ctx, run)
+
+
 # ------------------------------------------------------------------------------------------ verdicts
 def group_reasons(messages: Iterable[str]) -> list[str]:
     """``['four-stage: R', 'proposed: R']`` -> ``['four-stage, proposed: R']``: a reason shared by several
@@ -304,7 +363,7 @@ def check_counts(**counts: int) -> None:
             raise InputError(Problem(CMDLINE, "--" + name.replace("_", "-"), "must be >= 1"))
 
 
-__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Validation", "validate_files", "ModelRequest", "PlannedTime", "Verdict",
+__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "Verdict",
            "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
            "check_energy_ocp", "bound_times", "energy_curve", "curve_exit_code", "check_counts"]

@@ -22,6 +22,7 @@ from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, PARAMS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
 from .io.load import check_folder, load_route, load_train
+from .reporting.plot import history_quantity, plot_profiles, run_title
 from .reporting.tables import compare_tables, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
 from .strategy.strategies import STRATEGIES, TIMETABLED
 from . import learn as _learn  # noqa: F401,E402  (registers seed 004's compare strategies before --strategies' help)
@@ -137,32 +138,22 @@ def simulate(route: Path = ROUTE,
              time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
              builder: Optional[str] = BUILDER):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
-    from .runner import make_context, run_sequence, run_strategy
-
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, model)
-    time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
-    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
-                       builder=builder, yardstick=False)
-    run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
-    summary = run.summary
+    plan = api.simulate(r, train, opts, strategy=strategy, sequence=sequence, e_min_kwh=e_min, seed=seed,
+                        algorithm=algorithm, builder=builder, time_s=_time(time_s, (r, train), options=opts, quiet=as_json))
+    summary = plan.summary
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile, r)
+        _emit(summary, as_json, out_file, plan.run.result.profile, r)
         if plot:
-            from .reporting.plot import plot_profiles
-
-            from .reporting.plot import run_title
-
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary),
-                          route=r)
+            plot_profiles(plot, [(summary["strategy"], plan.run.result.profile)],
+                          run_title(r.name, train.name, summary["strategy"], summary), route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
-    from .runner import schedule_verdict
-
     # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
     # T0 +- tolerance too; a --sequence, time-saving and energy-saving are measured, their punctuality reported
-    _fail_if([schedule_verdict(ctx, run)])
+    _fail_if(plan.failures)
 
 
 @app.command()
@@ -178,7 +169,6 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
     optimisation of freight trains on complex lines (ISSA switching points)."""
     from .optimize.registry import get_algorithm
-    from .runner import make_context, run_strategy
 
     get_algorithm(algorithm)
     w = api.weights(weights)
@@ -186,21 +176,13 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
-        ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
-                           seed=seed, params_path=str(params) if params else None, callback=cb,
-                           tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
-        if e_min is None:
-            ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
-        run = run_strategy(ctx, "proposed")
-    summary = run.summary
-    summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
+        plan = api.optimize(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
+                            params=str(params) if params else None, callback=cb, tolerance_s=tolerance, window=window,
+                            builder=builder, gap=gap)
+    summary, run = plan.summary, plan.run
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
-            from .reporting.plot import plot_profiles
-
-            from .reporting.plot import run_title
-
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
                           histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
@@ -208,9 +190,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
                           route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
-    from .runner import schedule_verdict
-
-    _fail_if([schedule_verdict(ctx, run)])
+    _fail_if(plan.failures)
 
 
 def _iterations(algorithm: str, params: Optional[Path]) -> int:
@@ -274,11 +254,7 @@ def compare(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .reporting.plot import plot_profiles
-
             recs = [x for x in batch.records if x.profile is not None]
-            from .reporting.plot import history_quantity
-
             hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
                      x.summary["traction_energy_kwh"] if x.summary["strategy"] == "energy-saving" else x.summary.get("fitness"))
                     for x in recs if x.history is not None]
@@ -337,8 +313,6 @@ def sweep(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .reporting.plot import plot_profiles
-
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
                           f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route))
@@ -389,8 +363,6 @@ def study(route: Path = ROUTE,
     with all_or_none():
         _emit(data, as_json, out_file)
         if plot:
-            from .reporting.plot import plot_profiles
-
             def fitness(x):
                 return x.summary["fitness"] if x.summary["fitness"] is not None else math.inf
             best = [min(results[a], key=fitness) for a in algs]
