@@ -28,7 +28,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import build_train, load_consist, load_route  # noqa: E402
 from locoplan.io.logs import load_logs  # noqa: E402
-from locoplan.io.report import to_json  # noqa: E402
+from locoplan.reporting.writers import to_json  # noqa: E402
 from locoplan.learn.drivers import SimulationSpec, consist_for_mass  # noqa: E402
 from locoplan.learn.patterns import LearnSettings, learn  # noqa: E402
 from locoplan.reporting.logs import simulate_drivers  # noqa: E402

@@ -182,7 +182,7 @@ OPTIONS: dict[str, tuple] = {
                    "runs on, above 0.1 is no accuracy at all"),
     "--max-phase-degree": ("int", 3, 40, False, False, "", "LGR points per mesh interval (default 10): 3 is the "
                            "fewest the refinement makes, and more than 40 only grow the NLP (an interval is split instead)"),
-    # "own": bounded by the command's own check, which says more (ocp.study.check_options: 2 .. MAX_NODES,
+    # "own": bounded by the command's own check, which says more (ocp.min_time_run.check_options: 2 .. MAX_NODES,
     # even for two-stage, equal to --nodes for gpm, none for cvp)
     "--nodes": ("own", 2, 1000, False, False, "", "collocation nodes"),
     "--state-nodes": ("own", 2, 1000, False, False, "", "state collocation points"),

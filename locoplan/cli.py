@@ -1,7 +1,7 @@
 """The ``locoplan`` command line: thin typer commands that parse options and call one library function each.
 
 Shared consoles, option declarations and parsing live in :mod:`locoplan.cli_common`; tables in
-:mod:`locoplan.io.tables`; the other command modules (``cli_ocp``, ``cli_learn``, ``cli_import``,
+:mod:`locoplan.reporting.tables`; the other command modules (``cli_ocp``, ``cli_learn``, ``cli_import``,
 ``cli_batch``) register their commands onto :data:`app` at the end of this module.
 """
 
@@ -16,22 +16,26 @@ import typer
 from rich.markup import escape
 
 from . import __version__
-from .cli_common import (AIR, ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, PARAMS, POINT_MASS, ROT, ROUTE, SEED, STEP,
-                         STOCK, STRICT, TIME, TOL, WEIGHTS, WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time,
-                         group_reasons, json_out, locate_schedule, _names, _options, _range, _weights, all_or_none, err,
-                         guarded, out, run_progress, MAX_PROBLEMS, plain)
-from .errors import InputError, Problem
-from .io.load import check_folder, load_route, load_train, read_yaml, route_warnings, validate_data
-from .io.report import to_json
-from .io.tables import compare_tables, describe, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
-from .strategy.registry import STRATEGIES, is_timetabled
+from . import api
+from .api import ModelRequest
+from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, PARAMS, ROUTE, SEED, STOCK, TIME, TOL, WEIGHTS,
+                         WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, fail_on, json_out, locate_schedule,
+                         _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
+from .io.load import check_folder, load_route, load_train
+from .reporting.plot import history_quantity, plot_profiles, run_title
+from .reporting.tables import compare_tables, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
+from .strategy.registry import STRATEGIES, names as strategy_names
 
 class _Group(typer.core.TyperGroup):
     """The command group: a usage error (an option's value of the wrong type, an unknown option) with
     --json among the arguments also gives stdout its one JSON object, as every other failure does."""
 
+    def parse_args(self, ctx, args):
+        ctx.meta["locoplan.args"] = list(args)  # the command line as given (click consumes it as it goes)
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx):
-        args = [*getattr(ctx, "_protected_args", []), *ctx.args]  # click empties them as it goes
+        args = ctx.meta.get("locoplan.args", [])
         try:
             return super().invoke(ctx)
         except Exception as exc:
@@ -77,33 +81,10 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
     """Check files; print every problem as file:line: field: message (exit 2), or a summary per file.
     --json: {"valid": bool, "results": [per file: "file", "valid", and "kind" + "description" (what it
     holds) + "summary" if valid, else "problems": [{"file", "line", "field", "message"}]], "problems": [every one]}."""
-    from dataclasses import asdict
-
-    from .io.tables import describe_data
-
-    problems: list[Problem] = []
-    warnings: list[Problem] = []
-    summaries = []
-    try:
-        if stock_dir is not None:
-            check_folder(stock_dir, "--stock-dir")
-    except InputError as exc:
-        problems += exc.problems
-    for f in files:
-        try:
-            data, lines = read_yaml(f)
-            model = validate_data(data, str(f), lines)
-            d = describe_data(model, str(f), stock_dir)
-            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
-            summaries.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
-                              "description": d, "warnings": [asdict(w) for w in warns]})
-            warnings += warns
-        except InputError as exc:
-            problems += exc.problems
-            summaries.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
+    report = api.validate_files(files, stock_dir)
+    summaries, problems, warnings = report.results, report.problems, report.warnings
     if as_json:
-        json_out({"valid": not problems, "results": summaries, "problems": [asdict(p) for p in problems],
-                  "warnings": [asdict(w) for w in warnings]})
+        json_out(report.to_dict())
     else:
         for s in summaries:
             if s["valid"]:
@@ -116,8 +97,8 @@ def validate(files: list[Path] = typer.Argument(..., help="Route, vehicle or con
         if len(problems) > MAX_PROBLEMS:
             err.print(f"[bold red]error:[/] ... and {len(problems) - MAX_PROBLEMS:,} more problems (the first "
                       f"{MAX_PROBLEMS} are shown; --json lists every one)", highlight=False, soft_wrap=True)
-    if problems:
-        raise typer.Exit(2)
+    if report.exit_code:
+        raise typer.Exit(report.exit_code)
 
 
 # ------------------------------------------------------------------------------------------ simulate
@@ -152,37 +133,26 @@ def simulate(route: Path = ROUTE,
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png, .svg or .pdf."),
-             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
+             model: ModelRequest = MODEL,
              time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
              builder: Optional[str] = BUILDER):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
-    from .runner import make_context, run_sequence, run_strategy
-
-    if strategy and sequence:
-        raise InputError(Problem("", "--sequence", "give either --strategy or --sequence, not both"))
+    api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot)
-    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
-    time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
-    ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, seed=seed, algorithm=algorithm, need_time=False,
-                       builder=builder, yardstick=False)
-    run = run_sequence(ctx, sequence) if sequence is not None else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min is not None)
-    summary = run.summary
+    r, train, opts = _load(route, consist, stock_dir, model)
+    plan = api.simulate(r, train, opts, strategy=strategy, sequence=sequence, e_min_kwh=e_min, seed=seed,
+                        algorithm=algorithm, builder=builder, time_s=_time(time_s, (r, train), options=opts, quiet=as_json))
+    summary = plan.summary
     with all_or_none():
-        _emit(summary, as_json, out_file, run.result.profile, r)
+        _emit(summary, as_json, out_file, plan.run.result.profile, r)
         if plot:
-            from .io.plot import plot_profiles
-
-            from .io.plot import run_title
-
-            plot_profiles(plot, [(summary["strategy"], run.result.profile)], run_title(r.name, train.name, summary["strategy"], summary),
-                          route=r)
+            plot_profiles(plot, [(summary["strategy"], plan.run.result.profile)],
+                          run_title(r.name, train.name, summary["strategy"], summary), route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
-    from .runner import schedule_verdict
-
     # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
     # T0 +- tolerance too; a --sequence, time-saving and energy-saving are measured, their punctuality reported
-    _fail_if([schedule_verdict(ctx, run)])
+    _fail_if(plan.failures)
 
 
 @app.command()
@@ -192,35 +162,26 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png, .svg or .pdf."),
-             step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
+             model: ModelRequest = MODEL,
              tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
     """The least-energy plan on time: a condition sequence built from the limits and grades, its switching
     points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
     optimisation of freight trains on complex lines (ISSA switching points)."""
     from .optimize.registry import get_algorithm
-    from .runner import make_context, run_strategy
 
     get_algorithm(algorithm)
-    w = _weights(weights)
+    w = api.weights(weights)
     _check_outputs(out_file, plot)
-    r, train, opts = _load(route, consist, stock_dir, step, point_mass, rotating_mass, strict_limits, air_brake)
+    r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
-        ctx = make_context(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm,
-                           seed=seed, params_path=str(params) if params else None, callback=cb,
-                           tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
-        if e_min is None:
-            ctx.e_min()  # the energy-saving run first, so the bar then shows the proposed run alone
-        run = run_strategy(ctx, "proposed")
-    summary = run.summary
-    summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
+        plan = api.optimize(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
+                            params=str(params) if params else None, callback=cb, tolerance_s=tolerance, window=window,
+                            builder=builder, gap=gap)
+    summary, run = plan.summary, plan.run
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
         if plot:
-            from .io.plot import plot_profiles
-
-            from .io.plot import run_title
-
             plot_profiles(plot, [("proposed", run.result.profile)],
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
                           histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
@@ -228,9 +189,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
                           route=r)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
-    from .runner import schedule_verdict
-
-    _fail_if([schedule_verdict(ctx, run)])
+    _fail_if(plan.failures)
 
 
 def _iterations(algorithm: str, params: Optional[Path]) -> int:
@@ -257,7 +216,7 @@ def compare(route: Path = ROUTE,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits, .png, .svg or .pdf."),
-            step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
+            model: ModelRequest = MODEL,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
@@ -270,9 +229,9 @@ def compare(route: Path = ROUTE,
     from .runs.plans import compare_fields, compare_specs, energies_at_planned_time
 
     names = _names(strategies or COMPARE_DEFAULT, "--strategies")
-    w = _weights(weights)
+    w = api.weights(weights)
     _check_outputs(out_file, plot)
-    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
@@ -294,11 +253,7 @@ def compare(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
-
             recs = [x for x in batch.records if x.profile is not None]
-            from .io.plot import history_quantity
-
             hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
                      x.summary["traction_energy_kwh"] if x.summary["strategy"] == "energy-saving" else x.summary.get("fitness"))
                     for x in recs if x.history is not None]
@@ -310,15 +265,10 @@ def compare(route: Path = ROUTE,
         first = results["results"][0]
         show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
                                  if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width))
-    failures = list(dict.fromkeys(batch.failures))
-    on_time = any(is_timetabled(x.summary["strategy"]) and x.summary["feasible"] and x.summary["punctual"]
-                  for x in batch.records)
-    if strategies is None and on_time:
-        # no strategy asked for by name and the timetable is met: a failed one is its row and a note, not exit 1
-        for m in group_reasons(failures):
-            err.print(f"note: {escape(m)}", highlight=False, soft_wrap=True)
-    else:
-        _fail_if(failures)
+    # named strategies fail by name; the default list fails only when no timetabled one is on time
+    fail_on(api.compare_verdict([x.summary for x in batch.records], batch.failures, strategies is not None,
+                                strategy_names(timetabled=True),
+                                locate_schedule), notes=True)
 
 
 @app.command()
@@ -331,7 +281,7 @@ def sweep(route: Path = ROUTE,
           time_s: Optional[str] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
-          step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
+          model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
     """The optimised plan across fitness weights or planned running times. Method: Li Wang et al.,
@@ -340,16 +290,14 @@ def sweep(route: Path = ROUTE,
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
     if old_weights is not None:  # sweep's --weights was a grid, optimize's a pair: one meaning per name now
-        if weights is not None:
-            raise InputError(Problem("<command line>", "--weight-grid", "give --weight-grid (--weights is its old name), not both"))
+        api.one_of(weights, old_weights, "--weight-grid", "give --weight-grid (--weights is its old name), not both")
         weights = old_weights
         err.print("note: sweep's --weights is now --weight-grid (--weights is w_time,w_energy in optimize, compare, study)",
                   highlight=False, markup=False, soft_wrap=True)
-    if (weights is None) == (times is None):
-        raise InputError(Problem("<command line>", "--weight-grid", "give exactly one of --weight-grid or --times"))
+    api.one_of(weights, times, "--weight-grid", "give exactly one of --weight-grid or --times", exactly=True)
     values = _range(weights or times, "--weight-grid" if weights else "--times")
     _check_outputs(out_file, plot)
-    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
                       params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
@@ -365,8 +313,6 @@ def sweep(route: Path = ROUTE,
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
-
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
                           f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route))
@@ -386,7 +332,7 @@ def study(route: Path = ROUTE,
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results (runs and the table) as .json, or .csv: one row per run (columns: docs/cli.md)."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves, .png, .svg or .pdf."),
-          step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT,
+          model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
     """Each optimiser over several random seeds: best, worst, mean, punctual-and-best. Method: Li Wang et
@@ -396,11 +342,11 @@ def study(route: Path = ROUTE,
     from .runs.plans import check_time_possible, study_specs
 
     algs = _names(algorithms, "--algorithms")
-    w = _weights(weights)
+    w = api.weights(weights)
     if params_dir is not None:
         check_folder(params_dir, "--params-dir")
     _check_outputs(out_file, plot)
-    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
                       tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
@@ -410,17 +356,13 @@ def study(route: Path = ROUTE,
         batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
     results = {a: [x for x in batch.records if x.spec["algorithm"] == a] for a in algs}
     first = batch.records[0].summary
-    tolerance_s = (first.get("window_s") or [0, 0])
-    tol = None if first.get("window_s") is None else (tolerance_s[1] - tolerance_s[0]) / 2
-    rows = study_rows(results, tol)
+    rows = study_rows(results, api.window_half_width(first))
     e_min_kwh = first.get("e_min_kwh")
     data = {"results": [x.summary for a in algs for x in results[a]], "table": rows,
             "e_min_kwh": e_min_kwh, "planned_time_s": first.get("planned_time_s")}
     with all_or_none():
         _emit(data, as_json, out_file)
         if plot:
-            from .io.plot import plot_profiles
-
             def fitness(x):
                 return x.summary["fitness"] if x.summary["fitness"] is not None else math.inf
             best = [min(results[a], key=fitness) for a in algs]

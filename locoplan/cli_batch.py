@@ -11,6 +11,12 @@ from typing import Optional
 
 import typer
 
+from . import api
+from .api import ModelRequest
+from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, ROUTE, STOCK, TOL, WINDOW, _names,
+                         _range, all_or_none, check_outputs, err, guarded, json_out, out)
+from .reporting.tables import show
+
 __all__ = ["register"]
 
 
@@ -64,161 +70,145 @@ def _warn_damaged(err, store, then: str, limit: int = 10) -> None:
                   highlight=False, markup=True, soft_wrap=True)
 
 
-def register(app: typer.Typer) -> None:
-    """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
-    from .cli_common import (AIR, ALGO, CONSIST, JSON, POINT_MASS, PLOT_SUFFIXES, ROT, ROUTE, STEP, STOCK, STRICT,
-                             TOL, WINDOW, BUILDER, _names, _options, _range, all_or_none, check_outputs, err, guarded, out)
-    from .io.tables import show
-    from .cli_common import json_out
-    from .io.report import to_json
+@guarded
+def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Study file: routes, consists, times, strategies, algorithms, seeds (docs/batch.md)."),
+          store_path: Path = typer.Option(..., "--store", help="Result store (SQLite, created if missing); a rerun runs only what it lacks."),
+          workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count; 1 = in this process).", show_default=False),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (instead of local processes; pip install 'locoplan[dask]')."),
+          as_json: bool = JSON,
+          quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr.")):
+    """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
+    from .reporting.tables import store_summary_table
+    from .runs import Store, make_executor, run_many
+    from .runs.results import rows_of, summarize_rows
+    from .runs.study import load_study
 
-    @app.command("batch")
-    @guarded
-    def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Study file: routes, consists, times, strategies, algorithms, seeds (docs/batch.md)."),
-              store_path: Path = typer.Option(..., "--store", help="Result store (SQLite, created if missing); a rerun runs only what it lacks."),
-              workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count; 1 = in this process).", show_default=False),
-              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (instead of local processes; pip install 'locoplan[dask]')."),
-              as_json: bool = JSON,
-              quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr.")):
-        """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
-        from .io.tables import store_summary_table
-        from .runs import Store, make_executor, run_many
-        from .runs.results import rows_of, summarize_rows
-        from .runs.study import load_study
-
-        study = load_study(study_file)
-        with Store(store_path) as store:
-            store.check_writer()
-            executor = make_executor(workers, scheduler)
-            cb, close = _progress_printer(err, not quiet)
-            t = time.perf_counter()
-            try:
-                result = run_many(study.specs, executor, store=store, progress=cb)
-            finally:
-                close()
-                executor.close()
-            wall = time.perf_counter() - t
-            _warn_damaged(err, store, "its run was done again and written over it")
-            n, ran = len(study.specs), len(result.ran)
-            report = {"store": str(store_path), "runs": n, "distinct_runs": len(set(r.key for r in result.records)),
-                      "from_store": result.reused, "ran": ran, "workers": executor.workers, "executor": executor.name,
-                      "wall_time_s": round(wall, 2), "runs_per_s": round(ran / wall, 3) if ran else None,
-                      "fail_their_job": len(result.failures), "ran_keys": result.ran}
-            if as_json:
-                json_out(report)
-                return
-            rows = summarize_rows(rows_of(result.records))
-            show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
-                                          f"{study_file}: {n} runs", out.width))
-            out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
-                      f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
-                      + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
-                      "(infeasible, or outside the window)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
-
-    @app.command("results")
-    @guarded
-    def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result store written by locoplan batch."),
-                fmt: Optional[str] = typer.Option(None, "--format", help="Export one row per run: csv, parquet or json (stdout, or --out). Default: the summary table."),
-                out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
-                where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
-                by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
-                plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png, .svg or .pdf)."),
-                boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
-                as_json: bool = JSON):
-        """Export, summarise and plot a result store (from the stored runs, no re-run)."""
-        from .io.plot_runs import plot_boxes, plot_energy_time
-        from .io.tables import store_summary_table
-        from .runs import Store
-        from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
-
-        if fmt is not None and fmt not in FORMATS:
-            from .errors import InputError, Problem
-
-            raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
-        check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
-                      plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
-        group = _names(by, "--by")
-        summary_only = fmt is None and not plot and not boxplot
-        with Store(store_path, create=False) as store:
-            # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
-            rows, fields = stream_rows(store.iter_records(), where,
-                                       tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
-            _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
-        unknown = [g for g in group if rows and g not in fields]
-        if unknown:
-            from .errors import InputError, Problem
-
-            raise InputError(Problem("", "by", f"unknown field {unknown[0]!r} (fields: {', '.join(sorted(fields))})"))
-        summary = summarize_rows(rows, group)
-        with all_or_none():
-            text = None
-            if fmt is not None:
-                text = export(rows, out_file, fmt)
-            elif out_file is not None:
-                export(summary, out_file, out_file.suffix.lower().lstrip("."))
-            if plot:
-                plot_energy_time(rows, plot)
-            if boxplot:
-                plot_boxes(rows, boxplot)
-        if text is not None:
-            print(text, end="")
-        elif fmt is None:
-            if as_json:
-                json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
-            else:
-                show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
-
-    @app.command("pareto")
-    @guarded
-    def pareto(route: Path = ROUTE,
-               factors: Optional[str] = typer.Option(None, "--factors", help="Planned times as factors of the fastest run, start:stop:step or list (default 1.05:1.6:0.05)."),
-               times: Optional[str] = typer.Option(None, "--times", help="Planned times [s] instead of factors, e.g. 1300,1400,1500."),
-               strategies: str = typer.Option("four-stage,proposed", "--strategies", help="Timetabled strategies planned at each time."),
-               seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
-               algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-               out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png, .svg or .pdf)."),
-               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
-               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT, tolerance: Optional[float] = TOL,
-               window: bool = WINDOW, builder: Optional[str] = BUILDER,
-               optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
-               workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
-        """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
-        from .errors import InputError, Problem
-        from .io.plot_runs import plot_pareto
-        from .io.report import atomic_write_text
-        from .io.tables import pareto_table
-        from .runs import make_executor
-        from .runs.pareto import pareto as run_pareto
-        from .runs.spec import RunSpec
-
-        if factors is not None and times is not None:
-            raise InputError(Problem("", "--factors", "give --factors or --times, not both"))
-        check_outputs(out=(out_file, (".json",)), plot=(plot, PLOT_SUFFIXES))
-        f = _range(factors, "--factors") if factors else None
-        ts = _range(times, "--times") if times else None
+    study = load_study(study_file)
+    with Store(store_path) as store:
+        store.check_writer()
+        executor = make_executor(workers, scheduler)
+        cb, close = _progress_printer(err, not quiet)
+        t = time.perf_counter()
         try:
-            seed_list = [int(x) for x in _names(seeds, "--seeds")]
-        except ValueError:
-            raise InputError(Problem("", "--seeds", f"expected whole numbers, e.g. 1,2,3 (got {seeds!r})")) from None
-        opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
-        base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
-                       builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
-        executor = make_executor(workers)
-        cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
-        try:
-            front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
-                               seeds=tuple(seed_list), executor=executor, progress=cb, optimum=optimum)
+            result = run_many(study.specs, executor, store=store, progress=cb)
         finally:
             close()
             executor.close()
-        with all_or_none():
-            if out_file:
-                atomic_write_text(out_file, to_json(front) + "\n")
-            if plot:
-                plot_pareto(front, plot)
+        wall = time.perf_counter() - t
+        _warn_damaged(err, store, "its run was done again and written over it")
+        n, ran = len(study.specs), len(result.ran)
+        report = {"store": str(store_path), "runs": n, "distinct_runs": len(set(r.key for r in result.records)),
+                  "from_store": result.reused, "ran": ran, "workers": executor.workers, "executor": executor.name,
+                  "wall_time_s": round(wall, 2), "runs_per_s": round(ran / wall, 3) if ran else None,
+                  "fail_their_job": len(result.failures), "ran_keys": result.ran}
         if as_json:
-            json_out(front)
+            json_out(report)
+            return
+        rows = summarize_rows(rows_of(result.records))
+        show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
+                                      f"{study_file}: {n} runs", out.width))
+        out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
+                  f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
+                  + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
+                  "(infeasible, or outside the window)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+
+@guarded
+def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result store written by locoplan batch."),
+            fmt: Optional[str] = typer.Option(None, "--format", help="Export one row per run: csv, parquet or json (stdout, or --out). Default: the summary table."),
+            out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
+            where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
+            by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png, .svg or .pdf)."),
+            boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
+            as_json: bool = JSON):
+    """Export, summarise and plot a result store (from the stored runs, no re-run)."""
+    from .reporting.plot_runs import plot_boxes, plot_energy_time
+    from .reporting.tables import store_summary_table
+    from .runs import Store
+    from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
+
+    api.check_choice(fmt, FORMATS, "format", "format")
+    check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
+                  plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
+    group = _names(by, "--by")
+    summary_only = fmt is None and not plot and not boxplot
+    with Store(store_path, create=False) as store:
+        # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
+        rows, fields = stream_rows(store.iter_records(), where,
+                                   tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
+        _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
+    if rows:
+        api.check_fields(group, fields, "by")
+    summary = summarize_rows(rows, group)
+    with all_or_none():
+        text = None
+        if fmt is not None:
+            text = export(rows, out_file, fmt)
+        elif out_file is not None:
+            export(summary, out_file, out_file.suffix.lower().lstrip("."))
+        if plot:
+            plot_energy_time(rows, plot)
+        if boxplot:
+            plot_boxes(rows, boxplot)
+    if text is not None:
+        print(text, end="")
+    elif fmt is None:
+        if as_json:
+            json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
         else:
-            show(out, pareto_table(front, out.width))
-            out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+            show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
+
+@guarded
+def pareto(route: Path = ROUTE,
+           factors: Optional[str] = typer.Option(None, "--factors", help="Planned times as factors of the fastest run, start:stop:step or list (default 1.05:1.6:0.05)."),
+           times: Optional[str] = typer.Option(None, "--times", help="Planned times [s] instead of factors, e.g. 1300,1400,1500."),
+           strategies: str = typer.Option("four-stage,proposed", "--strategies", help="Timetabled strategies planned at each time."),
+           seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
+           algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+           out_file: Optional[Path] = typer.Option(None, "--out", help="The front as .json."),
+           plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time: every plan, the front, E* when known (.png, .svg or .pdf)."),
+           model: ModelRequest = MODEL, tolerance: Optional[float] = TOL,
+           window: bool = WINDOW, builder: Optional[str] = BUILDER,
+           optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
+           workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
+    """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
+    from .reporting.plot_runs import plot_pareto
+    from .reporting.tables import pareto_table
+    from .reporting.writers import write_json
+    from .runs import make_executor
+    from .runs.pareto import pareto as run_pareto
+    from .runs.spec import RunSpec
+
+    api.one_of(factors, times, "--factors", "give --factors or --times, not both")
+    check_outputs(out=(out_file, (".json",)), plot=(plot, PLOT_SUFFIXES))
+    f = _range(factors, "--factors") if factors else None
+    ts = _range(times, "--times") if times else None
+    seed_list = api.seed_list(seeds, "--seeds")
+    opts = model.options()
+    base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
+                   builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
+    executor = make_executor(workers)
+    cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
+    try:
+        front = run_pareto(base, factors=f, times_s=ts, strategies=_names(strategies, "--strategies"),
+                           seeds=seed_list, executor=executor, progress=cb, optimum=optimum)
+    finally:
+        close()
+        executor.close()
+    with all_or_none():
+        if out_file:
+            write_json(out_file, front)
+        if plot:
+            plot_pareto(front, plot)
+    if as_json:
+        json_out(front)
+    else:
+        show(out, pareto_table(front, out.width))
+        out.print(f"front: {front['front_kind']}", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``batch``, ``results`` and ``pareto`` to ``app``."""
+    app.command("batch")(batch)
+    app.command("results")(results)
+    app.command("pareto")(pareto)

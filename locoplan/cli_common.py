@@ -6,6 +6,7 @@ them imports another (the app lives in ``cli.py``, which registers the others' c
 from __future__ import annotations
 
 import functools
+import inspect
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
@@ -15,9 +16,11 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from . import __version__, bounds
+from . import __version__, api, bounds
+from .api import ModelRequest
 from .errors import InputError, LocoplanError, Problem
-from .io.report import all_or_none, check_output, check_output_path, to_json, write_output
+from .reporting.files import all_or_none, check_output, check_output_path
+from .reporting.writers import to_json, write_output
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
@@ -100,9 +103,7 @@ def as_flags(problem: Problem) -> Problem:
     return problem
 
 
-VERDICTS = {0: "ok", 1: "failed", 2: "invalid input"}
-"""Exit code -> the ``verdict`` of every --json object: 0 every result does its job; 1 a valid request
-with no result that does (no feasible plan, or a timetabled plan outside its window); 2 invalid input."""
+VERDICTS = api.VERDICTS
 
 ENVELOPE = ("verdict", "exit_code", "errors", "locoplan_version", "inputs")
 """Keys every --json object on stdout has besides the result (a --out .json file holds the result alone)."""
@@ -170,21 +171,20 @@ def locate_schedule(text: str) -> str:
                   f"{_schedule_line(run['schedule_from'])})", text, count=1)
 
 
-def group_reasons(messages: list[str]) -> list[str]:
-    """``['four-stage: R', 'proposed: R']`` -> ``['four-stage, proposed: R']``: a reason shared by several
-    strategies is said once, naming them all (order kept)."""
-    groups: dict[str, list[str]] = {}
-    for m in messages:
-        name, sep, reason = m.partition(": ")
-        if not sep or " " in name:
-            name, reason = "", m
-        groups.setdefault(reason, []).append(name)
-    return [(", ".join(n for n in names if n) + ": " if any(names) else "") + reason for reason, names in groups.items()]
+group_reasons = api.group_reasons
 
 
 def guarded(fn):
     """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code; with --json
-    (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`)."""
+    (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`).
+
+    A parameter whose default is a :class:`ModelGroup` (``model: ModelRequest = MODEL``) stands for the
+    model options: the command line shows the group's options in its place, and ``fn`` gets them as one
+    :class:`~locoplan.api.ModelRequest`."""
+    signature = inspect.signature(fn, eval_str=True)
+    groups = {name: p.default for name, p in signature.parameters.items() if isinstance(p.default, ModelGroup)}
+    shown = [q for p in signature.parameters.values()
+             for q in (p.default.parameters() if isinstance(p.default, ModelGroup) else [p])]
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
@@ -198,8 +198,8 @@ def guarded(fn):
                 # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
                 try:
                     with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
-                        bounds.check_command(fn, kwargs)  # every option's value, before any work
-                        result = fn(*args, **kwargs)
+                        bounds.check_command(wrapper, kwargs)  # every option's value, before any work
+                        result = fn(*args, **_grouped(kwargs, groups))
                 except typer.Exit:
                     _flush_stdout()
                     raise
@@ -231,7 +231,19 @@ def guarded(fn):
             _RUN.reset(token)
             if code is not None and kwargs.get("as_json"):
                 _print_json(run, code)
+    wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
+    wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
+
+
+def _grouped(kwargs: dict, groups: dict) -> dict:
+    """The command's own arguments: each group's options gathered into its one value."""
+    if not groups:
+        return kwargs
+    call = dict(kwargs)
+    for name, group in groups.items():
+        call[name] = group.request(call)
+    return call
 
 
 def _print_json(run: dict, code: int) -> None:
@@ -327,78 +339,55 @@ def usage_error_json(exc, args: list[str]) -> None:
 
 def _fail_if(messages: list) -> None:
     """After every output is written: name each result that failed its job, exit 1 if any did."""
-    messages = group_reasons([locate_schedule(m) for m in messages if m])
-    for m in messages:
-        err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
-    run = _RUN.get()
-    if run is not None:
-        run["errors"] += messages
-    if messages:
-        raise typer.Exit(1)
-
-
-def _options(step: float, point_mass: bool, rotating_mass: Optional[float], strict_limits: bool = False,
-             air_brake: Optional[bool] = None) -> ModelOptions:
-    bounds.step(step)
-    if rotating_mass is not None and not 0 <= rotating_mass < 1:
-        raise InputError(Problem("<command line>", "--rotating-mass", f"must be in [0, 1) (got {rotating_mass:g})"))
-    air = (not point_mass) if air_brake is None else air_brake
-    return ModelOptions(step_m=step, point_mass=point_mass, air_brake=air, rotating_mass=rotating_mass,
-                        strict_limits=strict_limits)
-
-
-def _weights(text: str) -> tuple[float, float]:
-    return bounds.weights(text, "--weights")
-
-
-def _range(text: str, field: str) -> list[float]:
-    """'0.1:0.9:0.1' (start:stop:step, inclusive) or '1470,1500,1530': time weights or running times
-    (``pareto --factors``: factors of the fastest run, 1 .. 10)."""
-    if field == "--weight-grid":
-        return bounds.values(text, field, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
-    if field == "--factors":
-        return bounds.values(text, field, 1.0, 10.0, why="a factor of the fastest run")
-    return bounds.values(text, field, *bounds.LIMITS["time_s"], "s", "a planned running time")
+    fail_on(api.verdict(messages, locate_schedule))
 
 
 def _names(text: str, field: str) -> list[str]:
-    names = [x.strip() for x in text.split(",") if x.strip()]
-    if not names:
-        raise InputError(Problem("", field, "name at least one"))
-    return names
+    return api.names(text, field)
 
 
-def _load(route: Path, consist: str, stock_dir: Optional[Path], step: float, point_mass: bool,
-          rotating_mass: Optional[float], strict_limits: bool, air_brake: Optional[bool] = None):
+def _range(text: str, field: str) -> list[float]:
+    return api.value_grid(text, field)
+
+
+def _load(route: Path, consist: str, stock_dir: Optional[Path], model: ModelRequest):
+    """The route, the train and the checked model options of a command."""
     from .io.load import load_route_and_train
 
-    opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
+    opts = model.options()
     return (*load_route_and_train(route, consist, stock_dir), opts)
 
 
 def _time(text: Optional[str], route, consist: str = DEFAULT_CONSIST, stock_dir: Optional[Path] = None,
           options: Optional[ModelOptions] = None, quiet: bool = False, option: str = "--time") -> Optional[float]:
-    """``--time`` in seconds: seconds as given; a factor (``1.1x``) or a supplement (``+10%``) of the fastest
-    run of this route and train (``route``: a loaded Route, or a file path loaded with ``consist``; then
-    ``train`` is loaded too). None stays None (the route's schedule). A note on stderr says what a factor
-    came to, unless ``quiet``."""
+    """``--time`` in seconds (:func:`locoplan.api.planned_time`; ``route``: a loaded (Route, Train), or a
+    route file loaded with ``consist`` when the time is a factor of the fastest run). A note on stderr
+    says what a factor came to, unless ``quiet``."""
     req = bounds.time_request(text, option)
     if req is None or req[0] == "s":
         return None if req is None else req[1]
-    from .sim.calculator import TractionCalculator
-
     if isinstance(route, (str, Path)):
         from .io.load import load_route_and_train
 
-        route, train = load_route_and_train(route, consist, stock_dir)
-    else:
-        route, train = route
-    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
-    t = bounds.time_of(req, fastest)
-    if not quiet:
-        err.print(f"note: {option} {text}: T0 = {t:g} s ({req[1]:g} x the fastest run, {fastest:.1f} s)",
-                  highlight=False, markup=False, soft_wrap=True)
-    return t
+        route = load_route_and_train(route, consist, stock_dir)
+    planned = api.planned_time(text, *route, options=options, option=option)
+    if planned.note and not quiet:
+        err.print(f"note: {planned.note}", highlight=False, markup=False, soft_wrap=True)
+    return planned.time_s
+
+
+def fail_on(verdict: api.Verdict, notes: bool = False) -> None:
+    """After every output is written: name each result that failed its job, exit 1 if any did (with
+    ``notes``, first say the verdict's notes)."""
+    for m in verdict.notes if notes else ():
+        err.print(f"note: {escape(m)}", highlight=False, soft_wrap=True)
+    for m in verdict.failures:
+        err.print(f"[bold red]error:[/] {escape(m)}", highlight=False, soft_wrap=True)
+    run = _RUN.get()
+    if run is not None:
+        run["errors"] += verdict.failures
+    if verdict.failures:
+        raise typer.Exit(verdict.exit_code)
 
 
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None, route=None) -> None:
@@ -408,13 +397,13 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
         json_out(summary_or_results)
 
 
-PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # as io.plot.FIGURE_SUFFIXES
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")  # as reporting.plot.FIGURE_SUFFIXES
 
 
 def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
     """Check every output path of a command before any work (name -> (path or None, suffixes)); no two may
     name the same file."""
-    from .io.report import check_distinct
+    from .reporting.files import check_distinct
 
     for name, (path, suffixes) in outputs.items():
         check_output_path(path, name, suffixes)
@@ -423,9 +412,9 @@ def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
 
 def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
     """Refuse bad output names (type, folder, writable) before any long computation."""
-    from .io.plot import check_plot_path
+    from .reporting.plot import check_plot_path
 
-    from .io.report import check_distinct
+    from .reporting.files import check_distinct
 
     check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
     check_output(plot and check_plot_path(plot), "--plot")
@@ -437,11 +426,51 @@ ROUTE = typer.Argument(..., help="Route YAML file.")
 CONSIST = typer.Option(DEFAULT_CONSIST, "--consist", help="Consist YAML file or catalogue name.")
 STOCK = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first.")
 JSON = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there).")
-STEP = typer.Option(DEFAULT_STEP_M, "--step", help="Reporting grid spacing [m] (optimisers search on 100 m).")
-POINT_MASS = typer.Option(False, "--point-mass/--no-point-mass", help="The papers' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.")
-AIR = typer.Option(None, "--air-brake/--no-air-brake", help="Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).", show_default=False)
-ROT = typer.Option(None, "--rotating-mass", help="Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).", show_default=False)
-STRICT = typer.Option(False, "--strict-limits/--no-strict-limits", help="Coasting up to a limit makes a plan infeasible (default: held there by braking).")
+
+
+class ModelGroup:
+    """The train-model options (``--step``, ``--point-mass``, ``--air-brake``, ``--rotating-mass``,
+    ``--strict-limits``), declared once. A command names the group as one parameter,
+    ``model: ModelRequest = MODEL``; :func:`guarded` shows the group's options in its place (in this order)
+    and hands the command one :class:`~locoplan.api.ModelRequest`. ``helps`` words the options for a
+    command whose model options mean something narrower (``ocp``: the energy objective's); ``strict``
+    False leaves ``--strict-limits`` out (the drivers' simulation and learning never use it)."""
+
+    HELP = {
+        "step": "Reporting grid spacing [m] (optimisers search on 100 m).",
+        "point_mass": "The papers' train model (to reproduce their tables): a point mass at the head, braked by its locomotives alone. Default: the train's real length (gradient averaged over it, a limit held until the tail clears it) and the wagons' air brakes.",
+        "air_brake": "Brake with the wagons' air brakes as well as the electric brake (default: on, off with --point-mass).",
+        "rotating_mass": "Uniform rotating-mass allowance gamma, inertial mass M(1+gamma) (default: each vehicle's own factor, 1 if none).",
+        "strict_limits": "Coasting up to a limit makes a plan infeasible (default: held there by braking).",
+    }
+
+    def __init__(self, helps: Optional[dict] = None, step_m: float = DEFAULT_STEP_M, strict: bool = True):
+        h = {**self.HELP, **(helps or {})}
+        self.options = {
+            "step": (float, typer.Option(step_m, "--step", help=h["step"])),
+            "point_mass": (bool, typer.Option(False, "--point-mass/--no-point-mass", help=h["point_mass"])),
+            "air_brake": (Optional[bool], typer.Option(None, "--air-brake/--no-air-brake", help=h["air_brake"], show_default=False)),
+            "rotating_mass": (Optional[float], typer.Option(None, "--rotating-mass", help=h["rotating_mass"], show_default=False)),
+        }
+        if strict:
+            self.options["strict_limits"] = (bool, typer.Option(False, "--strict-limits/--no-strict-limits", help=h["strict_limits"]))
+
+    def parameters(self) -> list[inspect.Parameter]:
+        """The group's options as the parameters typer reads."""
+        return [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=info, annotation=kind)
+                for name, (kind, info) in self.options.items()]
+
+    def request(self, kwargs: dict) -> ModelRequest:
+        """The group's values, taken out of a command's ``kwargs``, as one request."""
+        values = {name: kwargs.pop(name) for name in self.options}
+        return ModelRequest(step_m=values["step"], point_mass=values["point_mass"], air_brake=values["air_brake"],
+                            rotating_mass=values["rotating_mass"], strict_limits=values.get("strict_limits", False))
+
+
+MODEL = ModelGroup()
+"""The model options of every planning command."""
+MODEL_NO_STRICT = ModelGroup(strict=False)
+"""The model options of the drivers' simulation and of learning (no --strict-limits)."""
 TIME = typer.Option(None, "--time", help="Planned running time T0 [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy: fitness = w_time |T - T0| / T0 + w_energy |E - E_min| / E_min.")
 EMIN = typer.Option(None, "--e-min", help="E_min, the energy the fitness measures against [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")

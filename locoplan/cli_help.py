@@ -57,7 +57,7 @@ def _flag(info) -> str:
 
 
 def _params(fn):
-    fn = inspect.unwrap(fn)
+    # the signature typer reads: a command's own (guarded's wrapper gives the model options' group expanded)
     return inspect.signature(fn).parameters.items()
 
 
@@ -84,6 +84,8 @@ def tidy(app: typer.Typer, top: bool = True) -> None:
     and give each top-level command its one-line summary from :data:`SUMMARIES`."""
     for cmd in app.registered_commands:
         _tidy_command(cmd.callback)
+        if cmd.cls in (None, typer.core.TyperCommand):  # typer's default: ours shows arguments as click does
+            cmd.cls = Command
         if top and cmd.short_help is None and _name(cmd) in SUMMARIES:
             cmd.short_help = SUMMARIES[_name(cmd)]
     for group in app.registered_groups:
@@ -93,28 +95,37 @@ def tidy(app: typer.Typer, top: bool = True) -> None:
             group.short_help = SUMMARIES[name]
 
 
-def _patch_typer_arguments() -> None:
-    """typer 0.29 writes a required argument as ``{ROUTE}`` in the usage line and adds its type
-    (``ROUTE <path>``) in the list; with a metavar set, show just the metavar, as click does."""
-    from typer.core import TyperArgument
+class Command(typer.core.TyperCommand):
+    """Every command's class (set by :func:`tidy`): an argument with a metavar is shown as that metavar
+    alone, in the usage line (``ROUTE``, ``[ROUTE]`` when optional) and in the list, as click shows it
+    (typer would write ``{ROUTE}`` and add its type, ``ROUTE <path>``). Public click API only:
+    ``collect_usage_pieces`` and ``format_options`` over the parameters' own help records."""
 
-    if hasattr(TyperArgument, "_usage_display_name") and not getattr(TyperArgument, "_locoplan_tidy", False):
-        original_type = TyperArgument.display_type_rich
-        original_usage = TyperArgument._usage_display_name
+    def collect_usage_pieces(self, ctx) -> list[str]:
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for param in self.get_params(ctx):
+            if param.param_type_name == "argument" and param.metavar:
+                pieces.append(param.metavar if param.required else f"[{param.metavar}]")
+            else:
+                pieces.extend(param.get_usage_pieces(ctx))
+        return pieces
 
-        def display_type_rich(self, ctx):
-            return None if self.metavar else original_type(self, ctx)
+    def format_options(self, ctx, formatter) -> None:
+        args, opts = [], []
+        for param in self.get_params(ctx):
+            record = param.get_help_record(ctx)
+            if record is None:
+                continue
+            if param.param_type_name == "argument":
+                args.append((param.metavar, record[1]) if param.metavar else record)
+            elif param.param_type_name == "option":
+                opts.append(record)
+        if args:
+            with formatter.section("Arguments"):
+                formatter.write_dl(args)
+        if opts:
+            with formatter.section("Options"):
+                formatter.write_dl(opts)
 
-        def usage_display_name(self):
-            if not self.metavar:
-                return original_usage(self)
-            return self.metavar if self.required else f"[{self.metavar}]"
 
-        TyperArgument.display_type_rich = display_type_rich
-        TyperArgument._usage_display_name = usage_display_name
-        TyperArgument._locoplan_tidy = True
-
-
-_patch_typer_arguments()
-
-__all__ = ["tidy", "METAVARS"]
+__all__ = ["tidy", "METAVARS", "Command"]

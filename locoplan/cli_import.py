@@ -13,6 +13,9 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
+from .cli_common import err, guarded, json_out, out
+from .io.readers import READERS
+
 __all__ = ["register"]
 
 
@@ -22,48 +25,47 @@ def _command(fmt: str, sources: list[Path], out_dir: Path, flags: list[str]) -> 
     return " ".join(shlex.quote(w) for w in words)
 
 
+formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())
+
+
+@guarded
+def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source format ({formats})."),
+            sources: list[Path] = typer.Argument(..., metavar="FILES...", help="Source files (railtoolkit: running-path and/or rolling-stock files, in any order)."),
+            out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
+            cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h], e.g. 80 for a freight train on a passenger line (default: no cap)."),
+            leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg, 1 = first stop to second (default: every leg)."),
+            all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
+            load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),
+            as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
+            ):
+    """Convert public track / path / train files into route, vehicle and consist files (all written, or none)."""
+    from .io.importer import run_import
+    from .io.readers import ImportOptions
+
+    flags = []
+    if cap_kmh is not None:
+        flags += ["--cap-kmh", f"{cap_kmh:g}"]
+    if leg is not None:
+        flags += ["--leg", str(leg)]
+    if all_legs:
+        flags.append("--all-legs")
+    if load_fraction != 1.0:
+        flags += ["--load-fraction", f"{load_fraction:g}"]
+    options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, load_fraction=load_fraction,
+                            command=_command(fmt, sources, out_dir, flags))
+    report = run_import(fmt, list(sources), out_dir, options)
+    if as_json:
+        json_out({"format": fmt, "files": [{"path": str(p), "kind": k, "summary": s} for p, k, s in report.written],
+                       "licence": str(report.licence) if report.licence else None, "notes": report.notes})
+    else:
+        for path, kind, summary in report.written:
+            out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+        if report.licence:
+            out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
+    for note in report.notes:
+        err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)
+
+
 def register(app: typer.Typer) -> None:
     """Add the ``import`` command to ``app``."""
-    from .cli_common import err, guarded, json_out, out
-    from .io.readers import READERS
-
-    formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())
-
-    @app.command("import")
-    @guarded
-    def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source format ({formats})."),
-                sources: list[Path] = typer.Argument(..., metavar="FILES...", help="Source files (railtoolkit: running-path and/or rolling-stock files, in any order)."),
-                out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
-                cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h], e.g. 80 for a freight train on a passenger line (default: no cap)."),
-                leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg, 1 = first stop to second (default: every leg)."),
-                all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
-                load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),
-                as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
-                ):
-        """Convert public track / path / train files into route, vehicle and consist files (all written, or none)."""
-        from .io.importer import run_import
-        from .io.readers import ImportOptions
-        from .io.report import to_json
-
-        flags = []
-        if cap_kmh is not None:
-            flags += ["--cap-kmh", f"{cap_kmh:g}"]
-        if leg is not None:
-            flags += ["--leg", str(leg)]
-        if all_legs:
-            flags.append("--all-legs")
-        if load_fraction != 1.0:
-            flags += ["--load-fraction", f"{load_fraction:g}"]
-        options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, load_fraction=load_fraction,
-                                command=_command(fmt, sources, out_dir, flags))
-        report = run_import(fmt, list(sources), out_dir, options)
-        if as_json:
-            json_out({"format": fmt, "files": [{"path": str(p), "kind": k, "summary": s} for p, k, s in report.written],
-                           "licence": str(report.licence) if report.licence else None, "notes": report.notes})
-        else:
-            for path, kind, summary in report.written:
-                out.print(f"[green]wrote[/] {escape(str(path))}  ({escape(kind)}: {escape(summary.split(': ', 1)[-1])})", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
-            if report.licence:
-                out.print(f"[green]wrote[/] {escape(str(report.licence))}  (the source's licence)", highlight=False)  # wrapped at spaces to the width (80 in a pipe)
-        for note in report.notes:
-            err.print(f"[yellow]note:[/] {escape(note)}", highlight=False, soft_wrap=True)
+    app.command("import")(import_)

@@ -10,228 +10,150 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.markup import escape
-from rich.table import Table
+
+from . import api
+from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
+from .api import ModelRequest
+from .cli_common import CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out, out
+from .reporting.learn_tables import fit_tables, groups_table, sections_table
+from .reporting.tables import fit, sequence_table, show, summary_table
 
 __all__ = ["register"]
 
 
-def _numbers(text: str, field: str) -> tuple[float, ...]:
+@guarded
+def simulate(route: Path = ROUTE,
+             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
+             drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
+             runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
+             masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
+             times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], comma list (default: the route's schedule)."),
+             seed: int = typer.Option(1, "--seed", help="Random seed: the same seed gives the same logs."),
+             tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] the drivers aim within (default: the route's)."),
+             consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+             model: ModelRequest = MODEL_NO_STRICT):
+    """Simulate human drivers on ROUTE and write their logs, every one marked synthetic."""
     from .errors import InputError, Problem
+    from .io.load import load_consist, load_route
+    from .learn.drivers import SimulationSpec
+    from .reporting.logs import check_out_dir, simulate_drivers
 
-    try:
-        values = tuple(float(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise InputError(Problem("<command line>", field, f"expected a comma list of numbers, got {text!r}")) from None
-    if not values or min(values) <= 0:
-        raise InputError(Problem("<command line>", field, f"expected positive numbers, got {text!r}"))
-    return values
+    api.check_counts(drivers=drivers, runs=runs)
+    check_out_dir(out_dir)
+    opts = model.options()
+    r = load_route(route)
+    if times is None and r.schedule is None:
+        raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give --times"))
+    base, vehicles, files, _, _ = load_consist(consist, stock_dir)
+    spec = SimulationSpec(route, r, base, vehicles, files, api.positive_numbers(masses, "--masses"),
+                          api.positive_numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
+                          opts, tolerance)
+    with err.status("simulating drivers") as status:
+        summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
+    if as_json:
+        json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
+                       "groups": summary.groups, "drivers": summary.drivers})
+    else:
+        out.print(groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
 
+@guarded
+def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
+          out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
+          seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
+          divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
+          max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
+          folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
+          holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
+          load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t] (claim 3)."),
+          level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
+          stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL_NO_STRICT):
+    """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
+    Method: the patent on locomotive operation sequences from double-layer pattern curves."""
+    from .io.logs import load_logs
+    from .reporting.writers import write_json
+    from .learn.patterns import LearnSettings
+    from .learn.patterns import learn as run_learn
 
-def _groups_table(title: str, groups: list[dict]) -> Table:
-    table = Table(title=escape(title), title_justify="left")
-    for col in ("mass [t]", "planned [s]", "runs", "mean time [s]", "late / early", "energy mean [kWh]", "min", "max"):
-        table.add_column(escape(col), justify="right")
-    for g in groups:
-        table.add_row(f"{g['mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), f"{g['mean_time_s']:.1f}",
-                      f"{g['late_runs']} / {g['early_runs']}", f"{g['mean_energy_kwh']:.1f}", f"{g['min_energy_kwh']:.1f}",
-                      f"{g['max_energy_kwh']:.1f}")
-    return table
+    _check_outputs(out_file, plot, csv_ok=False)
+    settings = LearnSettings(divisions=divisions, level_permille=level, max_order=max_order, folds=folds,
+                             holdout_share=holdout, load_class_t=load_class, seed=seed)
+    settings.check()
+    opts = model.options()
+    runs = load_logs(logs, stock_dir)
+    learned = run_learn(runs, settings, opts)
+    data = learned.patterns.to_dict()
+    if plot:
+        from .reporting.plot_learn import plot_fit
 
+        plot_fit(plot, learned)
+    write_json(out_file, data)
+    if as_json:
+        json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
+                       "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
+    else:
+        for table in fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
+            show(out, fit(table, out.width, wrap=(0,)))
+        out.print(f"patterns written to {out_file}", highlight=False, markup=False)
 
-def _fit_tables(report: dict) -> list[Table]:
-    data = report["data"]
-    t1 = Table(title=escape(f"good drivers (claim 3): {data['good_runs']} good runs of {data['runs']} "
-                            f"({data['synthetic_runs']} synthetic), {data['drivers']} drivers"), title_justify="left")
-    for col in ("route", "mass [t]", "planned [s]", "runs", "drivers", "good drivers", "good runs",
-                "mean E [kWh]", "good mean E", "best E"):
-        t1.add_column(escape(col), justify="left" if col == "route" else "right")
-    for g in data["groups"]:
-        t1.add_row(g["route"], f"{g['mean_mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), str(g["drivers"]),
-                   str(g["good_drivers"]), str(g["good_runs"]), f"{g['mean_energy_kwh']:.1f}",
-                   "-" if g["good_mean_energy_kwh"] is None else f"{g['good_mean_energy_kwh']:.1f}", f"{g['best_energy_kwh']:.1f}")
-    up, lo = report["upper"], report["lower"]
-    t2 = Table(title=escape("order by cross-validation (folds of whole runs); CV error: share (upper), km/h (lower)"),
-               title_justify="left")
-    for col in ("layer", "order", "CV RMSE", "in-sample R²", "chosen"):
-        t2.add_column(escape(col), justify="left" if col == "layer" else "right")
-    for form, rows in up["cv"].items():
-        for r in rows:
-            t2.add_row(f"upper ({form})", str(r["order"]), f"{r['cv_rmse']:.5f}", f"{r['in_sample_r2']:.4f}",
-                       "<-" if form == up["form"] and r["order"] == up["order"] else "")
-    for r in lo["cv"]:
-        t2.add_row("lower", str(r["order"]), f"{r['cv_rmse']:.3f}", f"{r['in_sample_r2']:.4f}", "<-" if r["order"] == lo["order"] else "")
-    t3 = Table(title=escape(f"fit report: {report['heldout'].get('runs', 0)} held-out runs (never fitted), "
-                            f"{report['fit'].get('runs', 0)} fit runs"), title_justify="left")
-    for col in ("runs", "shares R²", "share RMSE", "section time MAE [s]", "speed R² (1 division)", "RMSE [km/h]",
-                "speed R² (chained)", "RMSE [km/h]"):
-        t3.add_column(escape(col), justify="right" if col != "runs" else "left")
-    for name in ("heldout", "fit"):
-        r = report[name]
-        if not r.get("runs"):
-            continue
-        u, l_ = r["upper"], r["lower"]
-        t3.add_row(f"{name} ({r['runs']})", f"{u['r2']:.4f}", f"{u['rmse_share']:.5f}", f"{u['mean_abs_error_s']:.1f}",
-                   f"{l_['one_step_r2']:.4f}", f"{l_['one_step_rmse_kmh']:.2f}", f"{l_['chained_r2']:.4f}",
-                   f"{l_['chained_rmse_kmh']:.2f}")
-    return [t1, t2, t3]
+@guarded
+def advise(route: Path = ROUTE,
+           patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
+           time_s: Optional[str] = TIME,
+           mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
+           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
+           out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
+           plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
+           tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
+           model: ModelRequest = MODEL):
+    """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
+    calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
+    from .cli_common import _emit, _fail_if
+    from .io.load import build_train, load_consist, load_route, load_train
+    from .learn.advise import advise as run_advise
+    from .learn.advise import check_model
+    from .learn.drivers import check_train_mass, consist_for_mass
+    from .io.patterns import read_patterns_file
+    from .learn.patterns import Patterns
+    from .runner import make_context, schedule_verdict, summarize, RunResult
+    from .strategy.strategies import StrategyOutcome
 
+    _check_outputs(out_file, plot)
+    opts = model.options()
+    if mass is not None:
+        check_train_mass(mass, "--mass")
+    pat = Patterns.from_dict(read_patterns_file(patterns), str(patterns))
+    check_model(pat, opts, str(patterns))
+    r = load_route(route)
+    if mass is None:
+        train = load_train(consist, stock_dir)
+    else:
+        base, vehicles, *_ = load_consist(consist, stock_dir)
+        train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
+    from .cli_common import _time
 
-def _sections_table(sections: list[dict]) -> Table:
-    table = Table(title="sections: time shares (upper layer) and speeds at the division points (lower layer)",
-                  title_justify="left")
-    for col in ("#", "type", "from [m]", "to [m]", "G [‰]", "share", "time [s]", "as run", "pattern [km/h] entry .. exit"):
-        table.add_column(escape(col), justify="left" if col in ("type", "pattern [km/h] entry .. exit") else "right")
-    for s in sections:
-        v = s["pattern_kmh"]
-        table.add_row(str(s["index"]), s["type"], f"{s['from_m']:.0f}", f"{s['to_m']:.0f}", f"{s['gradient_permille']:+.2f}",
-                      f"{s['share']:.4f}", f"{s['time_s']:.1f}", f"{s['realised_share']:.4f}",
-                      " ".join(f"{x:.0f}" for x in v))
-    return table
+    ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
+    a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
+    outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
+    summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
+    summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
+    _emit(summary, as_json, out_file, a.result.profile, r)
+    if plot:
+        from .reporting.plot_learn import plot_advice
+
+        from .reporting.plot import run_title
+
+        plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
+    if not as_json:
+        show(out, summary_table(summary, out.width) + fit(sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
+             + sequence_table(summary["sequence"], out.width))
+    _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
 
 
 def register(app: typer.Typer) -> None:
     """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
-    from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-    from .cli_common import (AIR, CONSIST, JSON, POINT_MASS, ROT, ROUTE, STEP, STOCK, STRICT, TIME, _check_outputs, _options, json_out,
-                             err, guarded, out)
-    from .io.tables import fit, sequence_table as _sequence_table, show, summary_table as _summary_table
-
     drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
+    drivers_app.command("simulate")(simulate)
     app.add_typer(drivers_app, name="drivers")
-
-    @drivers_app.command("simulate")
-    @guarded
-    def simulate(route: Path = ROUTE,
-                 out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
-                 drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
-                 runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
-                 masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
-                 times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], comma list (default: the route's schedule)."),
-                 seed: int = typer.Option(1, "--seed", help="Random seed: the same seed gives the same logs."),
-                 tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] the drivers aim within (default: the route's)."),
-                 consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-                 step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
-                 rotating_mass: Optional[float] = ROT):
-        """Simulate human drivers on ROUTE and write their logs, every one marked synthetic."""
-        from .errors import InputError, Problem
-        from .io.load import load_consist, load_route
-        from .io.report import to_json
-        from .learn.drivers import SimulationSpec
-        from .reporting.logs import check_out_dir, simulate_drivers
-
-        if drivers < 1 or runs < 1:
-            raise InputError(Problem("<command line>", "--drivers" if drivers < 1 else "--runs", "must be >= 1"))
-        check_out_dir(out_dir)
-        opts = _options(step, point_mass, rotating_mass, False, air_brake)
-        r = load_route(route)
-        if times is None and r.schedule is None:
-            raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give --times"))
-        base, vehicles, files, _, _ = load_consist(consist, stock_dir)
-        spec = SimulationSpec(route, r, base, vehicles, files, _numbers(masses, "--masses"),
-                              _numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
-                              opts, tolerance)
-        with err.status("simulating drivers") as status:
-            summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
-        if as_json:
-            json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
-                           "groups": summary.groups, "drivers": summary.drivers})
-        else:
-            out.print(_groups_table(f"{r.name}: {summary.n_runs} synthetic runs written to {summary.out_dir}", summary.groups))
-
-    @app.command("learn")
-    @guarded
-    def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml) or manifests."),
-              out_file: Path = typer.Option(..., "--out", help="The learned patterns, .json."),
-              plot: Optional[Path] = typer.Option(None, "--plot", help="Learned curves against the good drivers' data, .png, .svg or .pdf."),
-              seed: int = typer.Option(1, "--seed", help="Random seed (folds, held-out runs): the same seed gives the same patterns."),
-              divisions: int = typer.Option(8, "--divisions", help="p: equal divisions per section (speed points of the lower layer)."),
-              max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
-              folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
-              holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
-              load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t] (claim 3)."),
-              level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
-              stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, step: float = STEP, point_mass: bool = POINT_MASS,
-              air_brake: Optional[bool] = AIR, rotating_mass: Optional[float] = ROT):
-        """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
-        Method: the patent on locomotive operation sequences from double-layer pattern curves."""
-        from .io.report import atomic_write_text, to_json
-        from .io.logs import load_logs
-        from .learn.patterns import LearnSettings
-        from .learn.patterns import learn as run_learn
-
-        _check_outputs(out_file, plot, csv_ok=False)
-        settings = LearnSettings(divisions=divisions, level_permille=level, max_order=max_order, folds=folds,
-                                 holdout_share=holdout, load_class_t=load_class, seed=seed)
-        settings.check()
-        opts = _options(step, point_mass, rotating_mass, False, air_brake)
-        runs = load_logs(logs, stock_dir)
-        learned = run_learn(runs, settings, opts)
-        data = learned.patterns.to_dict()
-        if plot:
-            from .learn.plot import plot_fit
-
-            plot_fit(plot, learned)
-        atomic_write_text(out_file, to_json(data) + "\n")
-        if as_json:
-            json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
-                           "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})
-        else:
-            for table in _fit_tables(data["report"]):  # numbers whole, headers at their spaces, at any width
-                show(out, fit(table, out.width, wrap=(0,)))
-            out.print(f"patterns written to {out_file}", highlight=False, markup=False)
-
-    @app.command("advise")
-    @guarded
-    def advise(route: Path = ROUTE,
-               patterns: Path = typer.Option(..., "--patterns", help="Learned patterns.json (locoplan learn)."),
-               time_s: Optional[str] = TIME,
-               mass: Optional[float] = typer.Option(None, "--mass", help="Resize the consist's wagons to this mass [t] (default: the consist as it is)."),
-               consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
-               out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
-               plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
-               tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
-               step: float = STEP, point_mass: bool = POINT_MASS, air_brake: Optional[bool] = AIR,
-               rotating_mass: Optional[float] = ROT, strict_limits: bool = STRICT):
-        """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
-        calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
-        from .cli_common import _emit, _fail_if
-        from .io.load import build_train, load_consist, load_route, load_train
-        from .learn.advise import advise as run_advise
-        from .learn.advise import check_model
-        from .learn.drivers import check_train_mass, consist_for_mass
-        from .io.patterns import read_patterns_file
-        from .learn.patterns import Patterns
-        from .runner import make_context, schedule_verdict, summarize, RunResult
-        from .strategy.strategies import StrategyOutcome
-
-        _check_outputs(out_file, plot)
-        opts = _options(step, point_mass, rotating_mass, strict_limits, air_brake)
-        if mass is not None:
-            check_train_mass(mass, "--mass")
-        pat = Patterns.from_dict(read_patterns_file(patterns), str(patterns))
-        check_model(pat, opts, str(patterns))
-        r = load_route(route)
-        if mass is None:
-            train = load_train(consist, stock_dir)
-        else:
-            base, vehicles, *_ = load_consist(consist, stock_dir)
-            train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
-        from .cli_common import _time
-
-        ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
-        a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
-        outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
-        summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)
-        summary.update(speed_scale=round(a.scale, 4), patterns=str(patterns), sections=a.sections())
-        _emit(summary, as_json, out_file, a.result.profile, r)
-        if plot:
-            from .learn.plot import plot_advice
-
-            from .io.plot import run_title
-
-            plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
-        if not as_json:
-            show(out, _summary_table(summary, out.width) + fit(_sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
-                 + _sequence_table(summary["sequence"], out.width))
-        _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
+    app.command("learn")(learn)
+    app.command("advise")(advise)

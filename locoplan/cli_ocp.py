@@ -9,12 +9,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-
 import typer
 from rich.markup import escape
-from rich import box
-from rich.table import Table
 
+from . import api
+from .api import ModelRequest
+from .cli_common import ModelGroup, err, guarded, json_out, out
 from .ocp.registry import (
     DEFAULT_ENERGY_CONSIST,
     DEFAULT_METHOD,
@@ -26,205 +26,140 @@ from .ocp.registry import (
 
 __all__ = ["register"]
 
-
-def _summary_table(s: dict, width: int = 80) -> list:
-    from .io.tables import key_value_table
-
-    method = s["algorithm"] + (f" (stage 2: {s['stage2']})" if s["stage2"] else "")
-    nodes = f"{s['control_nodes']} control" + (f" / {s['state_nodes']} state" if s["state_nodes"] else "")
-    if s["algorithm"] == "two-stage":
-        nodes += f" (stage 2: {s['final_control_nodes']} / {s['final_state_nodes']}, {s['segments']} segments)"
-    confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({escape(str(s['reason']))})"
-    rows = [
-        ("method", method), ("nodes", nodes), ("problem", f"{s['length_m']:g} m, {s['gradient_permille']:g} ‰, "
-                                                         f"limit {s['speed_limit_kmh']:g} km/h, force "
-                                                         f"{s['force_bounds_kn'][0]:g}..{s['force_bounds_kn'][1]:g} kN"),
-        ("objective (NLP)", f"{s['objective']:.4f} s" if s["objective"] is not None else "-"),
-        ("exact minimum", f"{s['exact_minimum_s']:.4f} s (gap {s['gap_to_exact_s']:+.4f} s)"),
-        ("re-simulated", "does not arrive" if s["resimulated_running_time_s"] is None
-         else f"{s['resimulated_running_time_s']:.4f} s"),
-        ("max overspeed", f"{s['max_limit_violation_kmh']:.3f} km/h"),
-        ("confirmed", confirmed),
-    ]
-    if s["feasible"]:
-        rows += [("running time", f"{s['running_time_s']:.3f} s"),
-                 ("traction energy", f"{s['traction_energy_kwh']:.3f} kWh")]
-    rows += [("IPOPT", f"{s['status']}, {s['iterations']} iterations"), ("solve time", f"{s['solve_time_s']:.3f} s")]
-    if s.get("force_bounds_note"):
-        rows.append(("note", escape(s["force_bounds_note"])))
-    return key_value_table(f"{s['route']}\n{s['consist']}", rows, width)
+ENERGY_MODEL = ModelGroup({
+    "step": "Energy: grid of the traction calculator that checks the plan [m].",
+    "point_mass": "Energy: the papers' point-mass train, braked by its locomotives alone.",
+    "air_brake": "Energy: brake with the wagons' air brakes too (default: on, off with --point-mass).",
+    "rotating_mass": "Energy: uniform rotating-mass allowance gamma (default: each vehicle's own factor).",
+    "strict_limits": "Energy: the checking calculator fails a plan that coasts up to a limit.",
+}, step_m=50.0)
+"""``ocp``'s model options: they shape the energy objective's train (the minimum-time problem is the
+seed's point mass on one gradient)."""
 
 
-_STUDY_HEADS = ("method", "u / x", "stage 2 u / x", "objective", "re-sim.", "- exact", "solve", "ok",
-                "seed obj.", "seed solve")
+methods = ", ".join(OCP_METHODS)
 
 
-def _study_tables(study) -> list[Table]:
-    """One compact table per seed table (2: level, 3: 30 per mille); full columns are in --out .md."""
-    tables = []
-    for tab in sorted({r["table"] for r in study.rows}):
-        rows = [r for r in study.rows if r["table"] == tab]
-        grade = rows[0]["gradient_permille"]
-        table = Table(title=f"Seed 000 Table {tab} ({'level' if grade == 0 else format(grade, 'g') + ' ‰'}, exact "
-                            f"minimum {study.exact[tab]:.4f} s): times in s, solve = median of {study.repeats}",
-                      title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
-        for col in _STUDY_HEADS:
-            table.add_column(col, justify="left" if col in ("method", "stage 2 u / x") else "right")
-        for r in rows:
-            st2 = f"{r['final_control_nodes']} / {r['final_state_nodes']} ({r['segments']})" if r["algorithm"] == "two-stage" else "-"
-            nodes = f"{r['control_nodes']}" + (f" / {r['state_nodes']}" if r["state_nodes"] else "")
-            gap = "-" if r["gap_to_exact_s"] is None else f"{r['gap_to_exact_s']:+.3f}"
-            resim = "-" if r["resimulated_running_time_s"] is None else f"{r['resimulated_running_time_s']:.3f}"
-            table.add_row(r["label"], nodes, st2, f"{r['objective']:.3f}", resim, gap, f"{r['solve_time_s']:.3f}",
-                          "[green]yes[/]" if r["feasible"] else "[red]no[/]",
-                          f"{r['seed_objective_s']:.2f}" if r.get("seed_objective_s") else "-",
-                          f"{r['seed_solve_time_s']:.2f}" if r.get("seed_solve_time_s") else "-")
-        tables.append(table)
-    return tables
+@guarded
+def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective time: one gradient and one speed limit)."),
+        consist: Optional[str] = typer.Option(None, "--consist", help=f"Consist YAML file or catalogue name (default: {DEFAULT_OCP_CONSIST} for time, {DEFAULT_ENERGY_CONSIST} for energy).", show_default=False),
+        stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
+        objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)}."),
+        method: Optional[str] = typer.Option(None, "--method", help=f"Transcription: {methods} (default: two-stage for time, radau for energy).", show_default=False),
+        nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the paper's 17 / 34 / 20)."),
+        state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
+        stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the paper's)."),
+        time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
+        mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
+        max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
+        efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),
+        regen: float = typer.Option(0.0, "--regen", help="Energy: credited share of the electric brake's work (the air brake returns nothing)."),
+        comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (a comfort bound; off by default)."),
+        model: ModelRequest = ENERGY_MODEL,
+        as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
+        out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
+        plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png, .svg or .pdf."),
+        ):
+    """Optimal control: the minimum running time, or the minimum traction energy in a running time
+    (--objective energy); checked by re-simulation (exit 1 if not confirmed). Methods: Liu Ping et al.,
+    two-stage adaptive Gauss collocation pseudospectral method (time); multi-phase Radau control after
+    Bai Yun et al., energy-saving high-speed train operation (energy)."""
+    from .io.load import load_route, load_train
+    from .ocp.min_time_run import check_options, solve_ocp
+    from .reporting.ocp_study import check_output_path, write_ocp_output
 
+    method = method or DEFAULT_METHOD.get(objective, "two-stage")
+    if objective == "energy":
+        check_options(method, None, None, stage2, objective)
+        from .cli_energy import run_energy_ocp
 
-def _ratio_table(study) -> Table:
-    pairs = [(p["table"], p["test"]) for p in study.ratios[0]["per_test"]] if study.ratios else []
-    table = Table(title="solve-time reduction of two-stage in per cent: measured here (seed's Tables)",
-                  title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
-    table.add_column("two-stage")
-    table.add_column("vs")
-    for tab, test in pairs:
-        table.add_column(f"T{tab} test {test}", justify="right")
-    for col in ("mean", "seed mean", "seed claim"):
-        table.add_column(col, justify="right")
-    for r in study.ratios:
-        cells = [f"{p['percent']:.1f} ({p['seed_percent']:.1f})" for p in r["per_test"]]
-        table.add_row(r["two_stage"], r["versus"].upper(), *cells, f"{r['mean_percent']:.1f}",
-                      f"{r['seed_tables_mean_percent']:.2f}", f"{r['seed_claim_percent']:.2f}")
-    return table
+        run_energy_ocp(route, consist or DEFAULT_ENERGY_CONSIST, stock_dir, time_s, mesh_tol, max_phase_degree,
+                       efficiency, regen, comfort, model, as_json, out_file, plot, nodes, state_nodes)
+        return
+    check_options(method, nodes, state_nodes, stage2, objective)
+    check_output_path(out_file, "--out", (".csv", ".json"))
+    check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
+    r = load_route(route)
+    train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
+    run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
+                    route_file=route)
+    if out_file and out_file.suffix.lower() == ".csv":  # the profile's columns in the order of every command's CSV
+        from .reporting.files import atomic_write_text
+        from .reporting.writers import PROFILE_COLUMNS, rows_csv
+
+        atomic_write_text(out_file, rows_csv(run.profile_rows(), PROFILE_COLUMNS))
+    elif out_file:
+        write_ocp_output(out_file, run)
+    if plot:
+        from .reporting.plot_ocp import plot_run
+
+        plot_run(plot, run)
+    if as_json:
+        json_out(run.summary)
+    else:
+        from .reporting.ocp_tables import time_summary_table
+        from .reporting.tables import show
+
+        show(out, time_summary_table(run.summary, out.width))
+    if api.confirmed_verdict(run.feasible, run.summary["reason"]).exit_code:
+        err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
+                  f"{escape(run.summary['reason'])}", highlight=False, soft_wrap=True)
+        raise typer.Exit(api.EXIT_FAILED)
+
+@guarded
+def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
+              repeats: int = typer.Option(1, "--repeats", help="Solves per row; the solve time is their median."),
+              as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
+              out_file: Optional[Path] = typer.Option(None, "--out", help="Study as .json, .csv (one line per row) or .md."),
+              plot: Optional[Path] = typer.Option(None, "--plot", help="Control curves and solve times, .png, .svg or .pdf."),
+              ):
+    """Minimum running time by CVP 20/40, GPM 34/48 and two-stage 17/24 collocation (hp and the paper's
+    global stage 2), side by side. Method: Liu Ping et al., optimal operation of electric locomotives by a
+    two-stage adaptive Gauss collocation pseudospectral method (its Tables 2-3)."""
+    from .io.load import load_route, load_train
+    from .ocp.seed000 import run_study
+    from .reporting.ocp_study import check_output_path, write_study_output
+
+    from .bounds import count
+
+    count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
+    check_output_path(out_file, "--out", (".json", ".csv", ".md"))
+    check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
+    from .cli_common import step_progress
+    from .ocp.registry import STUDY_ROUTES, study_route_files
+    from .ocp.seed000 import STUDY_RUNS
+
+    with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
+                       not as_json) as step:
+        train = load_train(consist)
+        routes = {k: (load_route(p), p) for k, p in study_route_files().items()}
+        study = run_study(train, routes, repeats=repeats, progress=step)
+    if out_file:
+        write_study_output(out_file, study)
+    if plot:
+        from .reporting.plot_ocp import plot_study
+
+        plot_study(plot, study)
+    if as_json:
+        json_out(study.to_dict())
+    else:
+        from .reporting.ocp_tables import ratio_table, study_tables
+        from .reporting.tables import fit, show
+
+        # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
+        for table in study_tables(study):
+            show(out, fit(table, out.width, drop=(9, 8, 2)))
+        ratios = ratio_table(study)
+        n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, seed mean, seed claim
+        show(out, fit(ratios, out.width, drop=(n + 4, n + 3, *range(n + 1, 1, -1))))  # the mean stays
+        out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
+        for r in study.rows:
+            if not r["feasible"]:
+                out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {escape(r['reason'])}",
+                          highlight=False)  # wrapped at spaces to the width
 
 
 def register(app: typer.Typer) -> None:
     """Add the ``ocp`` and ``ocp-study`` commands to ``app``."""
-    from .cli_common import err, guarded, json_out, out
-    from .io.report import to_json
-
-    methods = ", ".join(OCP_METHODS)
-
-    @app.command("ocp")
-    @guarded
-    def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective time: one gradient and one speed limit)."),
-            consist: Optional[str] = typer.Option(None, "--consist", help=f"Consist YAML file or catalogue name (default: {DEFAULT_OCP_CONSIST} for time, {DEFAULT_ENERGY_CONSIST} for energy).", show_default=False),
-            stock_dir: Optional[Path] = typer.Option(None, "--stock-dir", help="Folder of vehicle files searched first."),
-            objective: str = typer.Option("time", "--objective", help=f"Objective: {', '.join(OBJECTIVES)}."),
-            method: Optional[str] = typer.Option(None, "--method", help=f"Transcription: {methods} (default: two-stage for time, radau for energy).", show_default=False),
-            nodes: Optional[int] = typer.Option(None, "--nodes", help="Control nodes (default: the paper's 17 / 34 / 20)."),
-            state_nodes: Optional[int] = typer.Option(None, "--state-nodes", help="State LG points (default: two-stage 2 x nodes, even; gpm = nodes)."),
-            stage2: str = typer.Option("hp", "--stage2", help=f"Stage 2 of two-stage (ignored by the other methods): {', '.join(STAGE2_MODES)} (global = the paper's)."),
-            time_s: Optional[str] = typer.Option(None, "--time", help="Energy: planned running time T [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule)."),
-            mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Energy: relative discretisation error the hp refinement reaches."),
-            max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Energy: most LGR points per mesh interval."),
-            efficiency: Optional[str] = typer.Option(None, "--efficiency", help="Energy: traction efficiency, a number or speed_kmh:eta pairs (default: work at the wheel)."),
-            regen: float = typer.Option(0.0, "--regen", help="Energy: credited share of the electric brake's work (the air brake returns nothing)."),
-            comfort: Optional[float] = typer.Option(None, "--comfort", help="Energy: largest acceleration / deceleration [m/s^2] (a comfort bound; off by default)."),
-            step: float = typer.Option(50.0, "--step", help="Energy: grid of the traction calculator that checks the plan [m]."),
-            point_mass: bool = typer.Option(False, "--point-mass/--no-point-mass", help="Energy: the papers' point-mass train, braked by its locomotives alone."),
-            air_brake: Optional[bool] = typer.Option(None, "--air-brake/--no-air-brake", help="Energy: brake with the wagons' air brakes too (default: on, off with --point-mass).", show_default=False),
-            rotating_mass: Optional[float] = typer.Option(None, "--rotating-mass", help="Energy: uniform rotating-mass allowance gamma (default: each vehicle's own factor).", show_default=False),
-            strict_limits: bool = typer.Option(False, "--strict-limits/--no-strict-limits", help="Energy: the checking calculator fails a plan that coasts up to a limit."),
-            as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
-            out_file: Optional[Path] = typer.Option(None, "--out", help="Re-simulated profile as .csv, or summary + profile as .json."),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="Time: control and state curves; energy: speed, limit, forces, neutral sections and the mesh. .png, .svg or .pdf."),
-            ):
-        """Optimal control: the minimum running time, or the minimum traction energy in a running time
-        (--objective energy); checked by re-simulation (exit 1 if not confirmed). Methods: Liu Ping et al.,
-        two-stage adaptive Gauss collocation pseudospectral method (time); multi-phase Radau control after
-        Bai Yun et al., energy-saving high-speed train operation (energy)."""
-        from .io.load import load_route, load_train
-        from .ocp.min_time_run import check_options, solve_ocp
-        from .reporting.ocp_study import check_output_path, write_ocp_output
-
-        method = method or DEFAULT_METHOD.get(objective, "two-stage")
-        if objective == "energy":
-            check_options(method, None, None, stage2, objective)
-            from .cli_energy import run_energy_ocp
-
-            run_energy_ocp(route, consist or DEFAULT_ENERGY_CONSIST, stock_dir, time_s, mesh_tol, max_phase_degree,
-                           efficiency, regen, comfort, step, point_mass, air_brake, rotating_mass, strict_limits,
-                           as_json, out_file, plot, nodes, state_nodes)
-            return
-        check_options(method, nodes, state_nodes, stage2, objective)
-        check_output_path(out_file, "--out", (".csv", ".json"))
-        check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
-        r = load_route(route)
-        train = load_train(consist or DEFAULT_OCP_CONSIST, stock_dir)
-        run = solve_ocp(r, train, method, nodes, state_nodes=state_nodes, stage2=stage2, objective=objective,
-                        route_file=route)
-        if out_file and out_file.suffix.lower() == ".csv":  # the profile's columns in the order of every command's CSV
-            from .io.report import PROFILE_COLUMNS, atomic_write_text, rows_csv
-
-            atomic_write_text(out_file, rows_csv(run.profile_rows(), PROFILE_COLUMNS))
-        elif out_file:
-            write_ocp_output(out_file, run)
-        if plot:
-            from .ocp.plot import plot_run
-
-            plot_run(plot, run)
-        if as_json:
-            json_out(run.summary)
-        else:
-            from .io.tables import show
-
-            show(out, _summary_table(run.summary, out.width))
-        if not run.feasible:
-            err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
-                      f"{escape(run.summary['reason'])}", highlight=False, soft_wrap=True)
-            raise typer.Exit(1)
-
-    @app.command("ocp-study")
-    @guarded
-    def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help="Consist YAML file or catalogue name."),
-                  repeats: int = typer.Option(1, "--repeats", help="Solves per row; the solve time is their median."),
-                  as_json: bool = typer.Option(False, "--json", help="Machine-readable result on stdout (nothing else there)."),
-                  out_file: Optional[Path] = typer.Option(None, "--out", help="Study as .json, .csv (one line per row) or .md."),
-                  plot: Optional[Path] = typer.Option(None, "--plot", help="Control curves and solve times, .png, .svg or .pdf."),
-                  ):
-        """Minimum running time by CVP 20/40, GPM 34/48 and two-stage 17/24 collocation (hp and the paper's
-        global stage 2), side by side. Method: Liu Ping et al., optimal operation of electric locomotives by a
-        two-stage adaptive Gauss collocation pseudospectral method (its Tables 2-3)."""
-        from .io.load import load_route, load_train
-        from .ocp.seed000 import run_study
-        from .reporting.ocp_study import check_output_path, write_study_output
-
-        from .bounds import count
-
-        count(repeats, "--repeats", 1, 100, "solves per row, whose median is the solve time (each row takes seconds)")
-        check_output_path(out_file, "--out", (".json", ".csv", ".md"))
-        check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
-        from .cli_common import step_progress
-        from .ocp.registry import STUDY_ROUTES, study_route_files
-        from .ocp.seed000 import STUDY_RUNS
-
-        with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
-                           not as_json) as step:
-            train = load_train(consist)
-            routes = {k: (load_route(p), p) for k, p in study_route_files().items()}
-            study = run_study(train, routes, repeats=repeats, progress=step)
-        if out_file:
-            write_study_output(out_file, study)
-        if plot:
-            from .ocp.plot import plot_study
-
-            plot_study(plot, study)
-        if as_json:
-            json_out(study.to_dict())
-        else:
-            from .io.tables import fit, show
-
-            # at 80 columns the least needed columns are left out (a note names them; --out .md has all)
-            for table in _study_tables(study):
-                show(out, fit(table, out.width, drop=(9, 8, 2)))
-            ratios = _ratio_table(study)
-            n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, seed mean, seed claim
-            show(out, fit(ratios, out.width, drop=(n + 4, n + 3, *range(n + 1, 1, -1))))  # the mean stays
-            out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
-            for r in study.rows:
-                if not r["feasible"]:
-                    out.print(f"[red]not confirmed[/] Table {r['table']} {r['label']} {r['control_nodes']}: {escape(r['reason'])}",
-                              highlight=False)  # wrapped at spaces to the width
+    app.command("ocp")(ocp)
+    app.command("ocp-study")(ocp_study)

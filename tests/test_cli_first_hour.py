@@ -242,7 +242,7 @@ def test_plots_as_pdf(tmp_path):
 def test_profile_csv_has_the_files_limit_and_gradient_beside_the_trains(tmp_path, freight):
     import csv
 
-    from locoplan.io.report import section_values
+    from locoplan.reporting.writers import section_values
 
     out = tmp_path / "p.csv"
     assert runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out)]).exit_code == 0
@@ -268,7 +268,7 @@ def test_plot_marks_the_line_and_labels_both_limits(root):
     import numpy as np
 
     from locoplan.io.load import load_route, load_train
-    from locoplan.io.plot import draw_profiles
+    from locoplan.reporting.plot import draw_profiles
 
     route = load_route(root / "routes/freight-20km-ns.yaml")
     calc = TractionCalculator(route, load_train(root / "configs/consists/HXD1-C80x50.yaml"), ModelOptions())
@@ -291,7 +291,7 @@ def test_plot_marks_the_line_and_labels_both_limits(root):
 
 
 def test_one_colour_per_strategy_in_a_figure():
-    from locoplan.io.plot import _colour
+    from locoplan.reporting.plot import _colour
 
     profiles = [("time-saving", None), ("four-stage", None), ("proposed", None)]
     assert _colour("proposed", profiles) == _colour("proposed", profiles)
@@ -380,7 +380,7 @@ def test_box_plot_axis_reads_plain_per_cents():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from locoplan.io.plot_runs import _plain_ticks
+    from locoplan.reporting.plot_runs import _plain_ticks
 
     fig, ax = plt.subplots()
     ax.boxplot([[0.1, 0.5, 3.0, 40.0]])
@@ -399,7 +399,7 @@ def test_convergence_curve_ends_at_the_reported_value(tmp_path):
 
     matplotlib.use("Agg")
     from locoplan.io.load import load_route, load_train
-    from locoplan.io.plot import plot_profiles
+    from locoplan.reporting.plot import plot_profiles
     from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
     route = load_route("routes/freight-20km.yaml")

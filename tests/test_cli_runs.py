@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from locoplan.cli import app
-from locoplan.io.report import PROFILE_COLUMNS, RUN_COLUMNS
+from locoplan.reporting.writers import PROFILE_COLUMNS, RUN_COLUMNS
 from locoplan.runner import make_context
 from locoplan.sim.calculator import ModelOptions
 

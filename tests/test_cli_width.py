@@ -13,7 +13,7 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from locoplan.cli import app
-from locoplan.io.tables import Line, compare_tables, show, study_table, summary_table, sweep_table
+from locoplan.reporting.tables import Line, compare_tables, show, study_table, summary_table, sweep_table
 
 runner = CliRunner()
 LONG_PLAN = "T:0,K:930,C:3256.2,T:4746,C:6238,T:11673.8,C:12947.7,K:14100.5,C:15300.5,T:16000,C:17000.5,B"
@@ -174,7 +174,7 @@ def test_plot_of_a_stalled_plan_ends_where_it_stalls(root, tmp_path):
     import numpy as np
 
     from locoplan.io.load import load_route, load_train
-    from locoplan.io.plot import ENERGY, FITNESS, draw_profiles, plot_profiles, run_title
+    from locoplan.reporting.plot import ENERGY, FITNESS, draw_profiles, plot_profiles, run_title
     from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
     route, train = load_route(root / "routes/freight-20km.yaml"), load_train(root / "configs/consists/HXD1-C80x50.yaml")
@@ -203,7 +203,7 @@ def test_fit_leaves_out_columns_rather_than_split_a_number():
     columns): more whole columns go, the last first, and every number stays on one line."""
     from rich.table import Table
 
-    from locoplan.io.tables import fit
+    from locoplan.reporting.tables import fit
 
     t = Table(title="wide")
     numbers = [f"{-13.123456 * (k + 1):.6f}" for k in range(12)]

@@ -309,7 +309,7 @@ def test_learning_is_deterministic_for_a_seed(sim_logs, tmp_path):
 
 
 def test_fit_report_and_plot(learned, tmp_path):
-    from locoplan.learn.plot import plot_fit
+    from locoplan.reporting.plot_learn import plot_fit
 
     rep = learned.patterns.report
     assert rep["heldout"]["runs"] >= 1 and rep["data"]["good_runs"] == rep["heldout"]["runs"] + rep["fit"]["runs"]
@@ -319,7 +319,7 @@ def test_fit_report_and_plot(learned, tmp_path):
 
 
 def test_patterns_file_round_trip_and_bad_file(learned, tmp_path):
-    from locoplan.io.report import to_json
+    from locoplan.reporting.writers import to_json
 
     f = tmp_path / "p.json"
     f.write_text(to_json(learned.patterns.to_dict()))
@@ -350,7 +350,7 @@ def test_advice_is_checked_by_the_calculator_and_meets_the_time(learned, base):
 
 
 def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
-    from locoplan.io.report import to_json
+    from locoplan.reporting.writers import to_json
 
     monkeypatch.chdir(ROOT)
     out, _ = sim_logs

@@ -244,7 +244,7 @@ def test_the_force_axis_is_not_squashed_by_the_braking_bound(small_run, tmp_path
     """The energy plot's force axis spans the traction bound and the braking used, down to at most the
     traction bound below zero; the consist's braking bound (about 1,700 kN with the air brakes against
     760 kN of traction) and a full-braking stop are cut there and named."""
-    from locoplan.ocp.plot import force_axis_kn, plot_energy_run
+    from locoplan.reporting.plot_ocp import force_axis_kn, plot_energy_run
 
     lo, hi, note = force_axis_kn(np.array([0.0, 500.0]), np.array([0.0, 120.0]), np.array([760.0, 600.0]),
                                  np.array([1700.0, 1600.0]))

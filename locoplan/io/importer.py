@@ -67,7 +67,7 @@ def _writable(folder: Path) -> bool:
 def check_out_dir(out_dir: Path) -> None:
     """The output folder is a writable folder, or is missing and can be created (the one rule for output
     folders: created when the files are written)."""
-    from .report import existing_folder
+    from ..reporting.files import existing_folder
 
     where = str(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
@@ -126,7 +126,7 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
     licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
     if licence_name:
         _check_target(out_dir, ImportedFile(licence_name, "licence", "", "", str(imported.licence)))
-    from .report import make_folder
+    from ..reporting.files import make_folder
 
     make_folder(out_dir, str(out_dir), "--out")  # a missing output folder is made (nothing was refused)
     try:

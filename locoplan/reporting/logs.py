@@ -13,7 +13,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import InputError, Problem
-from ..io.report import existing_folder, make_folder
+from .files import existing_folder, make_folder
 from ..learn.drivers import SimulatedLogs, SimulationSpec, simulate_logs
 from ..model.consist import Consist
 from ..model.logs import MANIFEST_NAME, REQUIRED_COLUMNS, LogData

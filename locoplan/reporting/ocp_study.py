@@ -9,19 +9,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..io.report import atomic_write_text, rows_csv, to_json
+from .files import atomic_write_text, check_output_path
+from .writers import rows_csv, to_json
 from ..ocp.min_time_run import PROFILE_COLUMNS, OcpRun
 from ..ocp.seed000 import Study
 
 __all__ = ["STUDY_COLUMNS", "check_output_path", "study_cells", "study_markdown", "write_ocp_output",
            "write_study_output"]
-
-
-def check_output_path(path: str | Path | None, flag: str, suffixes: tuple[str, ...]) -> None:
-    """Fail early (before solving) on an output file with the wrong suffix or a missing folder."""
-    from ..io.report import check_output
-
-    check_output(path, flag, suffixes)
 
 
 def write_ocp_output(path: str | Path, run: OcpRun) -> None:

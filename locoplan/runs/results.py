@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..io.report import atomic_write, atomic_write_text, clean, csv_row, to_json
+from ..reporting.files import atomic_write, atomic_write_text
+from ..reporting.writers import clean, csv_row, to_json
 
 FORMATS = ("csv", "parquet", "json")
 _OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt,

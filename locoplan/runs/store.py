@@ -34,7 +34,8 @@ from urllib.parse import quote
 
 from .. import __version__
 from ..errors import InputError, Problem
-from ..io.report import clean, existing_folder, make_folder
+from ..reporting.files import existing_folder, make_folder
+from ..reporting.writers import clean
 from .spec import RunRecord
 
 STORE_FORMAT = 1

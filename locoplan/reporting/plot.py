@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError, Problem
 from ..sim.result import Profile
-from .report import atomic_write
+from .files import atomic_write
 
 COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
 
@@ -144,7 +144,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
     gradient on ``axg``. With ``route``: the file's limit and gradient too (labelled as such, where they
     differ from the train's), and the line's stations, neutral sections, tunnels and curves."""
     from ..sim.result import CONDITIONS
-    from .report import section_values
+    from .writers import section_values
 
     ref = profiles[0][1]
     s_km = ref.s_m / 1000.0

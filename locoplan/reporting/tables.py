@@ -120,7 +120,7 @@ def describe_data(model, path: str, stock_dir: Optional[Path]) -> dict:
     """A validated file described as data (``validate --json``): its kind and what it holds, in the
     files' own units (route: length, sections, schedule; vehicle: mass, length, top speed; consist: the
     resolved train)."""
-    from .load import load_train
+    from ..io.load import load_train
 
     kind = type(model).__name__
     if kind == "Route":

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from ..errors import InputError, Problem
-from .report import atomic_write
+from .files import atomic_write
 
 
 def _pyplot():

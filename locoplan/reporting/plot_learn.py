@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.plot import check_plot_path, draw_profiles
-from ..io.report import atomic_write
-from .patterns import Learned, smooth_curve
+from .plot import check_plot_path, draw_profiles
+from .files import atomic_write
+from ..learn.patterns import Learned, smooth_curve
 
 
 def _figure():

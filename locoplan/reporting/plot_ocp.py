@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..io.report import atomic_write
+from .files import atomic_write
 
 __all__ = ["plot_energy_run", "plot_energy_time", "plot_run", "plot_study"]
 
@@ -26,7 +26,7 @@ def _figure_path(path) -> tuple[Path, str]:
     path = Path(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise InputError(Problem(str(path), "--plot", "use a .png, .svg or .pdf file name"))
-    from ..io.report import existing_folder
+    from .files import existing_folder
 
     existing_folder(path.parent if str(path.parent) else Path("."), str(path), "--plot")  # created on writing
     return path, path.suffix.lower().lstrip(".")

@@ -1,0 +1,369 @@
+"""The decisions of the command line, as library functions: a script that calls these gets the same
+checks, planned running times, tolerances and exit codes as ``locoplan`` does.
+
+Nothing here prints or exits. A check raises :class:`~locoplan.errors.InputError` (exit 2); a run that
+does not do its job is a message in a :class:`Verdict` (exit 1). The command line (``cli*.py``) parses
+its options into these calls and prints what comes back; tables and files are in
+:mod:`locoplan.reporting`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Optional
+
+from . import bounds
+from .errors import InputError, LocoplanError, Problem
+from .sim.calculator import DEFAULT_STEP_M, ModelOptions
+
+EXIT_OK, EXIT_FAILED, EXIT_INVALID = 0, 1, 2
+"""Exit codes (SPEC section 3): every result does its job; a valid request whose result does not (no
+feasible plan, a timetabled plan outside its window, an optimum not confirmed); invalid input."""
+
+VERDICTS = {EXIT_OK: "ok", EXIT_FAILED: "failed", EXIT_INVALID: "invalid input"}
+"""Exit code -> the ``verdict`` of every --json object."""
+
+CMDLINE = bounds.CMDLINE
+
+
+# ------------------------------------------------------------------------------------------ the train model
+@dataclass(frozen=True)
+class ModelRequest:
+    """The train-model switches as a user gives them (the command line's model options, once).
+
+    step_m: reporting grid [m]; point_mass: the papers' point mass; air_brake: None = on, off with
+    ``point_mass``; rotating_mass: gamma in [0, 1), None = each vehicle's own factor; strict_limits:
+    coasting up to a limit makes a plan infeasible. :meth:`options` checks them and gives the
+    calculator's :class:`~locoplan.sim.calculator.ModelOptions`.
+    """
+
+    step_m: float = DEFAULT_STEP_M
+    point_mass: bool = False
+    air_brake: Optional[bool] = None
+    rotating_mass: Optional[float] = None
+    strict_limits: bool = False
+
+    def options(self) -> ModelOptions:
+        bounds.step(self.step_m)
+        if self.rotating_mass is not None and not 0 <= self.rotating_mass < 1:
+            raise InputError(Problem(CMDLINE, "--rotating-mass", f"must be in [0, 1) (got {self.rotating_mass:g})"))
+        air = (not self.point_mass) if self.air_brake is None else self.air_brake
+        return ModelOptions(step_m=self.step_m, point_mass=self.point_mass, air_brake=air,
+                            rotating_mass=self.rotating_mass, strict_limits=self.strict_limits)
+
+
+# ------------------------------------------------------------------------------------------ option values
+def names(text: str, option: str) -> list[str]:
+    """A comma list of names (strategies, optimisers, fields): at least one."""
+    found = [x.strip() for x in text.split(",") if x.strip()]
+    if not found:
+        raise InputError(Problem("", option, "name at least one"))
+    return found
+
+
+def weights(text: str, option: str = "--weights") -> tuple[float, float]:
+    """Fitness weights ``w_time,w_energy``."""
+    return bounds.weights(text, option)
+
+
+def value_grid(text: str, option: str) -> list[float]:
+    """``'0.1:0.9:0.1'`` (start:stop:step, inclusive) or ``'1470,1500,1530'``: time weights
+    (``--weight-grid``), factors of the fastest run (``--factors``, 1 .. 10) or running times [s]."""
+    if option == "--weight-grid":
+        return bounds.values(text, option, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
+    if option == "--factors":
+        return bounds.values(text, option, 1.0, 10.0, why="a factor of the fastest run")
+    return bounds.values(text, option, *bounds.LIMITS["time_s"], "s", "a planned running time")
+
+
+def positive_numbers(text: str, option: str) -> tuple[float, ...]:
+    """A comma list of positive numbers (``--masses``, ``--times`` of the drivers' simulation)."""
+    try:
+        values = tuple(float(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise InputError(Problem(CMDLINE, option, f"expected a comma list of numbers, got {text!r}")) from None
+    if not values or min(values) <= 0:
+        raise InputError(Problem(CMDLINE, option, f"expected positive numbers, got {text!r}"))
+    return values
+
+
+def seed_list(text: str, option: str = "--seeds") -> tuple[int, ...]:
+    """A comma list of whole-number seeds."""
+    try:
+        return tuple(int(x) for x in names(text, option))
+    except ValueError:
+        raise InputError(Problem("", option, f"expected whole numbers, e.g. 1,2,3 (got {text!r})")) from None
+
+
+def one_of(first: Optional[object], second: Optional[object], option: str, message: str,
+           exactly: bool = False) -> None:
+    """Two options that exclude each other: not both (``exactly``: and not neither)."""
+    if (first is not None and second is not None) or (exactly and first is None and second is None):
+        raise InputError(Problem(CMDLINE if exactly else "", option, message))
+
+
+def check_choice(value: Optional[str], choices: Iterable[str], option: str, what: str) -> None:
+    """``value`` (None: not given) is one of ``choices``."""
+    choices = list(choices)
+    if value is not None and value not in choices:
+        raise InputError(Problem("", option, f"unknown {what} {value!r} (one of: {', '.join(choices)})"))
+
+
+def check_fields(wanted: Iterable[str], fields: Iterable[str], option: str) -> None:
+    """Every field of ``wanted`` (a summary's grouping) is one the rows have."""
+    fields = set(fields)
+    unknown = [g for g in wanted if g not in fields]
+    if unknown:
+        raise InputError(Problem("", option, f"unknown field {unknown[0]!r} (fields: {', '.join(sorted(fields))})"))
+
+
+# ------------------------------------------------------------------------------------------ validate
+@dataclass
+class Validation:
+    """``validate``: per file ``{"file", "valid", ...}`` (valid: ``kind``, ``summary``, ``description``,
+    ``warnings``; else ``problems``), every problem and every warning (implausible but valid)."""
+
+    results: list[dict]
+    problems: list[Problem]
+    warnings: list[Problem]
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_INVALID if self.problems else EXIT_OK
+
+    def to_dict(self) -> dict:
+        from dataclasses import asdict
+
+        return {"valid": not self.problems, "results": self.results, "problems": [asdict(p) for p in self.problems],
+                "warnings": [asdict(w) for w in self.warnings]}
+
+
+def validate_files(files: Iterable, stock_dir=None) -> Validation:
+    """Check route, vehicle and consist files (and the ``--stock-dir`` folder); every problem of every
+    file is collected, none is raised."""
+    from dataclasses import asdict
+
+    from .io.load import check_folder, read_yaml, route_warnings, validate_data
+    from .reporting.tables import describe, describe_data
+
+    report = Validation([], [], [])
+    try:
+        if stock_dir is not None:
+            check_folder(stock_dir, "--stock-dir")
+    except InputError as exc:
+        report.problems += exc.problems
+    for f in files:
+        try:
+            data, lines = read_yaml(f)
+            model = validate_data(data, str(f), lines)
+            d = describe_data(model, str(f), stock_dir)
+            warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
+            report.results.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),
+                                   "description": d, "warnings": [asdict(w) for w in warns]})
+            report.warnings += warns
+        except InputError as exc:
+            report.problems += exc.problems
+            report.results.append({"file": str(f), "valid": False, "problems": [asdict(p) for p in exc.problems]})
+    return report
+
+
+# ------------------------------------------------------------------------------------------ planned time
+@dataclass(frozen=True)
+class PlannedTime:
+    """A planned running time as asked: ``time_s`` None = the route's schedule; ``note`` says what a
+    factor of the fastest run came to (None for seconds as given)."""
+
+    time_s: Optional[float]
+    note: Optional[str] = None
+
+
+def planned_time(text: Optional[str], route, train=None, options: Optional[ModelOptions] = None,
+                 option: str = "--time") -> PlannedTime:
+    """``--time`` in seconds: seconds as given; a factor (``1.1x``) or a supplement (``+10%``) of the
+    fastest run of ``route`` and ``train`` (loaded models; the calculator is built only for a factor)."""
+    req = bounds.time_request(text, option)
+    if req is None or req[0] == "s":
+        return PlannedTime(None if req is None else req[1])
+    from .sim.calculator import TractionCalculator
+
+    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    t = bounds.time_of(req, fastest)
+    return PlannedTime(t, f"{option} {text}: T0 = {t:g} s ({req[1]:g} x the fastest run, {fastest:.1f} s)")
+
+
+def window_half_width(summary: dict) -> Optional[float]:
+    """The punctuality tolerance +- [s] a run was held to (None: no window, ranked by fitness alone)."""
+    window = summary.get("window_s")
+    return None if window is None else (window[1] - window[0]) / 2
+
+
+# ------------------------------------------------------------------------------------------ one plan
+@dataclass
+class Plan:
+    """One plan of ``simulate`` or ``optimize``: the loaded route and train, the strategy context and the
+    run (``run.summary`` is the --json object, ``run.result.profile`` the profile); ``failures`` is the
+    schedule's verdict (infeasible; a timetabled strategy outside T0 +- tolerance)."""
+
+    route: object
+    train: object
+    context: object
+    run: object
+
+    @property
+    def summary(self) -> dict:
+        return self.run.summary
+
+    @property
+    def failures(self) -> list[Optional[str]]:
+        from .runner import schedule_verdict
+
+        return [schedule_verdict(self.context, self.run)]
+
+
+def simulate(route, train, options: ModelOptions, *, strategy: Optional[str] = None, sequence: Optional[str] = None,
+             time_s: Optional[float] = None, e_min_kwh: Optional[float] = None, seed: int = 1,
+             algorithm: str = "issa", builder: Optional[str] = None) -> Plan:
+    """``simulate``: the traction calculation of a ``sequence`` ("T:0,K:2200,C:9000,B") or of a built-in
+    ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window."""
+    from .runner import make_context, run_sequence, run_strategy
+
+    one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
+    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed, algorithm=algorithm,
+                       need_time=False, builder=builder, yardstick=False)
+    run = (run_sequence(ctx, sequence) if sequence is not None
+           else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min_kwh is not None))
+    return Plan(route, train, ctx, run)
+
+
+def optimize(route, train, options: ModelOptions, *, time_s: Optional[float] = None,
+             weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa", seed: int = 1,
+             e_min_kwh: Optional[float] = None, params: Optional[str] = None, tolerance_s: Optional[float] = None,
+             window: bool = True, builder: Optional[str] = None, gap: bool = True,
+             callback: Optional[Callable[[int, float], None]] = None) -> Plan:
+    """``optimize``: the proposed strategy (condition sequence + optimised switching points); E_min, when
+    not given, from the energy-saving run first. ``callback(iteration, best)`` follows the search."""
+    from .optimize.registry import get_algorithm
+    from .runner import make_context, run_strategy
+
+    get_algorithm(algorithm)
+    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights, algorithm=algorithm,
+                       seed=seed, params_path=params, callback=callback, tolerance_s=tolerance_s, window=window,
+                       builder=builder, yardstick=gap)
+    if e_min_kwh is None:
+        ctx.e_min()  # the energy-saving run first, so that a progress bar then shows the proposed run alone
+    run = run_strategy(ctx, "proposed")
+    run.summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)
+    return Plan(route, train, ctx, run)
+
+
+# ------------------------------------------------------------------------------------------ verdicts
+def group_reasons(messages: Iterable[str]) -> list[str]:
+    """``['four-stage: R', 'proposed: R']`` -> ``['four-stage, proposed: R']``: a reason shared by several
+    strategies is said once, naming them all (order kept)."""
+    groups: dict[str, list[str]] = {}
+    for m in messages:
+        name, sep, reason = m.partition(": ")
+        if not sep or " " in name:
+            name, reason = "", m
+        groups.setdefault(reason, []).append(name)
+    return [(", ".join(n for n in names if n) + ": " if any(names) else "") + reason for reason, names in groups.items()]
+
+
+@dataclass
+class Verdict:
+    """What a command's results come to: ``failures`` (each a result that did not do its job, said
+    once) make exit 1; ``notes`` are said and change nothing."""
+
+    failures: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_FAILED if self.failures else EXIT_OK
+
+
+def verdict(failures: Iterable[Optional[str]], restate: Callable[[str], str] = lambda m: m) -> Verdict:
+    """The one rule of every command: a result that fails its job (a reason) is exit 1, each reason said
+    once (``restate`` may say where a value came from)."""
+    return Verdict(group_reasons(restate(m) for m in dict.fromkeys(failures) if m))
+
+
+def compare_verdict(summaries: list[dict], failures: list[str], named: bool, timetabled: Iterable[str],
+                    restate: Callable[[str], str] = lambda m: m) -> Verdict:
+    """``compare``: a strategy named by the user that fails its job is exit 1; with the default list,
+    only when no timetabled strategy is on time (a failed one is then its row and a note)."""
+    timetabled = set(timetabled)
+    on_time = any(s["strategy"] in timetabled and s["feasible"] and s["punctual"] for s in summaries)
+    if not named and on_time:
+        return Verdict(notes=group_reasons(dict.fromkeys(failures)))
+    return verdict(failures, restate)
+
+
+def confirmed_verdict(feasible: bool, reason: Optional[str]) -> Verdict:
+    """An optimal control is a result only when the calculator confirms it (re-simulation)."""
+    return Verdict() if feasible else Verdict([reason or ""])
+
+
+# ------------------------------------------------------------------------------------------ optimal control
+def check_energy_ocp(nodes: Optional[int], state_nodes: Optional[int], mesh_tol: float, max_degree: int) -> None:
+    """``ocp --objective energy``: the Radau method refines its own mesh (no node counts), within a
+    relative tolerance in (0, 1) and 4 .. 30 LGR points per interval."""
+    problems = []
+    if nodes is not None or state_nodes is not None:
+        problems.append(Problem("ocp", "--nodes" if nodes is not None else "--state-nodes",
+                                "radau refines its own mesh; set --mesh-tol and --max-phase-degree instead"))
+    if not (0 < mesh_tol < 1):
+        problems.append(Problem("ocp", "--mesh-tol", f"must be in (0, 1) (got {mesh_tol:g})"))
+    if not 4 <= max_degree <= 30:
+        problems.append(Problem("ocp", "--max-phase-degree", f"must be between 4 and 30 LGR points (got {max_degree})"))
+    if problems:
+        raise InputError(problems)
+
+
+def bound_times(time_s: Optional[str], times: Optional[str]) -> Optional[list[float]]:
+    """``bound``: one time (``--time``, None) or a curve of running times (``--times``, > 0 s)."""
+    one_of(times, time_s, "--times", "give either --time or --times, not both")
+    values = value_grid(times, "--times") if times else None
+    if values is not None and (not values or min(values) <= 0):
+        raise InputError(Problem("", "--times", "running times must be > 0 s"))
+    return values
+
+
+def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, mesh_tol: float, max_degree: int,
+                 curve: bool, step: Callable[[str], None] = lambda text: None) -> dict:
+    """The least traction energy E* at each running time: ``{"route", "consist", "results": [rows]}``.
+    On a ``curve`` a time whose optimum fails is its row with a ``reason``; a single time raises."""
+    from .ocp.bound import energy_bound
+
+    rows = []
+    for t in times_s:
+        step(f"E* at {t:g} s")
+        try:
+            b = energy_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree)
+            rows.append({"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
+                         "mesh_points": b.points, "solve_time_s": round(b.solve_time_s, 3), "reason": None})
+        except LocoplanError as exc:
+            if not curve:
+                raise
+            rows.append({"time_s": t, "energy_kwh": None, "converged": False, "mesh_points": None,
+                         "solve_time_s": None, "reason": str(exc)})
+    return {"route": route.name, "consist": train.name, "results": rows}
+
+
+def curve_exit_code(rows: list[dict]) -> int:
+    """``bound``: exit 1 when no running time has an optimum."""
+    return EXIT_FAILED if all(row["energy_kwh"] is None for row in rows) else EXIT_OK
+
+
+# ------------------------------------------------------------------------------------------ drivers
+def check_counts(**counts: int) -> None:
+    """Counts that must be at least 1 (``drivers=40, runs=5``), named by their flags."""
+    for name, value in counts.items():
+        if value < 1:
+            raise InputError(Problem(CMDLINE, "--" + name.replace("_", "-"), "must be >= 1"))
+
+
+__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "Verdict",
+           "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time",
+           "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
+           "check_energy_ocp", "bound_times", "energy_curve", "curve_exit_code", "check_counts"]

@@ -1,0 +1,187 @@
+"""Output files written whole or not at all (temporary file + rename), and the checks of an output's
+path made before any work: the one place a command's files are written from."""
+
+from __future__ import annotations
+
+import os
+import stat
+import tempfile
+from contextlib import contextmanager
+from contextvars import ContextVar
+from pathlib import Path
+from typing import Callable
+
+from ..errors import InputError, Problem
+
+
+_PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
+
+
+def existing_folder(folder: Path, name: str, option: str) -> Path:
+    """The nearest folder of ``folder`` (itself or an ancestor) that exists: the one rule for output
+    folders is that missing ones are created when the output is written, so a check before the work
+    looks at the folder they will be created in. A file standing in the way is an input error."""
+    probe = folder
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise InputError(Problem(name, option, f"{probe} is not a folder"))
+    return probe
+
+
+def make_folder(folder: Path, name: str, option: str = "") -> None:
+    """Create an output's folder (and its parents) if missing; an OSError becomes an input error."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot create folder {folder}: {exc.strerror or exc}")) from None
+
+
+def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...] = ()) -> Path | None:
+    """Before any work: ``path`` has one of ``suffixes``, is not a folder or a device, and its folder (or,
+    where that is still to be created, the folder it will be created in) takes a new file (tried by
+    creating and removing an empty temporary file there)."""
+    if path is None:
+        return None
+    path = Path(path)
+    try:
+        return _check_output(path, option, suffixes)
+    except OSError as exc:  # a name too long, a loop of links, ...
+        raise InputError(Problem(str(path), option, f"cannot write: {exc.strerror or exc}")) from None
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
+    name = str(path)
+    if path.is_dir():  # before the suffix: a folder has none, and 'unknown output type' would not say what is wrong
+        raise InputError(Problem(name, option, f"is a folder: name a file inside it, e.g. {path / ('result' + (suffixes[0] if suffixes else ''))}"))
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise InputError(Problem(name, option, f"unknown output type {path.suffix or '(none)'!r}; use " + " or ".join(suffixes)))
+    if path.exists() and not path.is_file():
+        raise InputError(Problem(name, option, "exists and is not a regular file (a device or a pipe is never written over)"))
+    folder = existing_folder(path.parent if str(path.parent) else Path("."), name, option)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".probe", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(Problem(name, option, f"cannot write into {folder}: {exc.strerror or exc}")) from None
+    return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    return os.path.abspath(a) == os.path.abspath(b) or (a.exists() and b.exists() and os.path.samefile(a, b))
+
+
+def check_distinct(outputs: dict[str, Path | None]) -> None:
+    """Before any work: no two of a command's outputs (option -> path) name the same file."""
+    seen: list[tuple[str, Path]] = []
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        for other, p in seen:
+            if _same_file(Path(path), p):
+                raise InputError(Problem(str(path), option, f"names the same file as {other}: one output would be "
+                                         "lost; name each output differently"))
+        seen.append((option, Path(path)))
+
+
+def _temp_prefix(path: Path) -> str:
+    """A hidden temporary name beside ``path``: short enough for any name the folder takes."""
+    return f".{path.name[:40]}."
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _mode_for(path: Path) -> int:
+    """The mode ``path`` gets: an existing file keeps its own (as when written in place), a new one
+    0666 less the umask (as ``open`` gives); never mkstemp's 0600."""
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode):
+            return stat.S_IMODE(st.st_mode)
+    except OSError:
+        pass
+    return 0o666 & ~_umask()
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place (inside
+    ``all_or_none()``: when the whole command has succeeded).
+
+    A failure leaves no partial file behind; a missing folder is created (with its parents).
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        existing_folder(folder, str(path), "")
+        make_folder(folder, str(path))
+    pending = _PENDING.get()
+    if pending is not None and any(_same_file(path, target) for _, target in pending):
+        raise InputError(Problem(str(path), "", "two outputs of this command name the same file: one would be lost; "
+                                 "name each output differently"))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=path.suffix[:16], dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise InputError(Problem(str(path), "", f"cannot write into {folder}: {exc.strerror or exc}")) from None
+    try:
+        write(Path(tmp))
+        os.chmod(tmp, _mode_for(path))
+        pending = _PENDING.get()
+        if pending is None:
+            os.replace(tmp, path)
+        else:
+            pending.append((tmp, path))
+    except BaseException as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
+        raise
+
+
+@contextmanager
+def all_or_none(keep: Callable[[BaseException], bool] = lambda exc: False):
+    """Every output written inside (by ``atomic_write``) appears when the block ends normally, or
+    when it ends with an exception ``keep`` accepts (a deliberate exit after the outputs); otherwise
+    none does: a command writes all its outputs or none."""
+    pending: list[tuple[str, Path]] = []
+    token = _PENDING.set(pending)
+    commit = False
+    try:
+        yield
+        commit = True
+    except BaseException as exc:
+        commit = keep(exc)
+        raise
+    finally:
+        _PENDING.reset(token)
+        if commit:
+            for i, (tmp, path) in enumerate(pending):
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    for rest, _ in pending[i:]:
+                        if os.path.exists(rest):
+                            os.unlink(rest)
+                    raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
+        else:
+            for tmp, _ in pending:
+                if os.path.exists(tmp):
+                    os.unlink(tmp)
+
+
+def atomic_write_text(path: str | Path, text: str) -> None:
+    atomic_write(path, lambda p: p.write_text(text, encoding="utf-8"))
+
+
+def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, ...]) -> None:
+    """:func:`check_output` under the name the batch commands use (``field`` names the output: ``out``,
+    ``plot``...; the command line maps it to its flag)."""
+    check_output(path, field, suffixes)

@@ -1,0 +1,68 @@
+"""Tables of seed 004's commands: ``drivers simulate`` (the synthetic runs), ``learn`` (the good
+drivers and the fit report) and ``advise`` (the sections of the advice)."""
+
+from __future__ import annotations
+
+from rich.markup import escape
+from rich.table import Table
+
+def groups_table(title: str, groups: list[dict]) -> Table:
+    table = Table(title=escape(title), title_justify="left")
+    for col in ("mass [t]", "planned [s]", "runs", "mean time [s]", "late / early", "energy mean [kWh]", "min", "max"):
+        table.add_column(escape(col), justify="right")
+    for g in groups:
+        table.add_row(f"{g['mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), f"{g['mean_time_s']:.1f}",
+                      f"{g['late_runs']} / {g['early_runs']}", f"{g['mean_energy_kwh']:.1f}", f"{g['min_energy_kwh']:.1f}",
+                      f"{g['max_energy_kwh']:.1f}")
+    return table
+
+
+def fit_tables(report: dict) -> list[Table]:
+    data = report["data"]
+    t1 = Table(title=escape(f"good drivers (claim 3): {data['good_runs']} good runs of {data['runs']} "
+                            f"({data['synthetic_runs']} synthetic), {data['drivers']} drivers"), title_justify="left")
+    for col in ("route", "mass [t]", "planned [s]", "runs", "drivers", "good drivers", "good runs",
+                "mean E [kWh]", "good mean E", "best E"):
+        t1.add_column(escape(col), justify="left" if col == "route" else "right")
+    for g in data["groups"]:
+        t1.add_row(g["route"], f"{g['mean_mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), str(g["drivers"]),
+                   str(g["good_drivers"]), str(g["good_runs"]), f"{g['mean_energy_kwh']:.1f}",
+                   "-" if g["good_mean_energy_kwh"] is None else f"{g['good_mean_energy_kwh']:.1f}", f"{g['best_energy_kwh']:.1f}")
+    up, lo = report["upper"], report["lower"]
+    t2 = Table(title=escape("order by cross-validation (folds of whole runs); CV error: share (upper), km/h (lower)"),
+               title_justify="left")
+    for col in ("layer", "order", "CV RMSE", "in-sample R²", "chosen"):
+        t2.add_column(escape(col), justify="left" if col == "layer" else "right")
+    for form, rows in up["cv"].items():
+        for r in rows:
+            t2.add_row(f"upper ({form})", str(r["order"]), f"{r['cv_rmse']:.5f}", f"{r['in_sample_r2']:.4f}",
+                       "<-" if form == up["form"] and r["order"] == up["order"] else "")
+    for r in lo["cv"]:
+        t2.add_row("lower", str(r["order"]), f"{r['cv_rmse']:.3f}", f"{r['in_sample_r2']:.4f}", "<-" if r["order"] == lo["order"] else "")
+    t3 = Table(title=escape(f"fit report: {report['heldout'].get('runs', 0)} held-out runs (never fitted), "
+                            f"{report['fit'].get('runs', 0)} fit runs"), title_justify="left")
+    for col in ("runs", "shares R²", "share RMSE", "section time MAE [s]", "speed R² (1 division)", "RMSE [km/h]",
+                "speed R² (chained)", "RMSE [km/h]"):
+        t3.add_column(escape(col), justify="right" if col != "runs" else "left")
+    for name in ("heldout", "fit"):
+        r = report[name]
+        if not r.get("runs"):
+            continue
+        u, l_ = r["upper"], r["lower"]
+        t3.add_row(f"{name} ({r['runs']})", f"{u['r2']:.4f}", f"{u['rmse_share']:.5f}", f"{u['mean_abs_error_s']:.1f}",
+                   f"{l_['one_step_r2']:.4f}", f"{l_['one_step_rmse_kmh']:.2f}", f"{l_['chained_r2']:.4f}",
+                   f"{l_['chained_rmse_kmh']:.2f}")
+    return [t1, t2, t3]
+
+
+def sections_table(sections: list[dict]) -> Table:
+    table = Table(title="sections: time shares (upper layer) and speeds at the division points (lower layer)",
+                  title_justify="left")
+    for col in ("#", "type", "from [m]", "to [m]", "G [‰]", "share", "time [s]", "as run", "pattern [km/h] entry .. exit"):
+        table.add_column(escape(col), justify="left" if col in ("type", "pattern [km/h] entry .. exit") else "right")
+    for s in sections:
+        v = s["pattern_kmh"]
+        table.add_row(str(s["index"]), s["type"], f"{s['from_m']:.0f}", f"{s['to_m']:.0f}", f"{s['gradient_permille']:+.2f}",
+                      f"{s['share']:.4f}", f"{s['time_s']:.1f}", f"{s['realised_share']:.4f}",
+                      " ".join(f"{x:.0f}" for x in v))
+    return table
