@@ -1,6 +1,6 @@
 """``locoplan import FORMAT FILES... --out DIR``: public track and train formats to locoplan files.
 
-Thin command over :func:`locoplan.io.importer.run_import`; the formats come from
+Thin command over :func:`locoplan.importer.run_import`; the formats come from
 :data:`locoplan.io.readers.READERS`. :func:`register` adds the command to a typer app.
 """
 
@@ -39,7 +39,7 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
             as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
             ):
     """Convert public track / path / train files into route, vehicle and consist files (all written, or none)."""
-    from .io.importer import run_import
+    from .importer import run_import
     from .io.readers import ImportOptions
 
     flags = []

@@ -13,7 +13,7 @@ import yaml
 from typer.testing import CliRunner
 
 from locoplan.cli import app
-from locoplan.io.importer import run_import
+from locoplan.importer import run_import
 from locoplan.io.load import load_route, load_train, load_vehicle
 from locoplan.io.readers import ImportOptions
 from locoplan.io.readers.railtoolkit import davis_coefficients
@@ -432,7 +432,7 @@ def test_out_must_be_a_writable_folder(case, tmp_path, monkeypatch):
     elif case == "unwritable":
         out.mkdir()
         # root ignores permission bits, so the check itself is made to see a read-only folder
-        monkeypatch.setattr("locoplan.io.importer._writable", lambda folder: False)
+        monkeypatch.setattr("locoplan.importer._writable", lambda folder: False)
     res = _invoke(["import", "ttobench", str(src), "--out", str(out)])
     assert res.exit_code == 2
     why = {"file": "is a file, not a folder", "unwritable": "folder is not writable"}[case]

@@ -58,7 +58,7 @@ def _node_controls(solution) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plot_run(path, run, title: str | None = None) -> None:
-    """Draw one :class:`~locoplan.ocp.study.OcpRun`: ``F_u`` [kN], ``v`` [km/h] and ``s`` [km] against
+    """Draw one :class:`~locoplan.ocp.min_time_run.OcpRun`: ``F_u`` [kN], ``v`` [km/h] and ``s`` [km] against
     time [s] (km/h and km like every plot of locoplan; the seed's own figures use m/s and m). ``.png`` or ``.svg`` by extension, written whole or not at all."""
     path, fmt = _figure_path(path)
     plt = _pyplot()
@@ -118,7 +118,7 @@ def plot_run(path, run, title: str | None = None) -> None:
 
 
 def plot_study(path, study) -> None:
-    """Draw a :class:`~locoplan.ocp.study.Study`: for each table the control curves of its first
+    """Draw a :class:`~locoplan.ocp.seed000.Study`: for each table the control curves of its first
     CVP, GPM and two-stage (hp) rows (node values joined by straight lines, as the seed's Fig. 5/7),
     and the measured median solve times per row (hatched: not confirmed by re-simulation)."""
     path, fmt = _figure_path(path)

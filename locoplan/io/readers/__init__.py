@@ -1,5 +1,5 @@
 """Importers of public track and train formats. A new format is one module with a ``Reader`` and one
-line in ``READERS``; ``io.importer.run_import`` does the rest (checks, validation, writing)."""
+line in ``READERS``; ``importer.run_import`` does the rest (checks, validation, writing)."""
 
 from __future__ import annotations
 

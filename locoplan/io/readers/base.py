@@ -3,7 +3,7 @@ checks that turn a malformed source value into a ``Problem`` naming the source f
 JSON path such as ``gradients.values[3][0]``) and why.
 
 A reader is pure: it reads source files and returns the text of each file to write. Writing (all
-files or none) and checking every written file against locoplan's schemas is ``io.importer``'s job.
+files or none) and checking every written file against locoplan's schemas is ``importer``'s job.
 """
 
 from __future__ import annotations

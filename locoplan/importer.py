@@ -17,9 +17,10 @@ from pathlib import Path
 
 import yaml
 
-from ..errors import InputError, Problem
-from .load import load_train, validate_data
-from .readers import READERS, ImportedFile, ImportOptions
+from .errors import InputError, Problem
+from .io.load import load_train, validate_data
+from .io.readers import READERS, ImportedFile, ImportOptions
+from .reporting.files import existing_folder, make_folder
 
 CLI = "<command line>"
 OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "load_fraction": "--load-fraction"}
@@ -67,8 +68,6 @@ def _writable(folder: Path) -> bool:
 def check_out_dir(out_dir: Path) -> None:
     """The output folder is a writable folder, or is missing and can be created (the one rule for output
     folders: created when the files are written)."""
-    from ..reporting.files import existing_folder
-
     where = str(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(Problem(where, "--out", "is a file, not a folder"))
@@ -126,8 +125,6 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
     licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
     if licence_name:
         _check_target(out_dir, ImportedFile(licence_name, "licence", "", "", str(imported.licence)))
-    from ..reporting.files import make_folder
-
     make_folder(out_dir, str(out_dir), "--out")  # a missing output folder is made (nothing was refused)
     try:
         return _write_all(out_dir, imported, licence_name)
