@@ -18,6 +18,7 @@ from rich.markup import escape
 
 from . import __version__, api, bounds
 from .api import ModelRequest
+from .catalogue import DEFAULT_CONSIST_FILE
 from .errors import InputError, LocoplanError, Problem
 from .reporting.files import all_or_none, check_output, check_output_path
 from .reporting.writers import to_json, write_output
@@ -27,7 +28,7 @@ from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 out = Console()
 err = Console(stderr=True)
 
-DEFAULT_CONSIST = "configs/consists/HXD1-C80x50.yaml"
+DEFAULT_CONSIST = DEFAULT_CONSIST_FILE
 
 FLAGS = {
     "time_s": "--time", "e_min_kwh": "--e-min", "tolerance_s": "--tolerance", "builder": "--builder",

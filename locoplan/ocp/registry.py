@@ -6,9 +6,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from importlib import resources
 
+from ..catalogue import DEFAULT_CONSIST_FILE
+
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
 """The seed 000 test train: the default of ``--objective time``."""
-DEFAULT_ENERGY_CONSIST = "configs/consists/HXD1-C80x50.yaml"
+DEFAULT_ENERGY_CONSIST = DEFAULT_CONSIST_FILE
 """The project's freight train: the default of ``--objective energy``."""
 
 

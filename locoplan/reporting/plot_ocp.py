@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..physics.units import kmh, kmh_from_e
 from .files import atomic_write
 
 __all__ = ["plot_energy_run", "plot_energy_time", "plot_run", "plot_study"]
@@ -88,11 +89,10 @@ def plot_run(path, run, title: str | None = None) -> None:
     ax_u.legend(loc="upper right", fontsize=7, ncol=2)
     ax_u.grid(alpha=0.3)
 
-    kmh = 3.6  # km/h per m/s
     ax_v.axhline(p.speed_limit_kmh, color="black", lw=0.8, ls="--",
                  label=f"limit {p.speed_limit_kmh:g} km/h ({p.speed_limit_ms:.2f} m/s)")
-    ax_v.plot(rs.time_s, np.asarray(rs.speed_ms) * kmh, color="C0", lw=1.4, label="re-simulated")
-    ax_v.plot(sol.time_s, np.asarray(sol.speed_ms) * kmh, "o", ms=3, color="C1", label="NLP nodes")
+    ax_v.plot(rs.time_s, kmh(np.asarray(rs.speed_ms)), color="C0", lw=1.4, label="re-simulated")
+    ax_v.plot(sol.time_s, kmh(np.asarray(sol.speed_ms)), "o", ms=3, color="C1", label="NLP nodes")
     ax_v.set_ylabel("v [km/h]")
     ax_v.set_ylim(0.0, p.speed_limit_kmh * 1.25)
     ax_v.legend(loc="lower center", fontsize=7, ncol=3)
@@ -192,7 +192,7 @@ def plot_energy_run(path, run, title: str | None = None) -> None:
     prof = run.check.result.profile
     s = grid.s_col
     n = grid.n_col
-    v = np.sqrt(2 * np.maximum(sol.X[0, :n], 0.0)) * 3.6
+    v = kmh_from_e(np.maximum(sol.X[0, :n], 0.0))
     fig, (ax, axf, axm) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 2, 1]})
     km = 1e-3

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..physics.units import KMH_PER_MS
+from ..physics.units import kmh_from_e
 from ..sim.result import CONDITIONS, Profile
 from .files import atomic_write_text
 
@@ -195,7 +195,7 @@ def optimum_columns(run) -> dict:
     """The optimum at its collocation points (for ``--out .json``)."""
     sol = run.solution.solution
     n = sol.grid.n_col
-    v = np.sqrt(2 * np.maximum(sol.X[0, :n], 0.0)) * KMH_PER_MS
+    v = kmh_from_e(np.maximum(sol.X[0, :n], 0.0))
     cols = {"s_m": np.round(sol.grid.s_col, 3).tolist(), "v_kmh": np.round(v, 4).tolist(),
             "t_s": np.round(sol.X[1, :n], 4).tolist()}
     for name, row in zip(sol.problem.model.controls, sol.U):
