@@ -148,3 +148,16 @@ def test_reported_beside_the_traction_energy(tmp_path):
     assert 0 < d["recovered_energy_kwh"] < d["traction_energy_kwh"]
     plain = CliRunner().invoke(app, ["simulate", line, "--strategy", "time-saving", "--json"])
     assert "recovered_energy_kwh" not in json.loads(plain.output)
+
+
+def test_the_table_names_it(tmp_path):
+    from typer.testing import CliRunner
+
+    from locoplan.cli import app
+
+    stock = _stock(tmp_path, 0.85)
+    line = str(ROOT / "routes" / "freight-20km.yaml")
+    args = ["simulate", line, "--strategy", "time-saving", "--consist", str(tmp_path / "consist.yaml"), "--stock-dir", str(stock)]
+    text = CliRunner().invoke(app, args).output
+    js = __import__("json").loads(CliRunner().invoke(app, args + ["--json"]).output)
+    assert f"recovered by the electric brake │ {js['recovered_energy_kwh']:.2f} kWh" in text

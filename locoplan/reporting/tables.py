@@ -209,6 +209,8 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
+    if "recovered_energy_kwh" in summary:  # the locomotives regenerate (vehicle field regen_efficiency)
+        rows.append(("recovered by the electric brake", _num(summary["recovered_energy_kwh"], ".2f", " kWh")))
     if summary.get("planned_time_s") is not None:
         rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
