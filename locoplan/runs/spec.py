@@ -184,8 +184,18 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
 
 def _train_identity(train) -> dict:
     """The resolved train's numbers (what the physics sees), arrays as lists: its content hash does not
-    depend on which files or catalogue names it was built from."""
-    return {f.name: (v.tolist() if hasattr(v := getattr(train, f.name), "tolist") else v) for f in fields(train)}
+    depend on which files or catalogue names it was built from. A field at its default that physics added
+    later (``regen_efficiency``: 0, no regeneration) is left out, so that the runs of a train without it
+    keep the keys a store already holds them under."""
+    out = {f.name: (v.tolist() if hasattr(v := getattr(train, f.name), "tolist") else v) for f in fields(train)}
+    for name in _LATER_FIELDS:
+        if out.get(name) == _LATER_FIELDS[name]:
+            del out[name]
+    return out
+
+
+_LATER_FIELDS = {"regen_efficiency": 0.0}
+"""Train fields added after stores were made, with the value that means 'as before' (see _train_identity)."""
 
 
 def _e_min_params(spec: RunSpec) -> str | None:
