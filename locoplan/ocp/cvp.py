@@ -63,12 +63,7 @@ def solve_cvp(
         raise InputError(f"CVP: substeps must be >= 1, got {substeps}")
     if any(v is None for v in problem.initial_state):
         raise InputError("CVP (single shooting) needs every initial state fixed")
-    phase, dynamics, lagrange, path, n_path = phase_functions(problem)
-    model = phase.model
-    nx, nu = model.n_x, model.n_u
-    sx = np.asarray(model.state_scale, dtype=float)
-    su = np.asarray(model.control_scale, dtype=float)
-    ts = float(phase.length)
+    phase, dynamics, lagrange, path, n_path, nx, nu, sx, su, ts = phase_functions(problem)
 
     xs_, us_, t_ = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t")
     rhs = as_column(dynamics(xs_, us_, t_), nx, "dynamics")

@@ -286,12 +286,7 @@ def solve_gauss(problem: MultiPhaseProblem, mesh: Mesh, guess: Guess, *, ipopt_o
     IPOPT's ``status``; the caller decides what to do.
     """
     t_build = _time.perf_counter()
-    phase, dynamics, lagrange, path, n_path = phase_functions(problem)
-    model = phase.model
-    nx, nu = model.n_x, model.n_u
-    sx = np.asarray(model.state_scale, dtype=float)
-    su = np.asarray(model.control_scale, dtype=float)
-    ts = float(phase.length)
+    phase, dynamics, lagrange, path, n_path, nx, nu, sx, su, ts = phase_functions(problem)
     ivs = mesh.intervals
     if any(iv.free_start is not None for iv in ivs[1:]) and not mesh.free_breakpoints:
         raise InputError("Gauss transcription: either every break point moves or none does")

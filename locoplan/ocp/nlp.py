@@ -8,6 +8,7 @@ minimum-time problem: ``sigma = t / t_f``), interpolated linearly onto any node 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -59,12 +60,25 @@ def as_column(value, n: int, what: str):
     return value
 
 
-def phase_functions(problem):
-    """The single phase of a free-end ``problem`` and its model as functions of ``(x, u, t)``: the
-    phase parameters are read once (they must be constant over the phase) and bound in.
+class SinglePhase(NamedTuple):
+    """The single phase of a free-end problem as a transcription needs it: its functions of ``(x, u, t)``
+    with the phase parameters bound in, the path constraints' count, the sizes, scales and nominal length."""
 
-    Returns ``(phase, dynamics, integrand or None, path or None, n_path)``.
-    """
+    phase: object
+    dynamics: Callable
+    lagrange: Callable | None
+    path: Callable | None
+    n_path: int
+    nx: int
+    nu: int
+    state_scale: np.ndarray
+    control_scale: np.ndarray
+    length: float
+
+
+def phase_functions(problem) -> SinglePhase:
+    """The single phase of a free-end ``problem`` and its model as functions of ``(x, u, t)``: the
+    phase parameters are read once (they must be constant over the phase) and bound in."""
     phase = problem.phase
     if problem.free_end is None:
         raise InputError("Gauss / CVP transcription: needs a free-end single-phase problem (free_end)")
@@ -73,7 +87,9 @@ def phase_functions(problem):
     dyn = lambda x, u, t: model.dynamics(x, u, t, p)  # noqa: E731
     lag = None if model.integrand is None else (lambda x, u, t: model.integrand(x, u, t, p))
     path = None if model.path is None else (lambda x, u, t: model.path(x, u, t, p))
-    return phase, dyn, lag, path, (model.n_path if model.path is not None else 0)
+    return SinglePhase(phase, dyn, lag, path, model.n_path if model.path is not None else 0, model.n_x, model.n_u,
+                       np.asarray(model.state_scale, dtype=float), np.asarray(model.control_scale, dtype=float),
+                       float(phase.length))
 
 
 def final_bounds(problem) -> tuple[np.ndarray, np.ndarray]:
