@@ -161,3 +161,17 @@ def test_the_table_names_it(tmp_path):
     text = CliRunner().invoke(app, args).output
     js = __import__("json").loads(CliRunner().invoke(app, args + ["--json"]).output)
     assert f"recovered by the electric brake │ {js['recovered_energy_kwh']:.2f} kWh" in text
+
+
+def test_locomotives_are_weighted_by_their_electric_brake(tmp_path):
+    """Two equal locomotives, one regenerating at 0.8 and one not: the train's share is half of 0.8; a
+    third, twice as many of the regenerating one: (2 x 0.8) / 3."""
+    stock = _stock(tmp_path, 0.8)
+    plain = (STOCK / "HXD1.yaml").read_text().replace("name: HXD1\n", "name: HXD1-old\n")
+    assert "name: HXD1-old" in plain
+    (stock / "HXD1-old.yaml").write_text(plain)
+    for n_new, expect in ((1, 0.4), (2, 1.6 / 3)):
+        (tmp_path / f"c{n_new}.yaml").write_text(
+            "schema: locoplan/consist@1\nname: two HXD1\nvehicles:\n"
+            f"  - {{type: HXD1, count: {n_new}}}\n  - {{type: HXD1-old, count: 1}}\n  - {{type: C80, count: 50, load_t: 80}}\n")
+        assert load_train(tmp_path / f"c{n_new}.yaml", stock).regen_efficiency == pytest.approx(expect, rel=1e-12)

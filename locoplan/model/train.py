@@ -94,8 +94,10 @@ class Train:
                 curve = (np.asarray(ab.force_kn, float) if ab.force_kn is not None
                          else air_brake_curve_kn(ab.braking_ratio, ab.shoe, m, veh.max_speed_kmh))
                 air.append((curve, entry.count))
-        peak = [(c * max(f for _, f in v.brake_kn), v.regen_efficiency or 0.0) for v, c in locos]
-        regen = sum(w * r for w, r in peak) / sum(w for w, _ in peak) if peak and sum(w for w, _ in peak) > 0 else 0.0
+        # regeneration weighted by each locomotive group's peak electric brake force
+        weights = np.array([c * max(f for _, f in v.brake_kn) for v, c in locos], dtype=float)
+        shares = np.array([v.regen_efficiency or 0.0 for v, _ in locos], dtype=float)
+        regen = float(weights @ shares / weights.sum()) if weights.sum() > 0 else 0.0
         tv, tf = _sum_curves([(v.traction_kn, c) for v, c in locos])
         ev, ef = _sum_curves([(v.brake_kn, c) for v, c in locos])
         av, af = _sum_curves(air)

@@ -15,7 +15,7 @@ from ..model.conditions import B as B_
 from ..model.conditions import K as H_
 from ..model.conditions import T as T_
 from ..physics.units import KJ_PER_KWH
-from ..sim.kernel import brake_kn, davis_kn, e_from_ms, kmh, locate, ms_from_e
+from ..sim.kernel import brake_kn, davis_kn, e_from_ms, kmh_from_e, locate, ms_from_e
 
 # (controls: T_ full traction, H_ hold the speed (cruise, K), C coast, B_ full braking)
 
@@ -69,7 +69,7 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
 @njit(cache=True)
 def _step(e, u, h, g_k, allowed, fo):
     """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
-    v_kmh = kmh(ms_from_e(e))
+    v_kmh = kmh_from_e(e)
     load0 = davis_kn(v_kmh, fo.ra, fo.rb, fo.rc) + g_k
     if u == H_:
         f_max = _interp1(v_kmh, fo.tv, fo.tf) * allowed
@@ -80,7 +80,7 @@ def _step(e, u, h, g_k, allowed, fo):
     # predictor at the start speed, forces again at the mid-speed (the calculator's second-order step)
     e1 = e
     for _ in range(2):
-        vm = kmh(ms_from_e(max(0.5 * (e + e1), 0.0)))  # at the mean of e and e1
+        vm = kmh_from_e(max(0.5 * (e + e1), 0.0))  # at the mean of e and e1
         f = 0.0
         b = 0.0
         if u == T_:
@@ -90,7 +90,7 @@ def _step(e, u, h, g_k, allowed, fo):
         load = davis_kn(vm, fo.ra, fo.rb, fo.rc) + g_k
         e1 = e + h / fo.m * (f - b - load)
     if u == T_:
-        vm = kmh(ms_from_e(max(0.5 * (e + e1), 0.0)))
+        vm = kmh_from_e(max(0.5 * (e + e1), 0.0))
         return e1, _interp1(vm, fo.tv, fo.tf) * allowed * h
     return e1, 0.0
 
@@ -327,5 +327,5 @@ def _forward(dp, fo, price, penalty, min_run, cost_to_go, e_low, controls, speed
         t += 2.0 * h[k] / (v + ms_from_e(best_e))
         work += best_w
         e = best_e
-        speeds[k + 1] = kmh(ms_from_e(e))
+        speeds[k + 1] = kmh_from_e(e)
     return t, work

@@ -1,6 +1,6 @@
 """Units and constants, once (SPEC section 1). Plain numbers and scalar functions that numbers, numpy
-arrays and (compiled with ``numba.njit``) the kernels all take; every one but ``kmh_from_e`` is plain
-arithmetic, so CasADi symbols take them too."""
+arrays and (compiled with ``numba.njit``) the kernels all take; all but the two square roots
+(``ms_from_e``, ``kmh_from_e``) are plain arithmetic, so CasADi symbols take them too."""
 
 from __future__ import annotations
 
@@ -52,8 +52,3 @@ def kmh_from_e(e):
 def kwh(work_kj):
     """Work [kJ] (e.g. kN x m) -> [kWh]."""
     return work_kj / KJ_PER_KWH
-
-
-def weight_kn(mass_t):
-    """Weight [kN] of a mass in tonnes: m g."""
-    return mass_t * G_MS2

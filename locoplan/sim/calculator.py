@@ -32,10 +32,9 @@ import numpy as np
 
 from .. import bounds
 from ..errors import InputError, Problem
+from ..model.conditions import CODE
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
-from ..model.conditions import CODE
-from .native import kernels
 from ..physics.braking import full_brake_kn
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
@@ -43,6 +42,7 @@ from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
+from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import CANNOT_HOLD, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
 
@@ -244,7 +244,10 @@ class TractionCalculator:
     def recovered_energy_kwh(self, v_nodes_kmh: np.ndarray, brake_kn: np.ndarray) -> np.ndarray:
         """Energy the electric brake returns to the line [kWh] on runs given by their node speeds and cell
         braking forces ((plans, nodes) and (plans, cells)): the train's ``regen_efficiency`` times the
-        electric part of the braking work, the electric brake cut where the catenary is (physics.energy)."""
+        electric part of the braking work, the electric brake cut where the catenary is (physics.energy).
+        Zero for a train whose locomotives do not regenerate (nothing is computed), NaN for a failed run."""
+        if self.train.regen_efficiency <= 0:
+            return np.where(np.isnan(brake_kn).any(axis=-1), np.nan, 0.0)
         v_mid = 0.5 * (v_nodes_kmh[:, 1:] + v_nodes_kmh[:, :-1])
         electric = max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
         return recovered_energy_kwh(self.s_m, brake_kn, electric, self.train.regen_efficiency)
@@ -644,7 +647,7 @@ class TractionCalculator:
             short = np.zeros_like(short)
         at_node = np.where((cannot_hold & ~unholdable) | short, cell, cell + 1)
         fail_at = np.where(failed, self.s_m[at_node], np.nan)
-        profile = None
+        profile = recovered = None
         if want_profile:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
                 x = switches_m[:, j]
@@ -672,4 +675,4 @@ class TractionCalculator:
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
                            failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan),
-                           impossible=self.impossible, recovered_energy_kwh=recovered if want_profile else None)
+                           impossible=self.impossible, recovered_energy_kwh=recovered)
