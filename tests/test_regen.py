@@ -175,3 +175,15 @@ def test_locomotives_are_weighted_by_their_electric_brake(tmp_path):
             "schema: locoplan/consist@1\nname: two HXD1\nvehicles:\n"
             f"  - {{type: HXD1, count: {n_new}}}\n  - {{type: HXD1-old, count: 1}}\n  - {{type: C80, count: 50, load_t: 80}}\n")
         assert load_train(tmp_path / f"c{n_new}.yaml", stock).regen_efficiency == pytest.approx(expect, rel=1e-12)
+
+
+def test_store_keys_tell_a_regenerating_train_apart(tmp_path):
+    """A batch store keys runs by the train's numbers: regeneration is one of them, while a train without
+    it keeps the identity it had before the field existed (no regen_efficiency key at all)."""
+    from locoplan.runs.spec import _train_identity
+
+    plain = load_train(ROOT / "configs" / "consists" / "HXD1-C80x50.yaml")
+    regen = load_train(tmp_path / "consist.yaml", _stock(tmp_path, 0.8))
+    assert "regen_efficiency" not in _train_identity(plain)
+    assert _train_identity(regen)["regen_efficiency"] == 0.8
+    assert {k: v for k, v in _train_identity(regen).items() if k != "regen_efficiency"} == _train_identity(plain)

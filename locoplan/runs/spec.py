@@ -25,7 +25,7 @@ import os
 import platform
 import socket
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -184,18 +184,16 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
 
 def _train_identity(train) -> dict:
     """The resolved train's numbers (what the physics sees), arrays as lists: its content hash does not
-    depend on which files or catalogue names it was built from. A field at its default that physics added
-    later (``regen_efficiency``: 0, no regeneration) is left out, so that the runs of a train without it
-    keep the keys a store already holds them under."""
-    out = {f.name: (v.tolist() if hasattr(v := getattr(train, f.name), "tolist") else v) for f in fields(train)}
-    for name in _LATER_FIELDS:
-        if out.get(name) == _LATER_FIELDS[name]:
-            del out[name]
+    depend on which files or catalogue names it was built from. A field at its declared default is left
+    out (``regen_efficiency`` 0: no regeneration), so that a field added to ``Train`` later keeps the keys
+    a store holds the runs of trains without it under."""
+    out = {}
+    for f in fields(train):
+        v = getattr(train, f.name)
+        if f.default is not MISSING and not hasattr(v, "tolist") and v == f.default:
+            continue
+        out[f.name] = v.tolist() if hasattr(v, "tolist") else v
     return out
-
-
-_LATER_FIELDS = {"regen_efficiency": 0.0}
-"""Train fields added after stores were made, with the value that means 'as before' (see _train_identity)."""
 
 
 def _e_min_params(spec: RunSpec) -> str | None:
