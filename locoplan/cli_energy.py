@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, guarded, json_out, out
+from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, guarded, json_out, out
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -63,7 +63,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 @guarded
 def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
-          times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
+          times: Optional[str] = typer.Option(None, "--times", help="Running times: start:stop:step in seconds, or a comma list of seconds, factors of the fastest run (1.1x) and supplements on it (+10%): the energy-time curve."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
@@ -87,7 +87,8 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
     if out_file is not None:
         _check_outputs(out_file.with_suffix(".json"), None)
     r, train, opts = _load(route, consist, stock_dir, model)
-    ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
+    ts = (_times(values, (r, train), options=opts, quiet=as_json) if values is not None
+          else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))])
     with step_progress("bound solves", len(ts), not as_json) as step:
         data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
                                 curve=values is not None, step=step)

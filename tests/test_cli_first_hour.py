@@ -80,6 +80,62 @@ def test_help_of_time_names_the_forms():
         assert "1.1x" in text and "+10%" in text, cmd
 
 
+def test_times_lists_take_every_form(unscheduled):
+    """sweep's --times on a route without a schedule: seconds, factors and supplements mixed in one list."""
+    res = runner.invoke(app, ["sweep", str(unscheduled), "--times", "1.1x,1450,+20%", *SMALL, "--json"])
+    assert res.exit_code in (0, 1), res.output
+    fastest = 1227.1  # freight-20km's fastest run with the default train (the 1.1x note below says so)
+    times = [r["planned_time_s"] for r in json.loads(res.stdout)["results"]]
+    assert times == pytest.approx([1349.9, 1450, 1472.6], abs=0.05)
+    note = runner.invoke(app, ["sweep", str(unscheduled), "--times", "1.1x", *SMALL])
+    assert f"the fastest run is {fastest:.1f} s" in note.stderr and "T0 = 1349.9 s" in note.stderr
+
+
+def test_planned_times_from_python(freight):
+    import math
+
+    from locoplan import api, bounds
+
+    asked = bounds.times_request("1400, 1.1x, +25%")
+    assert asked == [("s", 1400.0), ("x", 1.1), ("x", 1.25)]
+    got = api.planned_times(asked, *freight).times_s
+    fastest = _fastest(freight)
+    assert got == pytest.approx([1400.0, math.ceil(11 * fastest - 1e-9) / 10, math.ceil(12.5 * fastest - 1e-9) / 10])
+    assert bounds.times_request("1400:1600:100") == [("s", 1400.0), ("s", 1500.0), ("s", 1600.0)]
+    assert api.planned_times([("s", 1500.0)]).note is None  # seconds alone: no calculator, no note
+
+
+@pytest.mark.parametrize("cmd", [["sweep", "--no-gap"], ["bound"], ["pareto"]])
+@pytest.mark.parametrize("value, why", [("abc,1500", "expected seconds (1500), a factor of the fastest run (1.1x)"),
+                                        ("1500,0.5x", "not a factor of the fastest run in 1 .. 10"),
+                                        ("1400:1.1x:100", "expected start:stop:step")])
+def test_bad_times_lists_are_input_errors(cmd, value, why):
+    res = runner.invoke(app, [cmd[0], "routes/freight-20km.yaml", *cmd[1:], "--times", value, "--json"])
+    assert res.exit_code == 2, res.output
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and "--times" in data["reason"] and why in data["reason"]
+
+
+def test_simulate_a_timetabled_strategy_on_a_route_without_schedule(unscheduled):
+    """four-stage plans to a time: without a schedule and without --time it names the forms (it used to
+    run to an undefined time and exit 0)."""
+    res = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "four-stage"])
+    assert res.exit_code == 2
+    assert "has no schedule" in res.stderr and "1.1x" in res.stderr and "+10%" in res.stderr
+    measured = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "time-saving", "--json"])
+    assert measured.exit_code == 0 and json.loads(measured.stdout)["running_time_s"] == pytest.approx(1227.1, abs=0.05)
+    timed = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "four-stage", "--time", "+20%", "--json"])
+    assert timed.exit_code == 0, timed.output
+    data = json.loads(timed.stdout)
+    assert data["planned_time_s"] == pytest.approx(1472.6) and data["punctual"] is True
+
+
+def test_drivers_simulate_without_schedule_says_what_to_give(unscheduled, tmp_path):
+    res = runner.invoke(app, ["drivers", "simulate", str(unscheduled), "--out", str(tmp_path / "logs")])
+    assert res.exit_code == 2 and "has no schedule" in res.stderr and "--times 1500" in res.stderr
+    assert not (tmp_path / "logs").exists()
+
+
 # ------------------------------------------------------------------------------------ one exit rule
 def test_simulate_sequence_reports_late_and_follows_the_one_rule():
     """A --sequence is measured, not planned to T0: exit 0, but the table says how late and that it is
@@ -99,6 +155,45 @@ def test_simulate_timetabled_strategy_outside_the_window_exits_1(freight):
     assert res.exit_code == 1
     data = json.loads(res.stdout)
     assert data["verdict"] == "failed" and "below the fastest possible run" in data["reason"]
+
+
+def test_a_late_sequence_says_late_and_keeps_the_one_rule():
+    """Late as well as early: the table says how late and outside which window, the JSON has punctual false,
+    and the exit code is the same whether the time is the schedule's or --time's."""
+    seq = ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:700,C:18000,B"]
+    res = runner.invoke(app, seq, env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.stdout.replace("│", " ").split())
+    assert "39.2 s late, outside the window 1470 .. 1530 s" in text
+    data = json.loads(runner.invoke(app, [*seq, "--json"]).stdout)
+    assert data["running_time_s"] == pytest.approx(1539.16, abs=0.01)
+    assert data["punctual"] is False and data["verdict"] == "ok" and data["exit_code"] == 0
+    assert runner.invoke(app, [*seq, "--time", "1500"]).exit_code == 0
+
+
+def test_the_exit_rule_is_in_the_help():
+    top = " ".join(runner.invoke(app, ["--help"], env={"COLUMNS": "80"}).stdout.split())
+    assert "Exit codes, the same for every command: 0" in top
+    assert "a --sequence, time-saving and energy-saving are measured" in top and "2 invalid input" in top
+    sim = " ".join(runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "80"}).stdout.split())
+    assert "arrives outside T0 +- tolerance, as optimize and compare do" in sim and "early or late" in sim
+
+
+@pytest.mark.parametrize("cmd", [["simulate", "--strategy", "four-stage", "--time", "1000"],
+                                 ["optimize", "--time", "1000", *SMALL],
+                                 ["compare", "--strategies", "four-stage", "--time", "1000", "--no-gap"],
+                                 ["sweep", "--times", "1000,1500", *SMALL],
+                                 ["study", "--runs", "1", "--algorithms", "issa", "--time", "1000", "--e-min", "580"],
+                                 ["bound", "--time", "1000"], ["ocp", "--objective", "energy", "--time", "1000"],
+                                 ["pareto", "--times", "1000", "--no-optimum"]], ids=lambda c: c[0])
+def test_every_command_below_the_fastest_run_is_exit_1_with_one_json_object(cmd):
+    res = runner.invoke(app, [cmd[0], "routes/freight-20km.yaml", *cmd[1:], "--json"])
+    assert res.exit_code == 1, res.output
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "failed" and data["exit_code"] == 1
+    assert "1000 s is below the fastest possible run, 1227.1 s" in data["reason"]
+    assert "the route's schedule" not in data["reason"]  # the time came from the command line
+    assert data["errors"] and all("below the fastest possible run" in e for e in data["errors"])
 
 
 # ------------------------------------------------------------------------------------ JSON on failure
@@ -133,6 +228,57 @@ def test_json_of_a_result_has_verdict_version_and_inputs():
     data = json.loads(bad.stdout)
     assert bad.exit_code == data["exit_code"] == 1 and data["verdict"] == "failed"
     assert data["feasible"] is False and data["errors"][0].startswith("sequence: no feasible plan (stalled")
+
+
+def _sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def test_json_and_out_files_name_every_file_read_with_its_hash(tmp_path, root):
+    """stdout's object and the --out .json file carry the version, the inputs as given and every file read
+    with its SHA-256; a changed file changes its hash."""
+    from locoplan import __version__
+
+    route = tmp_path / "line.yaml"
+    route.write_text((root / "routes/freight-20km.yaml").read_text())
+    out = tmp_path / "plan.json"
+    res = runner.invoke(app, ["simulate", str(route), "--json", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    data, saved = json.loads(res.stdout), json.loads(out.read_text())
+    files = {f["path"]: f for f in data["input_files"]}
+    assert files[str(route)]["sha256"] == _sha256(route) and files[str(route)]["bytes"] == route.stat().st_size
+    consist = files["configs/consists/HXD1-C80x50.yaml"]
+    assert consist["sha256"] == _sha256(root / "configs/consists/HXD1-C80x50.yaml")
+    assert {"configs/rolling_stock/HXD1.yaml", "configs/rolling_stock/C80.yaml"} <= set(files)  # the consist's types
+    for key in ("locoplan_version", "inputs", "input_files"):
+        assert saved[key] == data[key]
+    assert saved["locoplan_version"] == __version__ and saved["inputs"]["route"] == str(route)
+    assert "verdict" not in saved and "profile" in saved
+    route.write_text(route.read_text() + "# a comment\n")
+    again = json.loads(runner.invoke(app, ["simulate", str(route), "--json"]).stdout)
+    assert {f["path"]: f["sha256"] for f in again["input_files"]}[str(route)] != files[str(route)]["sha256"]
+
+
+@pytest.mark.parametrize("argv, out_name", [
+    (["compare", "routes/freight-20km.yaml", "--strategies", "time-saving", "--no-gap"], "c.json"),
+    (["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL], "s.json"),
+    (["ocp", "routes/seed000-grade30.yaml"], "o.json")], ids=lambda a: a[0] if isinstance(a, list) else a)
+def test_out_json_of_every_command_carries_the_provenance(tmp_path, argv, out_name):
+    out = tmp_path / out_name
+    res = runner.invoke(app, [*argv, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    saved = json.loads(out.read_text())
+    assert saved["inputs"]["route"] == argv[1]
+    assert {f["path"]: f["sha256"] for f in saved["input_files"]}[argv[1]] == _sha256(argv[1])
+
+
+def test_a_failure_names_the_files_it_read_too(tmp_path):
+    res = runner.invoke(app, ["simulate", str(tmp_path / "none.yaml"), "--json"])
+    data = json.loads(res.stdout)
+    assert res.exit_code == 2 and data["inputs"]["route"] == str(tmp_path / "none.yaml")
+    assert str(tmp_path / "none.yaml") not in [f["path"] for f in data["input_files"]]  # never read: no hash
 
 
 def test_validate_json_has_the_verdict_too(tmp_path):

@@ -7,15 +7,67 @@ import csv
 import io
 import json
 import math
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..io.load import files_read, hash_file, recording_reads
 from ..physics.units import kmh_from_e
 from ..sim.result import CONDITIONS, Profile
 from .files import atomic_write_text
+
+
+# ------------------------------------------------------------------------------------------ provenance
+_PROVENANCE: ContextVar[Optional[dict]] = ContextVar("locoplan_provenance", default=None)
+
+PROVENANCE = ("locoplan_version", "inputs", "input_files")
+"""Keys every result JSON of a command has (its --json object and its --out .json files): the version,
+the inputs as given on the command line, and every file read with its content hash."""
+
+
+@contextmanager
+def provenance(inputs: dict):
+    """A command's run: the ``inputs`` it was given (``{"route": "routes/x.yaml", ...}``) and, recorded
+    while it runs, every file it reads; :func:`provenance_fields` says them."""
+    with recording_reads():
+        token = _PROVENANCE.set(dict(inputs))
+        try:
+            yield
+        finally:
+            _PROVENANCE.reset(token)
+
+
+def provenance_fields() -> dict:
+    """``{"locoplan_version", "inputs", "input_files"}`` of the current :func:`provenance` (empty outside
+    one). ``input_files`` lists each file read (``{"path", "sha256", "bytes"}``, in the order first read),
+    then each file given in ``inputs`` that was read elsewhere (a worker process, SQLite), hashed now."""
+    import os
+
+    from .. import __version__
+
+    inputs = _PROVENANCE.get()
+    if inputs is None:
+        return {}
+    files = list(files_read() or [])
+    seen = {os.path.realpath(f["path"]) for f in files}
+    for value in inputs.values():
+        for path in value if isinstance(value, list) else [value]:
+            key = os.path.realpath(str(path))
+            if key not in seen and (entry := hash_file(path)) is not None:
+                files.append(entry)
+                seen.add(key)
+    return {"locoplan_version": __version__, "inputs": inputs, "input_files": files}
+
+
+def with_provenance(data: Any) -> Any:
+    """``data`` (a result object) with :func:`provenance_fields` added, inside a command's run."""
+    if not isinstance(data, dict) or _PROVENANCE.get() is None:
+        return data
+    return {**data, **provenance_fields()}
 
 
 def clean(value: Any) -> Any:
@@ -166,7 +218,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         if profile is not None:
             rows = profile_rows(profile, route=route)
             data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ())}
-        atomic_write_text(path, to_json(data) + "\n")
+        atomic_write_text(path, to_json(with_provenance(data)) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
 
@@ -181,7 +233,7 @@ def write_rows(path: str | Path, data: dict) -> None:
     columns in their order)."""
     path = Path(path)
     if path.suffix.lower() == ".json":
-        write_json(path, data)
+        write_json(path, with_provenance(data))
         return
     rows = data["results"]
     buf = io.StringIO()
