@@ -383,9 +383,16 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
     return {"route": route.name, "consist": train.name, "results": rows}
 
 
+def curve_verdict(rows: list[dict]) -> Verdict:
+    """``bound``'s curve: each running time asked for without an optimum is a failure (exit 1, as on
+    every command: the other times' rows are still written and shown)."""
+    return verdict(f"E* at {row['time_s']:g} s: {row['reason'] or 'no optimum'}" for row in rows
+                   if row["energy_kwh"] is None)
+
+
 def curve_exit_code(rows: list[dict]) -> int:
-    """``bound``: exit 1 when no running time has an optimum."""
-    return EXIT_FAILED if all(row["energy_kwh"] is None for row in rows) else EXIT_OK
+    """``bound``: exit 1 when a running time asked for has no optimum (:func:`curve_verdict`)."""
+    return curve_verdict(rows).exit_code
 
 
 # ------------------------------------------------------------------------------------------ drivers
@@ -399,4 +406,4 @@ def check_counts(**counts: int) -> None:
 __all__ = ["EXIT_OK", "EXIT_RULE", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "PlannedTimes", "Verdict",
            "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time", "planned_times",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
-           "check_energy_ocp", "bound_times", "energy_curve", "curve_exit_code", "check_counts"]
+           "check_energy_ocp", "bound_times", "energy_curve", "curve_verdict", "curve_exit_code", "check_counts"]

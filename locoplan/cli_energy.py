@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, guarded, json_out, out
+from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -105,8 +105,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
         out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
     else:
         show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
-    if api.curve_exit_code(rows):
-        raise typer.Exit(api.EXIT_FAILED)
+    fail_on(api.curve_verdict(rows))
 
 
 def register(app: typer.Typer) -> None:

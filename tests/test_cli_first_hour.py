@@ -444,6 +444,52 @@ def test_one_colour_per_strategy_in_a_figure():
     assert len({_colour(n, profiles) for n, _ in profiles}) == 3
 
 
+# ------------------------------------------------------------------------------------ CSV a spreadsheet reads
+def _python_spellings(text: str) -> list[str]:
+    """Cells written as Python writes values (True, None, nan, a tuple) instead of CSV's typed spellings."""
+    import csv
+    import io
+
+    bad = []
+    for row in csv.reader(io.StringIO(text)):
+        bad += [c for c in row if c in ("True", "False", "None", "nan", "inf", "-inf") or c.startswith("(")]
+    return bad
+
+
+def test_every_csv_writes_booleans_as_true_false_and_no_value_empty(tmp_path):
+    """bound's curve (converged: a boolean; a failed time: empty cells) and drivers.csv read as typed values."""
+    import csv
+
+    out = tmp_path / "curve.csv"
+    res = runner.invoke(app, ["bound", "routes/freight-20km.yaml", "--times", "1500,1000", "--out", str(out)])
+    assert res.exit_code == 1, res.output  # 1000 s is below the fastest run: its row says why
+    text = out.read_text()
+    assert _python_spellings(text) == []
+    ok, failed = list(csv.DictReader(text.splitlines()))
+    assert ok["converged"] == "true" and float(ok["energy_kwh"]) == pytest.approx(675.83, abs=0.05)
+    assert failed["converged"] == "false" and failed["energy_kwh"] == "" and failed["mesh_points"] == ""
+    logs = tmp_path / "logs"
+    assert runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "2", "--runs", "1",
+                               "--out", str(logs)]).exit_code == 0
+    drivers = (logs / "drivers.csv").read_text()
+    assert _python_spellings(drivers) == []
+    rows = list(csv.DictReader(drivers.splitlines()))
+    assert [r["driver_id"] for r in rows] == ["D01", "D02"] and all(float(r["skill"]) > 0 for r in rows)
+
+
+def test_profile_csv_is_numbers_and_conditions(tmp_path):
+    import csv
+
+    out = tmp_path / "p.csv"
+    assert runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out)]).exit_code == 0
+    rows = list(csv.DictReader(out.open()))
+    assert _python_spellings(out.read_text()) == []
+    for r in rows:
+        assert r["condition"] in ("T", "K", "C", "B", "")  # the last node (the stop) has none
+        [float(v) for k, v in r.items() if k != "condition" and v != ""]
+    assert float(rows[-1]["t_s"]) == pytest.approx(1227.1, abs=0.05)
+
+
 # ------------------------------------------------------------------------------------ small habits
 def test_output_folders_are_created(tmp_path):
     out, plot = tmp_path / "new" / "deep" / "p.csv", tmp_path / "figs" / "p.svg"

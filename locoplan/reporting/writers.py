@@ -180,7 +180,7 @@ def rows_csv(rows: list[dict], columns) -> str:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="ignore")
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows({k: csv_cell(v) for k, v in r.items()} for r in rows)
     return buf.getvalue()
 
 
@@ -211,7 +211,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ()),
                                 lineterminator="\n")
         writer.writeheader()
-        writer.writerows(profile_rows(profile, route=route))
+        writer.writerows({k: csv_cell(v) for k, v in r.items()} for r in profile_rows(profile, route=route))
         atomic_write_text(path, buf.getvalue())
     elif suffix == ".json":
         data = dict(summary)
@@ -239,7 +239,7 @@ def write_rows(path: str | Path, data: dict) -> None:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
     w.writeheader()
-    w.writerows(rows)
+    w.writerows({k: csv_cell(v) for k, v in r.items()} for r in rows)  # true/false, empty cells, as every CSV
     atomic_write_text(path, buf.getvalue())
 
 
