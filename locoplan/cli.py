@@ -286,7 +286,7 @@ def sweep(route: Path = ROUTE,
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[str] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
-          plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits, .png, .svg or .pdf."),
           model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):

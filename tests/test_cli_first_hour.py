@@ -377,6 +377,43 @@ def test_short_version_flag_and_shell_completion():
     assert "--install-completion" in text and "--show-completion" in text
 
 
+FIGURE_MAGIC = {".pdf": b"%PDF-", ".svg": b"<svg", ".png": b"\x89PNG"}
+
+
+@pytest.mark.parametrize("suffix", [".pdf", ".svg", ".PDF"])
+@pytest.mark.parametrize("argv", [["optimize", "routes/freight-20km.yaml", *SMALL],
+                                  ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
+                                   "--no-gap"],
+                                  ["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL],
+                                  ["bound", "routes/freight-20km.yaml", "--times", "1500,1600"],
+                                  ["ocp", "routes/seed000-grade30.yaml"]], ids=lambda a: a[0])
+def test_every_plot_takes_pdf_and_svg(tmp_path, argv, suffix):
+    """Wherever --plot takes a PNG it takes a PDF and an SVG (by the name's suffix, in any case)."""
+    if suffix == ".PDF" and argv[0] != "optimize":
+        pytest.skip("the case of the suffix once is enough")
+    plot = tmp_path / f"figure{suffix}"
+    res = runner.invoke(app, [*argv, "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    head = plot.read_bytes()[:400]
+    assert FIGURE_MAGIC[suffix.lower()] in head, head[:40]
+
+
+def test_pareto_plot_as_pdf(tmp_path):
+    plot = tmp_path / "front.pdf"
+    res = runner.invoke(app, ["pareto", "routes/freight-20km.yaml", "--factors", "1.2", "--strategies", "four-stage",
+                              "--no-optimum", "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    assert plot.read_bytes()[:5] == b"%PDF-"
+
+
+@pytest.mark.parametrize("argv", [["simulate", "routes/freight-20km.yaml"], ["pareto", "routes/freight-20km.yaml"],
+                                  ["ocp", "routes/seed000-grade30.yaml"]], ids=lambda a: a[0])
+def test_a_figure_type_matplotlib_cannot_pick_is_refused_naming_the_three(tmp_path, argv):
+    res = runner.invoke(app, [*argv, "--plot", str(tmp_path / "x.jpg")])
+    assert res.exit_code == 2 and ".png" in res.stderr and ".svg" in res.stderr and ".pdf" in res.stderr
+    assert not (tmp_path / "x.jpg").exists()
+
+
 def test_plots_as_pdf(tmp_path):
     out = tmp_path / "p.pdf"
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--plot", str(out)])
