@@ -23,7 +23,7 @@ __all__ = ["register"]
 
 @guarded
 def simulate(route: Path = ROUTE,
-             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
+             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Folder for the logs: a new one (created with its parents) or an empty one; never written over."),
              drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
              runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
              masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),

@@ -540,6 +540,61 @@ def test_output_folders_are_created(tmp_path):
     assert logs.is_dir() and any(logs.rglob("*.csv"))
 
 
+def test_one_rule_for_output_folders_on_every_command(tmp_path, root):
+    """Every output's missing folder is created with its parents: drivers' logs, learn's patterns and plot,
+    compare's runs, a new store and results' exports, import's folder."""
+    logs = tmp_path / "a" / "b" / "logs"
+    res = runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "4", "--runs", "2",
+                              "--out", str(logs)])
+    assert res.exit_code == 0, res.output
+    patterns, fit = tmp_path / "c" / "d" / "p.json", tmp_path / "e" / "fit.svg"
+    res = runner.invoke(app, ["learn", str(logs), "--out", str(patterns), "--plot", str(fit)])
+    assert res.exit_code == 0, res.output
+    assert json.loads(patterns.read_text())["input_files"] and b"<svg" in fit.read_bytes()[:400]
+    runs = tmp_path / "f" / "g" / "runs.csv"
+    assert runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving", "--no-gap",
+                               "--out", str(runs)]).exit_code == 0 and runs.is_file()
+    study = tmp_path / "study.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\n"
+                     "consists: [HXD1-C80x30]\nstrategies: [time-saving]\n")
+    store = tmp_path / "h" / "i" / "runs.sqlite"
+    res = runner.invoke(app, ["batch", str(study), "--store", str(store)])
+    assert res.exit_code == 0, res.output
+    export, summary = tmp_path / "j" / "k" / "runs.csv", tmp_path / "l" / "summary.json"
+    assert runner.invoke(app, ["results", str(store), "--format", "csv", "--out", str(export)]).exit_code == 0
+    assert runner.invoke(app, ["results", str(store), "--out", str(summary)]).exit_code == 0
+    assert "time-saving" in export.read_text() and summary.is_file()
+
+
+def test_import_creates_its_output_folder(tmp_path):
+    from test_import import _track
+
+    src = tmp_path / "track.json"
+    src.write_text(_track())
+    out = tmp_path / "m" / "n" / "routes"
+    res = runner.invoke(app, ["import", "ttobench", str(src), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert any(out.glob("*.yaml"))
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    res = runner.invoke(app, ["import", "ttobench", str(src), "--out", str(blocked / "routes")])
+    assert res.exit_code == 2 and "is not a folder" in res.stderr
+
+
+def test_readme_names_the_commands_that_exist():
+    from locoplan.cli import app as the_app
+    import typer.main
+
+    group = typer.main.get_command(the_app)
+    text = open("README.md").read()
+    for first, second in re.findall(r"`locoplan ([a-z-]+) ([a-z-]+)", text):
+        assert first in group.commands, first
+        sub = group.commands[first]
+        if hasattr(sub, "commands"):
+            assert second in sub.commands, f"locoplan {first} {second}"
+    assert "drivers learn" not in text
+
+
 def test_a_failed_command_creates_no_output_folder(tmp_path):
     out = tmp_path / "never" / "p.csv"
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--sequence", "T:0,C:nan"])
