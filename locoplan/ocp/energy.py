@@ -81,6 +81,19 @@ class EnergySolution:
         return self.solution.objective / KJ_PER_KWH
 
     @property
+    def accuracy(self) -> float | None:
+        """The objective's estimated relative accuracy: how much it moved over the last refinement
+        (``|E_k - E_k-1| / E_k`` of the last two solved meshes), at least the final mesh's largest
+        relative error; after a single solve that met the tolerance, that mesh's error estimate; None
+        when neither is known."""
+        good = [h for h in self.history if h.status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")]
+        if len(good) < 2:
+            return float(good[-1].max_error) if good and self.converged else None
+        e1, e0 = good[-1].objective_kwh, good[-2].objective_kwh
+        scale = max(abs(e1), 1e-9)
+        return float(max(abs(e1 - e0) / scale, good[-1].max_error))
+
+    @property
     def success(self) -> bool:
         return self.solution.success
 
