@@ -30,11 +30,6 @@ from ..physics.units import kwh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergyOptions, build_problem, check_runnable
 
-E_STAR_IPOPT = {"ipopt.tol": 1e-8, "ipopt.acceptable_tol": 1e-7}
-"""IPOPT's tolerances for E*, tighter than the optimal-control commands' (1e-6): at 1e-6 a solve stops
-with the objective up to 0.06 % short of the NLP's own optimum on a 50 km line (873.28 against
-873.76 kWh on the same first mesh), which is more than the gaps E* is there to measure."""
-
 E_STAR_TOL = 2e-5
 """E* is refined until it moves by at most this share over a refinement (``solve_energy(energy_tol=)``),
 or the mesh tolerance is met: well inside the 0.005 % a gap's last printed digit needs."""
@@ -140,13 +135,13 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     tep = build_problem(route, train, options, time_s, energy)
     warm = _WARM.get(base)
     try:
-        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm, ipopt_options=E_STAR_IPOPT,
+        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm,
                           energy_tol=E_STAR_TOL)
     except LocoplanError:
         if warm is None:
             raise
         es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree,  # a cold start after all
-                          ipopt_options=E_STAR_IPOPT, energy_tol=E_STAR_TOL)
+                          energy_tol=E_STAR_TOL)
     _WARM[base] = es.solution
     b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
               es.wall_time_s, es.accuracy)

@@ -34,7 +34,7 @@ WARM_MAX_ITER = 150
 on the same mesh: the ones that converge take 5-80; one that has not by 150 has gone astray (on
 CH_Fribourg_Bern, 5200 t, two such solves ran to IPOPT's 500 twice each: 30 of 37 s) and the
 fallback below (the same intervals with nothing held or moving) is tried sooner."""
-ENERGY_STOP_MAX_ERROR = 1e-3
+ENERGY_STOP_MAX_ERROR = 3e-3
 """With ``energy_tol``: the largest relative dynamics error at which a settled objective ends refinement."""
 _GOOD = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 _FAILED = {"Infeasible_Problem_Detected", "Restoration_Failed", "Error_In_Step_Computation",
