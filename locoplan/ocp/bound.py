@@ -177,9 +177,12 @@ class Gap:
 
 
 def within_percent(accuracy_percent: float | None) -> str:
-    """E*'s accuracy as a report gives it: two significant digits, rounded up ("0.012 %")."""
+    """E*'s accuracy as a report gives it: two significant digits, rounded up ("0.012 %"; below
+    0.0001 %: "< 0.0001 %")."""
     if accuracy_percent is None:
         return "unknown (not converged)"
+    if accuracy_percent < 1e-4:
+        return "< 0.0001 %"
     x = float(f"{accuracy_percent:.2g}")
     return f"{(x if x >= accuracy_percent else float(f'{accuracy_percent * 1.05:.2g}')):g} %"
 

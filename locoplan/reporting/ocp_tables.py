@@ -8,6 +8,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from .tables import key_value_table
+from ..ocp.bound import within_percent
 
 
 def time_summary_table(s: dict, width: int = 80) -> list:
@@ -157,7 +158,7 @@ def energy_curve_table(route: str, consist: str, rows: list[dict]) -> Table:
 
 
 def _acc(pct: float | None) -> str:
-    return "?" if pct is None else f"{pct:g}"
+    return "?" if pct is None else within_percent(pct).removesuffix(" %")
 
 
 def energy_bound_line(route: str, consist: str, row: dict) -> str:
@@ -165,8 +166,8 @@ def energy_bound_line(route: str, consist: str, row: dict) -> str:
     return (f"E* = {row['energy_kwh']:.2f} kWh  ({escape(route)}, {escape(consist)}, {row['time_s']:g} s; "
             f"{row['mesh_points']} LGR points, "
             + (f"solved in {row['solve_time_s']:.2f} s" if row["solve_time_s"] else "from the cache of earlier solves")
-            + ("; within " + (f"{row['accuracy_percent']:g} %" if row.get("accuracy_percent") is not None else "? % (not converged)"))
+            + f"; within {within_percent(row.get('accuracy_percent'))}"
             + ")"
             + (f"\nsecond method ({c['method']}, {c['steps_m'][0]:g} and {c['steps_m'][1]:g} m): {c['energy_kwh']:.2f} kWh "
-               f"within {c['accuracy_percent']:g} %; E* - it = {c['difference_percent']:+.3f} %"
+               f"within {within_percent(c['accuracy_percent'])}; E* - it = {c['difference_percent']:+.3f} %"
                if (c := row.get("check")) else ""))
