@@ -4,7 +4,8 @@ The check on the Radau solver (``ocp.bound``): ``locoplan bound --check`` and be
 print both. Nothing else of ``locoplan.ocp`` is used: its own grid (every breakpoint of the route plus a uniform step of
 at most ``step_m``), the speed ``v`` as state (not ``e``), the trapezoidal rule for the work-energy
 balance of each cell, ``dt = 2 ds / (v0 + v1)`` for time (exact for constant acceleration), forces at
-the nodes, traction cut at every node inside or on a neutral span. Only the physics formulas are
+the nodes, traction and the electric brake cut at every node inside or on a neutral span (the air brake
+works there). Only the physics formulas are
 shared (``locoplan.physics``: resistance, force curves, gravity, the train-length-aware gradient and
 limits), since the check is of the optimal control, not of the model. CasADi + IPOPT solve it.
 """
@@ -100,6 +101,15 @@ def trapezoid_min_energy(route, train, time_s: float, options: ModelOptions | No
                                               train_resistance_kn(3.6 * vk, train.resistance_kn))])
     caps = fb.map(n)(v.T)
     fmax, bmax, res = caps[0, :].T, caps[1, :].T, caps[2, :].T
+    # in a neutral span the main breaker is open: traction and the electric brake are cut, the wagons'
+    # air brake works (the same rule as the calculator's and the LGR model's)
+    air_kn = np.asarray(train.air_brake_kn, float)
+    has_air = bool(options.air_brake and np.any(air_kn > 0))
+    if cut.any():
+        air_cap = (ca.Function("air", [vk], [max_force_kn(3.6 * vk, train.air_brake_speed_kmh, air_kn)]).map(n)(v.T).T
+                   if has_air else ca.DM.zeros(n, 1))
+        c = ca.DM(cut.astype(float))
+        bmax = (1 - c) * bmax + c * air_cap
     net = F - B - res  # at the nodes, without gravity
     work = 0.5 * (net[:-1] + net[1:]) * ca.DM(h) - ca.DM(grav * h)
     g_energy = 0.5 * (v[1:] ** 2 - v[:-1] ** 2) * m_eff - work
@@ -116,7 +126,7 @@ def trapezoid_min_energy(route, train, time_s: float, options: ModelOptions | No
     lbt, ubt = np.zeros(n), np.full(n, time_s)
     ubt[0] = 0.0
     ubF = np.where(cut, 0.0, f_top)
-    ubB = np.where(cut, 0.0, b_top)
+    ubB = np.where(cut & (not has_air), 0.0, b_top)
     lbx = np.concatenate([lbv, lbt, np.zeros(n), np.zeros(n)])
     ubx = np.concatenate([ubv, ubt, ubF, ubB])
     # start from a trapezoidal speed profile at a uniform fraction of the limit that takes time_s
