@@ -344,6 +344,7 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
             acc = b.accuracy_percent
             row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
                    "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
+                   "slope_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 5),
                    "mesh_points": b.points, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
             if check:
                 from .ocp.trapezoid import trapezoid_energy

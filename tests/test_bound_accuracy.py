@@ -125,3 +125,13 @@ def test_bound_check_prints_both_methods(root, monkeypatch, tmp_path):
     assert abs(c["difference_percent"]) < 0.05 and d["accuracy_percent"] < 0.005
     r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check"])
     assert r.exit_code == 0 and "second method (trapezoidal collocation, 10 and 5 m)" in r.output and "within" in r.output
+
+
+def test_the_slope_is_the_curves_derivative(small, monkeypatch, tmp_path):
+    """dE*/dT from the running time's multiplier against a central difference of two solves."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    route, train = small
+    lo, mid, hi = (energy_bound(route, train, ModelOptions(), t) for t in (T_SMALL - 2.0, T_SMALL, T_SMALL + 2.0))
+    fd = (hi.energy_kwh - lo.energy_kwh) / 4.0
+    assert mid.slope_kwh_per_s < 0 and mid.slope_kwh_per_s == pytest.approx(fd, rel=0.03)
+    assert lo.slope_kwh_per_s < mid.slope_kwh_per_s < hi.slope_kwh_per_s  # convex: a second saves less and less

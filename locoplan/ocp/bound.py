@@ -42,7 +42,8 @@ _WARM: dict[tuple, object] = {}
 class Bound:
     """E* at one running time: ``energy_kwh``, the mesh it was solved on, whether the refinement met
     its tolerance, the wall time of the solve [s] (0 when it came from the cache), and ``accuracy``:
-    E*'s estimated relative accuracy (``EnergySolution.accuracy``; None when unknown)."""
+    E*'s estimated relative accuracy (``EnergySolution.accuracy``; None when unknown), and the curve's
+    slope there."""
 
     time_s: float
     energy_kwh: float
@@ -51,6 +52,8 @@ class Bound:
     points: int
     solve_time_s: float
     accuracy: float | None = None
+    slope_kwh_per_s: float | None = None
+    """dE*/dT at this time [kWh/s] (``EnergySolution.slope_kwh_per_s``): what a second more saves."""
 
     @property
     def accuracy_percent(self) -> float | None:
@@ -144,7 +147,7 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
                           energy_tol=E_STAR_TOL)
     _WARM[base] = es.solution
     b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
-              es.wall_time_s, es.accuracy)
+              es.wall_time_s, es.accuracy, es.slope_kwh_per_s)
     _BOUNDS[key] = b
     _cache_write(key, b)
     return b

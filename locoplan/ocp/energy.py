@@ -84,6 +84,19 @@ class EnergySolution:
         return self.solution.objective / KJ_PER_KWH
 
     @property
+    def slope_kwh_per_s(self) -> float | None:
+        """dE*/dT [kWh/s] (negative: a second more saves energy): minus the multiplier of the running
+        time's bound ``t_f <= T``, in physical units (IPOPT's ``lam_x`` of the final time, unscaled);
+        None when the bound is not active or there are no multipliers."""
+        sol = self.solution
+        if sol is None or sol.lam_x is None or sol.lam_x.size == 0:
+            return None
+        nx, npts = sol.X.shape
+        lam = float(sol.lam_x[nx * (npts - 1) + 1])
+        model = self.tep.problem.model
+        return -lam * float(self.tep.problem.objective_scale) / float(model.state_scale[1]) / KJ_PER_KWH
+
+    @property
     def accuracy(self) -> float | None:
         """The objective's estimated relative accuracy: how much it moved over the last refinement
         (``|E_k - E_k-1| / E_k`` of the last two solved meshes); after a single solve that met the tolerance, that mesh's error estimate; None
