@@ -69,6 +69,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
           plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
           mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
           max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
+          check: bool = typer.Option(False, "--check", help="Solve each E* a second way (trapezoidal collocation, 10 and 5 m) and show both."),
           model: ModelRequest = MODEL):
     """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
     Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
@@ -89,9 +90,9 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
     r, train, opts = _load(route, consist, stock_dir, model)
     ts = (_times(values, (r, train), options=opts, quiet=as_json) if values is not None
           else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))])
-    with step_progress("bound solves", len(ts), not as_json) as step:
+    with step_progress("bound solves", len(ts) * (2 if check else 1), not as_json) as step:
         data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
-                                curve=values is not None, step=step)
+                                curve=values is not None, step=step, check=check)
     rows = data["results"]
     if out_file:
         write_rows(out_file, data)
