@@ -34,6 +34,12 @@ E_STAR_TOL = 2e-5
 """E* is refined until it moves by at most this share over a refinement (``solve_energy(energy_tol=)``),
 or the mesh tolerance is met: well inside the 0.005 % a gap's last printed digit needs."""
 
+E_STAR_END_INTERVAL_M = 20.0
+"""E*'s first and last mesh interval at most this long [m] (200 m for the optimal-control commands): on a
+short leg that brakes to the stop from its coasting speed, a 130 m stop interval let the refinement
+settle 2.7 % above the optimum (CN_Songjiazhuang_Yizhuang leg 12, HXD1 + 50 x C80 at 189.2 s: 69.71
+against 67.88 kWh from both a 20 m stop interval and the trapezoidal method)."""
+
 _BOUNDS: dict[tuple, "Bound"] = {}
 _WARM: dict[tuple, object] = {}
 
@@ -139,12 +145,12 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     warm = _WARM.get(base)
     try:
         es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm,
-                          energy_tol=E_STAR_TOL)
+                          energy_tol=E_STAR_TOL, end_interval_m=E_STAR_END_INTERVAL_M)
     except LocoplanError:
         if warm is None:
             raise
         es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree,  # a cold start after all
-                          energy_tol=E_STAR_TOL)
+                          energy_tol=E_STAR_TOL, end_interval_m=E_STAR_END_INTERVAL_M)
     _WARM[base] = es.solution
     b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
               es.wall_time_s, es.accuracy, es.slope_kwh_per_s)

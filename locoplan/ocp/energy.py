@@ -172,10 +172,12 @@ def calculator_guess(calc: TractionCalculator, time_s: float):
 def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol: float = DEFAULT_MESH_TOL,
                  max_degree: int = DEFAULT_MAX_DEGREE, max_iterations: int = MAX_MESH_ITERATIONS,
                  warm: RadauSolution | None = None, mesh: Mesh | None = None,
-                 ipopt_options: dict | None = None, energy_tol: float | None = None) -> EnergySolution:
+                 ipopt_options: dict | None = None, energy_tol: float | None = None,
+                 end_interval_m: float = END_INTERVAL_M) -> EnergySolution:
     """Minimum energy of ``tep`` by LGR collocation and hp refinement to ``mesh_tol``.
 
-    ``energy_tol``: also stop once the objective moved by at most this share over a refinement while
+    ``end_interval_m``: the longest first and last interval of a cold start (the departure from rest and
+    the stop). ``energy_tol``: also stop once the objective moved by at most this share over a refinement while
     no interval's error exceeds ``ENERGY_STOP_MAX_ERROR`` (E* is wanted to a relative accuracy, and the
     last intervals the dynamics tolerance would split barely move it).
 
@@ -203,7 +205,7 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         def guess(s, n_controls):
             return g(s, n_controls)
         mesh = mesh or initial_mesh(problem.phases, INITIAL_DEGREE, INITIAL_MAX_INTERVAL_M, problem.rest_start,
-                                    problem.rest_end, END_INTERVAL_M)
+                                    problem.rest_end, end_interval_m)
     history: list[MeshStep] = []
     best: RadauSolution | None = None
     errors = np.zeros(0)
