@@ -167,7 +167,7 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
 
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
                "reason", "running_time_s", "traction_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
-               "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "cruise_kmh",
+               "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
                "switches", "coasts", "energy_reduction_percent", "n_evaluations",
                "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
