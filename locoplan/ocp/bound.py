@@ -153,20 +153,25 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
             raise
         es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree,  # a cold start after all
                           energy_tol=E_STAR_TOL)
+    accuracy = es.accuracy
     if route.length_m <= SHORT_LEG_M:  # a second start: the lower of two local optima
         try:
             other = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, energy_tol=E_STAR_TOL,
                                  end_interval_m=SECOND_START_END_M)
         except LocoplanError:
             other = None
-        if other is not None and other.success and other.objective_kwh < es.objective_kwh:
-            other.wall_time_s += es.wall_time_s
-            es = other
-        else:
-            es.wall_time_s += 0.0 if other is None else other.wall_time_s
+        if other is not None and other.success:
+            best, rest = (other, es) if other.objective_kwh < es.objective_kwh else (es, other)
+            best.wall_time_s = es.wall_time_s + other.wall_time_s
+            es = best
+            accuracy = best.accuracy
+            if rest.accuracy is not None:  # the other start's optimum and its accuracy bound this one's too
+                apart = abs(best.objective_kwh - rest.objective_kwh) / max(abs(best.objective_kwh), 1e-9)
+                acc = max(apart, rest.accuracy)
+                accuracy = acc if best.accuracy is None else min(best.accuracy, acc)
     _WARM[base] = es.solution
     b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
-              es.wall_time_s, es.accuracy, es.slope_kwh_per_s)
+              es.wall_time_s, accuracy, es.slope_kwh_per_s)
     _BOUNDS[key] = b
     _cache_write(key, b)
     return b
