@@ -874,7 +874,16 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         "manifest": (manifest, lambda p: ["learn", p, "--out", str(tmp / "schema_patterns.json")]),
         "railtoolkit": ("schema: railtoolkit/path\nschema_version: '2022.05'\npaths: []\n",
                         lambda p: ["import", "railtoolkit", p, "--out", str(tmp / "schema_import")]),
+        # a per-run sidecar <log>.yaml beside its log (learn reads a folder of them)
+        "sidecar": ("schema: locoplan/driver-run@1\nroute: " + str(ROOT / "tests/data/learn/line-6km.yaml") +
+                    "\nconsist: HXD1-C80x50\nsynthetic: false\nlog: run.csv\ndriver_id: D01\nmass_t: 5200\n"
+                    "scheduled_time_s: 3\nactual_time_s: 3\ndate: 2024-05-01\n",
+                    lambda p: ["learn", str(Path(p).parent), "--out", str(tmp / "schema_sidecar.json")]),
+        # a vehicle file found in --stock-dir by the name a consist gives (read when the consist is loaded)
+        "stock_vehicle": ((ROOT / "configs/rolling_stock/HXD1-seed000.yaml").read_text(encoding="utf-8"),
+                          lambda p: ["simulate", good_route, "--consist", stock_consist, "--stock-dir", str(Path(p).parent)]),
     }
+    stock_consist = write("schema_stock_consist.yaml", CONSIST.format(loco="HXD1-seed000", count="1", load=""))
     import re as _re
 
     (tmp / "schema_import").mkdir(exist_ok=True)
@@ -886,12 +895,23 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
             changed = _re.sub(r"(?m)^schema: .*$", f"schema: {value}", body, count=1)
             folder = tmp / "files" / f"schema_{kind}_{form}"
             folder.mkdir(exist_ok=True)
-            path = folder / ("manifest.yaml" if kind == "manifest" else f"{kind}.yaml")
+            path = folder / {"manifest": "manifest.yaml", "sidecar": "run.yaml",
+                             "stock_vehicle": "HXD1-seed000.yaml"}.get(kind, f"{kind}.yaml")
             path.write_text(changed, encoding="utf-8")
-            if kind == "manifest":
+            if kind in ("manifest", "sidecar"):
                 (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
             cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
-                              (str(path), "schema", said), note="a schema that is not text crashed every loader"))
+                              (f"{path}:", "schema", said), note="a schema that is not text crashed every loader"))
+    # other YAML types in the schema's place, named by what YAML read
+    for form, value, said in (("bool", "yes", "a boolean"), ("date", "2001-12-14", "a date"),
+                              ("binary", "!!binary aGVsbG8=", "binary data"), ("empty_list", "[]", "a list")):
+        path = write(f"schema_{form}.yaml", _re.sub(r"(?m)^schema: .*$", f"schema: {value}", text, count=1))
+        cases.append(Case(f"schema_{form}_route", "yaml", ["validate", path], 2, (f"{path}:1:", "schema", said)))
+    # a patterns.json (JSON: no lines) whose schema is a list or a mapping
+    for form, value, said in (("list", '["locoplan/patterns@1"]', "a list"), ("map", '{"a": 1}', "a mapping")):
+        path = write(f"schema_{form}_patterns.json", '{"schema": %s, "settings": {}}\n' % value)
+        cases.append(Case(f"schema_{form}_patterns", "yaml", ["advise", good_route, "--patterns", path], 2,
+                          (path, "schema", said)))
 
 
 def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:

@@ -414,6 +414,18 @@ def parse_json(text: str, name: str) -> Any:
         raise InputError(Problem(name, "", f"not usable JSON: {exc.__class__.__name__}: {str(exc)[:120]}")) from None
 
 
+def yaml_kind(value: Any) -> str:
+    """What a parsed value is, in words: 'a list', 'a mapping', 'a number', 'binary data', ..."""
+    import datetime as _dt
+
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (_dt.date, _dt.datetime)):
+        return "a date"
+    return {list: "a list", dict: "a mapping", int: "a number", float: "a number", bytes: "binary data",
+            str: "text", type(None): "null"}.get(type(value), f"a {type(value).__name__}")
+
+
 def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
     """Parse a YAML file; missing, unreadable, empty, malformed or hostile files raise ``InputError``."""
     name = str(path)
@@ -429,9 +441,8 @@ def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
     schema = data.get("schema")
     if schema is not None and not isinstance(schema, str):
         # every loader looks the schema up in a table: a list or mapping there is unhashable, a number no name
-        kind = {list: "a list", dict: "a mapping", bool: "a boolean", int: "a number", float: "a number"}.get(type(schema), f"a {type(schema).__name__}")
-        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got {kind} "
-                                 f"({short_repr(schema)})", _line_for(lines, ("schema",))))
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got "
+                                 f"{yaml_kind(schema)} ({short_repr(schema)})", _line_for(lines, ("schema",))))
     return data, lines
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import InputError, Problem
-from .load import parse_json, read_text
+from .load import parse_json, read_text, short_repr, yaml_kind
 
 
 class PatternLayer(BaseModel):
@@ -50,6 +50,9 @@ def read_patterns_file(path: str | Path) -> dict:
     if not path.exists():
         raise InputError(Problem(name, "--patterns", "no such file"))
     data = parse_json(read_text(path), name)
+    if isinstance(data, dict) and "schema" in data and not isinstance(data["schema"], str):
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, 'locoplan/patterns@1', got "
+                                 f"{yaml_kind(data['schema'])} ({short_repr(data['schema'])})"))
     try:
         f = PatternFile.model_validate(data)
     except ValidationError as exc:
