@@ -536,6 +536,18 @@ def build(tmp: Path) -> list[Case]:
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
 
     _every_numeric_option(cases, tmp)
+    _every_text_number_option(cases, tmp)
+    for v in ("nan", "0", "-1", "inf", "1e-300"):  # --time beside --times is checked, not ignored
+        cases.append(Case(f"sweep_time_{v}_with_times", "option", ["sweep", good_route, "--consist", SMALL, "--times", "200,210",
+                                                                  "--time", v], 2, (CMDLINE, "--time")))
+    for v in ("nan", "-1", "abc"):  # ocp --time is checked whatever the objective (minimum time does not use it)
+        cases.append(Case(f"ocp_time_{v}_objective_time", "option", ["ocp", good_route, "--time", v], 2, (CMDLINE, "--time")))
+    cases.append(Case("ocp_efficiency_tiny", "option", ["ocp", good_route, "--objective", "energy", "--efficiency", "1e-300"], 2,
+                      (CMDLINE, "--efficiency", "[0.1, 1]")))
+    cases.append(Case("sequence_empty_item", "option", ["simulate", good_route, "--consist", SMALL, "--sequence", "T:0,,C:900"],
+                      2, (CMDLINE, "--sequence", "item 2", "is empty")))
+    for flag, v in (("--times", "200,,210"), ("--times", "200,210,")):
+        cases.append(Case(f"bound_times_empty_item_{v}", "option", ["bound", good_route, flag, v], 2, (CMDLINE, flag, "is empty")))
     _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
@@ -604,6 +616,10 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
             values = ["-1", "1e30"] + (["nan", "inf", "-inf"] if kind == "float" else [str(10**40)])
             if lo > 0 or entry[3]:
                 values.append("0")
+            if kind == "float" and lo > 0:
+                values.append("1e-300")  # positive, below the bound (a mesh tolerance that would run for minutes)
+            if kind == "int" and hi < 1000:
+                values.append("1000")
             for v in values:
                 if kind == "int" and v == "1e30":
                     v = str(int(hi) + 1)
@@ -612,6 +628,39 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
                 name = f"every_option_{'_'.join(words)}_{flag[2:]}_{v}"
                 cases.append(Case(name, "option", [*words, *args, flag, v], 2, (flag,),
                                   note="every numeric option through the bounds module"))
+
+
+NOT_NUMBERS = {"NAME", "NAME,...", "FILE", "FILE|NAME", "DIR", "MODE", "time|energy", "ADDRESS", "csv|parquet|json", "EXPR",
+               "FIELD,...", "PLAN"}
+"""Metavars of text options that hold no number (``PLAN``, a --sequence, is checked against its route's length)."""
+
+
+def text_number_options(cmd) -> list[str]:
+    """Flags of a command's text options that hold numbers (a time form, a list, a grid, a curve)."""
+    out = []
+    for p in cmd.params:
+        ann = getattr(getattr(p, "type_descriptor", None), "annotation", None)
+        if p.opts and p.opts[0].startswith("--") and ann is str and p.metavar not in NOT_NUMBERS:
+            out.append(p.opts[0])
+    return out
+
+
+def _every_text_number_option(cases: list[Case], tmp: Path) -> None:
+    """Every text option that holds numbers (--time, --times, --weights, --factors, --seeds, --masses,
+    --efficiency, ...), given nan, inf, a negative, a huge value, text, an empty item and an overflowing
+    float: refused by its parser in the bounds module before any file is read, naming the option."""
+    for words, cmd in commands():
+        args = []
+        for p in cmd.params:
+            if p.required and not p.opts[0].startswith("--"):
+                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
+            elif p.required:
+                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        for flag in text_number_options(cmd):
+            for label, v in (("nan", "nan"), ("inf", "inf"), ("neg", "-1"), ("huge", "1e30"), ("text", "abc"),
+                             ("empty_item", "1,,2"), ("overflow", "1e400")):
+                cases.append(Case(f"every_text_number_{'_'.join(words)}_{flag[2:]}_{label}", "option", [*words, *args, flag, v],
+                                  2, (CMDLINE, flag), note="a text option's numbers through the bounds module"))
 
 
 def _output_and_message_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
