@@ -706,8 +706,12 @@ def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Pat
               consist: str = SMALL):
         path = write(name, f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{consist}]\n{body}")
         store = str(tmp / "stores" / f"{name}.sqlite")
+        # named as study.yaml:LINE: FIELD (the line of the field's key; the file's first three lines are its head)
+        key = field_.split("[")[0].split(".")[0]
+        line = next((4 + i for i, text in enumerate(body.splitlines()) if text.startswith(f"{key}:")), None)
+        where = (f"{path}:{line}: {field_}",) if field_ and line else (f"{path}:", field_) if field_ else (f"{path}:",)
         cases.append(Case(name, "study", ["batch", path, "--store", store, "--workers", "1", "--quiet"], exit,
-                          (f"{path}:", field_) + why if field_ else (f"{path}:",) + why))
+                          where + why, forbid=(CMDLINE,)))
 
     study("study_weights_nan.yaml", "times: [200]\nweights: [.nan, .nan]\n", "finite", field_="weights[0]")
     study("study_weights_inf.yaml", "times: [200]\nweights: [.inf, 0]\n", "finite", field_="weights[0]")
@@ -718,7 +722,22 @@ def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Pat
     study("study_times_zero.yaml", "times: [0]\n", "a second", field_="times[0]")
     study("study_times_nan.yaml", "times: [.nan]\n", "finite", field_="times[0]")
     study("study_times_base60.yaml", "times: [3:20]\n", "base-60", field_="times[0]")
-    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 100", field_="times[0]")
+    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 10,", field_="times[0]")
+    study("study_factor_50x.yaml", "times: [50x]\n", "at most 10, as on the command line", field_="times[0]")
+    # strict types, as in every locoplan file: a boolean or a quoted number is no seed, weight, tolerance or flag
+    study("study_seed_true.yaml", "times: [200]\nseeds: [true]\n", "valid integer", field_="seeds[0]")
+    study("study_seed_quoted.yaml", "times: [200]\nseeds: ['7']\n", "valid integer", field_="seeds[0]")
+    study("study_tolerance_true.yaml", "times: [200]\ntolerance_s: true\n", "valid number", field_="tolerance_s")
+    study("study_tolerance_quoted.yaml", "times: [200]\ntolerance_s: '10'\n", "valid number", field_="tolerance_s")
+    study("study_weights_bool.yaml", "times: [200]\nweights: [true, false]\n", "valid number", field_="weights[0]")
+    study("study_weights_quoted.yaml", "times: [200]\nweights: ['0.5', '0.5']\n", "valid number", field_="weights[0]")
+    study("study_weights_three.yaml", "times: [200]\nweights: [0.2, 0.3, 0.5]\n", field_="weights")
+    study("study_step_true.yaml", "times: [200]\nmodel: {step_m: true}\n", "valid number", field_="model.step_m")
+    study("study_window_one.yaml", "times: [200]\nwindow: 1\n", "valid boolean", field_="window")
+    study("study_tolerance_at_t0.yaml", "times: [200]\ntolerance_s: 200\n", "not below the planned running time",
+          field_="tolerance_s")
+    study("study_tolerance_above_factor_time.yaml", "times: [1.1x]\ntolerance_s: 1000\n",
+          "not below the planned running time", field_="tolerance_s")
     study("study_tolerance_above_t0.yaml", "times: [200]\ntolerance_s: 1000\n", "not below the planned running time",
           field_="tolerance_s")
     study("study_tolerance_inf.yaml", "times: [200]\ntolerance_s: .inf\n", "finite", field_="tolerance_s")
@@ -831,10 +850,29 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
     cases.append(Case("drivers_disk_full", "output", ["drivers", "simulate", good_route, "--out", str(logs_full), "--drivers",
                                                       "2", "--runs", "1"], 2, (str(logs_full), "nothing was written"),
                       fsize=3000, after=lambda: "logs left" if logs_full.exists() else None))
-    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"]):
-        cases.append(Case(f"tolerance_above_t0_{cmd[0]}", "option", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
-                                                                     "--tolerance", "1000"], 2,
+    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"], ["study", "--runs", "1"],
+                ["pareto", "--times", "200,210"], ["pareto"], ["optimize", "--time", "1.2x"]):
+        for tol in ("1000", "200"):  # above T0, and T0 itself (a window opening at departure)
+            cases.append(Case(f"tolerance_{tol}_t0_{'_'.join(cmd)}", "option", [cmd[0], good_route, "--consist", SMALL,
+                                                                               *cmd[1:], "--tolerance", tol], 2,
+                              (CMDLINE, "--tolerance", "not below the planned running time")))
+    for tol in ("1000", "200"):
+        cases.append(Case(f"tolerance_{tol}_t0_drivers", "option", ["drivers", "simulate", good_route, "--out",
+                                                                  str(tmp / f"logs_tol_{tol}"), "--drivers", "2", "--runs", "1",
+                                                                  "--tolerance", tol], 2,
                           (CMDLINE, "--tolerance", "not below the planned running time")))
+    # a window below T0 whose earliest aim the driver simulator cannot drive (it gave a traceback)
+    cases.append(Case("tolerance_wide_drivers", "option", ["drivers", "simulate", good_route, "--out", str(tmp / "logs_tol_wide"),
+                                                           "--drivers", "2", "--runs", "1", "--tolerance", "199.99"], 2,
+                      (CMDLINE, "--tolerance", "less than half the fastest possible run", "at most")))
+    wide = write("wide_window.yaml", route(schedule="schedule: {run_time_s: 200, tolerance_s: 190}\n"))
+    cases.append(Case("route_tolerance_wide_drivers", "option", ["drivers", "simulate", wide, "--out", str(tmp / "logs_tol_route"),
+                                                                 "--drivers", "2", "--runs", "1"], 2,
+                      (wide, "schedule.tolerance_s", "less than half the fastest possible run")))
+    cases.append(Case("route_tolerance_above_times_drivers", "option", ["drivers", "simulate", wide, "--out",
+                                                                        str(tmp / "logs_tol_route2"), "--drivers", "2",
+                                                                        "--runs", "1", "--times", "180"], 2,
+                      (wide, "schedule.tolerance_s", "not below the planned running time 180 s")))
 
 
 _SERVERS: list = []

@@ -15,7 +15,7 @@ from .load import parse_json, read_text, short_repr, yaml_kind
 class PatternLayer(BaseModel):
     """One layer of a patterns.json (``upper`` also has its ``form``)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     features: list[str]
     order: int = Field(ge=1)
     types: list[str]
@@ -31,7 +31,7 @@ class PatternLayer(BaseModel):
 class PatternFile(BaseModel):
     """A patterns.json: the settings and train model it was learned with, both layers, the fit report."""
 
-    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
     schema_: str = Field(alias="schema")
     locoplan_version: str
     settings: dict
