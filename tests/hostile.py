@@ -550,6 +550,7 @@ def build(tmp: Path) -> list[Case]:
         cases.append(Case(f"bound_times_empty_item_{v}", "option", ["bound", good_route, flag, v], 2, (CMDLINE, flag, "is empty")))
     _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
+    _yaml11_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
@@ -999,6 +1000,62 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         path = write(f"schema_{form}_patterns.json", '{"schema": %s, "settings": {}}\n' % value)
         cases.append(Case(f"schema_{form}_patterns", "yaml", ["advise", good_route, "--patterns", path], 2,
                           (path, "schema", said)))
+
+
+def _yaml11_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """YAML 1.1 number forms in every kind of file every loader reads: those YAML 1.2 reads as text (base-60
+    ``3:20``, digit groups ``1_500``, binary ``0b101``) refused at file:line and field; those YAML 1.2 reads
+    otherwise (``060``, ``08``, ``0o60``) read as YAML 1.2 does."""
+    import re as _re
+
+    manifest = (ROOT / "tests/data/bad_logs/mph/manifest.yaml").read_text(encoding="utf-8").replace(
+        "../../learn/line-6km.yaml", str(ROOT / "tests/data/learn/line-6km.yaml"))
+    rt = Path("/work/shared/data/external/railtoolkit/paths/slope.yaml")
+    if not rt.is_file():
+        rt = ROOT.parent / "shared" / "data" / "external" / "railtoolkit" / "paths" / "slope.yaml"
+    kinds = {  # kind: (text, the line to change (a regex), its replacement with {v}, field, argv)
+        "route": (route(), r"(?m)^length_m: .*$", "length_m: {v}", "length_m", lambda p: ["validate", p]),
+        "vehicle": (VEHICLE.format(name="V", mass="200", a="2.23", force="532"), r"(?m)^mass_t: .*$", "mass_t: {v}",
+                    "mass_t", lambda p: ["validate", p]),
+        "consist": (CONSIST.format(loco="HXD1-seed000", count="1", load=""), r"count: 1}\n$", "count: {v}}}\n",
+                    "vehicles[1].count", lambda p: ["simulate", good_route, "--consist", p]),
+        "params": (PARAMS.format(pop="10", iters="5", extra=""), r"(?m)^pop_size: .*$", "pop_size: {v}", "pop_size",
+                   lambda p: ["optimize", good_route, "--consist", SMALL, "--params", p]),
+        "study": (f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\ntimes: [200]\n",
+                  r"(?m)^times: .*$", "times: [{v}]", "times[0]",
+                  lambda p: ["batch", p, "--store", str(tmp / "stores" / "yaml11.sqlite"), "--workers", "1"]),
+        "manifest": (manifest, r"mass_t: 5200", "mass_t: {v}", "runs[0].mass_t",
+                     lambda p: ["learn", str(Path(p).parent), "--out", str(tmp / "yaml11_patterns.json")]),
+    }
+    if rt.is_file():
+        kinds["railtoolkit"] = (rt.read_text(encoding="utf-8"), r"(?m)^(      - \[ +0\.0, +)160,", r"\g<1>{v},",
+                                "characteristic_sections", lambda p: ["import", "railtoolkit", p, "--out",
+                                                                       str(tmp / "yaml11_import")])
+    (tmp / "yaml11_import").mkdir(exist_ok=True)
+    for kind, (text, pattern, repl, field_, argv) in kinds.items():
+        for form, value, why in (("base60", "3:20", "base-60"), ("groups", "1_600", "YAML 1.2"),
+                                 ("binary", "0b1010", "YAML 1.2")):
+            folder = tmp / "files" / f"yaml11_{kind}_{form}"
+            folder.mkdir(exist_ok=True)
+            path = folder / ("manifest.yaml" if kind == "manifest" else f"{kind}.yaml")
+            changed, n = _re.subn(pattern, repl.replace("{v}", value), text, count=1)
+            assert n == 1, (kind, form)
+            path.write_text(changed, encoding="utf-8")
+            if kind == "manifest":
+                (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
+            cases.append(Case(f"yaml11_{form}_{kind}", "number", argv(str(path)), 2, (f"{path}:", field_, why),
+                              note="YAML 1.1 reads a number, YAML 1.2 text: refused, never read silently"))
+    # read as YAML 1.2 does: 08 is eight (YAML 1.1: text), 0o2734 the octal 1500 (YAML 1.1: text)
+    for name, length in (("yaml12_leading_zero_8", "08"), ("yaml12_octal_0o", "0o2734")):
+        path = write(f"{name}.yaml", route(length=length if length != "08" else "01508"))
+        cases.append(Case(name, "number", ["validate", path, "--json"], 0, (),
+                          expect_out=('"length_m": 1508.0',) if length == "08" else ('"length_m": 1500.0',)))
+    if rt.is_file():  # a YAML 1.2 railtoolkit file with 0160 km/h imports 160 km/h (YAML 1.1: the octal 112)
+        src = write("rt_leading_zero.yaml", _re.sub(r"(?m)^(      - \[ +0\.0, +)160,", r"\g<1>0160,", rt.read_text(), count=1))
+        out = tmp / "yaml12_rt_import"
+        out.mkdir(exist_ok=True)
+        cases.append(Case("yaml12_railtoolkit_0160", "number", ["import", "railtoolkit", src, "--out", str(out)], 0, (),
+                          after=lambda: None if "kmh: 160}" in (out / "slope.yaml").read_text() else "not read as 160 km/h"))
 
 
 def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:

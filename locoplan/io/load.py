@@ -181,23 +181,33 @@ _BASE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when pre
 
 
 class _LOADER(_BASE_LOADER):  # type: ignore[misc,valid-type]
-    """The safe loader, reading integers as YAML 1.2 does: ``060`` is sixty (YAML 1.1 would read the octal 48,
-    a silent 20 % off a speed limit); ``0o60`` is still octal. Base-60 forms (``3:20``) are refused by the scan."""
+    """The safe loader, reading integers as YAML 1.2 does: ``060`` and ``08`` are sixty and eight (YAML 1.1
+    would read the octal 48, a silent 20 % off a speed limit, and the text '08'); ``0o60`` is the octal 48
+    (text to YAML 1.1). The forms YAML 1.1 reads as numbers and YAML 1.2 as text, base-60 (``3:20``),
+    digit groups (``1_500``) and binary (``0b101``), are refused by the scan, naming file, line and field."""
 
 
 _OCTAL_11 = re.compile(r"^[-+]?0[0-7_]+$")
+_DECIMAL_12 = re.compile(r"^[-+]?0[0-9]+$")  # a leading zero: decimal to YAML 1.2
+_OCTAL_12 = re.compile(r"^[-+]?0o[0-7]+$")
 _SEXAGESIMAL_11 = re.compile(r"^[-+]?[0-9][0-9_]*(:[0-5]?[0-9])+(\.[0-9_]*)?$")
 
 
 def _construct_int(loader, node):
     value = loader.construct_scalar(node)
-    if _OCTAL_11.match(value):
+    if _OCTAL_11.match(value) or _DECIMAL_12.match(value):
         return int(value.replace("_", ""), 10)
+    if _OCTAL_12.match(value):
+        sign = -1 if value.startswith("-") else 1
+        return sign * int(value.lstrip("+-")[2:], 8)
     return yaml.constructor.SafeConstructor.construct_yaml_int(loader, node)
 
 
 _LOADER.add_constructor("tag:yaml.org,2002:int", _construct_int)
-_RESOLVER = yaml.SafeLoader("")
+# integers YAML 1.2 reads and YAML 1.1 leaves as text: 08, 0189 (a leading zero before an 8 or 9), 0o60
+_LOADER.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(r"^(?:[-+]?0[0-9]*[89][0-9]*|[-+]?0o[0-7]+)$"),
+                              list("-+0"))
+_RESOLVER = _LOADER("")
 _STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
 _NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
 _READ_AS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number",
@@ -214,6 +224,28 @@ def _base60(text: str) -> float:
         if value > 1e300:
             return sign * float("inf")
     return sign * value
+
+
+def _yaml11_only(text: str) -> str | None:
+    """A number literal YAML 1.1 reads and YAML 1.2 does not (digit groups ``1_500``, binary ``0b101``): the
+    number it stands for, written plainly; None for any other literal."""
+    t = text.lower()
+    body = t.lstrip("+-")
+    sign = "-" if t.startswith("-") else ""
+    if body.startswith("0b"):
+        try:
+            return f"{sign}{int(body[2:].replace('_', ''), 2)}"
+        except ValueError:
+            return None
+    if "_" not in t:
+        return None
+    cleaned = t.replace("_", "")
+    if body.startswith("0x"):
+        try:
+            return f"{sign}{int(cleaned.lstrip('+-')[2:], 16)}"
+        except ValueError:
+            return None
+    return cleaned.lstrip("+") if cleaned.lstrip("+-") not in ("", ".") else None
 
 
 def _digits(text: str) -> int:
@@ -318,6 +350,10 @@ def _scan(text: str, name: str) -> None:
                         if n > MAX_NUMBER_DIGITS:
                             fail(event, f"{_NUMBER_TAGS[tag]} of {n:,} digits is not a plausible value "
                                         f"(at most {MAX_NUMBER_DIGITS} digits)")
+                        plain = _yaml11_only(event.value)
+                        if plain is not None:
+                            fail(event, f"{event.value!r} is the number {plain} to YAML 1.1 and text to YAML 1.2: write "
+                                        f"it as a plain number, {plain}")
                 if event.anchor:
                     anchors[event.anchor] = 1
                 child_done(1)
