@@ -784,7 +784,24 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
         (j / "nan.json").write_text(text.replace('"value": 0', '"value": NaN', 1))
         long_id = dict(data, metadata=dict(data["metadata"], id="x" * 300))
         (j / "long_id.json").write_text(json.dumps(long_id))
-        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255")):
+        (j / "exp_huge.json").write_text(text.replace('"value": 0', '"value": 1e99999', 1))
+        (j / "float_5000.json").write_text(text.replace('"value": 0', '"value": 0.' + "1" * 5000, 1))
+        (j / "deep_objects.json").write_text('{"a": ' * 100_000 + "1" + "}" * 100_000)
+        (j / "dup_key.json").write_text(text.rstrip()[:-1] + ', "metadata": {"id": "other"}}\n')
+        (j / "top_list.json").write_text("[1, 2]\n")
+        (j / "empty.json").write_text("")
+        for label, bad_id in (("id_slash", "../escape"), ("id_nul", "a\u0000b"), ("id_number", 7), ("id_empty", ""),
+                              ("id_dotdot", "..")):
+            (j / f"{label}.json").write_text(json.dumps(dict(data, metadata=dict(data["metadata"], id=bad_id))))
+        # 128 two-byte letters (256 bytes, past the 255 a file system takes): ids are ASCII letters, digits, _ - .
+        (j / "id_multibyte.json").write_text(json.dumps(dict(data, metadata=dict(data["metadata"], id="é" * 128)),
+                                                        ensure_ascii=False), encoding="utf-8")
+        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255"),
+                          ("exp_huge", "beyond the range"), ("float_5000", "5,001 digits"), ("deep_objects", "nested deeper"),
+                          ("dup_key", "metadata: duplicate key"), ("top_list", "expected a JSON object"),
+                          ("empty", "not valid JSON"), ("id_slash", "metadata.id"), ("id_nul", "metadata.id"),
+                          ("id_number", "metadata.id"), ("id_empty", "metadata.id"), ("id_dotdot", "metadata.id"),
+                          ("id_multibyte", "letters, digits")):
             d = folder(f"tto_{name}")
             cases.append(Case(f"ttobench_{name}", "json", ["import", "ttobench", str(j / f"{name}.json"), "--out", str(d)], 2,
                               (str(j / f"{name}.json"), why), after=unchanged(d)))
@@ -805,6 +822,13 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
         pat2.write_text('{"schema": ' + "7" * 5000 + "}")
         cases.append(Case("patterns_int_5000", "json", ["advise", good_route, "--patterns", str(pat2)], 2,
                           (str(pat2), "5,000 digits")))
+        for label, body, why in (("nan", '{"schema": NaN}', "NaN"), ("exp_huge", '{"schema": 1e99999}', "beyond the range"),
+                                 ("dup_key", '{"schema": "locoplan/patterns@1",\n "schema": "x"}', "duplicate key"),
+                                 ("deep_objects", '{"a": ' * 100_000 + "1" + "}" * 100_000, "nested deeper"),
+                                 ("top_list", "[]", "valid dictionary")):
+            pat3 = imports / f"patterns_{label}.json"
+            pat3.write_text(body)
+            cases.append(Case(f"patterns_{label}", "json", ["advise", good_route, "--patterns", str(pat3)], 2, (str(pat3), why)))
     if rt_path.is_file():
         d = folder("rt_stock_is_file")
         (d / "rolling_stock").write_text("in the way\n")

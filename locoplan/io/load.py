@@ -5,6 +5,7 @@ from __future__ import annotations
 import codecs
 import difflib
 import json
+import math
 import os
 import re
 import stat
@@ -409,12 +410,29 @@ class _BadJsonNumber(Exception):
     pass
 
 
+class _DuplicateJsonKey(Exception):
+    pass
+
+
 def _json_number(kind):
     def parse(text: str):
         if _digits(text) > MAX_NUMBER_DIGITS:
             raise _BadJsonNumber(text)
-        return kind(text)
+        value = kind(text)
+        if kind is float and not math.isfinite(value):  # 1e99999: past a float's range, read as inf
+            raise _BadJsonNumber(text)
+        return value
     return parse
+
+
+def _json_object(pairs: list) -> dict:
+    """A JSON object; a key written twice is refused (JSON parsers keep the last one silently)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateJsonKey(key)
+        out[key] = value
+    return out
 
 
 def _json_constant(text: str):
@@ -435,15 +453,26 @@ def parse_json(text: str, name: str) -> Any:
                                          "4); the file is refused before the parser's recursion is at risk"))
     try:
         return json.loads(text, parse_int=_json_number(int), parse_float=_json_number(float),
-                          parse_constant=_json_constant)
+                          parse_constant=_json_constant, object_pairs_hook=_json_object)
     except _BadJsonNumber as exc:
         literal = str(exc)
         at = text.find(literal)
         line = text.count("\n", 0, at) + 1 if at >= 0 else None
         if literal in ("NaN", "Infinity", "-Infinity"):
             raise InputError(Problem(name, "", f"{literal} is not a JSON number (nor a finite value)", line)) from None
+        if _digits(literal) <= MAX_NUMBER_DIGITS:
+            raise InputError(Problem(name, "", f"{literal} is beyond the range of a number (it would be read as infinite)",
+                                     line)) from None
         raise InputError(Problem(name, "", f"a number of {_digits(literal):,} digits is not a plausible value (at most "
                                  f"{MAX_NUMBER_DIGITS} digits)", line)) from None
+    except _DuplicateJsonKey as exc:
+        key = str(exc)
+        hits = [m.start() for m in re.finditer(re.escape(json.dumps(key)) + r"\s*:", text)]
+        sure = len(hits) == 2  # the key appears only twice: those are the two places (else other objects hold it too)
+        line = text.count("\n", 0, hits[1]) + 1 if sure else None
+        first = f" (first on line {text.count(chr(10), 0, hits[0]) + 1})" if sure else " in one object"
+        raise InputError(Problem(name, key, f"duplicate key{first}: JSON readers would keep the last one silently; "
+                                 "write it once", line)) from None
     except json.JSONDecodeError as exc:
         raise InputError(Problem(name, "", f"not valid JSON: {exc.msg} (column {exc.colno})", exc.lineno)) from None
     except (RecursionError, ValueError) as exc:
