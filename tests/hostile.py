@@ -554,6 +554,7 @@ def build(tmp: Path) -> list[Case]:
     _store_cases(cases, write, good_route, tmp)
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
+    _full_disk_cases(cases, good_route, tmp)
     _hang_cases(cases, write, good_route, tmp)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
@@ -898,6 +899,74 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
                                                                         str(tmp / "logs_tol_route2"), "--drivers", "2",
                                                                         "--runs", "1", "--times", "180"], 2,
                       (wide, "schedule.tolerance_s", "not below the planned running time 180 s")))
+
+
+def _full_disk_cases(cases: list[Case], good_route: str, tmp: Path) -> None:
+    """Every kind of output of every command that writes one, on a full disk (RLIMIT_FSIZE: a write past
+    200 bytes fails as on a full disk): a message naming the file, exit 2, and no file left (nor a hidden
+    temporary one); stdout on /dev/full for help, usage and the commands not covered above."""
+    full = tmp / "full_disk"
+    full.mkdir(exist_ok=True)
+    import shutil
+
+    # a store in a read-only folder: results reads it without a journal (none can be made there), so the one
+    # write that fails is the output's
+    ro = tmp / "stores" / "full_disk_read_only"
+    if ro.exists():
+        ro.chmod(0o755)
+        shutil.rmtree(ro)
+    ro.mkdir()
+    store = ro / "s.sqlite"
+    shutil.copy(tmp / "stores" / "alone.sqlite", store)
+    ro.chmod(0o555)
+    commands = {
+        "simulate": (["simulate", good_route, "--consist", SMALL], (".json", ".csv", ".png")),
+        "optimize": (["optimize", good_route, "--consist", SMALL], (".json", ".csv", ".svg")),
+        "compare": (["compare", good_route, "--consist", SMALL, "--strategies", "time-saving,four-stage", "--e-min", "5"],
+                    (".json", ".png")),  # E_min given: no optimal control solved (seconds under load)
+        "sweep": (["sweep", good_route, "--consist", SMALL, "--times", "200,210"], (".csv", ".png")),
+        "study": (["study", good_route, "--consist", SMALL, "--runs", "1", "--algorithms", "issa", "--params-dir",
+                   str(ROOT / "tests/data/optimizers")], (".json", ".png")),
+        "bound": (["bound", good_route, "--consist", SMALL], (".json", ".png")),
+        "ocp": (["ocp", good_route], (".csv", ".json", ".png")),
+        "results": (["results", str(store)], (".csv", ".json", ".png")),
+    }
+
+    def nothing_left(target: Path):
+        def check():
+            left = [p.name for p in target.parent.iterdir()]
+            return f"left behind: {left}" if left else None
+        return check
+
+    for name, (argv, suffixes) in commands.items():
+        for suffix in suffixes:
+            folder = full / f"{name}{suffix.replace('.', '_')}"  # one folder each: cases run two at a time
+            folder.mkdir(exist_ok=True)
+            target = folder / f"{name}{suffix}"
+            flag = "--plot" if suffix in (".png", ".svg") else "--out"
+            cases.append(Case(f"full_disk_{name}_{flag[2:]}{suffix.replace('.', '_')}", "output", argv + [flag, str(target)], 2,
+                              (str(target), "cannot write", "File too large"), fsize=200, after=nothing_left(target),
+                              permissions=name == "results"))
+    # what click prints itself (help, usage, the version) and more commands' reports, on a full stdout
+    for name, argv in (("help", ["--help"]), ("command_help", ["simulate", "--help"]), ("version", ["--version"]),
+                       ("usage_json", ["simulate", "--bogus", "x", "--json"]),
+                       ("compare", commands["compare"][0] + ["--json"]), ("bound", commands["bound"][0] + ["--json"]),
+                       ("ocp", ["ocp", good_route]), ("results", ["results", str(store)])):
+        cases.append(Case(f"stdout_dev_full_{name}", "output", argv, 2, ("<stdout>", "No space left"), stdout_file="/dev/full",
+                          forbid=("Traceback",)))
+    # files written whole before the report: the message says so (not "nothing else was written")
+    track = Path("/work/shared/data/external/ttobench/tracks/00_var_speed_limit_100.json")
+    if track.is_file():
+        d = tmp / "imports" / "tto_stdout_full"
+        d.mkdir(parents=True, exist_ok=True)
+        cases.append(Case("stdout_dev_full_import_files_kept", "output", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          ("<stdout>", "No space left", "the files were written whole", "00_var_speed_limit_100.yaml"),
+                          stdout_file="/dev/full", forbid=("nothing else was written",)))
+    logs = tmp / "logs_stdout_full"
+    cases.append(Case("stdout_dev_full_drivers_files_kept", "output", ["drivers", "simulate", good_route, "--out", str(logs),
+                                                                       "--drivers", "2", "--runs", "1"], 2,
+                      ("<stdout>", "the files were written whole", str(logs)), stdout_file="/dev/full",
+                      forbid=("nothing else was written",)))
 
 
 _SERVERS: list = []
@@ -1315,6 +1384,11 @@ def warm_up(cwd: Path) -> None:
     route_file = Path(cwd) / "warm_up_route.yaml"
     route_file.write_text(route(), encoding="utf-8")
     run(["optimize", str(route_file), "--consist", SMALL, "--json"], cwd, timeout_s=900)
+    # E* of the corpus's route, cached (LOCOPLAN_CACHE_DIR), so that bound under a file-size limit reads it
+    run(["bound", str(route_file), "--consist", SMALL, "--json"], cwd, timeout_s=900)
+    # the other strategies' compiled code too (a case under a file-size limit cannot write a cache)
+    run(["compare", str(route_file), "--consist", SMALL, "--strategies", "time-saving,four-stage", "--e-min", "5", "--json"],
+        cwd, timeout_s=900)
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:
