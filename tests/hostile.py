@@ -962,6 +962,11 @@ def _full_disk_cases(cases: list[Case], good_route: str, tmp: Path) -> None:
         cases.append(Case("stdout_dev_full_import_files_kept", "output", ["import", "ttobench", str(track), "--out", str(d)], 2,
                           ("<stdout>", "No space left", "the files were written whole", "00_var_speed_limit_100.yaml"),
                           stdout_file="/dev/full", forbid=("nothing else was written",)))
+    # --where: a number that compares with nothing (nan), no bound (inf), or no value at all: refused, not 0 runs
+    for label, cond in (("nan", "planned_time_s>nan"), ("inf", "planned_time_s<inf"), ("overflow", "planned_time_s>1e400"),
+                        ("no_value", "planned_time_s>")):
+        cases.append(Case(f"results_where_{label}", "option", ["results", str(tmp / "stores" / "alone.sqlite"), "--where", cond],
+                          2, (CMDLINE, "--where", cond)))
     logs = tmp / "logs_stdout_full"
     cases.append(Case("stdout_dev_full_drivers_files_kept", "output", ["drivers", "simulate", good_route, "--out", str(logs),
                                                                        "--drivers", "2", "--runs", "1"], 2,
