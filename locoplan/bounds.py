@@ -419,7 +419,9 @@ TEXT_NUMBERS = {
     "--times": lambda text, flag: values(text, flag, *_TIMES),
     "drivers simulate --times": lambda text, flag: number_list(text, flag, *_TIMES),
     "--weights": weights,
-    "sweep --weights": lambda text, flag: values(text, flag, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)"),
+    # sweep's --weights is the old name of --weight-grid: named as the grid, as the command reads it
+    "sweep --weights": lambda text, flag: values(text, "--weight-grid", 0.0, 1.0,
+                                                 why="a time weight (the energy weight is 1 - it)"),
     "--weight-grid": lambda text, flag: values(text, flag, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)"),
     "--factors": lambda text, flag: values(text, flag, 1.0, 10.0, why="a factor of the fastest run"),
     "--seeds": seed_list,
