@@ -163,7 +163,7 @@ def efficiency(text: str, option: str = "--efficiency") -> float | tuple[tuple[f
     """A traction efficiency: one number, or a curve of ``speed_kmh:eta`` pairs at rising speeds
     (``0:0.80,40:0.88,120:0.90``), each eta in ``EFFICIENCY_RANGE`` and each speed in 0 .. 600 km/h."""
     lo, hi = EFFICIENCY_RANGE
-    form = f"expected a number in (0, 1] or speed_kmh:eta pairs such as 0:0.80,40:0.88,120:0.90, got {text!r}"
+    form = f"expected a number in [{lo:g}, {hi:g}] or speed_kmh:eta pairs such as 0:0.80,40:0.88,120:0.90, got {text!r}"
     where = _where(option)
     text = text.strip()
     try:
