@@ -1,24 +1,31 @@
-"""E* (the least traction energy in a running time) against line length: the yardstick's cost and
-whether it converges.
+"""E* (the least traction energy in a running time): its cost against line length, its accuracy, and
+two independent methods side by side.
 
-    python benchmarks/bench_bound.py [--lengths 20,50,100,300] [--factor 1.15] [--point-mass] [--no-air-brake]
+    python benchmarks/bench_bound.py [--lengths 20,50,100,300] [--check-lengths 20,50] [--lines 10]
+                                     [--real] [--commands] [--point-mass] [--no-air-brake] [--factor 1.15]
 
-Lines: routes/freight-20km.yaml for 20, else the real lines joined end to end as benchmarks/scaling.py
-builds them; HXD1 + 50 x C80; T = factor x the fastest run. Each E* is solved cold (an empty
-LOCOPLAN_CACHE_DIR per line, no warm start). Beside it, as an independent estimate from a different
-method, the DP drive (optimize/dp.py) bisected to the same time: its plan's energy and time on the
-exact calculator. Where that time is at most T the plan's energy is at least E*(T) (E* falls with
-time), so "DP - E*" is then how far above the optimum the DP's structure alone lands.
+Part 1, lines: routes/freight-20km.yaml for 20, else the real lines joined end to end as
+benchmarks/scaling.py builds them; HXD1 + 50 x C80; T = factor x the fastest run; each E* solved cold
+(an empty LOCOPLAN_CACHE_DIR, no warm start): the Radau solver's wall time, whether the mesh tolerance
+was met, E*'s estimated accuracy, and on the --check-lengths the second method (trapezoidal collocation
+on 10 and 5 m grids, locoplan/ocp/trapezoid.py) and the difference.
+Part 2 (--lines N, --real): the two methods on N lines of benchmarks/random_lines.py (random trains,
+seed 7) and on the shipped real lines (HXD1 + 50 x C80): the largest difference.
+Part 3 (--commands): wall time of `locoplan optimize` on the 100 km line and of a 20-point
+`locoplan bound --times` on the 50 km line, cold caches.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -26,10 +33,11 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from scaling import joined_route  # noqa: E402
 
+from locoplan.errors import LocoplanError  # noqa: E402
 from locoplan.io.load import load_route, load_train  # noqa: E402
-from locoplan.optimize.dp import PricedDriveSolver  # noqa: E402
+from locoplan.ocp import bound as bound_mod  # noqa: E402
+from locoplan.ocp.trapezoid import trapezoid_energy  # noqa: E402
 from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
-from locoplan.strategy.general_builder import sequence_from_drive  # noqa: E402
 
 
 def line(length_km: float):
@@ -38,20 +46,116 @@ def line(length_km: float):
     return joined_route(length_km)
 
 
-def dp_energy(calc: TractionCalculator, t0: float) -> tuple[float, float, float]:
-    """(energy of the DP drive's plan on the calculator [kWh], its time [s], wall [s])."""
-    t = time.perf_counter()
-    solver = PricedDriveSolver(calc)
-    drive = solver.for_time(t0)
-    seq = sequence_from_drive(calc, drive)
-    starts = list(seq.nominal_m) + [float("nan")] * (len(seq.conditions) - 1 - len(seq.nominal_m))  # the stop's B
-    res = calc.evaluate(seq.conditions, [starts])
-    return float(res.traction_energy_kwh[0]), float(res.running_time_s[0]), time.perf_counter() - t
+def cold_bound(route, train, options, t0, calc):
+    """E* solved from nothing: an empty disk cache, no solution kept in the process."""
+    with tempfile.TemporaryDirectory() as cache:
+        os.environ["LOCOPLAN_CACHE_DIR"] = cache
+        bound_mod._BOUNDS.clear()
+        bound_mod._WARM.clear()
+        t = time.perf_counter()
+        b = bound_mod.energy_bound(route, train, options, t0, calc=calc)
+        return b, time.perf_counter() - t
+
+
+def pct(x):
+    return "?" if x is None else f"{x:.2g}"
+
+
+def part_lines(args, train, options) -> None:
+    checks = {float(x) for x in args.check_lengths.split(",") if x}
+    print("\nE* against line length (one solve each, cold)")
+    print(f"{'line':>8} {'T [s]':>8} {'E* [kWh]':>10} {'tol met':>7} {'within %':>8} {'points':>7} {'wall s':>7} "
+          f"{'2nd [kWh]':>10} {'2nd within %':>12} {'diff %':>8} {'2nd wall s':>10}")
+    walls = {}
+    for km in (float(x) for x in args.lengths.split(",")):
+        route = line(km)
+        calc = TractionCalculator(route, train, options)
+        t0 = round(args.factor * calc.fastest_time_s, 1)
+        b, wall = cold_bound(route, train, options, t0, calc)
+        walls[km] = wall
+        tail = f"{'-':>10} {'-':>12} {'-':>8} {'-':>10}"
+        if km in checks:
+            tz = trapezoid_energy(route, train, t0, options)
+            tail = (f"{tz.energy_kwh:>10.2f} {100 * tz.accuracy:>12.2g} {100 * (b.energy_kwh / tz.energy_kwh - 1):>+8.3f} "
+                    f"{tz.solve_time_s:>10.1f}")
+        print(f"{km:>6g}km {t0:>8.1f} {b.energy_kwh:>10.2f} {'yes' if b.converged else 'NO':>7} {pct(b.accuracy_percent):>8} "
+              f"{b.points:>7} {wall:>7.1f} {tail}", flush=True)
+    if len(walls) > 1:
+        lo, hi = min(walls), max(walls)
+        print(f"cost ratio {hi:g} km / {lo:g} km: {walls[hi] / walls[lo]:.1f} (length ratio {hi / lo:g})")
+
+
+def part_agreement(args, train, options) -> None:
+    from random_lines import random_route, random_train
+
+    cases = []
+    if args.lines:
+        rng = np.random.default_rng(7)
+        folder = Path(tempfile.mkdtemp(prefix="bench-bound-"))
+        for i in range(args.lines):
+            r = random_route(rng, i)
+            cases.append((r.name, r, random_train(rng, folder, i)))
+    if args.real:
+        for f in sorted((ROOT / "routes/real").glob("*.yaml")):
+            cases.append((f.stem, load_route(f), train))
+    if not cases:
+        return
+    print("\nTwo independent methods: Radau hp (ocp/energy.py) and trapezoidal collocation (ocp/trapezoid.py)")
+    print(f"{'line':<36} {'km':>5} {'T [s]':>7} {'Radau [kWh]':>11} {'within %':>8} {'trap. [kWh]':>11} {'within %':>8} {'diff %':>8}")
+    diffs = []
+    for name, route, tr in cases:
+        calc = TractionCalculator(route, tr, options)
+        if not np.isfinite(calc.fastest_time_s):
+            print(f"{name[:36]:<36} the train cannot run this line")
+            continue
+        t0 = round(args.factor * calc.fastest_time_s, 1)
+        try:
+            b, _ = cold_bound(route, tr, options, t0, calc)
+            tz = trapezoid_energy(route, tr, t0, options)
+        except LocoplanError as exc:
+            print(f"{name[:36]:<36} {route.length_m / 1000:>5.1f} {t0:>7.1f} failed: {str(exc)[:60]}")
+            continue
+        d = 100 * (b.energy_kwh / tz.energy_kwh - 1) if tz.energy_kwh > 1e-6 else 0.0
+        diffs.append(abs(d))
+        print(f"{name[:36]:<36} {route.length_m / 1000:>5.1f} {t0:>7.1f} {b.energy_kwh:>11.2f} {pct(b.accuracy_percent):>8} "
+              f"{tz.energy_kwh:>11.2f} {100 * tz.accuracy:>8.2g} {d:>+8.3f}", flush=True)
+    if diffs:
+        print(f"largest difference {max(diffs):.3f} % over {len(diffs)} lines (median {np.median(diffs):.3f} %)")
+
+
+def part_commands(args) -> None:
+    print("\nCommands, cold caches (wall time)")
+    with tempfile.TemporaryDirectory() as d:
+        r100, r50 = Path(d) / "line100.yaml", Path(d) / "line50.yaml"
+        import yaml
+
+        for km, path in ((100, r100), (50, r50)):
+            path.write_text(yaml.safe_dump(joined_route(km).model_dump(mode="json", exclude_none=True), sort_keys=False))
+        route100 = load_route(r100)
+        calc = TractionCalculator(route100, load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"))
+        t100 = round(1.15 * calc.fastest_time_s)
+        calc50 = TractionCalculator(load_route(r50), load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"))
+        a, b = round(1.05 * calc50.fastest_time_s), round(1.5 * calc50.fastest_time_s)
+        step = max(1, round((b - a) / 19))
+        model = (["--point-mass"] if args.point_mass else []) + (["--no-air-brake"] if args.no_air_brake else [])
+        for label, cmd in ((f"optimize, 100 km, T = {t100} s", ["optimize", str(r100), "--time", str(t100), "--json"]),
+                           (f"bound --times {a}:{a + 19 * step}:{step}, 50 km", ["bound", str(r50), "--times", f"{a}:{a + 19 * step}:{step}", "--json"])):
+            env = {**os.environ, "LOCOPLAN_CACHE_DIR": str(Path(d) / f"cache-{len(label)}")}
+            t = time.perf_counter()
+            p = subprocess.run([sys.executable, "-m", "locoplan", *cmd, *model], capture_output=True, text=True, env=env, cwd=ROOT)
+            wall = time.perf_counter() - t
+            print(f"{label:<48} {wall:>7.1f} s  (exit {p.returncode})", flush=True)
+            if p.returncode not in (0, 1):
+                print(p.stderr[-400:])
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lengths", default="20,50,100,300")
+    ap.add_argument("--check-lengths", default="20,50")
+    ap.add_argument("--lines", type=int, default=0)
+    ap.add_argument("--real", action="store_true")
+    ap.add_argument("--commands", action="store_true")
     ap.add_argument("--factor", type=float, default=1.15)
     ap.add_argument("--point-mass", action="store_true")
     ap.add_argument("--no-air-brake", action="store_true")
@@ -60,25 +164,11 @@ def main() -> None:
     train = load_train(ROOT / "configs/consists/HXD1-C80x50.yaml")
     print(f"HXD1 + 50 x C80, T = {args.factor:g} x fastest, model: point mass {args.point_mass}, "
           f"air brake {not args.no_air_brake}; load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    head = f"{'line':>8} {'T [s]':>8} {'E* [kWh]':>10} {'conv.':>5} {'points':>7} {'E* wall s':>9} " \
-           f"{'DP [kWh]':>9} {'DP t [s]':>9} {'DP - E*':>8} {'DP wall s':>9}"
-    print(head)
-    for km in (float(x) for x in args.lengths.split(",")):
-        route = line(km)
-        calc = TractionCalculator(route, train, options)
-        t0 = round(args.factor * calc.fastest_time_s, 1)
-        with tempfile.TemporaryDirectory() as cache:
-            os.environ["LOCOPLAN_CACHE_DIR"] = cache
-            from locoplan.ocp import bound as bound_mod
-
-            bound_mod._BOUNDS.clear()
-            bound_mod._WARM.clear()
-            t = time.perf_counter()
-            b = bound_mod.energy_bound(route, train, options, t0, calc=calc)
-            wall = time.perf_counter() - t
-        e_dp, t_dp, w_dp = dp_energy(calc, t0)
-        print(f"{km:>6g}km {t0:>8.1f} {b.energy_kwh:>10.2f} {'yes' if b.converged else 'NO':>5} {b.points:>7} "
-              f"{wall:>9.1f} {e_dp:>9.2f} {t_dp:>9.1f} {100 * (e_dp / b.energy_kwh - 1):>+7.2f}% {w_dp:>9.1f}", flush=True)
+    if args.lengths:
+        part_lines(args, train, options)
+    part_agreement(args, train, options)
+    if args.commands:
+        part_commands(args)
 
 
 if __name__ == "__main__":

@@ -160,6 +160,14 @@ def validate_files(files: Iterable, stock_dir=None) -> Validation:
     return report
 
 
+EXIT_RULE = ("Exit codes, the same for every command: 0 every result does its job; 1 a valid request whose "
+             "result does not (no feasible plan, a planned time below the fastest run, or a plan made to keep the "
+             "timetable outside T0 +- tolerance; a --sequence, time-saving and energy-saving are measured, their "
+             "earliness or lateness reported, never exit 1 for it); 2 invalid input. With --json, stdout holds one "
+             "JSON object whatever the outcome, with verdict, exit_code and errors.")
+"""The exit-code rule, as ``locoplan --help`` states it (docs/cli.md, 'Exit codes')."""
+
+
 # ------------------------------------------------------------------------------------------ planned time
 @dataclass(frozen=True)
 class PlannedTime:
@@ -182,6 +190,30 @@ def planned_time(text: Optional[str], route, train=None, options: Optional[Model
     fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
     t = bounds.time_of(req, fastest)
     return PlannedTime(t, f"{option} {text}: T0 = {t:g} s ({req[1]:g} x the fastest run, {fastest:.1f} s)")
+
+
+@dataclass(frozen=True)
+class PlannedTimes:
+    """Planned running times as asked (``--times``), in seconds; ``note`` says what the factors of the
+    fastest run came to (None when every time was given in seconds)."""
+
+    times_s: list[float]
+    note: Optional[str] = None
+
+
+def planned_times(requests: list, route=None, train=None, options: Optional[ModelOptions] = None,
+                  option: str = "--times") -> PlannedTimes:
+    """``--times`` in seconds (``requests`` from :func:`locoplan.bounds.times_request`): seconds as given,
+    factors and supplements of the fastest run of ``route`` and ``train`` (loaded models; the calculator is
+    built only when a factor is among them)."""
+    if all(kind == "s" for kind, _ in requests):
+        return PlannedTimes([v for _, v in requests])
+    from .sim.calculator import TractionCalculator
+
+    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    times = [bounds.time_of(r, fastest) for r in requests]
+    shown = ", ".join(f"{t:g}" for t in times)
+    return PlannedTimes(times, f"{option}: T0 = {shown} s (the fastest run is {fastest:.1f} s)")
 
 
 def window_half_width(summary: dict) -> Optional[float]:
@@ -220,9 +252,12 @@ def simulate(route, train, options: ModelOptions, *, strategy: Optional[str] = N
     ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window."""
     from .runner import make_context, run_sequence, run_strategy
 
+    from .strategy.registry import lookup
+
     one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
+    entry = lookup(strategy) if strategy else None  # a strategy that plans to a time needs one (the schedule's)
     ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed, algorithm=algorithm,
-                       need_time=False, builder=builder, yardstick=False)
+                       need_time=bool(entry and entry.needs_time), builder=builder, yardstick=False)
     run = (run_sequence(ctx, sequence) if sequence is not None
            else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min_kwh is not None))
     return Plan(route, train, ctx, run)
@@ -313,19 +348,18 @@ def check_energy_ocp(nodes: Optional[int], state_nodes: Optional[int], mesh_tol:
         raise InputError(problems)
 
 
-def bound_times(time_s: Optional[str], times: Optional[str]) -> Optional[list[float]]:
-    """``bound``: one time (``--time``, None) or a curve of running times (``--times``, > 0 s)."""
+def bound_times(time_s: Optional[str], times: Optional[str]) -> Optional[list[tuple[str, float]]]:
+    """``bound``: one time (``--time``, None) or a curve of running times (``--times``, each > 0 s), as
+    :func:`locoplan.bounds.times_request` gives them (turned into seconds by :func:`planned_times`)."""
     one_of(times, time_s, "--times", "give either --time or --times, not both")
-    values = value_grid(times, "--times") if times else None
-    if values is not None and (not values or min(values) <= 0):
-        raise InputError(Problem("", "--times", "running times must be > 0 s"))
-    return values
+    return bounds.times_request(times, "--times") if times else None
 
 
 def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, mesh_tol: float, max_degree: int,
-                 curve: bool, step: Callable[[str], None] = lambda text: None) -> dict:
+                 curve: bool, step: Callable[[str], None] = lambda text: None, check: bool = False) -> dict:
     """The least traction energy E* at each running time: ``{"route", "consist", "results": [rows]}``.
-    On a ``curve`` a time whose optimum fails is its row with a ``reason``; a single time raises."""
+    On a ``curve`` a time whose optimum fails is its row with a ``reason``; a single time raises.
+    ``check``: each E* also by the second, independent method (``ocp.trapezoid``) and the two's difference."""
     from .ocp.bound import energy_bound
 
     rows = []
@@ -333,19 +367,39 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
         step(f"E* at {t:g} s")
         try:
             b = energy_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree)
-            rows.append({"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
-                         "mesh_points": b.points, "solve_time_s": round(b.solve_time_s, 3), "reason": None})
+            acc = b.accuracy_percent
+            row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
+                   "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
+                   "slope_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 5),
+                   "mesh_points": b.points, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
+            if check:
+                from .ocp.trapezoid import trapezoid_energy
+
+                step(f"E* at {t:g} s, second method")
+                tz = trapezoid_energy(route, train, t, options)
+                row["check"] = {"method": "trapezoidal collocation", "steps_m": list(tz.steps_m),
+                                "energy_kwh": round(tz.energy_kwh, 3), "accuracy_percent": float(f"{100 * tz.accuracy:.2g}"),
+                                "difference_percent": round(100 * (b.energy_kwh - tz.energy_kwh) / tz.energy_kwh, 4),
+                                "solve_time_s": round(tz.solve_time_s, 3)}
+            rows.append(row)
         except LocoplanError as exc:
             if not curve:
                 raise
-            rows.append({"time_s": t, "energy_kwh": None, "converged": False, "mesh_points": None,
-                         "solve_time_s": None, "reason": str(exc)})
+            rows.append({"time_s": t, "energy_kwh": None, "converged": False, "accuracy_percent": None,
+                         "mesh_points": None, "solve_time_s": None, "reason": str(exc)})
     return {"route": route.name, "consist": train.name, "results": rows}
 
 
+def curve_verdict(rows: list[dict]) -> Verdict:
+    """``bound``'s curve: each running time asked for without an optimum is a failure (exit 1, as on
+    every command: the other times' rows are still written and shown)."""
+    return verdict(f"E* at {row['time_s']:g} s: {row['reason'] or 'no optimum'}" for row in rows
+                   if row["energy_kwh"] is None)
+
+
 def curve_exit_code(rows: list[dict]) -> int:
-    """``bound``: exit 1 when no running time has an optimum."""
-    return EXIT_FAILED if all(row["energy_kwh"] is None for row in rows) else EXIT_OK
+    """``bound``: exit 1 when a running time asked for has no optimum (:func:`curve_verdict`)."""
+    return curve_verdict(rows).exit_code
 
 
 # ------------------------------------------------------------------------------------------ drivers
@@ -356,7 +410,7 @@ def check_counts(**counts: int) -> None:
             raise InputError(Problem(CMDLINE, "--" + name.replace("_", "-"), "must be >= 1"))
 
 
-__all__ = ["EXIT_OK", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "Verdict",
-           "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time",
+__all__ = ["EXIT_OK", "EXIT_RULE", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "PlannedTimes", "Verdict",
+           "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time", "planned_times",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
-           "check_energy_ocp", "bound_times", "energy_curve", "curve_exit_code", "check_counts"]
+           "check_energy_ocp", "bound_times", "energy_curve", "curve_verdict", "curve_exit_code", "check_counts"]

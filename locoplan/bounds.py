@@ -404,6 +404,26 @@ def time_request(text: str | float | None, option: str = "--time") -> tuple[str,
     return "x", value
 
 
+TIMES_FORMS = ("start:stop:step in seconds (1400:1600:100), or a comma list of planned running times, each "
+               "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)")
+"""The forms of a list of planned running times on the command line (``--times``)."""
+
+
+def times_request(text: str, option: str = "--times") -> list[tuple[str, float]]:
+    """A list of planned running times as typed (``--times``): ``'1400:1600:100'`` (start:stop:step, seconds,
+    inclusive) or a comma list whose items each take a :func:`time_request` form (``1400,1.1x,+20%``).
+    Raises ``InputError`` naming ``option`` and the forms."""
+    if ":" in text:
+        return [("s", v) for v in values(text, option, *LIMITS["time_s"], "s", "a planned running time")]
+    items = [x for x in text.split(",") if x.strip()]
+    if not items:
+        raise InputError(Problem(_where(option), option, f"expected {TIMES_FORMS}, got {text!r}"))
+    if len(items) > LIMITS["runs"]:
+        raise InputError(Problem(_where(option), option, f"{len(items):,} values: more than the limit of "
+                                 f"{LIMITS['runs']:,} runs per command"))
+    return [time_request(x, option) for x in items]
+
+
 def time_of(request: tuple[str, float], fastest_s: float) -> float:
     """Seconds of a :func:`time_request`, given the fastest run [s]: a factor's time is rounded up to 0.1 s
     (so that 1x is never below the fastest run by a rounding)."""

@@ -16,10 +16,10 @@ import typer
 from rich.markup import escape
 
 from . import __version__
-from . import api
+from . import api, bounds
 from .api import ModelRequest
 from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, PARAMS, ROUTE, SEED, STOCK, TIME, TOL, WEIGHTS,
-                         WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, fail_on, json_out, locate_schedule,
+                         WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
 from .io.load import check_folder, load_route, load_train
 from .reporting.plot import history_quantity, plot_profiles, run_title
@@ -50,7 +50,8 @@ class _Group(typer.core.TyperGroup):
 
 
 app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
-                  help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).")
+                  help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).",
+                  epilog=api.EXIT_RULE)
 
 
 def _version(value: bool):
@@ -136,7 +137,12 @@ def simulate(route: Path = ROUTE,
              model: ModelRequest = MODEL,
              time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
              builder: Optional[str] = BUILDER):
-    """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions."""
+    """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions.
+
+    Exit 1 when the plan is infeasible, or when a strategy that plans to the timetable (four-stage,
+    proposed, mpoc, sfs) arrives outside T0 +- tolerance, as optimize and compare do. A --sequence,
+    time-saving and energy-saving are measured, not planned to T0: how early or late they arrive, and
+    whether inside the window, is reported (the table, --json "punctual"), with exit 0."""
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, model)
@@ -276,11 +282,11 @@ def compare(route: Path = ROUTE,
 def sweep(route: Path = ROUTE,
           weights: Optional[str] = typer.Option(None, "--weight-grid", help="Time weights w_time, start:stop:step or list, e.g. 0.1:0.9:0.1; w_energy = 1 - w_time."),
           old_weights: Optional[str] = typer.Option(None, "--weights", hidden=True, help="Old name of --weight-grid."),
-          times: Optional[str] = typer.Option(None, "--times", help="Planned running times [s], e.g. 1470,1500,1530."),
+          times: Optional[str] = typer.Option(None, "--times", help="Planned running times: start:stop:step in seconds, or a comma list of seconds, factors of the fastest run and supplements on it, e.g. 1470,1500,1530 or 1.1x,1.2x or +10%,+20%."),
           algorithm: str = ALGO, seed: int = SEED, e_min: Optional[float] = EMIN, params: Optional[Path] = PARAMS,
           time_s: Optional[str] = TIME, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per run (columns: docs/cli.md)."),
-          plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits."),
+          plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits, .png, .svg or .pdf."),
           model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
           workers: int = WORKERS):
@@ -295,10 +301,12 @@ def sweep(route: Path = ROUTE,
         err.print("note: sweep's --weights is now --weight-grid (--weights is w_time,w_energy in optimize, compare, study)",
                   highlight=False, markup=False, soft_wrap=True)
     api.one_of(weights, times, "--weight-grid", "give exactly one of --weight-grid or --times", exactly=True)
-    values = _range(weights or times, "--weight-grid" if weights else "--times")
+    asked = None if weights else bounds.times_request(times, "--times")
+    values = _range(weights, "--weight-grid") if weights else None
     _check_outputs(out_file, plot)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
+    values = values if weights else _times(asked, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
                       params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
                       yardstick=gap)

@@ -11,10 +11,10 @@ from typing import Optional
 
 import typer
 
-from . import api
+from . import api, bounds
 from .api import ModelRequest
 from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, ROUTE, STOCK, TOL, WINDOW, _names,
-                         _range, all_or_none, check_outputs, err, guarded, json_out, out)
+                         _range, _times, all_or_none, check_outputs, err, guarded, json_out, out)
 from .reporting.tables import show
 
 __all__ = ["register"]
@@ -161,7 +161,7 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
 @guarded
 def pareto(route: Path = ROUTE,
            factors: Optional[str] = typer.Option(None, "--factors", help="Planned times as factors of the fastest run, start:stop:step or list (default 1.05:1.6:0.05)."),
-           times: Optional[str] = typer.Option(None, "--times", help="Planned times [s] instead of factors, e.g. 1300,1400,1500."),
+           times: Optional[str] = typer.Option(None, "--times", help="Planned times instead of --factors: start:stop:step in seconds, or a comma list of seconds, factors (1.1x) and supplements (+10%), e.g. 1300,1400,1500."),
            strategies: str = typer.Option("four-stage,proposed", "--strategies", help="Timetabled strategies planned at each time."),
            seeds: str = typer.Option("1", "--seeds", help="Seeds of the proposed strategy at each time, comma list."),
            algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
@@ -174,7 +174,7 @@ def pareto(route: Path = ROUTE,
     """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
     from .reporting.plot_runs import plot_pareto
     from .reporting.tables import pareto_table
-    from .reporting.writers import write_json
+    from .reporting.writers import with_provenance, write_json
     from .runs import make_executor
     from .runs.pareto import pareto as run_pareto
     from .runs.spec import RunSpec
@@ -182,9 +182,10 @@ def pareto(route: Path = ROUTE,
     api.one_of(factors, times, "--factors", "give --factors or --times, not both")
     check_outputs(out=(out_file, (".json",)), plot=(plot, PLOT_SUFFIXES))
     f = _range(factors, "--factors") if factors else None
-    ts = _range(times, "--times") if times else None
+    asked = bounds.times_request(times, "--times") if times else None
     seed_list = api.seed_list(seeds, "--seeds")
     opts = model.options()
+    ts = _times(asked, route, consist, stock_dir, opts, quiet=as_json)
     base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
                    builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
     executor = make_executor(workers)
@@ -197,7 +198,7 @@ def pareto(route: Path = ROUTE,
         executor.close()
     with all_or_none():
         if out_file:
-            write_json(out_file, front)
+            write_json(out_file, with_provenance(front))
         if plot:
             plot_pareto(front, plot)
     if as_json:

@@ -21,7 +21,7 @@ from .api import ModelRequest
 from .catalogue import DEFAULT_CONSIST_FILE
 from .errors import InputError, LocoplanError, Problem
 from .reporting.files import all_or_none, check_output, check_output_path
-from .reporting.writers import to_json, write_output
+from .reporting.writers import provenance, provenance_fields, to_json, write_output
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
@@ -106,8 +106,9 @@ def as_flags(problem: Problem) -> Problem:
 
 VERDICTS = api.VERDICTS
 
-ENVELOPE = ("verdict", "exit_code", "errors", "locoplan_version", "inputs")
-"""Keys every --json object on stdout has besides the result (a --out .json file holds the result alone)."""
+ENVELOPE = ("verdict", "exit_code", "errors")
+"""Keys every --json object on stdout has besides what a --out .json file holds (the result and its
+:data:`~locoplan.reporting.writers.PROVENANCE`: version, inputs, input files with their hashes)."""
 
 _RUN: ContextVar[Optional[dict]] = ContextVar("locoplan_cli_run", default=None)
 _OUTPUTS = ("out_file", "plot", "boxplot", "out_dir")
@@ -144,20 +145,26 @@ def _finish_json(run: dict, code: int) -> None:
         if run.get("problems"):
             obj["problems"] = [{"file": p.file, "line": p.line, "field": p.field, "message": p.message}
                                for p in run["problems"]]
+    if "reason" not in obj:  # a result of many runs (compare, sweep ...): its failures' reasons, once, at the top
+        obj = {**obj, "reason": "\n".join(run["errors"]) or None}
     print(to_json({**obj, "verdict": VERDICTS.get(code, "failed"), "exit_code": code, "errors": run["errors"],
-                   "locoplan_version": __version__, "inputs": run["inputs"]}))
+                   **(provenance_fields() or {"locoplan_version": __version__, "inputs": run["inputs"], "input_files": []})}))
 
 
-def _schedule_line(route: Path) -> str:
-    """``routes/x.yaml:9: schedule.run_time_s`` of a route file (its line, when it can be read)."""
+def _schedule_line(route: Path) -> tuple[Optional[float], str]:
+    """The schedule's running time of a route file and where it is written, ``routes/x.yaml:9:
+    schedule.run_time_s`` (its line, when it can be read)."""
     from .io.load import read_yaml
 
     try:
-        _, lines = read_yaml(route)
+        data, lines = read_yaml(route)
     except (LocoplanError, OSError):
-        return f"{route}: schedule.run_time_s"
+        return None, f"{route}: schedule.run_time_s"
+    schedule = data.get("schedule") if isinstance(data, dict) else None
+    value = schedule.get("run_time_s") if isinstance(schedule, dict) else None
     line = lines.get(("schedule", "run_time_s")) or lines.get(("schedule",))
-    return f"{route}:{line}: schedule.run_time_s" if line else f"{route}: schedule.run_time_s"
+    where = f"{route}:{line}: schedule.run_time_s" if line else f"{route}: schedule.run_time_s"
+    return (float(value) if isinstance(value, (int, float)) else None), where
 
 
 def locate_schedule(text: str) -> str:
@@ -168,8 +175,13 @@ def locate_schedule(text: str) -> str:
         return text
     import re
 
-    return re.sub(r"planned running time (\S+ s)", lambda m: f"planned running time {m.group(1)} (the route's schedule, "
-                  f"{_schedule_line(run['schedule_from'])})", text, count=1)
+    value, where = _schedule_line(run["schedule_from"])
+
+    def said(m) -> str:  # only the schedule's own time is said to come from it (not a --times value)
+        if value is None or m.group(1) != f"{value:g}":
+            return m.group(0)
+        return f"planned running time {m.group(1)} s (the route's schedule, {where})"
+    return re.sub(r"planned running time (\S+) s", said, text, count=1)
 
 
 group_reasons = api.group_reasons
@@ -191,9 +203,11 @@ def guarded(fn):
     def wrapper(*args, **kwargs):
         run = {"json": None, "errors": [], "command": fn.__name__.replace("_", "-"), "inputs": _inputs(kwargs),
                "schedule_from": kwargs.get("route") if "time_s" in kwargs and kwargs.get("time_s") is None
-               and isinstance(kwargs.get("route"), Path) else None}
+               and kwargs.get("times") is None and isinstance(kwargs.get("route"), Path) else None}
         token = _RUN.set(run)
         code = None
+        recording = provenance(run["inputs"])
+        recording.__enter__()  # every file the command reads, hashed, for --json and the --out .json files
         try:
             try:
                 # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
@@ -230,8 +244,11 @@ def guarded(fn):
             raise typer.Exit(exc.exit_code) from None
         finally:
             _RUN.reset(token)
-            if code is not None and kwargs.get("as_json"):
-                _print_json(run, code)
+            try:
+                if code is not None and kwargs.get("as_json"):
+                    _print_json(run, code)
+            finally:
+                recording.__exit__(None, None, None)
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
@@ -349,7 +366,7 @@ def usage_error_json(exc, args: list[str]) -> None:
     print(to_json({"command": command, "reason": f"<command line>: {option + ': ' if option else ''}{message}",
                    "problems": [{"file": "<command line>", "line": None, "field": option, "message": message}],
                    "verdict": VERDICTS[2], "exit_code": 2, "errors": [message], "locoplan_version": __version__,
-                   "inputs": {}}))
+                   "inputs": {}, "input_files": []}))
 
 
 def _fail_if(messages: list) -> None:
@@ -389,6 +406,24 @@ def _time(text: Optional[str], route, consist: str = DEFAULT_CONSIST, stock_dir:
     if planned.note and not quiet:
         err.print(f"note: {planned.note}", highlight=False, markup=False, soft_wrap=True)
     return planned.time_s
+
+
+def _times(requests: Optional[list], route, consist: str = DEFAULT_CONSIST, stock_dir: Optional[Path] = None,
+           options: Optional[ModelOptions] = None, quiet: bool = False, option: str = "--times") -> Optional[list[float]]:
+    """``--times`` in seconds (``requests`` from :func:`locoplan.bounds.times_request`; ``route`` as for
+    :func:`_time`, loaded only when a time is a factor of the fastest run); a note on stderr says what the
+    factors came to, unless ``quiet``."""
+    if requests is None:
+        return None
+    if any(kind != "s" for kind, _ in requests) and isinstance(route, (str, Path)):
+        from .io.load import load_route_and_train
+
+        route = load_route_and_train(route, consist, stock_dir)
+    planned = api.planned_times(requests, *(route if isinstance(route, tuple) else (None, None)), options=options,
+                                option=option)
+    if planned.note and not quiet:
+        err.print(f"note: {planned.note}", highlight=False, markup=False, soft_wrap=True)
+    return planned.times_s
 
 
 def fail_on(verdict: api.Verdict, notes: bool = False) -> None:

@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, guarded, json_out, out
+from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -63,12 +63,13 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
 
 @guarded
 def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
-          times: Optional[str] = typer.Option(None, "--times", help="Running times [s], start:stop:step or a list: the energy-time curve."),
+          times: Optional[str] = typer.Option(None, "--times", help="Running times: start:stop:step in seconds, or a comma list of seconds, factors of the fastest run (1.1x) and supplements on it (+10%): the energy-time curve."),
           consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
           out_file: Optional[Path] = typer.Option(None, "--out", help="The curve as .csv or .json."),
           plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
           mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
           max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
+          check: bool = typer.Option(False, "--check/--no-check", help="Solve each E* a second way (trapezoidal collocation, 10 and 5 m) and show both."),
           model: ModelRequest = MODEL):
     """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
     Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
@@ -87,10 +88,11 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
     if out_file is not None:
         _check_outputs(out_file.with_suffix(".json"), None)
     r, train, opts = _load(route, consist, stock_dir, model)
-    ts = values if values is not None else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))]
-    with step_progress("bound solves", len(ts), not as_json) as step:
+    ts = (_times(values, (r, train), options=opts, quiet=as_json) if values is not None
+          else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))])
+    with step_progress("bound solves", len(ts) * (2 if check else 1), not as_json) as step:
         data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
-                                curve=values is not None, step=step)
+                                curve=values is not None, step=step, check=check)
     rows = data["results"]
     if out_file:
         write_rows(out_file, data)
@@ -104,8 +106,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
         out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
     else:
         show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
-    if api.curve_exit_code(rows):
-        raise typer.Exit(api.EXIT_FAILED)
+    fail_on(api.curve_verdict(rows))
 
 
 def register(app: typer.Typer) -> None:

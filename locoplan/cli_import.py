@@ -31,7 +31,7 @@ formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())
 @guarded
 def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source format ({formats})."),
             sources: list[Path] = typer.Argument(..., metavar="FILES...", help="Source files (railtoolkit: running-path and/or rolling-stock files, in any order)."),
-            out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Existing folder to write into (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
+            out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Folder to write into, created with its parents if missing (railtoolkit vehicles go to rolling_stock/, trains to consists/ inside it)."),
             cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h], e.g. 80 for a freight train on a passenger line (default: no cap)."),
             leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg, 1 = first stop to second (default: every leg)."),
             all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),

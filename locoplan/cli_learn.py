@@ -23,7 +23,7 @@ __all__ = ["register"]
 
 @guarded
 def simulate(route: Path = ROUTE,
-             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="New folder for the logs (must not exist or be empty)."),
+             out_dir: Path = typer.Option(..., "--out", metavar="DIR", help="Folder for the logs: a new one (created with its parents) or an empty one; never written over."),
              drivers: int = typer.Option(40, "--drivers", help="Number of simulated drivers."),
              runs: int = typer.Option(5, "--runs", help="Runs per driver at every mass and time."),
              masses: str = typer.Option("5200", "--masses", help="Train masses [t], comma list: the consist's wagons resized."),
@@ -43,7 +43,9 @@ def simulate(route: Path = ROUTE,
     opts = model.options()
     r = load_route(route)
     if times is None and r.schedule is None:
-        raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give --times"))
+        raise InputError(Problem("<command line>", "--times", f"route '{r.name}' has no schedule: give the planned running times "
+                                 "the drivers aim at as seconds, e.g. --times 1500 or --times 1500,1600 (a factor "
+                                 "of the fastest run would differ with each of --masses)"))
     base, vehicles, files, _, _ = load_consist(consist, stock_dir)
     spec = SimulationSpec(route, r, base, vehicles, files, api.positive_numbers(masses, "--masses"),
                           api.positive_numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
@@ -72,7 +74,7 @@ def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yam
     """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
     Method: the patent on locomotive operation sequences from double-layer pattern curves."""
     from .io.logs import load_logs
-    from .reporting.writers import write_json
+    from .reporting.writers import with_provenance, write_json
     from .learn.patterns import LearnSettings
     from .learn.patterns import learn as run_learn
 
@@ -88,7 +90,7 @@ def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yam
         from .reporting.plot_learn import plot_fit
 
         plot_fit(plot, learned)
-    write_json(out_file, data)
+    write_json(out_file, with_provenance(data))
     if as_json:
         json_out({"out": str(out_file), **data["report"], "upper": {k: v for k, v in data["upper"].items() if k not in ("coef",)},
                        "lower": {k: v for k, v in data["lower"].items() if k not in ("coef",)}})

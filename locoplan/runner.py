@@ -196,6 +196,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "gap_to_optimum_percent": None if gap is None else gap.gap_percent,
         "gap_to_optimum_kwh": None if gap is None else gap.gap_kwh,
         "optimum_kwh": None if gap is None else gap.optimum_kwh,
+        "optimum_accuracy_percent": None if gap is None else gap.accuracy_percent,
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if not e_min else round(float(e_min), 2),
         "cruise_kmh": outcome.cruise_kmh,

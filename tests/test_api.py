@@ -61,7 +61,8 @@ def test_energy_ocp_checks_collect_every_problem():
     with pytest.raises(InputError) as info:
         api.check_energy_ocp(17, None, 2.0, 50)
     assert [p.field for p in info.value.problems] == ["--nodes", "--mesh-tol", "--max-phase-degree"]
-    assert api.bound_times(None, "1400,1500") == [1400.0, 1500.0]
+    assert api.planned_times(api.bound_times(None, "1400,1500")).times_s == [1400.0, 1500.0]
+    assert api.bound_times(None, "1400,1.1x") == [("s", 1400.0), ("x", 1.1)]
     with pytest.raises(InputError, match="not both"):
         api.bound_times("1500", "1400,1500")
 

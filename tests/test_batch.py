@@ -297,6 +297,13 @@ def test_ocp_study_routes_resolve_outside_the_checkout(tmp_path, monkeypatch):
         assert "catalogue" in str(path) and load_route(path).length_m == 1500
 
 
+def test_results_plots_as_pdf_and_svg(filled_store, tmp_path):
+    plot, box = tmp_path / "e.pdf", tmp_path / "b.svg"
+    res = cli.invoke(app, ["results", str(filled_store), "--plot", str(plot), "--boxplot", str(box)])
+    assert res.exit_code == 0, res.output
+    assert plot.read_bytes()[:5] == b"%PDF-" and b"<svg" in box.read_bytes()[:400]
+
+
 def test_results_csv_is_read_as_numbers_and_booleans(filled_store):
     """``results --format csv``: a spreadsheet's and pandas' CSV (true/false, numbers, empty cells, the
     weights and the window as columns of their own), never Python's 'True' or '[0.5, 0.5]'."""

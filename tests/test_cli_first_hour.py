@@ -80,6 +80,62 @@ def test_help_of_time_names_the_forms():
         assert "1.1x" in text and "+10%" in text, cmd
 
 
+def test_times_lists_take_every_form(unscheduled):
+    """sweep's --times on a route without a schedule: seconds, factors and supplements mixed in one list."""
+    res = runner.invoke(app, ["sweep", str(unscheduled), "--times", "1.1x,1450,+20%", *SMALL, "--json"])
+    assert res.exit_code in (0, 1), res.output
+    fastest = 1227.1  # freight-20km's fastest run with the default train (the 1.1x note below says so)
+    times = [r["planned_time_s"] for r in json.loads(res.stdout)["results"]]
+    assert times == pytest.approx([1349.9, 1450, 1472.6], abs=0.05)
+    note = runner.invoke(app, ["sweep", str(unscheduled), "--times", "1.1x", *SMALL])
+    assert f"the fastest run is {fastest:.1f} s" in note.stderr and "T0 = 1349.9 s" in note.stderr
+
+
+def test_planned_times_from_python(freight):
+    import math
+
+    from locoplan import api, bounds
+
+    asked = bounds.times_request("1400, 1.1x, +25%")
+    assert asked == [("s", 1400.0), ("x", 1.1), ("x", 1.25)]
+    got = api.planned_times(asked, *freight).times_s
+    fastest = _fastest(freight)
+    assert got == pytest.approx([1400.0, math.ceil(11 * fastest - 1e-9) / 10, math.ceil(12.5 * fastest - 1e-9) / 10])
+    assert bounds.times_request("1400:1600:100") == [("s", 1400.0), ("s", 1500.0), ("s", 1600.0)]
+    assert api.planned_times([("s", 1500.0)]).note is None  # seconds alone: no calculator, no note
+
+
+@pytest.mark.parametrize("cmd", [["sweep", "--no-gap"], ["bound"], ["pareto"]])
+@pytest.mark.parametrize("value, why", [("abc,1500", "expected seconds (1500), a factor of the fastest run (1.1x)"),
+                                        ("1500,0.5x", "not a factor of the fastest run in 1 .. 10"),
+                                        ("1400:1.1x:100", "expected start:stop:step")])
+def test_bad_times_lists_are_input_errors(cmd, value, why):
+    res = runner.invoke(app, [cmd[0], "routes/freight-20km.yaml", *cmd[1:], "--times", value, "--json"])
+    assert res.exit_code == 2, res.output
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "invalid input" and "--times" in data["reason"] and why in data["reason"]
+
+
+def test_simulate_a_timetabled_strategy_on_a_route_without_schedule(unscheduled):
+    """four-stage plans to a time: without a schedule and without --time it names the forms (it used to
+    run to an undefined time and exit 0)."""
+    res = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "four-stage"])
+    assert res.exit_code == 2
+    assert "has no schedule" in res.stderr and "1.1x" in res.stderr and "+10%" in res.stderr
+    measured = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "time-saving", "--json"])
+    assert measured.exit_code == 0 and json.loads(measured.stdout)["running_time_s"] == pytest.approx(1227.1, abs=0.05)
+    timed = runner.invoke(app, ["simulate", str(unscheduled), "--strategy", "four-stage", "--time", "+20%", "--json"])
+    assert timed.exit_code == 0, timed.output
+    data = json.loads(timed.stdout)
+    assert data["planned_time_s"] == pytest.approx(1472.6) and data["punctual"] is True
+
+
+def test_drivers_simulate_without_schedule_says_what_to_give(unscheduled, tmp_path):
+    res = runner.invoke(app, ["drivers", "simulate", str(unscheduled), "--out", str(tmp_path / "logs")])
+    assert res.exit_code == 2 and "has no schedule" in res.stderr and "--times 1500" in res.stderr
+    assert not (tmp_path / "logs").exists()
+
+
 # ------------------------------------------------------------------------------------ one exit rule
 def test_simulate_sequence_reports_late_and_follows_the_one_rule():
     """A --sequence is measured, not planned to T0: exit 0, but the table says how late and that it is
@@ -99,6 +155,45 @@ def test_simulate_timetabled_strategy_outside_the_window_exits_1(freight):
     assert res.exit_code == 1
     data = json.loads(res.stdout)
     assert data["verdict"] == "failed" and "below the fastest possible run" in data["reason"]
+
+
+def test_a_late_sequence_says_late_and_keeps_the_one_rule():
+    """Late as well as early: the table says how late and outside which window, the JSON has punctual false,
+    and the exit code is the same whether the time is the schedule's or --time's."""
+    seq = ["simulate", "routes/freight-20km.yaml", "--sequence", "T:0,K:700,C:18000,B"]
+    res = runner.invoke(app, seq, env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.stdout.replace("│", " ").split())
+    assert "39.2 s late, outside the window 1470 .. 1530 s" in text
+    data = json.loads(runner.invoke(app, [*seq, "--json"]).stdout)
+    assert data["running_time_s"] == pytest.approx(1539.16, abs=0.01)
+    assert data["punctual"] is False and data["verdict"] == "ok" and data["exit_code"] == 0
+    assert runner.invoke(app, [*seq, "--time", "1500"]).exit_code == 0
+
+
+def test_the_exit_rule_is_in_the_help():
+    top = " ".join(runner.invoke(app, ["--help"], env={"COLUMNS": "80"}).stdout.split())
+    assert "Exit codes, the same for every command: 0" in top
+    assert "a --sequence, time-saving and energy-saving are measured" in top and "2 invalid input" in top
+    sim = " ".join(runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "80"}).stdout.split())
+    assert "arrives outside T0 +- tolerance, as optimize and compare do" in sim and "early or late" in sim
+
+
+@pytest.mark.parametrize("cmd", [["simulate", "--strategy", "four-stage", "--time", "1000"],
+                                 ["optimize", "--time", "1000", *SMALL],
+                                 ["compare", "--strategies", "four-stage", "--time", "1000", "--no-gap"],
+                                 ["sweep", "--times", "1000,1500", *SMALL],
+                                 ["study", "--runs", "1", "--algorithms", "issa", "--time", "1000", "--e-min", "580"],
+                                 ["bound", "--time", "1000"], ["ocp", "--objective", "energy", "--time", "1000"],
+                                 ["pareto", "--times", "1000", "--no-optimum"]], ids=lambda c: c[0])
+def test_every_command_below_the_fastest_run_is_exit_1_with_one_json_object(cmd):
+    res = runner.invoke(app, [cmd[0], "routes/freight-20km.yaml", *cmd[1:], "--json"])
+    assert res.exit_code == 1, res.output
+    data = json.loads(res.stdout)
+    assert data["verdict"] == "failed" and data["exit_code"] == 1
+    assert "1000 s is below the fastest possible run, 1227.1 s" in data["reason"]
+    assert "the route's schedule" not in data["reason"]  # the time came from the command line
+    assert data["errors"] and all("below the fastest possible run" in e for e in data["errors"])
 
 
 # ------------------------------------------------------------------------------------ JSON on failure
@@ -133,6 +228,57 @@ def test_json_of_a_result_has_verdict_version_and_inputs():
     data = json.loads(bad.stdout)
     assert bad.exit_code == data["exit_code"] == 1 and data["verdict"] == "failed"
     assert data["feasible"] is False and data["errors"][0].startswith("sequence: no feasible plan (stalled")
+
+
+def _sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def test_json_and_out_files_name_every_file_read_with_its_hash(tmp_path, root):
+    """stdout's object and the --out .json file carry the version, the inputs as given and every file read
+    with its SHA-256; a changed file changes its hash."""
+    from locoplan import __version__
+
+    route = tmp_path / "line.yaml"
+    route.write_text((root / "routes/freight-20km.yaml").read_text())
+    out = tmp_path / "plan.json"
+    res = runner.invoke(app, ["simulate", str(route), "--json", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    data, saved = json.loads(res.stdout), json.loads(out.read_text())
+    files = {f["path"]: f for f in data["input_files"]}
+    assert files[str(route)]["sha256"] == _sha256(route) and files[str(route)]["bytes"] == route.stat().st_size
+    consist = files["configs/consists/HXD1-C80x50.yaml"]
+    assert consist["sha256"] == _sha256(root / "configs/consists/HXD1-C80x50.yaml")
+    assert {"configs/rolling_stock/HXD1.yaml", "configs/rolling_stock/C80.yaml"} <= set(files)  # the consist's types
+    for key in ("locoplan_version", "inputs", "input_files"):
+        assert saved[key] == data[key]
+    assert saved["locoplan_version"] == __version__ and saved["inputs"]["route"] == str(route)
+    assert "verdict" not in saved and "profile" in saved
+    route.write_text(route.read_text() + "# a comment\n")
+    again = json.loads(runner.invoke(app, ["simulate", str(route), "--json"]).stdout)
+    assert {f["path"]: f["sha256"] for f in again["input_files"]}[str(route)] != files[str(route)]["sha256"]
+
+
+@pytest.mark.parametrize("argv, out_name", [
+    (["compare", "routes/freight-20km.yaml", "--strategies", "time-saving", "--no-gap"], "c.json"),
+    (["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL], "s.json"),
+    (["ocp", "routes/seed000-grade30.yaml"], "o.json")], ids=lambda a: a[0] if isinstance(a, list) else a)
+def test_out_json_of_every_command_carries_the_provenance(tmp_path, argv, out_name):
+    out = tmp_path / out_name
+    res = runner.invoke(app, [*argv, "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    saved = json.loads(out.read_text())
+    assert saved["inputs"]["route"] == argv[1]
+    assert {f["path"]: f["sha256"] for f in saved["input_files"]}[argv[1]] == _sha256(argv[1])
+
+
+def test_a_failure_names_the_files_it_read_too(tmp_path):
+    res = runner.invoke(app, ["simulate", str(tmp_path / "none.yaml"), "--json"])
+    data = json.loads(res.stdout)
+    assert res.exit_code == 2 and data["inputs"]["route"] == str(tmp_path / "none.yaml")
+    assert str(tmp_path / "none.yaml") not in [f["path"] for f in data["input_files"]]  # never read: no hash
 
 
 def test_validate_json_has_the_verdict_too(tmp_path):
@@ -231,6 +377,43 @@ def test_short_version_flag_and_shell_completion():
     assert "--install-completion" in text and "--show-completion" in text
 
 
+FIGURE_MAGIC = {".pdf": b"%PDF-", ".svg": b"<svg", ".png": b"\x89PNG"}
+
+
+@pytest.mark.parametrize("suffix", [".pdf", ".svg", ".PDF"])
+@pytest.mark.parametrize("argv", [["optimize", "routes/freight-20km.yaml", *SMALL],
+                                  ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage",
+                                   "--no-gap"],
+                                  ["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL],
+                                  ["bound", "routes/freight-20km.yaml", "--times", "1500,1600"],
+                                  ["ocp", "routes/seed000-grade30.yaml"]], ids=lambda a: a[0])
+def test_every_plot_takes_pdf_and_svg(tmp_path, argv, suffix):
+    """Wherever --plot takes a PNG it takes a PDF and an SVG (by the name's suffix, in any case)."""
+    if suffix == ".PDF" and argv[0] != "optimize":
+        pytest.skip("the case of the suffix once is enough")
+    plot = tmp_path / f"figure{suffix}"
+    res = runner.invoke(app, [*argv, "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    head = plot.read_bytes()[:400]
+    assert FIGURE_MAGIC[suffix.lower()] in head, head[:40]
+
+
+def test_pareto_plot_as_pdf(tmp_path):
+    plot = tmp_path / "front.pdf"
+    res = runner.invoke(app, ["pareto", "routes/freight-20km.yaml", "--factors", "1.2", "--strategies", "four-stage",
+                              "--no-optimum", "--plot", str(plot)])
+    assert res.exit_code == 0, res.output
+    assert plot.read_bytes()[:5] == b"%PDF-"
+
+
+@pytest.mark.parametrize("argv", [["simulate", "routes/freight-20km.yaml"], ["pareto", "routes/freight-20km.yaml"],
+                                  ["ocp", "routes/seed000-grade30.yaml"]], ids=lambda a: a[0])
+def test_a_figure_type_matplotlib_cannot_pick_is_refused_naming_the_three(tmp_path, argv):
+    res = runner.invoke(app, [*argv, "--plot", str(tmp_path / "x.jpg")])
+    assert res.exit_code == 2 and ".png" in res.stderr and ".svg" in res.stderr and ".pdf" in res.stderr
+    assert not (tmp_path / "x.jpg").exists()
+
+
 def test_plots_as_pdf(tmp_path):
     out = tmp_path / "p.pdf"
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--plot", str(out)])
@@ -298,6 +481,52 @@ def test_one_colour_per_strategy_in_a_figure():
     assert len({_colour(n, profiles) for n, _ in profiles}) == 3
 
 
+# ------------------------------------------------------------------------------------ CSV a spreadsheet reads
+def _python_spellings(text: str) -> list[str]:
+    """Cells written as Python writes values (True, None, nan, a tuple) instead of CSV's typed spellings."""
+    import csv
+    import io
+
+    bad = []
+    for row in csv.reader(io.StringIO(text)):
+        bad += [c for c in row if c in ("True", "False", "None", "nan", "inf", "-inf") or c.startswith("(")]
+    return bad
+
+
+def test_every_csv_writes_booleans_as_true_false_and_no_value_empty(tmp_path):
+    """bound's curve (converged: a boolean; a failed time: empty cells) and drivers.csv read as typed values."""
+    import csv
+
+    out = tmp_path / "curve.csv"
+    res = runner.invoke(app, ["bound", "routes/freight-20km.yaml", "--times", "1500,1000", "--out", str(out)])
+    assert res.exit_code == 1, res.output  # 1000 s is below the fastest run: its row says why
+    text = out.read_text()
+    assert _python_spellings(text) == []
+    ok, failed = list(csv.DictReader(text.splitlines()))
+    assert ok["converged"] == "true" and float(ok["energy_kwh"]) == pytest.approx(675.83, abs=0.05)
+    assert failed["converged"] == "false" and failed["energy_kwh"] == "" and failed["mesh_points"] == ""
+    logs = tmp_path / "logs"
+    assert runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "2", "--runs", "1",
+                               "--out", str(logs)]).exit_code == 0
+    drivers = (logs / "drivers.csv").read_text()
+    assert _python_spellings(drivers) == []
+    rows = list(csv.DictReader(drivers.splitlines()))
+    assert [r["driver_id"] for r in rows] == ["D01", "D02"] and all(float(r["skill"]) > 0 for r in rows)
+
+
+def test_profile_csv_is_numbers_and_conditions(tmp_path):
+    import csv
+
+    out = tmp_path / "p.csv"
+    assert runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out)]).exit_code == 0
+    rows = list(csv.DictReader(out.open()))
+    assert _python_spellings(out.read_text()) == []
+    for r in rows:
+        assert r["condition"] in ("T", "K", "C", "B", "")  # the last node (the stop) has none
+        [float(v) for k, v in r.items() if k != "condition" and v != ""]
+    assert float(rows[-1]["t_s"]) == pytest.approx(1227.1, abs=0.05)
+
+
 # ------------------------------------------------------------------------------------ small habits
 def test_output_folders_are_created(tmp_path):
     out, plot = tmp_path / "new" / "deep" / "p.csv", tmp_path / "figs" / "p.svg"
@@ -309,6 +538,61 @@ def test_output_folders_are_created(tmp_path):
                               "--runs", "1"])
     assert res.exit_code == 0, res.output
     assert logs.is_dir() and any(logs.rglob("*.csv"))
+
+
+def test_one_rule_for_output_folders_on_every_command(tmp_path, root):
+    """Every output's missing folder is created with its parents: drivers' logs, learn's patterns and plot,
+    compare's runs, a new store and results' exports, import's folder."""
+    logs = tmp_path / "a" / "b" / "logs"
+    res = runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "4", "--runs", "2",
+                              "--out", str(logs)])
+    assert res.exit_code == 0, res.output
+    patterns, fit = tmp_path / "c" / "d" / "p.json", tmp_path / "e" / "fit.svg"
+    res = runner.invoke(app, ["learn", str(logs), "--out", str(patterns), "--plot", str(fit)])
+    assert res.exit_code == 0, res.output
+    assert json.loads(patterns.read_text())["input_files"] and b"<svg" in fit.read_bytes()[:400]
+    runs = tmp_path / "f" / "g" / "runs.csv"
+    assert runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving", "--no-gap",
+                               "--out", str(runs)]).exit_code == 0 and runs.is_file()
+    study = tmp_path / "study.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\n"
+                     "consists: [HXD1-C80x30]\nstrategies: [time-saving]\n")
+    store = tmp_path / "h" / "i" / "runs.sqlite"
+    res = runner.invoke(app, ["batch", str(study), "--store", str(store)])
+    assert res.exit_code == 0, res.output
+    export, summary = tmp_path / "j" / "k" / "runs.csv", tmp_path / "l" / "summary.json"
+    assert runner.invoke(app, ["results", str(store), "--format", "csv", "--out", str(export)]).exit_code == 0
+    assert runner.invoke(app, ["results", str(store), "--out", str(summary)]).exit_code == 0
+    assert "time-saving" in export.read_text() and summary.is_file()
+
+
+def test_import_creates_its_output_folder(tmp_path):
+    from test_import import _track
+
+    src = tmp_path / "track.json"
+    src.write_text(_track())
+    out = tmp_path / "m" / "n" / "routes"
+    res = runner.invoke(app, ["import", "ttobench", str(src), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert any(out.glob("*.yaml"))
+    blocked = tmp_path / "file"
+    blocked.write_text("")
+    res = runner.invoke(app, ["import", "ttobench", str(src), "--out", str(blocked / "routes")])
+    assert res.exit_code == 2 and "is not a folder" in res.stderr
+
+
+def test_readme_names_the_commands_that_exist():
+    from locoplan.cli import app as the_app
+    import typer.main
+
+    group = typer.main.get_command(the_app)
+    text = open("README.md").read()
+    for first, second in re.findall(r"`locoplan ([a-z-]+) ([a-z-]+)", text):
+        assert first in group.commands, first
+        sub = group.commands[first]
+        if hasattr(sub, "commands"):
+            assert second in sub.commands, f"locoplan {first} {second}"
+    assert "drivers learn" not in text
 
 
 def test_a_failed_command_creates_no_output_folder(tmp_path):

@@ -9,9 +9,11 @@ import math
 import os
 import re
 import stat
+from contextlib import contextmanager
+from contextvars import ContextVar
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -147,7 +149,63 @@ def read_bytes(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
         problem = _too_big(name, len(data), limit)
     if problem is not None:
         raise InputError(problem)
+    _record_read(name, data)
     return data
+
+
+# ------------------------------------------------------------------------------------------ provenance
+_READS: ContextVar[Optional[dict]] = ContextVar("locoplan_input_files", default=None)
+
+
+@contextmanager
+def recording_reads():
+    """Within this context every input file read (by :func:`read_bytes`, so every file locoplan reads) is
+    recorded with its content hash; :func:`files_read` lists them. Contexts nest: each gets its own list."""
+    token = _READS.set({})
+    try:
+        yield
+    finally:
+        _READS.reset(token)
+
+
+def file_entry(name: str, data: bytes) -> dict:
+    """``{"path", "sha256", "bytes"}`` of a file's content as read."""
+    import hashlib
+
+    return {"path": name, "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+
+
+def _record_read(name: str, data: bytes) -> None:
+    reads = _READS.get()
+    if reads is not None:
+        key = os.path.realpath(name)
+        if key not in reads:
+            reads[key] = file_entry(name, data)
+
+
+def files_read() -> Optional[list[dict]]:
+    """The files read so far in the innermost :func:`recording_reads` context, in the order first read
+    (None outside one)."""
+    reads = _READS.get()
+    return None if reads is None else list(reads.values())
+
+
+def hash_file(path: str | Path, chunk: int = 1 << 20) -> Optional[dict]:
+    """:func:`file_entry` of a regular file read in chunks (a result store of any size); None when it is
+    not one or cannot be read."""
+    import hashlib
+
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None
+        digest, size = hashlib.sha256(), 0
+        with open(path, "rb") as fh:
+            while block := fh.read(chunk):
+                digest.update(block)
+                size += len(block)
+    except OSError:
+        return None
+    return {"path": str(path), "sha256": digest.hexdigest(), "bytes": size}
 
 
 _WIDE_BOMS = ((codecs.BOM_UTF32_LE, "UTF-32"), (codecs.BOM_UTF32_BE, "UTF-32"),

@@ -39,6 +39,8 @@ class PatternFile(BaseModel):
     upper: PatternLayer
     lower: PatternLayer
     report: dict
+    inputs: dict | None = None  # the learn command's inputs and the files it read (logs), with their hashes
+    input_files: list | None = None
 
 
 def read_patterns_file(path: str | Path) -> dict:

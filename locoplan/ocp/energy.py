@@ -34,6 +34,9 @@ WARM_MAX_ITER = 150
 on the same mesh: the ones that converge take 5-80; one that has not by 150 has gone astray (on
 CH_Fribourg_Bern, 5200 t, two such solves ran to IPOPT's 500 twice each: 30 of 37 s) and the
 fallback below (the same intervals with nothing held or moving) is tried sooner."""
+ENERGY_STOP_MAX_ERROR = 3e-3
+"""With ``energy_tol``: the largest relative dynamics error at which a settled objective ends refinement."""
+_GOOD = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 _FAILED = {"Infeasible_Problem_Detected", "Restoration_Failed", "Error_In_Step_Computation",
            "Maximum_Iterations_Exceeded", "Invalid_Number_Detected"}
 
@@ -79,6 +82,30 @@ class EnergySolution:
     @property
     def objective_kwh(self) -> float:
         return self.solution.objective / KJ_PER_KWH
+
+    @property
+    def slope_kwh_per_s(self) -> float | None:
+        """dE*/dT [kWh/s] (negative: a second more saves energy): minus the multiplier of the running
+        time's bound ``t_f <= T``, in physical units (IPOPT's ``lam_x`` of the final time, unscaled);
+        None when the bound is not active or there are no multipliers."""
+        sol = self.solution
+        if sol is None or sol.lam_x is None or sol.lam_x.size == 0:
+            return None
+        nx, npts = sol.X.shape
+        lam = float(sol.lam_x[nx * (npts - 1) + 1])
+        model = self.tep.problem.model
+        return -lam * float(self.tep.problem.objective_scale) / float(model.state_scale[1]) / KJ_PER_KWH
+
+    @property
+    def accuracy(self) -> float | None:
+        """The objective's estimated relative accuracy: how much it moved over the last refinement
+        (``|E_k - E_k-1| / E_k`` of the last two solved meshes); after a single solve that met the tolerance, that mesh's error estimate; None
+        when neither is known."""
+        good = [h for h in self.history if h.status in _GOOD]
+        if len(good) < 2:
+            return float(good[-1].max_error) if good and self.converged else None
+        e1, e0 = good[-1].objective_kwh, good[-2].objective_kwh
+        return float(abs(e1 - e0) / max(abs(e1), 1e-9))
 
     @property
     def success(self) -> bool:
@@ -145,8 +172,14 @@ def calculator_guess(calc: TractionCalculator, time_s: float):
 def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol: float = DEFAULT_MESH_TOL,
                  max_degree: int = DEFAULT_MAX_DEGREE, max_iterations: int = MAX_MESH_ITERATIONS,
                  warm: RadauSolution | None = None, mesh: Mesh | None = None,
-                 ipopt_options: dict | None = None) -> EnergySolution:
+                 ipopt_options: dict | None = None, energy_tol: float | None = None,
+                 end_interval_m: float = END_INTERVAL_M) -> EnergySolution:
     """Minimum energy of ``tep`` by LGR collocation and hp refinement to ``mesh_tol``.
+
+    ``end_interval_m``: the longest first and last interval of a cold start (the departure from rest and
+    the stop). ``energy_tol``: also stop once the objective moved by at most this share over a refinement while
+    no interval's error exceeds ``ENERGY_STOP_MAX_ERROR`` (E* is wanted to a relative accuracy, and the
+    last intervals the dynamics tolerance would split barely move it).
 
     ``warm``: a solution of a neighbouring problem (another running time, the same route) to start
     from, with its final ``mesh``; otherwise the calculator's best simple plan near the asked time.
@@ -172,7 +205,7 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         def guess(s, n_controls):
             return g(s, n_controls)
         mesh = mesh or initial_mesh(problem.phases, INITIAL_DEGREE, INITIAL_MAX_INTERVAL_M, problem.rest_start,
-                                    problem.rest_end, END_INTERVAL_M)
+                                    problem.rest_end, end_interval_m)
     history: list[MeshStep] = []
     best: RadauSolution | None = None
     errors = np.zeros(0)
@@ -212,7 +245,10 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
         emax = float(np.max(errors))
         step = MeshStep(it, len(mesh.intervals), mesh.n_points, emax, sol.objective / KJ_PER_KWH, sol.iterations,
                         sol.status, sol.build_time_s, sol.solve_time_s)
-        if emax <= mesh_tol:
+        prev = next((h.objective_kwh for h in reversed(history) if h.status in _GOOD), None)
+        settled = (energy_tol is not None and prev is not None and emax <= ENERGY_STOP_MAX_ERROR
+                   and abs(step.objective_kwh - prev) <= energy_tol * max(abs(step.objective_kwh), 1e-9))
+        if emax <= mesh_tol or settled:
             history.append(step)
             converged = True
             break

@@ -498,6 +498,16 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
         s_hat = iv.s_of(tau_hat)
         p = {k: np.broadcast_to(np.asarray(v, float), s_hat.shape).copy() for k, v in ph.params(s_hat).items()}
         xl = [x_hat[j, :m] for j in range(model.n_x)]
+        if model.path is not None and model.control_paths:
+            # between the collocation points the controls must keep their state-dependent bounds too
+            # (traction under Fmax(v), braking under Bmax(v)): a polynomial that pushes harder than the
+            # envelope allows there is integrated with the force the train has, so that it shows as error
+            with np.errstate(divide="ignore", invalid="ignore"):
+                g = _eval_model(model.path, xl, [u_hat[j] for j in range(model.n_u)], s_hat, p, model.n_path)
+            for j, row in enumerate(model.control_paths):
+                if row is not None and j < model.n_u:
+                    u_hat[j] = np.maximum(u_hat[j] - np.maximum(np.asarray(g[row], float) * np.ones(m), 0.0),
+                                          np.asarray(ph.control_lower)[j])
         ul = [u_hat[j] for j in range(model.n_u)]
         with np.errstate(divide="ignore", invalid="ignore"):
             f = np.array([np.asarray(v, float) * np.ones(m) for v in _eval_model(model.dynamics, xl, ul, s_hat, p, model.n_x)])
@@ -509,7 +519,8 @@ def interval_errors(sol: RadauSolution) -> np.ndarray:
         integ = f @ d_inv  # X(tau_2..tau_m, +1) - X(-1)
         x_int = x_hat[:, :1] + integ
         scale = 1.0 + np.max(np.abs(xs), axis=1)
-        errs[i] = float(np.max(np.abs(x_int - x_hat[:, 1:]) / scale[:, None]))
+        over = np.maximum(x_hat[:, :m] - np.asarray(ph.state_upper, float)[:, None], 0.0)  # a limit passed between points
+        errs[i] = float(max(np.max(np.abs(x_int - x_hat[:, 1:]) / scale[:, None]), np.max(over / scale[:, None])))
     return errs
 
 

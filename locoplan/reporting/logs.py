@@ -63,8 +63,15 @@ def consist_yaml(consist: Consist) -> str:
 
 def drivers_csv_text(ids: list[str], rows: list[dict]) -> str:
     """``drivers.csv``: each simulated driver's habits, one row per driver."""
-    head = "driver_id," + ",".join(rows[0]) + "\n"
-    return head + "".join(f"{ids[i]}," + ",".join(str(x) for x in row.values()) + "\n" for i, row in enumerate(rows))
+    import csv
+
+    from .writers import csv_cell
+
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["driver_id", *rows[0]])
+    writer.writerows([ids[i], *(csv_cell(x) for x in row.values())] for i, row in enumerate(rows))
+    return buf.getvalue()
 
 
 # ------------------------------------------------------------------------------------------ the log folder

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .files import atomic_write_text, check_output_path
-from .writers import rows_csv, to_json
+from .writers import rows_csv, to_json, with_provenance
 from ..ocp.min_time_run import PROFILE_COLUMNS, OcpRun
 from ..ocp.seed000 import Study
 
@@ -28,7 +28,7 @@ def write_ocp_output(path: str | Path, run: OcpRun) -> None:
     else:
         data = dict(run.summary)
         data["profile"] = {c: [r[c] for r in rows] for c in PROFILE_COLUMNS}
-        atomic_write_text(path, to_json(data) + "\n")
+        atomic_write_text(path, to_json(with_provenance(data)) + "\n")
 
 
 STUDY_COLUMNS = ("table", "method", "test", "u / x nodes", "stage 2 u / x", "objective", "re-simulated",
@@ -94,7 +94,7 @@ def write_study_output(path: str | Path, study: Study) -> None:
     check_output_path(path, "--out", (".json", ".csv", ".md"))
     suffix = Path(path).suffix.lower()
     if suffix == ".json":
-        atomic_write_text(path, to_json(study.to_dict()) + "\n")
+        atomic_write_text(path, to_json(with_provenance(study.to_dict())) + "\n")
     elif suffix == ".md":
         atomic_write_text(path, study_markdown(study))
     else:

@@ -8,6 +8,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from .tables import key_value_table
+from ..ocp.bound import within_percent
 
 
 def time_summary_table(s: dict, width: int = 80) -> list:
@@ -141,19 +142,32 @@ def plan_sequence_table(runs: list[dict]) -> Table:
 def energy_curve_table(route: str, consist: str, rows: list[dict]) -> Table:
     """``bound --times``: E* at each running time (a time without an optimum: its reason)."""
     table = Table(title=escape(f"{route} — {consist}: least traction energy E*(T)"), title_justify="left")
-    for col in ("T [s]", "E* [kWh]", "mesh tol. met", "solve [s]"):
+    check = any(r.get("check") for r in rows)
+    cols = ["T [s]", "E* [kWh]", "within [%]", "mesh tol. met", "solve [s]"] + (["2nd method [kWh]", "diff. [%]"] if check else [])
+    for col in cols:
         table.add_column(escape(col), justify="right")
     for row in rows:
         if row["energy_kwh"] is None:
-            table.add_row(f"{row['time_s']:g}", "-", "-", escape(row["reason"] or ""))
+            table.add_row(f"{row['time_s']:g}", "-", "-", "-", escape(row["reason"] or ""), *(["-", "-"] if check else []))
         else:
-            table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", "yes" if row["converged"] else "no",
-                          f"{row['solve_time_s']:.2f}")
+            c = row.get("check")
+            table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", _acc(row.get("accuracy_percent")),
+                          "yes" if row["converged"] else "no", f"{row['solve_time_s']:.2f}",
+                          *([f"{c['energy_kwh']:.2f}", f"{c['difference_percent']:+.3f}"] if c else (["-", "-"] if check else [])))
     return table
+
+
+def _acc(pct: float | None) -> str:
+    return "?" if pct is None else within_percent(pct).removesuffix(" %")
 
 
 def energy_bound_line(route: str, consist: str, row: dict) -> str:
     """``bound --time``: the one E* as a line."""
     return (f"E* = {row['energy_kwh']:.2f} kWh  ({escape(route)}, {escape(consist)}, {row['time_s']:g} s; "
             f"{row['mesh_points']} LGR points, "
-            + (f"solved in {row['solve_time_s']:.2f} s)" if row["solve_time_s"] else "from the cache of earlier solves)"))
+            + (f"solved in {row['solve_time_s']:.2f} s" if row["solve_time_s"] else "from the cache of earlier solves")
+            + f"; within {within_percent(row.get('accuracy_percent'))}"
+            + ")"
+            + (f"\nsecond method ({c['method']}, {c['steps_m'][0]:g} and {c['steps_m'][1]:g} m): {c['energy_kwh']:.2f} kWh "
+               f"within {within_percent(c['accuracy_percent'])}; E* - it = {c['difference_percent']:+.3f} %"
+               if (c := row.get("check")) else ""))

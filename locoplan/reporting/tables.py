@@ -11,6 +11,7 @@ from typing import Optional
 from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
+from ..ocp.bound import GAP_DIGIT_PERCENT, within_percent
 
 # ------------------------------------------------------------------------------- fitting a width
 # A table is printed at the console's width (the terminal's, or COLUMNS, or 80 when piped). Numbers
@@ -217,11 +218,15 @@ def summary_table(summary: dict, width: int = 80) -> list:
         rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
+    acc = summary.get("optimum_accuracy_percent")
     if summary.get("gap_to_optimum_percent") is not None:
-        rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E*, the least energy in this running time (seed 001)"))
-    elif summary.get("gap_to_optimum_kwh") is not None:  # E* too small for a percentage (a falling line)
+        rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E* (known to {within_percent(acc)}), "
+                     "the least energy in this running time (seed 001)"))
+    elif summary.get("gap_to_optimum_kwh") is not None:
+        why = ("too little for a percentage" if acc is not None and acc < 0.5 * GAP_DIGIT_PERCENT
+               else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
-                     "the least energy in this running time (seed 001; too little for a percentage)"))
+                     f"the least energy in this running time (seed 001; {why})"))
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
 

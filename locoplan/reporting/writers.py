@@ -7,15 +7,67 @@ import csv
 import io
 import json
 import math
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..io.load import files_read, hash_file, recording_reads
 from ..physics.units import kmh_from_e
 from ..sim.result import CONDITIONS, Profile
 from .files import atomic_write_text
+
+
+# ------------------------------------------------------------------------------------------ provenance
+_PROVENANCE: ContextVar[Optional[dict]] = ContextVar("locoplan_provenance", default=None)
+
+PROVENANCE = ("locoplan_version", "inputs", "input_files")
+"""Keys every result JSON of a command has (its --json object and its --out .json files): the version,
+the inputs as given on the command line, and every file read with its content hash."""
+
+
+@contextmanager
+def provenance(inputs: dict):
+    """A command's run: the ``inputs`` it was given (``{"route": "routes/x.yaml", ...}``) and, recorded
+    while it runs, every file it reads; :func:`provenance_fields` says them."""
+    with recording_reads():
+        token = _PROVENANCE.set(dict(inputs))
+        try:
+            yield
+        finally:
+            _PROVENANCE.reset(token)
+
+
+def provenance_fields() -> dict:
+    """``{"locoplan_version", "inputs", "input_files"}`` of the current :func:`provenance` (empty outside
+    one). ``input_files`` lists each file read (``{"path", "sha256", "bytes"}``, in the order first read),
+    then each file given in ``inputs`` that was read elsewhere (a worker process, SQLite), hashed now."""
+    import os
+
+    from .. import __version__
+
+    inputs = _PROVENANCE.get()
+    if inputs is None:
+        return {}
+    files = list(files_read() or [])
+    seen = {os.path.realpath(f["path"]) for f in files}
+    for value in inputs.values():
+        for path in value if isinstance(value, list) else [value]:
+            key = os.path.realpath(str(path))
+            if key not in seen and (entry := hash_file(path)) is not None:
+                files.append(entry)
+                seen.add(key)
+    return {"locoplan_version": __version__, "inputs": inputs, "input_files": files}
+
+
+def with_provenance(data: Any) -> Any:
+    """``data`` (a result object) with :func:`provenance_fields` added, inside a command's run."""
+    if not isinstance(data, dict) or _PROVENANCE.get() is None:
+        return data
+    return {**data, **provenance_fields()}
 
 
 def clean(value: Any) -> Any:
@@ -115,7 +167,7 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
 
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
                "reason", "running_time_s", "traction_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
-               "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "cruise_kmh",
+               "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
                "switches", "coasts", "energy_reduction_percent", "n_evaluations",
                "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
@@ -128,7 +180,7 @@ def rows_csv(rows: list[dict], columns) -> str:
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n", extrasaction="ignore")
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows({k: csv_cell(v) for k, v in r.items()} for r in rows)
     return buf.getvalue()
 
 
@@ -159,14 +211,14 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ()),
                                 lineterminator="\n")
         writer.writeheader()
-        writer.writerows(profile_rows(profile, route=route))
+        writer.writerows({k: csv_cell(v) for k, v in r.items()} for r in profile_rows(profile, route=route))
         atomic_write_text(path, buf.getvalue())
     elif suffix == ".json":
         data = dict(summary)
         if profile is not None:
             rows = profile_rows(profile, route=route)
             data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ())}
-        atomic_write_text(path, to_json(data) + "\n")
+        atomic_write_text(path, to_json(with_provenance(data)) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))
 
@@ -181,13 +233,13 @@ def write_rows(path: str | Path, data: dict) -> None:
     columns in their order)."""
     path = Path(path)
     if path.suffix.lower() == ".json":
-        write_json(path, data)
+        write_json(path, with_provenance(data))
         return
     rows = data["results"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
     w.writeheader()
-    w.writerows(rows)
+    w.writerows({k: csv_cell(v) for k, v in r.items()} for r in rows)  # true/false, empty cells, as every CSV
     atomic_write_text(path, buf.getvalue())
 
 

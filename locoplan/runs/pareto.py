@@ -15,7 +15,7 @@ import math
 from dataclasses import replace
 
 from .. import bounds
-from ..errors import InputError, Problem
+from ..errors import InfeasibleError, InputError, Problem
 from ..io.load import load_route_and_train
 from ..ocp.bound import percent_floor_kwh
 from ..sim.calculator import TractionCalculator
@@ -36,8 +36,10 @@ def time_grid(fastest_s: float, factors=None, times_s=None) -> list[tuple[float,
     """(T0 [s], factor) pairs: factors of the fastest run (T0 rounded up to 0.1 s) or times in seconds."""
     if times_s:
         for t in times_s:
-            if not (math.isfinite(t) and t >= fastest_s):
-                raise InputError(Problem("", "times_s", f"{t:g} s is below the fastest possible run, {fastest_s:.1f} s"))
+            if not math.isfinite(t):
+                raise InputError(Problem("", "times_s", f"{t:g} s is not a planned running time"))
+            if t < fastest_s:  # a valid request no plan can meet: exit 1, as on every command
+                raise InfeasibleError(f"planned running time {t:g} s is below the fastest possible run, {fastest_s:.1f} s")
         return [(float(t), float(t) / fastest_s) for t in times_s]
     factors = factors or DEFAULT_FACTORS
     for f in factors:

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import InputError, Problem
 from ..reporting.files import atomic_write, atomic_write_text
-from ..reporting.writers import clean, csv_row, to_json
+from ..reporting.writers import clean, csv_row, to_json, with_provenance
 
 FORMATS = ("csv", "parquet", "json")
 _OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.eq, "<": operator.lt, ">": operator.gt,
@@ -129,7 +129,7 @@ def export(rows: list[dict], path: str | Path | None, fmt: str) -> str | None:
         raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
     cols = _columns(rows)
     if fmt == "json":
-        text = to_json({"results": rows}) + "\n"
+        text = to_json(with_provenance({"results": rows})) + "\n"
     elif fmt == "csv":  # numbers, true/false, empty cells; weights and window as columns of their own
         flat = [csv_row(r) for r in rows]
         buf = io.StringIO()

@@ -1,0 +1,137 @@
+"""E*'s stated accuracy: the second method agrees, the accuracy is what the refinement measured, and a
+gap is given in per cent only when E* is known better than the percentage's last digit."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from locoplan.cli import app
+from locoplan.io.load import load_route, load_train
+from locoplan.ocp import bound as bound_mod
+from locoplan.ocp.bound import Bound, GAP_DIGIT_PERCENT, energy_bound, gap_to_optimum, within_percent
+from locoplan.ocp.energy import EnergySolution, MeshStep
+from locoplan.ocp.radau import interval_errors
+from locoplan.ocp.trapezoid import trapezoid_energy
+from locoplan.reporting.tables import show, summary_table
+from locoplan.sim.calculator import ModelOptions
+
+runner = CliRunner()
+SMALL = "tests/data/routes/mpoc-small.yaml"
+T_SMALL = 364.0
+
+
+@pytest.fixture(scope="module")
+def small(root):
+    return load_route(root / SMALL), load_train(root / "configs/consists/HXD1-C80x30.yaml")
+
+
+@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions(point_mass=True), ModelOptions(air_brake=False)],
+                         ids=["default", "point-mass", "no-air-brake"])
+def test_two_independent_methods_agree_within_their_stated_accuracy(small, options, monkeypatch, tmp_path):
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    route, train = small
+    b = energy_bound(route, train, options, T_SMALL)
+    tz = trapezoid_energy(route, train, T_SMALL, options)
+    assert b.converged and b.accuracy is not None and b.accuracy < 5e-5  # E* to better than 0.005 %
+    assert tz.accuracy < 1e-3
+    # the trapezoidal scheme converges from above: its finer grid is above E* by at most its own accuracy
+    assert abs(b.energy_kwh / tz.energy_kwh - 1) <= 5e-4  # the two methods within 0.05 %
+    assert tz.coarse_kwh >= tz.energy_kwh - 1e-6
+
+
+def _history(*objectives, errors=None):
+    errors = errors or [1e-2] * len(objectives)
+    return [MeshStep(i + 1, 10, 50, e, o, 20, "Solve_Succeeded", 0.0, 0.1) for i, (o, e) in enumerate(zip(objectives, errors))]
+
+
+def test_accuracy_is_the_last_refinements_move():
+    es = EnergySolution(None, None, _history(700.0, 710.0, 710.0071), True, 1.0)
+    assert es.accuracy == pytest.approx(0.0071 / 710.0071, rel=1e-9)
+    one = EnergySolution(None, None, _history(700.0, errors=[3e-6]), True, 1.0)
+    assert one.accuracy == pytest.approx(3e-6)  # a single solve that met the tolerance: its error estimate
+    assert EnergySolution(None, None, _history(700.0), False, 1.0).accuracy is None
+
+
+def _fake_bound(monkeypatch, accuracy):
+    def fake(route, train, options, time_s, **kw):
+        return Bound(time_s, 1000.0, accuracy is not None, 10, 50, 0.1, accuracy)
+    monkeypatch.setattr(bound_mod, "energy_bound", fake)
+
+
+def test_a_gap_in_per_cent_only_when_e_star_is_known_to_its_last_digit(small, monkeypatch):
+    route, train = small
+    _fake_bound(monkeypatch, 1e-6)
+    g = gap_to_optimum(route, train, ModelOptions(), 364.0, 1012.345)
+    assert g.gap_percent == 1.23 and g.gap_kwh == 12.35 and g.accuracy_percent == 1e-4
+    _fake_bound(monkeypatch, 0.5 * GAP_DIGIT_PERCENT / 100 * 1.2)  # 0.006 %: the last digit is not sure
+    g = gap_to_optimum(route, train, ModelOptions(), 364.0, 1012.345)
+    assert g.gap_percent is None and g.gap_kwh == 12.35 and g.accuracy_percent == pytest.approx(0.006)
+    _fake_bound(monkeypatch, None)  # not converged: accuracy unknown
+    g = gap_to_optimum(route, train, ModelOptions(), 364.0, 1012.345)
+    assert g.gap_percent is None and g.accuracy_percent is None
+
+
+def test_the_summary_says_how_well_e_star_is_known():
+    base = {"route": "r", "consist": "c", "strategy": "proposed", "feasible": True, "running_time_s": 364.0,
+            "traction_energy_kwh": 1012.35, "gap_to_optimum_kwh": 12.35, "optimum_kwh": 1000.0}
+    def text(**kw):
+        from rich.console import Console
+
+        c = Console(width=200, record=True)
+        show(c, summary_table({**base, **kw}, 200))
+        return c.export_text()
+    assert "+1.23 % over E* (known to 0.0001 %)" in text(gap_to_optimum_percent=1.23, optimum_accuracy_percent=1e-4)
+    t = text(gap_to_optimum_percent=None, optimum_accuracy_percent=0.012)
+    assert "+12.35 kWh over E* = 1000.00 kWh" in t and "E* within 0.012 %" in t and "too uncertain" in t
+    assert "unknown (not converged)" in text(gap_to_optimum_percent=None, optimum_accuracy_percent=None)
+    assert within_percent(0.0123) == "0.013 %" and within_percent(0.004) == "0.004 %"
+
+
+def test_the_error_estimate_integrates_the_force_the_train_has(small, monkeypatch, tmp_path):
+    """Between and at the test points the estimate integrates the controls cut to their speed-dependent
+    envelopes (traction under Fmax(v)): traction asked above the envelope on an interval at full
+    traction changes nothing, the same amount below it shows as a large error."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    from dataclasses import replace
+
+    from locoplan.ocp.mpoc import run_mpoc
+
+    route, train = small
+    sol = run_mpoc(route, train, ModelOptions(), T_SMALL).solution.solution
+    base = interval_errors(sol)
+    g = sol.grid
+    k = next(i for i in range(len(g.mesh.intervals)) if np.all(sol.U[0, g.cols_of(i)] > 300.0))
+    for delta, changes in ((+400.0, False), (-250.0, True)):
+        pushed = sol.U.copy()
+        pushed[0, g.cols_of(k)] += delta
+        errs = interval_errors(replace(sol, U=pushed))
+        if changes:
+            assert errs[k] > 100 * max(base[k], 1e-7)
+        else:
+            assert errs[k] == pytest.approx(base[k], rel=0.05, abs=1e-7)
+
+
+def test_bound_check_prints_both_methods(root, monkeypatch, tmp_path):
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    c = d["check"]
+    assert c["method"] == "trapezoidal collocation" and c["steps_m"] == [10.0, 5.0]
+    assert abs(c["difference_percent"]) < 0.05 and d["accuracy_percent"] < 0.005
+    r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check"])
+    assert r.exit_code == 0 and "second method (trapezoidal collocation, 10 and 5 m)" in r.output and "within" in r.output
+
+
+def test_the_slope_is_the_curves_derivative(small, monkeypatch, tmp_path):
+    """dE*/dT from the running time's multiplier against a central difference of two solves."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    route, train = small
+    lo, mid, hi = (energy_bound(route, train, ModelOptions(), t) for t in (T_SMALL - 2.0, T_SMALL, T_SMALL + 2.0))
+    fd = (hi.energy_kwh - lo.energy_kwh) / 4.0
+    assert mid.slope_kwh_per_s < 0 and mid.slope_kwh_per_s == pytest.approx(fd, rel=0.03)
+    assert lo.slope_kwh_per_s < mid.slope_kwh_per_s < hi.slope_kwh_per_s  # convex: a second saves less and less
