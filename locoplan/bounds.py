@@ -415,9 +415,13 @@ def times_request(text: str, option: str = "--times") -> list[tuple[str, float]]
     Raises ``InputError`` naming ``option`` and the forms."""
     if ":" in text:
         return [("s", v) for v in values(text, option, *LIMITS["time_s"], "s", "a planned running time")]
-    items = [x for x in text.split(",") if x.strip()]
-    if not items:
+    items = text.split(",")
+    if not text.strip():
         raise InputError(Problem(_where(option), option, f"expected {TIMES_FORMS}, got {text!r}"))
+    for i, x in enumerate(items):
+        if not x.strip():
+            raise InputError(Problem(_where(option), option, f"item {i + 1} of {text!r} is empty (a doubled or trailing "
+                                     f"comma?): expected {TIMES_FORMS}"))
     if len(items) > LIMITS["runs"]:
         raise InputError(Problem(_where(option), option, f"{len(items):,} values: more than the limit of "
                                  f"{LIMITS['runs']:,} runs per command"))
@@ -436,7 +440,7 @@ def time_of(request: tuple[str, float], fastest_s: float) -> float:
 _TIMES = (*LIMITS["time_s"], "s", "a planned running time")
 TEXT_NUMBERS = {
     "--time": time_request,
-    "--times": lambda text, flag: values(text, flag, *_TIMES),
+    "--times": times_request,
     "drivers simulate --times": lambda text, flag: number_list(text, flag, *_TIMES),
     "--weights": weights,
     # sweep's --weights is the old name of --weight-grid: named as the grid, as the command reads it
