@@ -69,17 +69,13 @@ def weights(text: str, option: str = "--weights") -> tuple[float, float]:
 def value_grid(text: str, option: str) -> list[float]:
     """``'0.1:0.9:0.1'`` (start:stop:step, inclusive) or ``'1470,1500,1530'``: time weights
     (``--weight-grid``), factors of the fastest run (``--factors``, 1 .. 10) or running times [s]."""
-    if option == "--weight-grid":
-        return bounds.values(text, option, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)")
-    if option == "--factors":
-        return bounds.values(text, option, 1.0, 10.0, why="a factor of the fastest run")
-    return bounds.values(text, option, *bounds.LIMITS["time_s"], "s", "a planned running time")
+    return (bounds.TEXT_NUMBERS.get(option) or bounds.TEXT_NUMBERS["--times"])(text, option)
 
 
 def positive_numbers(text: str, option: str) -> tuple[float, ...]:
     """A comma list of positive numbers (``--masses``, ``--times`` of the drivers' simulation)."""
     try:
-        values = tuple(float(x) for x in text.split(",") if x.strip())
+        values = tuple(float(x) for x in bounds.items(text, option)) if text.strip() else ()
     except ValueError:
         raise InputError(Problem(CMDLINE, option, f"expected a comma list of numbers, got {text!r}")) from None
     if not values or min(values) <= 0:
@@ -89,10 +85,7 @@ def positive_numbers(text: str, option: str) -> tuple[float, ...]:
 
 def seed_list(text: str, option: str = "--seeds") -> tuple[int, ...]:
     """A comma list of whole-number seeds."""
-    try:
-        return tuple(int(x) for x in names(text, option))
-    except ValueError:
-        raise InputError(Problem("", option, f"expected whole numbers, e.g. 1,2,3 (got {text!r})")) from None
+    return tuple(bounds.seed_list(text, option))
 
 
 def one_of(first: Optional[object], second: Optional[object], option: str, message: str,

@@ -119,6 +119,77 @@ def weights(text: str, option: str = "--weights") -> tuple[float, float]:
     return parts[0], parts[1]
 
 
+def items(text: str, option: str) -> list[str]:
+    """The items of a comma list, stripped. An empty item (a doubled or trailing comma: ``1500,,1600``)
+    is refused, not dropped: it is a value the user meant to write and did not."""
+    parts = [x.strip() for x in text.split(",")]
+    for i, x in enumerate(parts):
+        if not x:
+            raise InputError(Problem(_where(option), option, f"item {i + 1} of {text!r} is empty (a doubled or trailing "
+                                     "comma?): write every value, e.g. 1500,1600"))
+    return parts
+
+
+def number_list(text: str, option: str, lo: float, hi: float, unit: str = "", why: str = "",
+                lo_open: bool = False, integer: bool = False) -> list[float]:
+    """'a,b,c' (no start:stop:step): finite numbers in [lo, hi] (``lo_open``: (lo, hi]), at most
+    ``LIMITS['runs']`` of them; ``integer``: whole numbers."""
+    form = "expected a comma list of whole numbers, e.g. 1,2,3" if integer else "expected a comma list of numbers"
+    if not text.strip():
+        raise InputError(Problem(_where(option), option, f"{form}, got {text!r}"))
+    if text.count(",") >= LIMITS["runs"]:
+        raise InputError(Problem(_where(option), option, f"{text.count(',') + 1:,} values: more than the limit of "
+                                 f"{LIMITS['runs']:,} runs per command"))
+    try:
+        out = [int(x) if integer else float(x) for x in items(text, option)]
+    except ValueError:
+        raise InputError(Problem(_where(option), option, f"{form}, got {text!r}")) from None
+    u = f" {unit}" if unit else ""
+    for x in out:
+        bad = not math.isfinite(x) or x > hi or (x <= lo if lo_open else x < lo)
+        if bad:
+            span = f"{'(' if lo_open else '['}{number(lo)}, {number(hi)}]{u}"
+            got = f"{x:g}" if not integer or abs(x) < 10**30 else f"an integer of {len(str(abs(x)))} digits"
+            raise InputError(Problem(_where(option), option, f"value {got}{u} is outside {span}{': ' + why if why else ''}"))
+    return out
+
+
+EFFICIENCY_RANGE = (0.1, 1.0)
+"""A traction efficiency (wheel power / power drawn): real drive chains convert 0.8 .. 0.95; below a tenth
+of the power drawn reaching the wheel no locomotive runs, and above 1 it would make energy."""
+
+
+def efficiency(text: str, option: str = "--efficiency") -> float | tuple[tuple[float, float], ...]:
+    """A traction efficiency: one number, or a curve of ``speed_kmh:eta`` pairs at rising speeds
+    (``0:0.80,40:0.88,120:0.90``), each eta in ``EFFICIENCY_RANGE`` and each speed in 0 .. 600 km/h."""
+    lo, hi = EFFICIENCY_RANGE
+    form = f"expected a number in [{lo:g}, {hi:g}] or speed_kmh:eta pairs such as 0:0.80,40:0.88,120:0.90, got {text!r}"
+    where = _where(option)
+    text = text.strip()
+    try:
+        if ":" in text:
+            pts = []
+            for item in items(text, option):
+                a, b = item.split(":")
+                pts.append((float(a), float(b)))
+        else:
+            pts = [(0.0, float(text))]
+    except ValueError:
+        raise InputError(Problem(where, option, form)) from None
+    if ":" in text:
+        if len(pts) < 2 or len(pts) > 100:
+            raise InputError(Problem(where, option, f"{form} (a curve has 2 .. 100 points)"))
+        if not all(math.isfinite(v) and 0.0 <= v <= 600.0 for v, _ in pts):
+            raise InputError(Problem(where, option, f"{form} (speeds in 0 .. 600 km/h)"))
+        if any(b <= a for (a, _), (b, _) in zip(pts, pts[1:])):
+            raise InputError(Problem(where, option, f"{form} (speeds must rise)"))
+    for _, eta in pts:
+        if not (math.isfinite(eta) and lo <= eta <= hi):
+            raise InputError(Problem(where, option, f"{form} (each efficiency in [{lo:g}, {hi:g}]: real drive chains "
+                                     "convert 0.8 .. 0.95 of the power drawn, and no locomotive runs on a tenth)"))
+    return tuple(pts) if ":" in text else pts[0][1]
+
+
 def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: str = "",
            max_values: int | None = None) -> list[float]:
     """'start:stop:step' (inclusive) or 'a,b,c': finite values in [lo, hi], at most ``max_values``
@@ -141,12 +212,12 @@ def values(text: str, option: str, lo: float, hi: float, unit: str = "", why: st
                                      f"{max_values:,} runs per command (each is an optimisation); use a larger step"))
         out = [round(a + i * c, 10) for i in range(int(round(n)) + 1)]
     else:
+        if not text.strip():
+            raise InputError(Problem(_where(option), option, f"{form}, got {text!r}"))
         try:
-            out = [float(x) for x in text.split(",") if x.strip()]
+            out = [float(x) for x in items(text, option)]
         except ValueError:
             raise InputError(Problem(_where(option), option, f"{form}, got {text!r}")) from None
-        if not out:
-            raise InputError(Problem(_where(option), option, f"{form}, got {text!r}"))
         if len(out) > max_values:
             raise InputError(Problem(_where(option), option, f"{len(out):,} values: more than the limit of {max_values:,} "
                                      "runs per command"))
@@ -249,6 +320,26 @@ def check_text(flag: str, value: str) -> None:
                                  f"{MAX_OPTION_CHARS:,} (starts {value[:40]!r})"))
 
 
+def _masses(text: str, option: str) -> list[float]:
+    from .model.consist import PLAUSIBLE
+
+    return number_list(text, option, 0.0, PLAUSIBLE["train_mass_t"], "t", "a train's mass (the heaviest train ever "
+                       "run weighed 99,734 t)", lo_open=True)
+
+
+def seed_list(text: str, option: str = "--seeds") -> list[int]:
+    """A comma list of seeds, each 0 .. 2**63 - 1."""
+    if not text.strip():
+        raise InputError(Problem(_where(option), option, "name at least one seed"))
+    try:
+        out = [int(x) for x in items(text, option)]
+    except ValueError:
+        raise InputError(Problem(_where(option), option, f"expected whole numbers, e.g. 1,2,3 (got {text!r})")) from None
+    for x in out:
+        seed(x, option)
+    return out
+
+
 def check_command(fn, kwargs: dict) -> None:
     """Every option value a command function ``fn`` was called with (``kwargs``), against ``OPTIONS`` and
     ``check_text``: numeric ones inside their bounds, text ones not empty or huge."""
@@ -273,6 +364,9 @@ def check_command(fn, kwargs: dict) -> None:
         for v in values:
             if isinstance(v, str):
                 check_text(flag, v)
+                parse = TEXT_NUMBERS.get(f"{command} {flag}") or TEXT_NUMBERS.get(flag)
+                if parse is not None:
+                    parse(v, flag)
             elif isinstance(v, PurePath):
                 check_text(flag, str(v))
             else:
@@ -321,9 +415,13 @@ def times_request(text: str, option: str = "--times") -> list[tuple[str, float]]
     Raises ``InputError`` naming ``option`` and the forms."""
     if ":" in text:
         return [("s", v) for v in values(text, option, *LIMITS["time_s"], "s", "a planned running time")]
-    items = [x for x in text.split(",") if x.strip()]
-    if not items:
+    items = text.split(",")
+    if not text.strip():
         raise InputError(Problem(_where(option), option, f"expected {TIMES_FORMS}, got {text!r}"))
+    for i, x in enumerate(items):
+        if not x.strip():
+            raise InputError(Problem(_where(option), option, f"item {i + 1} of {text!r} is empty (a doubled or trailing "
+                                     f"comma?): expected {TIMES_FORMS}"))
     if len(items) > LIMITS["runs"]:
         raise InputError(Problem(_where(option), option, f"{len(items):,} values: more than the limit of "
                                  f"{LIMITS['runs']:,} runs per command"))
@@ -337,3 +435,23 @@ def time_of(request: tuple[str, float], fastest_s: float) -> float:
     if kind == "s":
         return value
     return math.ceil(value * fastest_s * 10 - 1e-9) / 10
+
+
+_TIMES = (*LIMITS["time_s"], "s", "a planned running time")
+TEXT_NUMBERS = {
+    "--time": time_request,
+    "--times": times_request,
+    "drivers simulate --times": lambda text, flag: number_list(text, flag, *_TIMES),
+    "--weights": weights,
+    # sweep's --weights is the old name of --weight-grid: named as the grid, as the command reads it
+    "sweep --weights": lambda text, flag: values(text, "--weight-grid", 0.0, 1.0,
+                                                 why="a time weight (the energy weight is 1 - it)"),
+    "--weight-grid": lambda text, flag: values(text, flag, 0.0, 1.0, why="a time weight (the energy weight is 1 - it)"),
+    "--factors": lambda text, flag: values(text, flag, 1.0, 10.0, why="a factor of the fastest run"),
+    "--seeds": seed_list,
+    "--masses": _masses,
+    "--efficiency": efficiency,
+}
+"""Text options that hold numbers (a time form, a list, a grid, a curve): each parsed by its function here,
+every number inside its bound, before the command's body runs. "COMMAND --flag" overrides "--flag"; the
+commands parse the same text with the same function."""

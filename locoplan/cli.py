@@ -410,7 +410,21 @@ _tidy_help(app)
 
 
 def main() -> None:
-    app()
+    try:
+        app()
+    except OSError as exc:  # what click prints itself (help, usage) on a full stdout: a message, never a traceback
+        import sys
+
+        from .cli_common import _os_problem, _StdoutClosed
+
+        problem = _os_problem(exc)
+        if isinstance(problem, _StdoutClosed):
+            sys.exit(0)
+        try:
+            err.print(f"[bold red]error:[/] {escape(plain(str(problem)))}", highlight=False, markup=True, soft_wrap=True)
+        except OSError:
+            pass
+        sys.exit(2)
 
 
 if __name__ == "__main__":

@@ -326,6 +326,14 @@ def _silence_stdout() -> None:
         pass
 
 
+def wrote(paths) -> None:
+    """Name files a command has written whole outside ``all_or_none`` (a folder moved into place), so that a
+    report it cannot print afterwards (stdout on a full disk) says they are there."""
+    run = _RUN.get()
+    if run is not None:
+        run.setdefault("written", []).extend(paths)
+
+
 def _os_problem(exc: OSError) -> LocoplanError:
     import errno
     import sys
@@ -342,6 +350,12 @@ def _os_problem(exc: OSError) -> LocoplanError:
                 where = "<terminal>"
         except (OSError, ValueError):
             pass
+        run = _RUN.get()
+        kept = (run or {}).get("written") or []
+        if kept:  # files a command wrote whole before it printed its report (import, drivers simulate)
+            shown = ", ".join(str(p) for p in kept[:3]) + (f" and {len(kept) - 3:,} more" if len(kept) > 3 else "")
+            return InputError(Problem(where, "", f"cannot write the output: {why} (the files were written whole, "
+                                      f"{shown}; only the report printed here was lost)"))
         return InputError(Problem(where, "", f"cannot write the output: {why} (nothing else was written)"))
     return InputError(Problem(str(exc.filename or "<command line>"), "", f"cannot read or write: {why}"))
 def usage_error_json(exc, args: list[str]) -> None:

@@ -13,7 +13,7 @@ from typing import Optional
 import typer
 from rich.markup import escape
 
-from .cli_common import err, guarded, json_out, out
+from .cli_common import err, guarded, json_out, out, wrote
 from .io.readers import READERS
 
 __all__ = ["register"]
@@ -54,6 +54,7 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
     options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, load_fraction=load_fraction,
                             command=_command(fmt, sources, out_dir, flags))
     report = run_import(fmt, list(sources), out_dir, options)
+    wrote([p for p, _, _ in report.written] + ([report.licence] if report.licence else []))
     if as_json:
         json_out({"format": fmt, "files": [{"path": str(p), "kind": k, "summary": s} for p, k, s in report.written],
                        "licence": str(report.licence) if report.licence else None, "notes": report.notes})

@@ -15,10 +15,9 @@ import tempfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-import yaml
 
 from .errors import InputError, Problem
-from .io.load import load_train, validate_data
+from .io.load import load_train, parse_yaml, validate_data
 from .io.readers import READERS, ImportedFile, ImportOptions
 from .reporting.files import existing_folder, make_folder
 
@@ -103,7 +102,7 @@ def _validate(tmp: Path, items: list[ImportedFile]) -> None:
                 if item.kind == "consist":
                     load_train(tmp / item.relpath)
                 else:
-                    validate_data(yaml.safe_load(item.text), item.relpath, {})
+                    validate_data(parse_yaml(item.text, item.relpath)[0], item.relpath, {})
             except InputError as exc:
                 problems += _to_source(item, exc.problems)
         if problems:

@@ -536,11 +536,25 @@ def build(tmp: Path) -> list[Case]:
     cases.append(Case("markup_in_path", "message", ["simulate", markup_route, "--consist", SMALL], 2, ("[m]route.yaml", "length_m")))
 
     _every_numeric_option(cases, tmp)
+    _every_text_number_option(cases, tmp)
+    for v in ("nan", "0", "-1", "inf", "1e-300"):  # --time beside --times is checked, not ignored
+        cases.append(Case(f"sweep_time_{v}_with_times", "option", ["sweep", good_route, "--consist", SMALL, "--times", "200,210",
+                                                                  "--time", v], 2, (CMDLINE, "--time")))
+    for v in ("nan", "-1", "abc"):  # ocp --time is checked whatever the objective (minimum time does not use it)
+        cases.append(Case(f"ocp_time_{v}_objective_time", "option", ["ocp", good_route, "--time", v], 2, (CMDLINE, "--time")))
+    cases.append(Case("ocp_efficiency_tiny", "option", ["ocp", good_route, "--objective", "energy", "--efficiency", "1e-300"], 2,
+                      (CMDLINE, "--efficiency", "[0.1, 1]")))
+    cases.append(Case("sequence_empty_item", "option", ["simulate", good_route, "--consist", SMALL, "--sequence", "T:0,,C:900"],
+                      2, (CMDLINE, "--sequence", "item 2", "is empty")))
+    for flag, v in (("--times", "200,,210"), ("--times", "200,210,")):
+        cases.append(Case(f"bound_times_empty_item_{v}", "option", ["bound", good_route, flag, v], 2, (CMDLINE, flag, "is empty")))
     _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
+    _yaml11_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
+    _full_disk_cases(cases, good_route, tmp)
     _hang_cases(cases, write, good_route, tmp)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
@@ -604,6 +618,10 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
             values = ["-1", "1e30"] + (["nan", "inf", "-inf"] if kind == "float" else [str(10**40)])
             if lo > 0 or entry[3]:
                 values.append("0")
+            if kind == "float" and lo > 0:
+                values.append("1e-300")  # positive, below the bound (a mesh tolerance that would run for minutes)
+            if kind == "int" and hi < 1000:
+                values.append("1000")
             for v in values:
                 if kind == "int" and v == "1e30":
                     v = str(int(hi) + 1)
@@ -612,6 +630,40 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
                 name = f"every_option_{'_'.join(words)}_{flag[2:]}_{v}"
                 cases.append(Case(name, "option", [*words, *args, flag, v], 2, (flag,),
                                   note="every numeric option through the bounds module"))
+
+
+NOT_NUMBERS = {"NAME", "NAME,...", "FILE", "FILE|NAME", "DIR", "MODE", "time|energy", "ADDRESS", "csv|parquet|json", "EXPR",
+               "FIELD,...", "PLAN"}
+"""Metavars of text options that hold no number (``PLAN``, a --sequence, is checked against its route's length)."""
+
+
+def text_number_options(cmd) -> list[str]:
+    """Flags of a command's text options that hold numbers (a time form, a list, a grid, a curve)."""
+    out = []
+    for p in cmd.params:
+        ann = getattr(getattr(p, "type_descriptor", None), "annotation", None)
+        if p.opts and p.opts[0].startswith("--") and ann is str and p.metavar not in NOT_NUMBERS:
+            out.append(p.opts[0])
+    return out
+
+
+def _every_text_number_option(cases: list[Case], tmp: Path) -> None:
+    """Every text option that holds numbers (--time, --times, --weights, --factors, --seeds, --masses,
+    --efficiency, ...), given nan, inf, a negative, a huge value, text, an empty item and an overflowing
+    float: refused by its parser in the bounds module before any file is read, naming the option."""
+    for words, cmd in commands():
+        args = []
+        for p in cmd.params:
+            if p.required and not p.opts[0].startswith("--"):
+                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
+            elif p.required:
+                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        for flag in text_number_options(cmd):
+            named = "--weight-grid" if words == ("sweep",) and flag == "--weights" else flag  # an old name, told as the new
+            for label, v in (("nan", "nan"), ("inf", "inf"), ("neg", "-1"), ("huge", "1e30"), ("text", "abc"),
+                             ("empty_item", "1,,2"), ("overflow", "1e400")):
+                cases.append(Case(f"every_text_number_{'_'.join(words)}_{flag[2:]}_{label}", "option", [*words, *args, flag, v],
+                                  2, (CMDLINE, named), note="a text option's numbers through the bounds module"))
 
 
 def _output_and_message_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
@@ -657,8 +709,12 @@ def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Pat
               consist: str = SMALL):
         path = write(name, f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{consist}]\n{body}")
         store = str(tmp / "stores" / f"{name}.sqlite")
+        # named as study.yaml:LINE: FIELD (the line of the field's key; the file's first three lines are its head)
+        key = field_.split("[")[0].split(".")[0]
+        line = next((4 + i for i, text in enumerate(body.splitlines()) if text.startswith(f"{key}:")), None)
+        where = (f"{path}:{line}: {field_}",) if field_ and line else (f"{path}:", field_) if field_ else (f"{path}:",)
         cases.append(Case(name, "study", ["batch", path, "--store", store, "--workers", "1", "--quiet"], exit,
-                          (f"{path}:", field_) + why if field_ else (f"{path}:",) + why))
+                          where + why, forbid=(CMDLINE,)))
 
     study("study_weights_nan.yaml", "times: [200]\nweights: [.nan, .nan]\n", "finite", field_="weights[0]")
     study("study_weights_inf.yaml", "times: [200]\nweights: [.inf, 0]\n", "finite", field_="weights[0]")
@@ -669,7 +725,22 @@ def _study_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Pat
     study("study_times_zero.yaml", "times: [0]\n", "a second", field_="times[0]")
     study("study_times_nan.yaml", "times: [.nan]\n", "finite", field_="times[0]")
     study("study_times_base60.yaml", "times: [3:20]\n", "base-60", field_="times[0]")
-    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 100", field_="times[0]")
+    study("study_factor_huge.yaml", "times: [1000x]\n", "at most 10,", field_="times[0]")
+    study("study_factor_50x.yaml", "times: [50x]\n", "at most 10, as on the command line", field_="times[0]")
+    # strict types, as in every locoplan file: a boolean or a quoted number is no seed, weight, tolerance or flag
+    study("study_seed_true.yaml", "times: [200]\nseeds: [true]\n", "valid integer", field_="seeds[0]")
+    study("study_seed_quoted.yaml", "times: [200]\nseeds: ['7']\n", "valid integer", field_="seeds[0]")
+    study("study_tolerance_true.yaml", "times: [200]\ntolerance_s: true\n", "valid number", field_="tolerance_s")
+    study("study_tolerance_quoted.yaml", "times: [200]\ntolerance_s: '10'\n", "valid number", field_="tolerance_s")
+    study("study_weights_bool.yaml", "times: [200]\nweights: [true, false]\n", "valid number", field_="weights[0]")
+    study("study_weights_quoted.yaml", "times: [200]\nweights: ['0.5', '0.5']\n", "valid number", field_="weights[0]")
+    study("study_weights_three.yaml", "times: [200]\nweights: [0.2, 0.3, 0.5]\n", field_="weights")
+    study("study_step_true.yaml", "times: [200]\nmodel: {step_m: true}\n", "valid number", field_="model.step_m")
+    study("study_window_one.yaml", "times: [200]\nwindow: 1\n", "valid boolean", field_="window")
+    study("study_tolerance_at_t0.yaml", "times: [200]\ntolerance_s: 200\n", "not below the planned running time",
+          field_="tolerance_s")
+    study("study_tolerance_above_factor_time.yaml", "times: [1.1x]\ntolerance_s: 1000\n",
+          "not below the planned running time", field_="tolerance_s")
     study("study_tolerance_above_t0.yaml", "times: [200]\ntolerance_s: 1000\n", "not below the planned running time",
           field_="tolerance_s")
     study("study_tolerance_inf.yaml", "times: [200]\ntolerance_s: .inf\n", "finite", field_="tolerance_s")
@@ -715,7 +786,24 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
         (j / "nan.json").write_text(text.replace('"value": 0', '"value": NaN', 1))
         long_id = dict(data, metadata=dict(data["metadata"], id="x" * 300))
         (j / "long_id.json").write_text(json.dumps(long_id))
-        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255")):
+        (j / "exp_huge.json").write_text(text.replace('"value": 0', '"value": 1e99999', 1))
+        (j / "float_5000.json").write_text(text.replace('"value": 0', '"value": 0.' + "1" * 5000, 1))
+        (j / "deep_objects.json").write_text('{"a": ' * 100_000 + "1" + "}" * 100_000)
+        (j / "dup_key.json").write_text(text.rstrip()[:-1] + ', "metadata": {"id": "other"}}\n')
+        (j / "top_list.json").write_text("[1, 2]\n")
+        (j / "empty.json").write_text("")
+        for label, bad_id in (("id_slash", "../escape"), ("id_nul", "a\u0000b"), ("id_number", 7), ("id_empty", ""),
+                              ("id_dotdot", "..")):
+            (j / f"{label}.json").write_text(json.dumps(dict(data, metadata=dict(data["metadata"], id=bad_id))))
+        # 128 two-byte letters (256 bytes, past the 255 a file system takes): ids are ASCII letters, digits, _ - .
+        (j / "id_multibyte.json").write_text(json.dumps(dict(data, metadata=dict(data["metadata"], id="é" * 128)),
+                                                        ensure_ascii=False), encoding="utf-8")
+        for name, why in (("int_5000", "5,000 digits"), ("deep", "nested deeper"), ("nan", "NaN"), ("long_id", "255"),
+                          ("exp_huge", "beyond the range"), ("float_5000", "5,001 digits"), ("deep_objects", "nested deeper"),
+                          ("dup_key", "metadata: duplicate key"), ("top_list", "expected a JSON object"),
+                          ("empty", "not valid JSON"), ("id_slash", "metadata.id"), ("id_nul", "metadata.id"),
+                          ("id_number", "metadata.id"), ("id_empty", "metadata.id"), ("id_dotdot", "metadata.id"),
+                          ("id_multibyte", "letters, digits")):
             d = folder(f"tto_{name}")
             cases.append(Case(f"ttobench_{name}", "json", ["import", "ttobench", str(j / f"{name}.json"), "--out", str(d)], 2,
                               (str(j / f"{name}.json"), why), after=unchanged(d)))
@@ -736,6 +824,13 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
         pat2.write_text('{"schema": ' + "7" * 5000 + "}")
         cases.append(Case("patterns_int_5000", "json", ["advise", good_route, "--patterns", str(pat2)], 2,
                           (str(pat2), "5,000 digits")))
+        for label, body, why in (("nan", '{"schema": NaN}', "NaN"), ("exp_huge", '{"schema": 1e99999}', "beyond the range"),
+                                 ("dup_key", '{"schema": "locoplan/patterns@1",\n "schema": "x"}', "duplicate key"),
+                                 ("deep_objects", '{"a": ' * 100_000 + "1" + "}" * 100_000, "nested deeper"),
+                                 ("top_list", "[]", "valid dictionary")):
+            pat3 = imports / f"patterns_{label}.json"
+            pat3.write_text(body)
+            cases.append(Case(f"patterns_{label}", "json", ["advise", good_route, "--patterns", str(pat3)], 2, (str(pat3), why)))
     if rt_path.is_file():
         d = folder("rt_stock_is_file")
         (d / "rolling_stock").write_text("in the way\n")
@@ -782,10 +877,102 @@ def _import_and_json_cases(cases: list[Case], write, good_route: str, tmp: Path)
     cases.append(Case("drivers_disk_full", "output", ["drivers", "simulate", good_route, "--out", str(logs_full), "--drivers",
                                                       "2", "--runs", "1"], 2, (str(logs_full), "nothing was written"),
                       fsize=3000, after=lambda: "logs left" if logs_full.exists() else None))
-    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"]):
-        cases.append(Case(f"tolerance_above_t0_{cmd[0]}", "option", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
-                                                                     "--tolerance", "1000"], 2,
+    for cmd in (["optimize"], ["compare"], ["sweep", "--times", "200,210"], ["study", "--runs", "1"],
+                ["pareto", "--times", "200,210"], ["pareto"], ["optimize", "--time", "1.2x"]):
+        for tol in ("1000", "200"):  # above T0, and T0 itself (a window opening at departure)
+            cases.append(Case(f"tolerance_{tol}_t0_{'_'.join(cmd)}", "option", [cmd[0], good_route, "--consist", SMALL,
+                                                                               *cmd[1:], "--tolerance", tol], 2,
+                              (CMDLINE, "--tolerance", "not below the planned running time")))
+    for tol in ("1000", "200"):
+        cases.append(Case(f"tolerance_{tol}_t0_drivers", "option", ["drivers", "simulate", good_route, "--out",
+                                                                  str(tmp / f"logs_tol_{tol}"), "--drivers", "2", "--runs", "1",
+                                                                  "--tolerance", tol], 2,
                           (CMDLINE, "--tolerance", "not below the planned running time")))
+    # a window below T0 whose earliest aim the driver simulator cannot drive (it gave a traceback)
+    cases.append(Case("tolerance_wide_drivers", "option", ["drivers", "simulate", good_route, "--out", str(tmp / "logs_tol_wide"),
+                                                           "--drivers", "2", "--runs", "1", "--tolerance", "199.99"], 2,
+                      (CMDLINE, "--tolerance", "less than half the fastest possible run", "at most")))
+    wide = write("wide_window.yaml", route(schedule="schedule: {run_time_s: 200, tolerance_s: 190}\n"))
+    cases.append(Case("route_tolerance_wide_drivers", "option", ["drivers", "simulate", wide, "--out", str(tmp / "logs_tol_route"),
+                                                                 "--drivers", "2", "--runs", "1"], 2,
+                      (wide, "schedule.tolerance_s", "less than half the fastest possible run")))
+    cases.append(Case("route_tolerance_above_times_drivers", "option", ["drivers", "simulate", wide, "--out",
+                                                                        str(tmp / "logs_tol_route2"), "--drivers", "2",
+                                                                        "--runs", "1", "--times", "180"], 2,
+                      (wide, "schedule.tolerance_s", "not below the planned running time 180 s")))
+
+
+def _full_disk_cases(cases: list[Case], good_route: str, tmp: Path) -> None:
+    """Every kind of output of every command that writes one, on a full disk (RLIMIT_FSIZE: a write past
+    200 bytes fails as on a full disk): a message naming the file, exit 2, and no file left (nor a hidden
+    temporary one); stdout on /dev/full for help, usage and the commands not covered above."""
+    full = tmp / "full_disk"
+    full.mkdir(exist_ok=True)
+    import shutil
+
+    # a store in a read-only folder: results reads it without a journal (none can be made there), so the one
+    # write that fails is the output's
+    ro = tmp / "stores" / "full_disk_read_only"
+    if ro.exists():
+        ro.chmod(0o755)
+        shutil.rmtree(ro)
+    ro.mkdir()
+    store = ro / "s.sqlite"
+    shutil.copy(tmp / "stores" / "alone.sqlite", store)
+    ro.chmod(0o555)
+    commands = {
+        "simulate": (["simulate", good_route, "--consist", SMALL], (".json", ".csv", ".png")),
+        "optimize": (["optimize", good_route, "--consist", SMALL], (".json", ".csv", ".svg")),
+        "compare": (["compare", good_route, "--consist", SMALL, "--strategies", "time-saving,four-stage", "--e-min", "5"],
+                    (".json", ".png")),  # E_min given: no optimal control solved (seconds under load)
+        "sweep": (["sweep", good_route, "--consist", SMALL, "--times", "200,210"], (".csv", ".png")),
+        "study": (["study", good_route, "--consist", SMALL, "--runs", "1", "--algorithms", "issa", "--params-dir",
+                   str(ROOT / "tests/data/optimizers")], (".json", ".png")),
+        "bound": (["bound", good_route, "--consist", SMALL], (".json", ".png")),
+        "ocp": (["ocp", good_route], (".csv", ".json", ".png")),
+        "results": (["results", str(store)], (".csv", ".json", ".png")),
+    }
+
+    def nothing_left(target: Path):
+        def check():
+            left = [p.name for p in target.parent.iterdir()]
+            return f"left behind: {left}" if left else None
+        return check
+
+    for name, (argv, suffixes) in commands.items():
+        for suffix in suffixes:
+            folder = full / f"{name}{suffix.replace('.', '_')}"  # one folder each: cases run two at a time
+            folder.mkdir(exist_ok=True)
+            target = folder / f"{name}{suffix}"
+            flag = "--plot" if suffix in (".png", ".svg") else "--out"
+            cases.append(Case(f"full_disk_{name}_{flag[2:]}{suffix.replace('.', '_')}", "output", argv + [flag, str(target)], 2,
+                              (str(target), "cannot write", "File too large"), fsize=200, after=nothing_left(target),
+                              permissions=name == "results"))
+    # what click prints itself (help, usage, the version) and more commands' reports, on a full stdout
+    for name, argv in (("help", ["--help"]), ("command_help", ["simulate", "--help"]), ("version", ["--version"]),
+                       ("usage_json", ["simulate", "--bogus", "x", "--json"]),
+                       ("compare", commands["compare"][0] + ["--json"]), ("bound", commands["bound"][0] + ["--json"]),
+                       ("ocp", ["ocp", good_route]), ("results", ["results", str(store)])):
+        cases.append(Case(f"stdout_dev_full_{name}", "output", argv, 2, ("<stdout>", "No space left"), stdout_file="/dev/full",
+                          forbid=("Traceback",)))
+    # files written whole before the report: the message says so (not "nothing else was written")
+    track = Path("/work/shared/data/external/ttobench/tracks/00_var_speed_limit_100.json")
+    if track.is_file():
+        d = tmp / "imports" / "tto_stdout_full"
+        d.mkdir(parents=True, exist_ok=True)
+        cases.append(Case("stdout_dev_full_import_files_kept", "output", ["import", "ttobench", str(track), "--out", str(d)], 2,
+                          ("<stdout>", "No space left", "the files were written whole", "00_var_speed_limit_100.yaml"),
+                          stdout_file="/dev/full", forbid=("nothing else was written",)))
+    # --where: a number that compares with nothing (nan), no bound (inf), or no value at all: refused, not 0 runs
+    for label, cond in (("nan", "planned_time_s>nan"), ("inf", "planned_time_s<inf"), ("overflow", "planned_time_s>1e400"),
+                        ("no_value", "planned_time_s>")):
+        cases.append(Case(f"results_where_{label}", "option", ["results", str(tmp / "stores" / "alone.sqlite"), "--where", cond],
+                          2, (CMDLINE, "--where", cond)))
+    logs = tmp / "logs_stdout_full"
+    cases.append(Case("stdout_dev_full_drivers_files_kept", "output", ["drivers", "simulate", good_route, "--out", str(logs),
+                                                                       "--drivers", "2", "--runs", "1"], 2,
+                      ("<stdout>", "the files were written whole", str(logs)), stdout_file="/dev/full",
+                      forbid=("nothing else was written",)))
 
 
 _SERVERS: list = []
@@ -874,7 +1061,16 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         "manifest": (manifest, lambda p: ["learn", p, "--out", str(tmp / "schema_patterns.json")]),
         "railtoolkit": ("schema: railtoolkit/path\nschema_version: '2022.05'\npaths: []\n",
                         lambda p: ["import", "railtoolkit", p, "--out", str(tmp / "schema_import")]),
+        # a per-run sidecar <log>.yaml beside its log (learn reads a folder of them)
+        "sidecar": ("schema: locoplan/driver-run@1\nroute: " + str(ROOT / "tests/data/learn/line-6km.yaml") +
+                    "\nconsist: HXD1-C80x50\nsynthetic: false\nlog: run.csv\ndriver_id: D01\nmass_t: 5200\n"
+                    "scheduled_time_s: 3\nactual_time_s: 3\ndate: 2024-05-01\n",
+                    lambda p: ["learn", str(Path(p).parent), "--out", str(tmp / "schema_sidecar.json")]),
+        # a vehicle file found in --stock-dir by the name a consist gives (read when the consist is loaded)
+        "stock_vehicle": ((ROOT / "configs/rolling_stock/HXD1-seed000.yaml").read_text(encoding="utf-8"),
+                          lambda p: ["simulate", good_route, "--consist", stock_consist, "--stock-dir", str(Path(p).parent)]),
     }
+    stock_consist = write("schema_stock_consist.yaml", CONSIST.format(loco="HXD1-seed000", count="1", load=""))
     import re as _re
 
     (tmp / "schema_import").mkdir(exist_ok=True)
@@ -886,12 +1082,79 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
             changed = _re.sub(r"(?m)^schema: .*$", f"schema: {value}", body, count=1)
             folder = tmp / "files" / f"schema_{kind}_{form}"
             folder.mkdir(exist_ok=True)
+            path = folder / {"manifest": "manifest.yaml", "sidecar": "run.yaml",
+                             "stock_vehicle": "HXD1-seed000.yaml"}.get(kind, f"{kind}.yaml")
+            path.write_text(changed, encoding="utf-8")
+            if kind in ("manifest", "sidecar"):
+                (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
+            cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
+                              (f"{path}:", "schema", said), note="a schema that is not text crashed every loader"))
+    # other YAML types in the schema's place, named by what YAML read
+    for form, value, said in (("bool", "yes", "a boolean"), ("date", "2001-12-14", "a date"),
+                              ("binary", "!!binary aGVsbG8=", "binary data"), ("empty_list", "[]", "a list")):
+        path = write(f"schema_{form}.yaml", _re.sub(r"(?m)^schema: .*$", f"schema: {value}", text, count=1))
+        cases.append(Case(f"schema_{form}_route", "yaml", ["validate", path], 2, (f"{path}:1:", "schema", said)))
+    # a patterns.json (JSON: no lines) whose schema is a list or a mapping
+    for form, value, said in (("list", '["locoplan/patterns@1"]', "a list"), ("map", '{"a": 1}', "a mapping")):
+        path = write(f"schema_{form}_patterns.json", '{"schema": %s, "settings": {}}\n' % value)
+        cases.append(Case(f"schema_{form}_patterns", "yaml", ["advise", good_route, "--patterns", path], 2,
+                          (path, "schema", said)))
+
+
+def _yaml11_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """YAML 1.1 number forms in every kind of file every loader reads: those YAML 1.2 reads as text (base-60
+    ``3:20``, digit groups ``1_500``, binary ``0b101``) refused at file:line and field; those YAML 1.2 reads
+    otherwise (``060``, ``08``, ``0o60``) read as YAML 1.2 does."""
+    import re as _re
+
+    manifest = (ROOT / "tests/data/bad_logs/mph/manifest.yaml").read_text(encoding="utf-8").replace(
+        "../../learn/line-6km.yaml", str(ROOT / "tests/data/learn/line-6km.yaml"))
+    rt = Path("/work/shared/data/external/railtoolkit/paths/slope.yaml")
+    if not rt.is_file():
+        rt = ROOT.parent / "shared" / "data" / "external" / "railtoolkit" / "paths" / "slope.yaml"
+    kinds = {  # kind: (text, the line to change (a regex), its replacement with {v}, field, argv)
+        "route": (route(), r"(?m)^length_m: .*$", "length_m: {v}", "length_m", lambda p: ["validate", p]),
+        "vehicle": (VEHICLE.format(name="V", mass="200", a="2.23", force="532"), r"(?m)^mass_t: .*$", "mass_t: {v}",
+                    "mass_t", lambda p: ["validate", p]),
+        "consist": (CONSIST.format(loco="HXD1-seed000", count="1", load=""), r"count: 1}\n$", "count: {v}}}\n",
+                    "vehicles[1].count", lambda p: ["simulate", good_route, "--consist", p]),
+        "params": (PARAMS.format(pop="10", iters="5", extra=""), r"(?m)^pop_size: .*$", "pop_size: {v}", "pop_size",
+                   lambda p: ["optimize", good_route, "--consist", SMALL, "--params", p]),
+        "study": (f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\ntimes: [200]\n",
+                  r"(?m)^times: .*$", "times: [{v}]", "times[0]",
+                  lambda p: ["batch", p, "--store", str(tmp / "stores" / "yaml11.sqlite"), "--workers", "1"]),
+        "manifest": (manifest, r"mass_t: 5200", "mass_t: {v}", "runs[0].mass_t",
+                     lambda p: ["learn", str(Path(p).parent), "--out", str(tmp / "yaml11_patterns.json")]),
+    }
+    if rt.is_file():
+        kinds["railtoolkit"] = (rt.read_text(encoding="utf-8"), r"(?m)^(      - \[ +0\.0, +)160,", r"\g<1>{v},",
+                                "characteristic_sections", lambda p: ["import", "railtoolkit", p, "--out",
+                                                                       str(tmp / "yaml11_import")])
+    (tmp / "yaml11_import").mkdir(exist_ok=True)
+    for kind, (text, pattern, repl, field_, argv) in kinds.items():
+        for form, value, why in (("base60", "3:20", "base-60"), ("groups", "1_600", "YAML 1.2"),
+                                 ("binary", "0b1010", "YAML 1.2")):
+            folder = tmp / "files" / f"yaml11_{kind}_{form}"
+            folder.mkdir(exist_ok=True)
             path = folder / ("manifest.yaml" if kind == "manifest" else f"{kind}.yaml")
+            changed, n = _re.subn(pattern, repl.replace("{v}", value), text, count=1)
+            assert n == 1, (kind, form)
             path.write_text(changed, encoding="utf-8")
             if kind == "manifest":
                 (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
-            cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
-                              (str(path), "schema", said), note="a schema that is not text crashed every loader"))
+            cases.append(Case(f"yaml11_{form}_{kind}", "number", argv(str(path)), 2, (f"{path}:", field_, why),
+                              note="YAML 1.1 reads a number, YAML 1.2 text: refused, never read silently"))
+    # read as YAML 1.2 does: 08 is eight (YAML 1.1: text), 0o2734 the octal 1500 (YAML 1.1: text)
+    for name, length in (("yaml12_leading_zero_8", "08"), ("yaml12_octal_0o", "0o2734")):
+        path = write(f"{name}.yaml", route(length=length if length != "08" else "01508"))
+        cases.append(Case(name, "number", ["validate", path, "--json"], 0, (),
+                          expect_out=('"length_m": 1508.0',) if length == "08" else ('"length_m": 1500.0',)))
+    if rt.is_file():  # a YAML 1.2 railtoolkit file with 0160 km/h imports 160 km/h (YAML 1.1: the octal 112)
+        src = write("rt_leading_zero.yaml", _re.sub(r"(?m)^(      - \[ +0\.0, +)160,", r"\g<1>0160,", rt.read_text(), count=1))
+        out = tmp / "yaml12_rt_import"
+        out.mkdir(exist_ok=True)
+        cases.append(Case("yaml12_railtoolkit_0160", "number", ["import", "railtoolkit", src, "--out", str(out)], 0, (),
+                          after=lambda: None if "kmh: 160}" in (out / "slope.yaml").read_text() else "not read as 160 km/h"))
 
 
 def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
@@ -1127,6 +1390,11 @@ def warm_up(cwd: Path) -> None:
     route_file = Path(cwd) / "warm_up_route.yaml"
     route_file.write_text(route(), encoding="utf-8")
     run(["optimize", str(route_file), "--consist", SMALL, "--json"], cwd, timeout_s=900)
+    # E* of the corpus's route, cached (LOCOPLAN_CACHE_DIR), so that bound under a file-size limit reads it
+    run(["bound", str(route_file), "--consist", SMALL, "--json"], cwd, timeout_s=900)
+    # the other strategies' compiled code too (a case under a file-size limit cannot write a cache)
+    run(["compare", str(route_file), "--consist", SMALL, "--strategies", "time-saving,four-stage", "--e-min", "5", "--json"],
+        cwd, timeout_s=900)
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:

@@ -56,6 +56,18 @@ def test_every_numeric_option_of_every_command_has_a_bound():
     assert not missing, missing
 
 
+def test_every_text_option_holding_numbers_has_a_parser():
+    """A text option that holds numbers (its metavar is not a name, a file or a plan) without a parser in
+    bounds.TEXT_NUMBERS fails here: its numbers would reach the command unchecked."""
+    from locoplan import bounds
+
+    missing = [f"{' '.join(words)} {flag}" for words, cmd in hostile.commands() for flag in hostile.text_number_options(cmd)
+               if flag not in bounds.TEXT_NUMBERS and f"{' '.join(words)} {flag}" not in bounds.TEXT_NUMBERS]
+    assert not missing, missing
+    found = {flag for _, cmd in hostile.commands() for flag in hostile.text_number_options(cmd)}
+    assert {"--time", "--times", "--weights", "--factors", "--seeds", "--masses", "--efficiency"} <= found
+
+
 def test_corpus_no_traceback_hang_or_wrong_success(corpus):
     tmp, cases = corpus
     batched = [c for c in cases if not c.alone_only]

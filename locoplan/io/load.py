@@ -5,6 +5,7 @@ from __future__ import annotations
 import codecs
 import difflib
 import json
+import math
 import os
 import re
 import stat
@@ -239,23 +240,33 @@ _BASE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml when pre
 
 
 class _LOADER(_BASE_LOADER):  # type: ignore[misc,valid-type]
-    """The safe loader, reading integers as YAML 1.2 does: ``060`` is sixty (YAML 1.1 would read the octal 48,
-    a silent 20 % off a speed limit); ``0o60`` is still octal. Base-60 forms (``3:20``) are refused by the scan."""
+    """The safe loader, reading integers as YAML 1.2 does: ``060`` and ``08`` are sixty and eight (YAML 1.1
+    would read the octal 48, a silent 20 % off a speed limit, and the text '08'); ``0o60`` is the octal 48
+    (text to YAML 1.1). The forms YAML 1.1 reads as numbers and YAML 1.2 as text, base-60 (``3:20``),
+    digit groups (``1_500``) and binary (``0b101``), are refused by the scan, naming file, line and field."""
 
 
 _OCTAL_11 = re.compile(r"^[-+]?0[0-7_]+$")
+_DECIMAL_12 = re.compile(r"^[-+]?0[0-9]+$")  # a leading zero: decimal to YAML 1.2
+_OCTAL_12 = re.compile(r"^[-+]?0o[0-7]+$")
 _SEXAGESIMAL_11 = re.compile(r"^[-+]?[0-9][0-9_]*(:[0-5]?[0-9])+(\.[0-9_]*)?$")
 
 
 def _construct_int(loader, node):
     value = loader.construct_scalar(node)
-    if _OCTAL_11.match(value):
+    if _OCTAL_11.match(value) or _DECIMAL_12.match(value):
         return int(value.replace("_", ""), 10)
+    if _OCTAL_12.match(value):
+        sign = -1 if value.startswith("-") else 1
+        return sign * int(value.lstrip("+-")[2:], 8)
     return yaml.constructor.SafeConstructor.construct_yaml_int(loader, node)
 
 
 _LOADER.add_constructor("tag:yaml.org,2002:int", _construct_int)
-_RESOLVER = yaml.SafeLoader("")
+# integers YAML 1.2 reads and YAML 1.1 leaves as text: 08, 0189 (a leading zero before an 8 or 9), 0o60
+_LOADER.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(r"^(?:[-+]?0[0-9]*[89][0-9]*|[-+]?0o[0-7]+)$"),
+                              list("-+0"))
+_RESOLVER = _LOADER("")
 _STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
 _NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
 _READ_AS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number",
@@ -272,6 +283,28 @@ def _base60(text: str) -> float:
         if value > 1e300:
             return sign * float("inf")
     return sign * value
+
+
+def _yaml11_only(text: str) -> str | None:
+    """A number literal YAML 1.1 reads and YAML 1.2 does not (digit groups ``1_500``, binary ``0b101``): the
+    number it stands for, written plainly; None for any other literal."""
+    t = text.lower()
+    body = t.lstrip("+-")
+    sign = "-" if t.startswith("-") else ""
+    if body.startswith("0b"):
+        try:
+            return f"{sign}{int(body[2:].replace('_', ''), 2)}"
+        except ValueError:
+            return None
+    if "_" not in t:
+        return None
+    cleaned = t.replace("_", "")
+    if body.startswith("0x"):
+        try:
+            return f"{sign}{int(cleaned.lstrip('+-')[2:], 16)}"
+        except ValueError:
+            return None
+    return cleaned.lstrip("+") if cleaned.lstrip("+-") not in ("", ".") else None
 
 
 def _digits(text: str) -> int:
@@ -376,6 +409,10 @@ def _scan(text: str, name: str) -> None:
                         if n > MAX_NUMBER_DIGITS:
                             fail(event, f"{_NUMBER_TAGS[tag]} of {n:,} digits is not a plausible value "
                                         f"(at most {MAX_NUMBER_DIGITS} digits)")
+                        plain = _yaml11_only(event.value)
+                        if plain is not None:
+                            fail(event, f"{event.value!r} is the number {plain} to YAML 1.1 and text to YAML 1.2: write "
+                                        f"it as a plain number, {plain}")
                 if event.anchor:
                     anchors[event.anchor] = 1
                 child_done(1)
@@ -431,12 +468,29 @@ class _BadJsonNumber(Exception):
     pass
 
 
+class _DuplicateJsonKey(Exception):
+    pass
+
+
 def _json_number(kind):
     def parse(text: str):
         if _digits(text) > MAX_NUMBER_DIGITS:
             raise _BadJsonNumber(text)
-        return kind(text)
+        value = kind(text)
+        if kind is float and not math.isfinite(value):  # 1e99999: past a float's range, read as inf
+            raise _BadJsonNumber(text)
+        return value
     return parse
+
+
+def _json_object(pairs: list) -> dict:
+    """A JSON object; a key written twice is refused (JSON parsers keep the last one silently)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateJsonKey(key)
+        out[key] = value
+    return out
 
 
 def _json_constant(text: str):
@@ -457,19 +511,42 @@ def parse_json(text: str, name: str) -> Any:
                                          "4); the file is refused before the parser's recursion is at risk"))
     try:
         return json.loads(text, parse_int=_json_number(int), parse_float=_json_number(float),
-                          parse_constant=_json_constant)
+                          parse_constant=_json_constant, object_pairs_hook=_json_object)
     except _BadJsonNumber as exc:
         literal = str(exc)
         at = text.find(literal)
         line = text.count("\n", 0, at) + 1 if at >= 0 else None
         if literal in ("NaN", "Infinity", "-Infinity"):
             raise InputError(Problem(name, "", f"{literal} is not a JSON number (nor a finite value)", line)) from None
+        if _digits(literal) <= MAX_NUMBER_DIGITS:
+            raise InputError(Problem(name, "", f"{literal} is beyond the range of a number (it would be read as infinite)",
+                                     line)) from None
         raise InputError(Problem(name, "", f"a number of {_digits(literal):,} digits is not a plausible value (at most "
                                  f"{MAX_NUMBER_DIGITS} digits)", line)) from None
+    except _DuplicateJsonKey as exc:
+        key = str(exc)
+        hits = [m.start() for m in re.finditer(re.escape(json.dumps(key)) + r"\s*:", text)]
+        sure = len(hits) == 2  # the key appears only twice: those are the two places (else other objects hold it too)
+        line = text.count("\n", 0, hits[1]) + 1 if sure else None
+        first = f" (first on line {text.count(chr(10), 0, hits[0]) + 1})" if sure else " in one object"
+        raise InputError(Problem(name, key, f"duplicate key{first}: JSON readers would keep the last one silently; "
+                                 "write it once", line)) from None
     except json.JSONDecodeError as exc:
         raise InputError(Problem(name, "", f"not valid JSON: {exc.msg} (column {exc.colno})", exc.lineno)) from None
     except (RecursionError, ValueError) as exc:
         raise InputError(Problem(name, "", f"not usable JSON: {exc.__class__.__name__}: {str(exc)[:120]}")) from None
+
+
+def yaml_kind(value: Any) -> str:
+    """What a parsed value is, in words: 'a list', 'a mapping', 'a number', 'binary data', ..."""
+    import datetime as _dt
+
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (_dt.date, _dt.datetime)):
+        return "a date"
+    return {list: "a list", dict: "a mapping", int: "a number", float: "a number", bytes: "binary data",
+            str: "text", type(None): "null"}.get(type(value), f"a {type(value).__name__}")
 
 
 def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
@@ -487,9 +564,8 @@ def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
     schema = data.get("schema")
     if schema is not None and not isinstance(schema, str):
         # every loader looks the schema up in a table: a list or mapping there is unhashable, a number no name
-        kind = {list: "a list", dict: "a mapping", bool: "a boolean", int: "a number", float: "a number"}.get(type(schema), f"a {type(schema).__name__}")
-        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got {kind} "
-                                 f"({short_repr(schema)})", _line_for(lines, ("schema",))))
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, e.g. 'locoplan/route@1', got "
+                                 f"{yaml_kind(schema)} ({short_repr(schema)})", _line_for(lines, ("schema",))))
     return data, lines
 
 

@@ -9,13 +9,13 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import InputError, Problem
-from .load import parse_json, read_text
+from .load import parse_json, read_text, short_repr, yaml_kind
 
 
 class PatternLayer(BaseModel):
     """One layer of a patterns.json (``upper`` also has its ``form``)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     features: list[str]
     order: int = Field(ge=1)
     types: list[str]
@@ -31,7 +31,7 @@ class PatternLayer(BaseModel):
 class PatternFile(BaseModel):
     """A patterns.json: the settings and train model it was learned with, both layers, the fit report."""
 
-    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", strict=True, populate_by_name=True)
     schema_: str = Field(alias="schema")
     locoplan_version: str
     settings: dict
@@ -52,6 +52,9 @@ def read_patterns_file(path: str | Path) -> dict:
     if not path.exists():
         raise InputError(Problem(name, "--patterns", "no such file"))
     data = parse_json(read_text(path), name)
+    if isinstance(data, dict) and "schema" in data and not isinstance(data["schema"], str):
+        raise InputError(Problem(name, "schema", f"expected the file's kind as text, 'locoplan/patterns@1', got "
+                                 f"{yaml_kind(data['schema'])} ({short_repr(data['schema'])})"))
     try:
         f = PatternFile.model_validate(data)
     except ValidationError as exc:

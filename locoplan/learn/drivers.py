@@ -488,6 +488,32 @@ class SimulationSpec:
             bounds.finite(self.tolerance_s, "--tolerance", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
 
 
+AIM_SPREAD = 0.9
+"""Simulated drivers aim anywhere in T0 +- AIM_SPREAD x the punctuality window (``simulate_logs``)."""
+
+
+def _check_window(spec: "SimulationSpec", t0: float, fastest_s: float) -> None:
+    """The window a planned time ``t0`` is simulated with: below ``t0`` (as a route file's tolerance must be),
+    and narrow enough that the earliest aim, t0 - AIM_SPREAD x tolerance, is at least half the fastest run
+    (a run is given 3 x its aim to arrive: aims earlier than that are never simulated)."""
+    if spec.tolerance_s is not None:
+        tol, where, field = spec.tolerance_s, "<command line>", "--tolerance"
+    elif spec.route.schedule is not None:
+        tol, where, field = spec.route.schedule.tolerance_s, str(spec.route_file), "schedule.tolerance_s"
+    else:
+        return
+    if tol >= t0:
+        raise InputError(Problem(where, field, f"a punctuality window of +-{tol:g} s is not below the planned running "
+                                 f"time {t0:g} s: the window would open at or before departure"))
+    earliest = t0 - AIM_SPREAD * tol
+    if earliest < 0.5 * fastest_s:
+        most = math.floor((t0 - 0.5 * fastest_s) / AIM_SPREAD * 10) / 10
+        raise InputError(Problem(where, field, f"a punctuality window of +-{tol:g} s at {t0:g} s: the simulated drivers aim "
+                                 f"as early as {t0:g} - {AIM_SPREAD:g} x {tol:g} = {earliest:.1f} s, less than half the "
+                                 f"fastest possible run ({fastest_s:.1f} s), and no run that early is simulated; "
+                                 f"give a window of at most {most:g} s"))
+
+
 MAX_LOGS = 20_000
 """Logs one ``drivers simulate`` writes at most (40 drivers x 5 runs x 100 groups)."""
 
@@ -541,6 +567,7 @@ def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
             if t0 < calc.fastest_time_s:
                 raise InputError(Problem("<command line>", "--times", f"{t0:g} s is below the fastest possible run of "
                                          f"{train.name} on '{spec.route.name}', {calc.fastest_time_s:.1f} s"))
+            _check_window(spec, t0, calc.fastest_time_s)
         # every driver's runs at every planned time of this mass, in one batch
         per_time = spec.n_drivers * spec.n_runs
         idx = np.tile(np.repeat(np.arange(spec.n_drivers), spec.n_runs), len(spec.times_s))
@@ -548,7 +575,7 @@ def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
         tol_s = np.array([tol if tol is not None else (spec.route.schedule.tolerance_s if spec.route.schedule else 0.01 * x)
                           for x in planned])
         p = jitter(drivers.take(idx), rng)
-        aim = planned + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -0.9, 0.9)
+        aim = planned + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -AIM_SPREAD, AIM_SPREAD)
         noise = speed_noise(len(idx), int(math.ceil(3.0 * float(aim.max()) / DT_S)), p.noise_kmh, rng)
         if progress:
             progress(f"{spec.route.name}: {mass:g} t, {len(idx)} runs")

@@ -30,9 +30,12 @@ class Plan:
 
 def parse_sequence(text: str, length_m: float, field: str = "--sequence") -> Plan:
     """Parse "T:0,K:2200,C:9000,B" (a final bare B brakes where the stop's braking curve begins)."""
-    items = [x.strip() for x in text.split(",") if x.strip()]
-    if not items:
+    items = [x.strip() for x in text.split(",")]
+    if not any(items):
         raise InputError(Problem("", field, "empty sequence; write e.g. T:0,K:2200,C:9000,B"))
+    if not all(items):
+        raise InputError(Problem("", field, f"item {items.index('') + 1} of {text!r} is empty (a doubled or trailing "
+                                 "comma?); write e.g. T:0,K:2200,C:9000,B"))
     conds: list[str] = []
     starts: list[float] = []
     for i, item in enumerate(items):

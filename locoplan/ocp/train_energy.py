@@ -75,28 +75,18 @@ class EnergyOptions:
 
 def energy_options(efficiency: str | float | None = None, regen: float = 0.0, comfort_ms2: float | None = None,
                    ignore_neutral: bool = False, source: str = "<command line>") -> EnergyOptions:
-    """:class:`EnergyOptions` from the command line: ``efficiency`` a number in (0, 1] or a curve
+    """:class:`EnergyOptions` from the command line: ``efficiency`` a number in [0.1, 1] or a curve
     ``"0:0.80,40:0.88,120:0.90"`` (speed_kmh:eta, rising speeds), ``regen`` the credited share of the
     electric brake's work in [0, 1], ``comfort_ms2`` the largest acceleration / deceleration [m/s^2]."""
     problems = []
     eff: float | tuple = 1.0
     if efficiency is not None and str(efficiency).strip():
-        text = str(efficiency).strip()
+        from .. import bounds
+
         try:
-            if ":" in text:
-                pts = tuple((float(a), float(b)) for a, b in (item.split(":") for item in text.split(",") if item.strip()))
-                if len(pts) < 2 or any(b <= a for (a, _), (b, _) in zip(pts, pts[1:])):
-                    raise ValueError("speeds must rise, at least two points")
-                if not all(0 < e <= 1 for _, e in pts):
-                    raise ValueError("each efficiency must be in (0, 1]")
-                eff = pts
-            else:
-                eff = float(text)
-                if not 0 < eff <= 1:
-                    raise ValueError("must be in (0, 1]")
-        except ValueError as exc:
-            problems.append(Problem(source, "--efficiency", f"expected a number in (0, 1] or speed_kmh:eta pairs such as "
-                                    f"0:0.80,40:0.88,120:0.90, got {text!r} ({exc})"))
+            eff = bounds.efficiency(str(efficiency), "--efficiency")
+        except InputError as exc:
+            problems += [Problem(source, p.field, p.message, p.line) for p in exc.problems]
     if not (math.isfinite(regen) and 0 <= regen <= 1):
         problems.append(Problem(source, "--regen", f"the credited share of the electric brake's work must be in [0, 1] (got {regen:g})"))
     if comfort_ms2 is not None and not (math.isfinite(comfort_ms2) and comfort_ms2 > 0):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import operator
 import re
 from pathlib import Path
@@ -40,7 +41,12 @@ def parse_where(conditions: list[str], fields: set[str]):
         name, op, raw = m.groups()
         if fields and name not in fields:
             raise InputError(Problem("", "where", f"unknown field {name!r} (fields: {', '.join(sorted(fields))})"))
+        if not raw.strip():
+            raise InputError(Problem("", "where", f"{text!r} has no value after {op!r}: write FIELD OP VALUE (null for none)"))
         value = raw.strip("'\"") if op == "~" else _value(raw)
+        if isinstance(value, float) and not math.isfinite(value):  # nan compares false with everything, inf is no bound
+            raise InputError(Problem("", "where", f"{text!r}: {raw.strip()!r} is not a finite number, so the condition "
+                                     "would keep every run or none"))
         tests.append((name, _OPS[op], value, op))
 
     def keep(row: dict) -> bool:

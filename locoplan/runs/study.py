@@ -48,7 +48,7 @@ STUDY_SCHEMA = "locoplan/study@1"
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     step_m: float = Field(DEFAULT_STEP_M, gt=0, le=1000)
     point_mass: bool = False
@@ -58,9 +58,11 @@ class _Model(BaseModel):
 
 
 class StudyFile(BaseModel):
-    """The study file's keys (unknown keys are errors, with a 'did you mean')."""
+    """The study file's keys (unknown keys are errors, with a 'did you mean'). Strict types, as in every
+    locoplan file: ``true`` is no seed, weight or tolerance, a quoted '10' no number (``times`` takes text:
+    factors such as '1.1x')."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     schema_: Optional[str] = Field(None, alias="schema")
     routes: list[str] = Field(min_length=1)
@@ -69,7 +71,7 @@ class StudyFile(BaseModel):
     strategies: list[str] = Field(default_factory=lambda: ["proposed"], min_length=1)
     algorithms: list[str] = Field(default_factory=lambda: ["issa"], min_length=1)
     seeds: list[int] = Field(default_factory=lambda: [1], min_length=1)
-    weights: tuple[float, float] = (0.5, 0.5)
+    weights: list[float] = Field(default_factory=lambda: [0.5, 0.5], min_length=2, max_length=2)
     tolerance_s: Optional[float] = Field(None, ge=0)
     window: bool = True
     builder: Optional[str] = None
@@ -112,8 +114,9 @@ def _time_value(value, where: str) -> tuple[str, float]:
             raise ValueError(f"expected a factor such as '1.1x', got {value!r}") from None
         if not (math.isfinite(f) and f >= 1):
             raise ValueError(f"a factor of the fastest run must be >= 1 (got {value!r}: no train runs faster than its fastest run)")
-        if f > 100:
-            raise ValueError(f"a factor of the fastest run must be at most 100 (got {value!r}): give seconds instead")
+        if f > 10:
+            raise ValueError(f"a factor of the fastest run must be at most 10, as on the command line (got {value!r}): "
+                             "give seconds instead")
         return "x", f
     try:
         seconds = float(text)
