@@ -599,6 +599,17 @@ def numeric_options(cmd) -> list[tuple[str, str]]:
     return out
 
 
+def _missing_required(cmd, tmp: Path) -> list[str]:
+    """A command's required arguments and options, each naming a file that does not exist."""
+    args = []
+    for p in cmd.params:
+        if p.required and not p.opts[0].startswith("--"):
+            args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
+        elif p.required:
+            args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+    return args
+
+
 def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
     """Every numeric option of every command, given nan, inf, a negative, zero and a huge value: refused by its
     bound before any file is read (the arguments name files that do not exist), naming the option."""
@@ -606,12 +617,7 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
     from locoplan import bounds
 
     for words, cmd in commands():
-        args = []
-        for p in cmd.params:
-            if p.required and not p.opts[0].startswith("--"):
-                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
-            elif p.required:
-                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        args = _missing_required(cmd, tmp)
         for flag, kind in numeric_options(cmd):
             entry = bounds.OPTIONS.get(f"{' '.join(words)} {flag}") or bounds.OPTIONS[flag]
             lo, hi = entry[1], entry[2]
@@ -652,12 +658,7 @@ def _every_text_number_option(cases: list[Case], tmp: Path) -> None:
     --efficiency, ...), given nan, inf, a negative, a huge value, text, an empty item and an overflowing
     float: refused by its parser in the bounds module before any file is read, naming the option."""
     for words, cmd in commands():
-        args = []
-        for p in cmd.params:
-            if p.required and not p.opts[0].startswith("--"):
-                args += ["railtoolkit"] if p.name == "fmt" else [str(tmp / "no_such_input.yaml")]
-            elif p.required:
-                args += [p.opts[0], str(tmp / f"no_such_{p.name}")]
+        args = _missing_required(cmd, tmp)
         for flag in text_number_options(cmd):
             named = "--weight-grid" if words == ("sweep",) and flag == "--weights" else flag  # an old name, told as the new
             for label, v in (("nan", "nan"), ("inf", "inf"), ("neg", "-1"), ("huge", "1e30"), ("text", "abc"),
