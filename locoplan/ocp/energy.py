@@ -99,8 +99,8 @@ class EnergySolution:
     @property
     def accuracy(self) -> float | None:
         """The objective's estimated relative accuracy: how much it moved over the last refinement
-        (``|E_k - E_k-1| / E_k`` of the last two solved meshes); after a single solve that met the tolerance, that mesh's error estimate; None
-        when neither is known."""
+        (``|E_k - E_k-1| / E_k`` of the last two solved meshes); after a single solve that met the
+        tolerance, that mesh's error estimate; None when neither is known."""
         good = [h for h in self.history if h.status in _GOOD]
         if len(good) < 2:
             return float(good[-1].max_error) if good and self.converged else None
@@ -176,10 +176,10 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
                  end_interval_m: float = END_INTERVAL_M) -> EnergySolution:
     """Minimum energy of ``tep`` by LGR collocation and hp refinement to ``mesh_tol``.
 
-    ``end_interval_m``: the longest first and last interval of a cold start (the departure from rest and
-    the stop). ``energy_tol``: also stop once the objective moved by at most this share over a refinement while
-    no interval's error exceeds ``ENERGY_STOP_MAX_ERROR`` (E* is wanted to a relative accuracy, and the
-    last intervals the dynamics tolerance would split barely move it).
+    ``end_interval_m``: the longest first and last interval of a cold start (the departure from rest
+    and the stop). ``energy_tol``: also stop once the objective moved by at most this share over a
+    refinement while no interval's error exceeds ``ENERGY_STOP_MAX_ERROR`` (E* is wanted to a relative
+    accuracy, and the last intervals the dynamics tolerance would split barely move it).
 
     ``warm``: a solution of a neighbouring problem (another running time, the same route) to start
     from, with its final ``mesh``; otherwise the calculator's best simple plan near the asked time.
