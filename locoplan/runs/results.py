@@ -161,6 +161,12 @@ def _stats(values: list[float]) -> tuple[float | None, float | None, float | Non
     return round(float(a.mean()), 3), round(float(a.min()), 3), round(float(a.std(ddof=1)), 3) if len(a) > 1 else 0.0
 
 
+def _group_order(key: tuple) -> tuple:
+    """Groups in order of their fields: numbers by value, then text, then null (a field that is a number in
+    one group and text in another sorts, never raises)."""
+    return tuple((x is None, not isinstance(x, (int, float)), x if isinstance(x, (int, float)) else str(x)) for x in key)
+
+
 def summarize_rows(rows: list[dict], by: list[str] = list(DEFAULT_BY)) -> list[dict]:
     """One row per group of ``by`` fields: runs, feasible and punctual runs, energy mean / best / sd,
     time mean / sd (over the feasible runs), and the gap to the optimum (mean, best) where the records
@@ -169,7 +175,7 @@ def summarize_rows(rows: list[dict], by: list[str] = list(DEFAULT_BY)) -> list[d
     for r in rows:
         groups.setdefault(tuple(r.get(k) for k in by), []).append(r)
     out = []
-    for key in sorted(groups, key=lambda k: tuple((x is None, str(x) if not isinstance(x, (int, float)) else x) for x in k)):
+    for key in sorted(groups, key=_group_order):
         rs = groups[key]
         ok = [r for r in rs if r.get("feasible")]
         e_mean, e_best, e_sd = _stats([r["traction_energy_kwh"] for r in ok])

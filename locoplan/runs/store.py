@@ -24,6 +24,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import json
+import math
 import os
 import sqlite3
 import stat
@@ -80,6 +81,41 @@ def _why(exc: sqlite3.Error, writing: bool) -> str:
     return f"the store failed (SQLite: {text})"
 
 
+_NUMBER = (int, float)
+_SUMMARY_TYPES = {
+    **dict.fromkeys(("route", "consist", "strategy", "algorithm", "reason", "plan"), (str,)),
+    **dict.fromkeys(("feasible", "punctual"), (bool,)),
+    **dict.fromkeys(("running_time_s", "traction_energy_kwh", "planned_time_s", "punctuality_error_s", "fitness",
+                     "gap_to_optimum_percent", "gap_to_optimum_kwh", "optimum_kwh", "optimum_accuracy_percent",
+                     "e_min_kwh", "cruise_kmh", "solve_time_s"), _NUMBER),
+    **dict.fromkeys(("seed", "n_evaluations"), (int,)),
+    **dict.fromkeys(("window_s", "weights", "switching_points_m", "sequence"), (list,)),
+}
+"""The JSON type of each summary field locoplan writes (each may also be null); a stored value of another
+type (text for an energy, a number for a route, ``NaN``) makes the record damaged, so no summary, sort or
+export meets it."""
+_KIND = {str: "text", bool: "true/false", int: "an integer", float: "a number", list: "a list", dict: "a JSON object",
+         type(None): "null"}
+
+
+def _wrong(value, kinds: tuple) -> str | None:
+    """None if ``value`` is one of ``kinds`` (a number finite, and no boolean), else what is wrong with it."""
+    numeric = int in kinds or float in kinds
+    if isinstance(value, bool):
+        ok = bool in kinds
+    elif isinstance(value, float) and float in kinds:
+        if not math.isfinite(value):
+            return f"is {value!r}, not a finite number"
+        ok = True
+    else:
+        ok = isinstance(value, kinds) and not (isinstance(value, float) and float not in kinds)
+    if ok:
+        return None
+    want = " or ".join(dict.fromkeys(_KIND[k] for k in kinds if not (numeric and k is int and float in kinds)))
+    got = _KIND.get(type(value), type(value).__name__)
+    return f"is {got} ({short(json.dumps(value, default=str), 30)}), expected {want}"
+
+
 def _record_problem(raw) -> tuple[RunRecord | None, str | None]:
     """(record, None) or (None, what is wrong with the stored JSON)."""
     if not isinstance(raw, str):
@@ -93,8 +129,22 @@ def _record_problem(raw) -> tuple[RunRecord | None, str | None]:
     missing = [k for k in ("key", "summary", "spec", "wall_time_s", "versions", "worker") if k not in data]
     if missing:
         return None, f"the record lacks {', '.join(repr(k) for k in missing)}"
-    if not isinstance(data["summary"], dict) or not isinstance(data["spec"], dict):
-        return None, "the record's 'summary' or 'spec' is not a JSON object"
+    for name, kinds in (("summary", (dict,)), ("spec", (dict,)), ("versions", (dict,)), ("key", (str,)),
+                        ("worker", (str,)), ("wall_time_s", _NUMBER), ("cpu_time_s", _NUMBER + (type(None),)),
+                        ("verdict", (str, type(None)))):
+        if name in data and (why := _wrong(data[name], kinds)):
+            return None, f"the record's {name!r} {why}"
+    for name, value in data["summary"].items():
+        kinds = _SUMMARY_TYPES.get(name)
+        if kinds is not None and (why := _wrong(value, kinds + (type(None),))):
+            return None, f"the record's summary.{name} {why}"
+    if data["summary"].get("feasible") is True:
+        lost = [n for n in ("running_time_s", "traction_energy_kwh") if data["summary"].get(n) is None]
+        if lost:
+            return None, f"the record's summary.{lost[0]} is missing or null, but the run is feasible (it has a time and an energy)"
+    tags = data["spec"].get("tags")
+    if tags is not None and not isinstance(tags, dict):
+        return None, f"the record's spec.tags {_wrong(tags, (dict,))}"
     try:
         return RunRecord.from_json(data), None
     except (KeyError, TypeError, ValueError) as exc:
