@@ -178,6 +178,18 @@ class Store:
         if st is not None and not stat.S_ISREG(st.st_mode):
             raise InputError(Problem(name, "", "is not a regular file (a device, a pipe or a socket): a store is an "
                                      "SQLite file with its journal beside it; name a file"))
+        for suffix in ("-wal", "-shm", "-journal"):  # SQLite's files beside the store must be files too
+            side = Path(name + suffix)
+            try:
+                side_mode = os.stat(side).st_mode
+            except FileNotFoundError:
+                continue
+            except OSError as exc:
+                raise InputError(Problem(name, "", f"cannot use its journal {side.name}: {exc.strerror or exc}")) from None
+            if not stat.S_ISREG(side_mode):
+                kind = "a folder" if stat.S_ISDIR(side_mode) else "not a regular file (a device, a pipe or a socket)"
+                raise InputError(Problem(name, "", f"its journal {side} is {kind}: SQLite keeps a store's newest commits "
+                                         f"in a file of that name beside it; move {side.name} away and run it again"))
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir() and create:  # a new store's folder is created (the rule for every output)
             existing_folder(folder, name, "")
