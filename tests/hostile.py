@@ -1178,8 +1178,10 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
 
     def made(name: str, n: int = 3) -> Path:
         path = stores / name
-        for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
-            if p.exists():
+        for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm"), Path(f"{path}-journal")):
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            elif p.exists() or p.is_symlink():
                 p.unlink()
         with Store(path) as s:
             for i in range(n):
@@ -1220,6 +1222,22 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     cases.append(Case("results_broken_records", "store", ["results", str(broken), "--json"], 0,
                       ("key0000", "not valid JSON", "key0001", "lacks 'key', 'summary'", "key0002", "not a JSON object",
                        "left out"), expect_out=('"runs": 1',)))
+    # damaged summaries: a field of the wrong JSON type is named (summary.FIELD, what it is, what it should be)
+    typed = made("typed_records.sqlite", 7)
+    with sqlite3.connect(typed) as conn:
+        for i, (field, value) in enumerate((("traction_energy_kwh", "abc"), ("planned_time_s", "x"), ("route", 5),
+                                            ("feasible", "yes"), ("traction_energy_kwh", float("nan")),
+                                            ("running_time_s", None))):
+            rec = json.loads(conn.execute("SELECT record FROM runs WHERE key = ?", (f"key{i:04d}",)).fetchone()[0])
+            rec["summary"][field] = value
+            conn.execute("UPDATE runs SET record = ? WHERE key = ?", (json.dumps(rec), f"key{i:04d}"))
+    typed_why = ("key0000", "summary.traction_energy_kwh is text", "key0001", "summary.planned_time_s is text",
+                 "key0002", "summary.route is an integer", "key0003", "summary.feasible is text",
+                 "key0004", "not a finite number", "key0005", "the run is feasible", "left out")
+    for fmt in ([], ["--json"], ["--format", "csv"], ["--format", "json"]):
+        cases.append(Case(f"results_typed_records{'_' + fmt[-1] if fmt else ''}".replace("--", ""), "store",
+                          ["results", str(typed), *fmt], 0, typed_why,
+                          expect_out=('"runs": 1',) if fmt == ["--json"] else ("key0006",) if fmt else ()))
     cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 0,
                       ("key0000", "left out"), expect_out=("key0003",)))
     # a dropped table, garbage over the file's first page
@@ -1239,12 +1257,27 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         conn.execute("DELETE FROM meta")
     cases.append(Case("results_meta_emptied", "store", ["results", str(empty_meta)], 2, (str(empty_meta), "format")))
 
+    # SQLite's files beside the store: a journal that is a folder or a device is named
+    for side in ("wal", "shm", "journal"):
+        odd = made(f"odd_{side}.sqlite")
+        (stores / f"odd_{side}.sqlite-{side}").mkdir()
+        why = (str(odd), f"its journal {odd}-{side} is a folder", "move")
+        cases.append(Case(f"results_{side}_is_folder", "store", ["results", str(odd)], 2, why))
+        cases.append(Case(f"batch_{side}_is_folder", "store", batch(str(odd)), 2, why))
+    fifo_wal = made("fifo_wal.sqlite")
+    os.mkfifo(f"{fifo_wal}-wal")
+    cases.append(Case("results_wal_is_fifo", "store", ["results", str(fifo_wal)], 2,
+                      (str(fifo_wal), "-wal is not a regular file")))
+
     # a full disk after the store is open: the committed runs survive, the message says how to go on
+    # (RLIMIT_FSIZE 33 KiB: SQLite's -shm, 32 KiB, fits; the -wal holds a few runs' commits, then its next write
+    # fails as on a full disk; the limit is per file, so a limit near the store's own size never reaches the -wal)
     full = made("full.sqlite", 30)
-    size = full.stat().st_size
-    cases.append(Case("batch_disk_full", "store", batch(str(full)), 2,
-                      (str(full), "run the same command again"), fsize=size + 1024, after=readable(full, 30),
-                      note="RLIMIT_FSIZE: the store cannot grow past its size"))
+    long_study = write("store_study_12.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                              "times: [200, 210, 220, 230, 240, 250]\nstrategies: [time-saving, four-stage]\n")
+    cases.append(Case("batch_disk_full", "store", ["batch", long_study, "--store", str(full), "--workers", "1", "--quiet"], 2,
+                      (str(full), "the runs committed so far are kept", "run the same command again"), fsize=33 * 1024,
+                      after=readable(full, 31), note="RLIMIT_FSIZE: the journal fills after a few commits"))
     full_read = made("full_read.sqlite", 30)
     cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full_read), "--json"], 0, (),
                       fsize=full_read.stat().st_size + 1024,

@@ -99,3 +99,24 @@ def test_a_second_writer_is_refused_and_the_lock_dies_with_its_holder(tmp_path):
     second.check_writer()  # free once the first has gone
     second.close()
     os.unlink(path)
+
+
+def test_store_cases_of_the_corpus(tmp_path):
+    """The corpus's result-store cases (tests/hostile.py, class ``store``) alone: each exits as it says, with
+    the words it names, no traceback (the full corpus runs them with every other class)."""
+    files = tmp_path / "files"
+    files.mkdir()
+
+    def write(name, content):
+        p = files / name
+        p.write_text(content) if isinstance(content, str) else p.write_bytes(content)
+        return str(p)
+
+    cases: list = []
+    hostile._store_cases(cases, write, write("good_route.yaml", hostile.route()), tmp_path)
+    assert {"results_typed_records", "results_typed_records_json", "batch_wal_is_folder", "results_shm_is_folder",
+            "batch_disk_full", "batch_second_writer", "results_malformed", "batch_dropped_runs"} <= {c.name for c in cases}
+    together = [c for c in cases if not c.alone_only]
+    outcomes = hostile.run_batch(together, tmp_path) + [hostile.run_case(c, tmp_path) for c in cases if c.alone_only]
+    bad = [f"{o.case.name}: exit {o.returncode}: {'; '.join(o.problems)}\n{o.stderr[-400:]}" for o in outcomes if o.problems]
+    assert not bad, "\n".join(bad)
