@@ -120,3 +120,24 @@ def test_store_cases_of_the_corpus(tmp_path):
     outcomes = hostile.run_batch(together, tmp_path) + [hostile.run_case(c, tmp_path) for c in cases if c.alone_only]
     bad = [f"{o.case.name}: exit {o.returncode}: {'; '.join(o.problems)}\n{o.stderr[-400:]}" for o in outcomes if o.problems]
     assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("how", ["removed", "replaced"])
+def test_a_store_removed_or_replaced_while_a_batch_writes_is_refused(tmp_path, how):
+    """SQLite would go on writing into the removed file: every run since would be lost without a word."""
+    path = tmp_path / "runs.sqlite"
+    s = Store(path)
+    s.put(_record("k1", s))
+    for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+        p.unlink(missing_ok=True)
+    if how == "replaced":
+        with Store(path) as other:
+            other.put(_record("k0", other))
+    with pytest.raises(InputError) as err:
+        s.put(_record("k2", s))
+    s.close()
+    text = str(err.value)
+    assert str(path) in text and "was removed or replaced" in text and "run the same command again" in text
+    if how == "replaced":
+        with Store(path, create=False) as again:
+            assert [r.key for r in again.records()] == ["k0"]  # the file now there is whole

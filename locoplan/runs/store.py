@@ -239,6 +239,16 @@ class Store:
             raise InputError(Problem(name, "", f"a damaged locoplan result store: its {' and '.join(missing)} "
                                      f"table{'s are' if len(missing) > 1 else ' is'} missing (dropped?), so its runs "
                                      "are gone; start a new store"))
+        self._identity = _identity(self.path)
+        """(device, inode) of the file opened: a store removed or replaced while a batch writes is noticed."""
+
+    def _still_there(self) -> None:
+        """Refuse to go on writing to a store file that was removed or replaced since it was opened (SQLite
+        would go on writing into the removed file, and every run since would be lost without a word)."""
+        if self.writable and _identity(self.path) != self._identity:
+            raise InputError(Problem(self.name, "", "the store file was removed or replaced while this batch wrote to "
+                                     "it (the run just finished went into the removed file); the runs in the file now "
+                                     "there are kept: run the same command again to continue"))
 
     def _open_read_only(self, folder: Path) -> sqlite3.Connection:
         """A read-only connection; in a read-only folder (no -shm can be made) the file is read as it is."""
@@ -330,6 +340,7 @@ class Store:
                  s.get("planned_time_s"), None if s.get("feasible") is None else int(bool(s["feasible"])),
                  s.get("running_time_s"), s.get("traction_energy_kwh"),
                  json.dumps(clean(record.to_json()), allow_nan=False, default=str), _now()))
+        self._still_there()
         if record.key in self.damaged:
             self.replaced[record.key] = self.damaged.pop(record.key)
         self._checkpoint()
@@ -397,6 +408,7 @@ class Store:
     def put_ref(self, key: str, kind: str, value: float | None, note: str | None = None) -> None:
         with self._transaction():
             self.conn.execute("INSERT OR REPLACE INTO refs VALUES (?,?,?,?)", (key, kind, value, note))
+        self._still_there()
         self._checkpoint()
 
     def close(self) -> None:
@@ -420,6 +432,14 @@ class Store:
 
 def short(text: str, limit: int = 40) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
 
 
 def _uri_path(path: Path) -> str:
