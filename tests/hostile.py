@@ -1278,6 +1278,18 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     cases.append(Case("batch_disk_full", "store", ["batch", long_study, "--store", str(full), "--workers", "1", "--quiet"], 2,
                       (str(full), "the runs committed so far are kept", "run the same command again"), fsize=33 * 1024,
                       after=readable(full, 31), note="RLIMIT_FSIZE: the journal fills after a few commits"))
+    new_full = stores / "new_on_full_disk.sqlite"
+    cases.append(Case("batch_new_store_disk_full", "store", batch(str(new_full)), 2,
+                      (str(new_full), "run the same command again"), fsize=4096,
+                      after=lambda: f"{new_full.name} left" if any(Path(f"{new_full}{x}").exists() for x in ("", "-wal", "-shm"))
+                      else None, note="a new store that cannot be made leaves nothing"))
+    no_room = made("read_on_full_disk.sqlite", 3)
+    cases.append(Case("results_disk_full_no_room_for_shm", "store", ["results", str(no_room), "--json"], 0, (), fsize=4096,
+                      expect_out=('"runs": 3',), note="the -shm cannot be made: the file is read as it is"))
+    no_room_wal = made("read_on_full_disk_wal.sqlite", 3)
+    Path(f"{no_room_wal}-wal").write_bytes(_garbage(5000, 3))
+    cases.append(Case("results_disk_full_runs_in_wal", "store", ["results", str(no_room_wal)], 2,
+                      (str(no_room_wal), "still in its journal", "disk is full", "free some space"), fsize=4096))
     full_read = made("full_read.sqlite", 30)
     cases.append(Case("results_disk_full_is_fine", "store", ["results", str(full_read), "--json"], 0, (),
                       fsize=full_read.stat().st_size + 1024,

@@ -204,28 +204,33 @@ class Store:
                                      "writable (chmod u+w), or read it with locoplan results"))
         fresh = st is None or st.st_size == 0
         try:
-            if create:
-                self.conn = sqlite3.connect(name, timeout=60.0, isolation_level=None)
-                self.conn.execute("PRAGMA journal_mode=WAL")
-                self.conn.execute("PRAGMA synchronous=FULL")
-            else:
-                self.conn = self._open_read_only(folder)
-            tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-        except sqlite3.DatabaseError as exc:
-            if "malformed" in str(exc) or isinstance(exc, sqlite3.OperationalError):
+            try:
+                if create:
+                    self.conn = sqlite3.connect(name, timeout=60.0, isolation_level=None)
+                    self.conn.execute("PRAGMA journal_mode=WAL")
+                    self.conn.execute("PRAGMA synchronous=FULL")
+                else:
+                    self.conn = self._open_read_only(folder)
+                tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            except sqlite3.DatabaseError as exc:
+                if "malformed" in str(exc) or isinstance(exc, sqlite3.OperationalError):
+                    raise InputError(Problem(name, "", _why(exc, create))) from None
+                raise InputError(Problem(name, "", f"not a locoplan result store (SQLite says: {exc})")) from None
+            except sqlite3.Error as exc:
                 raise InputError(Problem(name, "", _why(exc, create))) from None
-            raise InputError(Problem(name, "", f"not a locoplan result store (SQLite says: {exc})")) from None
-        except sqlite3.Error as exc:
-            raise InputError(Problem(name, "", _why(exc, create))) from None
-        if create and (fresh or not tables):
-            with self._transaction():
-                for stmt in _SCHEMA.strip().split(";"):
-                    if stmt.strip():
-                        self.conn.execute(stmt)
-                self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('format', ?)", (str(STORE_FORMAT),))
-                self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('locoplan', ?)", (__version__,))
-                self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('created_utc', ?)", (_now(),))
-            tables = set(_TABLES)
+            if create and (fresh or not tables):
+                with self._transaction():
+                    for stmt in _SCHEMA.strip().split(";"):
+                        if stmt.strip():
+                            self.conn.execute(stmt)
+                    self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('format', ?)", (str(STORE_FORMAT),))
+                    self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('locoplan', ?)", (__version__,))
+                    self.conn.execute("INSERT OR REPLACE INTO meta VALUES ('created_utc', ?)", (_now(),))
+                tables = set(_TABLES)
+        except InputError:
+            if st is None:  # a new store that could not be made (a full disk): nothing is left of it
+                self._discard()
+            raise
         if "meta" not in tables:
             raise InputError(Problem(name, "", "not a locoplan result store (no meta table)"))
         with self._sql():
@@ -242,6 +247,16 @@ class Store:
         self._identity = _identity(self.path)
         """(device, inode) of the file opened: a store removed or replaced while a batch writes is noticed."""
 
+    def _discard(self) -> None:
+        conn = getattr(self, "conn", None)
+        if conn is not None:
+            conn.close()
+        for p in (self.path, Path(self.name + "-wal"), Path(self.name + "-shm")):
+            try:
+                p.unlink()
+            except OSError:
+                pass
+
     def _still_there(self) -> None:
         """Refuse to go on writing to a store file that was removed or replaced since it was opened (SQLite
         would go on writing into the removed file, and every run since would be lost without a word)."""
@@ -257,15 +272,18 @@ class Store:
         try:
             conn.execute("SELECT name FROM sqlite_master").fetchall()
             return conn
-        except sqlite3.OperationalError:
+        except sqlite3.OperationalError as exc:
             conn.close()
-            if os.access(folder, os.W_OK):
+            # a read-only folder, or a full disk: SQLite cannot make the -shm index a reader of a WAL store needs
+            no_room = any(w in str(exc).lower() for w in ("disk i/o", "full"))
+            if os.access(folder, os.W_OK) and not no_room:
                 raise
+            where = f"the disk is full (SQLite: {exc})" if no_room else f"its folder {folder} is read-only"
         wal = Path(self.name + "-wal")
         if wal.exists() and wal.stat().st_size > 0:
-            raise InputError(Problem(self.name, "", f"the store's newest runs are still in its journal {wal.name}, and its "
-                                     f"folder {folder} is read-only, so SQLite cannot read them: copy the store "
-                                     f"with its -wal file to a writable folder"))
+            raise InputError(Problem(self.name, "", f"the store's newest runs are still in its journal {wal.name}, and "
+                                     f"{where}, so SQLite cannot read them: free some space, or copy the store with its "
+                                     "-wal file to a writable place"))
         return sqlite3.connect(uri + "?mode=ro&immutable=1", uri=True, isolation_level=None)
 
     @contextmanager
