@@ -328,7 +328,10 @@ class Store:
                                      f"this is {__version__}: its runs would mix two versions' results; "
                                      "start a new store (or finish it with that version)"))
         if self._lock_fd is None:
-            fd = os.open(self.path, os.O_RDONLY | os.O_CLOEXEC)
+            try:
+                fd = os.open(self.path, os.O_RDONLY | os.O_CLOEXEC)
+            except OSError as exc:
+                raise InputError(Problem(self.name, "", f"cannot open the store to lock it: {exc.strerror or exc}")) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
