@@ -1235,7 +1235,7 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                  "key0002", "summary.route is an integer", "key0003", "summary.feasible is text",
                  "key0004", "not a finite number", "key0005", "the run is feasible", "left out")
     for fmt in ([], ["--json"], ["--format", "csv"], ["--format", "json"]):
-        cases.append(Case(f"results_typed_records{'_' + fmt[-1] if fmt else ''}".replace("--", ""), "store",
+        cases.append(Case("_".join(["results_typed_records", *(f.strip("-") for f in fmt)]), "store",
                           ["results", str(typed), *fmt], 0, typed_why,
                           expect_out=('"runs": 1',) if fmt == ["--json"] else ("key0006",) if fmt else ()))
     cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 0,
