@@ -26,6 +26,7 @@ import fcntl
 import json
 import math
 import os
+import shlex
 import sqlite3
 import stat
 import time
@@ -58,7 +59,7 @@ _TABLES = ("meta", "runs", "refs")
 _KEEP = "the runs committed so far are kept"
 
 
-def _why(exc: sqlite3.Error, writing: bool) -> str:
+def _why(exc: sqlite3.Error, writing: bool, store: str = "STORE") -> str:
     """What an SQLite failure means for the user, and what to do."""
     text = str(exc)
     low = text.lower()
@@ -69,8 +70,10 @@ def _why(exc: sqlite3.Error, writing: bool) -> str:
         return (f"the store cannot be written (SQLite: {text}): the file or its folder is read-only; {_KEEP}: "
                 f"make it writable, or copy it to a writable place, and {go_on}")
     if "malformed" in low or "not a database" in low or "corrupt" in low:
-        return (f"the store file is damaged (SQLite: {text}); save what is readable with "
-                "'sqlite3 STORE .recover | sqlite3 new.sqlite', or start a new store")
+        saved = str(Path(store).with_name(Path(store).stem + "-recovered.sqlite"))
+        return (f"the store file is damaged (SQLite: {text}), so its runs cannot be read as they are; "
+                f"'sqlite3 {shlex.quote(store)} .recover | sqlite3 {shlex.quote(saved)}' saves what SQLite can still read "
+                "(then use that store), or start a new store (batch with another --store runs every run again)")
     if "no such table" in low or "no such column" in low:
         return f"not a locoplan result store, or a damaged one (SQLite: {text}); start a new store"
     if "locked" in low or "busy" in low:
@@ -214,10 +217,10 @@ class Store:
                 tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
             except sqlite3.DatabaseError as exc:
                 if "malformed" in str(exc) or isinstance(exc, sqlite3.OperationalError):
-                    raise InputError(Problem(name, "", _why(exc, create))) from None
+                    raise InputError(Problem(name, "", _why(exc, create, name))) from None
                 raise InputError(Problem(name, "", f"not a locoplan result store (SQLite says: {exc})")) from None
             except sqlite3.Error as exc:
-                raise InputError(Problem(name, "", _why(exc, create))) from None
+                raise InputError(Problem(name, "", _why(exc, create, name))) from None
             if create and (fresh or not tables):
                 with self._transaction():
                     for stmt in _SCHEMA.strip().split(";"):
@@ -292,7 +295,7 @@ class Store:
         try:
             yield
         except sqlite3.Error as exc:
-            raise InputError(Problem(self.name, "", _why(exc, writing))) from None
+            raise InputError(Problem(self.name, "", _why(exc, writing, self.name))) from None
 
     def _transaction(self):
         conn, store = self.conn, self
@@ -302,7 +305,7 @@ class Store:
                 try:
                     conn.execute("BEGIN IMMEDIATE")
                 except sqlite3.Error as exc:
-                    raise InputError(Problem(store.name, "", _why(exc, True))) from None
+                    raise InputError(Problem(store.name, "", _why(exc, True, store.name))) from None
 
             def __exit__(self, kind, exc, tb):
                 try:
@@ -313,9 +316,9 @@ class Store:
                             conn.execute("ROLLBACK")
                         except sqlite3.Error:
                             pass
-                        raise InputError(Problem(store.name, "", _why(err, True))) from None
+                        raise InputError(Problem(store.name, "", _why(err, True, store.name))) from None
                 if isinstance(exc, sqlite3.Error):
-                    raise InputError(Problem(store.name, "", _why(exc, True))) from None
+                    raise InputError(Problem(store.name, "", _why(exc, True, store.name))) from None
                 return False
         return _Tx()
 
