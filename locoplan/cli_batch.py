@@ -136,7 +136,9 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
         # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
         rows, fields = stream_rows(store.iter_records(), where,
                                    tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
-        _warn_damaged(err, store, "left out (the other runs are used; locoplan batch on the store runs it again)")
+        _warn_damaged(err, store, "left out (the other runs are used; the store file is damaged, so batch does not "
+                      "write into it: run the batch into a new store to run them again)" if store.file_damaged else
+                      "left out (the other runs are used; locoplan batch on the store runs it again)")
     if rows:
         api.check_fields(group, fields, "by")
     summary = summarize_rows(rows, group)

@@ -1252,6 +1252,23 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     garbled.write_bytes(bytes(data))
     cases.append(Case("results_malformed", "store", ["results", str(garbled)], 2, (str(garbled), "damaged", "malformed")))
     cases.append(Case("batch_malformed", "store", batch(str(garbled)), 2, (str(garbled), "damaged", "malformed")))
+    # garbage over one page of runs mid-file: results uses the rest and names the damaged row ids; batch refuses
+    partly = made("garbled_one_page.sqlite", 200)
+    data = bytearray(partly.read_bytes())
+    page = (len(data) // 4096 - 3) * 4096
+    data[page:page + 4096] = _garbage(4096, 8)
+    partly.write_bytes(bytes(data))
+    with sqlite3.connect(f"file:{partly}?mode=ro", uri=True) as conn:
+        try:
+            conn.execute("SELECT COUNT(*) FROM runs WHERE record LIKE '%'").fetchone()
+            raise AssertionError("the garbage page did not damage the runs table")
+        except sqlite3.DatabaseError:
+            pass
+    cases.append(Case("results_malformed_one_page", "store", ["results", str(partly), "--json"], 0,
+                      (str(partly), "rowids", "in a damaged part of the store file", "malformed", "run the batch into a new store"),
+                      expect_out=('"runs": 193,',)))
+    cases.append(Case("batch_malformed_one_page", "store", batch(str(partly)), 2,
+                      (str(partly), "damaged", "batch does not write into a damaged file", "another --store")))
     empty_meta = made("no_format.sqlite")
     with sqlite3.connect(empty_meta) as conn:
         conn.execute("DELETE FROM meta")

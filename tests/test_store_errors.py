@@ -116,7 +116,7 @@ def test_store_cases_of_the_corpus(tmp_path):
     hostile._store_cases(cases, write, write("good_route.yaml", hostile.route()), tmp_path)
     assert len({c.name for c in cases}) == len(cases)
     assert {"results_typed_records", "results_typed_records_json", "results_typed_records_format_json", "batch_wal_is_folder", "results_shm_is_folder",
-            "batch_disk_full", "batch_new_store_disk_full", "results_disk_full_runs_in_wal", "batch_second_writer", "results_malformed", "batch_dropped_runs"} <= {c.name for c in cases}
+            "batch_disk_full", "batch_new_store_disk_full", "results_disk_full_runs_in_wal", "results_malformed_one_page", "batch_malformed_one_page", "batch_second_writer", "results_malformed", "batch_dropped_runs"} <= {c.name for c in cases}
     together = [c for c in cases if not c.alone_only]
     outcomes = hostile.run_batch(together, tmp_path) + [hostile.run_case(c, tmp_path) for c in cases if c.alone_only]
     bad = [f"{o.case.name}: exit {o.returncode}: {'; '.join(o.problems)}\n{o.stderr[-400:]}" for o in outcomes if o.problems]

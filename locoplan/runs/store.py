@@ -70,10 +70,12 @@ def _why(exc: sqlite3.Error, writing: bool, store: str = "STORE") -> str:
         return (f"the store cannot be written (SQLite: {text}): the file or its folder is read-only; {_KEEP}: "
                 f"make it writable, or copy it to a writable place, and {go_on}")
     if "malformed" in low or "not a database" in low or "corrupt" in low:
-        saved = str(Path(store).with_name(Path(store).stem + "-recovered.sqlite"))
-        return (f"the store file is damaged (SQLite: {text}), so its runs cannot be read as they are; "
-                f"'sqlite3 {shlex.quote(store)} .recover | sqlite3 {shlex.quote(saved)}' saves what SQLite can still read "
-                "(then use that store), or start a new store (batch with another --store runs every run again)")
+        if writing:
+            return (f"the store file is damaged (SQLite: {text}), and batch does not write into a damaged file: "
+                    f"'locoplan results {shlex.quote(store)}' shows the runs still readable; run the batch into a new "
+                    "store (another --store)")
+        return (f"the store file is damaged (SQLite: {text}) and no run in it can be read; "
+                "run the batch again into a new store")
     if "no such table" in low or "no such column" in low:
         return f"not a locoplan result store, or a damaged one (SQLite: {text}); start a new store"
     if "locked" in low or "busy" in low:
@@ -165,6 +167,8 @@ class Store:
         self.damaged: dict[str, str] = {}
         """key (or 'rowid N' when the key itself is unreadable) -> what is wrong with that stored record."""
         self.replaced: dict[str, str] = {}
+        self.file_damaged = False
+        """True once :meth:`iter_records` met damaged pages (their row ids are in :attr:`damaged`)."""
         """key -> what was wrong with the damaged record that :meth:`put` wrote over."""
         self._lock_fd: int | None = None
         try:
@@ -247,6 +251,12 @@ class Store:
             raise InputError(Problem(name, "", f"a damaged locoplan result store: its {' and '.join(missing)} "
                                      f"table{'s are' if len(missing) > 1 else ' is'} missing (dropped?), so its runs "
                                      "are gone; start a new store"))
+        if create and not fresh:  # batch never writes into a damaged file (a write could spread the damage)
+            with self._sql(writing=True):
+                found = [r[0] for r in self.conn.execute("PRAGMA quick_check(3)")]
+            if found != ["ok"]:
+                raise InputError(Problem(name, "", _why(sqlite3.DatabaseError(
+                    f"database disk image is malformed: {short('; '.join(map(str, found)), 120)}"), True, name)))
         self._identity = _identity(self.path)
         """(device, inode) of the file opened: a store removed or replaced while a batch writes is noticed."""
 
@@ -404,15 +414,67 @@ class Store:
     def iter_records(self, chunk: int = 1000):
         """Every readable run, in the order they finished, ``chunk`` rows at a time (memory stays bounded
         on a store of any size); damaged records go to :attr:`damaged`."""
-        last = -1
+        last, good = -1, 0
         while True:
-            with self._sql():
+            try:
                 rows = self.conn.execute("SELECT rowid, key, record FROM runs WHERE rowid > ? ORDER BY rowid LIMIT ?",
                                          (last, chunk)).fetchall()
-            if not rows:
-                return
-            last = rows[-1][0]
-            yield from self._parsed(rows).values()
+            except sqlite3.DatabaseError as exc:
+                if self.writable or "malformed" not in str(exc):
+                    raise InputError(Problem(self.name, "", _why(exc, self.writable, self.name))) from None
+                rows, last = self._salvage(last, chunk, exc, good)
+                if rows is None:
+                    return
+            else:
+                if not rows:
+                    return
+                last = rows[-1][0]
+            parsed = self._parsed(rows)
+            good += len(parsed)
+            yield from parsed.values()
+
+    _SALVAGE_SPAN = 10_000_000
+    """At most this many row ids are probed one by one past a damaged part of the file."""
+
+    def _salvage(self, last: int, chunk: int, exc: sqlite3.Error, good: int):
+        """Reading a damaged file (``results``): the rows after ``last`` one row id at a time, so the runs
+        outside the damaged pages stay usable; the row ids in damaged pages go to :attr:`damaged` as ranges.
+        (rows, new last), or (None, last) at the end; the damage as an error when nothing is readable."""
+        def refuse():
+            return InputError(Problem(self.name, "", _why(exc, False, self.name)))
+        try:
+            top = self.conn.execute("SELECT max(rowid) FROM runs").fetchone()[0]
+        except sqlite3.DatabaseError:
+            raise refuse() from None
+        if top is None or not isinstance(top, int) or top - last > self._SALVAGE_SPAN:
+            raise refuse() from None
+        rows, rid, bad_from = [], last + 1, None
+
+        def close_range(upto: int) -> None:
+            span = f"rowid {bad_from}" if upto == bad_from else f"rowids {bad_from}..{upto}"
+            self.damaged[span] = f"in a damaged part of the store file (SQLite: {exc}); the runs there cannot be read"
+            self.file_damaged = True
+
+        while rid <= top and len(rows) < chunk:
+            try:
+                row = self.conn.execute("SELECT rowid, key, record FROM runs WHERE rowid = ?", (rid,)).fetchone()
+            except sqlite3.DatabaseError:
+                if bad_from is None:
+                    bad_from = rid
+            else:
+                if bad_from is not None:
+                    close_range(rid - 1)
+                    bad_from = None
+                if row is not None:
+                    rows.append(row)
+            rid += 1
+        if bad_from is not None:
+            close_range(rid - 1)
+        if not rows and rid > top:
+            if good == 0:
+                raise refuse() from None
+            return None, last
+        return rows, rid - 1
 
     def records(self) -> list[RunRecord]:
         """Every readable run, in the order they finished."""
