@@ -15,8 +15,12 @@ a second writer while one batch holds the store (it would compute every run twic
 
 Every SQLite failure after opening (a full disk, a read-only file, a damaged file, a dropped table) is an
 :class:`~locoplan.errors.InputError` that names the store, says what SQLite found and how to go on; a
-damaged record (broken JSON, missing fields) is set aside in :attr:`Store.damaged` with what is wrong,
-and the other records stay usable (``batch`` runs the damaged ones again and writes them over).
+damaged record (broken JSON, missing fields, a summary field of the wrong type) is set aside in
+:attr:`Store.damaged` with what is wrong, and the other records stay usable (``batch`` runs the damaged ones
+again and writes them over). A damaged file: ``results`` reads the runs outside its bad pages and names the
+row ids it cannot read; ``batch`` refuses it (a write could spread the damage). A store file removed or
+replaced while a batch writes stops the batch at its next commit; a new store that cannot be made leaves
+no file.
 """
 
 from __future__ import annotations
