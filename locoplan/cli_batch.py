@@ -26,11 +26,9 @@ def _progress_printer(err, enabled: bool, label: str = "batch runs"):
     if not enabled:
         return None, lambda: None
     if err.is_terminal:
-        from rich.progress import TextColumn
+        from .cli_common import field_column, progress_bar
 
-        from .cli_common import progress_bar
-
-        bar = progress_bar(TextColumn("{task.fields[note]}"), transient=False)
+        bar = progress_bar(field_column("{task.fields[note]}"), transient=False)
         bar.start()
         tasks: dict = {}
 
