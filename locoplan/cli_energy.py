@@ -49,7 +49,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     if plot:
         from .reporting.plot_ocp import plot_energy_run
 
-        plot_energy_run(plot, run)
+        plot_energy_run(plot, run, route=r)
     if as_json:
         json_out(s)
     else:
