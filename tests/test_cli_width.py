@@ -260,3 +260,19 @@ def test_bound_times_progress_at_80_columns(root):
     code, text = _in_pty(args + ["--json"], root, timeout=300)
     assert code == 0 and "bound solves" not in text
     assert json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))["results"][1]["time_s"] == 1600
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_batch_progress_at_80_columns_and_never_with_json(root, tmp_path):
+    study = tmp_path / "s.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\ntimes: [1500]\n"
+                     "algorithms: [issa]\nseeds: [1, 2]\n")
+    code, text = _in_pty(["batch", str(study), "--store", str(tmp_path / "a.db"), "--workers", "1"], root, timeout=300)
+    frames = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n").splitlines()
+    assert code == 0, text
+    assert any(re.search(r"batch runs +2/2 ━+ +ETA [-:0-9]+ 0 stored, 0 failed", f) for f in frames), frames
+    assert max(len(f.rstrip()) for f in frames) <= 80
+    code, text = _in_pty(["batch", str(study), "--store", str(tmp_path / "b.db"), "--workers", "1", "--json"], root,
+                         timeout=300)
+    assert code == 0 and "batch runs" not in text and "ETA" not in text
+    assert json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))["verdict"]
