@@ -100,3 +100,26 @@ def test_energy_optimum_plot_without_the_route_labels_the_one_limit(tmp_path, fi
     plot_ocp.plot_energy_run(tmp_path / "e.png", run)
     labels = _legend_labels(figures[0].axes[0])
     assert "speed limit" in labels and FILE_LIMIT not in labels and "tunnel" not in labels
+
+
+def test_pareto_title_wraps_a_long_name_inside_the_figure(tmp_path, monkeypatch):
+    """The front's file is not cropped to its artists: a long route name is wrapped, never cut."""
+    import matplotlib.pyplot as plt
+
+    from locoplan.reporting import plot_runs
+
+    kept = []
+    monkeypatch.setattr(plot_runs, "_save", lambda fig, path: (fig.canvas.draw(), kept.append(fig)))
+    pts = [{"strategy": "four-stage", "running_time_s": t, "traction_energy_kwh": e} for t, e in ((1500, 690), (1600, 660))]
+    grid = [{"planned_time_s": t, "best_running_time_s": t, "best_energy_kwh": e, "optimum_kwh": None,
+             "optimum_time_s": None} for t, e in ((1500, 690), (1600, 660))]
+    route = "Fribourg/Freiburg - Bern (Swiss Federal Railways, the line through the Sense valley), 31.7 km"
+    front = {"route": route, "consist": "Re 620 + 30 x Habbiillnss (1800 t)", "points": pts, "front": pts,
+             "grid": grid, "fastest_time_s": 1400.0}
+    plot_runs.plot_pareto(front, tmp_path / "f.png")
+    fig, = kept
+    ax = fig.axes[0]
+    assert "\n" in ax.title.get_text()
+    assert ax.title.get_text().split() == f"{route} — {front['consist']}: energy-time front".split()
+    _title_fits(fig, ax)
+    plt.close(fig)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plot import check_plot_path, draw_limits, draw_profiles
+from .plot import check_plot_path, draw_limits, draw_profiles, fit_title
 from .files import atomic_write
 from ..learn.patterns import Learned, smooth_curve
 
@@ -82,9 +82,9 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
         ax_v.axvline(sec.from_m / 1000, color="grey", lw=0.5)
         ax_v.text(sec.from_m / 1000 + 0.05, 3, sec.kind, fontsize=7, rotation=90, va="bottom")
     rep = pat.report.get("heldout", {}).get("lower", {})
-    ax_v.set_title(f"{line.route.name}, {mass:g} t, {t0:g} s: {len(sel)} good runs; lower layer held-out: one division "
-                   f"ahead R² {rep.get('one_step_r2', float('nan')):.3f}, chained R² {rep.get('chained_r2', float('nan')):.3f}",
-                   fontsize=10)
+    fit_title(ax_v, f"{line.route.name}, {mass:g} t, {t0:g} s: {len(sel)} good runs; lower layer held-out: one "
+                    f"division ahead R² {rep.get('one_step_r2', float('nan')):.3f}, chained R² "
+                    f"{rep.get('chained_r2', float('nan')):.3f}", fontsize=10)
     ax_v.set_xlabel("position [km]")
     ax_v.set_ylabel("speed [km/h]")
     ax_v.set_ylim(0, float(line.calc.limit_kmh.max()) * 1.1)
