@@ -130,7 +130,7 @@ def part_commands(args) -> None:
         import yaml
 
         for km, path in ((100, r100), (50, r50)):
-            path.write_text(yaml.safe_dump(joined_route(km).model_dump(mode="json", exclude_none=True), sort_keys=False))
+            path.write_text(yaml.safe_dump(joined_route(km).model_dump(mode="json", by_alias=True, exclude_none=True), sort_keys=False))
         route100 = load_route(r100)
         calc = TractionCalculator(route100, load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"))
         t100 = round(1.15 * calc.fastest_time_s)

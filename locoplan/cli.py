@@ -107,16 +107,14 @@ def _progress(enabled: bool):
     """A rich progress bar on stderr for optimiser iterations (a no-op callback when disabled)."""
     from contextlib import contextmanager
 
-    from rich.progress import TextColumn
-
-    from .cli_common import progress_bar
+    from .cli_common import field_column, progress_bar
 
     @contextmanager
     def cm(label: str, total: int):
         if not enabled or not err.is_terminal:
             yield None
             return
-        with progress_bar(TextColumn("best {task.fields[best]}")) as bar:
+        with progress_bar(field_column("best {task.fields[best]}")) as bar:
             task = bar.add_task(label, total=total, best="-")
 
             def callback(iteration: int, best: float) -> None:

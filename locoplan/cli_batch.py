@@ -26,11 +26,9 @@ def _progress_printer(err, enabled: bool, label: str = "batch runs"):
     if not enabled:
         return None, lambda: None
     if err.is_terminal:
-        from rich.progress import TextColumn
+        from .cli_common import field_column, progress_bar
 
-        from .cli_common import progress_bar
-
-        bar = progress_bar(TextColumn("{task.fields[note]}"), transient=False)
+        bar = progress_bar(field_column("{task.fields[note]}"), transient=False)
         bar.start()
         tasks: dict = {}
 
@@ -76,7 +74,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
           workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count; 1 = in this process).", show_default=False),
           scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (instead of local processes; pip install 'locoplan[dask]')."),
           as_json: bool = JSON,
-          quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr.")):
+          quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr (nor with --json).")):
     """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
     from .reporting.tables import store_summary_table
     from .runs import Store, make_executor, run_many
@@ -87,7 +85,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
     with Store(store_path) as store:
         store.check_writer()
         executor = make_executor(workers, scheduler)
-        cb, close = _progress_printer(err, not quiet)
+        cb, close = _progress_printer(err, not quiet and not as_json)  # stdout is the JSON; a terminal shows no bar
         t = time.perf_counter()
         try:
             result = run_many(study.specs, executor, store=store, progress=cb)

@@ -49,11 +49,30 @@ BAR_WIDTH = 20
 def progress_bar(*extra, transient: bool = True, bar_width: int = BAR_WIDTH):
     """A rich progress display on stderr that reads at 80 columns: short label, count, bar, ETA (then
     ``extra`` columns, e.g. the best fitness). Labels are a few words ("compare runs"); what they count
-    is the command's help."""
+    is the command's help. The label, count, bar and ETA keep their width whatever the terminal; an
+    ``extra`` column that does not fit is cut with "…" (it never squeezes the count or the ETA)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.table import Column
 
-    return Progress(TextColumn("{task.description}"), MofNCompleteColumn(), BarColumn(bar_width=bar_width),
-                    TextColumn("ETA"), TimeRemainingColumn(), *extra, console=err, transient=transient)
+    def fixed() -> Column:
+        return Column(no_wrap=True)
+
+    return Progress(TextColumn("{task.description}", table_column=fixed()), MofNCompleteColumn(table_column=fixed()),
+                    BarColumn(bar_width=bar_width, table_column=fixed()), TextColumn("ETA", table_column=fixed()),
+                    TimeRemainingColumn(table_column=fixed()), *extra, console=err, transient=transient)
+
+
+def field_column(template: str):
+    """A progress column of a command's own field (``template`` as TextColumn's, e.g.
+    ``"best {task.fields[best]}"``) on one line, cut with "…" where the terminal has no room for it."""
+    from rich.progress import ProgressColumn
+    from rich.text import Text
+
+    class FieldColumn(ProgressColumn):
+        def render(self, task) -> Text:
+            return Text(template.format(task=task), no_wrap=True, overflow="ellipsis")
+
+    return FieldColumn()
 
 
 @contextmanager
@@ -83,9 +102,7 @@ def step_progress(label: str, total: int, enabled: bool):
     if not enabled or not err.is_terminal:
         yield lambda text: None
         return
-    from rich.progress import TextColumn
-
-    with progress_bar(TextColumn("{task.fields[now]}"), bar_width=BAR_WIDTH // 2) as bar:  # room for the step's text
+    with progress_bar(field_column("{task.fields[now]}"), bar_width=BAR_WIDTH // 2) as bar:  # room for the step's text
         task = bar.add_task(label, total=total, now="")
         started = [0]
 

@@ -49,7 +49,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
     if plot:
         from .reporting.plot_ocp import plot_energy_run
 
-        plot_energy_run(plot, run)
+        plot_energy_run(plot, run, route=r)
     if as_json:
         json_out(s)
     else:
@@ -69,7 +69,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
           plot: Optional[Path] = typer.Option(None, "--plot", help="The energy-time curve, .png, .svg or .pdf."),
           mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
           max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
-          check: bool = typer.Option(False, "--check/--no-check", help="Solve each E* a second way (trapezoidal collocation, 10 and 5 m) and show both."),
+          check: bool = typer.Option(False, "--check/--no-check", help="Solve each E* a second way (trapezoidal collocation, 10 and 5 m; 2.5 and 1.25 m up to 5 km) and show both."),
           model: ModelRequest = MODEL):
     """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
     Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed

@@ -121,10 +121,10 @@ def test_bound_check_prints_both_methods(root, monkeypatch, tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
     c = d["check"]
-    assert c["method"] == "trapezoidal collocation" and c["steps_m"] == [10.0, 5.0]
+    assert c["method"] == "trapezoidal collocation" and c["steps_m"] == [2.5, 1.25]  # a 4 km line: the short-leg grids
     assert abs(c["difference_percent"]) < 0.05 and d["accuracy_percent"] < 0.005
     r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check"])
-    assert r.exit_code == 0 and "second method (trapezoidal collocation, 10 and 5 m)" in r.output and "within" in r.output
+    assert r.exit_code == 0 and "second method (trapezoidal collocation, 2.5 and 1.25 m)" in r.output and "within" in r.output
 
 
 def test_the_slope_is_the_curves_derivative(small, monkeypatch, tmp_path):

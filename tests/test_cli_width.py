@@ -217,3 +217,62 @@ def test_fit_leaves_out_columns_rather_than_split_a_number():
     assert "left out at 80 columns" in text
     for n in numbers:  # a number is whole or absent, never split over lines
         assert n in text or n[:4] not in text.replace(n, "")
+
+
+@pytest.mark.parametrize("label,field,text", [
+    ("compare runs", None, ""), ("sweep runs", None, ""), ("study runs", None, ""),
+    ("batch runs", "{task.fields[now]}", "12,345 stored, 0 failed"),
+    ("bound solves", "{task.fields[now]}", "E* at 1500 s, second method"),
+    ("ocp-study solves", "{task.fields[now]}", "table 3: two-stage hp 17, and a step text far longer than the line"),
+    ("issa iterations", "best {task.fields[now]}", "0.12345")])
+def test_every_progress_bar_reads_at_80_columns(monkeypatch, label, field, text):
+    """Label, count, bar and ETA keep their room at 80 columns whatever the command's own field says;
+    a field too long for the line is cut with "…", never the count or the ETA."""
+    import locoplan.cli_common as cc
+
+    buf = StringIO()
+    monkeypatch.setattr(cc, "err", Console(file=buf, width=80, force_terminal=True, color_system=None))
+    extra = (cc.field_column(field),) if field else ()
+    bar = cc.progress_bar(*extra, bar_width=cc.BAR_WIDTH // 2 if "solves" in label else cc.BAR_WIDTH)
+    task = bar.add_task(label, total=12000, now=text)
+    bar.update(task, completed=3700)
+    cc.err.print(bar.get_renderable())
+    line, = [x for x in buf.getvalue().splitlines() if x.strip()]
+    assert len(line) <= 80, line
+    assert re.match(rf"{label} +3700/12000 ━+ +ETA [-:0-9]+", line), line
+    if len(text) > 40:
+        assert line.endswith("…") and text[:20] in line
+    elif text:
+        assert line.endswith(text)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_bound_times_progress_at_80_columns(root):
+    """bound --times on an 80-column terminal: "bound solves", the count, the bar, the ETA and the time
+    being solved; nothing of it with --json."""
+    args = ["bound", "routes/freight-20km.yaml", "--times", "1500,1600"]
+    code, text = _in_pty(args, root, timeout=300)
+    frames = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n").splitlines()
+    assert code == 0, text
+    bars = [f for f in frames if "bound solves" in f]
+    assert any(re.search(r"bound solves +[01]/2 ━.* ETA .*E\* at 1[56]00 s", f) for f in bars), bars
+    assert max(len(f.rstrip()) for f in frames) <= 80
+    code, text = _in_pty(args + ["--json"], root, timeout=300)
+    assert code == 0 and "bound solves" not in text
+    assert json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))["results"][1]["time_s"] == 1600
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+def test_batch_progress_at_80_columns_and_never_with_json(root, tmp_path):
+    study = tmp_path / "s.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\ntimes: [1500]\n"
+                     "algorithms: [issa]\nseeds: [1, 2]\n")
+    code, text = _in_pty(["batch", str(study), "--store", str(tmp_path / "a.db"), "--workers", "1"], root, timeout=300)
+    frames = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n").splitlines()
+    assert code == 0, text
+    assert any(re.search(r"batch runs +2/2 ━+ +ETA [-:0-9]+ 0 stored, 0 failed", f) for f in frames), frames
+    assert max(len(f.rstrip()) for f in frames) <= 80
+    code, text = _in_pty(["batch", str(study), "--store", str(tmp_path / "b.db"), "--workers", "1", "--json"], root,
+                         timeout=300)
+    assert code == 0 and "batch runs" not in text and "ETA" not in text
+    assert json.loads(re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", ""))["verdict"]

@@ -349,6 +349,33 @@ def test_advice_is_checked_by_the_calculator_and_meets_the_time(learned, base):
     assert np.all(res.profile.v_kmh[0][:-1] <= np.concatenate([res.profile.limit_kmh, [0]])[:-1] + 0.5)
 
 
+def test_advice_plot_shows_the_line_and_both_limits(learned, tmp_path, monkeypatch):
+    """advise --plot: the tunnel, the curve and the stations marked; the limit as the file gives it and as
+    the train meets it, labelled; the legend beside the axes."""
+    import matplotlib.pyplot as plt
+
+    from locoplan.reporting import plot_learn
+    from locoplan.reporting.plot import FILE_LIMIT, TRAIN_LIMIT
+    from locoplan.reporting.writers import to_json
+
+    kept = []
+    monkeypatch.setattr(plot_learn, "_save", lambda fig, path: (fig.canvas.draw(), kept.append(fig)))
+    monkeypatch.chdir(ROOT)
+    pfile = tmp_path / "p.json"
+    pfile.write_text(to_json(learned.patterns.to_dict()))
+    res = runner.invoke(app, ["advise", str(LINE), "--patterns", str(pfile), "--mass", "4200", "--time", "560",
+                              "--plot", str(tmp_path / "a.png")])
+    assert res.exit_code == 0, res.output
+    ax = kept[0].axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    for want in ("tunnel", "curve", "station (stop)", FILE_LIMIT, TRAIN_LIMIT):
+        assert want in labels, labels
+    tunnel, = [p for p in ax.patches if p.get_label() == "tunnel"]
+    assert (tunnel.get_x(), tunnel.get_x() + tunnel.get_width()) == pytest.approx((1.5, 1.9))
+    assert ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
+    plt.close(kept[0])
+
+
 def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
     from locoplan.reporting.writers import to_json
 

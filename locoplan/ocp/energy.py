@@ -173,11 +173,13 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
                  max_degree: int = DEFAULT_MAX_DEGREE, max_iterations: int = MAX_MESH_ITERATIONS,
                  warm: RadauSolution | None = None, mesh: Mesh | None = None,
                  ipopt_options: dict | None = None, energy_tol: float | None = None,
-                 end_interval_m: float = END_INTERVAL_M) -> EnergySolution:
+                 end_interval_m: float = END_INTERVAL_M, interval_m: float = INITIAL_MAX_INTERVAL_M,
+                 degree: int = INITIAL_DEGREE) -> EnergySolution:
     """Minimum energy of ``tep`` by LGR collocation and hp refinement to ``mesh_tol``.
 
-    ``end_interval_m``: the longest first and last interval of a cold start (the departure from rest
-    and the stop). ``energy_tol``: also stop once the objective moved by at most this share over a
+    ``interval_m``, ``degree``, ``end_interval_m``: a cold start's mesh: intervals at most ``interval_m``
+    long with ``degree`` LGR points, the first and last (the departure from rest and the stop) at most
+    ``end_interval_m``. ``energy_tol``: also stop once the objective moved by at most this share over a
     refinement while no interval's error exceeds ``ENERGY_STOP_MAX_ERROR`` (E* is wanted to a relative
     accuracy, and the last intervals the dynamics tolerance would split barely move it).
 
@@ -204,8 +206,8 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
 
         def guess(s, n_controls):
             return g(s, n_controls)
-        mesh = mesh or initial_mesh(problem.phases, INITIAL_DEGREE, INITIAL_MAX_INTERVAL_M, problem.rest_start,
-                                    problem.rest_end, end_interval_m)
+        mesh = mesh or initial_mesh(problem.phases, degree, interval_m, problem.rest_start, problem.rest_end,
+                                    end_interval_m)
     history: list[MeshStep] = []
     best: RadauSolution | None = None
     errors = np.zeros(0)

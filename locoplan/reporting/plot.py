@@ -127,7 +127,7 @@ FEATURES = (("neutral_sections", "neutral section", "#ff7f0e", 0.25), ("tunnels"
 """What of the line is marked on a profile: attribute of the route, label, colour, opacity."""
 
 
-def _mark_line(ax, axg, route) -> None:
+def mark_line(ax, axg, route) -> None:
     """Stations (the route's ends), neutral sections, tunnels and curves as bands over both panels."""
     for attr, label, colour, alpha in FEATURES:
         for k, sec in enumerate(getattr(route, attr)):
@@ -137,6 +137,47 @@ def _mark_line(ax, axg, route) -> None:
     for k, at in enumerate((0.0, route.length_m)):
         ax.axvline(at / 1000, color="black", lw=1.0, ls=":", label="station (stop)" if k == 0 else None)
         ax.annotate("▼", (at / 1000, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=9)
+
+
+TRAIN_LIMIT = "speed limit for the train (held until its tail clears)"
+FILE_LIMIT = "speed limit (route file)"
+
+
+def draw_limits(ax, s_m: np.ndarray, limit_kmh: np.ndarray, route=None) -> None:
+    """The speed limit as the train meets it (``limit_kmh`` per cell of the grid ``s_m``: a rise held
+    until the tail clears), and with ``route`` the limit as the route file gives it (dashed, where the two
+    differ), each labelled."""
+    from .writers import section_values
+
+    s_km = np.asarray(s_m, float) / 1000.0
+    if route is not None:
+        file_limit = section_values(route.speed_limits, "kmh", np.asarray(s_m, float)[:-1])
+        if not np.allclose(file_limit, limit_kmh):
+            ax.step(s_km[:-1], file_limit, where="post", color="#555555", lw=1.0, ls="--", label=FILE_LIMIT)
+    ax.step(s_km[:-1], limit_kmh, where="post", color="black", lw=1.2,
+            label=TRAIN_LIMIT if route is not None else "speed limit")
+
+
+def fit_title(ax, text: str, **kw):
+    """Set ``text`` as the title of ``ax``, wrapped at spaces into lines no wider than the axes (a long
+    route or consist name is never cut at the figure's edge). Returns the title."""
+    renderer = ax.figure.canvas.get_renderer()
+    width = ax.get_window_extent(renderer).width
+    title = ax.set_title(text, **kw)
+    lines: list[str] = []
+    for paragraph in text.split("\n"):
+        cur = ""
+        for word in paragraph.split(" "):
+            cand = f"{cur} {word}" if cur else word
+            title.set_text(cand)
+            if cur and title.get_window_extent(renderer).width > width:
+                lines.append(cur)
+                cur = word
+            else:
+                cur = cand
+        lines.append(cur)
+    title.set_text("\n".join(lines))
+    return title
 
 
 def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, route=None) -> None:
@@ -149,13 +190,8 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
     ref = profiles[0][1]
     s_km = ref.s_m / 1000.0
     if route is not None:
-        _mark_line(ax, axg, route)
-        file_limit = section_values(route.speed_limits, "kmh", ref.s_m[:-1])
-        if not np.allclose(file_limit, ref.limit_kmh):
-            ax.step(s_km[:-1], file_limit, where="post", color="#555555", lw=1.0, ls="--",
-                    label="speed limit (route file)")
-    train_limit = "speed limit for the train (held until its tail clears)" if route is not None else "speed limit"
-    ax.step(s_km[:-1], ref.limit_kmh, where="post", color="black", lw=1.2, label=train_limit)
+        mark_line(ax, axg, route)
+    draw_limits(ax, ref.s_m, ref.limit_kmh, route)
     single = len(profiles) == 1
     for label, prof in profiles:
         v = _until_failure(prof.v_kmh[0])

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .plot import check_plot_path, draw_profiles
+from .plot import check_plot_path, draw_limits, draw_profiles, fit_title
 from .files import atomic_write
 from ..learn.patterns import Learned, smooth_curve
 
@@ -77,14 +77,14 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
     fine = np.linspace(0, line.route.length_m, 800)
     ax_v.plot(fine / 1000, smooth_curve(x, v)(fine), color="#d62728", lw=2, label="learned pattern (eq. II, chained)")
     ax_v.plot(x / 1000, v, "o", color="#d62728", ms=3)
-    ax_v.step(line.calc.s_m[:-1] / 1000, line.calc.limit_kmh, where="post", color="black", lw=1, label="speed limit")
+    draw_limits(ax_v, line.calc.s_m, line.calc.limit_kmh, line.route)
     for sec in line.sections:
         ax_v.axvline(sec.from_m / 1000, color="grey", lw=0.5)
         ax_v.text(sec.from_m / 1000 + 0.05, 3, sec.kind, fontsize=7, rotation=90, va="bottom")
     rep = pat.report.get("heldout", {}).get("lower", {})
-    ax_v.set_title(f"{line.route.name}, {mass:g} t, {t0:g} s: {len(sel)} good runs; lower layer held-out: one division "
-                   f"ahead R² {rep.get('one_step_r2', float('nan')):.3f}, chained R² {rep.get('chained_r2', float('nan')):.3f}",
-                   fontsize=10)
+    fit_title(ax_v, f"{line.route.name}, {mass:g} t, {t0:g} s: {len(sel)} good runs; lower layer held-out: one "
+                    f"division ahead R² {rep.get('one_step_r2', float('nan')):.3f}, chained R² "
+                    f"{rep.get('chained_r2', float('nan')):.3f}", fontsize=10)
     ax_v.set_xlabel("position [km]")
     ax_v.set_ylabel("speed [km/h]")
     ax_v.set_ylim(0, float(line.calc.limit_kmh.max()) * 1.1)
@@ -103,7 +103,8 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
 
 def plot_advice(path: str | Path, advice, title: str) -> None:
     """The advice's speed profile coloured by condition over the limits, with the learned pattern
-    (as learned, and scaled to the time: the targets followed) and the sections; gradient below."""
+    (as learned, and scaled to the time: the targets followed), both limits (the route file's and the
+    train's), the line's stations, neutral sections, tunnels and curves, and the sections; gradient below."""
     path = check_plot_path(path)
     plt = _figure()
     fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
@@ -111,7 +112,7 @@ def plot_advice(path: str | Path, advice, title: str) -> None:
     fine = np.linspace(0, advice.line.route.length_m, 800)
     ax.plot(fine / 1000, smooth_curve(x, raw)(fine), color="#9467bd", lw=1, ls="--", label="learned pattern")
     ax.plot(x / 1000, advice.target_kmh, "o", color="#9467bd", ms=3, label=f"targets (pattern x {advice.scale:.3f})")
-    draw_profiles(ax, axg, [("advice", advice.result.profile)], title)
+    draw_profiles(ax, axg, [("advice", advice.result.profile)], title, advice.line.route)
     ax.title.set_fontsize(10)
     for sec in advice.line.sections:
         ax.axvline(sec.from_m / 1000, color="grey", lw=0.5)

@@ -178,14 +178,16 @@ def force_axis_kn(traction_kn, brake_kn, traction_cap_kn, brake_cap_kn, margin: 
     return lo, hi, note
 
 
-def plot_energy_run(path, run, title: str | None = None) -> None:
+def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
     """Seed 001 Fig. 6/7 for one MPOC run: speed over distance (the optimum, its re-simulated plan and
-    the limit, neutral sections shaded), the optimum's traction and braking forces with the consist's
-    speed-dependent bounds, and the mesh (interval boundaries, LGR points per interval, moving points
-    on switches)."""
+    the limit, the spans where traction is cut under a neutral section shaded), the optimum's traction
+    and braking forces with the consist's speed-dependent bounds, and the mesh (interval boundaries, LGR
+    points per interval, moving points on switches). With ``route``: the limit as the route file gives it
+    beside the train's, and the line's stations, neutral sections, tunnels and curves marked."""
     path, fmt = _figure_path(path)
     plt = _pyplot()
     from ..physics.traction import max_force_kn
+    from .plot import draw_limits, fit_title, mark_line
 
     sol = run.solution.solution
     grid = sol.grid
@@ -196,20 +198,24 @@ def plot_energy_run(path, run, title: str | None = None) -> None:
     fig, (ax, axf, axm) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 2, 1]})
     km = 1e-3
-    for a, b in run.tep.spans_m:
+    for k, (a, b) in enumerate(run.tep.spans_m):
         for axis in (ax, axf, axm):
-            axis.axvspan(a * km, b * km, color="#ffdd88", alpha=0.5, lw=0)
-    ax.step(prof.s_m[:-1] * km, prof.limit_kmh, where="post", color="black", lw=1.2, label="speed limit (train length)")
+            axis.axvspan(a * km, b * km, color="#ffdd88", alpha=0.5, lw=0,
+                         label="traction cut (neutral section under the train)" if (k == 0 and axis is ax) else None)
+    if route is not None:
+        mark_line(ax, axf, route)
+    draw_limits(ax, prof.s_m, prof.limit_kmh, route)
     ax.plot(prof.s_m * km, prof.v_kmh[0], color="#1f77b4", lw=1.8, label="plan, re-simulated")
     ax.plot(s * km, v, ".", color="#d62728", ms=3, label="optimum (LGR points)")
     ax.set_ylabel("speed [km/h]")
     ax.set_ylim(0, max(float(np.max(prof.limit_kmh)), float(np.max(v))) * 1.12)
     sm = run.summary
-    ax.set_title(title or f"{sm['route']} — {sm['consist']}: minimum energy in {sm['planned_time_s']:g} s, "
-                          f"{sm['objective']:.1f} kWh (plan {sm['resimulated_energy_kwh']:.1f} kWh, "
-                          f"{sm['resimulated_running_time_s']:.1f} s)")
+    title = title or (f"{sm['route']} — {sm['consist']}: minimum energy in {sm['planned_time_s']:g} s, "
+                      f"{sm['objective']:.1f} kWh (plan {sm['resimulated_energy_kwh']:.1f} kWh, "
+                      f"{sm['resimulated_running_time_s']:.1f} s)")
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower center", fontsize=8, ncol=3)
+    # beside the axes, never over the limit line
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
     tm = run.tep.model
     axf.plot(s * km, sol.U[0], ".", color="#d62728", ms=3, label="traction F")
     brake = sol.U[1] + (sol.U[2] if sol.U.shape[0] > 2 else 0.0)
@@ -231,8 +237,10 @@ def plot_energy_run(path, run, title: str | None = None) -> None:
                     lw=1.2 if iv.free_start is not None else 0.5)
     axm.plot(s * km, [grid.mesh.intervals[i].n for i in grid.interval_col], ".", color="#2ca02c", ms=3)
     axm.set_ylabel("LGR points\nper interval")
-    axm.set_xlabel("position [km]  (purple: mesh points moved onto switches; shaded: neutral-section spans)")
+    axm.set_xlabel("position [km]  (purple: mesh points moved onto switches; yellow: traction cut under a neutral section)")
     axm.grid(alpha=0.3)
+    fig.tight_layout()  # the legend beside the axes sets their width; the title is wrapped to it
+    fit_title(ax, title)
     fig.tight_layout()
     _save(fig, path, fmt, plt)
 
@@ -247,7 +255,10 @@ def plot_energy_time(path, data: dict) -> None:
     ax.plot([r["time_s"] for r in rows], [r["energy_kwh"] for r in rows], "o-", color="#1f77b4")
     ax.set_xlabel("running time T [s]")
     ax.set_ylabel("least traction energy E* [kWh]")
-    ax.set_title(f"{data['route']} — {data['consist']}: energy-time curve (seed 001 optimum)")
+    from .plot import fit_title
+
     ax.grid(alpha=0.3)
+    fig.tight_layout()  # then the title wrapped to the axes' width
+    fit_title(ax, f"{data['route']} — {data['consist']}: least traction energy E* against running time")
     fig.tight_layout()
     _save(fig, path, fmt, plt)

@@ -135,8 +135,11 @@ def plot_pareto(front: dict, path: str | Path) -> None:
                         va="bottom", fontsize=8)
     ax.set_xlabel("running time [s]")
     ax.set_ylabel("traction energy [kWh]")
-    ax.set_title(f"{front['route']} — {front['consist']}: energy-time front", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    fig.tight_layout()  # then the title wrapped to the axes' width (the file is not cropped to fit it)
+    from .plot import fit_title
+
+    fit_title(ax, f"{front['route']} — {front['consist']}: energy-time front", fontsize=10)
     fig.tight_layout()
     _save(fig, path)
