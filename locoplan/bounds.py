@@ -340,9 +340,15 @@ def seed_list(text: str, option: str = "--seeds") -> list[int]:
     return out
 
 
-def check_command(fn, kwargs: dict) -> None:
+def _given_empty(flag: str, given: list[str]) -> bool:
+    """Whether the command line gives ``flag`` an empty value (``--out ''`` or ``--out=``)."""
+    return any(a == f"{flag}=" or (a == flag and i + 1 < len(given) and given[i + 1] == "") for i, a in enumerate(given))
+
+
+def check_command(fn, kwargs: dict, given: list[str] | None = None) -> None:
     """Every option value a command function ``fn`` was called with (``kwargs``), against ``OPTIONS`` and
-    ``check_text``: numeric ones inside their bounds, text ones not empty or huge."""
+    ``check_text``: numeric ones inside their bounds, text ones not empty or huge. ``given``: the command
+    line as typed, where a path option given as ``''`` (which arrives as the folder ``.``) is told apart."""
     import inspect
     from pathlib import PurePath
 
@@ -368,7 +374,7 @@ def check_command(fn, kwargs: dict) -> None:
                 if parse is not None:
                     parse(v, flag)
             elif isinstance(v, PurePath):
-                check_text(flag, str(v))
+                check_text(flag, "" if str(v) == "." and _given_empty(flag, given or []) else str(v))
             else:
                 check_option(flag, v, command)
 TIME_FORMS = "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)"

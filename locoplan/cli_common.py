@@ -204,6 +204,17 @@ def locate_schedule(text: str) -> str:
 group_reasons = api.group_reasons
 
 
+def _given() -> list[str]:
+    """The command line as typed (kept by the command group; empty when a command runs on its own)."""
+    try:
+        from typer._click.globals import get_current_context
+
+        ctx = get_current_context(silent=True)
+        return list(ctx.find_root().meta.get("locoplan.args", [])) if ctx is not None else []
+    except ImportError:
+        return []
+
+
 def guarded(fn):
     """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code; with --json
     (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`).
@@ -230,7 +241,7 @@ def guarded(fn):
                 # outputs appear all or none: kept on success and on a deliberate exit after them (_fail_if)
                 try:
                     with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
-                        bounds.check_command(wrapper, kwargs)  # every option's value, before any work
+                        bounds.check_command(wrapper, kwargs, _given())  # every option's value, before any work
                         result = fn(*args, **_grouped(kwargs, groups))
                 except typer.Exit:
                     _flush_stdout()

@@ -717,3 +717,13 @@ def test_json_when_the_command_line_itself_is_refused(argv, field):
     assert res.exit_code == 2
     data = json.loads(res.stdout)
     assert data["verdict"] == "invalid input" and data["exit_code"] == 2 and data["problems"][0]["field"] == field
+
+
+@pytest.mark.parametrize("args", [["optimize", "routes/freight-20km.yaml", "--out", ""],
+                                  ["optimize", "routes/freight-20km.yaml", "--plot="],
+                                  ["batch", "docs/small_study.yaml", "--store", ""],
+                                  ["simulate", "routes/freight-20km.yaml", "--consist", ""]])
+def test_an_empty_path_option_is_empty_not_the_current_folder(args):
+    """A path option given '' arrives as the folder '.': it is refused as empty, before any work."""
+    r = runner.invoke(app, args, catch_exceptions=False)
+    assert r.exit_code == 2 and "is empty ('')" in r.output and "is a folder" not in r.output
