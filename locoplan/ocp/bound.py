@@ -211,8 +211,8 @@ def within_percent(accuracy_percent: float | None) -> str:
         return "unknown (not converged)"
     if accuracy_percent < 1e-4:
         return "< 0.0001 %"
-    x = float(f"{accuracy_percent:.2g}")
-    return f"{(x if x >= accuracy_percent else float(f'{accuracy_percent * 1.05:.2g}')):g} %"
+    step = 10.0 ** (math.floor(math.log10(accuracy_percent)) - 1)  # the second significant digit
+    return f"{float(f'{math.ceil(accuracy_percent / step - 1e-9) * step:.2g}'):g} %"
 
 
 def percent_floor_kwh(route: Route, train: Train) -> float:
