@@ -49,3 +49,39 @@ def piecewise_linear(x, xs, ys):
         if dk != 0.0:
             out = out + float(dk) * ca.fmax(x - float(xk), 0.0)
     return out
+
+
+def piecewise_linear_slope(x, xs, ys):
+    """The slope of :func:`piecewise_linear` at ``x`` (numbers or arrays): the slope of the segment that
+    holds ``x`` (the right one at a point), 0 beyond the ends. What a Newton method differentiating the
+    curve needs; its second derivative is 0 between points."""
+    xs = np.asarray(xs, dtype=float)
+    slopes = np.concatenate([[0.0], np.diff(np.asarray(ys, dtype=float)) / np.diff(xs), [0.0]])
+    return slopes[np.searchsorted(xs, x, side="right")]
+
+
+def piecewise_linear_rounded(x, xs, ys, width: float):
+    """:func:`piecewise_linear` with every corner rounded over ``width`` (in x), for a Newton method: the
+    value, slope and curvature at ``x`` (numbers or arrays). At a point ``x_k`` where the slope changes by
+    ``d``, the corner ``d * max(t, 0)`` (t = x - x_k) becomes ``d * (t + width/2)^2 / (2 width)`` for
+    ``|t| < width/2``: continuous in value and slope, and nowhere further from the curve than
+    ``|d| * width / 8``. ``width`` must be below the spacing of the points (then one corner at most is near
+    any x)."""
+    xs = np.asarray(xs, dtype=float)
+    ys = np.asarray(ys, dtype=float)
+    x = np.asarray(x, dtype=float)
+    slopes = np.concatenate([[0.0], np.diff(ys) / np.diff(xs), [0.0]])
+    dslope = np.diff(slopes)  # at each point
+    value = np.interp(x, xs, ys)
+    slope = slopes[np.searchsorted(xs, x, side="right")]
+    j = np.clip(np.searchsorted(xs, x), 0, len(xs) - 1)  # the nearest point: j or j - 1
+    j = np.where((j > 0) & (np.abs(x - xs[j - 1]) < np.abs(x - xs[j])), j - 1, j)
+    t = x - xs[j]
+    half = 0.5 * width
+    near = np.abs(t) < half
+    d = np.where(near, dslope[j], 0.0)
+    tn = np.where(near, t, 0.0)
+    value = value + d * ((tn + half) ** 2 / (2 * width) - np.maximum(tn, 0.0))
+    slope = slope + d * ((tn + half) / width - (tn >= 0))
+    curvature = d / width
+    return value, slope, curvature

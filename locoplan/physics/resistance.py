@@ -16,6 +16,11 @@ def davis_kn(speed_kmh, a, b, c):
     return speed_kmh * (b + c * speed_kmh) + a
 
 
+def davis_slope_kn_per_kmh(speed_kmh, b, c):
+    """d(A + B v + C v^2)/dv = B + 2 C v [kN per km/h] at ``speed_kmh``; plain arithmetic."""
+    return b + 2.0 * c * speed_kmh
+
+
 def running_load_kn(speed_kmh, a, b, c, gravity_kn):
     """What the train must overcome to keep its speed [kN]: basic resistance A + B v + C v^2 plus the
     gravity component ``gravity_kn`` of its (equivalent) gradient (+ = up-grade)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .backend import as_operand, piecewise_linear
+from .backend import as_operand, piecewise_linear, piecewise_linear_rounded, piecewise_linear_slope
 from .units import G_MS2
 
 
@@ -12,6 +12,17 @@ def max_force_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndar
     """Max effort [kN] at ``speed_kmh``, linear between curve points, held flat beyond the ends
     (``np.interp`` on numbers and arrays, a hinge sum on CasADi symbols: see ``backend``)."""
     return piecewise_linear(speed_kmh, curve_speed_kmh, curve_force_kn)
+
+
+def max_force_slope_kn_per_kmh(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray):
+    """d(max effort)/dv [kN per km/h] of :func:`max_force_kn` at ``speed_kmh`` (numbers or arrays)."""
+    return piecewise_linear_slope(speed_kmh, curve_speed_kmh, curve_force_kn)
+
+
+def max_force_rounded_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray, width_kmh: float):
+    """:func:`max_force_kn` with its corners rounded over ``width_kmh``: (force [kN], slope [kN per km/h],
+    curvature [kN per (km/h)^2]) for a Newton method (``backend.piecewise_linear_rounded``)."""
+    return piecewise_linear_rounded(speed_kmh, curve_speed_kmh, curve_force_kn, width_kmh)
 
 
 def gradient_force_kn(gradient_permille, mass_t: float):

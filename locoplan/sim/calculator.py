@@ -132,8 +132,9 @@ def limit_kmh_at(route: Route, s_m, train_length_m: float | None = None) -> np.n
     return lim
 
 
-def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
-    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode)."""
+def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None) -> np.ndarray:
+    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), and
+    ``extra_nodes_m`` if given."""
     L = route.length_m
     points = [0.0, L]
     for sections in (route.speed_limits, route.gradients, route.curves, route.tunnels):
@@ -145,6 +146,8 @@ def _grid(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
         points += [a, b]
     if options.strip:
         points += [p + train.length_m for p in list(points)]
+    if extra_nodes_m is not None:
+        points += list(np.asarray(extra_nodes_m, dtype=float))
     n = max(1, math.ceil(L / options.step_m - 1e-9))
     s = np.union1d(np.linspace(0.0, L, n + 1), np.clip(points, 0.0, L))
     keep = np.concatenate([[True], np.diff(s) > 1e-6])
@@ -159,7 +162,8 @@ class TractionCalculator:
     ``evaluate(conditions, switches_m)`` runs a batch; see its docstring.
     """
 
-    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, backend: str = "numba"):
+    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, backend: str = "numba",
+                 extra_nodes_m: np.ndarray | None = None):
         if backend not in ("numba", "numpy"):
             raise ValueError(f"backend must be 'numba' or 'numpy', not {backend!r}")
         self.backend = backend
@@ -179,7 +183,7 @@ class TractionCalculator:
                                         self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
                                         self.air_brake_kn, *train.resistance_kn))
         """The train's force model as the compiled loops take it (``records.Forces``)."""
-        s = _grid(route, train, self.options)
+        s = _grid(route, train, self.options, extra_nodes_m)
         self._build(s)
         kinks = self._braking_curve_entries()
         if kinks.size:  # make every braking-curve entry a node, then rebuild on the finer grid

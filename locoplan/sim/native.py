@@ -50,8 +50,11 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
+    "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
+    "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
 }
-_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "sim/native.py",
+_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "ocp/band_kernel.py",
+            "sim/native.py",
             "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py")
 BUILD_TIMEOUT_S = 900.0
 
@@ -124,7 +127,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``)."""
+    ``forward``, ``band_factor``, ``band_solve``)."""
     global _kernels
     if _kernels is None:
         why = "LOCOPLAN_NATIVE=0"

@@ -1,0 +1,356 @@
+"""E* on the traction calculator's own cells: the minimum-energy problem on a fine grid, solved by a
+structured interior-point method, with its accuracy from two grids.
+
+The discretisation is the calculator's (``sim/calculator.py``): a grid with every breakpoint of the
+route (gradient, limit, curve, tunnel, neutral span, and in the strip model the same + the train's
+length), each cell with one gravity force (its exact mean), one speed limit and one traction
+permission; in each cell constant forces, traction F and braking B, taken at the cell's mean kinetic
+energy ``vm = sqrt((v0^2 + v1^2) / 2)``, so that
+
+    M (v1^2 - v0^2) / 2 = h (F - B - R(vm) - G),     dt = 2 h / (v0 + v1),
+
+the work-energy balance of the cell and its time (exact for a constant acceleration). The speeds at the
+nodes are bounded by the braking envelope (the highest speed from which full braking keeps every limit
+ahead), F by the traction curve at vm (0 in a neutral span), B by full braking at vm (electric where
+the catenary feeds it, plus the air brake). The objective is the traction work sum h F [kWh], the running
+time at most T, the train at rest at both ends.
+
+Why this scheme: it is second order in the cell length once the two rest points are resolved. At a
+rest point the speed goes as sqrt(distance), which a uniform grid resolves only to first order (the
+time of the last cell was the largest error on every line tried), so the cells shrink quadratically
+towards both ends (``END_GRADING_M``). A switch between conditions inside a cell is a partial force
+over the whole cell, which moves the energy by second order only. Two grids, h and h/2, then give the
+accuracy: the difference of their optima bounds the finer grid's error (about a third of it).
+
+The solver (``ocp/ipm.py``) uses the structure: every function reads one cell's variables, so the KKT
+matrix is banded and a Newton step costs time linear in the number of cells.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InfeasibleError
+from ..physics.braking import full_brake_kn
+from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
+from ..physics.traction import max_force_rounded_kn
+from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
+from ..sim.calculator import ModelOptions, TractionCalculator
+from .ipm import CellEval, CellIPM, IPMResult, IPMSettings
+
+END_GRADING_M = 300.0
+"""Length [m] at each end of the route over which the cells shrink quadratically towards the rest point."""
+END_GRADING_NODES = 24
+"""Nodes in each graded end (the smallest cell is END_GRADING_M / END_GRADING_NODES^2, about 0.5 m)."""
+V_FLOOR_MS = 1e-6
+ROUNDING_KMH = 0.2
+"""The optimiser sees the force curves with their corners rounded over this speed range [km/h] (less where
+the curve's points are closer): Newton's method needs a continuous slope, and at a corner (the traction
+curve's change from constant force to constant power, say) it otherwise cycles, or stalls, when the
+optimum runs at that speed. The rounded curve is nowhere further from the curve than |change of slope| x
+width / 8 (0.5 kN at the HXD1's corner) and differs from it only within 0.1 km/h of each point."""
+
+
+def graded_end_nodes(length_m: float, end_m: float = END_GRADING_M, n: int = END_GRADING_NODES) -> np.ndarray:
+    """Extra nodes [m] that make the cells shrink quadratically towards both rest points."""
+    end = min(end_m, 0.25 * length_m)
+    j = (np.arange(n + 1) / n) ** 2 * end
+    return np.concatenate([j, length_m - j])
+
+
+class CellEnergyProblem:
+    """The minimum-energy problem on ``calc``'s cells in ``time_s`` (see the module docstring), in the form
+    ``ocp.ipm.CellIPM`` solves: variables ``[v_0, F_0, B_0, v_1, F_1, B_1, ..., v_N]`` scaled to order one,
+    one equality (the cell's work-energy balance) and two inequalities (F and B under their curves) per
+    cell, and the running time as the one global inequality."""
+
+    def __init__(self, calc: TractionCalculator, time_s: float):
+        self.calc = calc
+        self.time_s = float(time_s)
+        tr = calc.train
+        h = calc.h_m
+        self.N = N = len(h)
+        self.h = h
+        self.M = calc.m_eff_t
+        self.G = calc.gravity_kn
+        self.allowed = calc.traction_allowed
+        self.v_cap = ms(np.sqrt(np.maximum(calc.e_envelope, 0.0) * 2.0) * KMH_PER_MS)
+        # the scales: forces by the largest traction, speeds by the top speed, the objective and the
+        # time so that a cell's share of each is of order one
+        self.f_ref = float(np.max(tr.traction_kn))
+        self.v_ref = max(float(np.max(self.v_cap)), 1.0)
+        h_mean = float(np.mean(h))
+        self.e_ref = h_mean * self.f_ref / KJ_PER_KWH
+        self.t_ref = h_mean / self.v_ref
+        powered = self.allowed > 0
+        air = np.asarray(calc.air_brake_kn, float)
+        has_electric = bool(np.any(np.asarray(calc.electric_brake_kn, float) > 0))
+        self.can_brake = (powered & has_electric) | bool(np.any(air > 0))  # the air brake works in a neutral span
+        n = 3 * N + 1
+        ref = np.empty(n)
+        ref[0::3] = self.v_ref
+        ref[1::3] = self.f_ref
+        ref[2::3] = self.f_ref
+        self.ref = ref
+        lb = np.zeros(n)
+        ub = np.full(n, np.inf)
+        ub[0::3] = self.v_cap / self.v_ref
+        ub[0] = ub[-1] = 0.0  # at rest at both ends
+        ub[1::3] = np.where(powered, np.inf, 0.0)
+        ub[2::3] = np.where(self.can_brake, np.inf, 0.0)
+        self.lb, self.ub = lb, ub
+        k = np.arange(N)
+        self.local = np.column_stack([3 * k, 3 * k + 1, 3 * k + 2, 3 * k + 3])
+        pos_x = np.empty(n, dtype=np.int64)
+        pos_x[0::3] = 4 * np.arange(N + 1)
+        pos_x[1::3] = 4 * k + 1
+        pos_x[2::3] = 4 * k + 2
+        self.pos_x = pos_x
+        self.pos_y = 4 * k + 3
+        # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
+        self.active = np.column_stack([powered, self.can_brake])
+        self._scale2 = self.ref[self.local][:, :, None] * self.ref[self.local][:, None, :]
+
+    # ------------------------------------------------------------------ physics at the cells
+    def _cell_physics(self, v: np.ndarray):
+        """Mean speed and the forces at it, with their derivatives in the node speeds."""
+        calc, tr = self.calc, self.calc.train
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
+        V = kmh(vm)
+        vm_p, vm_q = p / (2 * vm), q / (2 * vm)
+        vm_pp = 1 / (2 * vm) - p * p / (4 * vm ** 3)
+        vm_pq = -p * q / (4 * vm ** 3)
+        vm_qq = 1 / (2 * vm) - q * q / (4 * vm ** 3)
+        a, b, c = tr.resistance_kn
+        R = train_resistance_kn(V, tr.resistance_kn)
+        R_v = KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c)  # dR/dvm [kN s/m]
+        R_vv = KMH_PER_MS ** 2 * 2.0 * c
+        ftr = self._rounded(V, tr.traction_speed_kmh, tr.traction_kn)
+        fel = self._rounded(V, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
+        fair = self._rounded(V, calc.air_brake_speed_kmh, calc.air_brake_kn)
+        # value, d/dvm, d2/dvm2 (the curves are in km/h)
+        Fm = tuple(f * self.allowed * KMH_PER_MS ** i for i, f in enumerate(ftr))
+        Bm = tuple(full_brake_kn(e, a, self.allowed) * KMH_PER_MS ** i for i, (e, a) in enumerate(zip(fel, fair)))
+        return p, q, (vm_p, vm_q, vm_pp, vm_pq, vm_qq), (R, R_v, R_vv), Fm, Bm
+
+    @staticmethod
+    def _rounded(V, xs, ys):
+        xs = np.asarray(xs, dtype=float)
+        width = min(ROUNDING_KMH, 0.5 * float(np.min(np.diff(xs)))) if xs.size > 1 else ROUNDING_KMH
+        return max_force_rounded_kn(V, xs, ys, width)
+
+    def evaluate(self, xs: np.ndarray) -> CellEval:
+        x = xs * self.ref
+        v, F, B = x[0::3], x[1::3], x[2::3]
+        N, h, M, fr = self.N, self.h, self.M, self.f_ref
+        p, q, (vm_p, vm_q, vm_pp, vm_pq, vm_qq), (R, R_v, R_vv), (Fm, Fm_v, Fm_vv), (Bm, Bm_v, Bm_vv) = \
+            self._cell_physics(v)
+        # local variables: 0 v_k, 1 F_k, 2 B_k, 3 v_k+1
+        e = (0.5 * M * (q * q - p * p) - h * (F - B - R - self.G)) / (h * fr)
+        ge = np.zeros((N, 4))
+        ge[:, 0] = (-M * p + h * R_v * vm_p) / (h * fr)
+        ge[:, 3] = (M * q + h * R_v * vm_q) / (h * fr)
+        ge[:, 1] = -1.0 / fr
+        ge[:, 2] = 1.0 / fr
+        he = np.zeros((N, 4, 4))
+        he[:, 0, 0] = (-M + h * (R_vv * vm_p ** 2 + R_v * vm_pp)) / (h * fr)
+        he[:, 3, 3] = (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
+        he[:, 0, 3] = he[:, 3, 0] = (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
+        # inequalities: F - Fmax(vm) <= 0, B - Bmax(vm) <= 0 (inactive ones are a constant -1)
+        g = np.stack([(F - Fm) / fr, (B - Bm) / fr], axis=1)
+        gg = np.zeros((N, 2, 4))
+        hg = np.zeros((N, 2, 4, 4))
+        for j, (col, cap_v, cap_vv) in enumerate(((1, Fm_v, Fm_vv), (2, Bm_v, Bm_vv))):
+            gg[:, j, 0] = -cap_v * vm_p / fr
+            gg[:, j, 3] = -cap_v * vm_q / fr
+            gg[:, j, col] = 1.0 / fr
+            hg[:, j, 0, 0] = -(cap_vv * vm_p ** 2 + cap_v * vm_pp) / fr
+            hg[:, j, 3, 3] = -(cap_vv * vm_q ** 2 + cap_v * vm_qq) / fr
+            hg[:, j, 0, 3] = hg[:, j, 3, 0] = -(cap_vv * vm_p * vm_q + cap_v * vm_pq) / fr
+        off = ~self.active
+        g[off] = -1.0
+        gg[off] = 0.0
+        hg[off] = 0.0
+        # running time
+        pq = np.maximum(p + q, V_FLOOR_MS)
+        tau = 2 * h / pq
+        c = (tau.sum() - self.time_s) / self.t_ref
+        gc = np.zeros((N, 4))
+        gc[:, 0] = gc[:, 3] = -2 * h / pq ** 2 / self.t_ref
+        hc = np.zeros((N, 4, 4))
+        d2 = 4 * h / pq ** 3 / self.t_ref
+        hc[:, 0, 0] = hc[:, 3, 3] = hc[:, 0, 3] = hc[:, 3, 0] = d2
+        gf = np.zeros((N, 4))
+        gf[:, 1] = h / KJ_PER_KWH / self.e_ref
+        f = float(np.sum(h * F)) / KJ_PER_KWH / self.e_ref
+        # to the scaled variables
+        rl = self.ref[self.local]
+        s2 = self._scale2
+        return CellEval(f, gf * rl, None, e, ge * rl, he * s2, g, gg * rl[:, None, :], hg * s2[:, None], c,
+                        gc * rl, hc * s2)
+
+    # ------------------------------------------------------------------ start and results
+    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
+        """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
+        v = np.clip(v_nodes_ms, 0.0, self.v_cap)
+        v[0] = v[-1] = 0.0
+        p, q, _, (R, *_), _, _ = self._cell_physics(v)
+        u = 0.5 * self.M * (q * q - p * p) / self.h + R + self.G
+        F = np.clip(u, 0.0, None) * (self.allowed > 0)
+        B = np.clip(-u, 0.0, None) * self.can_brake
+        x = np.empty(3 * self.N + 1)
+        x[0::3], x[1::3], x[2::3] = v, F, B
+        return x / self.ref
+
+    def energy_kwh(self, xs: np.ndarray) -> float:
+        return float(np.sum(self.h * xs[1::3] * self.f_ref)) / KJ_PER_KWH
+
+    def speeds_ms(self, xs: np.ndarray) -> np.ndarray:
+        return xs[0::3] * self.v_ref
+
+
+@dataclass(frozen=True)
+class CellSolution:
+    """E* on one grid: the objective [kWh], the node positions [m] and speeds [m/s], the cells' forces
+    [kN], dE*/dT [kWh/s] from the running time's multiplier, the solver's result."""
+
+    energy_kwh: float
+    s_m: np.ndarray
+    v_ms: np.ndarray
+    traction_kn: np.ndarray
+    brake_kn: np.ndarray
+    slope_kwh_per_s: float
+    result: IPMResult
+    solve_time_s: float
+
+
+def cell_calculator(route, train, options: ModelOptions, step_m: float) -> TractionCalculator:
+    """The calculator on the E* grid: ``step_m`` cells, graded towards both rest points."""
+    opts = ModelOptions(step_m=step_m, point_mass=options.point_mass, air_brake=options.air_brake,
+                        rotating_mass=options.rotating_mass, strict_limits=options.strict_limits)
+    return TractionCalculator(route, train, opts, extra_nodes_m=graded_end_nodes(route.length_m))
+
+
+def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
+    """A run slightly faster than ``time_s`` from the calculator: full traction up to a cruise speed, held
+    there (braking where it must), and the braking curves (seed 002's four-stage drive), the cruise speed
+    the highest of a batch that still takes more than ``time_s`` less 1 %: node speeds [m/s]."""
+    top = float(np.max(calc.limit_kmh))
+    cruise = np.linspace(5.0, top, 60)
+    res = calc.evaluate(("T",), np.zeros((cruise.size, 0)), cruise_kmh=cruise)
+    ok = res.feasible & (res.running_time_s <= 0.99 * time_s)
+    i = int(np.argmax(ok)) if ok.any() else cruise.size - 1
+    prof = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, cruise_kmh=cruise[i:i + 1]).profile
+    return ms(prof.v_kmh[0])
+
+
+def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | None = None,
+                settings: IPMSettings | None = None, mu_init: float | None = None) -> CellSolution:
+    """E* on ``calc``'s cells in ``time_s`` [s]; ``start``: node speeds [m/s] to start from (default
+    :func:`initial_speeds`), ``mu_init`` the barrier parameter to start with. Raises ``InfeasibleError``
+    when the solver does not converge."""
+    t0 = _time.perf_counter()
+    prob = CellEnergyProblem(calc, time_s)
+    v0 = initial_speeds(calc, time_s) if start is None else start
+    x0 = prob.start_from_profile(v0)
+    res = CellIPM(prob, settings).solve(x0, mu_init=mu_init)
+    if not res.converged:
+        raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
+                              f"({res.status} after {res.iterations} iterations, error {res.error:.1e})")
+    x = res.x * prob.ref
+    slope = -res.zc * prob.e_ref / prob.t_ref
+    return CellSolution(prob.energy_kwh(res.x), calc.s_m, x[0::3], x[1::3], x[2::3], slope, res,
+                        _time.perf_counter() - t0)
+
+
+def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A start for ``prob`` from a solution on another grid or at another time: node speeds interpolated,
+    each new cell's forces and multipliers those of the old cell around its middle (the multipliers as
+    densities per metre, so that they carry over between cell lengths)."""
+    s_new = prob.calc.s_m
+    mid = 0.5 * (s_new[1:] + s_new[:-1])
+    old = sol.s_m
+    k = np.clip(np.searchsorted(old, mid) - 1, 0, len(old) - 2)
+    v = np.interp(s_new, old, sol.v_ms)
+    x = np.empty(3 * prob.N + 1)
+    x[0::3] = v
+    x[1::3] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
+    x[2::3] = np.where(prob.can_brake, sol.brake_kn[k], 0.0)
+    h_old = np.diff(old)
+    r = sol.result
+    hm_old = float(np.mean(h_old))
+    per_m_y = r.y * hm_old / h_old
+    per_m_z = r.z * (hm_old / h_old)[:, None]
+    hm_new = float(np.mean(prob.h))
+    y = per_m_y[k] * prob.h / hm_new
+    z = per_m_z[k] * (prob.h / hm_new)[:, None]
+    return x / prob.ref, y, z, r.zc
+
+
+COARSE_STEP_M = 40.0
+"""The first grid's cell length [m]; the second has half of it."""
+FINEST_STEP_M = 5.0
+"""Grids are halved until two agree to the tolerance or the cells reach this length."""
+WARM_MU = 1e-3
+"""Barrier parameter a solve from a neighbouring solution starts at (its primal values; its multipliers
+are not carried over: from them and a small barrier parameter the method lost its way on long lines)."""
+
+
+@dataclass(frozen=True)
+class EStar:
+    """E* from the cell scheme on successively halved grids: the finest grid's optimum [kWh], its relative
+    accuracy (the last two grids' difference relative to ``max(E*, floor_kwh)``), whether that met the
+    tolerance, dE*/dT [kWh/s], each grid's step [m], cell count, optimum [kWh] and iterations, the wall
+    time [s], and the finest solution (a warm start for a neighbouring time)."""
+
+    energy_kwh: float
+    accuracy: float
+    converged: bool
+    slope_kwh_per_s: float
+    steps_m: tuple
+    cells: tuple
+    energies_kwh: tuple
+    iterations: tuple
+    solve_time_s: float
+    solution: CellSolution
+
+
+def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
+                warm: CellSolution | None = None, coarse_step_m: float = COARSE_STEP_M,
+                finest_step_m: float = FINEST_STEP_M) -> EStar:
+    """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``coarse_step_m`` grid, then on
+    grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
+    ``max(E*, floor_kwh)``) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring
+    time to start the first grid from."""
+    t0 = _time.perf_counter()
+    step = float(coarse_step_m)
+    sols, steps, cells = [], [], []
+    prev = warm
+    while True:
+        calc = cell_calculator(route, train, options, step)
+        start = None
+        if prev is not None:
+            prob = CellEnergyProblem(calc, time_s)
+            x0, *_ = warm_point(prob, prev)
+            start = x0 * prob.ref
+            start = start[0::3]
+        sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU)
+        sols.append(sol)
+        steps.append(step)
+        cells.append(len(calc.h_m))
+        prev = sol
+        if len(sols) >= 2:
+            e_c, e_f = sols[-2].energy_kwh, sols[-1].energy_kwh
+            acc = abs(e_c - e_f) / max(abs(e_f), floor_kwh, 1e-9)
+            if acc <= tol or step / 2 < finest_step_m - 1e-9:
+                break
+        step /= 2
+    fine = sols[-1]
+    return EStar(fine.energy_kwh, acc, acc <= tol, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
+                 tuple(s.energy_kwh for s in sols), tuple(s.result.iterations for s in sols),
+                 _time.perf_counter() - t0, fine)
