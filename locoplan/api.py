@@ -359,34 +359,36 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
                  curve: bool, step: Callable[[str], None] = lambda text: None, check: bool = False) -> dict:
     """The least traction energy E* at each running time: ``{"route", "consist", "results": [rows]}``.
     On a ``curve`` a time whose optimum fails is its row with a ``reason``; a single time raises.
-    ``check``: each E* also by the second, independent method (``ocp.trapezoid``) and the two's difference."""
-    from .ocp.bound import energy_bound
+    ``check``: each E* also by the second, independent method (``ocp.bound.check_bound``: multi-phase Radau
+    collocation, ``mesh_tol`` and ``max_degree`` its settings) and the two's difference."""
+    from .ocp.bound import check_bound, energy_bound
 
     rows = []
     for t in times_s:
         step(f"E* at {t:g} s")
         try:
-            b = energy_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree)
+            b = energy_bound(route, train, options, t)
             acc = b.accuracy_percent
             row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
                    "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
                    "slope_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 5),
-                   "mesh_points": b.points, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
+                   "method": b.method, "cells": b.cells, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
             if check:
-                from .ocp.trapezoid import trapezoid_energy
-
                 step(f"E* at {t:g} s, second method")
-                tz = trapezoid_energy(route, train, t, options)
-                row["check"] = {"method": "trapezoidal collocation", "steps_m": list(tz.steps_m),
-                                "energy_kwh": round(tz.energy_kwh, 3), "accuracy_percent": float(f"{100 * tz.accuracy:.2g}"),
-                                "difference_percent": round(100 * (b.energy_kwh - tz.energy_kwh) / tz.energy_kwh, 4),
-                                "solve_time_s": round(tz.solve_time_s, 3)}
+                c = check_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree)
+                acc_c = c.accuracy_percent
+                row["check"] = {"method": "multi-phase Radau collocation", "lgr_points": c.cells,
+                                "energy_kwh": round(c.energy_kwh, 3),
+                                "accuracy_percent": None if acc_c is None else float(f"{acc_c:.2g}"),
+                                "difference_percent": round(100 * (b.energy_kwh - c.energy_kwh) / c.energy_kwh, 4),
+                                "solve_time_s": round(c.solve_time_s, 3)}
             rows.append(row)
         except LocoplanError as exc:
             if not curve:
                 raise
             rows.append({"time_s": t, "energy_kwh": None, "converged": False, "accuracy_percent": None,
-                         "mesh_points": None, "solve_time_s": None, "reason": str(exc)})
+                         "slope_kwh_per_s": None, "method": None, "cells": None, "solve_time_s": None,
+                         "reason": str(exc)})
     return {"route": route.name, "consist": train.name, "results": rows}
 
 

@@ -58,7 +58,7 @@ def test_accuracy_is_the_last_refinements_move():
 
 def _fake_bound(monkeypatch, accuracy):
     def fake(route, train, options, time_s, **kw):
-        return Bound(time_s, 1000.0, accuracy is not None, 10, 50, 0.1, accuracy)
+        return Bound(time_s, 1000.0, accuracy is not None, 1000, 20.0, 0.1, accuracy)
     monkeypatch.setattr(bound_mod, "energy_bound", fake)
 
 
@@ -121,10 +121,10 @@ def test_bound_check_prints_both_methods(root, monkeypatch, tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
     c = d["check"]
-    assert c["method"] == "trapezoidal collocation" and c["steps_m"] == [2.5, 1.25]  # a 4 km line: the short-leg grids
+    assert c["method"] == "multi-phase Radau collocation" and c["lgr_points"] > 100 and d["method"] == "cells"
     assert abs(c["difference_percent"]) < 0.05 and d["accuracy_percent"] < 0.005
     r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check"])
-    assert r.exit_code == 0 and "second method (trapezoidal collocation, 2.5 and 1.25 m)" in r.output and "within" in r.output
+    assert r.exit_code == 0 and "second method (multi-phase Radau collocation, " in r.output and "within" in r.output
 
 
 def test_the_slope_is_the_curves_derivative(small, monkeypatch, tmp_path):

@@ -504,7 +504,7 @@ def test_every_csv_writes_booleans_as_true_false_and_no_value_empty(tmp_path):
     assert _python_spellings(text) == []
     ok, failed = list(csv.DictReader(text.splitlines()))
     assert ok["converged"] == "true" and float(ok["energy_kwh"]) == pytest.approx(675.83, abs=0.05)
-    assert failed["converged"] == "false" and failed["energy_kwh"] == "" and failed["mesh_points"] == ""
+    assert failed["converged"] == "false" and failed["energy_kwh"] == "" and failed["cells"] == ""
     logs = tmp_path / "logs"
     assert runner.invoke(app, ["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "2", "--runs", "1",
                                "--out", str(logs)]).exit_code == 0

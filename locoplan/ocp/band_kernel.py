@@ -79,3 +79,36 @@ def band_solve(ab, kl, ku, piv, b):
             if bj != 0.0:
                 for i in range(max(0, j - kv), j):
                     b[i, col] -= ab[j, kv + i - j] * bj
+
+
+@njit(cache=True)
+def band_assemble(full, bw, pos, blocks, pos_x, diag_x, pos_y, diag_y, fixed_pos):
+    """Fill ``full`` (the storage of :func:`band_factor`, kl = ku = bw, zeroed here) with the sum of the
+    cells' dense blocks (``blocks[k]`` over the unknowns ``pos[k]``), the diagonals ``diag_x`` at ``pos_x``
+    and ``diag_y`` at ``pos_y``, and an identity row and column for each unknown in ``fixed_pos``."""
+    kv = 2 * bw
+    full[:, :] = 0.0
+    n_cells, m = pos.shape
+    for k in range(n_cells):
+        for a in range(m):
+            i = pos[k, a]
+            for b in range(m):
+                j = pos[k, b]
+                full[j, kv + i - j] += blocks[k, a, b]
+    for t in range(pos_x.shape[0]):
+        j = pos_x[t]
+        full[j, kv] += diag_x[t]
+    for t in range(pos_y.shape[0]):
+        j = pos_y[t]
+        full[j, kv] += diag_y[t]
+    n = full.shape[0]
+    for t in range(fixed_pos.shape[0]):
+        f = fixed_pos[t]
+        for d in range(-bw, bw + 1):
+            j = f - d  # row f, column j
+            if 0 <= j < n:
+                full[j, kv + d] = 0.0
+            i = f + d  # row i, column f
+            if 0 <= i < n:
+                full[f, kv + d] = 0.0
+        full[f, kv] = 1.0

@@ -1,11 +1,18 @@
 """The yardstick: the least traction energy E* a train can use on a route in a running time.
 
-E* is seed 001's optimum (MPOC, neutral sections included) of the same train model the calculator
-runs: the objective of the refined LGR solution. Every plan's ``gap_to_optimum_percent`` is
-``(E - E*(T)) / E*(T) x 100`` with ``T`` the plan's own running time. Solutions are cached per
-(route, train, model options, energy options, time) in this process, and the last solution of a
-route and train starts the next solve at another time (a warm start: the energy-time curve costs a
-fraction of a cold solve per point). Results are also kept on disk (``LOCOPLAN_CACHE_DIR``, default
+E* is seed 001's minimum-energy problem (neutral sections included) of the same train model the
+calculator runs, solved on the calculator's own cells by a structured interior-point method
+(``ocp/cells.py``, ``ocp/ipm.py``) on successively halved grids until two agree to ``E_STAR_TOL``: the
+finer grid's optimum is E*, their difference its stated accuracy. Every plan's
+``gap_to_optimum_percent`` is ``(E - E*(T)) / E*(T) x 100`` with ``T`` the plan's own running time.
+
+``check_bound`` solves the same problem a second, independent way, by the multi-phase Radau collocation
+with hp mesh refinement of ``ocp --objective energy`` (CasADi, IPOPT): ``bound --check`` and
+benchmarks/bench_bound.py print both.
+
+Solutions are cached per (route, train, model options, time) in this process, and the last solution of a
+route and train starts the next solve at another time (the energy-time curve: each point after the first
+starts from its neighbour). Results are also kept on disk (``LOCOPLAN_CACHE_DIR``, default
 ``~/.cache/locoplan``; empty = off), keyed by a hash of everything E* depends on, the ocp code's own
 source included, so that a command run twice, or a batch over the same cases, solves each E* once.
 """
@@ -23,26 +30,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LocoplanError
+from ..errors import InfeasibleError, LocoplanError
 from ..model.route import Route
 from ..model.train import Train
 from ..physics.units import kwh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, EnergyOptions, build_problem, check_runnable
 
-E_STAR_TOL = 2e-5
-"""E* is refined until it moves by at most this share over a refinement (``solve_energy(energy_tol=)``),
-or the mesh tolerance is met: well inside the 0.005 % a gap's last printed digit needs."""
+DEFAULT_MESH_TOL = 1e-5
+DEFAULT_MAX_DEGREE = 10
+"""The Radau method's defaults (as ``ocp --objective energy``), for the check and the fallback."""
 
-SHORT_LEG_M = 5000.0
-"""On a route up to this long E* is solved from two starting meshes, the usual one (intervals up to 500 m,
-5 LGR points, departure and stop intervals up to 200 m) and a fine one (``SECOND_START``), and the lower
-optimum is kept: on short legs, where departure and stop are most of the run, the refinement from the
-coarse mesh can settle on a local optimum 1-4 % above the optimum (CN_Songjiazhuang_Yizhuang leg 12, HXD1
-+ 50 x C80 at 189.2 s: 69.71 kWh, against 67.88 from the fine start and from the trapezoidal method; 66.67
-against 63.99 in the point-mass model at 177.1 s). A short leg solves in about a second, so the second
-start costs little."""
-SECOND_START = {"interval_m": 100.0, "degree": 4, "end_interval_m": 50.0}
+E_STAR_TOL = 4e-5
+"""E* is refined until two grids agree to this share (of E*, or of ``percent_floor_kwh`` where E* is
+smaller): inside the 0.005 % a gap's last printed digit needs (``GAP_DIGIT_PERCENT``)."""
+
+METHOD = "cells"
+CHECK_METHOD = "radau"
 
 _BOUNDS: dict[tuple, "Bound"] = {}
 _WARM: dict[tuple, object] = {}
@@ -50,20 +53,21 @@ _WARM: dict[tuple, object] = {}
 
 @dataclass(frozen=True)
 class Bound:
-    """E* at one running time: ``energy_kwh``, the mesh it was solved on, whether the refinement met
-    its tolerance, the wall time of the solve [s] (0 when it came from the cache), and ``accuracy``:
-    E*'s estimated relative accuracy (``EnergySolution.accuracy``; None when unknown), and the curve's
-    slope there."""
+    """E* at one running time: ``energy_kwh``, whether the grids agreed to the tolerance (``converged``),
+    the finest grid's cells and cell length [m], the wall time of the solve [s] (0 when it came from the
+    cache), ``accuracy``: E*'s estimated relative accuracy (the last two grids' difference; None when
+    unknown), the curve's slope there, and the method that solved it."""
 
     time_s: float
     energy_kwh: float
     converged: bool
-    intervals: int
-    points: int
+    cells: int
+    step_m: float
     solve_time_s: float
     accuracy: float | None = None
     slope_kwh_per_s: float | None = None
-    """dE*/dT at this time [kWh/s] (``EnergySolution.slope_kwh_per_s``): what a second more saves."""
+    """dE*/dT at this time [kWh/s] (the running time's multiplier): what a second more saves."""
+    method: str = METHOD
 
     @property
     def accuracy_percent(self) -> float | None:
@@ -77,8 +81,9 @@ def _train_key(train: Train) -> tuple:
             tuple(np.asarray(a, float).tobytes() for a in arrays))
 
 
-def _base_key(route: Route, train: Train, options: ModelOptions, energy: EnergyOptions) -> tuple:
-    return (route.model_dump_json(), _train_key(train), options, energy)
+def _base_key(route: Route, train: Train, options: ModelOptions) -> tuple:
+    # the grid of the calculator is E*'s own (ocp.cells): the calculator's step is not part of the problem
+    return (route.model_dump_json(), _train_key(train), replace(options, step_m=0.0))
 
 
 @lru_cache(maxsize=1)
@@ -123,59 +128,56 @@ def _cache_write(key: tuple, b: "Bound") -> None:
 
 
 def energy_bound(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
-                 energy: EnergyOptions | None = None, mesh_tol: float = DEFAULT_MESH_TOL,
-                 max_degree: int = DEFAULT_MAX_DEGREE, calc: TractionCalculator | None = None) -> Bound:
+                 calc: TractionCalculator | None = None) -> Bound:
     """E* of ``train`` on ``route`` in ``time_s`` seconds (default: the route's schedule) [kWh].
 
-    Raises ``InfeasibleError`` when no run takes that little time or the consist cannot run the
-    route, ``InputError`` for bad options."""
+    Raises ``InfeasibleError`` when no run takes that little time, the consist cannot run the route, or
+    the solver finds no optimum."""
+    from .train_energy import check_runnable
+
     options = options or ModelOptions()
-    energy = energy or EnergyOptions()
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
-    base = _base_key(route, train, options, energy)
-    key = (base, round(time_s, 2), mesh_tol, max_degree)
+    base = _base_key(route, train, options)
+    key = (base, round(time_s, 2), METHOD, E_STAR_TOL)
     if key not in _BOUNDS:
         cached = _cache_read(key)
         if cached is not None:
             _BOUNDS[key] = cached
     if key in _BOUNDS:
-        b = _BOUNDS[key]
-        return replace(b, solve_time_s=0.0)
+        return replace(_BOUNDS[key], solve_time_s=0.0)
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
-    from .energy import solve_energy  # the solver (CasADi, scipy.sparse): only when E* is not cached
+    from .cells import solve_estar
 
-    tep = build_problem(route, train, options, time_s, energy)
-    warm = _WARM.get(base)
     try:
-        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, warm=warm, energy_tol=E_STAR_TOL)
-    except LocoplanError:
-        if warm is None:
-            raise
-        es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree,  # a cold start after all
-                          energy_tol=E_STAR_TOL)
-    accuracy = es.accuracy
-    if route.length_m <= SHORT_LEG_M:  # a second start: the lower of two local optima
-        try:
-            other = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, energy_tol=E_STAR_TOL,
-                                 **SECOND_START)
-        except LocoplanError:
-            other = None
-        if other is not None and other.success:
-            best, rest = (other, es) if other.objective_kwh < es.objective_kwh else (es, other)
-            best.wall_time_s = es.wall_time_s + other.wall_time_s
-            es = best
-            accuracy = best.accuracy
-            if rest.accuracy is not None:  # the other start's optimum and its accuracy bound this one's too
-                apart = abs(best.objective_kwh - rest.objective_kwh) / max(abs(best.objective_kwh), 1e-9)
-                acc = max(apart, rest.accuracy)
-                accuracy = acc if best.accuracy is None else min(best.accuracy, acc)
-    _WARM[base] = es.solution
-    b = Bound(time_s, es.objective_kwh, es.converged, len(es.solution.mesh.intervals), es.solution.mesh.n_points,
-              es.wall_time_s, accuracy, es.slope_kwh_per_s)
+        es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=percent_floor_kwh(route, train),
+                         warm=_WARM.get(base))
+    except InfeasibleError:
+        # the interior-point solve did not converge: the Radau method, slower but with IPOPT's restoration
+        b = check_bound(route, train, options, time_s, mesh_tol=DEFAULT_MESH_TOL, max_degree=DEFAULT_MAX_DEGREE)
+    else:
+        _WARM[base] = es.solution
+        b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
+                  es.slope_kwh_per_s)
     _BOUNDS[key] = b
     _cache_write(key, b)
     return b
+
+
+def check_bound(route: Route, train: Train, options: ModelOptions, time_s: float, *, mesh_tol: float,
+                max_degree: int) -> Bound:
+    """E* by the second, independent method: multi-phase Radau (LGR) collocation with hp mesh refinement
+    (``ocp/energy.py``, the solver of ``ocp --objective energy``), refined until E* moves by at most 2e-5
+    over a refinement or the mesh meets ``mesh_tol``; its accuracy is that last move."""
+    from .energy import solve_energy
+    from .train_energy import EnergyOptions, build_problem, check_runnable
+
+    calc = TractionCalculator(route, train, options)
+    check_runnable(calc, time_s)
+    es = solve_energy(build_problem(route, train, options, time_s, EnergyOptions()), calc, mesh_tol=mesh_tol,
+                      max_degree=max_degree, energy_tol=2e-5)
+    return Bound(time_s, es.objective_kwh, es.converged, es.solution.mesh.n_points, 0.0, es.wall_time_s, es.accuracy,
+                 es.slope_kwh_per_s, CHECK_METHOD)
 
 
 PERCENT_FLOOR_SHARE = 0.02

@@ -40,7 +40,7 @@ from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
 from ..physics.traction import max_force_rounded_kn
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .ipm import CellEval, CellIPM, IPMResult, IPMSettings
+from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
 
 END_GRADING_M = 300.0
 """Length [m] at each end of the route over which the cells shrink quadratically towards the rest point."""
@@ -113,30 +113,35 @@ class CellEnergyProblem:
         self.pos_y = 4 * k + 3
         # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
         self.active = np.column_stack([powered, self.can_brake])
-        self._scale2 = self.ref[self.local][:, :, None] * self.ref[self.local][:, None, :]
+        self._last = None
 
     # ------------------------------------------------------------------ physics at the cells
-    def _cell_physics(self, v: np.ndarray):
-        """Mean speed and the forces at it, with their derivatives in the node speeds."""
+    def _physics(self, x: np.ndarray):
+        """Speeds and forces of every cell at the scaled point ``x``, with the mean speed's and the force
+        curves' derivatives (kept for the last point: values, derivatives and Hessian read it in turn)."""
+        if self._last is not None and self._last[0] is x:
+            return self._last[1]
         calc, tr = self.calc, self.calc.train
+        xp = x * self.ref
+        v = xp[0::3]
         p, q = v[:-1], v[1:]
         vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
         V = kmh(vm)
-        vm_p, vm_q = p / (2 * vm), q / (2 * vm)
-        vm_pp = 1 / (2 * vm) - p * p / (4 * vm ** 3)
-        vm_pq = -p * q / (4 * vm ** 3)
-        vm_qq = 1 / (2 * vm) - q * q / (4 * vm ** 3)
         a, b, c = tr.resistance_kn
-        R = train_resistance_kn(V, tr.resistance_kn)
-        R_v = KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c)  # dR/dvm [kN s/m]
-        R_vv = KMH_PER_MS ** 2 * 2.0 * c
         ftr = self._rounded(V, tr.traction_speed_kmh, tr.traction_kn)
         fel = self._rounded(V, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
         fair = self._rounded(V, calc.air_brake_speed_kmh, calc.air_brake_kn)
-        # value, d/dvm, d2/dvm2 (the curves are in km/h)
-        Fm = tuple(f * self.allowed * KMH_PER_MS ** i for i, f in enumerate(ftr))
-        Bm = tuple(full_brake_kn(e, a, self.allowed) * KMH_PER_MS ** i for i, (e, a) in enumerate(zip(fel, fair)))
-        return p, q, (vm_p, vm_q, vm_pp, vm_pq, vm_qq), (R, R_v, R_vv), Fm, Bm
+        phys = {
+            "p": p, "q": q, "F": xp[1::3], "B": xp[2::3], "vm": vm,
+            "R": train_resistance_kn(V, tr.resistance_kn),
+            "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c),  # dR/dvm [kN s/m]
+            "R_vv": KMH_PER_MS ** 2 * 2.0 * c,
+            # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
+            "Fm": tuple(f * self.allowed * KMH_PER_MS ** i for i, f in enumerate(ftr)),
+            "Bm": tuple(full_brake_kn(e, a_, self.allowed) * KMH_PER_MS ** i for i, (e, a_) in enumerate(zip(fel, fair))),
+        }
+        self._last = (x, phys)
+        return phys
 
     @staticmethod
     def _rounded(V, xs, ys):
@@ -144,63 +149,75 @@ class CellEnergyProblem:
         width = min(ROUNDING_KMH, 0.5 * float(np.min(np.diff(xs)))) if xs.size > 1 else ROUNDING_KMH
         return max_force_rounded_kn(V, xs, ys, width)
 
-    def evaluate(self, xs: np.ndarray) -> CellEval:
-        x = xs * self.ref
-        v, F, B = x[0::3], x[1::3], x[2::3]
+    @staticmethod
+    def _vm_derivatives(P):
+        p, q, vm = P["p"], P["q"], P["vm"]
+        return (p / (2 * vm), q / (2 * vm), 1 / (2 * vm) - p * p / (4 * vm ** 3), -p * q / (4 * vm ** 3),
+                1 / (2 * vm) - q * q / (4 * vm ** 3))
+
+    def values(self, x: np.ndarray) -> CellValues:
+        P = self._physics(x)
+        p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
+        e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["B"] - P["R"] - self.G)) / (h * fr)
+        g = np.where(self.active, np.stack([(P["F"] - P["Fm"][0]) / fr, (P["B"] - P["Bm"][0]) / fr], axis=1), -1.0)
+        c = (np.sum(2 * h / np.maximum(p + q, V_FLOOR_MS)) - self.time_s) / self.t_ref
+        return CellValues(float(np.sum(h * P["F"])) / KJ_PER_KWH / self.e_ref, e, g, float(c))
+
+    def derivatives(self, x: np.ndarray) -> CellDerivatives:
+        """Gradients on each cell's variables (v_k, F_k, B_k, v_k+1), in the scaled variables."""
+        P = self._physics(x)
+        vm_p, vm_q, *_ = self._vm_derivatives(P)
         N, h, M, fr = self.N, self.h, self.M, self.f_ref
-        p, q, (vm_p, vm_q, vm_pp, vm_pq, vm_qq), (R, R_v, R_vv), (Fm, Fm_v, Fm_vv), (Bm, Bm_v, Bm_vv) = \
-            self._cell_physics(v)
-        # local variables: 0 v_k, 1 F_k, 2 B_k, 3 v_k+1
-        e = (0.5 * M * (q * q - p * p) - h * (F - B - R - self.G)) / (h * fr)
-        ge = np.zeros((N, 4))
-        ge[:, 0] = (-M * p + h * R_v * vm_p) / (h * fr)
-        ge[:, 3] = (M * q + h * R_v * vm_q) / (h * fr)
+        rl = self.ref[self.local]
+        ge = np.empty((N, 4))
+        ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
         ge[:, 1] = -1.0 / fr
         ge[:, 2] = 1.0 / fr
-        he = np.zeros((N, 4, 4))
-        he[:, 0, 0] = (-M + h * (R_vv * vm_p ** 2 + R_v * vm_pp)) / (h * fr)
-        he[:, 3, 3] = (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
-        he[:, 0, 3] = he[:, 3, 0] = (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
-        # inequalities: F - Fmax(vm) <= 0, B - Bmax(vm) <= 0 (inactive ones are a constant -1)
-        g = np.stack([(F - Fm) / fr, (B - Bm) / fr], axis=1)
+        ge[:, 3] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
         gg = np.zeros((N, 2, 4))
-        hg = np.zeros((N, 2, 4, 4))
-        for j, (col, cap_v, cap_vv) in enumerate(((1, Fm_v, Fm_vv), (2, Bm_v, Bm_vv))):
-            gg[:, j, 0] = -cap_v * vm_p / fr
-            gg[:, j, 3] = -cap_v * vm_q / fr
+        for j, (col, cap) in enumerate(((1, P["Fm"]), (2, P["Bm"]))):
+            gg[:, j, 0] = -cap[1] * vm_p / fr
+            gg[:, j, 3] = -cap[1] * vm_q / fr
             gg[:, j, col] = 1.0 / fr
-            hg[:, j, 0, 0] = -(cap_vv * vm_p ** 2 + cap_v * vm_pp) / fr
-            hg[:, j, 3, 3] = -(cap_vv * vm_q ** 2 + cap_v * vm_qq) / fr
-            hg[:, j, 0, 3] = hg[:, j, 3, 0] = -(cap_vv * vm_p * vm_q + cap_v * vm_pq) / fr
-        off = ~self.active
-        g[off] = -1.0
-        gg[off] = 0.0
-        hg[off] = 0.0
-        # running time
-        pq = np.maximum(p + q, V_FLOOR_MS)
-        tau = 2 * h / pq
-        c = (tau.sum() - self.time_s) / self.t_ref
+        gg[~self.active] = 0.0
         gc = np.zeros((N, 4))
-        gc[:, 0] = gc[:, 3] = -2 * h / pq ** 2 / self.t_ref
-        hc = np.zeros((N, 4, 4))
-        d2 = 4 * h / pq ** 3 / self.t_ref
-        hc[:, 0, 0] = hc[:, 3, 3] = hc[:, 0, 3] = hc[:, 3, 0] = d2
+        gc[:, 0] = gc[:, 3] = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
         gf = np.zeros((N, 4))
         gf[:, 1] = h / KJ_PER_KWH / self.e_ref
-        f = float(np.sum(h * F)) / KJ_PER_KWH / self.e_ref
-        # to the scaled variables
-        rl = self.ref[self.local]
-        s2 = self._scale2
-        return CellEval(f, gf * rl, None, e, ge * rl, he * s2, g, gg * rl[:, None, :], hg * s2[:, None], c,
-                        gc * rl, hc * s2)
+        return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl)
+
+    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: float) -> np.ndarray:
+        """The Lagrangian's Hessian on each cell's variables: only the two speeds enter nonlinearly."""
+        P = self._physics(x)
+        vm_p, vm_q, vm_pp, vm_pq, vm_qq = self._vm_derivatives(P)
+        h, M, fr = self.h, self.M, self.f_ref
+        R_v, R_vv = P["R_v"], P["R_vv"]
+        # the equality (work-energy balance): its second derivatives
+        e_pp = (-M + h * (R_vv * vm_p ** 2 + R_v * vm_pp)) / (h * fr)
+        e_qq = (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
+        e_pq = (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
+        pp, pq_, qq = y * e_pp, y * e_pq, y * e_qq
+        for j, cap in enumerate((P["Fm"], P["Bm"])):  # - cap(vm) in each inequality
+            w = np.where(self.active[:, j], z[:, j], 0.0) / fr
+            pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
+            qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
+            pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
+        d2 = zc * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref  # the running time
+        out = np.zeros((self.N, 4, 4))
+        vr2 = self.v_ref ** 2
+        out[:, 0, 0] = (pp + d2) * vr2
+        out[:, 3, 3] = (qq + d2) * vr2
+        out[:, 0, 3] = out[:, 3, 0] = (pq_ + d2) * vr2
+        return out
 
     # ------------------------------------------------------------------ start and results
     def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
         """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
         v = np.clip(v_nodes_ms, 0.0, self.v_cap)
         v[0] = v[-1] = 0.0
-        p, q, _, (R, *_), _, _ = self._cell_physics(v)
-        u = 0.5 * self.M * (q * q - p * p) / self.h + R + self.G
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(0.5 * (p * p + q * q))
+        u = 0.5 * self.M * (q * q - p * p) / self.h + train_resistance_kn(kmh(vm), self.calc.train.resistance_kn) + self.G
         F = np.clip(u, 0.0, None) * (self.allowed > 0)
         B = np.clip(-u, 0.0, None) * self.can_brake
         x = np.empty(3 * self.N + 1)

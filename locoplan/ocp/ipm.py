@@ -4,28 +4,32 @@ The minimum-energy problem on a fine grid of cells (``ocp/cells.py``) has a stru
 solver does not use: every function belongs to one cell and reads only that cell's few variables (the
 speeds at its two nodes and its forces), except one, the running time, which sums over all cells. Its
 KKT matrix, with each cell's equality multiplier placed beside its variables, is therefore banded
-(half-bandwidth 4 there) plus a rank-one term from the running time. LAPACK's banded LU solves that in
-time linear in the number of cells, and the rank-one term costs a second right-hand side
-(Sherman-Morrison). The same Newton steps through IPOPT (CasADi, MUMPS) cost 10-40 us per variable and
-iteration here; this solver about 1 us.
+(half-bandwidth 4 there) plus a rank-one term from the running time. A banded LU solves that in time
+linear in the number of cells, and the rank-one term costs one more right-hand side (Sherman-Morrison).
+Through IPOPT (CasADi, MUMPS) the same Newton steps cost 10-40 us per variable and iteration on this
+problem, and IPOPT needed 80-160 iterations from the same start; this solver takes about 1 us and 30-60.
 
-The algorithm is IPOPT's (Waechter and Biegler, Math. Program. 106, 2006) in its simplest robust
-form: slacks for the inequalities, the barrier problem solved approximately for a falling barrier
-parameter (monotone Fiacco-McCormick rule, mu <- min(0.2 mu, mu^1.5) once the barrier problem's error
-is below 10 mu), the primal-dual Newton step with the slacks and bound multipliers eliminated, the
-fraction-to-the-boundary rule, the filter line search with second-order corrections (an l1 merit
-function instead took steps of 1 % for dozens of iterations on long lines), and regularisation of
-the Hessian where the step's curvature is not positive (the inertia-free test of Chiang and Zavala,
-Comput. Optim. Appl. 64, 2016: a banded LU gives no inertia).
+The algorithm is IPOPT's (Waechter and Biegler, Math. Program. 106, 2006) in a compact form: slacks
+for the inequalities; the barrier problem solved approximately for a falling barrier parameter
+(monotone Fiacco-McCormick rule, mu <- min(0.2 mu, mu^1.5) once the barrier problem's error is below
+10 mu); the primal-dual Newton step with the slacks and bound multipliers eliminated; the
+fraction-to-the-boundary rule; the filter line search with second-order corrections (an l1 merit
+function instead took steps of 1 % for dozens of iterations on long lines); and regularisation of the
+Hessian where the step's curvature is not positive (the inertia-free test of Chiang and Zavala, Comput.
+Optim. Appl. 64, 2016: a banded LU gives no inertia). There is no feasibility restoration phase: a
+trial that no step length makes acceptable takes a short step, and a solve that does not converge says
+so (the caller refuses the result).
 
-A problem gives, for its variables ``x`` (already scaled to order one):
+A problem gives, for its variables ``x`` (scaled to order one):
 - ``lb``, ``ub``: bounds (``-inf`` / ``inf`` for none; ``lb == ub`` fixes a variable);
 - ``local``: (cells, p) the indices of each cell's variables;
 - ``pos_x``, ``pos_y``: the place of every variable and of every cell's equality multiplier in the
   KKT ordering (the problem chooses one that makes the matrix banded);
-- ``evaluate(x)``: a :class:`CellEval` with the objective, one equality and q inequalities (<= 0) per
-  cell and the one global inequality (<= 0), each with its gradient and Hessian on the cell's
-  variables (the global one as per-cell parts that add up).
+- ``values(x)``: :class:`CellValues`, the objective, one equality and q inequalities (<= 0) per cell,
+  and the one global inequality (<= 0);
+- ``derivatives(x)``: :class:`CellDerivatives`, their gradients on each cell's variables (the global
+  inequality's as per-cell parts that add up);
+- ``hessian(x, y, z, zc)``: the Lagrangian's Hessian on each cell's variables, (cells, p, p).
 """
 
 from __future__ import annotations
@@ -45,29 +49,35 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @dataclass
-class CellEval:
-    """Values and derivatives of a cell-structured NLP at one point (N cells, p local variables, q
-    inequalities per cell)."""
+class CellValues:
+    """A cell-structured NLP's functions at one point (N cells, q inequalities per cell)."""
 
     f: float
-    grad_f: np.ndarray  # (N, p)
-    hess_f: np.ndarray | None  # (N, p, p) or None (linear objective)
-    e: np.ndarray  # (N,) equality per cell, = 0
-    grad_e: np.ndarray  # (N, p)
-    hess_e: np.ndarray  # (N, p, p)
+    e: np.ndarray  # (N,) one equality per cell, = 0
     g: np.ndarray  # (N, q) inequalities, <= 0
+    c: float  # the global inequality, <= 0
+
+    def finite(self) -> bool:
+        return bool(np.isfinite(self.f) and np.isfinite(self.c) and np.all(np.isfinite(self.e))
+                    and np.all(np.isfinite(self.g)))
+
+
+@dataclass
+class CellDerivatives:
+    """Their gradients on each cell's p variables."""
+
+    grad_f: np.ndarray  # (N, p)
+    grad_e: np.ndarray  # (N, p)
     grad_g: np.ndarray  # (N, q, p)
-    hess_g: np.ndarray  # (N, q, p, p)
-    c: float  # global inequality, <= 0
-    grad_c: np.ndarray  # (N, p): per-cell parts of its gradient
-    hess_c: np.ndarray  # (N, p, p)
+    grad_c: np.ndarray  # (N, p): per-cell parts
 
 
 @dataclass
 class IPMResult:
     """The solution (primal ``x``, equality multipliers ``y``, inequality multipliers ``z`` (N, q), the
-    global inequality's multiplier ``zc``), the objective, whether it converged, iterations, and the
-    final optimality error."""
+    global inequality's multiplier ``zc``), the objective, whether it converged, the iterations, the
+    final optimality error, the status, and per iteration (error, barrier parameter, primal step,
+    dual step, regularisation, objective)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -78,21 +88,20 @@ class IPMResult:
     iterations: int
     error: float
     status: str
-    trace: list | None = None
-    """Per iteration: (error, mu, primal step, dual step, regularisation, objective)."""
+    trace: list
 
 
 @dataclass(frozen=True)
 class IPMSettings:
     tol: float = 1e-8
-    """Overall tolerance on the scaled optimality error (dual, primal, complementarity)."""
+    """Tolerance on the scaled optimality error (dual, primal, complementarity), IPOPT's scaling."""
     acceptable_tol: float = 1e-4
     acceptable_iter: int = 5
     acceptable_obj_change: float = 1e-10
     """Also converged ("acceptable") after ``acceptable_iter`` iterations in a row with the error below
     ``acceptable_tol``, the barrier parameter at its floor and the objective moving by at most this share:
-    where the force curves have a kink at the optimum's speed, Newton's method cannot reach ``tol`` (the
-    derivative jumps between iterations) while the optimum itself has settled (IPOPT's acceptable level)."""
+    where Newton's method cannot reach ``tol`` (a force curve's slope changing fast right at the optimum's
+    speed) while the optimum itself has settled (IPOPT's acceptable level)."""
     max_iter: int = 300
     mu_init: float = 1e-1
     kappa_eps: float = 10.0
@@ -100,12 +109,17 @@ class IPMSettings:
     theta_mu: float = 1.5
     tau_min: float = 0.99
     bound_push: float = 1e-2
-    armijo: float = 1e-4
     max_soc: int = 4
-    """Second-order corrections tried when a full step is rejected (the Maratos effect: the step's
-    constraint curvature raises the merit function although the step is good)."""
+    """Second-order corrections tried when a full step is rejected (the Maratos effect: the constraints'
+    curvature raises the violation although the step is good)."""
     curvature: float = 1e-8
-    """A step is accepted when dx' W dx >= curvature * dx'dx, else the Hessian is regularised."""
+    """A step is taken when dx' W dx >= curvature * dx'dx, else the Hessian is regularised."""
+
+
+def _max_step(v: np.ndarray, dv: np.ndarray, tau: float) -> float:
+    """The largest step in (0, 1] keeping v + a dv >= (1 - tau) v (fraction to the boundary)."""
+    neg = dv < 0
+    return min(1.0, float(np.min(-tau * v[neg] / dv[neg]))) if neg.any() else 1.0
 
 
 class CellIPM:
@@ -126,36 +140,17 @@ class CellIPM:
         pos[:, -1] = problem.pos_y
         self.pos = pos
         self.bw = int(np.max(pos.max(axis=1) - pos.min(axis=1)))
-        self.pos_x = problem.pos_x
-        self.pos_y = problem.pos_y
+        self.pos_x = np.ascontiguousarray(problem.pos_x, dtype=np.int64)
+        self.pos_y = np.ascontiguousarray(problem.pos_y, dtype=np.int64)
+        self.fixed_pos = np.ascontiguousarray(self.pos_x[self.fixed])
+        self._flat = np.ascontiguousarray(loc.ravel())
+        self._lb = np.where(self.has_l, problem.lb, 0.0)
+        self._ub = np.where(self.has_u, problem.ub, 0.0)
 
-    # ------------------------------------------------------------------ linear algebra
-    def _kkt(self, blocks: np.ndarray, diag_x: np.ndarray, diag_y: np.ndarray) -> np.ndarray:
-        """The banded KKT matrix in the storage of ``ocp.band_kernel`` (kl = ku = bw: entry (i, j) at
-        ``[j, 2 bw + i - j]``, the first bw entries of each row room for the fill-in) from the cells'
-        (p+1) x (p+1) blocks (variables, then the equality multiplier) and the diagonals."""
-        bw = self.bw
-        full = np.zeros((self.size, 3 * bw + 1))
-        ab = full[:, bw:].T  # ab[bw + i - j, j] = a(i, j), a view
-        m = self.np_ + 1
-        for a in range(m):  # within one (a, b) pair every cell writes a different entry
-            ra = self.pos[:, a]
-            for b in range(m):
-                cb = self.pos[:, b]
-                ab[bw + ra - cb, cb] += blocks[:, a, b]
-        ab[bw, self.pos_x] += diag_x
-        ab[bw, self.pos_y] += diag_y
-        # fixed variables: an identity row and column (their step is 0)
-        fx = self.pos_x[self.fixed]
-        for d in range(-bw, bw + 1):
-            cols = fx - d
-            ok = (cols >= 0) & (cols < self.size)
-            ab[bw + d, cols[ok]] = 0.0  # row fx, column fx - d
-            cols = fx + d
-            ok = (cols >= 0) & (cols < self.size)
-            ab[bw - d, cols[ok]] = 0.0  # column fx, row fx + d
-        ab[bw, fx] = 1.0
-        return full
+    # ------------------------------------------------------------------ helpers
+    def _scatter(self, local_vals: np.ndarray) -> np.ndarray:
+        """Per-cell parts (N, p) summed into a vector over the variables."""
+        return np.bincount(self._flat, weights=local_vals.ravel(), minlength=self.n)
 
     def _to_kkt(self, vx: np.ndarray, vy: np.ndarray) -> np.ndarray:
         out = np.zeros(self.size)
@@ -163,119 +158,111 @@ class CellIPM:
         out[self.pos_y] = vy
         return out
 
+    def _dist(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distances to the lower and upper bounds (1 where there is none)."""
+        return np.where(self.has_l, x - self._lb, 1.0), np.where(self.has_u, self._ub - x, 1.0)
+
+    def _barrier(self, v: CellValues, x, s, sc, mu) -> float:
+        dl, du = self._dist(x)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            bar = (np.log(s).sum() + math.log(sc) + np.log(dl[self.has_l]).sum() + np.log(du[self.has_u]).sum())
+        return v.f - mu * bar
+
+    @staticmethod
+    def _violation(v: CellValues, s, sc) -> float:
+        return float(np.abs(v.e).sum() + np.abs(v.g + s).sum() + abs(v.c + sc))
+
+    def _error(self, v: CellValues, d: CellDerivatives, x, s, sc, y, z, zc, zl, zu, mu) -> float:
+        """IPOPT's scaled optimality error of the barrier problem for ``mu`` (0: of the NLP)."""
+        r_d = self._scatter(d.grad_f + d.grad_e * y[:, None] + np.einsum("kqp,kq->kp", d.grad_g, z) + zc * d.grad_c)
+        r_d = r_d - zl + zu
+        r_d[self.fixed] = 0.0
+        prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), abs(v.c + sc))
+        dl, du = self._dist(x)
+        comp = max(np.max(np.abs(s * z - mu), initial=0.0), abs(sc * zc - mu),
+                   np.max(np.abs(np.where(self.has_l, dl * zl - mu, 0.0)), initial=0.0),
+                   np.max(np.abs(np.where(self.has_u, du * zu - mu, 0.0)), initial=0.0))
+        n_dual = y.size + z.size + 1 + int(self.has_l.sum()) + int(self.has_u.sum())
+        s_d = max(100.0, (np.abs(y).sum() + z.sum() + zc + zl.sum() + zu.sum()) / n_dual) / 100.0
+        s_c = max(100.0, (z.sum() + zc + zl.sum() + zu.sum()) / max(n_dual - y.size, 1)) / 100.0
+        return max(np.max(np.abs(r_d)) / s_d, prim, comp / s_c)
+
     # ------------------------------------------------------------------ the method
     def solve(self, x0: np.ndarray, mu_init: float | None = None) -> IPMResult:
         """Minimise from ``x0`` (pushed inside its bounds); ``mu_init``: the barrier parameter to start at."""
-        S = self.set
-        p, lb, ub, loc, N = self.p, self.p.lb, self.p.ub, self.p.local, self.N
+        S, p, N = self.set, self.p, self.N
         has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
+        loc = p.local
+        lb, ub = self._lb, self._ub
         x = np.array(x0, dtype=float)
-        # push the start inside the bounds (IPOPT's bound_push)
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"):  # push the start inside the bounds (IPOPT's bound_push)
             span = np.where(has_l & has_u, ub - lb, np.inf)
-        push_l = np.minimum(S.bound_push * np.maximum(1.0, np.abs(np.where(has_l, lb, 0.0))), 0.49 * span)
-        push_u = np.minimum(S.bound_push * np.maximum(1.0, np.abs(np.where(has_u, ub, 0.0))), 0.49 * span)
-        x = np.where(has_l, np.maximum(x, np.where(has_l, lb, 0.0) + push_l), x)
-        x = np.where(has_u, np.minimum(x, np.where(has_u, ub, 0.0) - push_u), x)
-        x = np.where(fixed, lb, x)
+        x = np.where(has_l, np.maximum(x, lb + np.minimum(S.bound_push * np.maximum(1.0, np.abs(lb)), 0.49 * span)), x)
+        x = np.where(has_u, np.minimum(x, ub - np.minimum(S.bound_push * np.maximum(1.0, np.abs(ub)), 0.49 * span)), x)
+        x = np.where(fixed, p.lb, x)
         mu = float(mu_init if mu_init is not None else S.mu_init)
-        ev = p.evaluate(x)
-        s = np.maximum(-ev.g, 1e-2)
-        sc = max(-ev.c, 1e-2)
-        z = mu / s
-        zc = mu / sc
-        y = np.zeros(N)
-        dist_l = lambda x: np.where(has_l, x - np.where(has_l, lb, 0.0), 1.0)  # noqa: E731
-        dist_u = lambda x: np.where(has_u, np.where(has_u, ub, 0.0) - x, 1.0)  # noqa: E731
-        zl = np.where(has_l, mu / dist_l(x), 0.0)
-        zu = np.where(has_u, mu / dist_u(x), 0.0)
+        val = p.values(x)
+        s = np.maximum(-val.g, 1e-2)
+        sc = max(-val.c, 1e-2)
+        z, zc, y = mu / s, mu / sc, np.zeros(N)
+        dl, du = self._dist(x)
+        zl = np.where(has_l, mu / dl, 0.0)
+        zu = np.where(has_u, mu / du, 0.0)
         filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
         delta_w_last = 0.0
-        flat = loc.ravel()
-
-        def scatter(local_vals: np.ndarray) -> np.ndarray:
-            return np.bincount(flat, weights=local_vals.ravel(), minlength=self.n)
-
-        def error(ev, x, s, sc, y, z, zc, zl, zu, mu, detail=False) -> float:
-            r_d = (scatter(ev.grad_f + ev.grad_e * y[:, None] + np.einsum("kqp,kq->kp", ev.grad_g, z) + zc * ev.grad_c)
-                   - zl + zu)
-            r_d[fixed] = 0.0
-            prim = max(np.max(np.abs(ev.e), initial=0.0), np.max(np.abs(ev.g + s), initial=0.0), abs(ev.c + sc))
-            dl, du = dist_l(x), dist_u(x)
-            comp = max(np.max(np.abs(s * z - mu), initial=0.0), abs(sc * zc - mu),
-                       np.max(np.abs(np.where(has_l, dl * zl - mu, 0.0)), initial=0.0),
-                       np.max(np.abs(np.where(has_u, du * zu - mu, 0.0)), initial=0.0))
-            n_dual = y.size + z.size + 1 + int(has_l.sum()) + int(has_u.sum())
-            s_d = max(100.0, (np.abs(y).sum() + z.sum() + zc + zl.sum() + zu.sum()) / n_dual) / 100.0
-            s_c = max(100.0, (z.sum() + zc + zl.sum() + zu.sum()) / max(n_dual - y.size, 1)) / 100.0
-            if detail:
-                j = int(np.argmax(np.abs(r_d)))
-                return (np.max(np.abs(r_d)) / s_d, j, prim, comp / s_c, s_d, s_c)
-            return max(np.max(np.abs(r_d)) / s_d, prim, comp / s_c)
-
-        def barrier(ev, x, s, sc, mu) -> float:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                bar = (np.log(s).sum() + math.log(sc) + np.log(dist_l(x)[has_l]).sum()
-                       + np.log(dist_u(x)[has_u]).sum())
-            return ev.f - mu * bar
-
-        def violation(ev, s, sc) -> float:
-            return float(np.abs(ev.e).sum() + np.abs(ev.g + s).sum() + abs(ev.c + sc))
-
-        def max_step(v, dv, tau):
-            neg = dv < 0
-            return min(1.0, float(np.min(-tau * v[neg] / dv[neg]))) if neg.any() else 1.0
-
+        full = np.empty((self.size, 3 * self.bw + 1))
+        piv = np.empty(self.size, dtype=np.int64)
+        K = kernels()
         status, trace, it, err0 = "max_iter", [], 0, math.inf
         acceptable, f_prev = 0, math.inf
         for it in range(1, S.max_iter + 1):
-            err0 = error(ev, x, s, sc, y, z, zc, zl, zu, 0.0)
+            der = p.derivatives(x)
+            err0 = self._error(val, der, x, s, sc, y, z, zc, zl, zu, 0.0)
             if err0 <= S.tol:
                 status = "converged"
                 break
-            settled = abs(ev.f - f_prev) <= S.acceptable_obj_change * max(1.0, abs(ev.f))
+            settled = abs(val.f - f_prev) <= S.acceptable_obj_change * max(1.0, abs(val.f))
             acceptable = acceptable + 1 if err0 <= S.acceptable_tol and mu <= S.tol and settled else 0
-            f_prev = ev.f
+            f_prev = val.f
             if acceptable >= S.acceptable_iter:
                 status = "acceptable"
                 break
-            while error(ev, x, s, sc, y, z, zc, zl, zu, mu) <= S.kappa_eps * mu and mu > S.tol / 10:
+            while self._error(val, der, x, s, sc, y, z, zc, zl, zu, mu) <= S.kappa_eps * mu and mu > S.tol / 10:
                 mu = max(S.tol / 10, min(S.kappa_mu * mu, mu ** S.theta_mu))
             tau = max(S.tau_min, 1.0 - mu)
             # ---- the Newton system: W dx + A' dy = rhs_x, A dx = -e (slacks and bound multipliers eliminated)
-            sig = z / s
-            sig_c = zc / sc
-            dl, du = dist_l(x), dist_u(x)
+            sig, sig_c = z / s, zc / sc
+            dl, du = self._dist(x)
             sig_x = np.where(has_l, zl / dl, 0.0) + np.where(has_u, zu / du, 0.0)
-            hess = (np.einsum("kq,kqab->kab", z, ev.hess_g) + y[:, None, None] * ev.hess_e + zc * ev.hess_c
-                    + np.einsum("kq,kqa,kqb->kab", sig, ev.grad_g, ev.grad_g))
-            if ev.hess_f is not None:
-                hess = hess + ev.hess_f
+            hess = p.hessian(x, y, z, zc) + np.einsum("kq,kqa,kqb->kab", sig, der.grad_g, der.grad_g)
             m = self.np_ + 1
-            blocks = np.zeros((N, m, m))
+            blocks = np.empty((N, m, m))
             blocks[:, :-1, :-1] = hess
-            blocks[:, -1, :-1] = blocks[:, :-1, -1] = ev.grad_e
-            grad_c = scatter(ev.grad_c)
-            base_x = scatter(ev.grad_f + ev.grad_e * y[:, None]) - np.where(has_l, mu / dl, 0.0) + np.where(has_u, mu / du, 0.0)
+            blocks[:, -1, :-1] = der.grad_e
+            blocks[:, :-1, -1] = der.grad_e
+            blocks[:, -1, -1] = 0.0
+            grad_c = self._scatter(der.grad_c)
+            grad_f = self._scatter(der.grad_f)
+            base_x = (grad_f + self._scatter(der.grad_e * y[:, None]) - np.where(has_l, mu / dl, 0.0)
+                      + np.where(has_u, mu / du, 0.0))
             a_vec = self._to_kkt(np.where(fixed, 0.0, grad_c), np.zeros(N))
 
             def rhs(r_e, r_g, r_c):
-                """The right-hand side for residuals r_e (equalities), r_g = g + s, r_c = c + sc."""
-                rx = -(base_x + scatter(np.einsum("kqp,kq->kp", ev.grad_g, mu / s + sig * r_g))
+                """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc."""
+                rx = -(base_x + self._scatter(np.einsum("kqp,kq->kp", der.grad_g, mu / s + sig * r_g))
                        + grad_c * (mu / sc + sig_c * r_c))
                 rx[fixed] = 0.0
                 return self._to_kkt(rx, -r_e)
 
-            r_g0, r_c0 = ev.g + s, ev.c + sc
-            first = rhs(ev.e, r_g0, r_c0)
+            r_g0, r_c0 = val.g + s, val.c + sc
+            first = rhs(val.e, r_g0, r_c0)
             delta_w, delta_c = 0.0, 0.0
-            for attempt in range(25):
-                full = self._kkt(blocks, sig_x + delta_w, np.full(N, -delta_c))
-                piv = np.empty(self.size, dtype=np.int64)
-                info = kernels().band_factor(full, self.bw, self.bw, piv)
-                if info == 0:
+            for _attempt in range(25):
+                K.band_assemble(full, self.bw, self.pos, blocks, self.pos_x, sig_x + delta_w, self.pos_y,
+                                np.full(N, -delta_c), self.fixed_pos)
+                if K.band_factor(full, self.bw, self.bw, piv) == 0:
                     sol = np.column_stack([first, a_vec])
-                    kernels().band_solve(full, self.bw, self.bw, piv, sol)
+                    K.band_solve(full, self.bw, self.bw, piv, sol)
                     qv = sol[:, 1].copy()
                     denom = 1.0 + sig_c * _dot(a_vec, qv)
 
@@ -284,7 +271,7 @@ class CellIPM:
                         Sherman-Morrison on the factored banded part)."""
                         if sol is None:
                             sol = rv.reshape(-1, 1).copy()
-                            kernels().band_solve(full, self.bw, self.bw, piv, sol)
+                            K.band_solve(full, self.bw, self.bw, piv, sol)
                         pv = sol[:, 0]
                         return pv - qv * (sig_c * _dot(a_vec, pv) / denom)
 
@@ -306,84 +293,82 @@ class CellIPM:
             delta_w_last = delta_w if delta_w > 0 else delta_w_last
             dy = d[self.pos_y]
 
-            def others(dx, r_g, r_c):
-                ds = -r_g - np.einsum("kqp,kp->kq", ev.grad_g, dx[loc])
-                dsc = -r_c - _dot(grad_c, dx)
-                return ds, dsc
+            def slack_steps(dx, r_g, r_c):
+                return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - _dot(grad_c, dx)
 
-            ds, dsc = others(dx, r_g0, r_c0)
+            def primal_step(dx, ds, dsc):
+                return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(np.array([sc]), np.array([dsc]), tau),
+                           _max_step(dl[has_l], dx[has_l], tau), _max_step(du[has_u], -dx[has_u], tau))
+
+            ds, dsc = slack_steps(dx, r_g0, r_c0)
             dz = mu / s - z - sig * ds
             dzc = mu / sc - zc - sig_c * dsc
             dzl = np.where(has_l, mu / dl - zl - (zl / dl) * dx, 0.0)
             dzu = np.where(has_u, mu / du - zu + (zu / du) * dx, 0.0)
-            a_p = min(max_step(s.ravel(), ds.ravel(), tau), max_step(np.array([sc]), np.array([dsc]), tau),
-                      max_step(dl[has_l], dx[has_l], tau), max_step(du[has_u], -dx[has_u], tau))
-            a_d = min(max_step(z.ravel(), dz.ravel(), tau), max_step(np.array([zc]), np.array([dzc]), tau),
-                      max_step(zl[has_l], dzl[has_l], tau), max_step(zu[has_u], dzu[has_u], tau))
-            # ---- filter line search with second-order corrections (IPOPT's: Waechter and Biegler 2006)
-            phi0, theta0 = barrier(ev, x, s, sc, mu), violation(ev, s, sc)
+            a_p = primal_step(dx, ds, dsc)
+            a_d = min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(np.array([zc]), np.array([dzc]), tau),
+                      _max_step(zl[has_l], dzl[has_l], tau), _max_step(zu[has_u], dzu[has_u], tau))
+            # ---- filter line search with second-order corrections
+            phi0, theta0 = self._barrier(val, x, s, sc, mu), self._violation(val, s, sc)
             if mu != filter_mu:  # a new barrier problem: a new filter
                 filt, filter_mu = [], mu
-                theta_max = 1e4 * max(1.0, theta0)
-                theta_min = 1e-4 * max(1.0, theta0)
-            dphi = (_dot(scatter(ev.grad_f), dx) - mu * (ds / s).sum() - mu * dsc / sc
+                theta_max, theta_min = 1e4 * max(1.0, theta0), 1e-4 * max(1.0, theta0)
+            dphi = (_dot(grad_f, dx) - mu * (ds / s).sum() - mu * dsc / sc
                     - mu * np.sum(dx[has_l] / dl[has_l]) + mu * np.sum(dx[has_u] / du[has_u]))
 
-            def acceptable_point(ev_t, x_t, s_t, sc_t, alpha):
-                """(accepted, f-type) for a trial point: acceptable to the filter, and either an Armijo
-                decrease of the barrier function (when the step is mostly an objective step) or a
-                sufficient decrease of the violation or of the barrier function."""
-                if not (np.isfinite(ev_t.f) and np.all(np.isfinite(ev_t.e)) and np.all(np.isfinite(ev_t.g))):
+            def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool]:
+                """(accepted, f-type): acceptable to the filter, and either an Armijo decrease of the
+                barrier function (when the step is mostly an objective step) or a sufficient decrease
+                of the violation or of the barrier function."""
+                if not v_t.finite():
                     return False, False
-                phi_t, theta_t = barrier(ev_t, x_t, s_t, sc_t, mu), violation(ev_t, s_t, sc_t)
+                phi_t, theta_t = self._barrier(v_t, x_t, s_t, sc_t, mu), self._violation(v_t, s_t, sc_t)
                 if not np.isfinite(phi_t) or theta_t > theta_max:
                     return False, False
                 if any(theta_t >= th and phi_t >= ph for th, ph in filt):
                     return False, False
-                f_type = dphi < 0 and alpha * (-dphi) ** 2.3 > theta0 ** 1.1 and theta0 <= theta_min
-                if f_type:
+                if dphi < 0 and alpha * (-dphi) ** 2.3 > theta0 ** 1.1 and theta0 <= theta_min:
                     return bool(phi_t <= phi0 + 1e-8 * alpha * dphi + 1e-14 * abs(phi0)), True
                 return bool(theta_t <= (1 - 1e-5) * theta0 or phi_t <= phi0 - 1e-8 * theta0), False
 
             alpha, accepted, f_type = a_p, False, False
             for trial in range(40):
                 xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
-                evn = p.evaluate(xn)
-                accepted, f_type = acceptable_point(evn, xn, sn, scn, alpha)
+                vn = p.values(xn)
+                accepted, f_type = judge(vn, xn, sn, scn, alpha)
                 if accepted:
                     break
-                if trial == 0 and S.max_soc > 0 and violation(evn, sn, scn) >= theta0:  # second-order corrections
-                    c_e, c_g, c_c = alpha * ev.e + evn.e, alpha * r_g0 + (evn.g + sn), alpha * r_c0 + (evn.c + scn)
+                if trial == 0 and S.max_soc > 0 and vn.finite() and self._violation(vn, sn, scn) >= theta0:
+                    c_e, c_g, c_c = alpha * val.e + vn.e, alpha * r_g0 + (vn.g + sn), alpha * r_c0 + (vn.c + scn)
                     theta_soc = theta0
-                    for _ in range(S.max_soc):
+                    for _ in range(S.max_soc):  # second-order corrections of the full step
                         d_soc = direction(rhs(c_e, c_g, c_c))
                         dx_s = d_soc[self.pos_x]
-                        ds_s, dsc_s = others(dx_s, c_g, c_c)
-                        a_s = min(max_step(s.ravel(), ds_s.ravel(), tau), max_step(np.array([sc]), np.array([dsc_s]), tau),
-                                  max_step(dl[has_l], dx_s[has_l], tau), max_step(du[has_u], -dx_s[has_u], tau))
+                        ds_s, dsc_s = slack_steps(dx_s, c_g, c_c)
+                        a_s = primal_step(dx_s, ds_s, dsc_s)
                         xs_, ss_, scs_ = x + a_s * dx_s, s + a_s * ds_s, sc + a_s * dsc_s
-                        evs = p.evaluate(xs_)
-                        accepted, f_type = acceptable_point(evs, xs_, ss_, scs_, alpha)
+                        vs = p.values(xs_)
+                        accepted, f_type = judge(vs, xs_, ss_, scs_, alpha)
                         if accepted:
-                            xn, sn, scn, evn = xs_, ss_, scs_, evs
+                            xn, sn, scn, vn = xs_, ss_, scs_, vs
                             dy = d_soc[self.pos_y]
                             break
-                        theta_new = violation(evs, ss_, scs_)
+                        theta_new = self._violation(vs, ss_, scs_) if vs.finite() else math.inf
                         if theta_new > 0.99 * theta_soc:
                             break
                         theta_soc = theta_new
-                        c_e, c_g, c_c = a_s * c_e + evs.e, a_s * c_g + (evs.g + ss_), a_s * c_c + (evs.c + scs_)
+                        c_e, c_g, c_c = a_s * c_e + vs.e, a_s * c_g + (vs.g + ss_), a_s * c_c + (vs.c + scs_)
                     if accepted:
                         break
                 alpha *= 0.5
             if not accepted:  # a short step anyway (IPOPT would restore feasibility here)
                 alpha = min(a_p, 1e-3)
                 xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
-                evn = p.evaluate(xn)
-            if not f_type:  # the filter remembers this point's margin
+                vn = p.values(xn)
+            if not f_type:  # the filter keeps this point's margin
                 filt.append(((1 - 1e-5) * theta0, phi0 - 1e-8 * theta0))
-            trace.append((err0, mu, alpha, a_d, delta_w, ev.f, a_p, theta0, dphi))
-            x, s, sc, ev = xn, sn, scn, evn
+            trace.append((err0, mu, alpha, a_d, delta_w, val.f))
+            x, s, sc, val = xn, sn, scn, vn
             y = y + alpha * dy
             z, zc = z + a_d * dz, zc + a_d * dzc
             zl, zu = zl + a_d * dzl, zu + a_d * dzu
@@ -391,8 +376,8 @@ class CellIPM:
             ks = 1e10
             z = np.clip(z, mu / (ks * s), ks * mu / s)
             zc = float(np.clip(zc, mu / (ks * sc), ks * mu / sc))
-            dl, du = dist_l(x), dist_u(x)
+            dl, du = self._dist(x)
             zl = np.where(has_l, np.clip(zl, mu / (ks * dl), ks * mu / dl), 0.0)
             zu = np.where(has_u, np.clip(zu, mu / (ks * du), ks * mu / du), 0.0)
-        return IPMResult(x, y, z, float(zc), float(ev.f), status in ("converged", "acceptable"), it, float(err0), status,
-                         trace)
+        return IPMResult(x, y, z, float(zc), float(val.f), status in ("converged", "acceptable"), it, float(err0),
+                         status, trace)

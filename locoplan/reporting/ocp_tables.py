@@ -143,7 +143,7 @@ def energy_curve_table(route: str, consist: str, rows: list[dict]) -> Table:
     """``bound --times``: E* at each running time (a time without an optimum: its reason)."""
     table = Table(title=escape(f"{route} — {consist}: least traction energy E*(T)"), title_justify="left")
     check = any(r.get("check") for r in rows)
-    cols = ["T [s]", "E* [kWh]", "within [%]", "mesh tol. met", "solve [s]"] + (["2nd method [kWh]", "diff. [%]"] if check else [])
+    cols = ["T [s]", "E* [kWh]", "within [%]", "converged", "solve [s]"] + (["2nd method [kWh]", "diff. [%]"] if check else [])
     for col in cols:
         table.add_column(escape(col), justify="right")
     for row in rows:
@@ -164,10 +164,10 @@ def _acc(pct: float | None) -> str:
 def energy_bound_line(route: str, consist: str, row: dict) -> str:
     """``bound --time``: the one E* as a line."""
     return (f"E* = {row['energy_kwh']:.2f} kWh  ({escape(route)}, {escape(consist)}, {row['time_s']:g} s; "
-            f"{row['mesh_points']} LGR points, "
+            f"{row['cells']:,} cells, "
             + (f"solved in {row['solve_time_s']:.2f} s" if row["solve_time_s"] else "from the cache of earlier solves")
             + f"; within {within_percent(row.get('accuracy_percent'))}"
             + ")"
-            + (f"\nsecond method ({c['method']}, {c['steps_m'][0]:g} and {c['steps_m'][1]:g} m): {c['energy_kwh']:.2f} kWh "
+            + (f"\nsecond method ({c['method']}, {c['lgr_points']:,} LGR points): {c['energy_kwh']:.2f} kWh "
                f"within {within_percent(c['accuracy_percent'])}; E* - it = {c['difference_percent']:+.3f} %"
                if (c := row.get("check")) else ""))

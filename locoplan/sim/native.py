@@ -50,6 +50,8 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
+    "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
+                      ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "i8[:]", _A1, "i8[:]", _A1, "i8[:]")),
     "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
     "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
 }
@@ -127,7 +129,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, ``band_factor``, ``band_solve``)."""
+    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``)."""
     global _kernels
     if _kernels is None:
         why = "LOCOPLAN_NATIVE=0"
