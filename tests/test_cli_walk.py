@@ -203,3 +203,15 @@ def test_drivers_simulate_shows_count_bar_and_eta_at_80_columns(tmp_path, root):
     bars = [f for f in frames if "mass batches" in f]
     assert any(re.search(r"mass batches [01]/2 ━+ ETA [-:0-9]+ (4200|5200) t, 2 runs", f) for f in bars), bars
     assert max(len(f.rstrip()) for f in frames) <= 80
+
+
+def test_a_grouping_key_of_numbers_is_aligned_as_numbers():
+    """results --by route,planned_time_s: the planned times stand right-aligned like every number, the route left."""
+    from locoplan.reporting.tables import store_summary_table
+
+    base = {"runs": 2, "feasible_runs": 2, "punctual_runs": 2, "energy_mean_kwh": 33.56, "energy_best_kwh": 33.5,
+            "energy_sd_kwh": 0.01, "time_mean_s": 154.9, "time_sd_s": 0.1, "gap_mean_percent": None, "gap_best_percent": None}
+    rows = [{**base, "route": "A", "planned_time_s": 154.8}, {**base, "route": "A line", "planned_time_s": 1830.0}]
+    text = _render(store_summary_table(rows, ["route", "planned_time_s"], "store", 200), 200)
+    lines = [line for line in text.splitlines() if "33.56" in line]
+    assert re.search(r"│ A +│ +154\.8 │", lines[0]) and re.search(r"│ A line +│ +1830\.0 │", lines[1]), lines

@@ -392,8 +392,11 @@ def store_summary_table(rows: list[dict], by: list[str], title: str, width: int 
     table = Table(title=escape(title), title_justify="left")
     heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
              "gap best [%]"]
+    def numeric(key: str) -> bool:  # a grouping key of numbers (planned_time_s) is aligned as numbers are
+        return all(isinstance(r[key], (int, float)) and not isinstance(r[key], bool) for r in rows if r[key] is not None)
+
     for i, h in enumerate(heads):
-        table.add_column(escape(h), justify="left" if i < len(by) else "right")
+        table.add_column(escape(h), justify="left" if i < len(by) and not numeric(by[i]) else "right")
     for r in rows:
         table.add_row(*[escape(str(r[k])) if r[k] is not None else "-" for k in by], str(r["runs"]), str(r["feasible_runs"]),
                       str(r["punctual_runs"]), _num(r["energy_mean_kwh"], ".2f"), _num(r["energy_best_kwh"], ".2f"),
