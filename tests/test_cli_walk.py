@@ -196,8 +196,8 @@ def test_the_title_stands_clear_of_the_station_marks(tmp_path, saved_figures, fr
 def test_drivers_simulate_shows_count_bar_and_eta_at_80_columns(tmp_path, root):
     from test_cli_width import _in_pty
 
-    code, text = _in_pty(["drivers", "simulate", "routes/freight-20km.yaml", "--drivers", "2", "--runs", "1",
-                          "--masses", "4200,5200", "--out", str(tmp_path / "logs")], root)
+    code, text = _in_pty(["drivers", "simulate", "routes/seed000-flat.yaml", "--drivers", "2", "--runs", "1", "--times", "250",
+                          "--masses", "4200,5200", "--out", str(tmp_path / "logs")], root)  # 1.5 km: a few seconds
     frames = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n").splitlines()
     assert code == 0, text
     bars = [f for f in frames if "mass batches" in f]
