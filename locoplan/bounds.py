@@ -115,7 +115,7 @@ def weights(text: str, option: str = "--weights") -> tuple[float, float]:
         raise InputError(Problem(_where(option), option, f"expected two numbers 'w_time,w_energy', got {text!r}")) from None
     if len(parts) != 2 or not all(math.isfinite(x) and x >= 0 for x in parts) or abs(sum(parts) - 1) > 1e-9:
         raise InputError(Problem(_where(option), option, "expected two non-negative weights summing to 1 "
-                                 f"(finite numbers, seed 002 eq. 10), got {text!r}"))
+                                 f"(finite numbers: w_time,w_energy), got {text!r}"))
     return parts[0], parts[1]
 
 
@@ -263,7 +263,7 @@ OPTIONS: dict[str, tuple] = {
     "--cap-kmh": ("float", 1.0, 400.0, False, False, "km/h", "a speed limit"),
     "--leg": ("int", 1, 100_000, False, False, "", "a stop-to-stop leg, 1 = first stop to second"),
     "--load-fraction": ("float", 0.0, 1.0, False, False, "", "the share of each wagon's load limit put on"),
-    "--divisions": ("int", 1, 100, False, False, "", "equal divisions per section (seed 004 uses 8)"),
+    "--divisions": ("int", 1, 100, False, False, "", "equal divisions per section (the patent uses 8)"),
     "--max-order": ("int", 1, 6, False, False, "", "the highest polynomial order tried"),
     "--folds": ("int", 2, 100, False, False, "", "cross-validation folds"),
     "--holdout": ("float", 0.0, 0.9, False, True, "", "the share of the good runs held out of the fit"),

@@ -14,7 +14,8 @@ import typer
 from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out, out, wrote
+from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, guarded, json_out, out,
+                         step_progress, wrote)
 from .reporting.learn_tables import fit_tables, groups_table, sections_table
 from .reporting.tables import fit, sequence_table, show, summary_table
 
@@ -50,8 +51,8 @@ def simulate(route: Path = ROUTE,
     spec = SimulationSpec(route, r, base, vehicles, files, api.positive_numbers(masses, "--masses"),
                           api.positive_numbers(times, "--times") if times else (r.schedule.run_time_s,), drivers, runs, seed,
                           opts, tolerance)
-    with err.status("simulating drivers") as status:
-        summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
+    with step_progress("mass batches", len(spec.masses_t), not as_json) as step:  # one batch per mass
+        summary = simulate_drivers(spec, out_dir, progress=step)
     wrote([summary.out_dir])
     if as_json:
         json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
@@ -68,7 +69,7 @@ def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yam
           max_order: int = typer.Option(4, "--max-order", help="Highest polynomial order tried (chosen by cross-validation)."),
           folds: int = typer.Option(5, "--folds", help="Cross-validation folds (of whole runs)."),
           holdout: float = typer.Option(0.2, "--holdout", help="Share of the good runs held out of the fit, for the fit report."),
-          load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t] (claim 3)."),
+          load_class: float = typer.Option(500.0, "--load-class", help="Width of a load class [t]: good drivers are picked among the runs of one route, planned time and load class."),
           level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
           stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL_NO_STRICT):
     """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.

@@ -150,7 +150,7 @@ def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help
         for table in study_tables(study):
             show(out, fit(table, out.width, drop=(9, 8, 2)))
         ratios = ratio_table(study)
-        n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, seed mean, seed claim
+        n = len(ratios.columns) - 5  # per-test columns 2 .. n+1, then mean, paper mean, paper claim
         show(out, fit(ratios, out.width, drop=(n + 4, n + 3, *range(n + 1, 1, -1))))  # the mean stays
         out.print("stage 2 u / x: control parameters / state LG points (segments) of the final NLP", highlight=False)
         for r in study.rows:

@@ -74,7 +74,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     options = options or ModelOptions()
     bounds.seed(seed, "seed")
     if e_min_kwh is not None:
-        bounds.finite(e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+        bounds.finite(e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy whatever the time")
     if tolerance_s is not None:
         bounds.finite(tolerance_s, "tolerance_s", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
     if calculators is not None:

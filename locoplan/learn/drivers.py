@@ -578,7 +578,7 @@ def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
         aim = planned + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -AIM_SPREAD, AIM_SPREAD)
         noise = speed_noise(len(idx), int(math.ceil(3.0 * float(aim.max()) / DT_S)), p.noise_kmh, rng)
         if progress:
-            progress(f"{spec.route.name}: {mass:g} t, {len(idx)} runs")
+            progress(f"{mass:g} t, {len(idx)} runs")  # one batch per mass: all its drivers, runs and times
         _, out = drive_to_schedule(calc, tables, p, aim, noise)
         bad = [(ids[idx[r]], out.failure[r]) for r in range(len(idx)) if out.failure[r]]
         if bad:  # a simulator defect, never a user's mistake: say which run and why

@@ -93,7 +93,7 @@ class LearnSettings:
         from .. import bounds
 
         finite = math.isfinite
-        rules = [("--divisions", 1 <= self.divisions <= 100, "must be 1 .. 100 (equal divisions per section; seed 004 uses 8)"),
+        rules = [("--divisions", 1 <= self.divisions <= 100, "must be 1 .. 100 (equal divisions per section; the patent uses 8)"),
                  ("--max-order", 1 <= self.max_order <= 6, "must be 1..6"),
                  ("--folds", 2 <= self.folds <= 100, "must be 2 .. 100"),
                  ("--holdout", finite(self.holdout_share) and 0 <= self.holdout_share < 0.9, "must be in [0, 0.9)"),

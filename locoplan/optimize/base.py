@@ -230,10 +230,10 @@ class OptimizerParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
-    pop_size: Annotated[int, plausible(*LIMITS["pop_size"], "individuals", "seed 002 uses 50")] = Field(
-        50, ge=2, description="individuals in the population (seed 002 sec. 4.1: 50)")
-    max_iter: Annotated[int, plausible(*LIMITS["max_iter"], "iterations", "seed 002 uses 100")] = Field(
-        100, ge=1, description="iterations (seed 002 sec. 4.1: 100)")
+    pop_size: Annotated[int, plausible(*LIMITS["pop_size"], "individuals", "the ISSA paper uses 50")] = Field(
+        50, ge=2, description="individuals in the population (the ISSA paper: 50)")
+    max_iter: Annotated[int, plausible(*LIMITS["max_iter"], "iterations", "the ISSA paper uses 100")] = Field(
+        100, ge=1, description="iterations (the ISSA paper: 100)")
     max_sample_batches: Annotated[int, plausible(*LIMITS["max_sample_batches"], "batches",
                                                  "each batch is a population's worth of traction calculations")] = Field(
         20, ge=1, description="sample batches tried when refilling with feasible candidates before giving up"
@@ -244,7 +244,7 @@ class OptimizerParams(BaseModel):
         n = self.pop_size * self.max_iter
         if n > LIMITS["evaluations"]:
             raise RuleViolations([(("pop_size",), f"pop_size x max_iter = {n:,} evaluations is more than the limit of "
-                                   f"{LIMITS['evaluations']:,} (seed 002: 50 x 100 = 5,000; a run of the limit takes "
+                                   f"{LIMITS['evaluations']:,} (the ISSA paper: 50 x 100 = 5,000; a run of the limit takes "
                                    "about an hour on a 20 km line)")])
         return self
 

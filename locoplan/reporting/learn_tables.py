@@ -1,4 +1,4 @@
-"""Tables of seed 004's commands: ``drivers simulate`` (the synthetic runs), ``learn`` (the good
+"""Tables of the pattern-curve commands: ``drivers simulate`` (the synthetic runs), ``learn`` (the good
 drivers and the fit report) and ``advise`` (the sections of the advice)."""
 
 from __future__ import annotations
@@ -19,14 +19,17 @@ def groups_table(title: str, groups: list[dict]) -> Table:
 
 def fit_tables(report: dict) -> list[Table]:
     data = report["data"]
-    t1 = Table(title=escape(f"good drivers (claim 3): {data['good_runs']} good runs of {data['runs']} "
-                            f"({data['synthetic_runs']} synthetic), {data['drivers']} drivers"), title_justify="left")
-    for col in ("route", "mass [t]", "planned [s]", "runs", "drivers", "good drivers", "good runs",
-                "mean E [kWh]", "good mean E", "best E"):
+    routes = {g["route"] for g in data["groups"]}
+    one_route = len(routes) == 1  # then the route is named once, in the title, not in every row
+    t1 = Table(title=escape(f"good drivers: {data['good_runs']} good runs of {data['runs']} "
+                            f"({data['synthetic_runs']} synthetic), {data['drivers']} drivers"
+                            + (f"; route {next(iter(routes))}" if one_route else "")), title_justify="left")
+    for col in (() if one_route else ("route",)) + ("mass [t]", "planned [s]", "runs", "drivers", "good drivers",
+                                                    "good runs", "mean E [kWh]", "good mean E", "best E"):
         t1.add_column(escape(col), justify="left" if col == "route" else "right")
     for g in data["groups"]:
-        t1.add_row(g["route"], f"{g['mean_mass_t']:g}", f"{g['scheduled_time_s']:g}", str(g["runs"]), str(g["drivers"]),
-                   str(g["good_drivers"]), str(g["good_runs"]), f"{g['mean_energy_kwh']:.1f}",
+        t1.add_row(*(() if one_route else (escape(g["route"]),)), f"{g['mean_mass_t']:g}", f"{g['scheduled_time_s']:g}",
+                   str(g["runs"]), str(g["drivers"]), str(g["good_drivers"]), str(g["good_runs"]), f"{g['mean_energy_kwh']:.1f}",
                    "-" if g["good_mean_energy_kwh"] is None else f"{g['good_mean_energy_kwh']:.1f}", f"{g['best_energy_kwh']:.1f}")
     up, lo = report["upper"], report["lower"]
     t2 = Table(title=escape("order by cross-validation (folds of whole runs); CV error: share (upper), km/h (lower)"),

@@ -32,7 +32,7 @@ def write_ocp_output(path: str | Path, run: OcpRun) -> None:
 
 
 STUDY_COLUMNS = ("table", "method", "test", "u / x nodes", "stage 2 u / x", "objective", "re-simulated",
-                 "- exact", "solve time", "confirmed", "seed objective", "seed solve time")
+                 "- exact", "solve time", "confirmed", "paper's objective", "paper's solve time")
 """Column heads of :func:`study_cells` (times in s)."""
 
 
@@ -47,7 +47,7 @@ def study_cells(row: dict) -> list[str]:
         st2 = f"{row['final_control_nodes']} / {row['final_state_nodes']}, {row['segments']} seg."
     seed_n = row.get("seed_stage2_nodes")
     if seed_n:
-        st2 += f" (seed {seed_n[0]} / {seed_n[1]})"
+        st2 += f" (paper {seed_n[0]} / {seed_n[1]})"
     return [
         str(row["table"]), row["label"], str(row["test"]), nodes, st2,
         f(row["objective"], 3), f(row["resimulated_running_time_s"], 3),
@@ -62,7 +62,7 @@ def study_markdown(study: Study) -> str:
     """The study as markdown: the table, the exact minima, the ratios, and why rows are unconfirmed."""
     heads = ["Table", "method", "test", "u / x nodes", "stage-2 u / x nodes", "objective [s]",
              "re-simulated [s]", "objective - exact [s]", "solve time [s]", "confirmed",
-             "seed objective [s]", "seed solve time [s]"]
+             "paper's objective [s]", "paper's solve time [s]"]
     lines = ["| " + " | ".join(heads) + " |", "|" + "|".join(["---"] * len(heads)) + "|"]
     for row in study.rows:
         lines.append("| " + " | ".join(study_cells(row)) + " |")
@@ -70,8 +70,8 @@ def study_markdown(study: Study) -> str:
     lines.append("Exact minimum (accelerate / cruise / brake, `scipy.integrate.quad`): "
                  + ", ".join(f"Table {k}: {v:.4f} s" for k, v in study.exact.items()) + ".")
     lines.append("")
-    lines.append("| two-stage | faster than | per pair (Table-test: measured % / seed %) | mean measured | "
-                 "mean of the seed's tables | seed's claim |")
+    lines.append("| two-stage | faster than | per pair (Table-test: measured % / the paper's %) | mean measured | "
+                 "mean of the paper's tables | the paper's claim |")
     lines.append("|---|---|---|---|---|---|")
     for r in study.ratios:
         pairs = ", ".join(f"{p['table']}-{p['test']}: {p['percent']:.1f} / {p['seed_percent']:.1f}"

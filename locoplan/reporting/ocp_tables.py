@@ -39,16 +39,16 @@ def time_summary_table(s: dict, width: int = 80) -> list:
 
 
 _STUDY_HEADS = ("method", "u / x", "stage 2 u / x", "objective", "re-sim.", "- exact", "solve", "ok",
-                "seed obj.", "seed solve")
+                "paper obj.", "paper solve")
 
 
 def study_tables(study) -> list[Table]:
-    """One compact table per seed table (2: level, 3: 30 per mille); full columns are in --out .md."""
+    """One compact table per table of the paper (2: level, 3: 30 per mille); full columns are in --out .md."""
     tables = []
     for tab in sorted({r["table"] for r in study.rows}):
         rows = [r for r in study.rows if r["table"] == tab]
         grade = rows[0]["gradient_permille"]
-        table = Table(title=f"Seed 000 Table {tab} ({'level' if grade == 0 else format(grade, 'g') + ' ‰'}, exact "
+        table = Table(title=f"Table {tab} of the paper ({'level' if grade == 0 else format(grade, 'g') + ' ‰'}, exact "
                             f"minimum {study.exact[tab]:.4f} s): times in s, solve = median of {study.repeats}",
                       title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
         for col in _STUDY_HEADS:
@@ -68,13 +68,13 @@ def study_tables(study) -> list[Table]:
 
 def ratio_table(study) -> Table:
     pairs = [(p["table"], p["test"]) for p in study.ratios[0]["per_test"]] if study.ratios else []
-    table = Table(title="solve-time reduction of two-stage in per cent: measured here (seed's Tables)",
+    table = Table(title="solve-time reduction of two-stage in per cent: measured here (the paper's tables)",
                   title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, padding=(0, 1))
     table.add_column("two-stage")
     table.add_column("vs")
     for tab, test in pairs:
         table.add_column(f"T{tab} test {test}", justify="right")
-    for col in ("mean", "seed mean", "seed claim"):
+    for col in ("mean", "paper mean", "paper claim"):
         table.add_column(col, justify="right")
     for r in study.ratios:
         cells = [f"{p['percent']:.1f} ({p['seed_percent']:.1f})" for p in r["per_test"]]
@@ -88,7 +88,7 @@ def energy_summary_table(s: dict, width: int = 80) -> list:
     mesh = s["mesh"]
     confirmed = "[green]yes[/]" if s["feasible"] else f"[red]no[/] ({escape(s['reason'] or '')})"
     rows = [
-        ("method", f"multi-phase Radau (LGR) collocation, hp mesh refinement (seed 001, {s['strategy'].upper()})"),
+        ("method", f"multi-phase Radau (LGR) collocation, hp mesh refinement ({s['strategy'].upper()})"),
         ("problem", f"minimum {s['energy_model']}; {s['phases']} phases; neutral sections: {s['neutral_sections']}"
                     + (f"; comfort {s['comfort_ms2']:g} m/s²" if s.get("comfort_ms2") else "")),
         ("planned time", f"{s['planned_time_s']:g} s (fastest run {s['fastest_time_s']:.1f} s)"),

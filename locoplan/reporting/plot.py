@@ -24,7 +24,7 @@ def check_plot_path(path: str | Path) -> Path:
     return path
 
 
-FITNESS = "best fitness (eq. 10)"
+FITNESS = "best fitness"
 ENERGY = "best traction energy [kWh]"
 """What a convergence history measures (``histories`` items' third element; fitness when absent)."""
 
@@ -61,7 +61,7 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     import matplotlib.pyplot as plt
 
     if histories:
-        # one convergence panel per quantity: a fitness (eq. 10, no unit) and an energy [kWh] never share an axis
+        # one convergence panel per quantity: a fitness (no unit) and an energy [kWh] never share an axis
         groups: dict[str, list] = {}
         for item in histories:
             label, hist = item[0], item[1]
@@ -75,8 +75,10 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
             axc = fig.add_subplot(grid[2, k])
             for label, hist, final in items:
                 colour = _colour(label, profiles)
-                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, label=label, color=colour)
-                if final is not None and np.isfinite(final):
+                searched = final is not None and np.isfinite(final)
+                axc.plot(np.arange(1, len(hist) + 1), hist, lw=1.5, color=colour,
+                         label=f"{label} (best per iteration, search grid)" if searched else label)
+                if searched:
                     # the search runs on a coarser grid: the value reported (re-simulated on the reporting
                     # grid, as in the table) ends the curve, so figure and table agree
                     axc.plot([len(hist)], [final], "o", color=colour, ms=5,
@@ -84,7 +86,10 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
             axc.set_xlabel("iteration")
             axc.set_ylabel(quantity)
             axc.grid(alpha=0.3)
-            axc.legend(fontsize=8)
+            if len(groups) == 1:  # beside, as above
+                axc.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
+            else:  # panels side by side: inside, where matplotlib finds the fewest points
+                axc.legend(loc="best", fontsize=8)
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     draw_profiles(ax, axg, profiles, title, route)
@@ -138,6 +143,9 @@ def mark_line(ax, axg, route) -> None:
         ax.axvline(at / 1000, color="black", lw=1.0, ls=":", label="station (stop)" if k == 0 else None)
         ax.annotate("▼", (at / 1000, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=9)
 
+
+STATION_TITLE_PAD = 15
+"""Title pad [pt] over a panel whose stations are marked: the ▼ above the axes stays clear of the title."""
 
 TRAIN_LIMIT = "speed limit for the train (held until its tail clears)"
 FILE_LIMIT = "speed limit (route file)"
@@ -209,7 +217,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
             ax.plot(s_km, v, lw=1.6, label=label, color=_colour(label, profiles))
     ax.set_ylabel("speed [km/h]")
     ax.set_ylim(0, max(float(ref.limit_kmh.max()), max(float(np.nanmax(p.v_kmh)) for _, p in profiles)) * 1.12)
-    ax.set_title(title, wrap=True)
+    ax.set_title(title, wrap=True, pad=STATION_TITLE_PAD if route is not None else None)
     ax.grid(alpha=0.3)
     # beside the axes, never over the limit line
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)

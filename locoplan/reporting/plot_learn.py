@@ -58,7 +58,7 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
     top = max(ax_up.get_xlim()[1], ax_up.get_ylim()[1])
     ax_up.plot([0, top], [0, top], color="black", lw=0.8)
     rep = pat.report.get("heldout", {}).get("upper", {})
-    ax_up.set_title(f"upper layer (eq. I): held-out R² {rep.get('r2', float('nan')):.3f}", fontsize=10)
+    ax_up.set_title(f"upper layer (time shares): held-out R² {rep.get('r2', float('nan')):.3f}", fontsize=10)
     ax_up.set_xlabel("logged time share")
     ax_up.set_ylabel("learned time share")
     ax_up.legend(fontsize=8)
@@ -75,7 +75,7 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
     shares = pat.shares(line, mass, t0)
     x, v = _flat(line, pat.speeds(line, mass, t0, shares))
     fine = np.linspace(0, line.route.length_m, 800)
-    ax_v.plot(fine / 1000, smooth_curve(x, v)(fine), color="#d62728", lw=2, label="learned pattern (eq. II, chained)")
+    ax_v.plot(fine / 1000, smooth_curve(x, v)(fine), color="#d62728", lw=2, label="learned pattern (lower layer, chained)")
     ax_v.plot(x / 1000, v, "o", color="#d62728", ms=3)
     draw_limits(ax_v, line.calc.s_m, line.calc.limit_kmh, line.route)
     for sec in line.sections:

@@ -58,9 +58,14 @@ def _node_controls(solution) -> tuple[np.ndarray, np.ndarray]:
     return t, u
 
 
+def _legend_beside(ax) -> None:
+    """The legend right of the axes, where it covers no line (the bounds and the limit run the whole width)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0)
+
+
 def plot_run(path, run, title: str | None = None) -> None:
     """Draw one :class:`~locoplan.ocp.min_time_run.OcpRun`: ``F_u`` [kN], ``v`` [km/h] and ``s`` [km] against
-    time [s] (km/h and km like every plot of locoplan; the seed's own figures use m/s and m). ``.png`` or ``.svg`` by extension, written whole or not at all."""
+    time [s] (km/h and km like every plot of locoplan; the paper's own figures use m/s and m). ``.png`` or ``.svg`` by extension, written whole or not at all."""
     path, fmt = _figure_path(path)
     plt = _pyplot()
     p, sol, rs, ex = run.problem, run.solution, run.resimulation, run.exact
@@ -86,7 +91,7 @@ def plot_run(path, run, title: str | None = None) -> None:
     span = p.f_max_kn + p.b_max_kn
     ax_u.set_ylim(-p.b_max_kn - 0.15 * span, p.f_max_kn + 0.15 * span)
     ax_u.set_ylabel("F_u [kN]")
-    ax_u.legend(loc="upper right", fontsize=7, ncol=2)
+    _legend_beside(ax_u)
     ax_u.grid(alpha=0.3)
 
     ax_v.axhline(p.speed_limit_kmh, color="black", lw=0.8, ls="--",
@@ -95,7 +100,7 @@ def plot_run(path, run, title: str | None = None) -> None:
     ax_v.plot(sol.time_s, kmh(np.asarray(sol.speed_ms)), "o", ms=3, color="C1", label="NLP nodes")
     ax_v.set_ylabel("v [km/h]")
     ax_v.set_ylim(0.0, p.speed_limit_kmh * 1.25)
-    ax_v.legend(loc="lower center", fontsize=7, ncol=3)
+    _legend_beside(ax_v)
     ax_v.grid(alpha=0.3)
 
     ax_s.axhline(p.length_m / 1000, color="black", lw=0.8, ls="--", label=f"end {p.length_m / 1000:g} km")
@@ -104,7 +109,7 @@ def plot_run(path, run, title: str | None = None) -> None:
     ax_s.set_ylabel("s [km]")
     ax_s.set_xlabel("t [s]")
     ax_s.set_xlim(0.0, t_end * 1.01)
-    ax_s.legend(loc="lower right", fontsize=7)
+    _legend_beside(ax_s)
     ax_s.grid(alpha=0.3)
 
     s = run.summary
@@ -159,7 +164,7 @@ def plot_study(path, study) -> None:
         ax.set_xticklabels([f"{r['label']}\n{r['control_nodes']}" for r in rows], fontsize=7, rotation=30, ha="right")
         ax.set_ylabel(f"solve time [s] (median of {study.repeats})")
         ax.grid(alpha=0.3, axis="y")
-    fig.suptitle("Seed 000 Tables 2-3 reproduced (hatched: objective not confirmed by re-simulation)", fontsize=11)
+    fig.suptitle("The paper's Tables 2-3 reproduced (hatched: objective not confirmed by re-simulation)", fontsize=11)
     fig.tight_layout()
     _save(fig, path, fmt, plt)
 
@@ -187,7 +192,7 @@ def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
     path, fmt = _figure_path(path)
     plt = _pyplot()
     from ..physics.traction import max_force_kn
-    from .plot import draw_limits, fit_title, mark_line
+    from .plot import STATION_TITLE_PAD, draw_limits, fit_title, mark_line
 
     sol = run.solution.solution
     grid = sol.grid
@@ -231,16 +236,17 @@ def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
     axf.axhline(0, color="black", lw=0.5)
     axf.set_ylabel("force [kN]")
     axf.grid(alpha=0.3)
-    axf.legend(loc="lower right", fontsize=7, ncol=4)
+    axf.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)  # beside: never over the points
     for iv in grid.mesh.intervals:
         axm.axvline(iv.s_a * km, color="#9467bd" if iv.free_start is not None else "#bbbbbb",
                     lw=1.2 if iv.free_start is not None else 0.5)
     axm.plot(s * km, [grid.mesh.intervals[i].n for i in grid.interval_col], ".", color="#2ca02c", ms=3)
     axm.set_ylabel("LGR points\nper interval")
-    axm.set_xlabel("position [km]  (purple: mesh points moved onto switches; yellow: traction cut under a neutral section)")
+    axm.set_xlabel("position [km]  (purple: mesh points moved onto switches"
+                   + ("; yellow: traction cut under a neutral section)" if len(run.tep.spans_m) else ")"))
     axm.grid(alpha=0.3)
     fig.tight_layout()  # the legend beside the axes sets their width; the title is wrapped to it
-    fit_title(ax, title)
+    fit_title(ax, title, **({"pad": STATION_TITLE_PAD} if route is not None else {}))
     fig.tight_layout()
     _save(fig, path, fmt, plt)
 

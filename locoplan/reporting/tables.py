@@ -215,18 +215,18 @@ def summary_table(summary: dict, width: int = 80) -> list:
     if summary.get("planned_time_s") is not None:
         rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
-        rows.append(("fitness (eq. 10)", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
+        rows.append(("fitness", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     acc = summary.get("optimum_accuracy_percent")
     if summary.get("gap_to_optimum_percent") is not None:
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E* (known to {within_percent(acc)}), "
-                     "the least energy in this running time (seed 001)"))
+                     "the least energy in this running time"))
     elif summary.get("gap_to_optimum_kwh") is not None:
         why = ("too little for a percentage" if acc is not None and acc < 0.5 * GAP_DIGIT_PERCENT
                else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
-                     f"the least energy in this running time (seed 001; {why})"))
+                     f"the least energy in this running time ({why})"))
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
 
@@ -245,9 +245,10 @@ def sequence_table(runs: list[dict], width: int = 80) -> list:
 def _wrap_sequence(conds: list[str], room: int = 17) -> str:
     """'T-K-T-C-...' broken after a '-' into lines of at most ``room`` characters."""
     lines, line = [], ""
-    for c in conds:
+    for i, c in enumerate(conds):
         piece = c if not line else f"-{c}"
-        if line and len(line) + len(piece) + 1 > room:  # keep the '-' at the end of the broken line
+        last = i == len(conds) - 1  # the last piece needs no room for a '-' after it
+        if line and len(line) + len(piece) + (0 if last else 1) > room:  # keep the '-' at the end of the broken line
             lines.append(line + "-")
             line = c
         else:
@@ -313,19 +314,19 @@ def explain_tables(seq, width: int = 80) -> list:
     """The limit and grade classification behind the proposed sequence (seed 002 Fig. 2, step 2), and
     the sequence with its nominal switching points (a ``strategy.sequence.build_sequence`` result)."""
     out = []
-    t = Table(title="speed-limit sections (seed 002 Fig. 2)", title_justify="left")
+    t = Table(title="speed-limit sections and their types", title_justify="left")
     for col in ("from [m]", "to [m]", "limit [km/h]", "type"):
         t.add_column(escape(col), justify="right" if col != "type" else "left")
     for s in seq.limits:
         t.add_row(f"{s.from_m:.0f}", f"{s.to_m:.0f}", f"{s.kmh:g}", s.kind)
     out += fit(t, width, wrap=(3,))
-    t = Table(title="grades (seed 002 step 2: can full traction / coasting hold the limit speed?)", title_justify="left")
+    t = Table(title="grades: can full traction / coasting hold the limit speed?", title_justify="left")
     for col in ("from [m]", "to [m]", "equiv. gradient [‰]", "speed change [km/h]", "type"):
         t.add_column(escape(col), justify="right" if col != "type" else "left")
     for g in seq.grades:
         t.add_row(f"{g.from_m:.0f}", f"{g.to_m:.0f}", f"{g.permille:+.2f}", f"{g.speed_change_kmh:+.1f}", g.kind)
     out += fit(t, width, wrap=(4,))
-    out.append(Note("proposed sequence (nominal switching points, seed 002 step 3):"))
+    out.append(Note("proposed sequence (nominal switching points):"))
     out.append(Line(seq.text()))
     return out
 
@@ -355,7 +356,7 @@ def study_table(rows: list[dict], title: str, width: int = 80) -> list:
     """Seed 002 Tables 10-12 from ``runner.study_table`` rows: per optimiser the best and the worst run
     **by fitness** (eq. 10, what the optimisers minimise; the table shows each one's fitness, energy and
     time), means, punctual runs and the punctual run with the least energy."""
-    table = Table(title=escape(title + "; best / worst: by fitness (eq. 10)"), title_justify="left")
+    table = Table(title=escape(title + "; best / worst: by fitness"), title_justify="left")
     heads = ("algorithm", "best fitness", "best's E [kWh]", "best's T [s]", "worst fitness", "worst's E [kWh]",
              "worst's T [s]", "mean fitness", "sd fitness", "mean E [kWh]", "mean T [s]", "on time",
              "least E on time [kWh]", "its T [s]", "mean vs E* [%]", "mean solve [s]")
@@ -391,8 +392,11 @@ def store_summary_table(rows: list[dict], by: list[str], title: str, width: int 
     table = Table(title=escape(title), title_justify="left")
     heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
              "gap best [%]"]
+    def numeric(key: str) -> bool:  # a grouping key of numbers (planned_time_s) is aligned as numbers are
+        return all(isinstance(r[key], (int, float)) and not isinstance(r[key], bool) for r in rows if r[key] is not None)
+
     for i, h in enumerate(heads):
-        table.add_column(escape(h), justify="left" if i < len(by) else "right")
+        table.add_column(escape(h), justify="left" if i < len(by) and not numeric(by[i]) else "right")
     for r in rows:
         table.add_row(*[escape(str(r[k])) if r[k] is not None else "-" for k in by], str(r["runs"]), str(r["feasible_runs"]),
                       str(r["punctual_runs"]), _num(r["energy_mean_kwh"], ".2f"), _num(r["energy_best_kwh"], ".2f"),

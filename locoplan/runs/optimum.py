@@ -39,7 +39,7 @@ def optimum_energy_kwh(route, train, options, time_s: float) -> float | None:
     return None
 
 
-@register_optimum("seed 001 bound (ocp.bound.energy_bound)")
+@register_optimum("minimum-energy optimal control (the bound command)")
 def _seed001_bound(route, train, options, time_s: float) -> float | None:
     from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
 

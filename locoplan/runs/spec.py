@@ -137,7 +137,7 @@ def _check_values(spec: RunSpec) -> None:
     if spec.tolerance_s is not None:
         bounds.finite(spec.tolerance_s, "tolerance_s", 0.0, bounds.LIMITS["time_s"][1], "s", "the punctuality window +-")
     if spec.e_min_kwh is not None:
-        bounds.finite(spec.e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy of eq. 11")
+        bounds.finite(spec.e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy whatever the time")
     w = tuple(spec.weights)
     if len(w) != 2 or not all(isinstance(x, (int, float)) and math.isfinite(x) and x >= 0 for x in w) \
             or abs(sum(w) - 1) > 1e-9:

@@ -181,7 +181,7 @@ def load_study(path: str | Path) -> Study:
         problems.append(Problem(name, "builder", registry.builder_message(study.builder), where("builder")))
     w = study.weights
     if min(w) < 0 or abs(sum(w) - 1) > 1e-9:
-        problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (seed 002 eq. 10), got {list(w)}",
+        problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (w_time, w_energy), got {list(w)}",
                                 where("weights")))
     lo_seed, hi_seed = bounds.LIMITS["seed"]
     for i, seed in enumerate(study.seeds):
