@@ -82,19 +82,28 @@ def band_solve(ab, kl, ku, piv, b):
 
 
 @njit(cache=True)
-def band_assemble(full, bw, pos, blocks, pos_x, diag_x, pos_y, diag_y, fixed_pos):
-    """Fill ``full`` (the storage of :func:`band_factor`, kl = ku = bw, zeroed here) with the sum of the
-    cells' dense blocks (``blocks[k]`` over the unknowns ``pos[k]``), the diagonals ``diag_x`` at ``pos_x``
-    and ``diag_y`` at ``pos_y``, and an identity row and column for each unknown in ``fixed_pos``."""
+def band_assemble(full, bw, pos, hess, grad_g, sig, grad_e, pos_x, diag_x, pos_y, diag_y, fixed_pos):
+    """Fill ``full`` (the storage of :func:`band_factor`, kl = ku = bw, zeroed here) with an interior-point
+    method's KKT matrix for cells with p local variables at the unknowns ``pos[k, :p]`` and one equality
+    whose multiplier is ``pos[k, p]``: per cell the block ``hess[k] + sum_j sig[k, j] grad_g[k, j] grad_g[k, j]'``
+    with ``grad_e[k]`` as its border, plus the diagonals ``diag_x`` at ``pos_x`` and ``diag_y`` at ``pos_y``,
+    and an identity row and column for each unknown in ``fixed_pos``."""
     kv = 2 * bw
     full[:, :] = 0.0
-    n_cells, m = pos.shape
+    n_cells, p = hess.shape[0], hess.shape[1]
+    q = grad_g.shape[1]
     for k in range(n_cells):
-        for a in range(m):
+        iy = pos[k, p]
+        for a in range(p):
             i = pos[k, a]
-            for b in range(m):
+            for b in range(p):
                 j = pos[k, b]
-                full[j, kv + i - j] += blocks[k, a, b]
+                w = hess[k, a, b]
+                for t in range(q):
+                    w += sig[k, t] * grad_g[k, t, a] * grad_g[k, t, b]
+                full[j, kv + i - j] += w
+            full[iy, kv + i - iy] += grad_e[k, a]  # row i, column iy
+            full[i, kv + iy - i] += grad_e[k, a]  # row iy, column i
     for t in range(pos_x.shape[0]):
         j = pos_x[t]
         full[j, kv] += diag_x[t]

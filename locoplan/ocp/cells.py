@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -246,11 +246,19 @@ class CellSolution:
     solve_time_s: float
 
 
-def cell_calculator(route, train, options: ModelOptions, step_m: float) -> TractionCalculator:
-    """The calculator on the E* grid: ``step_m`` cells, graded towards both rest points."""
+def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser: TractionCalculator | None = None
+                    ) -> TractionCalculator:
+    """The calculator on the E* grid: ``step_m`` cells, graded towards both rest points; with ``coarser``,
+    every cell of that grid halved (nested grids: their optima differ by the discretisation alone, not
+    by where the route's breakpoints happen to fall between uniform nodes)."""
     opts = ModelOptions(step_m=step_m, point_mass=options.point_mass, air_brake=options.air_brake,
                         rotating_mass=options.rotating_mass, strict_limits=options.strict_limits)
-    return TractionCalculator(route, train, opts, extra_nodes_m=graded_end_nodes(route.length_m))
+    nodes = graded_end_nodes(route.length_m)
+    if coarser is not None:
+        s = coarser.s_m
+        nodes = np.concatenate([s, 0.5 * (s[1:] + s[:-1])])
+        opts = replace(opts, step_m=2 * step_m)  # its uniform nodes are among the coarser grid's
+    return TractionCalculator(route, train, opts, extra_nodes_m=nodes)
 
 
 def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
@@ -348,8 +356,9 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
     step = float(coarse_step_m)
     sols, steps, cells = [], [], []
     prev = warm
+    calc = None
     while True:
-        calc = cell_calculator(route, train, options, step)
+        calc = cell_calculator(route, train, options, step, coarser=calc)
         start = None
         if prev is not None:
             prob = CellEnergyProblem(calc, time_s)

@@ -75,7 +75,7 @@ class CellDerivatives:
 @dataclass
 class IPMResult:
     """The solution (primal ``x``, equality multipliers ``y``, inequality multipliers ``z`` (N, q), the
-    global inequality's multiplier ``zc``), the objective, whether it converged, the iterations, the
+    global inequality's multiplier ``zc``, the bounds' multipliers ``zl``, ``zu``), the objective, whether it converged, the iterations, the
     final optimality error, the status, and per iteration (error, barrier parameter, primal step,
     dual step, regularisation, objective)."""
 
@@ -83,6 +83,8 @@ class IPMResult:
     y: np.ndarray
     z: np.ndarray
     zc: float
+    zl: np.ndarray
+    zu: np.ndarray
     f: float
     converged: bool
     iterations: int
@@ -172,42 +174,54 @@ class CellIPM:
     def _violation(v: CellValues, s, sc) -> float:
         return float(np.abs(v.e).sum() + np.abs(v.g + s).sum() + abs(v.c + sc))
 
-    def _error(self, v: CellValues, d: CellDerivatives, x, s, sc, y, z, zc, zl, zu, mu) -> float:
-        """IPOPT's scaled optimality error of the barrier problem for ``mu`` (0: of the NLP)."""
+    def _errors(self, v: CellValues, d: CellDerivatives, x, s, sc, y, z, zc, zl, zu, mu) -> tuple[float, float]:
+        """IPOPT's scaled optimality error of the NLP and of the barrier problem for ``mu``."""
         r_d = self._scatter(d.grad_f + d.grad_e * y[:, None] + np.einsum("kqp,kq->kp", d.grad_g, z) + zc * d.grad_c)
         r_d = r_d - zl + zu
         r_d[self.fixed] = 0.0
         prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), abs(v.c + sc))
         dl, du = self._dist(x)
-        comp = max(np.max(np.abs(s * z - mu), initial=0.0), abs(sc * zc - mu),
-                   np.max(np.abs(np.where(self.has_l, dl * zl - mu, 0.0)), initial=0.0),
-                   np.max(np.abs(np.where(self.has_u, du * zu - mu, 0.0)), initial=0.0))
-        n_dual = y.size + z.size + 1 + int(self.has_l.sum()) + int(self.has_u.sum())
-        s_d = max(100.0, (np.abs(y).sum() + z.sum() + zc + zl.sum() + zu.sum()) / n_dual) / 100.0
-        s_c = max(100.0, (z.sum() + zc + zl.sum() + zu.sum()) / max(n_dual - y.size, 1)) / 100.0
-        return max(np.max(np.abs(r_d)) / s_d, prim, comp / s_c)
+        prods = np.concatenate([(s * z).ravel(), [sc * zc], (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        n_dual = y.size + prods.size
+        duals = z.sum() + zc + zl.sum() + zu.sum()
+        s_d = max(100.0, (np.abs(y).sum() + duals) / n_dual) / 100.0
+        s_c = max(100.0, duals / max(prods.size, 1)) / 100.0
+        dual = np.max(np.abs(r_d)) / s_d
+        return (max(dual, prim, np.max(prods) / s_c),
+                max(dual, prim, max(np.max(prods) - mu, mu - np.min(prods)) / s_c))
 
     # ------------------------------------------------------------------ the method
-    def solve(self, x0: np.ndarray, mu_init: float | None = None) -> IPMResult:
-        """Minimise from ``x0`` (pushed inside its bounds); ``mu_init``: the barrier parameter to start at."""
+    def solve(self, x0: np.ndarray, mu_init: float | None = None, warm: "IPMResult | None" = None) -> IPMResult:
+        """Minimise from ``x0`` (pushed inside its bounds); ``mu_init``: the barrier parameter to start at;
+        ``warm``: a solution of a neighbouring problem of the same layout whose multipliers to start from
+        (its primal point should then be ``x0``), with the start pushed only slightly off the bounds."""
         S, p, N = self.set, self.p, self.N
         has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
         loc = p.local
         lb, ub = self._lb, self._ub
         x = np.array(x0, dtype=float)
+        push = S.bound_push if warm is None else 1e-9
         with np.errstate(invalid="ignore"):  # push the start inside the bounds (IPOPT's bound_push)
             span = np.where(has_l & has_u, ub - lb, np.inf)
-        x = np.where(has_l, np.maximum(x, lb + np.minimum(S.bound_push * np.maximum(1.0, np.abs(lb)), 0.49 * span)), x)
-        x = np.where(has_u, np.minimum(x, ub - np.minimum(S.bound_push * np.maximum(1.0, np.abs(ub)), 0.49 * span)), x)
+        x = np.where(has_l, np.maximum(x, lb + np.minimum(push * np.maximum(1.0, np.abs(lb)), 0.49 * span)), x)
+        x = np.where(has_u, np.minimum(x, ub - np.minimum(push * np.maximum(1.0, np.abs(ub)), 0.49 * span)), x)
         x = np.where(fixed, p.lb, x)
         mu = float(mu_init if mu_init is not None else S.mu_init)
         val = p.values(x)
-        s = np.maximum(-val.g, 1e-2)
-        sc = max(-val.c, 1e-2)
-        z, zc, y = mu / s, mu / sc, np.zeros(N)
+        floor = 1e-2 if warm is None else mu
+        s = np.maximum(-val.g, floor)
+        sc = max(-val.c, floor)
         dl, du = self._dist(x)
-        zl = np.where(has_l, mu / dl, 0.0)
-        zu = np.where(has_u, mu / du, 0.0)
+        if warm is None:
+            z, zc, y = mu / s, mu / sc, np.zeros(N)
+            zl = np.where(has_l, mu / dl, 0.0)
+            zu = np.where(has_u, mu / du, 0.0)
+        else:
+            y = warm.y.copy()
+            z = np.maximum(warm.z, mu / s * 1e-2)
+            zc = max(warm.zc, mu / sc * 1e-2)
+            zl = np.where(has_l, np.maximum(warm.zl, mu / dl * 1e-2), 0.0)
+            zu = np.where(has_u, np.maximum(warm.zu, mu / du * 1e-2), 0.0)
         filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
         delta_w_last = 0.0
         full = np.empty((self.size, 3 * self.bw + 1))
@@ -217,7 +231,7 @@ class CellIPM:
         acceptable, f_prev = 0, math.inf
         for it in range(1, S.max_iter + 1):
             der = p.derivatives(x)
-            err0 = self._error(val, der, x, s, sc, y, z, zc, zl, zu, 0.0)
+            err0, err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)
             if err0 <= S.tol:
                 status = "converged"
                 break
@@ -227,20 +241,15 @@ class CellIPM:
             if acceptable >= S.acceptable_iter:
                 status = "acceptable"
                 break
-            while self._error(val, der, x, s, sc, y, z, zc, zl, zu, mu) <= S.kappa_eps * mu and mu > S.tol / 10:
+            while err_mu <= S.kappa_eps * mu and mu > S.tol / 10:
                 mu = max(S.tol / 10, min(S.kappa_mu * mu, mu ** S.theta_mu))
+                err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)[1]
             tau = max(S.tau_min, 1.0 - mu)
             # ---- the Newton system: W dx + A' dy = rhs_x, A dx = -e (slacks and bound multipliers eliminated)
             sig, sig_c = z / s, zc / sc
             dl, du = self._dist(x)
             sig_x = np.where(has_l, zl / dl, 0.0) + np.where(has_u, zu / du, 0.0)
-            hess = p.hessian(x, y, z, zc) + np.einsum("kq,kqa,kqb->kab", sig, der.grad_g, der.grad_g)
-            m = self.np_ + 1
-            blocks = np.empty((N, m, m))
-            blocks[:, :-1, :-1] = hess
-            blocks[:, -1, :-1] = der.grad_e
-            blocks[:, :-1, -1] = der.grad_e
-            blocks[:, -1, -1] = 0.0
+            hess = p.hessian(x, y, z, zc)
             grad_c = self._scatter(der.grad_c)
             grad_f = self._scatter(der.grad_f)
             base_x = (grad_f + self._scatter(der.grad_e * y[:, None]) - np.where(has_l, mu / dl, 0.0)
@@ -258,8 +267,8 @@ class CellIPM:
             first = rhs(val.e, r_g0, r_c0)
             delta_w, delta_c = 0.0, 0.0
             for _attempt in range(25):
-                K.band_assemble(full, self.bw, self.pos, blocks, self.pos_x, sig_x + delta_w, self.pos_y,
-                                np.full(N, -delta_c), self.fixed_pos)
+                K.band_assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
+                                self.pos_y, np.full(N, -delta_c), self.fixed_pos)
                 if K.band_factor(full, self.bw, self.bw, piv) == 0:
                     sol = np.column_stack([first, a_vec])
                     K.band_solve(full, self.bw, self.bw, piv, sol)
@@ -279,8 +288,9 @@ class CellIPM:
                     dx = d[self.pos_x]
                     if np.all(np.isfinite(d)):
                         dloc = dx[loc]
-                        curv = (np.einsum("ka,kab,kb->", dloc, hess, dloc) + _dot(sig_x + delta_w, dx * dx)
-                                + sig_c * _dot(grad_c, dx) ** 2)
+                        jd = np.einsum("kqp,kp->kq", der.grad_g, dloc)
+                        curv = (np.einsum("ka,kab,kb->", dloc, hess, dloc) + np.einsum("kq,kq->", sig, jd * jd)
+                                + _dot(sig_x + delta_w, dx * dx) + sig_c * _dot(grad_c, dx) ** 2)
                         if curv >= S.curvature * _dot(dx, dx):
                             break
                 else:
@@ -379,5 +389,5 @@ class CellIPM:
             dl, du = self._dist(x)
             zl = np.where(has_l, np.clip(zl, mu / (ks * dl), ks * mu / dl), 0.0)
             zu = np.where(has_u, np.clip(zu, mu / (ks * du), ks * mu / du), 0.0)
-        return IPMResult(x, y, z, float(zc), float(val.f), status in ("converged", "acceptable"), it, float(err0),
+        return IPMResult(x, y, z, float(zc), zl, zu, float(val.f), status in ("converged", "acceptable"), it, float(err0),
                          status, trace)

@@ -72,10 +72,12 @@ def piecewise_linear_rounded(x, xs, ys, width: float):
     x = np.asarray(x, dtype=float)
     slopes = np.concatenate([[0.0], np.diff(ys) / np.diff(xs), [0.0]])
     dslope = np.diff(slopes)  # at each point
-    value = np.interp(x, xs, ys)
-    slope = slopes[np.searchsorted(xs, x, side="right")]
-    j = np.clip(np.searchsorted(xs, x), 0, len(xs) - 1)  # the nearest point: j or j - 1
-    j = np.where((j > 0) & (np.abs(x - xs[j - 1]) < np.abs(x - xs[j])), j - 1, j)
+    i = np.searchsorted(xs, x, side="right")  # x in [xs[i-1], xs[i]): the segment's slope is slopes[i]
+    left = np.maximum(i - 1, 0)
+    slope = slopes[i]
+    value = np.where(i > 0, ys[left] + slope * (x - xs[left]), ys[0])
+    right = np.minimum(i, len(xs) - 1)
+    j = np.where((i > 0) & (np.abs(x - xs[left]) <= np.abs(x - xs[right])), left, right)  # the nearest point
     t = x - xs[j]
     half = 0.5 * width
     near = np.abs(t) < half

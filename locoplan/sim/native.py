@@ -51,7 +51,8 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
-                      ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "i8[:]", _A1, "i8[:]", _A1, "i8[:]")),
+                      ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
+                       "i8[:]", _A1, "i8[:]")),
     "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
     "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
 }
