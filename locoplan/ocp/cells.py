@@ -151,9 +151,12 @@ class CellEnergyProblem:
 
     @staticmethod
     def _vm_derivatives(P):
-        p, q, vm = P["p"], P["q"], P["vm"]
-        return (p / (2 * vm), q / (2 * vm), 1 / (2 * vm) - p * p / (4 * vm ** 3), -p * q / (4 * vm ** 3),
-                1 / (2 * vm) - q * q / (4 * vm ** 3))
+        """d vm / d(v_k, v_k+1) and the second derivatives (pp, pq, qq), kept with the point's physics."""
+        if "vm_d" not in P:
+            p, q, vm = P["p"], P["q"], P["vm"]
+            i2, i4 = 1 / (2 * vm), 1 / (4 * vm ** 3)
+            P["vm_d"] = (p * i2, q * i2, i2 - p * p * i4, -p * q * i4, i2 - q * q * i4)
+        return P["vm_d"]
 
     def values(self, x: np.ndarray) -> CellValues:
         P = self._physics(x)
@@ -283,6 +286,8 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
     prob = CellEnergyProblem(calc, time_s)
     v0 = initial_speeds(calc, time_s) if start is None else start
     x0 = prob.start_from_profile(v0)
+    if settings is None:  # near an optimum (a start from a solution): the adaptive barrier rule
+        settings = IPMSettings(mu_strategy="monotone" if start is None else "adaptive")
     res = CellIPM(prob, settings).solve(x0, mu_init=mu_init)
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "

@@ -105,6 +105,14 @@ class IPMSettings:
     where Newton's method cannot reach ``tol`` (a force curve's slope changing fast right at the optimum's
     speed) while the optimum itself has settled (IPOPT's acceptable level)."""
     max_iter: int = 300
+    mu_strategy: str = "monotone"
+    """"monotone" (Fiacco-McCormick, IPOPT's default) or "adaptive": the barrier parameter of each step
+    from Mehrotra's probing (the affine-scaling step's complementarity, sigma = (mu_aff / mu)^3, at least
+    0.1), falling back to "monotone" when the optimality error stops falling or a step is not accepted
+    (IPOPT's mu_strategy adaptive with mu_oracle probing). Adaptive takes 20-35 % fewer iterations from a
+    start near the optimum (the finer grid from the coarser), monotone fewer from a cold start, which
+    lies far from the central path (there the probing asks for too little centring and the steps
+    shrink to a few per cent)."""
     mu_init: float = 1e-1
     kappa_eps: float = 10.0
     kappa_mu: float = 0.2
@@ -190,6 +198,11 @@ class CellIPM:
         return (max(dual, prim, np.max(prods) / s_c),
                 max(dual, prim, max(np.max(prods) - mu, mu - np.min(prods)) / s_c))
 
+    def _mean_complementarity(self, x, s, sc, z, zc, zl, zu) -> float:
+        dl, du = self._dist(x)
+        prods = np.concatenate([(s * z).ravel(), [sc * zc], (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        return float(prods.mean())
+
     # ------------------------------------------------------------------ the method
     def solve(self, x0: np.ndarray, mu_init: float | None = None, warm: "IPMResult | None" = None) -> IPMResult:
         """Minimise from ``x0`` (pushed inside its bounds); ``mu_init``: the barrier parameter to start at;
@@ -223,12 +236,14 @@ class CellIPM:
             zl = np.where(has_l, np.maximum(warm.zl, mu / dl * 1e-2), 0.0)
             zu = np.where(has_u, np.maximum(warm.zu, mu / du * 1e-2), 0.0)
         filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
-        delta_w_last = 0.0
+        delta_w_last, needed_last = 0.0, False
         full = np.empty((self.size, 3 * self.bw + 1))
         piv = np.empty(self.size, dtype=np.int64)
         K = kernels()
         status, trace, it, err0 = "max_iter", [], 0, math.inf
         acceptable, f_prev = 0, math.inf
+        adaptive = S.mu_strategy == "adaptive"
+        errs: list[float] = []
         for it in range(1, S.max_iter + 1):
             der = p.derivatives(x)
             err0, err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)
@@ -236,15 +251,19 @@ class CellIPM:
                 status = "converged"
                 break
             settled = abs(val.f - f_prev) <= S.acceptable_obj_change * max(1.0, abs(val.f))
-            acceptable = acceptable + 1 if err0 <= S.acceptable_tol and mu <= S.tol and settled else 0
+            acceptable = acceptable + 1 if err0 <= S.acceptable_tol and (mu <= S.tol or adaptive) and settled else 0
             f_prev = val.f
             if acceptable >= S.acceptable_iter:
                 status = "acceptable"
                 break
-            while err_mu <= S.kappa_eps * mu and mu > S.tol / 10:
+            errs.append(err0)
+            if adaptive and len(errs) > 12 and err0 > 0.9999 * errs[-5]:  # no progress: the monotone rule
+                adaptive = False
+                mu = max(S.tol / 10, 0.8 * self._mean_complementarity(x, s, sc, z, zc, zl, zu))
+                err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)[1]
+            while not adaptive and err_mu <= S.kappa_eps * mu and mu > S.tol / 10:
                 mu = max(S.tol / 10, min(S.kappa_mu * mu, mu ** S.theta_mu))
                 err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)[1]
-            tau = max(S.tau_min, 1.0 - mu)
             # ---- the Newton system: W dx + A' dy = rhs_x, A dx = -e (slacks and bound multipliers eliminated)
             sig, sig_c = z / s, zc / sc
             dl, du = self._dist(x)
@@ -252,20 +271,24 @@ class CellIPM:
             hess = p.hessian(x, y, z, zc)
             grad_c = self._scatter(der.grad_c)
             grad_f = self._scatter(der.grad_f)
-            base_x = (grad_f + self._scatter(der.grad_e * y[:, None]) - np.where(has_l, mu / dl, 0.0)
-                      + np.where(has_u, mu / du, 0.0))
+            base_x = grad_f + self._scatter(der.grad_e * y[:, None])
+            bound_x = np.where(has_u, 1 / du, 0.0) - np.where(has_l, 1 / dl, 0.0)
             a_vec = self._to_kkt(np.where(fixed, 0.0, grad_c), np.zeros(N))
 
-            def rhs(r_e, r_g, r_c):
-                """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc."""
-                rx = -(base_x + self._scatter(np.einsum("kqp,kq->kp", der.grad_g, mu / s + sig * r_g))
-                       + grad_c * (mu / sc + sig_c * r_c))
+            def rhs(r_e, r_g, r_c, mu_):
+                """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc, and the
+                barrier parameter mu_."""
+                rx = -(base_x + mu_ * bound_x + self._scatter(np.einsum("kqp,kq->kp", der.grad_g, mu_ / s + sig * r_g))
+                       + grad_c * (mu_ / sc + sig_c * r_c))
                 rx[fixed] = 0.0
                 return self._to_kkt(rx, -r_e)
 
             r_g0, r_c0 = val.g + s, val.c + sc
-            first = rhs(val.e, r_g0, r_c0)
-            delta_w, delta_c = 0.0, 0.0
+            first = rhs(val.e, r_g0, r_c0, 0.0 if adaptive else mu)
+            # where the last step needed a regularisation, start from a third of it (IPOPT tries 0 first:
+            # here the reduced Hessian stays indefinite for many iterations in a row, and each try costs a
+            # factorisation)
+            delta_w, delta_c = (delta_w_last / 3 if delta_w_last > 0 and needed_last else 0.0), 0.0
             for _attempt in range(25):
                 K.band_assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
                                 self.pos_y, np.full(N, -delta_c), self.fixed_pos)
@@ -300,24 +323,41 @@ class CellIPM:
             else:
                 status = "singular"
                 break
+            needed_last = delta_w > 0
             delta_w_last = delta_w if delta_w > 0 else delta_w_last
-            dy = d[self.pos_y]
 
             def slack_steps(dx, r_g, r_c):
                 return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - _dot(grad_c, dx)
 
-            def primal_step(dx, ds, dsc):
+            def primal_step(dx, ds, dsc, tau):
                 return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(np.array([sc]), np.array([dsc]), tau),
                            _max_step(dl[has_l], dx[has_l], tau), _max_step(du[has_u], -dx[has_u], tau))
 
+            def dual_steps(dx, ds, dsc, mu_):
+                return (mu_ / s - z - sig * ds, mu_ / sc - zc - sig_c * dsc,
+                        np.where(has_l, mu_ / dl - zl - (zl / dl) * dx, 0.0),
+                        np.where(has_u, mu_ / du - zu + (zu / du) * dx, 0.0))
+
+            def dual_step(dz, dzc, dzl, dzu, tau):
+                return min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(np.array([zc]), np.array([dzc]), tau),
+                           _max_step(zl[has_l], dzl[has_l], tau), _max_step(zu[has_u], dzu[has_u], tau))
+
+            if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
+                ds_a, dsc_a = slack_steps(dx, r_g0, r_c0)
+                dz_a, dzc_a, dzl_a, dzu_a = dual_steps(dx, ds_a, dsc_a, 0.0)
+                ap, ad = primal_step(dx, ds_a, dsc_a, 1.0), dual_step(dz_a, dzc_a, dzl_a, dzu_a, 1.0)
+                mu_avg = self._mean_complementarity(x, s, sc, z, zc, zl, zu)
+                mu_aff = self._mean_complementarity(x + ap * dx, s + ap * ds_a, sc + ap * dsc_a, z + ad * dz_a,
+                                                    zc + ad * dzc_a, zl + ad * dzl_a, zu + ad * dzu_a)
+                mu = max(S.tol / 10, min(max((mu_aff / mu_avg) ** 3, 0.1), 1.0) * mu_avg)
+                d = direction(rhs(val.e, r_g0, r_c0, mu))
+                dx = d[self.pos_x]
+            tau = max(S.tau_min, 1.0 - mu)
+            dy = d[self.pos_y]
             ds, dsc = slack_steps(dx, r_g0, r_c0)
-            dz = mu / s - z - sig * ds
-            dzc = mu / sc - zc - sig_c * dsc
-            dzl = np.where(has_l, mu / dl - zl - (zl / dl) * dx, 0.0)
-            dzu = np.where(has_u, mu / du - zu + (zu / du) * dx, 0.0)
-            a_p = primal_step(dx, ds, dsc)
-            a_d = min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(np.array([zc]), np.array([dzc]), tau),
-                      _max_step(zl[has_l], dzl[has_l], tau), _max_step(zu[has_u], dzu[has_u], tau))
+            dz, dzc, dzl, dzu = dual_steps(dx, ds, dsc, mu)
+            a_p = primal_step(dx, ds, dsc, tau)
+            a_d = dual_step(dz, dzc, dzl, dzu, tau)
             # ---- filter line search with second-order corrections
             phi0, theta0 = self._barrier(val, x, s, sc, mu), self._violation(val, s, sc)
             if mu != filter_mu:  # a new barrier problem: a new filter
@@ -352,10 +392,10 @@ class CellIPM:
                     c_e, c_g, c_c = alpha * val.e + vn.e, alpha * r_g0 + (vn.g + sn), alpha * r_c0 + (vn.c + scn)
                     theta_soc = theta0
                     for _ in range(S.max_soc):  # second-order corrections of the full step
-                        d_soc = direction(rhs(c_e, c_g, c_c))
+                        d_soc = direction(rhs(c_e, c_g, c_c, mu))
                         dx_s = d_soc[self.pos_x]
                         ds_s, dsc_s = slack_steps(dx_s, c_g, c_c)
-                        a_s = primal_step(dx_s, ds_s, dsc_s)
+                        a_s = primal_step(dx_s, ds_s, dsc_s, tau)
                         xs_, ss_, scs_ = x + a_s * dx_s, s + a_s * ds_s, sc + a_s * dsc_s
                         vs = p.values(xs_)
                         accepted, f_type = judge(vs, xs_, ss_, scs_, alpha)
@@ -371,6 +411,9 @@ class CellIPM:
                     if accepted:
                         break
                 alpha *= 0.5
+            if not accepted and adaptive:  # the adaptive rule lost its way: the monotone one from here
+                adaptive = False
+                mu = max(S.tol / 10, 0.8 * self._mean_complementarity(x, s, sc, z, zc, zl, zu))
             if not accepted:  # a short step anyway (IPOPT would restore feasibility here)
                 alpha = min(a_p, 1e-3)
                 xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
