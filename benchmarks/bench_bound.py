@@ -1,18 +1,19 @@
 """E* (the least traction energy in a running time): its cost against line length, its accuracy, and
 two independent methods side by side.
 
-    python benchmarks/bench_bound.py [--lengths 20,50,100,300] [--check-lengths 20,50] [--lines 10]
-                                     [--real] [--commands] [--point-mass] [--no-air-brake] [--factor 1.15]
+    taskset -c 0 python benchmarks/bench_bound.py [--lengths 20,50,100,300] [--check-lengths 20,50]
+        [--lines 10] [--real] [--commands] [--point-mass] [--no-air-brake] [--factor 1.15]
 
 Part 1, lines: routes/freight-20km.yaml for 20, else the real lines joined end to end as
 benchmarks/scaling.py builds them; HXD1 + 50 x C80; T = factor x the fastest run; each E* solved cold
-(an empty LOCOPLAN_CACHE_DIR, no warm start): the Radau solver's wall time, whether the mesh tolerance
-was met, E*'s estimated accuracy, and on the --check-lengths the second method (trapezoidal collocation
-on 10 and 5 m grids, locoplan/ocp/trapezoid.py) and the difference.
+(an empty LOCOPLAN_CACHE_DIR, no warm start): the cell solver's wall time (ocp/cells.py), whether its
+grids agreed to the tolerance, E*'s estimated accuracy, the cells of the finest grid, and on the
+--check-lengths the second method (multi-phase Radau collocation with hp refinement, ocp/energy.py)
+and the difference.
 Part 2 (--lines N, --real): the two methods on N lines of benchmarks/random_lines.py (random trains,
 seed 7) and on the shipped real lines (HXD1 + 50 x C80): the largest difference.
 Part 3 (--commands): wall time of `locoplan optimize` on the 100 km line and of a 20-point
-`locoplan bound --times` on the 50 km line, cold caches.
+`locoplan bound --times` on the 50 km line, cold E* caches (the compiled kernels of this machine kept).
 """
 
 from __future__ import annotations
@@ -36,7 +37,6 @@ from scaling import joined_route  # noqa: E402
 from locoplan.errors import LocoplanError  # noqa: E402
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp import bound as bound_mod  # noqa: E402
-from locoplan.ocp.trapezoid import trapezoid_energy  # noqa: E402
 from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
 
 
@@ -64,7 +64,7 @@ def pct(x):
 def part_lines(args, train, options) -> None:
     checks = {float(x) for x in args.check_lengths.split(",") if x}
     print("\nE* against line length (one solve each, cold)")
-    print(f"{'line':>8} {'T [s]':>8} {'E* [kWh]':>10} {'tol met':>7} {'within %':>8} {'points':>7} {'wall s':>7} "
+    print(f"{'line':>8} {'T [s]':>8} {'E* [kWh]':>10} {'tol met':>7} {'within %':>8} {'cells':>7} {'wall s':>7} "
           f"{'2nd [kWh]':>10} {'2nd within %':>12} {'diff %':>8} {'2nd wall s':>10}")
     walls = {}
     for km in (float(x) for x in args.lengths.split(",")):
@@ -75,11 +75,11 @@ def part_lines(args, train, options) -> None:
         walls[km] = wall
         tail = f"{'-':>10} {'-':>12} {'-':>8} {'-':>10}"
         if km in checks:
-            tz = trapezoid_energy(route, train, t0, options)
-            tail = (f"{tz.energy_kwh:>10.2f} {100 * tz.accuracy:>12.2g} {100 * (b.energy_kwh / tz.energy_kwh - 1):>+8.3f} "
-                    f"{tz.solve_time_s:>10.1f}")
+            c = bound_mod.check_bound(route, train, options, t0, mesh_tol=1e-5, max_degree=10)
+            tail = (f"{c.energy_kwh:>10.2f} {pct(c.accuracy_percent):>12} {100 * (b.energy_kwh / c.energy_kwh - 1):>+8.3f} "
+                    f"{c.solve_time_s:>10.1f}")
         print(f"{km:>6g}km {t0:>8.1f} {b.energy_kwh:>10.2f} {'yes' if b.converged else 'NO':>7} {pct(b.accuracy_percent):>8} "
-              f"{b.points:>7} {wall:>7.1f} {tail}", flush=True)
+              f"{b.cells:>7} {wall:>7.2f} {tail}", flush=True)
     if len(walls) > 1:
         lo, hi = min(walls), max(walls)
         print(f"cost ratio {hi:g} km / {lo:g} km: {walls[hi] / walls[lo]:.1f} (length ratio {hi / lo:g})")
@@ -100,8 +100,8 @@ def part_agreement(args, train, options) -> None:
             cases.append((f.stem, load_route(f), train))
     if not cases:
         return
-    print("\nTwo independent methods: Radau hp (ocp/energy.py) and trapezoidal collocation (ocp/trapezoid.py)")
-    print(f"{'line':<36} {'km':>5} {'T [s]':>7} {'Radau [kWh]':>11} {'within %':>8} {'trap. [kWh]':>11} {'within %':>8} {'diff %':>8}")
+    print("\nTwo independent methods: the cells (ocp/cells.py) and multi-phase Radau hp (ocp/energy.py)")
+    print(f"{'line':<36} {'km':>5} {'T [s]':>7} {'cells [kWh]':>11} {'within %':>8} {'Radau [kWh]':>11} {'within %':>8} {'diff %':>8}")
     diffs = []
     for name, route, tr in cases:
         calc = TractionCalculator(route, tr, options)
@@ -111,14 +111,15 @@ def part_agreement(args, train, options) -> None:
         t0 = round(args.factor * calc.fastest_time_s, 1)
         try:
             b, _ = cold_bound(route, tr, options, t0, calc)
-            tz = trapezoid_energy(route, tr, t0, options)
+            c = bound_mod.check_bound(route, tr, options, t0, mesh_tol=1e-5, max_degree=10)
         except LocoplanError as exc:
             print(f"{name[:36]:<36} {route.length_m / 1000:>5.1f} {t0:>7.1f} failed: {str(exc)[:60]}")
             continue
-        d = 100 * (b.energy_kwh / tz.energy_kwh - 1) if tz.energy_kwh > 1e-6 else 0.0
+        # relative to E*, or to the floor below which no gap is given in per cent (a coasting line)
+        d = 100 * (b.energy_kwh - c.energy_kwh) / max(c.energy_kwh, bound_mod.percent_floor_kwh(route, tr))
         diffs.append(abs(d))
         print(f"{name[:36]:<36} {route.length_m / 1000:>5.1f} {t0:>7.1f} {b.energy_kwh:>11.2f} {pct(b.accuracy_percent):>8} "
-              f"{tz.energy_kwh:>11.2f} {100 * tz.accuracy:>8.2g} {d:>+8.3f}", flush=True)
+              f"{c.energy_kwh:>11.2f} {pct(c.accuracy_percent):>8} {d:>+8.3f}", flush=True)
     if diffs:
         print(f"largest difference {max(diffs):.3f} % over {len(diffs)} lines (median {np.median(diffs):.3f} %)")
 
@@ -140,7 +141,10 @@ def part_commands(args) -> None:
         model = (["--point-mass"] if args.point_mass else []) + (["--no-air-brake"] if args.no_air_brake else [])
         for label, cmd in ((f"optimize, 100 km, T = {t100} s", ["optimize", str(r100), "--time", str(t100), "--json"]),
                            (f"bound --times {a}:{a + 19 * step}:{step}, 50 km", ["bound", str(r50), "--times", f"{a}:{a + 19 * step}:{step}", "--json"])):
-            env = {**os.environ, "LOCOPLAN_CACHE_DIR": str(Path(d) / f"cache-{len(label)}")}
+            from locoplan.sim.native import native_dir
+
+            env = {**os.environ, "LOCOPLAN_CACHE_DIR": str(Path(d) / f"cache-{len(label)}"),
+                   "LOCOPLAN_NATIVE_DIR": str(native_dir())}
             t = time.perf_counter()
             p = subprocess.run([sys.executable, "-m", "locoplan", *cmd, *model], capture_output=True, text=True, env=env, cwd=ROOT)
             wall = time.perf_counter() - t
