@@ -174,10 +174,33 @@ def check_bound(route: Route, train: Train, options: ModelOptions, time_s: float
 
     calc = TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
-    es = solve_energy(build_problem(route, train, options, time_s, EnergyOptions()), calc, mesh_tol=mesh_tol,
-                      max_degree=max_degree, energy_tol=2e-5)
-    return Bound(time_s, es.objective_kwh, es.converged, es.solution.mesh.n_points, 0.0, es.wall_time_s, es.accuracy,
+    tep = build_problem(route, train, options, time_s, EnergyOptions())
+    es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, energy_tol=2e-5)
+    accuracy = es.accuracy
+    if route.length_m <= SHORT_LEG_M:  # a second start: the lower of two local optima
+        try:
+            other = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, energy_tol=2e-5, **SECOND_START)
+        except LocoplanError:
+            other = None
+        if other is not None and other.success:
+            best, rest = (other, es) if other.objective_kwh < es.objective_kwh else (es, other)
+            best.wall_time_s = es.wall_time_s + other.wall_time_s
+            es, accuracy = best, best.accuracy
+            if rest.accuracy is not None:  # the other start's optimum and its accuracy bound this one's too
+                apart = abs(best.objective_kwh - rest.objective_kwh) / max(abs(best.objective_kwh), 1e-9)
+                acc = max(apart, rest.accuracy)
+                accuracy = acc if best.accuracy is None else min(best.accuracy, acc)
+    return Bound(time_s, es.objective_kwh, es.converged, es.solution.mesh.n_points, 0.0, es.wall_time_s, accuracy,
                  es.slope_kwh_per_s, CHECK_METHOD)
+
+
+SHORT_LEG_M = 5000.0
+"""On a route up to this long the Radau check is solved from two starting meshes, the usual one (intervals up
+to 500 m, 5 LGR points, departure and stop intervals up to 200 m) and a fine one (``SECOND_START``), and the
+lower optimum is kept: on short legs, where departure and stop are most of the run, the refinement from the
+coarse mesh can settle on a local optimum 1-4 % above the optimum (CN_Songjiazhuang_Yizhuang leg 12, HXD1
++ 50 x C80 at 189.2 s: 69.71 kWh, against 67.88 from the fine start and from the cells)."""
+SECOND_START = {"interval_m": 100.0, "degree": 4, "end_interval_m": 50.0}
 
 
 PERCENT_FLOOR_SHARE = 0.02
