@@ -68,7 +68,10 @@ class CellEnergyProblem:
     one equality (the cell's work-energy balance) and two inequalities (F and B under their curves) per
     cell, and the running time as the one global inequality."""
 
-    def __init__(self, calc: TractionCalculator, time_s: float):
+    def __init__(self, calc: TractionCalculator, time_s: float, stops_m=(), windows=()):
+        """``stops_m``: positions [m] (grid nodes) where the train also stands (a journey's stops);
+        ``windows``: ``(position_m, earliest_s, latest_s)`` on the running time at a grid node (either end may
+        be None or infinite), besides the total running time ``time_s``."""
         self.calc = calc
         self.time_s = float(time_s)
         tr = calc.train
@@ -100,6 +103,8 @@ class CellEnergyProblem:
         ub = np.full(n, np.inf)
         ub[0::3] = self.v_cap / self.v_ref
         ub[0] = ub[-1] = 0.0  # at rest at both ends
+        for s_stop in stops_m:  # and at every stop
+            ub[3 * self._node(s_stop)] = 0.0
         ub[1::3] = np.where(powered, np.inf, 0.0)
         ub[2::3] = np.where(self.can_brake, np.inf, 0.0)
         self.lb, self.ub = lb, ub
@@ -114,6 +119,24 @@ class CellEnergyProblem:
         # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
         self.active = np.column_stack([powered, self.can_brake])
         self._last = None
+        # the global inequalities: (sum over cells of cmask * tau + const) / t_ref <= 0
+        rows, const = [np.ones(N)], [-self.time_s]
+        for s_w, lo, hi in windows:
+            before = (np.arange(N) < self._node(s_w)).astype(float)
+            if hi is not None and np.isfinite(hi):
+                rows.append(before)
+                const.append(-float(hi))
+            if lo is not None and np.isfinite(lo) and lo > 0:
+                rows.append(-before)
+                const.append(float(lo))
+        self.cmask, self.cconst = np.array(rows), np.array(const)
+
+    def _node(self, s_m: float) -> int:
+        """The grid node at ``s_m`` (it must be one: the grid is built with it)."""
+        k = int(np.argmin(np.abs(self.calc.s_m - s_m)))
+        if abs(self.calc.s_m[k] - s_m) > 1e-6:
+            raise ValueError(f"{s_m} m is not a node of the grid")
+        return k
 
     # ------------------------------------------------------------------ physics at the cells
     def _physics(self, x: np.ndarray):
@@ -163,8 +186,8 @@ class CellEnergyProblem:
         p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
         e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["B"] - P["R"] - self.G)) / (h * fr)
         g = np.where(self.active, np.stack([(P["F"] - P["Fm"][0]) / fr, (P["B"] - P["Bm"][0]) / fr], axis=1), -1.0)
-        c = (np.sum(2 * h / np.maximum(p + q, V_FLOOR_MS)) - self.time_s) / self.t_ref
-        return CellValues(float(np.sum(h * P["F"])) / KJ_PER_KWH / self.e_ref, e, g, float(c))
+        c = (np.einsum("jk,k->j", self.cmask, 2 * h / np.maximum(p + q, V_FLOOR_MS)) + self.cconst) / self.t_ref
+        return CellValues(float(np.sum(h * P["F"])) / KJ_PER_KWH / self.e_ref, e, g, c)
 
     def derivatives(self, x: np.ndarray) -> CellDerivatives:
         """Gradients on each cell's variables (v_k, F_k, B_k, v_k+1), in the scaled variables."""
@@ -183,13 +206,14 @@ class CellEnergyProblem:
             gg[:, j, 3] = -cap[1] * vm_q / fr
             gg[:, j, col] = 1.0 / fr
         gg[~self.active] = 0.0
-        gc = np.zeros((N, 4))
-        gc[:, 0] = gc[:, 3] = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
+        dtau = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
+        gc = np.zeros((len(self.cmask), N, 4))
+        gc[:, :, 0] = gc[:, :, 3] = self.cmask * dtau
         gf = np.zeros((N, 4))
         gf[:, 1] = h / KJ_PER_KWH / self.e_ref
-        return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl)
+        return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
 
-    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: float) -> np.ndarray:
+    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
         """The Lagrangian's Hessian on each cell's variables: only the two speeds enter nonlinearly."""
         P = self._physics(x)
         vm_p, vm_q, vm_pp, vm_pq, vm_qq = self._vm_derivatives(P)
@@ -205,7 +229,7 @@ class CellEnergyProblem:
             pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
             qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
             pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
-        d2 = zc * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref  # the running time
+        d2 = np.einsum("j,jk->k", zc, self.cmask) * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref  # the times
         out = np.zeros((self.N, 4, 4))
         vr2 = self.v_ref ** 2
         out[:, 0, 0] = (pp + d2) * vr2
@@ -293,7 +317,7 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
                               f"({res.status} after {res.iterations} iterations, error {res.error:.1e})")
     x = res.x * prob.ref
-    slope = -res.zc * prob.e_ref / prob.t_ref
+    slope = -float(res.zc[0]) * prob.e_ref / prob.t_ref
     return CellSolution(prob.energy_kwh(res.x), calc.s_m, x[0::3], x[1::3], x[2::3], slope, res,
                         _time.perf_counter() - t0)
 

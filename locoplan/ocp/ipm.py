@@ -2,10 +2,11 @@
 
 The minimum-energy problem on a fine grid of cells (``ocp/cells.py``) has a structure a general NLP
 solver does not use: every function belongs to one cell and reads only that cell's few variables (the
-speeds at its two nodes and its forces), except one, the running time, which sums over all cells. Its
-KKT matrix, with each cell's equality multiplier placed beside its variables, is therefore banded
-(half-bandwidth 4 there) plus a rank-one term from the running time. A banded LU solves that in time
-linear in the number of cells, and the rank-one term costs one more right-hand side (Sherman-Morrison).
+speeds at its two nodes and its forces), except a few global ones, the running time (and on a journey
+the times at its stations), which sum over many cells. Its KKT matrix, with each cell's equality
+multiplier placed beside its variables, is therefore banded (half-bandwidth 4 there) plus a term of low
+rank from the global ones. A banded LU solves that in time linear in the number of cells, and the low-rank
+term costs one more right-hand side per global inequality (Sherman-Morrison-Woodbury).
 Through IPOPT (CasADi, MUMPS) the same Newton steps cost 10-40 us per variable and iteration on this
 problem, and IPOPT needed 80-160 iterations from the same start; this solver takes about 1 us and 30-60.
 
@@ -26,9 +27,9 @@ A problem gives, for its variables ``x`` (scaled to order one):
 - ``pos_x``, ``pos_y``: the place of every variable and of every cell's equality multiplier in the
   KKT ordering (the problem chooses one that makes the matrix banded);
 - ``values(x)``: :class:`CellValues`, the objective, one equality and q inequalities (<= 0) per cell,
-  and the one global inequality (<= 0);
+  and m global inequalities (<= 0);
 - ``derivatives(x)``: :class:`CellDerivatives`, their gradients on each cell's variables (the global
-  inequality's as per-cell parts that add up);
+  inequalities' as per-cell parts that add up);
 - ``hessian(x, y, z, zc)``: the Lagrangian's Hessian on each cell's variables, (cells, p, p).
 """
 
@@ -55,10 +56,10 @@ class CellValues:
     f: float
     e: np.ndarray  # (N,) one equality per cell, = 0
     g: np.ndarray  # (N, q) inequalities, <= 0
-    c: float  # the global inequality, <= 0
+    c: np.ndarray  # (m,) the global inequalities, <= 0
 
     def finite(self) -> bool:
-        return bool(np.isfinite(self.f) and np.isfinite(self.c) and np.all(np.isfinite(self.e))
+        return bool(np.isfinite(self.f) and np.all(np.isfinite(self.c)) and np.all(np.isfinite(self.e))
                     and np.all(np.isfinite(self.g)))
 
 
@@ -69,20 +70,20 @@ class CellDerivatives:
     grad_f: np.ndarray  # (N, p)
     grad_e: np.ndarray  # (N, p)
     grad_g: np.ndarray  # (N, q, p)
-    grad_c: np.ndarray  # (N, p): per-cell parts
+    grad_c: np.ndarray  # (m, N, p): per-cell parts of each global inequality's gradient
 
 
 @dataclass
 class IPMResult:
     """The solution (primal ``x``, equality multipliers ``y``, inequality multipliers ``z`` (N, q), the
-    global inequality's multiplier ``zc``, the bounds' multipliers ``zl``, ``zu``), the objective, whether it converged, the iterations, the
+    global inequalities' multipliers ``zc`` (m,), the bounds' multipliers ``zl``, ``zu``), the objective, whether it converged, the iterations, the
     final optimality error, the status, and per iteration (error, barrier parameter, primal step,
     dual step, regularisation, objective)."""
 
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
-    zc: float
+    zc: np.ndarray
     zl: np.ndarray
     zu: np.ndarray
     f: float
@@ -175,23 +176,24 @@ class CellIPM:
     def _barrier(self, v: CellValues, x, s, sc, mu) -> float:
         dl, du = self._dist(x)
         with np.errstate(invalid="ignore", divide="ignore"):
-            bar = (np.log(s).sum() + math.log(sc) + np.log(dl[self.has_l]).sum() + np.log(du[self.has_u]).sum())
+            bar = (np.log(s).sum() + np.log(sc).sum() + np.log(dl[self.has_l]).sum() + np.log(du[self.has_u]).sum())
         return v.f - mu * bar
 
     @staticmethod
     def _violation(v: CellValues, s, sc) -> float:
-        return float(np.abs(v.e).sum() + np.abs(v.g + s).sum() + abs(v.c + sc))
+        return float(np.abs(v.e).sum() + np.abs(v.g + s).sum() + np.abs(v.c + sc).sum())
 
     def _errors(self, v: CellValues, d: CellDerivatives, x, s, sc, y, z, zc, zl, zu, mu) -> tuple[float, float]:
         """IPOPT's scaled optimality error of the NLP and of the barrier problem for ``mu``."""
-        r_d = self._scatter(d.grad_f + d.grad_e * y[:, None] + np.einsum("kqp,kq->kp", d.grad_g, z) + zc * d.grad_c)
+        r_d = self._scatter(d.grad_f + d.grad_e * y[:, None] + np.einsum("kqp,kq->kp", d.grad_g, z)
+                            + np.einsum("jkp,j->kp", d.grad_c, zc))
         r_d = r_d - zl + zu
         r_d[self.fixed] = 0.0
-        prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), abs(v.c + sc))
+        prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), np.max(np.abs(v.c + sc)))
         dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), [sc * zc], (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self.has_l], (du * zu)[self.has_u]])
         n_dual = y.size + prods.size
-        duals = z.sum() + zc + zl.sum() + zu.sum()
+        duals = z.sum() + zc.sum() + zl.sum() + zu.sum()
         s_d = max(100.0, (np.abs(y).sum() + duals) / n_dual) / 100.0
         s_c = max(100.0, duals / max(prods.size, 1)) / 100.0
         dual = np.max(np.abs(r_d)) / s_d
@@ -200,7 +202,7 @@ class CellIPM:
 
     def _mean_complementarity(self, x, s, sc, z, zc, zl, zu) -> float:
         dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), [sc * zc], (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self.has_l], (du * zu)[self.has_u]])
         return float(prods.mean())
 
     # ------------------------------------------------------------------ the method
@@ -223,7 +225,7 @@ class CellIPM:
         val = p.values(x)
         floor = 1e-2 if warm is None else mu
         s = np.maximum(-val.g, floor)
-        sc = max(-val.c, floor)
+        sc = np.maximum(-val.c, floor)
         dl, du = self._dist(x)
         if warm is None:
             z, zc, y = mu / s, mu / sc, np.zeros(N)
@@ -232,7 +234,7 @@ class CellIPM:
         else:
             y = warm.y.copy()
             z = np.maximum(warm.z, mu / s * 1e-2)
-            zc = max(warm.zc, mu / sc * 1e-2)
+            zc = np.maximum(warm.zc, mu / sc * 1e-2)
             zl = np.where(has_l, np.maximum(warm.zl, mu / dl * 1e-2), 0.0)
             zu = np.where(has_u, np.maximum(warm.zu, mu / du * 1e-2), 0.0)
         filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
@@ -269,17 +271,17 @@ class CellIPM:
             dl, du = self._dist(x)
             sig_x = np.where(has_l, zl / dl, 0.0) + np.where(has_u, zu / du, 0.0)
             hess = p.hessian(x, y, z, zc)
-            grad_c = self._scatter(der.grad_c)
+            grad_c = np.stack([self._scatter(gj) for gj in der.grad_c])  # (m, n)
             grad_f = self._scatter(der.grad_f)
             base_x = grad_f + self._scatter(der.grad_e * y[:, None])
             bound_x = np.where(has_u, 1 / du, 0.0) - np.where(has_l, 1 / dl, 0.0)
-            a_vec = self._to_kkt(np.where(fixed, 0.0, grad_c), np.zeros(N))
+            a_mat = np.stack([self._to_kkt(np.where(fixed, 0.0, gj), np.zeros(N)) for gj in grad_c], axis=1)  # (size, m)
 
             def rhs(r_e, r_g, r_c, mu_):
                 """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc, and the
                 barrier parameter mu_."""
                 rx = -(base_x + mu_ * bound_x + self._scatter(np.einsum("kqp,kq->kp", der.grad_g, mu_ / s + sig * r_g))
-                       + grad_c * (mu_ / sc + sig_c * r_c))
+                       + np.einsum("jn,j->n", grad_c, mu_ / sc + sig_c * r_c))
                 rx[fixed] = 0.0
                 return self._to_kkt(rx, -r_e)
 
@@ -293,19 +295,19 @@ class CellIPM:
                 K.band_assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
                                 self.pos_y, np.full(N, -delta_c), self.fixed_pos)
                 if K.band_factor(full, self.bw, self.bw, piv) == 0:
-                    sol = np.column_stack([first, a_vec])
+                    sol = np.column_stack([first, a_mat])
                     K.band_solve(full, self.bw, self.bw, piv, sol)
-                    qv = sol[:, 1].copy()
-                    denom = 1.0 + sig_c * _dot(a_vec, qv)
+                    qm = sol[:, 1:].copy()  # K_b^-1 A
+                    small = np.diag(1.0 / sig_c) + np.einsum("nj,nk->jk", a_mat, qm)
 
                     def direction(rv, sol=None):
-                        """The Newton step for a right-hand side (the rank-one running-time term by
-                        Sherman-Morrison on the factored banded part)."""
+                        """The Newton step for a right-hand side (the global inequalities' low-rank term
+                        by Sherman-Morrison-Woodbury on the factored banded part)."""
                         if sol is None:
                             sol = rv.reshape(-1, 1).copy()
                             K.band_solve(full, self.bw, self.bw, piv, sol)
                         pv = sol[:, 0]
-                        return pv - qv * (sig_c * _dot(a_vec, pv) / denom)
+                        return pv - np.einsum("nj,j->n", qm, np.linalg.solve(small, np.einsum("nj,n->j", a_mat, pv)))
 
                     d = direction(first, sol)
                     dx = d[self.pos_x]
@@ -313,7 +315,7 @@ class CellIPM:
                         dloc = dx[loc]
                         jd = np.einsum("kqp,kp->kq", der.grad_g, dloc)
                         curv = (np.einsum("ka,kab,kb->", dloc, hess, dloc) + np.einsum("kq,kq->", sig, jd * jd)
-                                + _dot(sig_x + delta_w, dx * dx) + sig_c * _dot(grad_c, dx) ** 2)
+                                + _dot(sig_x + delta_w, dx * dx) + _dot(sig_c, np.einsum("jn,n->j", grad_c, dx) ** 2))
                         if curv >= S.curvature * _dot(dx, dx):
                             break
                 else:
@@ -327,10 +329,10 @@ class CellIPM:
             delta_w_last = delta_w if delta_w > 0 else delta_w_last
 
             def slack_steps(dx, r_g, r_c):
-                return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - _dot(grad_c, dx)
+                return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - np.einsum("jn,n->j", grad_c, dx)
 
             def primal_step(dx, ds, dsc, tau):
-                return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(np.array([sc]), np.array([dsc]), tau),
+                return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(sc, dsc, tau),
                            _max_step(dl[has_l], dx[has_l], tau), _max_step(du[has_u], -dx[has_u], tau))
 
             def dual_steps(dx, ds, dsc, mu_):
@@ -339,7 +341,7 @@ class CellIPM:
                         np.where(has_u, mu_ / du - zu + (zu / du) * dx, 0.0))
 
             def dual_step(dz, dzc, dzl, dzu, tau):
-                return min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(np.array([zc]), np.array([dzc]), tau),
+                return min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(zc, dzc, tau),
                            _max_step(zl[has_l], dzl[has_l], tau), _max_step(zu[has_u], dzu[has_u], tau))
 
             if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
@@ -363,7 +365,7 @@ class CellIPM:
             if mu != filter_mu:  # a new barrier problem: a new filter
                 filt, filter_mu = [], mu
                 theta_max, theta_min = 1e4 * max(1.0, theta0), 1e-4 * max(1.0, theta0)
-            dphi = (_dot(grad_f, dx) - mu * (ds / s).sum() - mu * dsc / sc
+            dphi = (_dot(grad_f, dx) - mu * (ds / s).sum() - mu * (dsc / sc).sum()
                     - mu * np.sum(dx[has_l] / dl[has_l]) + mu * np.sum(dx[has_u] / du[has_u]))
 
             def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool]:
@@ -428,9 +430,9 @@ class CellIPM:
             # keep the multipliers near the central path (IPOPT's kappa_sigma safeguard)
             ks = 1e10
             z = np.clip(z, mu / (ks * s), ks * mu / s)
-            zc = float(np.clip(zc, mu / (ks * sc), ks * mu / sc))
+            zc = np.clip(zc, mu / (ks * sc), ks * mu / sc)
             dl, du = self._dist(x)
             zl = np.where(has_l, np.clip(zl, mu / (ks * dl), ks * mu / dl), 0.0)
             zu = np.where(has_u, np.clip(zu, mu / (ks * du), ks * mu / du), 0.0)
-        return IPMResult(x, y, z, float(zc), zl, zu, float(val.f), status in ("converged", "acceptable"), it, float(err0),
+        return IPMResult(x, y, z, zc, zl, zu, float(val.f), status in ("converged", "acceptable"), it, float(err0),
                          status, trace)
