@@ -35,6 +35,7 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
             cap_kmh: Optional[float] = typer.Option(None, "--cap-kmh", help="Cap every speed limit at this speed [km/h], e.g. 80 for a freight train on a passenger line (default: no cap)."),
             leg: Optional[int] = typer.Option(None, "--leg", help="ttobench: only this stop-to-stop leg, 1 = first stop to second (default: every leg)."),
             all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
+            journey: bool = typer.Option(False, "--journey", help="ttobench: the whole line as one route and a journey file with every stop (for locoplan journey), instead of one route per leg."),
             load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),
             as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
             ):
@@ -49,9 +50,11 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
         flags += ["--leg", str(leg)]
     if all_legs:
         flags.append("--all-legs")
+    if journey:
+        flags.append("--journey")
     if load_fraction != 1.0:
         flags += ["--load-fraction", f"{load_fraction:g}"]
-    options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, load_fraction=load_fraction,
+    options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, journey=journey, load_fraction=load_fraction,
                             command=_command(fmt, sources, out_dir, flags))
     report = run_import(fmt, list(sources), out_dir, options)
     wrote([p for p, _, _ in report.written] + ([report.licence] if report.licence else []))

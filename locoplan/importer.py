@@ -17,12 +17,13 @@ from pathlib import Path
 
 
 from .errors import InputError, Problem
-from .io.load import load_train, parse_yaml, validate_data
+from .io.load import load_journey, load_train, parse_yaml, validate_data
 from .io.readers import READERS, ImportedFile, ImportOptions
 from .reporting.files import existing_folder, make_folder
 
 CLI = "<command line>"
-OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "load_fraction": "--load-fraction"}
+OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "journey": "--journey",
+                "load_fraction": "--load-fraction"}
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,8 @@ def check_options(fmt: str, n_sources: int, options: ImportOptions) -> None:
             problems.append(Problem(CLI, OPTION_FLAGS[f.name], f"does not apply to {fmt} (only to: {', '.join(users)})"))
     if options.leg is not None and options.all_legs:
         problems.append(Problem(CLI, "--leg", "give --leg N or --all-legs, not both"))
+    if options.journey and (options.leg is not None or options.all_legs):
+        problems.append(Problem(CLI, "--journey", "writes the whole line and its stops: give it without --leg or --all-legs"))
     if options.leg is not None and options.leg < 1:
         problems.append(Problem(CLI, "--leg", f"legs are numbered from 1 (got {options.leg})"))
     if options.cap_kmh is not None and not (math.isfinite(options.cap_kmh) and options.cap_kmh > 0):
@@ -95,12 +98,14 @@ def _to_source(item: ImportedFile, problems: list[Problem]) -> list[Problem]:
 def _validate(tmp: Path, items: list[ImportedFile]) -> None:
     """Routes and vehicles against their schemas; then consists (which load their vehicles), only if
     every vehicle passed, so that one bad vehicle is reported once, at its source field."""
-    for stage in (("route", "vehicle"), ("consist",)):
+    for stage in (("route", "vehicle"), ("consist", "journey")):
         problems: list[Problem] = []
         for item in (i for i in items if i.kind in stage):
             try:
                 if item.kind == "consist":
                     load_train(tmp / item.relpath)
+                elif item.kind == "journey":
+                    load_journey(tmp / item.relpath)
                 else:
                     validate_data(parse_yaml(item.text, item.relpath)[0], item.relpath, {})
             except InputError as exc:

@@ -21,6 +21,7 @@ from pydantic import BaseModel, ValidationError
 from ..errors import InputError, Problem
 from ..model.common import RuleViolations
 from ..model.consist import Consist, Vehicle
+from ..model.journey import Journey
 from ..model.route import Route
 from ..model.train import Train, build_train, shorter_than_train  # noqa: F401  (build_train: re-exported for the loaders' callers)
 
@@ -28,6 +29,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "locoplan/route@1": Route,
     "locoplan/vehicle@1": Vehicle,
     "locoplan/consist@1": Consist,
+    "locoplan/journey@1": Journey,
 }
 
 CATALOGUE = resources.files("locoplan.catalogue")
@@ -704,6 +706,40 @@ def load_file(path: str | Path, expect: str | None = None) -> BaseModel:
 
 def load_route(path: str | Path) -> Route:
     return load_file(path, "locoplan/route@1")  # type: ignore[return-value]
+
+
+def load_journey(path: str | Path) -> tuple[Journey, Route]:
+    """A journey file and the route file it names (relative to the journey's folder); the stations checked
+    against the route: every one on it, the last at its end. Problems as file:line: field: message."""
+    path = Path(path)
+    data, lines = read_yaml(path)
+    journey = validate_data(data, str(path), lines, "locoplan/journey@1")
+    route_path = Path(journey.route)
+    if not route_path.is_absolute():
+        route_path = path.parent / route_path
+    if not route_path.is_file():
+        raise InputError(Problem(str(path), "route", f"no route file {route_path} (the path is relative to the "
+                                 "journey file's folder)", _line_for(lines, ("route",))))
+    route = load_route(route_path)
+    problems = []
+    last = len(journey.stations) - 1
+    for i, st in enumerate(journey.stations):
+        if st.at_m > route.length_m + 1e-3:
+            problems.append(Problem(str(path), f"stations[{i}].at_m", f"{st.at_m:g} m lies beyond the end of "
+                                    f"{route_path.name} ({route.length_m:g} m)", _line_for(lines, ("stations", i, "at_m"))))
+    for i, st in enumerate(journey.stations[:-1]):
+        for ns in route.neutral_sections:
+            if st.stop and ns.from_m <= st.at_m < ns.to_m:
+                problems.append(Problem(str(path), f"stations[{i}].at_m", f"the stop {st.name!r} at {st.at_m:g} m lies in the "
+                                        f"neutral section {ns.from_m:g} .. {ns.to_m:g} m of {route_path.name}: a train "
+                                        "standing there has no traction to start again", _line_for(lines, ("stations", i, "at_m"))))
+    if abs(journey.stations[last].at_m - route.length_m) > 1e-3 and journey.stations[last].at_m <= route.length_m:
+        problems.append(Problem(str(path), f"stations[{last}].at_m", f"the last station ends the journey at the end of "
+                                f"the line: {route.length_m:g} m (got {journey.stations[last].at_m:g})",
+                                _line_for(lines, ("stations", last, "at_m"))))
+    if problems:
+        raise InputError(problems)
+    return journey, route
 
 
 def load_vehicle(path: str | Path) -> Vehicle:

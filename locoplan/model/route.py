@@ -117,3 +117,26 @@ class Route(Strict):
         if problems:
             raise RuleViolations(problems)
         return self
+
+
+def route_slice(route: Route, from_m: float, to_m: float, name: str) -> Route:
+    """The part ``from_m`` .. ``to_m`` of ``route`` as a route of its own (positions from its start; a
+    section cut by an end keeps its part inside; no schedule)."""
+    def cut(sections, key=None, contiguous=False):
+        out = []
+        for sec in sections:
+            a, b = max(sec.from_m, from_m), min(sec.to_m, to_m)
+            if b - a > 1e-6:
+                d = sec.model_dump()
+                d.update(from_m=round(a - from_m, 6), to_m=round(b - from_m, 6))
+                out.append(d)
+        if contiguous and out:
+            out[0]["from_m"] = 0.0
+            out[-1]["to_m"] = round(to_m - from_m, 6)
+        return out
+
+    data = {"schema": "locoplan/route@1", "name": name, "length_m": round(to_m - from_m, 6),
+            "speed_limits": cut(route.speed_limits, contiguous=True), "gradients": cut(route.gradients, contiguous=True),
+            "curves": cut(route.curves), "tunnels": cut(route.tunnels),
+            "neutral_sections": cut(route.neutral_sections)}
+    return Route.model_validate(data)

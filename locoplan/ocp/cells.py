@@ -273,14 +273,15 @@ class CellSolution:
     solve_time_s: float
 
 
-def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser: TractionCalculator | None = None
-                    ) -> TractionCalculator:
-    """The calculator on the E* grid: ``step_m`` cells, graded towards both rest points; with ``coarser``,
-    every cell of that grid halved (nested grids: their optima differ by the discretisation alone, not
-    by where the route's breakpoints happen to fall between uniform nodes)."""
+def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser: TractionCalculator | None = None,
+                    extra_m=()) -> TractionCalculator:
+    """The calculator on the E* grid: ``step_m`` cells, graded towards both rest points, with nodes at
+    ``extra_m`` [m] (a journey's timing points); with ``coarser``, every cell of that grid halved (nested
+    grids: their optima differ by the discretisation alone, not by where the route's breakpoints happen to
+    fall between uniform nodes)."""
     opts = ModelOptions(step_m=step_m, point_mass=options.point_mass, air_brake=options.air_brake,
                         rotating_mass=options.rotating_mass, strict_limits=options.strict_limits)
-    nodes = graded_end_nodes(route.length_m)
+    nodes = np.concatenate([graded_end_nodes(route.length_m), np.asarray(extra_m, dtype=float)])
     if coarser is not None:
         s = coarser.s_m
         nodes = np.concatenate([s, 0.5 * (s[1:] + s[:-1])])

@@ -30,7 +30,8 @@ class ImportOptions:
     """Options of ``locoplan import``. A reader names the ones it understands in ``Reader.options``.
 
     ``cap_kmh`` caps every speed limit [km/h]; ``leg`` picks one stop-to-stop leg (1-based) and
-    ``all_legs`` asks for every leg explicitly (the default); ``load_fraction`` is the share of each
+    ``all_legs`` asks for every leg explicitly (the default), ``journey`` the whole line as one route and a
+    journey file with every stop (``locoplan journey``); ``load_fraction`` is the share of each
     wagon's load limit put on in the consist (1 = fully loaded); ``command`` is the command line
     recorded in each file's header.
     """
@@ -38,6 +39,7 @@ class ImportOptions:
     cap_kmh: float | None = None
     leg: int | None = None
     all_legs: bool = False
+    journey: bool = False
     load_fraction: float = 1.0
     command: str = ""
 

@@ -167,7 +167,7 @@ def curves_on_leg(starts: list[float], k_start: list[float], k_end: list[float],
 class TTOBenchReader:
     name = "ttobench"
     description = "TTOBench track (JSON): one route file per stop-to-stop leg"
-    options = frozenset({"cap_kmh", "leg", "all_legs"})
+    options = frozenset({"cap_kmh", "leg", "all_legs", "journey"})
     min_files = 1
     max_files = 1
 
@@ -220,8 +220,10 @@ class TTOBenchReader:
         legs = [options.leg] if options.leg is not None else list(range(1, n_legs + 1))
         files: list[ImportedFile] = []
         notes: list[str] = []
-        for leg in legs:
-            a, b = stop_m[leg - 1], stop_m[leg]
+        spans = [(leg, stop_m[leg - 1], stop_m[leg]) for leg in legs]
+        if options.journey:  # the whole line, and a journey over it with every stop
+            spans = [(0, stop_m[0], stop_m[-1])]
+        for leg, a, b in spans:
             sl = sections_on_leg(limits[0], capped, track_m, a, b)
             gr = sections_on_leg(grad_starts, grad_permille, track_m, a, b)
             cv, clamped = curves_on_leg(curv[0], k_start, k_end, track_m, a, b) if curv is not None else ([], 0)
@@ -229,8 +231,9 @@ class TTOBenchReader:
                 notes.append(f"{path}: leg {leg}: {clamped} curve(s) sharper than {MIN_RADIUS_M:g} m set to "
                              f"{MIN_RADIUS_M:g} m (the route schema's minimum; their resistance is underestimated)")
             raw = sections_on_leg(limits[0], limit_kmh, track_m, a, b)
-            relpath = f"{track_id}.yaml" if n_legs == 1 else f"{track_id}-leg{leg}.yaml"
-            name = f"{track_id}, stops {leg}-{leg + 1} ({emit.num(a)}-{emit.num(b)} m)"
+            relpath = f"{track_id}.yaml" if n_legs == 1 or leg == 0 else f"{track_id}-leg{leg}.yaml"
+            name = (f"{track_id}, the whole line ({len(stop_m)} stops)" if leg == 0
+                    else f"{track_id}, stops {leg}-{leg + 1} ({emit.num(a)}-{emit.num(b)} m)")
             head = self._header(path, meta, track_id, leg, n_legs, a, b, cap, raw, cv, licence, copyright_line,
                                 options.command, clamped)
             text = emit.route_yaml(head, name, round(b - a, 3), sl, gr, cv)
@@ -239,7 +242,28 @@ class TTOBenchReader:
             files.append(ImportedFile(relpath, "route", text, summary, str(path),
                                       {"speed_limits": "speed limits.values", "gradients": "gradients.values",
                                        "curves": "curvatures.values", "length_m": "stops.values"}))
+        if options.journey:
+            files.append(self._journey(path, track_id, stop_m, options.command))
         return Imported(files, licence, "ttobench", notes)
+
+    @staticmethod
+    def _journey(path, track_id, stop_m, command) -> ImportedFile:
+        """The journey over the whole line: every stop of the track, no timetable (the source has none:
+        ``locoplan journey --time`` gives the running time)."""
+        head = [f"{track_id}: a journey over the whole track with its {len(stop_m)} stops, from TTOBench.",
+                f"Source: {path}. The track gives no timetable: give the running time with locoplan journey --time "
+                "(seconds, 1.15x of the fastest run, or +10%), and add dwell_s, time_s, earliest_s, latest_s to the "
+                "stations as the timetable has them.",
+                f"Converted by: {command}" if command else "Converted by locoplan's ttobench importer."]
+        body = emit.header(head) + "schema: locoplan/journey@1\n"
+        body += f"name: {emit.text(f'{track_id}, all stops')}\n"
+        body += f"route: {emit.text(f'{track_id}.yaml')}\n"
+        body += "stations:\n"
+        body += "".join(f"  - {{name: {emit.text(f'stop {i + 1}')}, at_m: {emit.num(s - stop_m[0])}}}\n"
+                        for i, s in enumerate(stop_m))
+        relpath = f"{track_id}-journey.yaml"
+        return ImportedFile(relpath, "journey", body, f"{relpath}: {len(stop_m)} stops, {len(stop_m) - 1} legs",
+                            str(path), {"stations": "stops.values"})
 
     @staticmethod
     def _header(path, meta, track_id, leg, n_legs, a, b, cap, raw_limits, curves, licence, copyright_line,
