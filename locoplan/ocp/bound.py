@@ -44,6 +44,10 @@ E_STAR_TOL = 4e-5
 """E* is refined until two grids agree to this share (of E*, or of ``percent_floor_kwh`` where E* is
 smaller): inside the 0.005 % a gap's last printed digit needs (``GAP_DIGIT_PERCENT``)."""
 
+FASTEST_SHARE = 1e-3
+"""Within this share of the fastest run's time the minimum-energy problem has (nearly) one feasible run,
+no interior for the interior-point method: where its solve fails there, E* is the fastest run's energy."""
+
 METHOD = "cells"
 CHECK_METHOD = "radau"
 
@@ -149,12 +153,22 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     check_runnable(calc, time_s)
     from .cells import solve_estar
 
+    floor = percent_floor_kwh(route, train)
     try:
-        es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=percent_floor_kwh(route, train),
-                         warm=_WARM.get(base))
+        try:
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, warm=_WARM.get(base))
+        except InfeasibleError:
+            if _WARM.get(base) is None:
+                raise
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor)  # cold, after all
     except InfeasibleError:
-        # the interior-point solve did not converge: the Radau method, slower but with IPOPT's restoration
-        b = check_bound(route, train, options, time_s, mesh_tol=DEFAULT_MESH_TOL, max_degree=DEFAULT_MAX_DEGREE)
+        fastest = calc.evaluate(("T",), np.zeros((1, 0)))
+        if time_s <= float(fastest.running_time_s[0]) * (1 + FASTEST_SHARE):
+            # at the fastest run's time that run is the only one: its energy, with no accuracy to state
+            b = Bound(time_s, float(fastest.traction_energy_kwh[0]), False, len(calc.h_m), calc.options.step_m, 0.0,
+                      None, None, "fastest run")
+        else:  # the interior-point solve did not converge: the Radau method, slower but with IPOPT's restoration
+            b = check_bound(route, train, options, time_s, mesh_tol=DEFAULT_MESH_TOL, max_degree=DEFAULT_MAX_DEGREE)
     else:
         _WARM[base] = es.solution
         b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,

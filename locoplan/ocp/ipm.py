@@ -249,6 +249,9 @@ class CellIPM:
         for it in range(1, S.max_iter + 1):
             der = p.derivatives(x)
             err0, err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)
+            if not (np.isfinite(err0) and np.all(np.isfinite(x))):  # lost: say so at once
+                status = "not finite"
+                break
             if err0 <= S.tol:
                 status = "converged"
                 break

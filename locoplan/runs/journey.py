@@ -1,0 +1,324 @@
+"""A journey planned whole: the running time shared out among its legs for the least energy, every leg
+planned at its share, and the allocation compared with the usual ones.
+
+1. The line is cut at the stops into legs (``model.route.route_slice``); a timing point inside a leg is a
+   node of that leg's grid.
+2. The allocation: the joint minimum-energy problem of the legs (``ocp.journey_energy``) with the total
+   running time and a window on the running time at every station (the timetable's clock less the
+   dwells before it). At its optimum the marginal energy dE_i*/dT_i is equal on every leg not held by a
+   window; each leg's time is read off it.
+3. Each leg's E* at its time, solved on its own to E*'s tolerance (``ocp.bound.energy_bound``, or with the
+   windows of its timing points); the journey's E* is their sum, its accuracy the sum of theirs.
+4. Each leg planned by the strategies asked for (``proposed`` by default) at its time, every plan's gap
+   to its leg's E*.
+5. The same legs' E* at the equal-percentage allocation (every leg's fastest run times the same factor)
+   and at the timetable's own leg times where it gives them: what the optimal allocation saves.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InfeasibleError, InputError, Problem
+from ..model.journey import Journey
+from ..model.route import Route, route_slice
+from ..model.train import Train
+from ..sim.calculator import ModelOptions, TractionCalculator
+
+ALLOCATION_STEP_M = 40.0
+"""The joint problem's first grid [m]; the allocation comes from it and from the grid of half its cells."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A stop-to-stop part of the journey: its stations (indices), route, start along the line [m], the
+    timing points inside it (station indices and positions from its start) and its fastest run [s]."""
+
+    index: int
+    first: int
+    last: int
+    route: Route
+    from_m: float
+    points: list[tuple[int, float]]
+    fastest_s: float
+
+
+@dataclass
+class JourneyResult:
+    """Everything ``locoplan journey`` reports: the summary (``summary``, JSON-ready), the legs, each leg's
+    plans (strategy -> runner.RunResult), and the whole run's profile pieces for the plot and the CSV."""
+
+    summary: dict
+    legs: list[Leg]
+    runs: list[dict] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+
+def legs_of(journey: Journey, route: Route, train: Train, options: ModelOptions) -> list[Leg]:
+    stops = journey.stops
+    legs = []
+    for k, (a, b) in enumerate(zip(stops[:-1], stops[1:])):
+        sa, sb = journey.stations[a], journey.stations[b]
+        r = route_slice(route, sa.at_m, sb.at_m, f"{route.name}: {sa.name} - {sb.name}")
+        points = [(i, journey.stations[i].at_m - sa.at_m) for i in range(a + 1, b)]
+        calc = TractionCalculator(r, train, options)
+        res = calc.evaluate(("T",), np.zeros((1, 0)))
+        if not res.feasible[0]:
+            raise InfeasibleError(f"{train.name} cannot run the leg {sa.name} - {sb.name}: {res.reason(0)}")
+        legs.append(Leg(k, a, b, r, sa.at_m, points, float(res.running_time_s[0])))
+    return legs
+
+
+def dwell_before(journey: Journey, i: int) -> float:
+    """Seconds stood at the stops between the departure and station ``i`` (its own dwell excluded)."""
+    return float(sum(s.dwell_s for s in journey.stations[1:i] if s.stop))
+
+
+def running_windows(journey: Journey) -> list[tuple[int, float | None, float | None]]:
+    """Each station's window as running time since the departure (its clock less the dwells before it)."""
+    out = []
+    for i, st in enumerate(journey.stations[1:], start=1):
+        lo, hi = st.earliest_s, st.latest_s
+        if lo is None and hi is None:
+            continue
+        d = dwell_before(journey, i)
+        out.append((i, None if lo is None else lo - d, None if hi is None else hi - d))
+    return out
+
+
+def total_running_time(journey: Journey, time_s: float | None, source: str) -> float:
+    """``time_s`` (the command line's), else the journey's ``run_time_s``, else the last station's
+    scheduled time less the dwells."""
+    if time_s is not None:
+        return float(time_s)
+    if journey.run_time_s is not None:
+        return float(journey.run_time_s)
+    last = journey.stations[-1]
+    if last.time_s is not None:
+        return float(last.time_s - dwell_before(journey, len(journey.stations) - 1))
+    raise InputError(Problem(source, "run_time_s", "the journey gives no running time (no run_time_s, no time_s at "
+                             "its last station): give --time as seconds (3000), a factor of the fastest run (1.15x) "
+                             "or a supplement on it (+10%)"))
+
+
+def fastest_clock(journey: Journey, legs: list[Leg], train: Train, options: ModelOptions) -> dict[int, float]:
+    """The fastest run's running time at every station (stops and timing points) [s]."""
+    out, t = {0: 0.0}, 0.0
+    for leg in legs:
+        if leg.points:
+            calc = TractionCalculator(leg.route, train, options)
+            prof = calc.evaluate(("T",), np.zeros((1, 0)), profile=True).profile
+            for i, at in leg.points:
+                out[i] = t + float(np.interp(at, prof.s_m, prof.t_s[0]))
+        t += leg.fastest_s
+        out[leg.last] = t
+    return out
+
+
+def check_windows(journey: Journey, legs: list[Leg], total_s: float, fastest: dict[int, float], source: str) -> None:
+    """Refuse, naming the station, a window no run can meet: its latest running time before the fastest
+    run gets there, or its earliest so late that the rest cannot be run in what is left."""
+    problems = []
+    fastest_total = sum(leg.fastest_s for leg in legs)
+    if total_s < fastest_total - 1e-6:
+        raise InfeasibleError(f"the journey's running time {total_s:.1f} s is below its fastest run, "
+                              f"{fastest_total:.1f} s (dwells excluded)")
+    for i, lo, hi in running_windows(journey):
+        st = journey.stations[i]
+        d = dwell_before(journey, i)
+        if hi is not None and hi < fastest[i] - 1e-6:
+            problems.append(f"{st.name}: latest_s {st.latest_s:g} s is before the fastest run gets there "
+                            f"({fastest[i] + d:.1f} s, dwells included)")
+        rest = fastest_total - fastest[i]
+        if lo is not None and lo > total_s - rest + 1e-6:
+            problems.append(f"{st.name}: earliest_s {st.earliest_s:g} s leaves {total_s - lo:.1f} s of running for the "
+                            f"rest of the journey, whose fastest run takes {rest:.1f} s")
+    if problems:
+        raise InfeasibleError("no run keeps the journey's windows: " + "; ".join(problems))
+
+
+@dataclass(frozen=True)
+class LegBound:
+    """A leg's E* at a running time: [kWh], its relative accuracy, dE*/dT [kWh/s], the cells it was solved on."""
+
+    time_s: float
+    energy_kwh: float
+    accuracy: float | None
+    slope_kwh_per_s: float | None
+    converged: bool
+
+
+def leg_bound(leg: Leg, train: Train, options: ModelOptions, time_s: float, depart_run_s: float,
+              journey: Journey) -> LegBound:
+    """E* of one leg in ``time_s``; with timing points inside it, with their windows (running time since the
+    journey's departure less ``depart_run_s``, the running time when the leg starts)."""
+    from ..ocp.bound import E_STAR_TOL, energy_bound, percent_floor_kwh
+
+    if not leg.points:
+        b = energy_bound(leg.route, train, options, time_s)
+        return LegBound(time_s, b.energy_kwh, b.accuracy, b.slope_kwh_per_s, b.converged)
+    from ..ocp.journey_energy import journey_estar
+
+    wins = {i: (lo, hi) for i, lo, hi in running_windows(journey)}
+    windows = [(at, None if wins.get(i, (None, None))[0] is None else wins[i][0] - depart_run_s,
+                None if wins.get(i, (None, None))[1] is None else wins[i][1] - depart_run_s)
+               for i, at in leg.points if i in wins]
+    e = journey_estar([leg.route], [0.0], train, options, time_s, windows, tol=E_STAR_TOL,
+                      floor_kwh=percent_floor_kwh(leg.route, train), points_m=[[at for _, at in leg.points]])
+    return LegBound(time_s, e.energy_kwh, e.accuracy, e.finest.solution.slope_kwh_per_s, e.converged)
+
+
+def allocate(journey: Journey, legs: list[Leg], train: Train, options: ModelOptions, total_s: float):
+    """The joint optimum's running time for each leg [s] and at every station (running time) [s]."""
+    from ..ocp.journey_energy import journey_estar
+
+    windows = [(journey.stations[i].at_m, lo, hi) for i, lo, hi in running_windows(journey)]
+    e = journey_estar([leg.route for leg in legs], [leg.from_m for leg in legs], train, options, total_s, windows,
+                      tol=0.0, points_m=[[at for _, at in leg.points] for leg in legs],
+                      coarse_step_m=ALLOCATION_STEP_M, finest_step_m=ALLOCATION_STEP_M / 2)
+    at = {i: e.time_at(st.at_m) for i, st in enumerate(journey.stations)}
+    return np.array(e.leg_time_s), at
+
+
+def allocation_energy(journey, legs, train, options, times) -> tuple[float, list[LegBound]]:
+    """Σ E_i*(T_i) for fixed leg times, each leg solved on its own."""
+    bounds, run = [], 0.0
+    for leg, t in zip(legs, times):
+        bounds.append(leg_bound(leg, train, options, float(t), run, journey))
+        run += float(t)
+    return float(sum(b.energy_kwh for b in bounds)), bounds
+
+
+def window_misses(journey: Journey, legs: list[Leg], times) -> list[str]:
+    """Stops whose window an allocation of leg times misses (arrival clock against the window)."""
+    out, run = [], 0.0
+    for leg, t in zip(legs, times):
+        run += float(t)
+        st = journey.stations[leg.last]
+        clock = run + dwell_before(journey, leg.last)
+        if (st.earliest_s is not None and clock < st.earliest_s - 0.5) or (st.latest_s is not None and clock > st.latest_s + 0.5):
+            out.append(f"{st.name} at {clock:.1f} s")
+    return out
+
+
+def timetable_times(journey: Journey, legs: list[Leg]) -> list[float] | None:
+    """The timetable's own leg times where it schedules every stop: arrival less the previous departure."""
+    sched = [journey.stations[leg.last].time_s for leg in legs]
+    if any(t is None for t in sched):
+        return None
+    out, depart = [], 0.0
+    for leg, t in zip(legs, sched):
+        out.append(float(t) - depart)
+        depart = float(t) + journey.stations[leg.last].dwell_s
+    return out
+
+
+def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOptions, *, time_s: float | None = None,
+                 strategies: tuple[str, ...] = ("proposed",), seed: int = 1, algorithm: str = "issa",
+                 source: str = "", step=lambda text: None) -> JourneyResult:
+    """Plan ``journey`` (see the module docstring); ``time_s``: the total running time (dwells excluded),
+    default the journey's; ``step(text)`` is told what is being done."""
+    from ..ocp.bound import GAP_DIGIT_PERCENT, percent_floor_kwh
+    from ..runner import make_context, run_strategy, schedule_verdict
+
+    t_start = _time.perf_counter()
+    legs = legs_of(journey, route, train, options)
+    total = total_running_time(journey, time_s, source)
+    fastest = fastest_clock(journey, legs, train, options)
+    check_windows(journey, legs, total, fastest, source)
+    step("allocation")
+    times, at = allocate(journey, legs, train, options, total)
+    step("E* of the legs")
+    e_opt, bounds = allocation_energy(journey, legs, train, options, times)
+    floor = sum(percent_floor_kwh(leg.route, train) for leg in legs)
+    abs_acc = sum((b.accuracy if b.accuracy is not None else math.inf) * max(abs(b.energy_kwh), percent_floor_kwh(leg.route, train))
+                  for b, leg in zip(bounds, legs))
+    accuracy = abs_acc / max(abs(e_opt), floor, 1e-9)
+    slopes = [b.slope_kwh_per_s for b in bounds]
+    # comparisons
+    fast = np.array([leg.fastest_s for leg in legs])
+    comparisons = []
+    step("equal supplements")
+    eq = fast * (total / fast.sum())
+    e_eq, _ = allocation_energy(journey, legs, train, options, eq)
+    comparisons.append(("equal supplements", eq, e_eq))
+    tt = timetable_times(journey, legs)
+    if tt is not None and all(t >= f - 1e-6 for t, f in zip(tt, fast)):
+        scale = total / sum(tt)
+        tts = np.array(tt) * scale
+        step("timetable's leg times")
+        e_tt, _ = allocation_energy(journey, legs, train, options, tts)
+        comparisons.append(("timetable's leg times" if abs(scale - 1) < 1e-9 else "timetable's shares of the time", tts, e_tt))
+    result = JourneyResult({}, legs)
+    # plans
+    leg_rows = []
+    run_clock = 0.0
+    plan_total = {s: 0.0 for s in strategies}
+    plan_time = {s: 0.0 for s in strategies}
+    for leg, t, b in zip(legs, times, bounds):
+        sa, sb = journey.stations[leg.first], journey.stations[leg.last]
+        row = {"leg": leg.index + 1, "from": sa.name, "to": sb.name, "length_m": round(leg.route.length_m, 1),
+               "fastest_s": round(leg.fastest_s, 1), "allocated_time_s": round(float(t), 1),
+               "optimum_kwh": round(b.energy_kwh, 3),
+               "optimum_accuracy_percent": None if b.accuracy is None else float(f"{100 * b.accuracy:.2g}"),
+               "marginal_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 4),
+               "arrival_s": round(at[leg.last] + dwell_before(journey, leg.last), 1),
+               "window_s": [sb.earliest_s, sb.latest_s], "plans": {}}
+        ctx = None
+        for name in strategies:
+            step(f"leg {leg.index + 1}: {name}")
+            ctx = make_context(leg.route, train, options, time_s=float(t), seed=seed, algorithm=algorithm, yardstick=True,
+                               calculators=None if ctx is None else (ctx.calc, ctx.search))
+            run = run_strategy(ctx, name)
+            s = run.summary
+            verdict = schedule_verdict(ctx, run)
+            if verdict:
+                result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {verdict}")
+            row["plans"][name] = {k: s.get(k) for k in ("feasible", "running_time_s", "traction_energy_kwh",
+                                                         "gap_to_optimum_kwh", "gap_to_optimum_percent", "reason",
+                                                         "recovered_energy_kwh") if k in s}
+            result.runs.append({"leg": leg.index, "strategy": name, "run": run, "clock_s": run_clock})
+            if s.get("feasible"):
+                plan_total[name] += float(s["traction_energy_kwh"])
+                plan_time[name] += float(s["running_time_s"])
+            else:
+                plan_total[name] = math.nan
+        run_clock += float(t) + sb.dwell_s
+        leg_rows.append(row)
+    stations = []
+    for i, st in enumerate(journey.stations):
+        stations.append({"station": st.name, "at_m": st.at_m, "stop": st.stop, "dwell_s": st.dwell_s,
+                         "scheduled_s": st.time_s, "window_s": [st.earliest_s, st.latest_s],
+                         "optimum_s": round(at[i] + dwell_before(journey, i), 1),
+                         "fastest_s": round(fastest[i] + dwell_before(journey, i), 1) if i in fastest else None})
+    sure = accuracy < 0.5 * GAP_DIGIT_PERCENT / 100
+    summary = {
+        "journey": journey.name, "route": route.name, "consist": train.name,
+        "legs": len(legs), "stops": len(journey.stops), "timing_points": sum(len(leg.points) for leg in legs),
+        "running_time_s": round(total, 1), "dwell_s": round(dwell_before(journey, len(journey.stations) - 1), 1),
+        "fastest_running_time_s": round(float(fast.sum()), 1),
+        "optimum_kwh": round(e_opt, 3), "optimum_accuracy_percent": float(f"{100 * accuracy:.2g}"),
+        "marginal_kwh_per_s": {"min": round(min(slopes), 4), "max": round(max(slopes), 4)} if all(
+            x is not None for x in slopes) else None,
+        "legs_table": leg_rows, "stations": stations,
+        "allocations": [{"allocation": "optimal (equal marginal energy)", "optimum_kwh": round(e_opt, 3),
+                         "leg_times_s": [round(float(x), 1) for x in times], "vs_optimal_kwh": 0.0,
+                         "vs_optimal_percent": 0.0, "missed_windows": window_misses(journey, legs, times)}]
+        + [{"allocation": name, "optimum_kwh": round(e, 3), "leg_times_s": [round(float(x), 1) for x in ts],
+            "vs_optimal_kwh": round(e - e_opt, 3),
+            "vs_optimal_percent": round(100 * (e - e_opt) / e_opt, 2) if sure and e_opt > floor * 0.0 + 1e-9 else None,
+            "missed_windows": window_misses(journey, legs, ts)} for name, ts, e in comparisons],
+        "plans": {name: {"traction_energy_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name], 3),
+                         "running_time_s": round(plan_time[name], 1),
+                         "gap_to_optimum_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name] - e_opt, 3),
+                         "gap_to_optimum_percent": (round(100 * (plan_total[name] - e_opt) / e_opt, 2)
+                                                    if sure and not math.isnan(plan_total[name]) and e_opt > 0 else None)}
+                  for name in strategies},
+        "solve_time_s": round(_time.perf_counter() - t_start, 2),
+    }
+    result.summary = summary
+    return result
