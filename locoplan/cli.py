@@ -398,6 +398,10 @@ from .cli_energy import register as _register_energy  # noqa: E402  (seed 001's 
 
 _register_energy(app)
 
+from .cli_journey import register as _register_journey  # noqa: E402  (journeys of several stops)
+
+_register_journey(app)
+
 from .cli_batch import register as _register_batch  # noqa: E402  (batch, results, pareto)
 
 _register_batch(app)

@@ -254,6 +254,17 @@ def within_percent(accuracy_percent: float | None) -> str:
     return f"{float(f'{math.ceil(accuracy_percent / step - 1e-9) * step:.2g}'):g} %"
 
 
+def percent_digits(accuracy_percent: float | None) -> int | None:
+    """Decimals a percentage of E* may show (2, 1, 0, or None for none): its last digit must be surer than
+    half of it, as a plan's gap (``GAP_DIGIT_PERCENT``) with two."""
+    if accuracy_percent is None:
+        return None
+    for d in (2, 1, 0):
+        if accuracy_percent < 0.5 * 10.0 ** -d:
+            return d
+    return None
+
+
 def percent_floor_kwh(route: Route, train: Train) -> float:
     """``PERCENT_FLOOR_SHARE`` x the kinetic energy [kWh] of ``train`` at ``route``'s highest limit."""
     v_top = ms(min(max(x.kmh for x in route.speed_limits), float(train.max_speed_kmh)))

@@ -54,6 +54,8 @@ class JourneyResult:
 
     summary: dict
     legs: list[Leg]
+    dwells: list[float] = field(default_factory=list)
+    """The dwell at each leg's last stop [s]."""
     runs: list[dict] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
 
@@ -222,7 +224,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                  source: str = "", step=lambda text: None) -> JourneyResult:
     """Plan ``journey`` (see the module docstring); ``time_s``: the total running time (dwells excluded),
     default the journey's; ``step(text)`` is told what is being done."""
-    from ..ocp.bound import GAP_DIGIT_PERCENT, percent_floor_kwh
+    from ..ocp.bound import percent_digits, percent_floor_kwh
     from ..runner import make_context, run_strategy, schedule_verdict
 
     t_start = _time.perf_counter()
@@ -253,7 +255,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
         step("timetable's leg times")
         e_tt, _ = allocation_energy(journey, legs, train, options, tts)
         comparisons.append(("timetable's leg times" if abs(scale - 1) < 1e-9 else "timetable's shares of the time", tts, e_tt))
-    result = JourneyResult({}, legs)
+    result = JourneyResult({}, legs, [journey.stations[leg.last].dwell_s for leg in legs])
     # plans
     leg_rows = []
     run_clock = 0.0
@@ -295,7 +297,12 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                          "scheduled_s": st.time_s, "window_s": [st.earliest_s, st.latest_s],
                          "optimum_s": round(at[i] + dwell_before(journey, i), 1),
                          "fastest_s": round(fastest[i] + dwell_before(journey, i), 1) if i in fastest else None})
-    sure = accuracy < 0.5 * GAP_DIGIT_PERCENT / 100
+    digits = percent_digits(100 * accuracy)
+
+    def pct(e: float) -> float | None:
+        """``e`` over the journey's E* in per cent, to the digit E*'s accuracy allows (None: none)."""
+        return None if digits is None or e_opt <= 0 or math.isnan(e) else round(100 * (e - e_opt) / e_opt, digits)
+
     summary = {
         "journey": journey.name, "route": route.name, "consist": train.name,
         "legs": len(legs), "stops": len(journey.stops), "timing_points": sum(len(leg.points) for leg in legs),
@@ -310,13 +317,12 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                          "vs_optimal_percent": 0.0, "missed_windows": window_misses(journey, legs, times)}]
         + [{"allocation": name, "optimum_kwh": round(e, 3), "leg_times_s": [round(float(x), 1) for x in ts],
             "vs_optimal_kwh": round(e - e_opt, 3),
-            "vs_optimal_percent": round(100 * (e - e_opt) / e_opt, 2) if sure and e_opt > floor * 0.0 + 1e-9 else None,
+            "vs_optimal_percent": pct(e),
             "missed_windows": window_misses(journey, legs, ts)} for name, ts, e in comparisons],
         "plans": {name: {"traction_energy_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name], 3),
                          "running_time_s": round(plan_time[name], 1),
                          "gap_to_optimum_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name] - e_opt, 3),
-                         "gap_to_optimum_percent": (round(100 * (plan_total[name] - e_opt) / e_opt, 2)
-                                                    if sure and not math.isnan(plan_total[name]) and e_opt > 0 else None)}
+                         "gap_to_optimum_percent": pct(plan_total[name])}
                   for name in strategies},
         "solve_time_s": round(_time.perf_counter() - t_start, 2),
     }

@@ -1,0 +1,88 @@
+"""``locoplan journey JOURNEY.yaml``: a whole journey of several stops planned at once.
+
+A thin command over :mod:`locoplan.runs.journey` (tables and files in :mod:`locoplan.reporting.journey`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import api, bounds
+from .api import ModelRequest
+from .cli_common import ALGO, CONSIST, JSON, MODEL, SEED, STOCK, _check_outputs, err, fail_on, guarded, json_out, out
+
+__all__ = ["register"]
+
+
+@guarded
+def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A journey file (locoplan/journey@1)."),
+            time_s: Optional[str] = typer.Option(None, "--time", help="Total running time, dwells excluded: seconds (3000), a factor of the fastest run (1.15x) or a supplement on it (+10%) (default: the journey's run_time_s, else its last station's time_s less the dwells)."),
+            strategies: str = typer.Option("proposed", "--strategies", help="Comma list of strategies that plan each leg at its allocated time."),
+            seed: int = SEED, algorithm: str = ALGO, consist: str = CONSIST, stock_dir: Optional[Path] = STOCK,
+            as_json: bool = JSON,
+            out_file: Optional[Path] = typer.Option(None, "--out", help="The whole run's profile (.csv, the first strategy's plans end to end) or the summary (.json)."),
+            plot: Optional[Path] = typer.Option(None, "--plot", help="Speed and clock along the line with stations and windows, and the allocation as bars (.png, .svg or .pdf)."),
+            model: ModelRequest = MODEL):
+    """A journey of several stops: the running time shared out among the legs for the least energy (equal
+    marginal energy on every leg not held by a window), every leg planned at its share, the journey's E*,
+    and what the allocation saves against equal-percentage supplements and the timetable's own leg times."""
+    from .io.load import load_journey, load_train
+    from .reporting.files import all_or_none
+    from .reporting.journey import (journey_allocations_table, journey_legs_table, journey_stations_table,
+                                    journey_summary_table, plot_journey, write_journey_csv)
+    from .reporting.tables import fit, show
+    from .reporting.writers import with_provenance, write_json
+    from .runs.journey import legs_of, plan_journey
+    from .strategy.registry import STRATEGIES
+    from .errors import InputError, Problem
+    from .cli_common import step_progress
+
+    names = tuple(api.names(strategies, "--strategies"))
+    for n in names:
+        api.check_choice(n, STRATEGIES, "--strategies", "strategy")
+    if out_file is not None and out_file.suffix.lower() not in (".csv", ".json"):
+        raise InputError(Problem(str(out_file), "--out", "use .csv (the whole run's profile) or .json (the summary)"))
+    _check_outputs(None, plot)
+    j, route = load_journey(journey_file)
+    train = load_train(consist, stock_dir)
+    opts = model.options()
+    req = bounds.time_request(time_s, "--time")
+    total = None
+    if req is not None:
+        if req[0] == "s":
+            total = req[1]
+        else:
+            fastest = sum(leg.fastest_s for leg in legs_of(j, route, train, opts))
+            total = bounds.time_of(req, fastest)
+            if not as_json:
+                err.print(f"note: --time {time_s}: {total:g} s of running ({req[1]:g} x the fastest run, {fastest:.1f} s)",
+                          highlight=False, markup=False, soft_wrap=True)
+    n_steps = 3 + len(j.stops) * len(names)
+    with step_progress("journey", n_steps, not as_json) as step:
+        result = plan_journey(j, route, train, opts, time_s=total, strategies=names, seed=seed, algorithm=algorithm,
+                              source=str(journey_file), step=step)
+    s = result.summary
+    with all_or_none():
+        if out_file is not None:
+            if out_file.suffix.lower() == ".json":
+                write_json(out_file, with_provenance(s))
+            else:
+                write_journey_csv(out_file, result, names[0])
+        if plot is not None:
+            plot_journey(plot, result, j, route, names[0])
+    if as_json:
+        json_out(s)
+    else:
+        tables = [journey_summary_table(s), journey_legs_table(s), journey_allocations_table(s)]
+        if any(st["window_s"] != [None, None] or not st["stop"] for st in s["stations"]):
+            tables.append(journey_stations_table(s))
+        show(out, [block for k, t in enumerate(tables) for block in fit(t, out.width, drop=(5, 2) if k == 1 else ())])
+    fail_on(api.verdict(result.failures))
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``journey`` to ``app``."""
+    app.command("journey")(journey)

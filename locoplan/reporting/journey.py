@@ -1,0 +1,181 @@
+"""``locoplan journey``: its tables, the whole run's profile as CSV, and its plot."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+from rich.markup import escape
+from rich.table import Table
+
+from ..model.conditions import CONDITIONS
+from ..ocp.bound import percent_digits
+from .files import atomic_write, atomic_write_text
+from .plot import check_plot_path, fit_title
+
+
+def _pct(x: float | None, digits: int | None) -> str:
+    return "-" if x is None or digits is None else f"{x:+.{digits}f}"
+
+
+def _win(w) -> str:
+    lo, hi = w
+    if lo is None and hi is None:
+        return "-"
+    return f"{'' if lo is None else f'{lo:g}'} .. {'' if hi is None else f'{hi:g}'}"
+
+
+def journey_summary_table(s: dict) -> Table:
+    t = Table(title=escape(f"{s['journey']} — {s['consist']}"), title_justify="left", show_header=False)
+    t.add_column("")
+    t.add_column("")
+    acc = s["optimum_accuracy_percent"]
+    t.add_row("legs", f"{s['legs']} ({s['stops']} stops, {s['timing_points']} timing points)")
+    t.add_row("running time", f"{s['running_time_s']:.1f} s, dwells excluded (fastest {s['fastest_running_time_s']:.1f} s); "
+              f"dwells {s['dwell_s']:g} s")
+    t.add_row("E* of the journey", f"{s['optimum_kwh']:.2f} kWh (within {acc:g} %), the least traction energy of any "
+              "driving with this running time and these windows")
+    m = s.get("marginal_kwh_per_s")
+    if m:
+        t.add_row("marginal energy", f"{-m['max']:.3f} .. {-m['min']:.3f} kWh per second more on a leg (equal on legs "
+                  "not held by a window)")
+    for name, p in s["plans"].items():
+        if p["traction_energy_kwh"] is None:
+            t.add_row(name, "not every leg has a feasible plan")
+            continue
+        pct = p.get("gap_to_optimum_percent")
+        gap = f"{pct:+.2f} %" if pct is not None else f"{p['gap_to_optimum_kwh']:+.2f} kWh"
+        t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s; {gap} over E*")
+    return t
+
+
+def journey_legs_table(s: dict) -> Table:
+    strategies = list(s["plans"])
+    main = strategies[0] if strategies else None
+    t = Table(title="legs: the optimal allocation of the running time", title_justify="left")
+    for col in ("leg", "from - to", "fastest [s]", "time [s]", "arrives [s]", "window [s]", "E* [kWh]",
+                f"{main} [kWh]" if main else "plan [kWh]", "gap"):
+        t.add_column(escape(col), justify="left" if col == "from - to" else "right")
+    for r in s["legs_table"]:
+        p = r["plans"].get(main, {}) if main else {}
+        e = p.get("traction_energy_kwh")
+        pct = p.get("gap_to_optimum_percent")
+        gap = "-" if e is None else (f"{pct:+.2f} %" if pct is not None else f"{p.get('gap_to_optimum_kwh', 0):+.2f} kWh")
+        t.add_row(str(r["leg"]), escape(f"{r['from']} - {r['to']}"), f"{r['fastest_s']:.1f}", f"{r['allocated_time_s']:.1f}",
+                  f"{r['arrival_s']:.1f}", _win(r["window_s"]), f"{r['optimum_kwh']:.2f}",
+                  "-" if e is None else f"{e:.2f}", gap)
+    return t
+
+
+def journey_allocations_table(s: dict) -> Table:
+    digits = percent_digits(s["optimum_accuracy_percent"])
+    t = Table(title="the same legs' E* under other allocations of the running time", title_justify="left")
+    for col in ("allocation", "E* [kWh]", "vs optimal [kWh]", "[%]", "windows missed"):
+        t.add_column(escape(col), justify="left" if col in ("allocation", "windows missed") else "right")
+    base = s["optimum_kwh"]
+    for a in s["allocations"]:
+        d = a["optimum_kwh"] - base
+        t.add_row(escape(a["allocation"]), f"{a['optimum_kwh']:.2f}", f"{d:+.2f}", _pct(100 * d / base if base > 0 else None, digits),
+                  escape(", ".join(a["missed_windows"]) or "none"))
+    return t
+
+
+def journey_stations_table(s: dict) -> Table:
+    t = Table(title="stations (clock since the departure, dwells included)", title_justify="left")
+    for col in ("station", "at [m]", "kind", "dwell [s]", "scheduled [s]", "window [s]", "optimum [s]", "fastest [s]"):
+        t.add_column(escape(col), justify="left" if col in ("station", "kind") else "right")
+    for r in s["stations"]:
+        t.add_row(escape(r["station"]), f"{r['at_m']:g}", "stop" if r["stop"] else "passes", f"{r['dwell_s']:g}",
+                  "-" if r["scheduled_s"] is None else f"{r['scheduled_s']:g}", _win(r["window_s"]),
+                  f"{r['optimum_s']:.1f}", "-" if r["fastest_s"] is None else f"{r['fastest_s']:.1f}")
+    return t
+
+
+def whole_run(result, strategy: str):
+    """The plans of one strategy end to end: arrays along the line [m] and on the clock [s] (dwells
+    included), per node; conditions, forces per cell; None where a leg has no feasible plan."""
+    journey_legs = result.legs
+    runs = {r["leg"]: r["run"] for r in result.runs if r["strategy"] == strategy}
+    rows, clock = [], 0.0
+    for leg in journey_legs:
+        run = runs.get(leg.index)
+        if run is None or not run.summary.get("feasible"):
+            return None
+        prof = run.result.profile
+        n = len(prof.s_m)
+        for k in range(n):
+            cell = min(k, n - 2)
+            rows.append((leg.index + 1, leg.from_m + prof.s_m[k], clock + prof.t_s[0, k], prof.v_kmh[0, k],
+                         CONDITIONS[int(prof.condition[0, cell])], prof.traction_kn[0, cell], prof.brake_kn[0, cell]))
+        clock += float(prof.t_s[0, -1]) + result.dwells[leg.index]
+    return rows
+
+
+def journey_profile_csv(result, strategy: str) -> str:
+    rows = whole_run(result, strategy)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["leg", "s_m", "clock_s", "v_kmh", "condition", "traction_kn", "brake_kn"])
+    for r in rows or []:
+        w.writerow([r[0], f"{r[1]:.3f}", f"{r[2]:.3f}", f"{r[3]:.4f}", r[4], f"{r[5]:.3f}", f"{r[6]:.3f}"])
+    return buf.getvalue()
+
+
+def write_journey_csv(path: str | Path, result, strategy: str) -> None:
+    atomic_write_text(Path(path), journey_profile_csv(result, strategy))
+
+
+def plot_journey(path: str | Path, result, journey, route, strategy: str) -> None:
+    """The whole run: speed against the line with the limits and the stations, the clock against the line
+    with every window, and the running time of each leg under the allocations as bars."""
+    path = check_plot_path(path)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = result.summary
+    fig, (ax, axc, axb) = plt.subplots(3, 1, figsize=(11, 9), gridspec_kw={"height_ratios": [3, 2, 2]})
+    rows = whole_run(result, strategy)
+    if rows:
+        arr = np.array([(r[1], r[2], r[3]) for r in rows])
+        ax.plot(arr[:, 0] / 1000, arr[:, 2], color="#1f77b4", lw=1.2, label=f"{strategy} plan")
+        axc.plot(arr[:, 0] / 1000, arr[:, 1], color="#1f77b4", lw=1.2, label=f"{strategy} plan")
+    lim_x = [x for sec in route.speed_limits for x in (sec.from_m / 1000, sec.to_m / 1000)]
+    lim_y = [sec.kmh for sec in route.speed_limits for _ in (0, 1)]
+    ax.plot(lim_x, lim_y, color="#d62728", lw=1.0, ls="--", label="speed limit (route file)")
+    opt = [(st["at_m"] / 1000, st["optimum_s"]) for st in s["stations"]]
+    axc.plot(*zip(*opt), "o", color="#2ca02c", ms=4, label="E* allocation at the stations")
+    for k, st in enumerate(journey.stations):
+        x = st.at_m / 1000
+        for a in (ax, axc):
+            a.axvline(x, color="black", lw=0.8, ls=":" if st.stop else "-.", alpha=0.7)
+        ax.annotate(st.name, (x, 1.0), xycoords=("data", "axes fraction"), rotation=90, ha="center", va="bottom", fontsize=7)
+        lo, hi = st.earliest_s, st.latest_s
+        if lo is not None or hi is not None:
+            y0 = lo if lo is not None else hi
+            y1 = hi if hi is not None else lo
+            axc.plot([x, x], [y0, y1], color="#ff7f0e", lw=4, alpha=0.7, solid_capstyle="butt",
+                     label="window" if k == next(i for i, t in enumerate(journey.stations) if t.earliest_s is not None or t.latest_s is not None) else None)
+    ax.set_ylabel("speed [km/h]")
+    axc.set_ylabel("clock [s]")
+    axc.set_xlabel("position along the line [km]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    axc.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    legs = np.arange(1, s["legs"] + 1)
+    width = 0.8 / max(len(s["allocations"]), 1)
+    for k, a in enumerate(s["allocations"]):
+        axb.bar(legs + (k - (len(s["allocations"]) - 1) / 2) * width, a["leg_times_s"], width,
+                label=f"{a['allocation']}: E* {a['optimum_kwh']:.1f} kWh")
+    axb.set_xlabel("leg")
+    axb.set_ylabel("running time [s]")
+    axb.set_xticks(legs)
+    axb.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    fit_title(ax, f"{s['journey']} — {s['consist']}: {s['running_time_s']:.0f} s running, E* {s['optimum_kwh']:.1f} kWh",
+              pad=48)
+    fig.tight_layout()
+    fmt = path.suffix.lstrip(".").lower()
+    atomic_write(path, lambda p: fig.savefig(p, format=fmt, dpi=130, bbox_inches="tight"))
+    plt.close(fig)
