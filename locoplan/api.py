@@ -132,11 +132,11 @@ class Validation:
 
 
 def validate_files(files: Iterable, stock_dir=None) -> Validation:
-    """Check route, vehicle and consist files (and the ``--stock-dir`` folder); every problem of every
+    """Check route, vehicle, consist and journey files (and the ``--stock-dir`` folder); every problem of every
     file is collected, none is raised."""
     from dataclasses import asdict
 
-    from .io.load import check_folder, read_yaml, route_warnings, validate_data
+    from .io.load import check_folder, load_journey, read_yaml, route_warnings, validate_data
     from .reporting.tables import describe, describe_data
 
     report = Validation([], [], [])
@@ -149,6 +149,8 @@ def validate_files(files: Iterable, stock_dir=None) -> Validation:
         try:
             data, lines = read_yaml(f)
             model = validate_data(data, str(f), lines)
+            if data.get("schema") == "locoplan/journey@1":
+                model, _ = load_journey(f)  # its route too, and the stations against it
             d = describe_data(model, str(f), stock_dir)
             warns = route_warnings(model, str(f), lines) if d["kind"] == "route" else []
             report.results.append({"file": str(f), "valid": True, "kind": d["kind"], "summary": describe(model, str(f), stock_dir),

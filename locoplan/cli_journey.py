@@ -79,7 +79,8 @@ def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A 
         tables = [journey_summary_table(s), journey_legs_table(s), journey_allocations_table(s)]
         if any(st["window_s"] != [None, None] or not st["stop"] for st in s["stations"]):
             tables.append(journey_stations_table(s))
-        show(out, [block for k, t in enumerate(tables) for block in fit(t, out.width, drop=(5, 2) if k == 1 else ())])
+        show(out, [block for k, t in enumerate(tables)
+                   for block in fit(t, out.width, drop=(5, 2) if k == 1 else (), wrap=(1,) if k == 0 else ())])
     fail_on(api.verdict(result.failures))
 
 

@@ -126,6 +126,9 @@ def _solve_joined(calcs, offsets, time_s: float, stops_m, windows, start: Joined
         x0 = prob.start_from_profile((x0 * prob.ref)[0::3])
         settings, mu = IPMSettings(), 1e-2
     res = CellIPM(prob, settings).solve(x0, mu_init=mu)
+    if not res.converged and start is not None:  # from the coarser grid's optimum it lost its way: cold
+        v = [initial_speeds(c, t) for c, t in zip(calcs, leg_times_guess)]
+        res = CellIPM(prob).solve(prob.start_from_profile(np.concatenate([v[0]] + [x[1:] for x in v[1:]])))
     if not res.converged:
         raise InfeasibleError(f"the journey's minimum-energy problem on {prob.N} cells did not converge ({res.status} "
                               f"after {res.iterations} iterations): are its windows and its running time compatible?")

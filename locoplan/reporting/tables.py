@@ -135,6 +135,9 @@ def describe_data(model, path: str, stock_dir: Optional[Path]) -> dict:
     if kind == "Vehicle":
         return {"kind": "vehicle", "name": model.name, "vehicle_kind": model.kind, "mass_t": model.mass_t,
                 "length_m": model.length_m, "max_speed_kmh": model.max_speed_kmh}
+    if kind == "Journey":
+        return {"kind": "journey", "name": model.name, "route": model.route, "stations": len(model.stations),
+                "stops": len(model.stops), "run_time_s": model.run_time_s}
     train = load_train(path, stock_dir)
     return {"kind": "consist", "name": train.name, "vehicles": train.n_vehicles, "mass_t": train.mass_t,
             "length_m": train.length_m, "max_speed_kmh": train.max_speed_kmh}
@@ -155,6 +158,9 @@ def describe(model, path: str, stock_dir: Optional[Path]) -> str:
         return f"route '{d['name']}': " + ", ".join(parts)
     if d["kind"] == "vehicle":
         return f"{d['vehicle_kind']} '{d['name']}': {d['mass_t']:g} t, {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h"
+    if d["kind"] == "journey":
+        return (f"journey '{d['name']}' over {d['route']}: {d['stations']} stations, {d['stops'] - 1} legs"
+                + (f", running time {d['run_time_s']:g} s" if d["run_time_s"] else ""))
     return (f"consist '{d['name']}': {d['vehicles']} vehicles, {d['mass_t']:g} t, "
             f"train length {d['length_m']:g} m, max {d['max_speed_kmh']:g} km/h")
 

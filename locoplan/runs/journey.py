@@ -219,6 +219,18 @@ def timetable_times(journey: Journey, legs: list[Leg]) -> list[float] | None:
     return out
 
 
+def _window_text(st) -> str:
+    return f"{'' if st.earliest_s is None else f'{st.earliest_s:g}'} .. {'' if st.latest_s is None else f'{st.latest_s:g}'} s"
+
+
+def timing_passes(leg: Leg, run, journey: Journey, clock_at_departure: float) -> list[tuple[int, float]]:
+    """When a leg's plan passes the timing points inside it (clock, dwells included) [s]."""
+    if not leg.points or not run.summary.get("feasible") or run.result.profile is None:
+        return []
+    prof = run.result.profile
+    return [(i, clock_at_departure + float(np.interp(at, prof.s_m, prof.t_s[0]))) for i, at in leg.points]
+
+
 def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOptions, *, time_s: float | None = None,
                  strategies: tuple[str, ...] = ("proposed",), seed: int = 1, algorithm: str = "issa",
                  source: str = "", step=lambda text: None) -> JourneyResult:
@@ -258,7 +270,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
     result = JourneyResult({}, legs, [journey.stations[leg.last].dwell_s for leg in legs])
     # plans
     leg_rows = []
-    run_clock = 0.0
+    plan_clock = {s: 0.0 for s in strategies}  # each strategy's clock at the leg's departure (its own times)
     plan_total = {s: 0.0 for s in strategies}
     plan_time = {s: 0.0 for s in strategies}
     for leg, t, b in zip(legs, times, bounds):
@@ -283,13 +295,21 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             row["plans"][name] = {k: s.get(k) for k in ("feasible", "running_time_s", "traction_energy_kwh",
                                                          "gap_to_optimum_kwh", "gap_to_optimum_percent", "reason",
                                                          "recovered_energy_kwh") if k in s}
-            result.runs.append({"leg": leg.index, "strategy": name, "run": run, "clock_s": run_clock})
+            result.runs.append({"leg": leg.index, "strategy": name, "run": run, "clock_s": plan_clock[name]})
+            for i, pass_s in timing_passes(leg, run, journey, clock_at_departure=plan_clock[name]):
+                st = journey.stations[i]
+                row["plans"][name].setdefault("passes_s", {})[st.name] = round(pass_s, 1)
+                if (st.earliest_s is not None and pass_s < st.earliest_s - 0.5) or (
+                        st.latest_s is not None and pass_s > st.latest_s + 0.5):
+                    result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {name} passes {st.name} at "
+                                           f"{pass_s:.1f} s, outside its window {_window_text(st)} (the leg's plan "
+                                           "keeps the leg's time, not the timing point's window)")
             if s.get("feasible"):
                 plan_total[name] += float(s["traction_energy_kwh"])
                 plan_time[name] += float(s["running_time_s"])
+                plan_clock[name] += float(s["running_time_s"]) + sb.dwell_s
             else:
                 plan_total[name] = math.nan
-        run_clock += float(t) + sb.dwell_s
         leg_rows.append(row)
     stations = []
     for i, st in enumerate(journey.stations):
