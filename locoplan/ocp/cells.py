@@ -356,6 +356,19 @@ WARM_MU = 1e-3
 are not carried over: from them and a small barrier parameter the method lost its way on long lines)."""
 
 
+def grid_accuracy(energies_kwh: list[float], floor_kwh: float = 0.0) -> float:
+    """The finest grid's relative error, estimated from the optima on successively halved grids: the last
+    change ``d``, or where three grids show the changes shrinking by only ``r < 2`` per halving (slower than
+    first order), ``d / (r - 1)``, the rest of a geometric series of such changes. The estimate never
+    assumes a faster convergence than the grids showed; relative to ``max(E*, floor_kwh)``."""
+    e = energies_kwh
+    d = abs(e[-1] - e[-2])
+    if len(e) >= 3 and abs(e[-2] - e[-3]) > 0:
+        r = abs(e[-2] - e[-3]) / max(d, 1e-300)
+        d = d * max(1.0, 1.0 / (r - 1.0)) if r > 1.0 else math.inf
+    return d / max(abs(e[-1]), floor_kwh, 1e-9)
+
+
 @dataclass(frozen=True)
 class EStar:
     """E* from the cell scheme on successively halved grids: the finest grid's optimum [kWh], its relative
@@ -395,18 +408,23 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
             x0, *_ = warm_point(prob, prev)
             start = x0 * prob.ref
             start = start[0::3]
-        sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU)
+        try:
+            sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU)
+        except InfeasibleError:
+            if len(sols) < 2:
+                raise
+            break  # a finer grid the solver cannot finish: the last two grids' answer, not converged
         sols.append(sol)
         steps.append(step)
         cells.append(len(calc.h_m))
         prev = sol
         if len(sols) >= 2:
-            e_c, e_f = sols[-2].energy_kwh, sols[-1].energy_kwh
-            acc = abs(e_c - e_f) / max(abs(e_f), floor_kwh, 1e-9)
+            acc = grid_accuracy([s.energy_kwh for s in sols], floor_kwh)
             if acc <= tol or step / 2 < finest_step_m - 1e-9:
                 break
         step /= 2
     fine = sols[-1]
+    steps, cells = steps[:len(sols)], cells[:len(sols)]
     return EStar(fine.energy_kwh, acc, acc <= tol, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
                  tuple(s.energy_kwh for s in sols), tuple(s.result.iterations for s in sols),
                  _time.perf_counter() - t0, fine)

@@ -100,7 +100,7 @@ class IPMSettings:
     """Tolerance on the scaled optimality error (dual, primal, complementarity), IPOPT's scaling."""
     acceptable_tol: float = 1e-4
     acceptable_iter: int = 5
-    acceptable_obj_change: float = 1e-8
+    acceptable_obj_change: float = 1e-7
     """Also converged ("acceptable") after ``acceptable_iter`` iterations in a row with the error below
     ``acceptable_tol``, the barrier parameter at its floor and the objective moving by at most this share:
     where Newton's method cannot reach ``tol`` (a force curve's slope changing fast right at the optimum's

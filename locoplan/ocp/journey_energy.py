@@ -29,7 +29,8 @@ from ..model.route import Route
 from ..model.train import Train
 from ..physics.units import KJ_PER_KWH
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .cells import COARSE_STEP_M, FINEST_STEP_M, CellEnergyProblem, CellSolution, cell_calculator, initial_speeds, warm_point
+from .cells import (COARSE_STEP_M, FINEST_STEP_M, CellEnergyProblem, CellSolution, cell_calculator, grid_accuracy,
+                    initial_speeds, warm_point)
 from .ipm import CellIPM, IPMSettings
 
 
@@ -166,7 +167,7 @@ def journey_estar(legs: list[Route], offsets_m: list[float], train: Train, optio
         sols.append(_solve_joined(calcs, offsets_m, time_s, stops, windows, sols[-1] if sols else None, guess))
         steps.append(step)
         if len(sols) >= 2:
-            acc = abs(sols[-2].energy_kwh - sols[-1].energy_kwh) / max(abs(sols[-1].energy_kwh), floor_kwh, 1e-9)
+            acc = grid_accuracy([s.energy_kwh for s in sols], floor_kwh)
             if acc <= tol or step / 2 < finest_step_m - 1e-9:
                 break
         step /= 2

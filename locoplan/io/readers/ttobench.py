@@ -272,14 +272,15 @@ class TTOBenchReader:
         hi = max(v for _, _, v in raw_limits)
         origin = ", ".join(f"{k} {meta[k]}" for k in ("library version", "created by") if isinstance(meta.get(k), str))
         lic = meta.get("license") if isinstance(meta.get("license"), str) else "see the source"
-        lines = [f"{track_id}: leg {leg} of {n_legs}, from the stop at {emit.num(a)} m to the stop at {emit.num(b)} m "
+        part = (f"the whole line, {n_legs} legs" if leg == 0 else f"leg {leg} of {n_legs}")
+        lines = [f"{track_id}: {part}, from the stop at {emit.num(a)} m to the stop at {emit.num(b)} m "
                  "of the track, from TTOBench (a public train trajectory optimisation benchmark).",
                  f"Source: {path} (id {track_id}{', ' + origin if origin else ''}).",
                  f"Licence: {lic}" + (f"; {copyright_line}" if copyright_line else "")
                  + ("; full text in LICENSE-ttobench.txt beside this file." if licence else "."),
                  f"Converted by: {command}" if command else "Converted by locoplan's ttobench importer.",
-                 "Conversion: positions in metres from the leg's start; each source entry starts a section that runs "
-                 "to the next entry (the last one to the leg's end)."]
+                 f"Conversion: positions in metres from the {'line' if leg == 0 else 'leg'}'s start; each source entry "
+                 f"starts a section that runs to the next entry (the last one to the {'line' if leg == 0 else 'leg'}'s end)."]
         if cap is not None:
             lines.append(f"Speed limits capped at {emit.num(cap)} km/h (the source's limits on this leg: "
                          f"{emit.num(lo)} to {emit.num(hi)} km/h).")
