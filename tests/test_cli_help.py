@@ -56,7 +56,7 @@ def _options(text: str) -> dict[str, str]:
 def test_every_command_is_listed_and_covered():
     names = {" ".join(p) for p in COMMANDS}
     for name in ("validate", "simulate", "optimize", "compare", "sweep", "study", "ocp", "ocp-study", "bound", "batch",
-                 "results", "pareto", "import", "learn", "advise", "drivers simulate"):
+                 "results", "pareto", "import", "learn", "advise", "drivers simulate", "journey"):
         assert name in names
 
 
@@ -70,7 +70,7 @@ def test_help_names_values_not_types(path):
     assert "{" not in usage
     for flag, entry in _options(text).items():
         head = entry.split("  ")[1] if entry.startswith("  --") else entry
-        if " / --no-" in entry or flag in ("--help", "--json", "--quiet", "--explain", "--all-legs", "--version"):
+        if " / --no-" in entry or flag in ("--help", "--json", "--quiet", "--explain", "--all-legs", "--journey", "--version"):
             continue
         # an option taking a value shows a capitalised metavar right after the flag
         assert re.match(rf"^  {flag} [A-Z]", entry) or re.match(rf"^  {flag} (csv|time)", entry), (path, entry, head)
