@@ -46,8 +46,10 @@ def journey_summary_table(s: dict) -> Table:
             t.add_row(name, "not every leg has a feasible plan")
             continue
         pct = p.get("gap_to_optimum_percent")
-        gap = f"{pct:+.2f} %" if pct is not None else f"{p['gap_to_optimum_kwh']:+.2f} kWh"
-        t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s; {gap} over E*")
+        gap = ("-" if p["gap_to_optimum_kwh"] is None else f"{pct:+.2f} %" if pct is not None
+               else f"{p['gap_to_optimum_kwh']:+.2f} kWh")
+        t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s; {gap} over E* (each leg "
+                  "at its plan's own time)")
     return t
 
 

@@ -273,6 +273,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
     plan_clock = {s: 0.0 for s in strategies}  # each strategy's clock at the leg's departure (its own times)
     plan_total = {s: 0.0 for s in strategies}
     plan_time = {s: 0.0 for s in strategies}
+    plan_gap = {s: 0.0 for s in strategies}  # each leg's plan against its leg's E* at the plan's own time
     for leg, t, b in zip(legs, times, bounds):
         sa, sb = journey.stations[leg.first], journey.stations[leg.last]
         row = {"leg": leg.index + 1, "from": sa.name, "to": sb.name, "length_m": round(leg.route.length_m, 1),
@@ -307,6 +308,8 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             if s.get("feasible"):
                 plan_total[name] += float(s["traction_energy_kwh"])
                 plan_time[name] += float(s["running_time_s"])
+                g = s.get("gap_to_optimum_kwh")
+                plan_gap[name] += math.nan if g is None else float(g)
                 plan_clock[name] += float(s["running_time_s"]) + sb.dwell_s
             else:
                 plan_total[name] = math.nan
@@ -319,9 +322,10 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                          "fastest_s": round(fastest[i] + dwell_before(journey, i), 1) if i in fastest else None})
     digits = percent_digits(100 * accuracy)
 
-    def pct(e: float) -> float | None:
-        """``e`` over the journey's E* in per cent, to the digit E*'s accuracy allows (None: none)."""
-        return None if digits is None or e_opt <= 0 or math.isnan(e) else round(100 * (e - e_opt) / e_opt, digits)
+    def pct(e: float, base: float | None = None) -> float | None:
+        """``e`` over ``base`` (the journey's E*) in per cent, to the digit E*'s accuracy allows (None: none)."""
+        base = e_opt if base is None else base
+        return None if digits is None or base <= 0 or math.isnan(e) else round(100 * (e - base) / base, digits)
 
     summary = {
         "journey": journey.name, "route": route.name, "consist": train.name,
@@ -341,8 +345,9 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             "missed_windows": window_misses(journey, legs, ts)} for name, ts, e in comparisons],
         "plans": {name: {"traction_energy_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name], 3),
                          "running_time_s": round(plan_time[name], 1),
-                         "gap_to_optimum_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name] - e_opt, 3),
-                         "gap_to_optimum_percent": pct(plan_total[name])}
+                         "gap_to_optimum_kwh": None if math.isnan(plan_gap[name]) else round(plan_gap[name], 3),
+                         "gap_to_optimum_percent": None if math.isnan(plan_gap[name]) else pct(
+                             plan_total[name], plan_total[name] - plan_gap[name])}
                   for name in strategies},
         "solve_time_s": round(_time.perf_counter() - t_start, 2),
     }
