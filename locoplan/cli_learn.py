@@ -14,7 +14,8 @@ import typer
 from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out, out, wrote
+from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out,
+                         out, plain, wrote)
 from .reporting.learn_tables import fit_tables, groups_table, sections_table
 from .reporting.tables import fit, sequence_table, show, summary_table
 
@@ -53,6 +54,9 @@ def simulate(route: Path = ROUTE,
     with err.status("simulating drivers") as status:
         summary = simulate_drivers(spec, out_dir, progress=lambda text: status.update(f"simulating {text}"))
     wrote([summary.out_dir])
+    for stale in summary.removed:
+        err.print(f"note: removed {plain(str(stale))}, left by a drivers simulate stopped before it finished",
+                  highlight=False, markup=False, soft_wrap=True)
     if as_json:
         json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
                        "groups": summary.groups, "drivers": summary.drivers})
