@@ -89,12 +89,16 @@ class PricedDriveSolver:
             fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
             switch_penalty_kwh = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
         self.switch_penalty_kwh = float(switch_penalty_kwh)
-        # DP nodes: calculator nodes at least cell_m apart (the first and the last always)
+        # DP nodes: calculator nodes at least cell_m apart (the first and the last always), and every edge of a
+        # neutral span: a cell that straddled one would lose the catenary (traction and the electric brake) over
+        # its whole length, while its start node's cap, the calculator's braking curve, counts on the electric
+        # brake up to the edge, and no state could follow that curve into a span where it can only coast
+        edges = set((np.flatnonzero(np.diff(calc.traction_allowed) != 0) + 1).tolist())
         keep = [0]
         for i in range(1, len(calc.s_m) - 1):
-            if calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
+            if i in edges or calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
                 keep.append(i)
-        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1:
+        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1 and keep[-1] not in edges:
             keep.pop()
         keep.append(len(calc.s_m) - 1)
         idx = np.array(keep)
