@@ -75,8 +75,9 @@ class PricedDriveSolver:
     """DP over one calculator's route; ``solve(price)`` gives the priced optimum.
 
     The DP's cells join the calculator's (which split at every route breakpoint, down to a few metres on
-    real lines) into cells of about ``cell_m``: gravity is their length-weighted mean (exact work),
-    traction is cut in the whole cell if any part is a neutral span, and the cap at a node is the lowest
+    real lines) into cells of about ``cell_m``, split at every edge of a neutral span: gravity is their
+    length-weighted mean (exact work), a cell is in a span or outside it (no traction nor electric brake in
+    one, in case a calculator cell inside it is), and the cap at a node is the lowest
     braking envelope since the previous node (a short restriction is not jumped over). The drive is a
     guess for the sequence; the exact calculator checks every plan made of it."""
 
