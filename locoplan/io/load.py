@@ -266,6 +266,16 @@ _LOADER.add_constructor("tag:yaml.org,2002:int", _construct_int)
 # integers YAML 1.2 reads and YAML 1.1 leaves as text: 08, 0189 (a leading zero before an 8 or 9), 0o60
 _LOADER.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(r"^(?:[-+]?0[0-9]*[89][0-9]*|[-+]?0o[0-7]+)$"),
                               list("-+0"))
+# booleans as YAML 1.2 reads them: true and false only (YAML 1.1 also reads yes, no, on, off, y... as booleans, so
+# that `window: no` or a route named Off would change type silently); the others are text, and a boolean field
+# given one says so (_message)
+_BOOL_12 = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+for _first, _resolvers in _LOADER.yaml_implicit_resolvers.items():
+    _LOADER.yaml_implicit_resolvers[_first] = [(tag, _BOOL_12 if tag == "tag:yaml.org,2002:bool" else regexp)
+                                               for tag, regexp in _resolvers
+                                               if tag != "tag:yaml.org,2002:bool" or _first in "tTfF"]
+_YAML11_BOOLS = {"yes": True, "no": False, "on": True, "off": False, "y": True, "n": False}
+"""Words YAML 1.1 reads as booleans and YAML 1.2 as text (PyYAML's 1.1 resolver takes yes/no/on/off, others y/n)."""
 _RESOLVER = _LOADER("")
 _STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
 _NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
@@ -637,6 +647,9 @@ def _message(model: type[BaseModel], err: dict) -> str:
         return f"must be a finite number, got {err.get('input')!r}"
     msg = err["msg"]
     value = err.get("input")
+    if kind == "bool_type" and isinstance(value, str) and value.lower() in _YAML11_BOOLS:
+        return (f"{value!r} is text to YAML 1.2 (YAML 1.1 read it as the boolean "
+                f"{str(_YAML11_BOOLS[value.lower()]).lower()}): write true or false")
     if kind == "float_type" and isinstance(value, str) and _EXPONENT_TEXT.match(value):
         return (f"{value!r} is text, not a number, to YAML 1.1: write a number in exponent form with a dot "
                 f"and a signed exponent, e.g. {_yaml_float(value)}")
