@@ -454,7 +454,7 @@ def build(tmp: Path) -> list[Case]:
     option("learn_holdout_nan", ["learn", str(logs_dir), "--out", str(tmp / "p2.json"), "--holdout", "nan"], CMDLINE, "--holdout")
     option("learn_seed_neg", ["learn", str(logs_dir), "--out", str(tmp / "p3.json"), "--seed", "-1"], CMDLINE, "--seed")
     option("learn_level_inf", ["learn", str(logs_dir), "--out", str(tmp / "p4.json"), "--level", "inf"], CMDLINE, "--level")
-    option("advise_mass_huge", ["advise", good_route, "--patterns", str(tmp / "none.json"), "--mass", "1e12"], "--mass")
+    option("advise_mass_huge", ["advise", good_route, "--patterns", str(tmp / "none.json"), "--mass", "1e12"], "--mass:")
     option("advise_patterns_fifo", ["advise", good_route, "--patterns", str(fifo)], str(fifo), "FIFO")
     option("ocp_nodes_huge", ["ocp", str(ROOT / "routes/seed000-flat.yaml"), "--method", "cvp", "--nodes", "1000000000"],
            "--nodes")
