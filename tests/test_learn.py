@@ -218,6 +218,21 @@ def test_speed_noise_block_by_block_is_one_draw():
     assert rng.standard_normal() == np.random.default_rng(3).standard_normal(7 * 50 + 1)[-1]  # advanced past the draw
 
 
+def test_a_manifest_of_thousands_of_runs_is_read(tmp_path):
+    """drivers simulate writes up to 20,000 runs into one manifest (15 values each): more values than any route
+    may hold (100,000), so manifests have a bound of their own; 7,000 runs (105,000 values) are read."""
+    from locoplan.io.logs import _yaml_entries
+
+    runs = [{"log": f"logs/D01-m5200-t520-r{i}.csv", "driver_id": "D01", "consist": "consists/m5200.yaml",
+             "mass_t": 5200.0, "scheduled_time_s": 520.0, "actual_time_s": 521.0, "date": dt.date(2024, 1, 1)}
+            for i in range(7000)]
+    path = tmp_path / "manifest.yaml"
+    path.write_text(manifest_text({"schema": "locoplan/driver-logs@1", "route": "route.yaml", "synthetic": True,
+                                   "runs": runs}))
+    model, _ = _yaml_entries(path)
+    assert len(model.runs) == 7000
+
+
 def test_drivers_simulate_refuses_a_used_folder(tmp_path):
     (tmp_path / "old.txt").write_text("x")
     res = runner.invoke(app, ["drivers", "simulate", str(LINE), "--out", str(tmp_path), "--drivers", "2", "--runs", "1"])

@@ -335,7 +335,7 @@ class _Open:
         self.want_key, self.key, self.index = True, None, 0
 
 
-def _scan(text: str, name: str) -> None:
+def _scan(text: str, name: str, max_nodes: int = MAX_NODES) -> None:
     """Refuse what would blow up composing or walking the YAML, before composing it: nesting deeper than
     ``MAX_DEPTH``, aliases adding more than ``MAX_ALIAS_NODES`` nodes or referring to themselves, keys
     that are not strings, number literals longer than ``MAX_NUMBER_DIGITS`` digits. Works on the event
@@ -383,9 +383,10 @@ def _scan(text: str, name: str) -> None:
         for event in yaml.parse(text, Loader=_LOADER):
             if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 written += 1
-                if written > MAX_NODES:
-                    fail(event, f"holds more than {MAX_NODES:,} values: no route, vehicle or consist needs so many "
-                                "(the largest real line shipped holds about 2,500; 355 sections)")
+                if written > max_nodes:
+                    fail(event, f"holds more than {max_nodes:,} values: " + (
+                        "no route, vehicle or consist needs so many (the largest real line shipped holds about 2,500; "
+                        "355 sections)" if max_nodes == MAX_NODES else "more than this kind of file needs"))
             top = stack[-1] if stack else None
             at_key = top is not None and top.is_map and top.want_key
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
@@ -441,10 +442,11 @@ def _scan(text: str, name: str) -> None:
         return  # composing reports the syntax error with its line
 
 
-def parse_yaml(text: str, name: str) -> tuple[Any, yaml.Node | None]:
+def parse_yaml(text: str, name: str, max_nodes: int = MAX_NODES) -> tuple[Any, yaml.Node | None]:
     """Parse one YAML document safely: (data, node). ``InputError`` for anything malformed or hostile
-    (see ``_scan``); data and node are None for an empty document."""
-    _scan(text, name)
+    (see ``_scan``; ``max_nodes``: more values for a kind of file that needs them); data and node are None
+    for an empty document."""
+    _scan(text, name, max_nodes)
     loader = _LOADER(text)
     try:
         node = loader.get_single_node()
@@ -559,10 +561,10 @@ def yaml_kind(value: Any) -> str:
             str: "text", type(None): "null"}.get(type(value), f"a {type(value).__name__}")
 
 
-def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
+def read_yaml(path: Path, max_nodes: int = MAX_NODES) -> tuple[Any, dict[tuple, int]]:
     """Parse a YAML file; missing, unreadable, empty, malformed or hostile files raise ``InputError``."""
     name = str(path)
-    data, node = parse_yaml(read_text(path), name)
+    data, node = parse_yaml(read_text(path), name, max_nodes)
     if node is None or data is None:
         raise InputError(Problem(name, "", "file is empty"))
     duplicates = _duplicate_keys(node, name)
