@@ -412,8 +412,11 @@ _tidy_help(app)
 
 
 def main() -> None:
+    from .cli_common import std_streams
+
     try:
-        app()
+        with std_streams():  # also what click prints itself (help, usage): stdout's errors named, stderr's dropped
+            app()
     except OSError as exc:  # what click prints itself (help, usage) on a full stdout: a message, never a traceback
         import sys
 

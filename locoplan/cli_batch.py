@@ -120,39 +120,49 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
             boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
             as_json: bool = JSON):
     """Export, summarise and plot a result store (from the stored runs, no re-run)."""
+    import sys
+
     from .reporting.plot_runs import plot_boxes, plot_energy_time
     from .reporting.tables import store_summary_table
     from .runs import Store
-    from .runs.results import FORMATS, SUMMARY_FIELDS, export, stream_rows, summarize_rows
+    from .runs.results import (FORMATS, PLOT_FIELDS, SUMMARY_FIELDS, ExportShape, check_format, export, export_to_file,
+                               iter_rows, stream_rows, summarize_rows, write_export)
 
     api.check_choice(fmt, FORMATS, "format", "format")
     check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
                   plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
+    if fmt is not None:
+        check_format(fmt, out_file)
     group = _names(by, "--by")
-    summary_only = fmt is None and not plot and not boxplot
+    # streamed, a chunk of records at a time: a first pass keeps of each row only the fields the summary or the
+    # plots read; an export (--format) is written in a second pass, a row at a time, over the same rows
+    keep = (*group, *SUMMARY_FIELDS) if fmt is None else ()
+    keep = tuple(dict.fromkeys([*keep, *(PLOT_FIELDS if plot or boxplot else ())]))
+    shape = ExportShape(fmt, str(store_path)) if fmt is not None else None
     with Store(store_path, create=False) as store:
-        # streamed, a chunk of records at a time; a summary keeps only the fields it reads of each row
-        rows, fields = stream_rows(store.iter_records(), where,
-                                   tuple(dict.fromkeys([*group, *SUMMARY_FIELDS])) if summary_only else None)
+        rows, fields = stream_rows(store.iter_records(), where, keep, on_row=shape.add if shape else None)
         _warn_damaged(err, store, "left out (the other runs are used; the store file is damaged, so batch does not "
                       "write into it: run the batch into a new store to run them again)" if store.file_damaged else
                       "left out (the other runs are used; locoplan batch on the store runs it again)")
-    if rows:
-        api.check_fields(group, fields, "by")
-    summary = summarize_rows(rows, group)
-    with all_or_none():
-        text = None
-        if fmt is not None:
-            text = export(rows, out_file, fmt)
-        elif out_file is not None:
-            export(summary, out_file, out_file.suffix.lower().lstrip("."))
-        if plot:
-            plot_energy_time(rows, plot)
-        if boxplot:
-            plot_boxes(rows, boxplot)
-    if text is not None:
-        print(text, end="")
-    elif fmt is None:
+        if rows:
+            api.check_fields(group, fields, "by")
+        summary = summarize_rows(rows, group) if fmt is None else []
+
+        def again():  # the second pass: the rows of the first (up to its last row id), a row at a time
+            return iter_rows(store.iter_records(upto=store.last_rowid), where)
+
+        with all_or_none():
+            if fmt is not None and out_file is not None:
+                export_to_file(again(), shape, out_file)
+            elif out_file is not None:
+                export(summary, out_file, out_file.suffix.lower().lstrip("."))
+            if plot:
+                plot_energy_time(rows, plot)
+            if boxplot:
+                plot_boxes(rows, boxplot)
+        if fmt is not None and out_file is None:
+            write_export(again(), shape, sys.stdout)
+    if fmt is None:
         if as_json:
             json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
         else:

@@ -234,6 +234,8 @@ def guarded(fn):
                and kwargs.get("times") is None and isinstance(kwargs.get("route"), Path) else None}
         token = _RUN.set(run)
         code = None
+        streams = std_streams()
+        streams.__enter__()  # stdout's errors named as stdout's, stderr's dropped (std_streams)
         recording = provenance(run["inputs"])
         recording.__enter__()  # every file the command reads, hashed, for --json and the --out .json files
         try:
@@ -277,6 +279,7 @@ def guarded(fn):
                     _print_json(run, code)
             finally:
                 recording.__exit__(None, None, None)
+                streams.__exit__(None, None, None)
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
@@ -329,6 +332,94 @@ def plain(text: str) -> str:
     return out
 
 
+STDOUT = "<stdout>"
+
+
+class _Stdout:
+    """``sys.stdout`` while a command runs: an OSError from writing it names it (its filename is ``<stdout>``), so
+    that a full stdout is told apart from a file the system did not name (``_os_problem``)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise _named_stdout(exc)
+
+    def flush(self):
+        try:
+            return self._stream.flush()
+        except OSError as exc:
+            raise _named_stdout(exc)
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _named_stdout(exc: OSError) -> OSError:
+    if exc.filename is None:
+        exc.filename = STDOUT
+    return exc
+
+
+class _Stderr:
+    """``sys.stderr`` while a command runs: when it cannot be written (stderr on a full device), the messages are
+    dropped and file descriptor 2 is pointed at /dev/null, so that the command writes its outputs and ends with
+    the exit code it would have had: the code is all a caller can still learn."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self.failed = False
+
+    def write(self, text):
+        if not self.failed:
+            try:
+                return self._stream.write(text)
+            except OSError:
+                self._fail()
+        return len(text)
+
+    def flush(self):
+        if not self.failed:
+            try:
+                self._stream.flush()
+            except OSError:
+                self._fail()
+
+    def _fail(self) -> None:
+        import os
+
+        self.failed = True
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 2)
+            os.close(null)
+            self._stream.flush()  # what is left in its buffer goes to /dev/null now, not into the exit
+        except (OSError, ValueError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def std_streams():
+    """Run with ``sys.stdout`` and ``sys.stderr`` wrapped (``_Stdout``, ``_Stderr``; not twice)."""
+    import sys
+
+    stdout, stderr = sys.stdout, sys.stderr
+    if stdout is not None and not isinstance(stdout, _Stdout):
+        sys.stdout = _Stdout(stdout)
+    if stderr is not None and not isinstance(stderr, _Stderr):
+        sys.stderr = _Stderr(stderr)
+    try:
+        yield
+    finally:
+        sys.stdout, sys.stderr = stdout, stderr
+
+
 def _flush_stdout() -> None:
     import sys
 
@@ -363,16 +454,18 @@ def wrote(paths) -> None:
 
 
 def _os_problem(exc: OSError) -> LocoplanError:
-    import errno
     import sys
 
     if isinstance(exc, BrokenPipeError):
         _silence_stdout()
         return _StdoutClosed()
     why = exc.strerror or str(exc)
-    if exc.filename is None and exc.errno in (errno.ENOSPC, errno.EIO, errno.EFBIG, errno.EDQUOT, errno.EBADF, errno.EINVAL):
+    if exc.filename is None:  # a write whose file the system does not name (a file object's write, a library's)
+        return InputError(Problem("<unnamed file>", "", f"cannot read or write a file: {why} (the system did not say "
+                                  "which file; a full disk, a file-size limit (ulimit -f)?)"))
+    if exc.filename == STDOUT:
         _silence_stdout()
-        where = "<stdout>"
+        where = STDOUT
         try:
             if sys.stdout.isatty():
                 where = "<terminal>"

@@ -14,8 +14,8 @@ import typer
 from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
-from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, guarded, json_out, out,
-                         step_progress, wrote)
+from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out,
+                         out, plain, step_progress, wrote)
 from .reporting.learn_tables import fit_tables, groups_table, sections_table
 from .reporting.tables import fit, sequence_table, show, summary_table
 
@@ -54,6 +54,9 @@ def simulate(route: Path = ROUTE,
     with step_progress("mass batches", len(spec.masses_t), not as_json) as step:  # one batch per mass
         summary = simulate_drivers(spec, out_dir, progress=step)
     wrote([summary.out_dir])
+    for stale in summary.removed:
+        err.print(f"note: removed {plain(str(stale))}, left by a drivers simulate stopped before it finished",
+                  highlight=False, markup=False, soft_wrap=True)
     if as_json:
         json_out({"out": str(summary.out_dir), "runs": summary.n_runs, "synthetic": True, "seed": seed,
                        "groups": summary.groups, "drivers": summary.drivers})

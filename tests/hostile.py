@@ -50,12 +50,18 @@ class Case:
     max_stderr_chars: int | None = None  # stderr stays shorter (messages capped and summarised)
     stdin_ok: bool = False
     note: str = ""
-
+    stderr_file: str | None = None  # stderr goes here (e.g. /dev/full) instead of a pipe (run alone only)
+    env: dict[str, str] | None = None  # more environment (fresh cache folders; run alone only)
+    during: Callable[[], None] | None = None  # done in a thread while the command runs (run alone only)
+    time_limit_s: float | None = None  # a longer limit than TIME_LIMIT_S (only for a slow case)
+    slow: bool = False  # run by the benchmark only (benchmarks/hostile_corpus.py), not by the test suite
 
     @property
     def alone_only(self) -> bool:
-        """The case sets up its own process (umask, file-size limit, stdout): never run in a shared batch."""
-        return self.umask is not None or self.fsize is not None or self.stdout_file is not None or self.permissions
+        """The case sets up its own process (umask, file-size limit, stdout, stderr, environment) or acts on it
+        while it runs: never run in a shared batch."""
+        return (self.umask is not None or self.fsize is not None or self.stdout_file is not None or self.permissions
+                or self.stderr_file is not None or self.env is not None or self.during is not None)
 
 
 @dataclass
@@ -189,7 +195,9 @@ def build(tmp: Path) -> list[Case]:
     file_case("key_int.yaml", "yaml", route() + "1: one\n", "key", "not a string")
     file_case("key_list.yaml", "yaml", route() + "? [a, b]\n: c\n", "key", "not a string")
     file_case("key_null.yaml", "yaml", route() + "~: nothing\n", "key", "not a string")
-    file_case("key_bool.yaml", "yaml", route() + "yes: 5\n", "key", "not a string")
+    file_case("key_bool.yaml", "yaml", route() + "true: 5\n", "key", "not a string")
+    file_case("key_yes.yaml", "yaml", route() + "yes: 5\n", ":9: yes: unknown key",
+              note="text to YAML 1.2 (a boolean key to YAML 1.1): an unknown key, named")
     file_case("key_map_in_section.yaml", "yaml", route().replace("{from_m: 0, to_m: 1500, kmh: 60}",
                                                                  "{from_m: 0, to_m: 1500, kmh: 60, 7: 1}"),
               "speed_limits[0]", "not a string")
@@ -446,7 +454,7 @@ def build(tmp: Path) -> list[Case]:
     option("learn_holdout_nan", ["learn", str(logs_dir), "--out", str(tmp / "p2.json"), "--holdout", "nan"], CMDLINE, "--holdout")
     option("learn_seed_neg", ["learn", str(logs_dir), "--out", str(tmp / "p3.json"), "--seed", "-1"], CMDLINE, "--seed")
     option("learn_level_inf", ["learn", str(logs_dir), "--out", str(tmp / "p4.json"), "--level", "inf"], CMDLINE, "--level")
-    option("advise_mass_huge", ["advise", good_route, "--patterns", str(tmp / "none.json"), "--mass", "1e12"], "--mass")
+    option("advise_mass_huge", ["advise", good_route, "--patterns", str(tmp / "none.json"), "--mass", "1e12"], "--mass:")
     option("advise_patterns_fifo", ["advise", good_route, "--patterns", str(fifo)], str(fifo), "FIFO")
     option("ocp_nodes_huge", ["ocp", str(ROOT / "routes/seed000-flat.yaml"), "--method", "cvp", "--nodes", "1000000000"],
            "--nodes")
@@ -551,11 +559,16 @@ def build(tmp: Path) -> list[Case]:
     _output_and_message_cases(cases, write, good_route, tmp)
     _schema_cases(cases, write, good_route, tmp)
     _yaml11_cases(cases, write, good_route, tmp)
+    _yaml11_bool_cases(cases, write, good_route, tmp)
     _store_cases(cases, write, good_route, tmp)
     _study_cases(cases, write, good_route, steep, tmp)
     _import_and_json_cases(cases, write, good_route, tmp)
     _full_disk_cases(cases, good_route, tmp)
     _hang_cases(cases, write, good_route, tmp)
+    _neutral_near_stop_cases(cases, write)
+    _partial_folder_cases(cases, good_route, tmp)
+    _store_mid_run_cases(cases, write, good_route, tmp)
+    _stderr_full_cases(cases, write, good_route, tmp)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
     cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
@@ -1044,6 +1057,160 @@ def _hang_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                                                           "--workers", "1", "--json"], 0, (), expect_out=('"runs": 1',)))
 
 
+def _neutral_near_stop_cases(cases: list[Case], write) -> None:
+    """A neutral section near the stop, its span (10 s margins, the train's length) reaching the stop: the light
+    train's only brake is electric (none in the span), yet the fastest run coasts in; optimize and the least-energy
+    strategy must find their plans too (they said 'no drive ... reaches the stop')."""
+    for length, before_stop, kmh in ((50, 150, 60), (20, 0, 80), (150, 250, 80)):
+        path = write(f"neutral_near_stop_{length}_{before_stop}.yaml", route(
+            length="1400", kmh=str(kmh), extra="neutral_sections:\n  - {from_m: %d, to_m: %d, coast_before_s: 10, "
+            "coast_after_s: 10}\n" % (1400 - before_stop - length, 1400 - before_stop)))
+        cases.append(Case(f"neutral_near_stop_{length}_{before_stop}_optimize", "physics",
+                          ["optimize", path, "--consist", SMALL, "--time", "1.1x", "--json"], 0, (),
+                          expect_out=('"feasible": true',), note="once: no drive reaches the stop"))
+        cases.append(Case(f"neutral_near_stop_{length}_{before_stop}_energy_saving", "physics",
+                          ["simulate", path, "--consist", SMALL, "--strategy", "energy-saving", "--json"], 0, (),
+                          expect_out=('"feasible": true',)))
+
+
+def _partial_folder_cases(cases: list[Case], good_route: str, tmp: Path) -> None:
+    """``drivers simulate`` writes into ``NAME.incomplete-PID`` and renames it when complete; one left by a run
+    killed outright (unlocked, marked) is removed by the next run into NAME and named on stderr; one another
+    live run holds (its lock) is left alone."""
+    import fcntl
+
+    logs = tmp / "logs_after_kill"
+    stale, live = tmp / "logs_after_kill.incomplete-1", tmp / "logs_after_kill.incomplete-2"
+    for folder in (stale, live):
+        (folder / "logs").mkdir(parents=True, exist_ok=True)
+        (folder / "INCOMPLETE.txt").write_text("left by a killed run\n")
+        (folder / "logs" / "D01-m5200-t200-r1.csv").write_text("time_s,position_m,speed_kmh,force_kn\n")
+    fd = os.open(live, os.O_RDONLY | os.O_DIRECTORY)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    _HELD.append(fd)
+    unmarked = tmp / "logs_after_kill.incomplete-3"  # not made by locoplan (no INCOMPLETE.txt): never touched
+    unmarked.mkdir(exist_ok=True)
+
+    def check():
+        if stale.exists():
+            return f"{stale.name} was not removed"
+        if not live.is_dir() or not unmarked.is_dir():
+            return "a folder in use or not locoplan's was removed"
+        if not (logs / "manifest.yaml").is_file() or (logs / "INCOMPLETE.txt").exists():
+            return "the logs folder is not complete"
+        return None
+    cases.append(Case("drivers_removes_a_killed_runs_folder", "output",
+                      ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2", "--runs", "1"], 0,
+                      ("note: removed", str(stale), "stopped before it finished"), after=check,
+                      forbid=(live.name, unmarked.name)))
+
+
+def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """The store while a batch writes to it (a thread acts once the first run is committed): made read-only (the
+    open file stays writable, so the batch completes and keeps every run), removed, or replaced by another store
+    (the batch stops, and the file now there is left whole)."""
+    import shutil
+    import sqlite3
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.runs.spec import RunRecord
+    from locoplan.runs.store import Store
+
+    study = write("store_mid_run_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                              "times: [200, 210, 220]\nstrategies: [time-saving, four-stage]\n")
+    folder = tmp / "stores" / "mid_run"
+    if folder.exists():
+        folder.chmod(0o755)
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+
+    def committed(path: Path) -> int:
+        try:
+            with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=1) as conn:
+                return int(conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
+        except sqlite3.Error:
+            return 0
+
+    def once_committed(path: Path, act):
+        def during():
+            deadline = time.monotonic() + TIME_LIMIT_S
+            while committed(path) < 1 and time.monotonic() < deadline:
+                time.sleep(0.05)
+            act()
+        return during
+
+    ro = folder / "read_only.sqlite"
+
+    def make_read_only():
+        ro.chmod(0o444)
+        folder.chmod(0o555)
+
+    def all_kept():
+        folder.chmod(0o755)
+        n = committed(ro)
+        return None if n == 6 else f"{n} runs in the store, expected 6"
+    cases.append(Case("batch_store_made_read_only_mid_run", "store", ["batch", study, "--store", str(ro), "--workers", "1",
+                                                                       "--quiet", "--json"], 0, (), expect_out=('"runs": 6',),
+                      during=once_committed(ro, make_read_only), after=all_kept, permissions=True,
+                      note="permissions are checked when a file is opened: the batch goes on and keeps every run"))
+    for how in ("removed", "replaced"):
+        path = folder / f"{how}.sqlite"
+
+        def act(path=path, how=how):
+            for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+                p.unlink(missing_ok=True)
+            if how == "replaced":
+                with Store(path) as other:
+                    other.put(RunRecord("other0000", {"route": "other", "consist": "c", "strategy": "time-saving",
+                                                      "algorithm": None, "planned_time_s": 200.0, "feasible": True,
+                                                      "running_time_s": 99.0, "traction_energy_kwh": 15.0},
+                                        {"route": good_route, "consist": SMALL}, None, 0.1,
+                                        {"locoplan": other.meta["locoplan"]}, "host:1"))
+
+        def whole(path=path, how=how):
+            n = committed(path)
+            return None if how == "removed" or n == 1 else f"the replacing store holds {n} runs, expected its 1"
+        cases.append(Case(f"batch_store_{how}_mid_run", "store", ["batch", study, "--store", str(path), "--workers", "1",
+                                                                  "--quiet"], 2,
+                          (str(path), "was removed or replaced", "run the same command again"),
+                          during=once_committed(path, act), after=whole))
+
+
+def _stderr_full_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """stderr on a full device: the messages are lost, but every output is written and the exit code is what it
+    would have been (2 bad input, 1 infeasible, 0 a success with warnings), never 2 for the lost messages."""
+    out_dir = tmp / "stderr_full"
+    out_dir.mkdir(exist_ok=True)
+    bad = write("stderr_full_bad.yaml", route(length="abc"))
+    plan = out_dir / "plan.json"
+    logs = out_dir / "logs"
+    sim = ["simulate", good_route, "--consist", SMALL]
+    for name, argv, code, out, after in (
+            ("bad_input", ["validate", bad], 2, (), None),
+            ("usage", ["simulate", "--bogus"], 2, (), None),
+            ("infeasible", ["optimize", good_route, "--consist", SMALL, "--time", "50"], 1, (), None),
+            ("warnings", ["results", str(tmp / "stores" / "broken_records.sqlite"), "--json"], 0, ('"runs": 1',), None),
+            ("out_file", sim + ["--out", str(plan)], 0, ("running time",),
+             lambda: None if plan.is_file() else "plan.json was not written"),
+            ("drivers", ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2", "--runs", "1"], 0, (),
+             lambda: None if (logs / "manifest.yaml").is_file() else "the logs were not written")):
+        cases.append(Case(f"stderr_dev_full_{name}", "output", argv, code, (), expect_out=out, after=after,
+                          stderr_file="/dev/full", note="the lost messages do not change the outcome"))
+    # a file-size limit with fresh cache folders: the kernels' caches cannot be written (the ahead-of-time build
+    # has no room, numba's cache files are too large): not the command's concern, and never blamed on stdout
+    fresh = tmp / "fresh_caches"
+    caches = {"LOCOPLAN_NATIVE_DIR": str(fresh / "native"), "LOCOPLAN_CACHE_DIR": str(fresh / "cache"),
+              "NUMBA_CACHE_DIR": str(fresh / "numba")}
+    study = write("fresh_caches_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                             "times: [200]\nstrategies: [time-saving]\n")
+    cases.append(Case("fresh_caches_file_size_limit", "output", ["batch", study, "--store", str(fresh / "s.sqlite"),
+                                                                  "--workers", "1", "--quiet", "--json"], 0, (),
+                      expect_out=('"runs": 1',), forbid=("<stdout>",), fsize=100 * 1024, env=caches, slow=True,
+                      time_limit_s=600.0, after=lambda: None if not list((fresh / "native").glob("*.failed"))
+                      else "a build that had no room was recorded as failed",
+                      note="once: '<stdout>: cannot write the output: File too large' (numba's cache file)"))
+
+
 def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     """``schema:`` as a list, a mapping or a number, in every kind of file every loader reads."""
     text = Path(good_route).read_text(encoding="utf-8")
@@ -1091,7 +1258,7 @@ def _schema_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
             cases.append(Case(f"schema_{form}_{kind}", "yaml", argv(str(path)), 2,
                               (f"{path}:", "schema", said), note="a schema that is not text crashed every loader"))
     # other YAML types in the schema's place, named by what YAML read
-    for form, value, said in (("bool", "yes", "a boolean"), ("date", "2001-12-14", "a date"),
+    for form, value, said in (("bool", "true", "a boolean"), ("date", "2001-12-14", "a date"),
                               ("binary", "!!binary aGVsbG8=", "binary data"), ("empty_list", "[]", "a list")):
         path = write(f"schema_{form}.yaml", _re.sub(r"(?m)^schema: .*$", f"schema: {value}", text, count=1))
         cases.append(Case(f"schema_{form}_route", "yaml", ["validate", path], 2, (f"{path}:1:", "schema", said)))
@@ -1156,6 +1323,42 @@ def _yaml11_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         out.mkdir(exist_ok=True)
         cases.append(Case("yaml12_railtoolkit_0160", "number", ["import", "railtoolkit", src, "--out", str(out)], 0, (),
                           after=lambda: None if "kmh: 160}" in (out / "slope.yaml").read_text() else "not read as 160 km/h"))
+
+
+def _yaml11_bool_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
+    """YAML 1.1 booleans (yes, no, on, off in any case) in every boolean field of every kind of file: text to YAML
+    1.2, as locoplan reads them, so a boolean field refuses them at file:line, naming the field and what YAML 1.1
+    would have read; in a text field they are the text written (a route named Off)."""
+    manifest = (ROOT / "tests/data/bad_logs/mph/manifest.yaml").read_text(encoding="utf-8").replace(
+        "../../learn/line-6km.yaml", str(ROOT / "tests/data/learn/line-6km.yaml"))
+    sidecar = ("schema: locoplan/driver-run@1\nroute: " + str(ROOT / "tests/data/learn/line-6km.yaml") +
+               "\nconsist: HXD1-C80x50\nsynthetic: false\nlog: run.csv\ndriver_id: D01\nmass_t: 5200\n"
+               "scheduled_time_s: 3\nactual_time_s: 3\ndate: 2024-05-01\n")
+    study = f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\ntimes: [200]\n"
+    store = str(tmp / "stores" / "yaml11_bool.sqlite")
+    for kind, text, line, field_, value, read in (
+            ("study_window", study + "window: no\n", 5, "window", "no", "false"),
+            ("study_gap", study + "gap: Yes\n", 5, "gap", "Yes", "true"),
+            ("study_point_mass", study + "model: {point_mass: on}\n", 5, "model.point_mass", "on", "true"),
+            ("study_air_brake", study + "model:\n  air_brake: OFF\n", 6, "model.air_brake", "OFF", "false"),
+            ("study_strict_limits", study + "model: {strict_limits: yes}\n", 5, "model.strict_limits", "yes", "true"),
+            ("manifest", manifest.replace("synthetic: false", "synthetic: no"), 2, "synthetic", "no", "false"),
+            ("sidecar", sidecar.replace("synthetic: false", "synthetic: On"), 4, "synthetic", "On", "true")):
+        folder = tmp / "files" / f"yaml11_bool_{kind}"
+        folder.mkdir(exist_ok=True)
+        path = folder / {"manifest": "manifest.yaml", "sidecar": "run.yaml"}.get(kind, "study.yaml")
+        path.write_text(text, encoding="utf-8")
+        if kind in ("manifest", "sidecar"):
+            (folder / "run.csv").write_text((ROOT / "tests/data/bad_logs/mph/run.csv").read_text())
+            argv = ["learn", str(folder if kind == "sidecar" else path), "--out", str(tmp / f"yaml11_bool_{kind}.json")]
+        else:
+            argv = ["batch", str(path), "--store", store, "--workers", "1", "--quiet"]
+        cases.append(Case(f"yaml11_bool_{kind}", "yaml", argv, 2,
+                          (f"{path}:{line}: {field_}:", f"'{value}' is text to YAML 1.2", f"the boolean {read}", "true or false"),
+                          note="YAML 1.1 would read a boolean silently"))
+    named = write("yaml11_bool_text.yaml", route(name="Off"))
+    cases.append(Case("yaml11_bool_as_text", "yaml", ["validate", named, "--json"], 0, (), expect_out=('"Off"',),
+                      note="a route named Off is the text Off (YAML 1.1: the boolean false)"))
 
 
 def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
@@ -1389,20 +1592,25 @@ def _limits(umask: int | None, fsize: int | None = None, permissions: bool = Fal
 
 
 def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
-        fsize: int | None = None, stdout_file: str | None = None, permissions: bool = False):
+        fsize: int | None = None, stdout_file: str | None = None, permissions: bool = False,
+        stderr_file: str | None = None, more_env: dict[str, str] | None = None, during: Callable[[], None] | None = None):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
-    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT))
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT), **(more_env or {}))
     env.pop("FORCE_COLOR", None)
     t = time.perf_counter()
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
     sink = open(stdout_file, "wb") if stdout_file else None
+    err_sink = open(stderr_file, "wb") if stderr_file else None
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                            stdout=sink or subprocess.PIPE, stderr=subprocess.PIPE,
+                            stdout=sink or subprocess.PIPE, stderr=err_sink or subprocess.PIPE,
                             preexec_fn=_limits(umask, fsize, permissions))
-    if sink:
-        sink.close()
-    chunks: dict[str, bytes] = {"out": b""}
+    for s in (sink, err_sink):
+        if s:
+            s.close()
+    if during is not None:
+        threading.Thread(target=during, daemon=True).start()
+    chunks: dict[str, bytes] = {"out": b"", "err": b""}
     readers = [threading.Thread(target=lambda k=k, f=f: chunks.__setitem__(k, f.read()))
                for k, f in (("out", proc.stdout), ("err", proc.stderr)) if f is not None]
     for r in readers:
@@ -1430,7 +1638,7 @@ def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float =
 def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Outcome:
     o = Outcome(case, code, out, err, seconds, peak)
     if o.hang:
-        o.problems.append(f"no answer within {TIME_LIMIT_S:g} s")
+        o.problems.append(f"no answer within {case.time_limit_s or TIME_LIMIT_S:g} s")
     if o.traceback:
         o.problems.append("traceback")
     if code is not None and code != case.exit:
@@ -1469,8 +1677,9 @@ def warm_up(cwd: Path) -> None:
 
 
 def run_case(case: Case, cwd: Path) -> Outcome:
-    return judge(case, *run(case.argv, cwd, case.umask, fsize=case.fsize, stdout_file=case.stdout_file,
-                            permissions=case.permissions))
+    return judge(case, *run(case.argv, cwd, case.umask, timeout_s=case.time_limit_s or TIME_LIMIT_S, fsize=case.fsize,
+                            stdout_file=case.stdout_file, permissions=case.permissions, stderr_file=case.stderr_file,
+                            more_env=case.env, during=case.during))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:

@@ -321,3 +321,49 @@ def test_results_csv_is_read_as_numbers_and_booleans(filled_store):
     assert weighted and all(float(r["w_time"]) + float(r["w_energy"]) == pytest.approx(1) for r in weighted)
     for col in ("planned_time_s", "traction_energy_kwh", "seed", "window_from_s"):
         [float(r[col]) for r in rows if r[col] != ""]  # every value a number
+
+
+def test_results_exports_are_written_a_row_at_a_time_as_made_whole(filled_store, tmp_path):
+    """An export is written in a second pass over the store, a row at a time (memory does not grow with the
+    store): the same text as the whole export made at once, the same Parquet table; rows that differ from the
+    first pass (a run replaced meanwhile) are refused, and nothing is written."""
+    import csv
+    import io
+
+    from locoplan.errors import InputError
+    from locoplan.reporting.writers import csv_row, to_json
+    from locoplan.runs.results import ExportShape, export_to_file, rows_of, write_export
+
+    with Store(filled_store, create=False) as s:
+        rows = rows_of(s.records())
+    flat = [csv_row(r) for r in rows]
+    whole_csv = io.StringIO()
+    writer = csv.DictWriter(whole_csv, fieldnames=list(dict.fromkeys(k for f in flat for k in f)), lineterminator="\n",
+                            restval="")
+    writer.writeheader()
+    writer.writerows(flat)
+    for fmt, whole in (("csv", whole_csv.getvalue()), ("json", to_json({"results": rows}) + "\n")):
+        shape = ExportShape(fmt, str(filled_store))
+        for r in rows:
+            shape.add(r)
+        streamed = io.StringIO()
+        write_export(iter(rows), shape, streamed)
+        assert streamed.getvalue() == whole
+        with pytest.raises(InputError, match="the store changed while it was exported") as err:
+            export_to_file(iter(rows[1:]), shape, tmp_path / f"changed.{fmt}")
+        assert str(filled_store) in str(err.value) and not list(tmp_path.iterdir())
+    empty = ExportShape("json", "s")
+    out = io.StringIO()
+    write_export(iter([]), empty, out)
+    assert out.getvalue() == to_json({"results": []}) + "\n"
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    from locoplan.runs.results import _flat, clean
+
+    shape = ExportShape("parquet", str(filled_store))
+    for r in rows:
+        shape.add(r)
+    export_to_file(iter(rows), shape, tmp_path / "r.parquet")
+    whole = pa.table({c: [_flat(clean(r.get(c))) for r in rows] for c in shape.columns})
+    assert pq.read_table(tmp_path / "r.parquet").equals(whole)

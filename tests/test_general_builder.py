@@ -202,3 +202,62 @@ def test_a_falling_line_with_rises_spends_its_spare_time_braking_not_pulling(roo
     run = run_strategy(ctx, "proposed")
     assert schedule_verdict(ctx, run) is None, run.summary
     assert run.summary["traction_energy_kwh"] < 0.01 * calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
+
+
+def _near_stop(kmh: float, length: float, before_stop: float, coast_s: float):
+    """A 1.4 km level line with one neutral section ``length`` long ending ``before_stop`` before the stop."""
+    from locoplan.model.route import Route
+
+    data = hand_made_route([(1400, kmh)], [(1400, 0.0)], 1400).model_dump(by_alias=True)
+    data["neutral_sections"] = [{"from_m": 1400 - before_stop - length, "to_m": 1400 - before_stop,
+                                 "coast_before_s": coast_s, "coast_after_s": coast_s}]
+    return Route.model_validate(data)
+
+
+NEAR_STOP = list(itertools.product((60, 80), (20, 150), (0, 100, 300), (0.0, 10.0)))
+
+
+def test_neutral_sections_near_the_stop_have_a_drive(root):
+    """A neutral section near the stop, whose span (with its coasting margins and the train's length) may reach
+    the stop, for a 284 t train whose only brake is electric (none in the span): the fastest run coasts in
+    along the braking curve, so the DP must find a drive at every price and the least-energy strategy a plan.
+    (The DP once lost every drive: its cell across the span's start had no catenary over its whole length,
+    while that node's cap, the calculator's braking curve, braked electrically up to the span; and the forward
+    pass read a state just under a cap as unreachable where the backward pass had reached it.)"""
+    train = load_train("HXD1-C64-seed000")
+    from locoplan.strategy.strategies import drive_solver
+
+    for kmh, length, before_stop, coast_s in NEAR_STOP:
+        ctx = make_context(_near_stop(kmh, length, before_stop, coast_s), train, time_s=300.0, yardstick=False)
+        assert ctx.calc.evaluate(("T",), np.zeros((1, 0))).feasible[0]
+        case = (kmh, length, before_stop, coast_s)
+        solver = drive_solver(ctx)
+        assert all(solver.solve(p) is not None for p in (1e-4, 1e-2, 1.0)), case
+        assert run_strategy(ctx, "energy-saving").summary["feasible"], case
+
+
+def test_optimize_on_time_with_a_neutral_section_before_the_stop():
+    """The issue's case: a 50 m neutral section ending 150 m before the stop (10 s margins), T0 = 300 s."""
+    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), time_s=300.0)
+    run = run_strategy(ctx, "proposed")
+    assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
+
+
+def test_stall_boundary_below_a_cap_too_fast_to_hold():
+    """The stall boundary (the lowest speed at a node from which full traction goes on) is a bisection below the
+    node's cap; where the cap itself cannot be held under the next node's (no brake in the cell), slower speeds
+    still can, and the boundary is among them, not 'none' (inf)."""
+    from locoplan.optimize import dp_kernel
+
+    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), time_s=300.0, yardstick=False)
+    from locoplan.strategy.strategies import drive_solver
+
+    solver = drive_solver(ctx)
+    cells, fo = solver._cells, solver.calc.forces
+    n = len(cells.h)
+    k = int(np.flatnonzero(cells.allowed == 0)[5])  # a cell inside the span: no traction, no brake
+    e_next = cells.e_cap[k + 1]
+    raised = cells.e_cap.copy()
+    raised[k] = 4.0 * e_next  # twice the speed: coasting one cell cannot come down to the next cap
+    low = dp_kernel._lowest_energy.py_func(k, n, cells._replace(e_cap=raised), fo, solver._low[k + 1])
+    assert math.isfinite(low) and solver._low[k + 1] <= low <= e_next * 1.01

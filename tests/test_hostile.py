@@ -44,7 +44,8 @@ def test_corpus_covers_every_class(corpus):
     assert all(len(v) >= 5 for v in by_class.values()), {k: len(v) for k, v in by_class.items()}
     # valid-but-infeasible requests exit 1 with the physical reason; a few valid controls exit 0
     assert sum(c.exit == 1 for c in cases) >= 4 and sum(c.exit == 0 for c in cases) >= 5
-    assert all(c.expect or c.expect_out or c.exit == 0 for c in cases)
+    # every failure names the texts its message must hold (but where stderr is a full device: no message gets out)
+    assert all(c.expect or c.expect_out or c.exit == 0 or c.stderr_file for c in cases)
 
 
 def test_every_numeric_option_of_every_command_has_a_bound():
@@ -82,7 +83,7 @@ def test_corpus_no_traceback_hang_or_wrong_success(corpus):
 def test_process_level_cases_alone(corpus):
     """The cases about the process itself, each as its own ``python -m locoplan`` under the caps."""
     tmp, cases = corpus
-    alone = [c for c in cases if c.name in ALONE or c.alone_only]
+    alone = [c for c in cases if (c.name in ALONE or c.alone_only) and not c.slow]  # slow ones: the benchmark's
     assert len([c for c in alone if c.name in ALONE]) == len(ALONE)
     with ThreadPoolExecutor(2) as pool:
         outcomes = list(pool.map(lambda c: hostile.run_case(c, tmp), alone))
@@ -135,3 +136,58 @@ def _running(pid: int) -> bool:
             return fh.read().rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has ended
     except OSError:
         return False
+
+
+def test_drivers_killed_leave_a_named_folder_that_the_next_run_removes(tmp_path):
+    """kill -9 of ``drivers simulate`` while it writes: what is left is ``NAME.incomplete-PID`` beside NAME (not a
+    hidden folder), saying what it is; the next run into NAME removes it, says so, and writes NAME whole."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from typer.testing import CliRunner
+
+    from locoplan.cli import app
+
+    route = tmp_path / "r.yaml"
+    route.write_text(hostile.route())
+    out = tmp_path / "logs"
+    env = dict(os.environ, PYTHONPATH=str(hostile.ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "locoplan", "drivers", "simulate", str(route), "--out", str(out),
+                             "--drivers", "40", "--runs", "20"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    partial = tmp_path / f"logs.incomplete-{proc.pid}"
+    deadline = time.monotonic() + 60
+    while not (partial / "route.yaml").is_file() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "drivers simulate ended before it was killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs.incomplete-" + str(proc.pid), "r.yaml"]
+    assert "is being written by 'locoplan drivers simulate" in (partial / "INCOMPLETE.txt").read_text()
+    res = CliRunner().invoke(app, ["drivers", "simulate", str(route), "--out", str(out), "--drivers", "2", "--runs", "1"])
+    assert res.exit_code == 0, res.output
+    assert f"note: removed {partial}" in res.stderr.replace("\n", "")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs", "r.yaml"]
+    assert (out / "manifest.yaml").is_file() and not (out / "INCOMPLETE.txt").exists()
+
+
+def test_an_error_without_a_file_name_is_not_blamed_on_stdout():
+    """An OSError that names no file (a library's write under a file-size limit) is said as such; only stdout's
+    own errors (named <stdout> while a command runs) are stdout's."""
+    from locoplan.cli_common import _os_problem, _Stdout
+
+    said = str(_os_problem(OSError(27, "File too large")))
+    assert "<unnamed file>" in said and "File too large" in said and "<stdout>" not in said
+
+    class Full:
+        def write(self, text):
+            raise OSError(28, "No space left on device")
+
+    try:
+        _Stdout(Full()).write("x")
+    except OSError as exc:
+        assert exc.filename == "<stdout>" and exc.errno == 28
+    else:
+        raise AssertionError("the write did not fail")

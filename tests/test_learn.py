@@ -173,6 +173,66 @@ def test_simulator_same_seed_same_logs_other_seed_differs(sim_logs, tmp_path, ba
     assert (other / "logs/D03-m3200-t520-r1.csv").read_bytes() != (out / "logs/D03-m3200-t520-r1.csv").read_bytes()
 
 
+def test_simulator_in_blocks_writes_the_same_logs(sim_logs, tmp_path, base, monkeypatch):
+    """The runs searched and recorded a few at a time (the memory bound at 20,000 logs) give the logs of one
+    search over all runs: the stopping rule stays shared, so blocks that converge early take the steps of
+    the slowest block (checked to happen here), and the noise is the same stream drawn block by block."""
+    import locoplan.learn.drivers as drivers
+
+    out, _ = sim_logs
+    n_steps = math.ceil(3.0 * 560 * 1.05)  # about the run's: the blocks hold a few runs each
+    monkeypatch.setattr(drivers, "BLOCK_BYTES", 5 * 8 * n_steps)
+    monkeypatch.setattr(drivers, "RECORD_BYTES_PER_STEP", 16)
+    done_after: dict[int, int] = {}  # block -> steps after which it had converged (else it takes them all)
+    searching = drivers._Search.searching
+
+    def counted(self):
+        still = searching(self)
+        done_after.setdefault(id(self), drivers.CALIBRATION_STEPS)
+        if not still:
+            done_after[id(self)] = min(done_after[id(self)], self.steps)
+        return still
+    monkeypatch.setattr(drivers._Search, "searching", counted)
+    blocks = tmp_path / "blocks"
+    # the first mass of the fixture's spec: its runs come first from the same generator
+    simulate_drivers(SimulationSpec(LINE, load_route(LINE), *base, masses_t=(3200,), times_s=(520, 560), n_drivers=6,
+                                    n_runs=1, seed=1), blocks)
+    steps_taken = list(done_after.values())
+    assert len(steps_taken) >= 3 and len(set(steps_taken)) > 1, steps_taken
+    logs = sorted(p.name for p in (blocks / "logs").iterdir())
+    assert len(logs) == 12 and logs == sorted(p.name for p in (out / "logs").iterdir() if "-m3200-" in p.name)
+    for name in logs:
+        assert (blocks / "logs" / name).read_bytes() == (out / "logs" / name).read_bytes(), name
+    assert (blocks / "drivers.csv").read_bytes() == (out / "drivers.csv").read_bytes()
+
+
+def test_speed_noise_block_by_block_is_one_draw():
+    from locoplan.learn.drivers import SpeedNoise
+
+    sigma = np.linspace(0.4, 2.0, 7)
+    whole = SpeedNoise(np.random.default_rng(3), sigma, 50, 7)
+    rng = np.random.default_rng(3)
+    parts = SpeedNoise(rng, sigma, 50, 3)
+    assert len(parts.blocks) == 3
+    assert np.array_equal(np.vstack([parts.block(b) for b in (2, 0, 1)][1:] + [parts.block(2)]), whole.block(0))
+    assert rng.standard_normal() == np.random.default_rng(3).standard_normal(7 * 50 + 1)[-1]  # advanced past the draw
+
+
+def test_a_manifest_of_thousands_of_runs_is_read(tmp_path):
+    """drivers simulate writes up to 20,000 runs into one manifest (15 values each): more values than any route
+    may hold (100,000), so manifests have a bound of their own; 7,000 runs (105,000 values) are read."""
+    from locoplan.io.logs import _yaml_entries
+
+    runs = [{"log": f"logs/D01-m5200-t520-r{i}.csv", "driver_id": "D01", "consist": "consists/m5200.yaml",
+             "mass_t": 5200.0, "scheduled_time_s": 520.0, "actual_time_s": 521.0, "date": dt.date(2024, 1, 1)}
+            for i in range(7000)]
+    path = tmp_path / "manifest.yaml"
+    path.write_text(manifest_text({"schema": "locoplan/driver-logs@1", "route": "route.yaml", "synthetic": True,
+                                   "runs": runs}))
+    model, _ = _yaml_entries(path)
+    assert len(model.runs) == 7000
+
+
 def test_drivers_simulate_refuses_a_used_folder(tmp_path):
     (tmp_path / "old.txt").write_text("x")
     res = runner.invoke(app, ["drivers", "simulate", str(LINE), "--out", str(tmp_path), "--drivers", "2", "--runs", "1"])

@@ -145,3 +145,41 @@ def test_an_unusable_folder_falls_back_to_jit(tmp_path, monkeypatch, where):
     monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(folder))
     monkeypatch.setattr(native, "_kernels", None)
     assert native.kernels().source.startswith("numba-jit (cannot ")
+
+
+def test_a_build_with_no_room_is_not_recorded_as_failed(tmp_path, monkeypatch):
+    """A build that failed for want of room (a full disk, a file-size limit) falls back to the JIT functions and
+    leaves no ``.failed``: the next command tries again (a failure of the code itself is kept, above)."""
+    builder = tmp_path / "no-room-python"
+    builder.write_text("#!/bin/sh\necho 'OSError: [Errno 27] File too large' >&2\nexit 1\n")
+    builder.chmod(0o755)
+    monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(tmp_path / "native"))
+    monkeypatch.setattr(native, "_kernels", None)
+    monkeypatch.setattr(native.sys, "executable", str(builder))
+    ns = native.kernels()
+    assert ns.source.startswith("numba-jit (the ahead-of-time build in") and "had no room" in ns.source
+    assert "File too large" in ns.source and not list((tmp_path / "native").glob("*.failed"))
+
+
+@pytest.mark.parametrize("tolerant", [True, False])
+def test_a_numba_cache_that_cannot_be_saved_is_let_go(tmp_path, tolerant):
+    """numba saves what it compiles (cache=True); under a file-size limit the save fails with an OSError that
+    names no file, from the call that compiled. The JIT fallback lets it go: the function runs (without, the
+    call fails: the test can tell)."""
+    (tmp_path / "tiny_kernel.py").write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + 1\n")
+    code = (("from locoplan.sim import native; native._tolerant_numba_cache()\n" if tolerant else "")
+            + "import tiny_kernel\nprint(tiny_kernel.f(41))\n")
+
+    def limit():
+        import resource
+        import signal
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (256, 256))
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONPATH": f"{tmp_path}{os.pathsep}{ROOT}"}
+    res = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300,
+                         preexec_fn=limit)
+    if tolerant:
+        assert res.returncode == 0 and res.stdout.strip() == "42", res.stderr[-2000:]
+    else:
+        assert res.returncode != 0 and "File too large" in res.stderr

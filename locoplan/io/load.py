@@ -268,6 +268,16 @@ _LOADER.add_constructor("tag:yaml.org,2002:int", _construct_int)
 # integers YAML 1.2 reads and YAML 1.1 leaves as text: 08, 0189 (a leading zero before an 8 or 9), 0o60
 _LOADER.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(r"^(?:[-+]?0[0-9]*[89][0-9]*|[-+]?0o[0-7]+)$"),
                               list("-+0"))
+# booleans as YAML 1.2 reads them: true and false only (YAML 1.1 also reads yes, no, on, off, y... as booleans, so
+# that `window: no` or a route named Off would change type silently); the others are text, and a boolean field
+# given one says so (_message)
+_BOOL_12 = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+for _first, _resolvers in _LOADER.yaml_implicit_resolvers.items():
+    _LOADER.yaml_implicit_resolvers[_first] = [(tag, _BOOL_12 if tag == "tag:yaml.org,2002:bool" else regexp)
+                                               for tag, regexp in _resolvers
+                                               if tag != "tag:yaml.org,2002:bool" or _first in "tTfF"]
+_YAML11_BOOLS = {"yes": True, "no": False, "on": True, "off": False, "y": True, "n": False}
+"""Words YAML 1.1 reads as booleans and YAML 1.2 as text (PyYAML's 1.1 resolver takes yes/no/on/off, others y/n)."""
 _RESOLVER = _LOADER("")
 _STR, _MERGE = "tag:yaml.org,2002:str", "tag:yaml.org,2002:merge"
 _NUMBER_TAGS = {"tag:yaml.org,2002:int": "an integer", "tag:yaml.org,2002:float": "a number"}
@@ -327,7 +337,7 @@ class _Open:
         self.want_key, self.key, self.index = True, None, 0
 
 
-def _scan(text: str, name: str) -> None:
+def _scan(text: str, name: str, max_nodes: int = MAX_NODES) -> None:
     """Refuse what would blow up composing or walking the YAML, before composing it: nesting deeper than
     ``MAX_DEPTH``, aliases adding more than ``MAX_ALIAS_NODES`` nodes or referring to themselves, keys
     that are not strings, number literals longer than ``MAX_NUMBER_DIGITS`` digits. Works on the event
@@ -375,9 +385,10 @@ def _scan(text: str, name: str) -> None:
         for event in yaml.parse(text, Loader=_LOADER):
             if isinstance(event, (yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 written += 1
-                if written > MAX_NODES:
-                    fail(event, f"holds more than {MAX_NODES:,} values: no route, vehicle or consist needs so many "
-                                "(the largest real line shipped holds about 2,500; 355 sections)")
+                if written > max_nodes:
+                    fail(event, f"holds more than {max_nodes:,} values: " + (
+                        "no route, vehicle or consist needs so many (the largest real line shipped holds about 2,500; "
+                        "355 sections)" if max_nodes == MAX_NODES else "more than this kind of file needs"))
             top = stack[-1] if stack else None
             at_key = top is not None and top.is_map and top.want_key
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
@@ -433,10 +444,11 @@ def _scan(text: str, name: str) -> None:
         return  # composing reports the syntax error with its line
 
 
-def parse_yaml(text: str, name: str) -> tuple[Any, yaml.Node | None]:
+def parse_yaml(text: str, name: str, max_nodes: int = MAX_NODES) -> tuple[Any, yaml.Node | None]:
     """Parse one YAML document safely: (data, node). ``InputError`` for anything malformed or hostile
-    (see ``_scan``); data and node are None for an empty document."""
-    _scan(text, name)
+    (see ``_scan``; ``max_nodes``: more values for a kind of file that needs them); data and node are None
+    for an empty document."""
+    _scan(text, name, max_nodes)
     loader = _LOADER(text)
     try:
         node = loader.get_single_node()
@@ -551,10 +563,10 @@ def yaml_kind(value: Any) -> str:
             str: "text", type(None): "null"}.get(type(value), f"a {type(value).__name__}")
 
 
-def read_yaml(path: Path) -> tuple[Any, dict[tuple, int]]:
+def read_yaml(path: Path, max_nodes: int = MAX_NODES) -> tuple[Any, dict[tuple, int]]:
     """Parse a YAML file; missing, unreadable, empty, malformed or hostile files raise ``InputError``."""
     name = str(path)
-    data, node = parse_yaml(read_text(path), name)
+    data, node = parse_yaml(read_text(path), name, max_nodes)
     if node is None or data is None:
         raise InputError(Problem(name, "", "file is empty"))
     duplicates = _duplicate_keys(node, name)
@@ -639,6 +651,9 @@ def _message(model: type[BaseModel], err: dict) -> str:
         return f"must be a finite number, got {err.get('input')!r}"
     msg = err["msg"]
     value = err.get("input")
+    if kind == "bool_type" and isinstance(value, str) and value.lower() in _YAML11_BOOLS:
+        return (f"{value!r} is text to YAML 1.2 (YAML 1.1 read it as the boolean "
+                f"{str(_YAML11_BOOLS[value.lower()]).lower()}): write true or false")
     if kind == "float_type" and isinstance(value, str) and _EXPONENT_TEXT.match(value):
         return (f"{value!r} is text, not a number, to YAML 1.1: write a number in exponent form with a dot "
                 f"and a signed exponent, e.g. {_yaml_float(value)}")

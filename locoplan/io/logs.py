@@ -167,9 +167,14 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
                    np.asarray(values["action"]) if "action" in idx else None)
 
 
+MANIFEST_MAX_NODES = 400_000
+"""Most values in a manifest: 20,000 runs (what ``drivers simulate`` writes at most) of 15 values each, with room
+(a route's 100,000 would stop at about 6,600 runs)."""
+
+
 def _yaml_entries(path: Path):
     """(model, line map) of a manifest or sidecar file, validated against its schema."""
-    data, lines = read_yaml(path)
+    data, lines = read_yaml(path, MANIFEST_MAX_NODES)
     schema = data.get("schema")
     if schema not in MANIFEST_SCHEMAS:
         raise InputError(Problem(str(path), "schema", f"expected a driver-log manifest (schema: "

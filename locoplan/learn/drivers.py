@@ -369,56 +369,150 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
     return SimOutcome(running, reason, logs)
 
 
-def drive_to_schedule(calc: TractionCalculator, tables: RouteTables, p: DriverParams, aim_s: np.ndarray,
-                      noise: np.ndarray, steps: int = CALIBRATION_STEPS) -> tuple[np.ndarray, SimOutcome]:
-    """Each run's cruise speed for its aimed running time, all runs at once, and the recorded runs at
-    those speeds. The running time is close to linear in 1 / cruise speed, so the search is regula
-    falsi (Illinois) on x = 1 / cruise within a bracket; it stops when every run is within 0.5 s. A run
-    that cannot make its time even at the line speed runs at it (and arrives late, as drivers sometimes
-    do)."""
-    v_top = float(np.max(tables.limit_kmh))
-    mean_kmh = KMH_PER_MS * calc.route.length_m / aim_s
-    max_time = 3.0 * aim_s
-    x_fast, x_slow = np.full(len(aim_s), 1.0 / v_top), 1.0 / np.maximum(0.8 * mean_kmh, 10.0)
+BLOCK_BYTES = 64 * 2**20
+"""Memory for one block of runs [bytes]: the runs are searched and recorded a block at a time, so that
+20,000 logs (the limit) take what one block takes (``drive_to_schedule``); the results do not depend on it."""
 
-    def late(x):
-        return np.minimum(simulate_runs(calc, tables, p, 1.0 / x, noise, max_time).running_time_s - aim_s, 1e4)
+RECORD_BYTES_PER_STEP = 41
+"""Bytes a recorded run holds per time step (time, position, speed, force, notch: 8 each; the action: 1)."""
 
-    f_fast, f_slow = late(x_fast), late(x_slow)
-    best_x = np.where(np.abs(f_fast) < np.abs(f_slow), x_fast, x_slow)
-    best_f = np.minimum(np.abs(f_fast), np.abs(f_slow))
-    open_ = (f_fast < 0) & (f_slow > 0)  # bracketed; otherwise the nearer end is the answer
-    side = np.zeros(len(aim_s), dtype=int)
-    for _ in range(steps):
-        if not (open_ & (best_f > 0.5)).any():
-            break
-        x = np.where(open_, x_slow - f_slow * (x_slow - x_fast) / (f_slow - f_fast), best_x)
+
+class SpeedNoise:
+    """Each run's speed misjudgement [km/h] per step: AR(1) with stationary standard deviation ``sigma_kmh``
+    (one per run), the runs' innovations drawn as one (runs, ``n_steps``) array of standard normals.
+
+    Made a block of runs at a time: the rows of that one draw are consecutive in the generator's stream, so
+    drawing the blocks one after another gives the same numbers, and the generator's state at each block's
+    start, kept here, draws a block again. Construction advances ``rng`` past the whole draw, as one draw
+    would, holding one block at a time."""
+
+    def __init__(self, rng: np.random.Generator, sigma_kmh: np.ndarray, n_steps: int, block_runs: int,
+                 rho: float = 0.97):
+        self.sigma = np.asarray(sigma_kmh, float)
+        self.n_steps, self.rho = int(n_steps), rho
+        n = len(self.sigma)
+        self.blocks = [(lo, min(lo + max(int(block_runs), 1), n)) for lo in range(0, n, max(int(block_runs), 1))]
+        self._states = []
+        for lo, hi in self.blocks:
+            self._states.append(rng.bit_generator.state)
+            rng.standard_normal((hi - lo, self.n_steps))
+
+    def block(self, b: int) -> np.ndarray:
+        """Block ``b``'s noise, (its runs, n_steps)."""
+        lo, hi = self.blocks[b]
+        gen = np.random.Generator(np.random.PCG64())
+        gen.bit_generator.state = self._states[b]
+        x = gen.standard_normal((hi - lo, self.n_steps))  # the innovations, filtered in place
+        sigma = self.sigma[lo:hi]
+        x[:, 0] = x[:, 0] * sigma
+        c = math.sqrt(1 - self.rho * self.rho)
+        for i in range(1, self.n_steps):
+            x[:, i] = self.rho * x[:, i - 1] + c * sigma * x[:, i]
+        return x
+
+
+def block_runs(n_steps: int, per_step_bytes: int) -> int:
+    """How many runs of ``n_steps`` steps fit in ``BLOCK_BYTES`` at ``per_step_bytes`` each (at least one)."""
+    return max(1, BLOCK_BYTES // max(per_step_bytes * n_steps, 1))
+
+
+class _Search:
+    """The regula-falsi (Illinois) state of a block of runs on x = 1 / cruise speed (``drive_to_schedule``)."""
+
+    def __init__(self, late, x_fast: np.ndarray, x_slow: np.ndarray):
+        self.late = late
+        self.x_fast, self.x_slow = x_fast, x_slow
+        self.f_fast, self.f_slow = late(x_fast), late(x_slow)
+        self.best_x = np.where(np.abs(self.f_fast) < np.abs(self.f_slow), x_fast, x_slow)
+        self.best_f = np.minimum(np.abs(self.f_fast), np.abs(self.f_slow))
+        self.open_ = (self.f_fast < 0) & (self.f_slow > 0)  # bracketed; otherwise the nearer end is the answer
+        self.side = np.zeros(len(x_fast), dtype=int)
+        self.steps = 0
+
+    def searching(self) -> bool:
+        """Some run of the block is bracketed and not yet within 0.5 s (once within, a run stays within)."""
+        return bool((self.open_ & (self.best_f > 0.5)).any())
+
+    def step(self) -> None:
+        x_fast, x_slow, f_fast, f_slow = self.x_fast, self.x_slow, self.f_fast, self.f_slow
+        open_, side = self.open_, self.side
+        x = np.where(open_, x_slow - f_slow * (x_slow - x_fast) / (f_slow - f_fast), self.best_x)
         lo, hi = np.minimum(x_fast, x_slow), np.maximum(x_fast, x_slow)
         x = np.clip(x, lo + 1e-3 * (hi - lo), hi - 1e-3 * (hi - lo))
-        f = late(x)
-        better = np.abs(f) < best_f
-        best_x, best_f = np.where(better, x, best_x), np.where(better, np.abs(f), best_f)
+        f = self.late(x)
+        better = np.abs(f) < self.best_f
+        self.best_x, self.best_f = np.where(better, x, self.best_x), np.where(better, np.abs(f), self.best_f)
         slow = open_ & (f > 0)
         fast = open_ & (f <= 0)
         # Illinois: halve the stale end's value when the same end moves twice running
         f_fast = np.where(slow & (side == -1), 0.5 * f_fast, f_fast)
         f_slow = np.where(fast & (side == 1), 0.5 * f_slow, f_slow)
-        x_slow, f_slow = np.where(slow, x, x_slow), np.where(slow, f, f_slow)
-        x_fast, f_fast = np.where(fast, x, x_fast), np.where(fast, f, f_fast)
-        side = np.where(slow, -1, np.where(fast, 1, side))
-    cruise = 1.0 / best_x
-    return cruise, simulate_runs(calc, tables, p, cruise, noise, max_time, record=True)
+        self.x_slow, self.f_slow = np.where(slow, x, x_slow), np.where(slow, f, f_slow)
+        self.x_fast, self.f_fast = np.where(fast, x, x_fast), np.where(fast, f, f_fast)
+        self.side = np.where(slow, -1, np.where(fast, 1, side))
+        self.steps += 1
 
 
-def speed_noise(n: int, n_steps: int, sigma_kmh: np.ndarray, rng: np.random.Generator, rho: float = 0.97) -> np.ndarray:
-    """AR(1) speed misjudgement per run and step [km/h], stationary standard deviation ``sigma_kmh``."""
-    e = rng.standard_normal((n, n_steps))
-    x = np.zeros((n, n_steps))
-    x[:, 0] = e[:, 0] * sigma_kmh
-    c = math.sqrt(1 - rho * rho)
-    for i in range(1, n_steps):
-        x[:, i] = rho * x[:, i - 1] + c * sigma_kmh * e[:, i]
-    return x
+def drive_to_schedule(calc: TractionCalculator, tables: RouteTables, p: DriverParams, aim_s: np.ndarray,
+                      noise: SpeedNoise, steps: int = CALIBRATION_STEPS, keep=None) -> tuple[np.ndarray, SimOutcome]:
+    """Each run's cruise speed for its aimed running time, and the runs recorded at those speeds. The
+    running time is close to linear in 1 / cruise speed, so the search is regula falsi (Illinois) on
+    x = 1 / cruise within a bracket; it stops when every run is within 0.5 s. A run that cannot make its
+    time even at the line speed runs at it (and arrives late, as drivers sometimes do).
+
+    The runs are searched and recorded a block at a time (``noise.blocks``), so that memory is one block's,
+    whatever the number of runs, with the numbers of one search over all runs at once: the stopping rule
+    is shared (every run takes as many steps as the slowest-converging run needs), so the blocks search
+    until each is done, then those done early take the steps the slowest block took. Each recorded run's
+    log is handed to ``keep(run index, log)`` as it is made (a failed run's is not); without ``keep`` the
+    logs are returned in the outcome."""
+    n = len(aim_s)
+    v_top = float(np.max(tables.limit_kmh))
+    mean_kmh = KMH_PER_MS * calc.route.length_m / aim_s
+    max_time = 3.0 * aim_s
+    x_fast, x_slow = np.full(n, 1.0 / v_top), 1.0 / np.maximum(0.8 * mean_kmh, 10.0)
+    kept = [] if keep is None else None
+    only = noise.block(0) if len(noise.blocks) == 1 else None  # one block: drawn once
+
+    def block_noise(b):
+        return only if only is not None else noise.block(b)
+
+    def late_of(lo, hi, nz):
+        pb, aim_b, max_b = p.take(slice(lo, hi)), aim_s[lo:hi], max_time[lo:hi]
+        return lambda x: np.minimum(simulate_runs(calc, tables, pb, 1.0 / x, nz, max_b).running_time_s - aim_b, 1e4)
+
+    searches = []
+    for b, (lo, hi) in enumerate(noise.blocks):
+        s = _Search(late_of(lo, hi, block_noise(b)), x_fast[lo:hi], x_slow[lo:hi])
+        while s.steps < steps and s.searching():
+            s.step()
+        s.late = None  # holds the block's noise
+        searches.append(s)
+    shared = max((s.steps for s in searches), default=0)
+    cruise = np.empty(n)
+    running = np.full(n, np.inf)
+    failure = [""] * n
+    for b, (lo, hi) in enumerate(noise.blocks):
+        s, nz = searches[b], block_noise(b)
+        s.late = late_of(lo, hi, nz)
+        while s.steps < shared:
+            s.step()
+        s.late = None
+        cruise[lo:hi] = 1.0 / s.best_x
+        rec = block_runs(noise.n_steps, RECORD_BYTES_PER_STEP)
+        for a in range(lo, hi, rec):
+            z = min(a + rec, hi)
+            out = simulate_runs(calc, tables, p.take(slice(a, z)), cruise[a:z], nz[a - lo:z - lo], max_time[a:z], record=True)
+            running[a:z] = out.running_time_s
+            failure[a:z] = out.failure
+            for j, log in enumerate(out.logs):
+                if kept is not None:
+                    kept.append(log)
+                elif not out.failure[j]:
+                    keep(a + j, log)
+            del out
+        del nz  # before the next block's is made: one block's noise at a time
+    return cruise, SimOutcome(running, failure, kept)
 
 
 # ------------------------------------------------------------------------------------------ consists
@@ -543,9 +637,11 @@ class SimulatedLogs:
         return len(self.manifest["runs"])
 
 
-def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
+def simulate_logs(spec: SimulationSpec, progress=None, sink=None) -> SimulatedLogs:
     """Simulate ``n_drivers`` drivers x ``n_runs`` runs for every mass and planned time: the logs, the
-    consists and the manifest as data (nothing is written here)."""
+    consists and the manifest as data (nothing is written here). With ``sink``, each log is handed to
+    ``sink(relative path, log)`` as soon as it is made and not kept (``SimulatedLogs.logs`` is then empty):
+    memory stays one block of runs' (``drive_to_schedule``) whatever the number of logs."""
     spec.check()
     rng = np.random.default_rng(spec.seed)
     drivers = draw_drivers(spec.n_drivers, rng)
@@ -568,7 +664,7 @@ def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
                 raise InputError(Problem("<command line>", "--times", f"{t0:g} s is below the fastest possible run of "
                                          f"{train.name} on '{spec.route.name}', {calc.fastest_time_s:.1f} s"))
             _check_window(spec, t0, calc.fastest_time_s)
-        # every driver's runs at every planned time of this mass, in one batch
+        # every driver's runs at every planned time of this mass, as one search (made a block at a time)
         per_time = spec.n_drivers * spec.n_runs
         idx = np.tile(np.repeat(np.arange(spec.n_drivers), spec.n_runs), len(spec.times_s))
         planned = np.repeat(np.asarray(spec.times_s, float), per_time)
@@ -576,31 +672,39 @@ def simulate_logs(spec: SimulationSpec, progress=None) -> SimulatedLogs:
                           for x in planned])
         p = jitter(drivers.take(idx), rng)
         aim = planned + tol_s * np.clip(p.punctuality_bias + 0.3 * rng.standard_normal(len(idx)), -AIM_SPREAD, AIM_SPREAD)
-        noise = speed_noise(len(idx), int(math.ceil(3.0 * float(aim.max()) / DT_S)), p.noise_kmh, rng)
+        n_steps = int(math.ceil(3.0 * float(aim.max()) / DT_S))
+        noise = SpeedNoise(rng, p.noise_kmh, n_steps, block_runs(n_steps, 8))
         if progress:
             progress(f"{mass:g} t, {len(idx)} runs")  # one batch per mass: all its drivers, runs and times
-        _, out = drive_to_schedule(calc, tables, p, aim, noise)
+        energy, times = np.zeros(len(idx)), np.zeros(len(idx))
+
+        def keep(r: int, log: LogData) -> None:
+            nonlocal day
+            d, t0, rep = idx[r], planned[r], r % spec.n_runs + 1
+            name = f"logs/{ids[d]}-m{mass:g}-t{t0:g}-r{rep}.csv"
+            energy[r], times[r] = log.traction_energy_kwh, log.running_time_s
+            if sink is None:
+                logs[name] = log
+            else:
+                sink(name, log)
+            runs_meta.append({"log": name, "driver_id": ids[d], "consist": cname, "mass_t": float(mass),
+                              "scheduled_time_s": float(t0), "actual_time_s": round(float(log.running_time_s), 1),
+                              "date": spec.start_date + dt.timedelta(days=day)})
+            day += 1
+
+        _, out = drive_to_schedule(calc, tables, p, aim, noise, keep=keep)
         bad = [(ids[idx[r]], out.failure[r]) for r in range(len(idx)) if out.failure[r]]
         if bad:  # a simulator defect, never a user's mistake: say which run and why
             raise RuntimeError(f"driver simulator: {len(bad)} run(s) failed on '{spec.route.name}' at {mass:g} t, "
                                f"e.g. driver {bad[0][0]}: {bad[0][1]}")
         for j, t0 in enumerate(spec.times_s):
-            sel = range(j * per_time, (j + 1) * per_time)
-            for r in sel:
-                log, d, rep = out.logs[r], idx[r], r % spec.n_runs + 1
-                name = f"logs/{ids[d]}-m{mass:g}-t{t0:g}-r{rep}.csv"
-                logs[name] = log
-                runs_meta.append({"log": name, "driver_id": ids[d], "consist": cname, "mass_t": float(mass),
-                                  "scheduled_time_s": float(t0), "actual_time_s": round(float(log.running_time_s), 1),
-                                  "date": spec.start_date + dt.timedelta(days=day)})
-                day += 1
-            e = np.array([out.logs[r].traction_energy_kwh for r in sel])
-            times = np.array([out.logs[r].running_time_s for r in sel])
+            sel = slice(j * per_time, (j + 1) * per_time)
+            e, tj = energy[sel], times[sel]
             tol_j = tol_s[j * per_time]
             groups.append({"mass_t": float(mass), "scheduled_time_s": float(t0), "runs": per_time,
                            "mean_energy_kwh": round(float(e.mean()), 2), "min_energy_kwh": round(float(e.min()), 2),
-                           "max_energy_kwh": round(float(e.max()), 2), "mean_time_s": round(float(times.mean()), 1),
-                           "late_runs": int(np.sum(times > t0 + tol_j)), "early_runs": int(np.sum(times < t0 - tol_j))})
+                           "max_energy_kwh": round(float(e.max()), 2), "mean_time_s": round(float(tj.mean()), 1),
+                           "late_runs": int(np.sum(tj > t0 + tol_j)), "early_runs": int(np.sum(tj < t0 - tol_j))})
     manifest = {"schema": "locoplan/driver-logs@1", "route": "route.yaml", "synthetic": True,
                 "generator": {"name": SIMULATOR, "version": __version__, "seed": int(spec.seed)},
                 "notes": (f"SYNTHETIC: {spec.n_drivers} simulated drivers x {spec.n_runs} runs per mass and time, "

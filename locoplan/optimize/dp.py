@@ -75,8 +75,9 @@ class PricedDriveSolver:
     """DP over one calculator's route; ``solve(price)`` gives the priced optimum.
 
     The DP's cells join the calculator's (which split at every route breakpoint, down to a few metres on
-    real lines) into cells of about ``cell_m``: gravity is their length-weighted mean (exact work),
-    traction is cut in the whole cell if any part is a neutral span, and the cap at a node is the lowest
+    real lines) into cells of about ``cell_m``, split at every edge of a neutral span: gravity is their
+    length-weighted mean (exact work), a cell is in a span or outside it (no traction nor electric brake in
+    one, in case a calculator cell inside it is), and the cap at a node is the lowest
     braking envelope since the previous node (a short restriction is not jumped over). The drive is a
     guess for the sequence; the exact calculator checks every plan made of it."""
 
@@ -89,12 +90,16 @@ class PricedDriveSolver:
             fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
             switch_penalty_kwh = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
         self.switch_penalty_kwh = float(switch_penalty_kwh)
-        # DP nodes: calculator nodes at least cell_m apart (the first and the last always)
+        # DP nodes: calculator nodes at least cell_m apart (the first and the last always), and every edge of a
+        # neutral span: a cell that straddled one would lose the catenary (traction and the electric brake) over
+        # its whole length, while its start node's cap, the calculator's braking curve, counts on the electric
+        # brake up to the edge, and no state could follow that curve into a span where it can only coast
+        edges = set((np.flatnonzero(np.diff(calc.traction_allowed) != 0) + 1).tolist())
         keep = [0]
         for i in range(1, len(calc.s_m) - 1):
-            if calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
+            if i in edges or calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
                 keep.append(i)
-        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1:
+        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1 and keep[-1] not in edges:
             keep.pop()
         keep.append(len(calc.s_m) - 1)
         idx = np.array(keep)

@@ -63,7 +63,10 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
     span = v_cap - v_grid[top]
     if span <= 1e-12:
         return ctg_row[top]
-    return _blend(ctg_row[top], ctg_row[nv], (v1 - v_grid[top]) / span)
+    w = (v1 - v_grid[top]) / span
+    if 0.0 < w < 1.0 and math.isinf(ctg_row[top]) and not math.isinf(ctg_row[nv]) and v1 >= v_low:
+        return ctg_row[nv]  # above the stall boundary, under the cap: read as the backward pass reads it (_backward)
+    return _blend(ctg_row[top], ctg_row[nv], w)
 
 
 @njit(cache=True)
@@ -152,31 +155,57 @@ def _move(e, v, u, k, n, dp, fo):
 
 
 @njit(cache=True)
+def _arrives(e, k, n, dp, fo, e_low_next):
+    """Full traction over cell k from e arrives at or above the next node's lowest (``_lowest_energy``)."""
+    e1, _ = _capped_step(e, T_, k, n, dp, fo)
+    return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
+
+
+@njit(cache=True)
+def _too_fast(e, k, n, dp, fo):
+    """Full traction over cell k from e cannot be held under the next node's cap (not a stall: the uncapped
+    step moves on)."""
+    e1, _ = _step(e, T_, dp.h[k], dp.grav[k], dp.allowed[k], fo)
+    return e1 >= 0.0 and _capped_step(e, T_, k, n, dp, fo)[0] < 0.0
+
+
+@njit(cache=True)
+def _bisect(e_no, e_yes, k, n, dp, fo, e_low_next, arrives):
+    """Where ``_arrives`` (or, with ``arrives`` False, ``_too_fast``) turns from false at ``e_no`` to true at
+    ``e_yes``: both ends after 40 halvings."""
+    for _ in range(40):
+        mid = 0.5 * (e_no + e_yes)
+        if _arrives(mid, k, n, dp, fo, e_low_next) if arrives else _too_fast(mid, k, n, dp, fo):
+            e_yes = mid
+        else:
+            e_no = mid
+    return e_no, e_yes
+
+
+@njit(cache=True)
 def _lowest_energy(k, n, dp, fo, e_low_next):
     """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
-    node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when not even the cap
-    does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
-    fine cells a slow climb would otherwise look impossible)."""
+    node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when no speed up to the
+    cap does. This continuous stall boundary keeps the speed grid from rounding it up cell after cell (on
+    fine cells a slow climb would otherwise look impossible).
+
+    The bisection's upper end is the cap, unless the cap is too fast to be braked under the next node's cap
+    within the cell (a cell with no brake at all, as in a neutral span for a train whose only brake is
+    electric; the DP's one step per cell against the braking curve's fine ones). Then it is the highest
+    speed that can still be held under it, found by bisection as well (those speeds form an interval below
+    the cap): slower states are feasible although the cap is not."""
     if not math.isfinite(e_low_next):
         return np.inf
-
-    def ok(e):
-        e1, _ = _capped_step(e, T_, k, n, dp, fo)
-        return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
-
     hi = max(dp.e_cap[k], 0.0)
-    if not ok(hi):
+    if _too_fast(hi, k, n, dp, fo):
+        if _too_fast(0.0, k, n, dp, fo):
+            return np.inf
+        hi, _ = _bisect(0.0, hi, k, n, dp, fo, e_low_next, False)
+    if not _arrives(hi, k, n, dp, fo, e_low_next):
         return np.inf
-    lo = 0.0
-    if ok(lo):
+    if _arrives(0.0, k, n, dp, fo, e_low_next):
         return 0.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        if ok(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return _bisect(0.0, hi, k, n, dp, fo, e_low_next, True)[1]
 
 
 @njit(cache=True)

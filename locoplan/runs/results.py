@@ -13,12 +13,13 @@ import json
 import math
 import operator
 import re
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError, Problem
-from ..reporting.files import atomic_write, atomic_write_text
+from ..reporting.files import atomic_write
 from ..reporting.writers import clean, csv_row, to_json, with_provenance
 
 FORMATS = ("csv", "parquet", "json")
@@ -90,19 +91,32 @@ def rows_of(records, where: list[str] | None = None) -> list[dict]:
 SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent")
 """The fields :func:`summarize_rows` reads besides its ``by`` fields."""
 
+PLOT_FIELDS = ("feasible", "route", "consist", "planned_time_s", "strategy", "algorithm", "running_time_s",
+               "traction_energy_kwh")
+"""The fields the plots of ``locoplan results`` read (``reporting/plot_runs.py``)."""
 
-def stream_rows(records, where: list[str] | None = None, fields=None) -> tuple[list[dict], set[str]]:
-    """As :func:`rows_of`, over an iterable of records read one at a time (a store of any size), keeping of
-    each row only ``fields`` if given (a summary needs a few of a row's 35); also returns every field name
-    seen (a ``--where`` or ``--by`` naming none of them is an InputError)."""
+
+def iter_rows(records, where: list[str] | None = None, seen: set[str] | None = None):
+    """The rows of ``records`` (read one at a time) that pass ``where``; every field name met goes into ``seen``."""
     keep = parse_where(where, set()) if where else None
-    seen: set[str] = set()
-    out = []
     for r in records:
         row = r.row()
-        seen.update(row)
-        if keep is not None and not keep(row):
-            continue
+        if seen is not None:
+            seen.update(row)
+        if keep is None or keep(row):
+            yield row
+
+
+def stream_rows(records, where: list[str] | None = None, fields=None, on_row=None) -> tuple[list[dict], set[str]]:
+    """As :func:`rows_of`, over an iterable of records read one at a time (a store of any size), keeping of
+    each row only ``fields`` if given (a summary needs a few of a row's 35), and handing each whole row to
+    ``on_row`` (an export's first pass, :class:`ExportShape`); also returns every field name seen (a
+    ``--where`` or ``--by`` naming none of them is an InputError)."""
+    seen: set[str] = set()
+    out = []
+    for row in iter_rows(records, where, seen):
+        if on_row is not None:
+            on_row(row)
         out.append({k: row.get(k) for k in fields} if fields is not None else row)
     for text in where or ():
         name = _WHERE.match(text).group(1)
@@ -116,42 +130,161 @@ def _flat(value):
     return json.dumps(clean(value)) if isinstance(value, (list, dict)) else value
 
 
-def _columns(rows: list[dict]) -> list[str]:
-    cols: dict[str, None] = {}
-    for r in rows:
-        cols.update(dict.fromkeys(r))
-    return list(cols)
-
-
 def export(rows: list[dict], path: str | Path | None, fmt: str) -> str | None:
     """Write ``rows`` as ``fmt`` to ``path`` (atomically), or return the text for stdout (csv, json)."""
+    check_format(fmt, path)
+    shape = ExportShape(fmt)
+    for r in rows:
+        shape.add(r)
+    if path is None:
+        buf = io.StringIO()
+        write_export(rows, shape, buf)
+        return buf.getvalue()
+    export_to_file(rows, shape, path)
+    return None
+
+
+def check_format(fmt: str, path: str | Path | None) -> None:
+    """An export format ``locoplan results`` writes, to a file or (csv, json) to stdout."""
     if fmt not in FORMATS:
         raise InputError(Problem("", "format", f"unknown format {fmt!r} (one of: {', '.join(FORMATS)})"))
-    cols = _columns(rows)
-    if fmt == "json":
-        text = to_json(with_provenance({"results": rows})) + "\n"
-    elif fmt == "csv":  # numbers, true/false, empty cells; weights and window as columns of their own
-        flat = [csv_row(r) for r in rows]
-        buf = io.StringIO()
-        w = csv.DictWriter(buf, fieldnames=_columns(flat), lineterminator="\n", restval="")
-        w.writeheader()
-        w.writerows(flat)
-        text = buf.getvalue()
-    else:
+    if fmt == "parquet":
         if path is None:
             raise InputError(Problem("", "out", "Parquet is binary: give a file with --out"))
         try:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
+            import pyarrow  # noqa: F401
         except ImportError:
             raise InputError(Problem("", "format", "Parquet needs pyarrow: pip install 'locoplan[parquet]'")) from None
-        table = pa.table({c: [_flat(clean(r.get(c))) for r in rows] for c in cols})
-        atomic_write(path, lambda p: pq.write_table(table, p))
-        return None
-    if path is None:
-        return text
-    atomic_write_text(path, text)
-    return None
+
+
+class ExportShape:
+    """What an export's head needs, gathered in a first pass over the rows, so that the second pass can
+    write them one at a time (an export of any size in bounded memory): the number of rows, the columns
+    in order of first appearance (a CSV's after splitting ``weights`` and ``window_s``) and, for Parquet,
+    the Python types each column holds (its Arrow type)."""
+
+    def __init__(self, fmt: str, source: str = "<rows>"):
+        self.fmt, self.source = fmt, source
+        self.rows = 0
+        self._cols: dict[str, None] = {}
+        self._kinds: dict[str, set[type]] = {}
+
+    def add(self, row: dict) -> None:
+        self.rows += 1
+        if self.fmt == "csv":
+            self._cols.update(dict.fromkeys(csv_row(row)))
+            return
+        self._cols.update(dict.fromkeys(row))
+        if self.fmt == "parquet":
+            for k, v in row.items():
+                self._kinds.setdefault(k, set()).add(type(_flat(clean(v))))
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self._cols)
+
+    def changed(self) -> InputError:
+        """The rows of the second pass are not those of the first."""
+        return InputError(Problem(self.source, "", "the store changed while it was exported (a run was replaced or "
+                                  "removed): nothing was written; run the same command again"))
+
+    def arrow_schema(self):
+        """Each column's type as pyarrow infers it from the whole column: null, bool, int64, double (ints
+        and floats), string; a column that mixes text with numbers or booleans is written as text."""
+        import pyarrow as pa
+
+        fields = []
+        for c in self._cols:
+            kinds = self._kinds.get(c, set()) - {type(None)}
+            if not kinds:
+                kind = pa.null()
+            elif kinds == {bool}:
+                kind = pa.bool_()
+            elif kinds == {int}:
+                kind = pa.int64()
+            elif kinds <= {int, float}:
+                kind = pa.float64()
+            else:
+                kind = pa.string()
+            fields.append(pa.field(c, kind))
+        return pa.schema(fields)
+
+
+PARQUET_ROW_GROUP = 10_000
+"""Rows per Parquet row group (the rows of one group are held in memory while it is written)."""
+
+
+def export_to_file(rows, shape: ExportShape, path: str | Path) -> None:
+    """Write ``rows`` (an iterable, read once) to ``path`` as ``shape.fmt``, atomically (``atomic_write``)."""
+    if shape.fmt == "parquet":
+        atomic_write(path, lambda p: _write_parquet(rows, shape, p))
+    else:
+        atomic_write(path, lambda p: _write_text(rows, shape, p))
+
+
+def _write_text(rows, shape: ExportShape, path: Path) -> None:
+    with open(path, "w", encoding="utf-8", newline="") as fh:
+        write_export(rows, shape, fh)
+
+
+def write_export(rows, shape: ExportShape, stream) -> None:
+    """Write ``rows`` (an iterable, read once) to a text ``stream`` as CSV or JSON, a row at a time: the
+    same text as the whole export made at once (one JSON object, ``{"results": [...]`` with the
+    provenance fields after it)."""
+    n = 0
+    if shape.fmt == "csv":  # numbers, true/false, empty cells; weights and window as columns of their own
+        w = csv.DictWriter(stream, fieldnames=shape.columns, lineterminator="\n", restval="")
+        w.writeheader()
+        for r in rows:
+            flat = csv_row(r)
+            if not flat.keys() <= shape._cols.keys():
+                raise shape.changed()
+            w.writerow(flat)
+            n += 1
+    else:
+        if shape.rows == 0:
+            stream.write(to_json(with_provenance({"results": []})) + "\n")
+            return
+        mark = "\u0000locoplan-rows"
+        head, tail = to_json(with_provenance({"results": [mark]})).split(f"    {json.dumps(mark)}")
+        stream.write(head)
+        for r in rows:
+            stream.write(("" if n == 0 else ",\n") + textwrap.indent(to_json(r), "    "))
+            n += 1
+        stream.write(tail + "\n")
+    if n != shape.rows:
+        raise shape.changed()
+
+
+def _write_parquet(rows, shape: ExportShape, path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    schema = shape.arrow_schema()
+    text = {c for c in shape.columns if schema.field(c).type == pa.string()}
+    n = 0
+    with pq.ParquetWriter(path, schema) as writer:
+        group: list[dict] = []
+
+        def cell(row: dict, c: str):
+            value = _flat(clean(row.get(c)))
+            return json.dumps(value) if c in text and value is not None and not isinstance(value, str) else value
+
+        def flush() -> None:
+            writer.write_table(pa.table({c: [cell(r, c) for r in group] for c in shape.columns}, schema=schema))
+            group.clear()
+
+        for r in rows:
+            if not r.keys() <= shape._cols.keys():
+                raise shape.changed()
+            group.append(r)
+            n += 1
+            if len(group) == PARQUET_ROW_GROUP:
+                flush()
+        if group or n == 0:
+            flush()
+    if n != shape.rows:
+        raise shape.changed()
 
 
 def _stats(values: list[float]) -> tuple[float | None, float | None, float | None]:

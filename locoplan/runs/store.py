@@ -171,9 +171,11 @@ class Store:
         self.damaged: dict[str, str] = {}
         """key (or 'rowid N' when the key itself is unreadable) -> what is wrong with that stored record."""
         self.replaced: dict[str, str] = {}
+        """key -> what was wrong with the damaged record that :meth:`put` wrote over."""
         self.file_damaged = False
         """True once :meth:`iter_records` met damaged pages (their row ids are in :attr:`damaged`)."""
-        """key -> what was wrong with the damaged record that :meth:`put` wrote over."""
+        self.last_rowid = -1
+        """The highest row id :meth:`iter_records` has read (a second pass reads up to it)."""
         self._lock_fd: int | None = None
         try:
             st = os.stat(self.path)
@@ -415,24 +417,27 @@ class Store:
                 out.update(self._parsed(self.conn.execute(q, chunk)))
         return out
 
-    def iter_records(self, chunk: int = 1000):
+    def iter_records(self, chunk: int = 1000, upto: int | None = None):
         """Every readable run, in the order they finished, ``chunk`` rows at a time (memory stays bounded
-        on a store of any size); damaged records go to :attr:`damaged`."""
+        on a store of any size); damaged records go to :attr:`damaged`. With ``upto``, only the rows up to
+        that row id (those a first pass read: :attr:`last_rowid`, the highest row id read so far)."""
         last, good = -1, 0
+        top = (1 << 63) - 1 if upto is None else upto
         while True:
             try:
-                rows = self.conn.execute("SELECT rowid, key, record FROM runs WHERE rowid > ? ORDER BY rowid LIMIT ?",
-                                         (last, chunk)).fetchall()
+                rows = self.conn.execute("SELECT rowid, key, record FROM runs WHERE rowid > ? AND rowid <= ? ORDER BY rowid "
+                                         "LIMIT ?", (last, top, chunk)).fetchall()
             except sqlite3.DatabaseError as exc:
                 if self.writable or "malformed" not in str(exc):
                     raise InputError(Problem(self.name, "", _why(exc, self.writable, self.name))) from None
-                rows, last = self._salvage(last, chunk, exc, good)
+                rows, last = self._salvage(last, chunk, exc, good, top)
                 if rows is None:
                     return
             else:
                 if not rows:
                     return
                 last = rows[-1][0]
+            self.last_rowid = max(self.last_rowid, last)
             parsed = self._parsed(rows)
             good += len(parsed)
             yield from parsed.values()
@@ -440,7 +445,7 @@ class Store:
     _SALVAGE_SPAN = 10_000_000
     """At most this many row ids are probed one by one past a damaged part of the file."""
 
-    def _salvage(self, last: int, chunk: int, exc: sqlite3.Error, good: int):
+    def _salvage(self, last: int, chunk: int, exc: sqlite3.Error, good: int, upto: int):
         """Reading a damaged file (``results``): the rows after ``last`` one row id at a time, so the runs
         outside the damaged pages stay usable; the row ids in damaged pages go to :attr:`damaged` as ranges.
         (rows, new last), or (None, last) at the end; the damage as an error when nothing is readable."""
@@ -452,6 +457,7 @@ class Store:
             raise refuse() from None
         if top is None or not isinstance(top, int) or top - last > self._SALVAGE_SPAN:
             raise refuse() from None
+        top = min(top, upto)
         rows, rid, bad_from = [], last + 1, None
 
         def close_range(upto: int) -> None:

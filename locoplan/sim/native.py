@@ -149,10 +149,36 @@ class _Unavailable(Exception):
 
 
 def _jit(why: str) -> _Namespace:
+    _tolerant_numba_cache()
     funcs = {}
     for name, (mod, fn, _, _) in ENTRY_POINTS.items():
         funcs[name] = getattr(importlib.import_module(mod), fn)
     return _Namespace(funcs, f"numba-jit ({why})")
+
+
+def _tolerant_numba_cache() -> None:
+    """numba saves each function it compiles (``cache=True``) beside its source or in ``NUMBA_CACHE_DIR``, and a
+    save that fails (a full disk, a file-size limit, a read-only folder) raises from the call that compiled it,
+    an OSError that names no file: a command would fail on a cache. The function is compiled and in use by then,
+    so a failed save is only a cache lost (the next process compiles again) and is let go. numba removes its
+    half-written file itself, and reads an index entry whose file is missing as no entry."""
+    from numba.core import caching
+
+    save = caching.Cache.save_overload
+    if getattr(save, "locoplan_tolerant", False):
+        return
+
+    def save_overload(self, sig, data):
+        try:
+            save(self, sig, data)
+        except OSError:
+            pass
+    save_overload.locoplan_tolerant = True
+    caching.Cache.save_overload = save_overload
+
+
+_NO_ROOM = ("[Errno 27]", "[Errno 28]", "[Errno 122]", "File too large", "No space left on device", "Disk quota exceeded")
+"""A build log with one of these failed for want of room, not for the code: no ``.failed`` is kept for it."""
 
 
 def _load_native() -> _Namespace:
@@ -220,8 +246,16 @@ def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
         built = Path(tmp) / path.name
         if ok and built.is_file():
             os.replace(built, path)
+        elif any(text in log for text in _NO_ROOM):  # a full disk or a file-size limit: tried again next time
+            raise _Unavailable(f"the ahead-of-time build in {folder} had no room ({_no_room_line(log)}); "
+                               "it is tried again by the next command")
         else:
             failed.write_text(f"{' '.join(cmd)}\n\n{log}")
+
+
+def _no_room_line(log: str) -> str:
+    """The line of a build log that says the disk or the file-size limit was in the way."""
+    return next((line.strip() for line in reversed(log.splitlines()) if any(t in line for t in _NO_ROOM)), "")[:200]
 
 
 def _compile_here(out_dir: str, name: str) -> None:

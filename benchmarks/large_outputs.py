@@ -1,0 +1,124 @@
+"""Issue 24's memory promise at the largest documented sizes: each command run as ``python -m locoplan`` under
+the hostile corpus's 1 GiB address-space cap, with its peak memory (the child's own maximum RSS).
+
+- ``results`` on a store of 100,000 runs: the summary, and the csv, json (to a file and to stdout) and parquet
+  exports (each streamed from the store a row at a time);
+- ``drivers simulate`` at its limit of 20,000 logs: 20 drivers x 1 run x 1,000 planned times (the logs are
+  written as they are made, the runs searched and recorded a block at a time).
+
+    python benchmarks/large_outputs.py                       # both (drivers: about 30 min of one core on freight-20km)
+    python benchmarks/large_outputs.py --only results        # about 3 minutes
+    python benchmarks/large_outputs.py --only drivers --route routes/real/CH_Stadelhofen_Altstetten-leg1.yaml
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sqlite3
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+import hostile  # noqa: E402
+
+LIMIT_S = 3 * 3600.0
+
+
+def run(argv: list[str], cwd: Path, label: str, stdout_file: str | None = None) -> dict:
+    code, out, err, seconds, peak = hostile.run(argv, cwd, timeout_s=LIMIT_S, stdout_file=stdout_file)
+    row = {"what": label, "exit": code, "seconds": round(seconds, 1), "peak_mib": round(peak / 2**20)}
+    print(f"{label:<48} exit {code}  {seconds:7.1f} s  peak {peak / 2**20:6.0f} MiB", flush=True)
+    if code != 0:
+        print(err[-2000:], file=sys.stderr)
+    return row
+
+
+def big_store(tmp: Path, runs: int) -> Path:
+    """A store of ``runs`` runs: a small real batch (12 runs: three strategies, two seeds, three times), its
+    records copied under new keys and seeds in one transaction."""
+    route = tmp / "route.yaml"
+    route.write_text(hostile.route(), encoding="utf-8")
+    study = tmp / "study.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [{hostile.SMALL}]\ntimes: [200, 220, 1000]\n"
+                     "strategies: [time-saving, four-stage, proposed]\nseeds: [1, 2]\n", encoding="utf-8")
+    store = tmp / "big.sqlite"
+    code, _, err, _, _ = hostile.run(["batch", str(study), "--store", str(store), "--workers", "1", "--quiet"], tmp,
+                                     timeout_s=900)
+    if code not in (0, 1):
+        raise SystemExit(f"the seed batch failed:\n{err}")
+    with sqlite3.connect(store) as conn:
+        base = conn.execute("SELECT * FROM runs").fetchall()
+        made = len(base)
+        copies = []
+        for i in range(runs - made):
+            row = list(base[i % len(base)])
+            record = json.loads(row[10])
+            record["key"] = row[0] = f"{row[0][:48]}-{i:07d}"
+            record["summary"]["seed"] = row[5] = 1000 + i
+            row[10] = json.dumps(record)
+            copies.append(row)
+            if len(copies) == 10_000:
+                conn.executemany("INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?)", copies)
+                copies.clear()
+        conn.executemany("INSERT INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?)", copies)
+    return store
+
+
+def results_cases(tmp: Path, runs: int) -> list[dict]:
+    t = time.perf_counter()
+    store = big_store(tmp, runs)
+    print(f"store of {runs:,} runs made in {time.perf_counter() - t:.0f} s ({store.stat().st_size / 2**20:.0f} MiB)")
+    rows = [run(["results", str(store)], tmp, f"results: summary of {runs:,} runs")]
+    for fmt in ("csv", "json", "parquet"):
+        rows.append(run(["results", str(store), "--format", fmt, "--out", str(tmp / f"export.{fmt}")], tmp,
+                        f"results --format {fmt} --out ({runs:,} rows)"))
+    for fmt in ("csv", "json"):
+        rows.append(run(["results", str(store), "--format", fmt], tmp, f"results --format {fmt} > /dev/null ({runs:,} rows)",
+                        stdout_file="/dev/null"))
+    rows.append(run(["results", str(store), "--plot", str(tmp / "p.png"), "--boxplot", str(tmp / "b.png")], tmp,
+                    f"results --plot --boxplot ({runs:,} runs)"))
+    return rows
+
+
+def drivers_case(tmp: Path, route: str, drivers: int, times: int) -> dict:
+    first = 1450 if "freight-20km" in route else None
+    if first is None:  # a planned time every second from 1.15 x the fastest run
+        code, out, err, _, _ = hostile.run(["simulate", route, "--strategy", "time-saving", "--json"], tmp, timeout_s=600)
+        first = int(json.loads(out)["running_time_s"] * 1.15) + 1
+    times_arg = ",".join(str(first + i) for i in range(times))
+    out_dir = tmp / "logs"
+    row = run(["drivers", "simulate", route, "--drivers", str(drivers), "--runs", "1", "--times", times_arg, "--out",
+               str(out_dir)], tmp, f"drivers simulate: {drivers} x {times} = {drivers * times:,} logs")
+    row["logs"] = len(list((out_dir / "logs").iterdir())) if (out_dir / "logs").is_dir() else 0
+    print(f"  {row['logs']:,} logs written to {out_dir}; left beside it: "
+          f"{sorted(p.name for p in tmp.iterdir() if p.name.startswith('logs.'))}")
+    return row
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", choices=("results", "drivers"))
+    ap.add_argument("--runs", type=int, default=100_000, help="runs in the store")
+    ap.add_argument("--route", default=str(ROOT / "routes/freight-20km.yaml"), help="route of drivers simulate")
+    ap.add_argument("--drivers", type=int, default=20)
+    ap.add_argument("--times", type=int, default=1000)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        hostile.warm_up(tmp)
+        rows = []
+        if args.only in (None, "results"):
+            rows += results_cases(tmp, args.runs)
+        if args.only in (None, "drivers"):
+            rows.append(drivers_case(tmp, args.route, args.drivers, args.times))
+    worst = max(r["peak_mib"] for r in rows)
+    print(f"\nlargest peak: {worst} MiB (limit {hostile.MEMORY_CAP_BYTES / 2**20:.0f} MiB of address space)")
+    return 0 if all(r["exit"] == 0 for r in rows) and worst < hostile.MEMORY_CAP_BYTES / 2**20 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
