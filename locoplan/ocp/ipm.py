@@ -321,8 +321,8 @@ class CellIPM:
                                 + _dot(sig_x + delta_w, dx * dx) + _dot(sig_c, np.einsum("jn,n->j", grad_c, dx) ** 2))
                         if curv >= S.curvature * _dot(dx, dx):
                             break
-                else:
-                    delta_c = max(delta_c, 1e-8 * mu ** 0.25)
+                else:  # a zero pivot: regularise the equality block too, more each time
+                    delta_c = 10 * delta_c if delta_c > 0 else 1e-8 * mu ** 0.25
                 delta_w = (max(1e-20, delta_w_last / 3) if delta_w == 0 and delta_w_last > 0
                            else 1e-4 if delta_w == 0 else 8.0 * delta_w)
             else:
