@@ -98,8 +98,8 @@ def paired_control_map(n_lg: int) -> np.ndarray:
     n_lg = _nodes._check_n(n_lg, "paired control nodes")
     if n_lg % 2:
         raise InputError(
-            f"paired control nodes (seed eq. 26, U_(2l-1) = U_(2l)): need an even number of LG points "
-            f"(odd polynomial degree N in the seed's notation), got {n_lg} points (N = {n_lg - 1} even)"
+            f"paired control nodes (U_(2l-1) = U_(2l)): need an even number of LG points "
+            f"(an odd polynomial degree N in the paper's notation), got {n_lg} points (N = {n_lg - 1} even)"
         )
     return grouped_control_map([2] * (n_lg // 2))
 

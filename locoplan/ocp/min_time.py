@@ -274,8 +274,8 @@ def train_problem(route, train, route_file: str | Path | None = None) -> MinTime
     a constant grade and limit (seed 001's multi-phase problem is a later issue).
     """
     name = str(route_file) if route_file is not None else route.name
-    why = ("the single-phase minimum-time problem (seed 000) needs one constant gradient and one speed "
-           "limit over the whole route; for such a route use seed 001's multi-phase problem (--objective energy)")
+    why = ("the single-phase minimum-time problem needs one constant gradient and one speed "
+           "limit over the whole route; for such a route use the multi-phase problem (--objective energy)")
     problems: list[Problem] = []
     grades = _merged(route.gradients, lambda s: s.permille)
     limits = _merged(route.speed_limits, lambda s: s.kmh)
@@ -300,7 +300,7 @@ def train_problem(route, train, route_file: str | Path | None = None) -> MinTime
             extra += float(tunnel_gradient_permille(t.to_m - t.from_m))
     if route.neutral_sections:
         problems.append(Problem(name, "neutral_sections", "the minimum-time problem has no traction-free "
-                                "zones; remove the neutral sections or use the multi-phase problem (--objective energy, seed 001)"))
+                                "zones; remove the neutral sections or use the multi-phase problem (--objective energy)"))
     if problems:
         raise InputError(problems)
     limit_kmh = min(limits[0][2], float(train.max_speed_kmh))

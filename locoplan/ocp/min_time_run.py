@@ -167,7 +167,7 @@ def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective
             return None
         if even and n % 2:
             problems.append(Problem(SOURCE, flag, f"the two-stage method pairs the control on the LG points "
-                                    f"(U_(2l-1) = U_(2l), seed eq. 26-27), so the state nodes must be even, got {n}"))
+                                    f"(U_(2l-1) = U_(2l)), so the state nodes must be even, got {n}"))
             return None
         return n
 

@@ -34,27 +34,27 @@ class OcpMethod:
 
 OCP_METHODS: dict[str, OcpMethod] = {
     "two-stage": OcpMethod("two-stage", "two-stage", (17, 24),
-                           "two-stage adaptive Gauss re-collocation (seed 000): paired control on 2N LG "
+                           "two-stage adaptive Gauss re-collocation: paired control on 2N LG "
                            "points, then slope-change re-collocation", has_stage2=True, has_state_nodes=True),
     "gpm": OcpMethod("gpm", "GPM", (34, 48), "classical Gauss pseudospectral method: N LG points for "
                      "states and control", has_state_nodes=True),
     "cvp": OcpMethod("cvp", "CVP", (20, 40), "control vector parameterisation: N control values on a "
                      "uniform grid, piecewise linear, RK4 states"),
     "radau": OcpMethod("radau", "Radau", (0, 0), "multi-phase Legendre-Gauss-Radau collocation with hp mesh "
-                       "refinement (seed 001, GPOPS-II's method)", objectives=("energy",)),
+                       "refinement (GPOPS-II's method)", objectives=("energy",)),
 }
 """Methods by CLI name; the CLI's ``--method`` choices are these keys."""
 
 STAGE2_MODES: dict[str, str] = {
     "hp": "cut the state mesh at the detected control jumps into segments with movable break points "
           "(our extension, default)",
-    "global": "re-collocate the control on the same single global LG mesh (the seed's literal stage 2)",
+    "global": "re-collocate the control on the same single global LG mesh (the paper's literal stage 2)",
 }
 """Stage-2 variants of the two-stage method."""
 
 OBJECTIVES: dict[str, str | None] = {
-    "time": "minimum running time (seed 000, eq. 34)",
-    "energy": "minimum traction energy in a running time, multi-phase (seed 001)",
+    "time": "minimum running time",
+    "energy": "minimum traction energy in a running time, multi-phase",
 }
 """Objectives by CLI name; ``None`` marks one that is planned but not built."""
 
