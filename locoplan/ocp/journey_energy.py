@@ -118,6 +118,10 @@ def _solve_joined(calcs, offsets, time_s: float, stops_m, windows, start: Joined
                   leg_times_guess) -> JoinedSolution:
     grid = JoinedCells.join(calcs, offsets)
     prob = CellEnergyProblem(grid, time_s, stops_m=stops_m, windows=windows)
+    if start is None and windows:
+        # from a cold start the windows' constraints (each over every cell before its station) can hold the
+        # first steps to a fraction of a per cent for hundreds of iterations: the optimum without them first
+        start = _solve_joined(calcs, offsets, time_s, stops_m, [], None, leg_times_guess)
     if start is None:
         v = [initial_speeds(c, t) for c, t in zip(calcs, leg_times_guess)]
         v0 = np.concatenate([v[0]] + [x[1:] for x in v[1:]])
