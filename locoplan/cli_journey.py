@@ -26,9 +26,11 @@ def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A 
             out_file: Optional[Path] = typer.Option(None, "--out", help="The whole run's profile (.csv, the first strategy's plans end to end) or the summary (.json)."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="Speed and clock along the line with stations and windows, and the allocation as bars (.png, .svg or .pdf)."),
             model: ModelRequest = MODEL):
-    """A journey of several stops: the running time shared out among the legs for the least energy (equal
-    marginal energy on every leg not held by a window), every leg planned at its share, the journey's E*,
-    and what the allocation saves against equal-percentage supplements and the timetable's own leg times."""
+    """A run of several stops, the time shared for the least energy.
+
+    The running time goes to the legs so that a second more saves the same on every leg not held by a
+    window (equal marginal energy); every leg is planned at its share; the journey's E*, and what the
+    allocation saves against equal-percentage supplements and the timetable's own leg times."""
     from .io.load import load_journey, load_train
     from .reporting.files import all_or_none
     from .reporting.journey import (journey_allocations_table, journey_legs_table, journey_stations_table,

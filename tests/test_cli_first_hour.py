@@ -347,7 +347,7 @@ def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
 # ------------------------------------------------------------------------------------ help, version, completion
 HELP_COMMANDS = [["validate"], ["simulate"], ["optimize"], ["compare"], ["sweep"], ["study"], ["ocp"], ["ocp-study"],
                  ["learn"], ["advise"], ["import", "ttobench"], ["import", "railtoolkit"], ["bound"], ["batch"],
-                 ["results"], ["pareto"], ["drivers", "simulate"]]
+                 ["results"], ["pareto"], ["drivers", "simulate"], ["journey"]]
 
 
 def test_top_help_lists_every_command_whole_at_80_columns():

@@ -19,6 +19,7 @@ source included, so that a command run twice, or a batch over the same cases, so
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -121,14 +122,17 @@ def _cache_write(key: tuple, b: "Bound") -> None:
     f = _cache_file(key)
     if f is None:
         return
-    try:  # atomic; a cache that cannot be written is simply not kept
+    tmp = None
+    try:  # atomic; a cache that cannot be written is simply not kept, nor its temporary file
         f.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp")
         with os.fdopen(fd, "w") as out:
             json.dump(asdict(b), out)
         os.replace(tmp, f)
     except OSError:
-        pass
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 def energy_bound(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
