@@ -209,7 +209,13 @@ class CellIPM:
     def solve(self, x0: np.ndarray, mu_init: float | None = None, warm: "IPMResult | None" = None) -> IPMResult:
         """Minimise from ``x0`` (pushed inside its bounds); ``mu_init``: the barrier parameter to start at;
         ``warm``: a solution of a neighbouring problem of the same layout whose multipliers to start from
-        (its primal point should then be ``x0``), with the start pushed only slightly off the bounds."""
+        (its primal point should then be ``x0``), with the start pushed only slightly off the bounds.
+        A trial point off the domain (a speed at zero, an infinite barrier) is rejected by the line search,
+        and a solve that goes astray says so in its status: numpy's warnings about them are not shown."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return self._solve(x0, mu_init, warm)
+
+    def _solve(self, x0: np.ndarray, mu_init: float | None, warm: "IPMResult | None") -> IPMResult:
         S, p, N = self.set, self.p, self.N
         has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
         loc = p.local
