@@ -569,6 +569,7 @@ def build(tmp: Path) -> list[Case]:
     _partial_folder_cases(cases, good_route, tmp)
     _store_mid_run_cases(cases, write, good_route, tmp)
     _stderr_full_cases(cases, write, good_route, tmp)
+    _journey_cases(cases, write, good_route)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
     cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
@@ -1323,6 +1324,47 @@ def _yaml11_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         out.mkdir(exist_ok=True)
         cases.append(Case("yaml12_railtoolkit_0160", "number", ["import", "railtoolkit", src, "--out", str(out)], 0, (),
                           after=lambda: None if "kmh: 160}" in (out / "slope.yaml").read_text() else "not read as 160 km/h"))
+
+
+def _journey_cases(cases: list[Case], write, good_route: str) -> None:
+    """Journey files: the route they name (a folder, a device, missing), their stations' shape and values,
+    windows no run can keep, and journey's own options; every one named, none a traceback."""
+    folder = str(Path(good_route).parent)
+    head = "schema: locoplan/journey@1\nname: hostile journey\n"
+    ends = "  - {name: A, at_m: 0}\n  - {name: C, at_m: 1500}\n"
+
+    def journey(name: str, body: str) -> str:
+        return write(name, head + body)
+
+    good = journey("journey_good.yaml", f"route: {Path(good_route).name}\nstations:\n{ends}")
+    for name, route_ref, words in (("journey_route_folder", ".", ("route", "no route file")),
+                                   ("journey_route_device", "/dev/zero", ("route", "no route file")),
+                                   ("journey_route_missing", "nowhere.yaml", ("route", "nowhere.yaml"))):
+        f = journey(f"{name}.yaml", f"route: {route_ref}\nstations:\n{ends}")
+        cases.append(Case(name, "file", ["journey", f, "--time", "300", "--consist", SMALL], 2, (f,) + words))
+    for name, body, field_, words in (
+            ("journey_stations_mapping", "stations: {a: 1}\n", "stations", ("valid list",)),
+            ("journey_stations_empty", "stations: []\n", "stations", ("at least 2",)),
+            ("journey_run_time_nan", f"run_time_s: .nan\nstations:\n{ends}", "run_time_s", ("finite",)),
+            ("journey_run_time_huge", f"run_time_s: 1.0e+300\nstations:\n{ends}", "run_time_s", ("implausible",)),
+            ("journey_dwell_negative", "stations:\n  - {name: A, at_m: 0}\n  - {name: B, at_m: 700, dwell_s: -5}\n"
+             "  - {name: C, at_m: 1500}\n", "stations[1].dwell_s", ("greater than or equal",)),
+            ("journey_station_beyond", "stations:\n  - {name: A, at_m: 0}\n  - {name: C, at_m: 1e12}\n",
+             "stations[1].at_m", ("beyond",))):
+        f = journey(f"{name}.yaml", f"route: {Path(good_route).name}\n{body}")
+        cases.append(Case(name, "file", ["validate", f], 2, (f, field_) + words, batch_file=f))
+    late = journey("journey_window_impossible.yaml", f"route: {Path(good_route).name}\nstations:\n  - {{name: A, at_m: 0}}\n"
+                   "  - {name: B, at_m: 700, latest_s: 1}\n  - {name: C, at_m: 1500}\n")
+    cases.append(Case("journey_window_impossible", "physics", ["journey", late, "--time", "300", "--consist", SMALL], 1,
+                      ("no run keeps the journey's windows", "latest_s")))
+    for v in ("nan", "-1", "0.5x", "1e9"):
+        cases.append(Case(f"journey_time_{v}", "option", ["journey", good, "--time", v, "--consist", SMALL], 2,
+                          (CMDLINE, "--time")))
+    cases.append(Case("journey_no_time", "message", ["journey", good, "--consist", SMALL], 2, (good, "run_time_s", "1.15x")))
+    cases.append(Case("journey_unknown_strategy", "option", ["journey", good, "--time", "300", "--strategies", "nope"], 2,
+                      (CMDLINE, "--strategies", "nope")))
+    cases.append(Case("journey_out_type", "output", ["journey", good, "--time", "300", "--out", str(Path(folder) / "x.txt")],
+                      2, ("--out", ".csv")))
 
 
 def _yaml11_bool_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
