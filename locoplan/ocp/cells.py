@@ -1,5 +1,5 @@
 """E* on the traction calculator's own cells: the minimum-energy problem on a fine grid, solved by a
-structured interior-point method, with its accuracy from two grids.
+structured interior-point method, with its accuracy from nested grids.
 
 The discretisation is the calculator's (``sim/calculator.py``): a grid with every breakpoint of the
 route (gradient, limit, curve, tunnel, neutral span, and in the strip model the same + the train's
@@ -19,8 +19,10 @@ Why this scheme: it is second order in the cell length once the two rest points 
 rest point the speed goes as sqrt(distance), which a uniform grid resolves only to first order (the
 time of the last cell was the largest error on every line tried), so the cells shrink quadratically
 towards both ends (``END_GRADING_M``). A switch between conditions inside a cell is a partial force
-over the whole cell, which moves the energy by second order only. Two grids, h and h/2, then give the
-accuracy: the difference of their optima bounds the finer grid's error (about a third of it).
+over the whole cell, which moves the energy by second order only. Nested grids, h and every cell halved,
+then give the accuracy: where the optima converge at second order, the difference of two bounds the finer
+grid's error (about three times over); where three grids show slower convergence, ``grid_accuracy`` says
+more.
 
 The solver (``ocp/ipm.py``) uses the structure: every function reads one cell's variables, so the KKT
 matrix is banded and a Newton step costs time linear in the number of cells.
