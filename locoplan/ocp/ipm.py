@@ -155,6 +155,7 @@ class CellIPM:
         self.pos_y = np.ascontiguousarray(problem.pos_y, dtype=np.int64)
         self.fixed_pos = np.ascontiguousarray(self.pos_x[self.fixed])
         self._flat = np.ascontiguousarray(loc.ravel())
+        self._il, self._iu = np.flatnonzero(self.has_l), np.flatnonzero(self.has_u)  # index arrays: faster than masks
         self._lb = np.where(self.has_l, problem.lb, 0.0)
         self._ub = np.where(self.has_u, problem.ub, 0.0)
 
@@ -176,7 +177,7 @@ class CellIPM:
     def _barrier(self, v: CellValues, x, s, sc, mu) -> float:
         dl, du = self._dist(x)
         with np.errstate(invalid="ignore", divide="ignore"):
-            bar = (np.log(s).sum() + np.log(sc).sum() + np.log(dl[self.has_l]).sum() + np.log(du[self.has_u]).sum())
+            bar = (np.log(s).sum() + np.log(sc).sum() + np.log(dl[self._il]).sum() + np.log(du[self._iu]).sum())
         return v.f - mu * bar
 
     @staticmethod
@@ -191,7 +192,7 @@ class CellIPM:
         r_d[self.fixed] = 0.0
         prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), np.max(np.abs(v.c + sc)))
         dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self._il], (du * zu)[self._iu]])
         n_dual = y.size + prods.size
         duals = z.sum() + zc.sum() + zl.sum() + zu.sum()
         s_d = max(100.0, (np.abs(y).sum() + duals) / n_dual) / 100.0
@@ -202,7 +203,7 @@ class CellIPM:
 
     def _mean_complementarity(self, x, s, sc, z, zc, zl, zu) -> float:
         dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self.has_l], (du * zu)[self.has_u]])
+        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self._il], (du * zu)[self._iu]])
         return float(prods.mean())
 
     # ------------------------------------------------------------------ the method
@@ -218,6 +219,7 @@ class CellIPM:
     def _solve(self, x0: np.ndarray, mu_init: float | None, warm: "IPMResult | None") -> IPMResult:
         S, p, N = self.set, self.p, self.N
         has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
+        il, iu = self._il, self._iu
         loc = p.local
         lb, ub = self._lb, self._ub
         x = np.array(x0, dtype=float)
@@ -342,7 +344,7 @@ class CellIPM:
 
             def primal_step(dx, ds, dsc, tau):
                 return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(sc, dsc, tau),
-                           _max_step(dl[has_l], dx[has_l], tau), _max_step(du[has_u], -dx[has_u], tau))
+                           _max_step(dl[il], dx[il], tau), _max_step(du[iu], -dx[iu], tau))
 
             def dual_steps(dx, ds, dsc, mu_):
                 return (mu_ / s - z - sig * ds, mu_ / sc - zc - sig_c * dsc,
@@ -351,7 +353,7 @@ class CellIPM:
 
             def dual_step(dz, dzc, dzl, dzu, tau):
                 return min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(zc, dzc, tau),
-                           _max_step(zl[has_l], dzl[has_l], tau), _max_step(zu[has_u], dzu[has_u], tau))
+                           _max_step(zl[il], dzl[il], tau), _max_step(zu[iu], dzu[iu], tau))
 
             if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
                 ds_a, dsc_a = slack_steps(dx, r_g0, r_c0)
@@ -375,7 +377,7 @@ class CellIPM:
                 filt, filter_mu = [], mu
                 theta_max, theta_min = 1e4 * max(1.0, theta0), 1e-4 * max(1.0, theta0)
             dphi = (_dot(grad_f, dx) - mu * (ds / s).sum() - mu * (dsc / sc).sum()
-                    - mu * np.sum(dx[has_l] / dl[has_l]) + mu * np.sum(dx[has_u] / du[has_u]))
+                    - mu * np.sum(dx[il] / dl[il]) + mu * np.sum(dx[iu] / du[iu]))
 
             def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool]:
                 """(accepted, f-type): acceptable to the filter, and either an Armijo decrease of the
