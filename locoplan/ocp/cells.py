@@ -388,22 +388,26 @@ class EStar:
     iterations: tuple
     solve_time_s: float
     solution: CellSolution
+    calc: TractionCalculator | None = None
+    """The finest grid's calculator (the mesh a curve of running times is solved on)."""
 
 
 def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
                 warm: CellSolution | None = None, coarse_step_m: float = COARSE_STEP_M,
-                finest_step_m: float = FINEST_STEP_M) -> EStar:
+                finest_step_m: float = FINEST_STEP_M, scale_kwh: float | None = None) -> EStar:
     """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``coarse_step_m`` grid, then on
     grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
-    ``max(E*, floor_kwh)``) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring
-    time to start the first grid from."""
+    ``max(E*, floor_kwh)``, or to ``scale_kwh`` where given: an error in kWh that must be small against
+    another E*) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring time to start
+    the first grid from. The accuracy returned is relative to ``max(E*, floor_kwh)`` in either case."""
     t0 = _time.perf_counter()
     step = float(coarse_step_m)
-    sols, steps, cells = [], [], []
+    sols, steps, cells, calcs = [], [], [], []
     prev = warm
     calc = None
     while True:
         calc = cell_calculator(route, train, options, step, coarser=calc)
+        calcs.append(calc)
         start = None
         if prev is not None:
             prob = CellEnergyProblem(calc, time_s)
@@ -422,11 +426,13 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
         prev = sol
         if len(sols) >= 2:
             acc = grid_accuracy([s.energy_kwh for s in sols], floor_kwh)
-            if acc <= tol or step / 2 < finest_step_m - 1e-9:
+            ref = max(abs(sols[-1].energy_kwh), floor_kwh, 1e-9)
+            met = (acc if scale_kwh is None else acc * ref / scale_kwh) <= tol
+            if met or step / 2 < finest_step_m - 1e-9:
                 break
         step /= 2
     fine = sols[-1]
     steps, cells = steps[:len(sols)], cells[:len(sols)]
-    return EStar(fine.energy_kwh, acc, acc <= tol, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
+    return EStar(fine.energy_kwh, acc, met, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
                  tuple(s.energy_kwh for s in sols), tuple(s.result.iterations for s in sols),
-                 _time.perf_counter() - t0, fine)
+                 _time.perf_counter() - t0, fine, calcs[len(sols) - 1])
