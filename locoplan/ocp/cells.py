@@ -39,7 +39,7 @@ import numpy as np
 from ..errors import InfeasibleError
 from ..physics.braking import full_brake_kn
 from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
-from ..physics.traction import max_force_rounded_kn
+from ..physics.traction import rounded_force_curve
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
@@ -121,6 +121,7 @@ class CellEnergyProblem:
         # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
         self.active = np.column_stack([powered, self.can_brake])
         self._last = None
+        self._curves = None
         # the global inequalities: (sum over cells of cmask * tau + const) / t_ref <= 0
         rows, const = [np.ones(N)], [-self.time_s]
         for s_w, lo, hi in windows:
@@ -153,9 +154,11 @@ class CellEnergyProblem:
         vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
         V = kmh(vm)
         a, b, c = tr.resistance_kn
-        ftr = self._rounded(V, tr.traction_speed_kmh, tr.traction_kn)
-        fel = self._rounded(V, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
-        fair = self._rounded(V, calc.air_brake_speed_kmh, calc.air_brake_kn)
+        if self._curves is None:  # the three force curves, rounded, made once
+            self._curves = tuple(self._rounded(xs, ys) for xs, ys in (
+                (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
+                (calc.air_brake_speed_kmh, calc.air_brake_kn)))
+        ftr, fel, fair = (curve(V) for curve in self._curves)
         phys = {
             "p": p, "q": q, "F": xp[1::3], "B": xp[2::3], "vm": vm,
             "R": train_resistance_kn(V, tr.resistance_kn),
@@ -169,10 +172,10 @@ class CellEnergyProblem:
         return phys
 
     @staticmethod
-    def _rounded(V, xs, ys):
+    def _rounded(xs, ys):
         xs = np.asarray(xs, dtype=float)
         width = min(ROUNDING_KMH, 0.5 * float(np.min(np.diff(xs)))) if xs.size > 1 else ROUNDING_KMH
-        return max_force_rounded_kn(V, xs, ys, width)
+        return rounded_force_curve(xs, ys, width)
 
     @staticmethod
     def _vm_derivatives(P):
