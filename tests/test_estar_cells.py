@@ -100,7 +100,7 @@ def test_nested_grids_converge_so_that_their_difference_bounds_the_error(small, 
     points are graded): then the finer grid's error is at most the two grids' difference, the accuracy
     E* states."""
     route, train = small
-    e = solve_estar(route, train, options, T_SMALL, tol=1e-12, coarse_step_m=40.0, finest_step_m=10.0)
+    e = solve_estar(route, train, options, T_SMALL, tol=1e-12, first_step_m=40.0, finest_step_m=10.0)
     e40, e20, e10 = e.energies_kwh
     assert abs(e40 - e20) / abs(e20 - e10) > 2.0
     assert e.steps_m == (40.0, 20.0, 10.0) and e.cells[1] >= 2 * e.cells[0] and e.cells[2] >= 2 * e.cells[1]

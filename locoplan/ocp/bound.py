@@ -193,7 +193,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     larger of the two ends' errors in kWh, relative to each time's own E* (at most ``CURVE_TOL``, E* falling
     with the time). A time without an optimum is its ``LocoplanError``; a time already solved alone is
     taken from there."""
-    from .cells import WARM_MU, solve_cells, solve_estar
+    from .cells import WARM_MU, CellEnergyProblem, solve_cells, solve_estar, warm_point
     from .train_energy import check_runnable
 
     options = options or ModelOptions()
@@ -245,7 +245,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     for t in todo[1:-1]:
         try:
             try:
-                sol = solve_cells(mesh.calc, t, prev.v_ms, mu_init=WARM_MU)
+                sol = solve_cells(mesh.calc, t, mu_init=WARM_MU, point=warm_point(CellEnergyProblem(mesh.calc, t), prev)[0])
             except InfeasibleError:
                 sol = solve_cells(mesh.calc, t)
         except InfeasibleError:

@@ -308,16 +308,21 @@ def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
 
 
 def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | None = None,
-                settings: IPMSettings | None = None, mu_init: float | None = None) -> CellSolution:
+                settings: IPMSettings | None = None, mu_init: float | None = None,
+                point: np.ndarray | None = None) -> CellSolution:
     """E* on ``calc``'s cells in ``time_s`` [s]; ``start``: node speeds [m/s] to start from (default
-    :func:`initial_speeds`), ``mu_init`` the barrier parameter to start with. Raises ``InfeasibleError``
-    when the solver does not converge."""
+    :func:`initial_speeds`), or ``point`` a whole scaled start (speeds and forces, :func:`warm_point`);
+    ``mu_init`` the barrier parameter to start with. Raises ``InfeasibleError`` when the solver does not
+    converge."""
     t0 = _time.perf_counter()
     prob = CellEnergyProblem(calc, time_s)
-    v0 = initial_speeds(calc, time_s) if start is None else start
-    x0 = prob.start_from_profile(v0)
+    if point is not None:
+        x0 = point
+    else:
+        x0 = prob.start_from_profile(initial_speeds(calc, time_s) if start is None else start)
     if settings is None:  # near an optimum (a start from a solution): the adaptive barrier rule
-        settings = IPMSettings(mu_strategy="monotone" if start is None else "adaptive")
+        near = start is not None or point is not None
+        settings = IPMSettings(mu_strategy="adaptive" if near else "monotone", max_iter=MAX_ITER)
     res = CellIPM(prob, settings).solve(x0, mu_init=mu_init)
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
@@ -352,8 +357,16 @@ def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, 
     return x / prob.ref, y, z, r.zc
 
 
+MAX_ITER = 150
+"""A solve that has not converged in this many iterations is given up (they converge in 25-80; one that
+ran on to 300 was a warm start that had lost its way, and a cold start then took 40)."""
 COARSE_STEP_M = 40.0
-"""The first grid's cell length [m]; the second has half of it."""
+"""The first grid's longest cell length [m]; the second has half of it."""
+COARSE_MIN_CELLS = 400
+"""The first grid solved has at least this many cells (or is the last but one before ``FINEST_STEP_M``): on
+a short route the coarser grids of the nest are built but not solved. Every grid costs the solver about
+the same number of iterations, and on grids of a few dozen cells those were spent on grids far too
+coarse for the tolerance (a 2 km leg needed 40, 20, 10 and 5 m)."""
 FINEST_STEP_M = 5.0
 """Grids are halved until two agree to the tolerance or the cells reach this length."""
 WARM_MU = 1e-3
@@ -396,29 +409,36 @@ class EStar:
 
 
 def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
-                warm: CellSolution | None = None, coarse_step_m: float = COARSE_STEP_M,
+                warm: CellSolution | None = None, first_step_m: float | None = None,
                 finest_step_m: float = FINEST_STEP_M, scale_kwh: float | None = None) -> EStar:
-    """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``coarse_step_m`` grid, then on
+    """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``first_step_m`` grid (default
+    ``COARSE_STEP_M``, halved while it has fewer than ``COARSE_MIN_CELLS`` cells), then on
     grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
     ``max(E*, floor_kwh)``, or to ``scale_kwh`` where given: an error in kWh that must be small against
     another E*) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring time to start
     the first grid from. The accuracy returned is relative to ``max(E*, floor_kwh)`` in either case."""
     t0 = _time.perf_counter()
-    step = float(coarse_step_m)
+    step = float(COARSE_STEP_M if first_step_m is None else first_step_m)
     sols, steps, cells, calcs = [], [], [], []
     prev = warm
-    calc = None
-    while True:
+    calc = cell_calculator(route, train, options, step)
+    while first_step_m is None and len(calc.h_m) < COARSE_MIN_CELLS and step / 4 >= finest_step_m - 1e-9:
+        step /= 2  # a grid too coarse to be worth a solve: the next of the nest
         calc = cell_calculator(route, train, options, step, coarser=calc)
+    while True:
+        if sols:
+            calc = cell_calculator(route, train, options, step, coarser=calc)
         calcs.append(calc)
-        start = None
-        if prev is not None:
-            prob = CellEnergyProblem(calc, time_s)
-            x0, *_ = warm_point(prob, prev)
-            start = x0 * prob.ref
-            start = start[0::3]
+        point = None
+        if prev is not None:  # the coarser grid's (or the neighbouring time's) speeds and forces
+            point = warm_point(CellEnergyProblem(calc, time_s), prev)[0]
         try:
-            sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU)
+            try:
+                sol = solve_cells(calc, time_s, mu_init=None if prev is None else WARM_MU, point=point)
+            except InfeasibleError:
+                if point is None:
+                    raise
+                sol = solve_cells(calc, time_s)  # the start from the coarser grid led astray: a cold start
         except InfeasibleError:
             if len(sols) < 2:
                 raise
