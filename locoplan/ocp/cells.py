@@ -118,6 +118,7 @@ class CellEnergyProblem:
         pos_x[2::3] = 4 * k + 2
         self.pos_x = pos_x
         self.pos_y = 4 * k + 3
+        self._rl = ref[self.local]  # each cell's variables' scales
         # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
         self.active = np.column_stack([powered, self.can_brake])
         self._last = None
@@ -199,7 +200,7 @@ class CellEnergyProblem:
         P = self._physics(x)
         vm_p, vm_q, *_ = self._vm_derivatives(P)
         N, h, M, fr = self.N, self.h, self.M, self.f_ref
-        rl = self.ref[self.local]
+        rl = self._rl
         ge = np.empty((N, 4))
         ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
         ge[:, 1] = -1.0 / fr
