@@ -367,10 +367,11 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
 
     rows = []
     if curve:
-        step(f"E* at {len(times_s)} running times")
-        curve_bounds = dict(zip(times_s, energy_bounds(route, train, options, times_s)))
+        curve_bounds = dict(zip(times_s, energy_bounds(route, train, options, times_s,
+                                                       progress=lambda t: step(f"E* at {t:g} s"))))
     for t in times_s:
-        step(f"E* at {t:g} s")
+        if not curve:
+            step(f"E* at {t:g} s")
         try:
             if curve:
                 b = curve_bounds[t]

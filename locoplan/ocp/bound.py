@@ -185,14 +185,15 @@ CURVE_MIN_TIMES = 4
 
 
 def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: list[float], *,
-                  calc: TractionCalculator | None = None) -> list["Bound | LocoplanError"]:
+                  calc: TractionCalculator | None = None,
+                  progress=lambda time_s: None) -> list["Bound | LocoplanError"]:
     """E* at each of ``times_s`` (an energy-time curve), one mesh for all: the longest time (the least E*) is
     solved on successively halved grids to ``CURVE_TOL`` as ``energy_bound`` does, the shortest until its
     error in kWh is as small against the longest time's E*; every time between is solved once, on the finer
     of the two final grids, started from its neighbour's solution. Their stated accuracy is the mesh's: the
     larger of the two ends' errors in kWh, relative to each time's own E* (at most ``CURVE_TOL``, E* falling
     with the time). A time without an optimum is its ``LocoplanError``; a time already solved alone is
-    taken from there."""
+    taken from there. ``progress(time_s)`` is told of each time as its solve begins (or it is found solved)."""
     from .cells import WARM_MU, CellEnergyProblem, solve_cells, solve_estar, warm_point
     from .train_energy import check_runnable
 
@@ -204,17 +205,20 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     for t in dict.fromkeys(float(x) for x in times_s):
         known = _known(base, t, E_STAR_TOL) or _known(base, t, CURVE_TOL, CURVE_METHOD)
         if known is not None:
+            progress(t)
             out[t] = known
             continue
         try:
             check_runnable(calc, t)
         except LocoplanError as exc:
+            progress(t)
             out[t] = exc
             continue
         todo.append(t)
     todo.sort()
     if len(todo) < CURVE_MIN_TIMES:
         for t in todo:
+            progress(t)
             try:
                 out[t] = energy_bound(route, train, options, t, calc=calc)
             except LocoplanError as exc:
@@ -222,7 +226,9 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
         return [out[float(t)] for t in times_s]
     floor = percent_floor_kwh(route, train)
     try:  # the longest time has the least E*: the other end's error in kWh must be as small against it
+        progress(todo[-1])
         hi = solve_estar(route, train, options, todo[-1], tol=CURVE_TOL, floor_kwh=floor)
+        progress(todo[0])
         lo = solve_estar(route, train, options, todo[0], tol=CURVE_TOL, floor_kwh=floor,
                          scale_kwh=max(abs(hi.energy_kwh), floor))
         ends = [lo, hi]
@@ -230,6 +236,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
         ends = None
     if ends is None:
         for t in todo:
+            progress(t)
             try:
                 out[t] = energy_bound(route, train, options, t, calc=calc)
             except LocoplanError as exc:
@@ -243,6 +250,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
                                  e.slope_kwh_per_s))
     prev = mesh.solution
     for t in todo[1:-1]:
+        progress(t)
         try:
             try:
                 sol = solve_cells(mesh.calc, t, mu_init=WARM_MU, point=warm_point(CellEnergyProblem(mesh.calc, t), prev)[0])
