@@ -413,10 +413,16 @@ def store_summary_table(rows: list[dict], by: list[str], title: str, width: int 
     return fit(table, width, drop=(k + 9, k + 7, k + 5, k + 1, k + 8, k + 4, k + 6, k + 2), wrap=text)
 
 
+def front_title(front: dict) -> str:
+    """What a front is of: the route, or the journey on its line, and the consist."""
+    line = f"journey {front['journey']} ({front['route']})" if front.get("journey") else front["route"]
+    return f"{line} — {front['consist']}"
+
+
 def pareto_table(front: dict, width: int = 80) -> list:
     """``locoplan pareto``: per planned time, the best on-time plan (and E* once known), and the front."""
-    table = Table(title=escape(f"{front['route']} — {front['consist']}: energy-time front "
-                               f"(fastest run {front['fastest_time_s']:.1f} s)"), title_justify="left")
+    table = Table(title=escape(f"{front_title(front)}: energy-time front (fastest run {front['fastest_time_s']:.1f} s"
+                               + (", dwells excluded)" if front.get("journey") else ")")), title_justify="left")
     for c in ("T0 [s]", "factor", "best on-time E [kWh]", "by", "its T [s]", "E* at its T [kWh]", "gap [%]", "on front"):
         table.add_column(escape(c), justify="right" if c != "by" else "left")
     for p in front["grid"]:
