@@ -281,7 +281,9 @@ def _study_files(name: str, key: str, patterns: list[str], base: Path, where, pr
                                         where(key, i)))
             out += [(f, i) for f in found]
         elif not full.is_file():
-            problems.append(Problem(name, f"{key}[{i}]", f"no such {what} file: {full}", where(key, i)))
+            why = (f"{full} is a folder: name the {what} files in it, e.g. '{pattern.rstrip('/')}/*.yaml'" if full.is_dir()
+                   else f"{full} is not a regular file" if full.exists() else f"no such {what} file: {full}")
+            problems.append(Problem(name, f"{key}[{i}]", why, where(key, i)))
         elif (declared := _declared(full)) in set(SCHEMAS) - {schema}:
             hint = f": list it under {other}" if declared == _KINDS[other][1] else ""
             problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r} is a {declared} file, not a {what}{hint}", where(key, i)))
