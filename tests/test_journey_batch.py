@@ -237,3 +237,16 @@ def test_a_library_journey_run_without_a_running_time_names_the_journey():
     with pytest.raises(InputError) as exc:
         run_many([RunSpec(journey=str(TWIN), consist=CONSIST, strategy="four-stage")])
     assert exc.value.problems[0].file == str(TWIN) and exc.value.problems[0].field == "run_time_s"
+
+
+def test_the_documented_journey_study_expands_as_docs_journeys_md_says():
+    from locoplan.io.load import load_journey, load_train
+    from locoplan.runs.journey import journey_fastest_s
+    from locoplan.sim.calculator import ModelOptions
+
+    specs = load_study(ROOT / "docs/journey_study.yaml").specs
+    journeys = [s for s in specs if s.kind == "journey"]
+    assert len(specs) == 8 and len(journeys) == 4
+    j, line = load_journey(journeys[0].journey)
+    fastest = journey_fastest_s(j, line, load_train(CONSIST), ModelOptions())
+    assert sorted({s.time_s for s in journeys}) == [pytest.approx(1.1 * fastest, abs=0.1), pytest.approx(1.2 * fastest, abs=0.1)]
