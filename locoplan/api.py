@@ -204,15 +204,15 @@ class PlannedTimes:
 
 
 def planned_times(requests: list, route=None, train=None, options: Optional[ModelOptions] = None,
-                  option: str = "--times") -> PlannedTimes:
+                  option: str = "--times", fastest_s: Optional[Callable[[], float]] = None) -> PlannedTimes:
     """``--times`` in seconds (``requests`` from :func:`locoplan.bounds.times_request`): seconds as given,
     factors and supplements of the fastest run of ``route`` and ``train`` (loaded models; the calculator is
-    built only when a factor is among them)."""
+    built only when a factor is among them), or of what ``fastest_s()`` returns (a journey's fastest total)."""
     if all(kind == "s" for kind, _ in requests):
         return PlannedTimes([v for _, v in requests])
     from .sim.calculator import TractionCalculator
 
-    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    fastest = fastest_s() if fastest_s is not None else TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
     times = [bounds.time_of(r, fastest) for r in requests]
     shown = ", ".join(f"{t:g}" for t in times)
     return PlannedTimes(times, f"{option}: T0 = {shown} s (the fastest run is {fastest:.1f} s)")

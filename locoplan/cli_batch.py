@@ -13,7 +13,7 @@ import typer
 
 from . import api, bounds
 from .api import ModelRequest
-from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, ROUTE, STOCK, TOL, WINDOW, _names,
+from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, STOCK, TOL, WINDOW, _names,
                          _range, _times, all_or_none, check_outputs, err, guarded, json_out, out)
 from .reporting.tables import show
 
@@ -78,7 +78,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
     """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
     from .reporting.tables import store_summary_table
     from .runs import Store, make_executor, run_many
-    from .runs.results import rows_of, summarize_rows
+    from .runs.results import default_by, rows_of, summarize_rows
     from .runs.study import load_study
 
     study = load_study(study_file)
@@ -102,9 +102,9 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
         if as_json:
             json_out(report)
             return
-        rows = summarize_rows(rows_of(result.records))
-        show(out, store_summary_table(rows, ["route", "consist", "planned_time_s", "strategy", "algorithm"],
-                                      f"{study_file}: {n} runs", out.width))
+        rows = rows_of(result.records)
+        by = default_by(rows)
+        show(out, store_summary_table(summarize_rows(rows, by), by, f"{study_file}: {n} runs", out.width))
         out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
                   f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
                   + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
@@ -115,7 +115,7 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
             fmt: Optional[str] = typer.Option(None, "--format", help="Export one row per run: csv, parquet or json (stdout, or --out). Default: the summary table."),
             out_file: Optional[Path] = typer.Option(None, "--out", help="Write the export (or, without --format, the summary as .json/.csv) here."),
             where: Optional[list[str]] = typer.Option(None, "--where", help="Keep runs with FIELD OP VALUE (OP: = != < <= > >=, ~ contains), e.g. --where 'algorithm=issa' --where 'planned_time_s>2000'; repeat to AND."),
-            by: str = typer.Option("route,consist,planned_time_s,strategy,algorithm", "--by", help="Fields the summary groups by."),
+            by: Optional[str] = typer.Option(None, "--by", help="Fields the summary groups by (default: route,consist,planned_time_s,strategy,algorithm; with journey runs in the store, kind,journey first).", show_default=False),
             plot: Optional[Path] = typer.Option(None, "--plot", help="Energy against running time per strategy and optimiser, one panel per route and consist (.png, .svg or .pdf)."),
             boxplot: Optional[Path] = typer.Option(None, "--boxplot", help="Box plots per optimiser of the energy above each group's best run (.png, .svg or .pdf)."),
             as_json: bool = JSON):
@@ -125,15 +125,16 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
     from .reporting.plot_runs import plot_boxes, plot_energy_time
     from .reporting.tables import store_summary_table
     from .runs import Store
-    from .runs.results import (FORMATS, PLOT_FIELDS, SUMMARY_FIELDS, ExportShape, check_format, export, export_to_file,
-                               iter_rows, stream_rows, summarize_rows, write_export)
+    from .runs.results import (DEFAULT_BY, FORMATS, JOURNEY_BY, PLOT_FIELDS, SUMMARY_FIELDS, ExportShape, check_format,
+                               default_by, export, export_to_file, iter_rows, stream_rows, summarize_rows, write_export)
 
     api.check_choice(fmt, FORMATS, "format", "format")
     check_outputs(out=(out_file, (f".{fmt}",) if fmt is not None else (".json", ".csv")),
                   plot=(plot, PLOT_SUFFIXES), boxplot=(boxplot, PLOT_SUFFIXES))
     if fmt is not None:
         check_format(fmt, out_file)
-    group = _names(by, "--by")
+    asked = _names(by, "--by") if by is not None else None
+    group = asked or [*JOURNEY_BY, *DEFAULT_BY]  # the fields kept; without --by the groups follow the rows
     # streamed, a chunk of records at a time: a first pass keeps of each row only the fields the summary or the
     # plots read; an export (--format) is written in a second pass, a row at a time, over the same rows
     keep = (*group, *SUMMARY_FIELDS) if fmt is None else ()
@@ -144,6 +145,7 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
         _warn_damaged(err, store, "left out (the other runs are used; the store file is damaged, so batch does not "
                       "write into it: run the batch into a new store to run them again)" if store.file_damaged else
                       "left out (the other runs are used; locoplan batch on the store runs it again)")
+        group = asked or default_by(rows)
         if rows:
             api.check_fields(group, fields, "by")
         summary = summarize_rows(rows, group) if fmt is None else []
@@ -169,7 +171,7 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
             show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
 
 @guarded
-def pareto(route: Path = ROUTE,
+def pareto(route: Path = typer.Argument(..., metavar="ROUTE|JOURNEY", help="Route YAML file, or a journey file (the front over its total running time, dwells excluded)."),
            factors: Optional[str] = typer.Option(None, "--factors", help="Planned times as factors of the fastest run, start:stop:step or list (default 1.05:1.6:0.05)."),
            times: Optional[str] = typer.Option(None, "--times", help="Planned times instead of --factors: start:stop:step in seconds, or a comma list of seconds, factors (1.1x) and supplements (+10%), e.g. 1300,1400,1500."),
            strategies: str = typer.Option("four-stage,proposed", "--strategies", help="Timetabled strategies planned at each time."),
@@ -181,7 +183,12 @@ def pareto(route: Path = ROUTE,
            window: bool = WINDOW, builder: Optional[str] = BUILDER,
            optimum: bool = typer.Option(True, "--optimum/--no-optimum", help="E*, the least energy, at each planned time (a few seconds per time)."),
            workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count).", show_default=False)):
-    """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*."""
+    """The energy-time front: the best on-time plan at a grid of running times, and the least energy E*.
+
+    On a journey the running time is its total (dwells excluded), every plan a journey run (each leg planned
+    at its share) and E* the journey's (the least-energy allocation of the time)."""
+    from .io.load import file_schema
+    from .model.journey import JOURNEY_SCHEMA
     from .reporting.plot_runs import plot_pareto
     from .reporting.tables import pareto_table
     from .reporting.writers import with_provenance, write_json
@@ -195,9 +202,11 @@ def pareto(route: Path = ROUTE,
     asked = bounds.times_request(times, "--times") if times else None
     seed_list = api.seed_list(seeds, "--seeds")
     opts = model.options()
-    ts = _times(asked, route, consist, stock_dir, opts, quiet=as_json)
-    base = RunSpec(str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance, window=window,
-                   builder=builder, stock_dir=None if stock_dir is None else str(stock_dir))
+    journey = route if file_schema(route) == JOURNEY_SCHEMA else None
+    ts = _times(asked, route, consist, stock_dir, opts, quiet=as_json, journey=journey)
+    base = RunSpec(None if journey else str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance,
+                   window=window, builder=builder, stock_dir=None if stock_dir is None else str(stock_dir),
+                   journey=None if journey is None else str(journey))
     executor = make_executor(workers)
     cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")
     try:

@@ -530,18 +530,27 @@ def _time(text: Optional[str], route, consist: str = DEFAULT_CONSIST, stock_dir:
 
 
 def _times(requests: Optional[list], route, consist: str = DEFAULT_CONSIST, stock_dir: Optional[Path] = None,
-           options: Optional[ModelOptions] = None, quiet: bool = False, option: str = "--times") -> Optional[list[float]]:
+           options: Optional[ModelOptions] = None, quiet: bool = False, option: str = "--times",
+           journey: Optional[Path] = None) -> Optional[list[float]]:
     """``--times`` in seconds (``requests`` from :func:`locoplan.bounds.times_request`; ``route`` as for
-    :func:`_time`, loaded only when a time is a factor of the fastest run); a note on stderr says what the
-    factors came to, unless ``quiet``."""
+    :func:`_time`, loaded only when a time is a factor of the fastest run; with ``journey``, the factors are of
+    that journey file's fastest total running time); a note on stderr says what the factors came to, unless
+    ``quiet``."""
     if requests is None:
         return None
-    if any(kind != "s" for kind, _ in requests) and isinstance(route, (str, Path)):
+    def journey_fastest() -> float:
+        from .io.load import load_journey, load_train
+        from .runs.journey import journey_fastest_s
+
+        j, line = load_journey(journey)
+        return journey_fastest_s(j, line, load_train(consist, stock_dir), options or ModelOptions())
+
+    if journey is None and any(kind != "s" for kind, _ in requests) and isinstance(route, (str, Path)):
         from .io.load import load_route_and_train
 
         route = load_route_and_train(route, consist, stock_dir)
     planned = api.planned_times(requests, *(route if isinstance(route, tuple) else (None, None)), options=options,
-                                option=option)
+                                option=option, fastest_s=None if journey is None else journey_fastest)
     if planned.note and not quiet:
         err.print(f"note: {planned.note}", highlight=False, markup=False, soft_wrap=True)
     return planned.times_s

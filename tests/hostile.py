@@ -569,7 +569,7 @@ def build(tmp: Path) -> list[Case]:
     _partial_folder_cases(cases, good_route, tmp)
     _store_mid_run_cases(cases, write, good_route, tmp)
     _stderr_full_cases(cases, write, good_route, tmp)
-    _journey_cases(cases, write, good_route)
+    _journey_cases(cases, write, good_route, tmp)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
     cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
@@ -1326,9 +1326,10 @@ def _yaml11_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                           after=lambda: None if "kmh: 160}" in (out / "slope.yaml").read_text() else "not read as 160 km/h"))
 
 
-def _journey_cases(cases: list[Case], write, good_route: str) -> None:
+def _journey_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     """Journey files: the route they name (a folder, a device, missing), their stations' shape and values,
-    windows no run can keep, and journey's own options; every one named, none a traceback."""
+    windows no run can keep, and journey's own options; a study's journeys entries; every one named, none a
+    traceback."""
     folder = str(Path(good_route).parent)
     head = "schema: locoplan/journey@1\nname: hostile journey\n"
     ends = "  - {name: A, at_m: 0}\n  - {name: C, at_m: 1500}\n"
@@ -1365,6 +1366,37 @@ def _journey_cases(cases: list[Case], write, good_route: str) -> None:
                       (CMDLINE, "--strategies", "nope")))
     cases.append(Case("journey_out_type", "output", ["journey", good, "--time", "300", "--out", str(Path(folder) / "x.txt")],
                       2, ("--out", ".csv")))
+    missing_route = journey("journey_pareto_no_route.yaml", f"route: nowhere.yaml\nstations:\n{ends}")
+    cases.append(Case("journey_pareto_route_missing", "file", ["pareto", missing_route, "--consist", SMALL, "--no-optimum"], 2,
+                      (missing_route, "route", "nowhere.yaml")))
+    timed = journey("journey_timed.yaml", f"route: {Path(good_route).name}\nrun_time_s: 300\nstations:\n{ends}")
+    beyond = journey("journey_study_beyond.yaml", f"route: {Path(good_route).name}\nstations:\n  - {{name: A, at_m: 0}}\n"
+                     "  - {name: C, at_m: 1.0e+12}\n")
+
+    def study(name: str, body: str, *why: str):
+        """A study file of journeys, run by batch: refused before any run, named at the study's line."""
+        path = write(f"{name}.yaml", f"schema: locoplan/study@1\nconsists: [{SMALL}]\n{body}")
+        cases.append(Case(name, "study", ["batch", path, "--store", str(tmp / "stores" / f"{name}.sqlite"), "--workers", "1",
+                                          "--quiet"], 2, why if why[0] != "@" else (path,) + why[1:], forbid=(CMDLINE,)))
+        return path
+
+    study("study_journeys_missing", "journeys: [nowhere-journey.yaml]\n", "@", ":3: journeys[0]", "no such journey file")
+    study("study_journeys_glob_none", "journeys: ['nothing/*.yaml']\n", "@", ":3: journeys[0]", "matches no journey file")
+    study("study_journeys_glob_only_routes", f"journeys: ['{Path(good_route).parent}/route*.yaml']\n", "@", ":3: journeys[0]",
+          "matches no journey file")
+    study("study_journeys_route_file", f"journeys: [{good_route}]\n", "@", ":3: journeys[0]", "not a journey",
+          "list it under routes")
+    study("study_routes_journey_file", f"routes: [{timed}]\n", "@", ":3: routes[0]", "not a route", "list it under journeys")
+    study("study_journeys_mapping", "journeys: {a: 1}\n", "@", ":3: journeys", "valid list")
+    study("study_journeys_number", "journeys: [5]\n", "@", ":3: journeys[0]", "valid string")
+    study("study_journeys_folder", f"journeys: [{folder}]\n", "@", ":3: journeys[0]", "is a folder", "*.yaml")
+    study("study_journeys_device", "journeys: [/dev/zero]\n", "@", ":3: journeys[0]", "not a regular file")
+    study("study_journeys_no_time", f"journeys: [{good}]\n", "@", ":3: journeys[0]", "gives no running time", "1.1x")
+    study("study_journeys_tolerance_leg", f"journeys: [{timed}]\ntolerance_s: 100000\n", "@", ":4: tolerance_s",
+          "fastest run of a leg")
+    study("study_journeys_factor_low", f"journeys: [{timed}]\ntimes: [0.5x]\n", "@", ":4: times[0]", ">= 1")
+    study("study_journeys_none", "seeds: [1]\n", "@", ":", "routes", "name the routes or the journeys")
+    study("study_journeys_bad_journey", f"journeys: [{beyond}]\n", beyond, "stations[1].at_m", "beyond")
 
 
 def _yaml11_bool_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:

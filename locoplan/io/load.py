@@ -719,6 +719,13 @@ def load_file(path: str | Path, expect: str | None = None) -> BaseModel:
     return validate_data(data, str(path), lines, expect)
 
 
+def file_schema(path: str | Path) -> str | None:
+    """The ``schema:`` a YAML file declares (None: none). A file that cannot be read or parsed raises
+    ``InputError``, as its loader would."""
+    data, _ = read_yaml(Path(path))
+    return data.get("schema")
+
+
 def load_route(path: str | Path) -> Route:
     return load_file(path, "locoplan/route@1")  # type: ignore[return-value]
 

@@ -13,6 +13,8 @@ from pydantic import Field, model_validator
 
 from .common import RuleViolations, Strict, plausible
 
+JOURNEY_SCHEMA = "locoplan/journey@1"
+
 _DAY_S = 86_400.0
 _WEEK_S = 604_800.0
 

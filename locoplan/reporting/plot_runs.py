@@ -27,12 +27,17 @@ def _save(fig, path) -> None:
         plt.close(fig)
 
 
+def _line(r: dict) -> str:
+    """What a run ran: its route, or its journey (a journey's energy and time are its totals)."""
+    return f"{r['journey']} (journey)" if r.get("journey") else r["route"]
+
+
 def plot_energy_time(rows: list[dict], path: str | Path) -> None:
-    """Energy against running time, one panel per (route, consist), one colour per strategy / optimiser,
-    the planned times as dotted lines."""
+    """Energy against running time, one panel per (route or journey, consist), one colour per strategy /
+    optimiser, the planned times as dotted lines."""
     plt = _pyplot()
     ok = [r for r in rows if r.get("feasible")]
-    panels = sorted({(r["route"], r["consist"]) for r in ok})
+    panels = sorted({(_line(r), r["consist"]) for r in ok})
     if not panels:
         raise InputError(Problem(str(path), "plot", "no feasible run to plot"))
     n = len(panels)
@@ -42,7 +47,7 @@ def plot_energy_time(rows: list[dict], path: str | Path) -> None:
     labels = sorted({_label(r) for r in ok})
     colours = {lab: plt.cm.tab10(i % 10) for i, lab in enumerate(labels)}
     for ax, (route, consist) in zip(axes.ravel(), panels):
-        sub = [r for r in ok if (r["route"], r["consist"]) == (route, consist)]
+        sub = [r for r in ok if (_line(r), r["consist"]) == (route, consist)]
         for lab in labels:
             pts = [r for r in sub if _label(r) == lab]
             if pts:
@@ -67,18 +72,21 @@ def _label(r: dict) -> str:
 
 
 def plot_boxes(rows: list[dict], path: str | Path) -> None:
-    """Box plots per optimiser of each run's energy above the best run of its (route, consist, planned
-    time) group, in per cent: how far a seed may land from the best, comparable across lines."""
+    """Box plots per optimiser of each run's energy above the best run of its (route or journey, consist,
+    planned time) group, in per cent: how far a seed may land from the best, comparable across lines."""
     plt = _pyplot()
     ok = [r for r in rows if r.get("feasible") and r.get("algorithm")]
     best: dict[tuple, float] = {}
+
+    def group(r: dict) -> tuple:
+        return _line(r), r["consist"], r["planned_time_s"]
+
     for r in ok:
-        k = (r["route"], r["consist"], r["planned_time_s"])
-        best[k] = min(best.get(k, math.inf), r["traction_energy_kwh"])
+        best[group(r)] = min(best.get(group(r), math.inf), r["traction_energy_kwh"])
     algs = sorted({r["algorithm"] for r in ok})
     if not algs:
         raise InputError(Problem(str(path), "boxplot", "no feasible optimiser run to plot"))
-    data = [[100 * (r["traction_energy_kwh"] / best[(r["route"], r["consist"], r["planned_time_s"])] - 1)
+    data = [[100 * (r["traction_energy_kwh"] / best[group(r)] - 1)
              for r in ok if r["algorithm"] == a] for a in algs]
     fig, ax = plt.subplots(figsize=(1.8 * len(algs) + 3, 4.2))
     ax.boxplot(data)
@@ -133,13 +141,14 @@ def plot_pareto(front: dict, path: str | Path) -> None:
             ax.annotate(f"{p['strategy']}: {p['running_time_s']:.0f} s, {p['traction_energy_kwh']:.0f} kWh  →",
                         (right, p["traction_energy_kwh"]), xytext=(-4, 14), textcoords="offset points", ha="right",
                         va="bottom", fontsize=8)
-    ax.set_xlabel("running time [s]")
+    ax.set_xlabel("total running time, dwells excluded [s]" if front.get("journey") else "running time [s]")
     ax.set_ylabel("traction energy [kWh]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()  # then the title wrapped to the axes' width (the file is not cropped to fit it)
     from .plot import fit_title
+    from .tables import front_title
 
-    fit_title(ax, f"{front['route']} — {front['consist']}: energy-time front", fontsize=10)
+    fit_title(ax, f"{front_title(front)}: energy-time front", fontsize=10)
     fig.tight_layout()
     _save(fig, path)

@@ -389,14 +389,21 @@ HEADS = {"planned_time_s": "T0 [s]", "time_spec": "T0", "consist": "consist", "r
 
 def store_summary_table(rows: list[dict], by: list[str], title: str, width: int = 80) -> list:
     """``locoplan results``: one row per group (``runs.summary.summarize_records`` rows). A grouping key
-    with one value in every row goes into the title instead of a column (narrow terminals keep the numbers)."""
+    with one value in every row goes into the title instead of a column (narrow terminals keep the numbers).
+    Grouped by route and journey, one column shows what ran (and so its kind): the journey's name for a
+    journey run (its line is in ``--json``), the route's for a route run."""
+    heads_of = dict(HEADS)
+    if "route" in by and "journey" in by:
+        rows = [{**r, "route": r["route"] if r.get("journey") is None else f"{r['journey']} (journey)"} for r in rows]
+        by = [b for b in by if b not in ("journey", "kind")]
+        heads_of["route"] = "route or journey"
     if len(rows) > 1:
         same = [b for b in by if len({str(r[b]) for r in rows}) == 1]
         if same and len(same) < len(by):
-            title += "".join(f"\n{HEADS.get(b, b)}: {rows[0][b]}" for b in same)
+            title += "".join(f"\n{heads_of.get(b, b)}: {rows[0][b]}" for b in same)
             by = [b for b in by if b not in same]
     table = Table(title=escape(title), title_justify="left")
-    heads = [HEADS.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
+    heads = [heads_of.get(b, b) for b in by] + ["runs", "feasible", "punctual", "E mean [kWh]", "E best", "E sd", "T mean [s]", "T sd", "gap mean [%]",
              "gap best [%]"]
     def numeric(key: str) -> bool:  # a grouping key of numbers (planned_time_s) is aligned as numbers are
         return all(isinstance(r[key], (int, float)) and not isinstance(r[key], bool) for r in rows if r[key] is not None)
@@ -409,14 +416,20 @@ def store_summary_table(rows: list[dict], by: list[str], title: str, width: int 
                       _num(r["energy_sd_kwh"], ".2f"), _num(r["time_mean_s"], ".1f"), _num(r["time_sd_s"], ".1f"),
                       _num(r["gap_mean_percent"], ".2f"), _num(r["gap_best_percent"], ".2f"))
     k = len(by)
-    text = tuple(i for i, b in enumerate(by) if b in ("route", "consist", "strategy"))
+    text = tuple(i for i, b in enumerate(by) if b in ("route", "journey", "consist", "strategy"))
     return fit(table, width, drop=(k + 9, k + 7, k + 5, k + 1, k + 8, k + 4, k + 6, k + 2), wrap=text)
+
+
+def front_title(front: dict) -> str:
+    """What a front is of: the route, or the journey on its line, and the consist."""
+    line = f"journey {front['journey']} ({front['route']})" if front.get("journey") else front["route"]
+    return f"{line} — {front['consist']}"
 
 
 def pareto_table(front: dict, width: int = 80) -> list:
     """``locoplan pareto``: per planned time, the best on-time plan (and E* once known), and the front."""
-    table = Table(title=escape(f"{front['route']} — {front['consist']}: energy-time front "
-                               f"(fastest run {front['fastest_time_s']:.1f} s)"), title_justify="left")
+    table = Table(title=escape(f"{front_title(front)}: energy-time front (fastest run {front['fastest_time_s']:.1f} s"
+                               + (", dwells excluded)" if front.get("journey") else ")")), title_justify="left")
     for c in ("T0 [s]", "factor", "best on-time E [kWh]", "by", "its T [s]", "E* at its T [kWh]", "gap [%]", "on front"):
         table.add_column(escape(c), justify="right" if c != "by" else "left")
     for p in front["grid"]:

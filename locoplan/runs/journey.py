@@ -195,6 +195,16 @@ def allocation_energy(journey, legs, train, options, times) -> tuple[float, list
     return float(sum(b.energy_kwh for b in bounds)), bounds
 
 
+WINDOW_SLACK_S = 0.5
+"""A clock within this of a window's bound keeps the window (the reported times are rounded to 0.1 s)."""
+
+
+def outside_window(station, clock_s: float) -> bool:
+    """The clock [s since departure] at ``station`` misses its window (by more than ``WINDOW_SLACK_S``)."""
+    return (station.earliest_s is not None and clock_s < station.earliest_s - WINDOW_SLACK_S) or (
+        station.latest_s is not None and clock_s > station.latest_s + WINDOW_SLACK_S)
+
+
 def window_misses(journey: Journey, legs: list[Leg], times) -> list[str]:
     """Stops whose window an allocation of leg times misses (arrival clock against the window)."""
     out, run = [], 0.0
@@ -202,7 +212,7 @@ def window_misses(journey: Journey, legs: list[Leg], times) -> list[str]:
         run += float(t)
         st = journey.stations[leg.last]
         clock = run + dwell_before(journey, leg.last)
-        if (st.earliest_s is not None and clock < st.earliest_s - 0.5) or (st.latest_s is not None and clock > st.latest_s + 0.5):
+        if outside_window(st, clock):
             out.append(f"{st.name} at {clock:.1f} s")
     return out
 
@@ -233,9 +243,13 @@ def timing_passes(leg: Leg, run, journey: Journey, clock_at_departure: float) ->
 
 def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOptions, *, time_s: float | None = None,
                  strategies: tuple[str, ...] = ("proposed",), seed: int = 1, algorithm: str = "issa",
-                 source: str = "", step=lambda text: None) -> JourneyResult:
+                 params=None, weights: tuple[float, float] = (0.5, 0.5), tolerance_s: float | None = None,
+                 window: bool = True, builder: str | None = None, strict: bool | None = None, inputs=(),
+                 with_fitness: bool = True, source: str = "", step=lambda text: None) -> JourneyResult:
     """Plan ``journey`` (see the module docstring); ``time_s``: the total running time (dwells excluded),
-    default the journey's; ``step(text)`` is told what is being done."""
+    default the journey's; ``step(text)`` is told what is being done. The leg plans' settings (``params``,
+    ``weights``, ``tolerance_s``, ``window``, ``builder``, ``strict``, ``inputs``, ``with_fitness``) are a
+    single run's (``runner.make_context``, ``runner.schedule_verdict``), applied to every leg."""
     from ..ocp.bound import percent_digits, percent_floor_kwh
     from ..runner import make_context, run_strategy, schedule_verdict
 
@@ -287,10 +301,12 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
         for name in strategies:
             step(f"leg {leg.index + 1}: {name}")
             ctx = make_context(leg.route, train, options, time_s=float(t), seed=seed, algorithm=algorithm, yardstick=True,
+                               params=params, weights=weights, tolerance_s=tolerance_s, window=window, builder=builder,
                                calculators=None if ctx is None else (ctx.calc, ctx.search))
-            run = run_strategy(ctx, name)
+            ctx.inputs.update(dict(inputs))
+            run = run_strategy(ctx, name, with_fitness=with_fitness)
             s = run.summary
-            verdict = schedule_verdict(ctx, run)
+            verdict = schedule_verdict(ctx, run, strict=strict)
             if verdict:
                 result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {verdict}")
             row["plans"][name] = {k: s.get(k) for k in ("feasible", "running_time_s", "traction_energy_kwh",
@@ -300,8 +316,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             for i, pass_s in timing_passes(leg, run, journey, clock_at_departure=plan_clock[name]):
                 st = journey.stations[i]
                 row["plans"][name].setdefault("passes_s", {})[st.name] = round(pass_s, 1)
-                if (st.earliest_s is not None and pass_s < st.earliest_s - 0.5) or (
-                        st.latest_s is not None and pass_s > st.latest_s + 0.5):
+                if outside_window(st, pass_s):
                     result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {name} passes {st.name} at "
                                            f"{pass_s:.1f} s, outside its window {_window_text(st)} (the leg's plan "
                                            "keeps the leg's time, not the timing point's window)")
@@ -353,3 +368,93 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
     }
     result.summary = summary
     return result
+
+
+def journey_fastest_s(journey: Journey, route: Route, train: Train, options: ModelOptions) -> float:
+    """The journey's fastest running time, dwells excluded [s]: its legs' fastest runs one after the other
+    (what ``1.15x`` and ``+10%`` of a total running time are factors of)."""
+    return float(sum(leg.fastest_s for leg in legs_of(journey, route, train, options)))
+
+
+def journey_optimum(journey: Journey, route: Route, train: Train, options: ModelOptions,
+                    total_s: float) -> tuple[float, float]:
+    """(the journey's E* for a total running time ``total_s`` [kWh], the energy below which a percentage of it
+    means nothing [kWh]): the least-energy allocation of ``total_s`` under the windows, each leg's E* solved
+    to tolerance at its share, summed, as ``plan_journey`` reports it. Raises ``InfeasibleError`` when no run
+    keeps the time and the windows."""
+    from ..ocp.bound import percent_floor_kwh
+
+    legs = legs_of(journey, route, train, options)
+    check_windows(journey, legs, total_s, fastest_clock(journey, legs, train, options), "")
+    times, _ = allocate(journey, legs, train, options, total_s)
+    energy, _ = allocation_energy(journey, legs, train, options, times)
+    return energy, float(sum(percent_floor_kwh(leg.route, train) for leg in legs))
+
+
+def journey_run_summary(result: JourneyResult, journey: Journey, strategy: str) -> dict:
+    """A batch's record of one strategy's journey run: the fields every run's record has (``route``,
+    ``strategy``, ``planned_time_s`` the total running time asked, ``running_time_s`` and
+    ``traction_energy_kwh`` the plan's totals, ``punctual`` every leg on time, ``gap_to_optimum_percent``
+    against the legs' E* at the plan's own leg times), then the journey's: ``optimum_kwh`` (its E*), the legs
+    with their allocated times and this strategy's plans, every station's clock in the plan against its
+    window (``windows_missed``), the allocations compared and the failures ``locoplan journey`` names."""
+    s = result.summary
+    runs = [r for r in result.runs if r["strategy"] == strategy]
+    legs = [r["run"].summary for r in runs]
+    feasible = all(x.get("feasible") for x in legs)
+    totals = s["plans"][strategy]
+    clock: dict[int, float] = {0: 0.0}
+    leg_rows = []
+    for leg, r, row in zip(result.legs, runs, s["legs_table"]):
+        plan = {**row["plans"][strategy], "plan": r["run"].summary.get("plan")}
+        if plan.get("feasible"):
+            clock[leg.last] = r["clock_s"] + float(plan["running_time_s"])
+            names = {journey.stations[i].name: i for i, _ in leg.points}
+            clock.update({names[n]: t for n, t in plan.get("passes_s", {}).items()})
+        leg_rows.append({**{k: v for k, v in row.items() if k != "plans"}, "plan": plan})
+    stations, missed, windows = [], [], 0
+    for i, (st, row) in enumerate(zip(journey.stations, s["stations"])):
+        held = st.earliest_s is not None or st.latest_s is not None
+        windows += held
+        t = clock.get(i)
+        inside = None if t is None or not held else not outside_window(st, t)
+        if inside is False:
+            missed.append(f"{st.name} at {t:.1f} s")
+        stations.append({**row, "plan_s": None if t is None else round(t, 1), "in_window": inside})
+    equal = next((a for a in s["allocations"] if a["allocation"] == "equal supplements"), None)
+    first = legs[0] if legs else {}
+    return {
+        "kind": "journey", "journey": s["journey"], "route": s["route"], "consist": s["consist"],
+        "strategy": strategy, "algorithm": first.get("algorithm"), "seed": first.get("seed"),
+        "feasible": feasible,
+        "reason": None if feasible else next(f"leg {k + 1}: {x.get('reason')}" for k, x in enumerate(legs)
+                                             if not x.get("feasible")),
+        "planned_time_s": s["running_time_s"],
+        "running_time_s": totals["running_time_s"] if feasible else None,
+        "traction_energy_kwh": totals["traction_energy_kwh"],
+        "punctual": all(x.get("punctual") for x in legs) if feasible else None,
+        "optimum_kwh": s["optimum_kwh"], "optimum_accuracy_percent": s["optimum_accuracy_percent"],
+        "gap_to_optimum_kwh": totals["gap_to_optimum_kwh"], "gap_to_optimum_percent": totals["gap_to_optimum_percent"],
+        "equal_supplements_kwh": None if equal is None else equal["optimum_kwh"],
+        "legs": s["legs"], "stops": s["stops"], "timing_points": s["timing_points"], "dwell_s": s["dwell_s"],
+        "fastest_running_time_s": s["fastest_running_time_s"], "marginal_kwh_per_s": s["marginal_kwh_per_s"],
+        "windows": windows, "windows_missed": missed, "failures": list(result.failures),
+        "plan": " | ".join(str(x.get("plan") or "-") for x in legs),
+        "legs_table": leg_rows, "stations": stations, "allocations": s["allocations"],
+        "solve_time_s": s["solve_time_s"],
+    }
+
+
+def infeasible_journey_summary(journey: Journey, route: Route, train: Train, strategy: str, time_s: float | None,
+                               reason: str) -> dict:
+    """The record of a journey run with no feasible plan (its time below the fastest run, windows no run keeps,
+    a leg the train cannot run): the fields of :func:`journey_run_summary` with nothing measured."""
+    try:
+        planned = total_running_time(journey, time_s, "")
+    except InputError:
+        planned = None
+    return {"kind": "journey", "journey": journey.name, "route": route.name, "consist": train.name, "strategy": strategy,
+            "algorithm": None, "seed": None, "feasible": False, "reason": reason,
+            "planned_time_s": None if planned is None else round(planned, 1), "running_time_s": None,
+            "traction_energy_kwh": None, "punctual": None, "optimum_kwh": None, "gap_to_optimum_percent": None,
+            "legs": len(journey.stops) - 1, "stops": len(journey.stops), "windows_missed": [], "failures": [], "plan": None}

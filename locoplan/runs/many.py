@@ -6,7 +6,7 @@
 3. E_min (the energy-saving strategy's energy, seed 002 eq. 11) is computed once per group (route,
    train, options, builder) on the executor, kept in the store, and handed to every run of the group.
    A run's result therefore depends on its spec alone, not on the executor, the number of workers or
-   which other runs share the batch (the optional gap to seed 001's optimum, ``RunSpec.yardstick``,
+   which other runs share the batch (a journey run's legs find their own E_min, from the same fixed seed) (the optional gap to seed 001's optimum, ``RunSpec.yardstick``,
    excepted in its last digits: the bound warm-starts from its process's previous solve).
 4. The runs go to the executor, longest route first (a scheduling choice only); each finished run is
    committed to the store as it arrives.
@@ -55,10 +55,10 @@ class Batch:
 
 
 def needs_e_min(spec: RunSpec) -> bool:
-    """The run needs E_min: a strategy ranked by eq. 10-11 is built on it (``StrategyEntry.needs_e_min``),
-    and any fitness reports it."""
+    """The run needs its group's E_min: a strategy ranked by eq. 10-11 is built on it
+    (``StrategyEntry.needs_e_min``), and any fitness reports it. A journey run's legs find their own."""
     entry = registry.lookup(spec.strategy)
-    return spec.e_min_kwh is None and (spec.fitness or (entry is not None and entry.needs_e_min))
+    return spec.journey is None and spec.e_min_kwh is None and (spec.fitness or (entry is not None and entry.needs_e_min))
 
 
 def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, store=None,
@@ -87,8 +87,7 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
             continue
         g = group_key(s, inputs)
         if g not in groups:
-            groups[g] = EMinTask(g, inputs.routes[inputs.route_of[s.route]],
-                                 inputs.trains[inputs.train_of[(s.consist, s.stock_dir)]], s.options,
+            groups[g] = EMinTask(g, inputs.routes[inputs.route_hash(s)], inputs.trains[inputs.train_hash(s)], s.options,
                                  s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)))
     known = store.refs("e_min") if store is not None else {}
     e_min = {g: known[g][0] for g in groups if g in known}
@@ -108,10 +107,11 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
         if k in done or k in seen:
             continue
         seen.add(k)
-        rh, th = inputs.route_of[s.route], inputs.train_of[(s.consist, s.stock_dir)]
+        rh, th = inputs.route_hash(s), inputs.train_hash(s)
         e = s.e_min_kwh if s.e_min_kwh is not None else (e_min.get(group_key(s, inputs)) if needs_e_min(s) else None)
+        journey = None if s.journey is None else inputs.journeys[inputs.journey_of[s.journey]]
         tasks.append(Task(s, k, inputs.routes[rh], inputs.trains[th], rh, th, e, keep_profiles,
-                          inputs.params(s.algorithm, s.params)))
+                          inputs.params(s.algorithm, s.params), journey))
     tasks.sort(key=lambda t: -t.route.length_m)
     failed = sum(1 for k in set(keys) if k in done and done[k].verdict)
     for n, (_, record) in enumerate(executor.imap_unordered(execute, tasks), 1):

@@ -7,16 +7,21 @@ result has, per planned time, the best on-time plan found and the optimum's ener
 own running time (:mod:`locoplan.runs.optimum`, seed 001's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
 other). Until E* is known the front is *the best plans found*, an upper bound of the true front, and
 the result says so (``front_kind``).
+
+A journey (``RunSpec.journey``) has the same front over its total running time, dwells excluded: every
+plan is a journey run (each leg planned at its share of the time) and E* is the journey's, the least-energy
+allocation of the plan's total time with each leg's E* (``runs.journey.journey_optimum``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import Any
 
 from .. import bounds
-from ..errors import InfeasibleError, InputError, Problem
-from ..io.load import load_route_and_train
+from ..errors import InfeasibleError, InputError, LocoplanError, Problem
+from ..io.load import load_journey, load_route_and_train, load_train
 from ..ocp.bound import percent_floor_kwh
 from ..sim.calculator import TractionCalculator
 from ..strategy import registry
@@ -73,8 +78,9 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=PLANNED, see
     per_time = sum(len(seeds) if seeded[s] else 1 for s in strategies)
     bounds.runs(len(ENDS) + n_times * per_time, "seeds" if len(seeds) > 1 else "strategies",
                 f"runs ({n_times} planned times x {per_time} plans each)")
-    route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
-    fastest = TractionCalculator(route, train, base.options).fastest_time_s
+    line = _Line.of(base)
+    route, train = line.route, line.train
+    fastest = line.fastest_s
     grid = time_grid(fastest, factors, times_s)
     specs = [_with(base, strategy=s, time_s=grid[0][0]) for s in ENDS]
     for t0, _ in grid:
@@ -96,11 +102,11 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=PLANNED, see
         # E* at the best plan's own running time (a plan may run up to its window later than T0, and
         # E* falls with time): the gap compares like with like, as runner.summarize's does
         t_star = t0 if best is None else best["running_time_s"]
-        e_star = optimum_energy_kwh(route, train, base.options, t_star) if optimum and optimum_providers() else None
+        e_star, floor = line.optimum(t_star) if optimum and line.providers else (None, 0.0)
         if e_star is not None:
             e_star = max(e_star, 0.0)  # traction work is never negative: below 0 is the solver's tolerance
         # (E* too small for a percentage of it to mean anything: no per cent, as runner.summarize)
-        gap = (None if best is None or e_star is None or e_star < percent_floor_kwh(route, train)
+        gap = (None if best is None or e_star is None or e_star < floor
                else round(100 * (best["traction_energy_kwh"] / e_star - 1), 3))
         rows.append({"planned_time_s": t0, "factor": round(f, 4),
                      "best_energy_kwh": None if best is None else best["traction_energy_kwh"],
@@ -110,10 +116,52 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=PLANNED, see
                      "gap_to_optimum_percent": gap,
                      "on_front": best is not None and (best["strategy"], best["running_time_s"], best["traction_energy_kwh"]) in on_front})
     known = any(r["optimum_kwh"] is not None for r in rows)
-    return {"route": route.name, "consist": train.name, "fastest_time_s": round(fastest, 2),
-            "front_kind": "optimum E*(T) from " + ", ".join(optimum_providers()) if known else
+    return {"route": route.name, **({"journey": line.journey.name} if line.journey else {}), "consist": train.name,
+            "fastest_time_s": round(fastest, 2),
+            "front_kind": "optimum E*(T) from " + ", ".join(line.providers) if known else
             "best on-time plans found by the strategies (no optimum E* asked for or known: an upper bound of the true front)",
             "strategies": list(strategies), "seeds": list(seeds), "grid": rows, "points": points, "front": front}
+
+
+@dataclass(frozen=True)
+class _Line:
+    """What a front is drawn for: a route, or a journey (its whole line, its fastest total running time and
+    its own E*)."""
+
+    route: Any
+    train: Any
+    options: Any
+    fastest_s: float
+    journey: Any = None
+
+    @classmethod
+    def of(cls, base: RunSpec) -> "_Line":
+        if base.journey is None:
+            route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
+            return cls(route, train, base.options, TractionCalculator(route, train, base.options).fastest_time_s)
+        from .journey import journey_fastest_s
+
+        journey, route = load_journey(base.journey)
+        train = load_train(base.consist, base.stock_dir)
+        return cls(route, train, base.options, journey_fastest_s(journey, route, train, base.options), journey)
+
+    @property
+    def providers(self) -> list[str]:
+        return [JOURNEY_OPTIMUM] if self.journey is not None else optimum_providers()
+
+    def optimum(self, time_s: float) -> tuple[float | None, float]:
+        """(E* [kWh] or None where it is not known, the energy below which a percentage of it means nothing)."""
+        if self.journey is None:
+            return optimum_energy_kwh(self.route, self.train, self.options, time_s), percent_floor_kwh(self.route, self.train)
+        from .journey import journey_optimum
+
+        try:
+            return journey_optimum(self.journey, self.route, self.train, self.options, time_s)
+        except LocoplanError:  # a time the windows or the solver refuse: no E* here
+            return None, 0.0
+
+
+JOURNEY_OPTIMUM = "the journey's least-energy allocation of the time, each leg's E* (the journey command)"
 
 
 def _with(base: RunSpec, **changes) -> RunSpec:

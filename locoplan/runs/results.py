@@ -2,7 +2,9 @@
 
 Rows are :meth:`RunRecord.row` dicts: the ``--json`` summary's field names (``route``, ``strategy``,
 ``algorithm``, ``seed``, ``planned_time_s``, ``running_time_s``, ``traction_energy_kwh``, ...) plus
-``key``, ``route_file``, ``time_spec``, ``verdict``, ``wall_time_s``, ``worker``, ``locoplan_version``.
+``kind`` (``route`` or ``journey``), ``key``, ``route_file``, ``time_spec``, ``verdict``, ``wall_time_s``,
+``worker``, ``locoplan_version``; a journey run's row has the journey's totals (``journey``,
+``optimum_kwh``, ``legs``, ``windows_missed``, ...) and ``journey_file``.
 """
 
 from __future__ import annotations
@@ -27,6 +29,14 @@ _OPS = {"<=": operator.le, ">=": operator.ge, "!=": operator.ne, "=": operator.e
         "~": lambda x, v: str(v) in str(x)}
 _WHERE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|!=|=|<|>|~)\s*(.*?)\s*$")
 DEFAULT_BY = ("route", "consist", "planned_time_s", "strategy", "algorithm")
+JOURNEY_BY = ("kind", "journey")
+"""Grouped by first as well when journey runs are among the rows (a journey and a route on one line apart)."""
+
+
+def default_by(rows: list[dict]) -> list[str]:
+    """The summary's groups when none are asked for: ``DEFAULT_BY``, after ``JOURNEY_BY`` when any row is a
+    journey run's."""
+    return [*JOURNEY_BY, *DEFAULT_BY] if any(r.get("kind") == "journey" for r in rows) else list(DEFAULT_BY)
 
 
 def parse_where(conditions: list[str], fields: set[str]):
@@ -88,10 +98,10 @@ def rows_of(records, where: list[str] | None = None) -> list[dict]:
     return rows
 
 
-SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent")
+SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent", *JOURNEY_BY)
 """The fields :func:`summarize_rows` reads besides its ``by`` fields."""
 
-PLOT_FIELDS = ("feasible", "route", "consist", "planned_time_s", "strategy", "algorithm", "running_time_s",
+PLOT_FIELDS = ("feasible", "route", "journey", "consist", "planned_time_s", "strategy", "algorithm", "running_time_s",
                "traction_energy_kwh")
 """The fields the plots of ``locoplan results`` read (``reporting/plot_runs.py``)."""
 
@@ -300,10 +310,11 @@ def _group_order(key: tuple) -> tuple:
     return tuple((x is None, not isinstance(x, (int, float)), x if isinstance(x, (int, float)) else str(x)) for x in key)
 
 
-def summarize_rows(rows: list[dict], by: list[str] = list(DEFAULT_BY)) -> list[dict]:
-    """One row per group of ``by`` fields: runs, feasible and punctual runs, energy mean / best / sd,
+def summarize_rows(rows: list[dict], by: list[str] | None = None) -> list[dict]:
+    """One row per group of ``by`` fields (None: :func:`default_by`): runs, feasible and punctual runs, energy mean / best / sd,
     time mean / sd (over the feasible runs), and the gap to the optimum (mean, best) where the records
     have one (``gap_to_optimum_percent``; none until an optimum is known)."""
+    by = default_by(rows) if by is None else by
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         groups.setdefault(tuple(r.get(k) for k in by), []).append(r)

@@ -1,13 +1,20 @@
 """A run as data: :class:`RunSpec` (what to run) -> :class:`RunRecord` (what came out).
 
-A spec names its route by file and its consist by catalogue name or file, plus everything that
-decides the result (model options, strategy, optimiser, seed, planned time, weights, builder,
-punctuality window). It is small and picklable, so any executor can ship it to any worker.
+A spec names its route by file (or, for a journey run, its journey file) and its consist by catalogue
+name or file, plus everything that decides the result (model options, strategy, optimiser, seed, planned
+time, weights, builder, punctuality window). It is small and picklable, so any executor can ship it to
+any worker.
 
 Before anything runs, :func:`prepare` loads every route and consist once (input errors surface here,
 before any work starts) and gives each spec its **key**: a SHA-256 of the validated route and train
-models (their content, not their file names), the optimiser's parameters and the spec's settings.
-The same key means the same result; a result store is keyed by it (resume, no run done twice).
+models (their content, not their file names; for a journey the journey's stations and timetable too), the
+optimiser's parameters and the spec's settings. The same key means the same result; a result store is
+keyed by it (resume, no run done twice).
+
+A **journey run** (``RunSpec.journey``) plans a whole journey of several stops as ``locoplan journey``
+does (:func:`locoplan.runs.journey.plan_journey`): ``time_s`` is its total running time, dwells excluded;
+the strategy plans every leg at the leg's share of it; the record's summary holds the journey's totals
+(:func:`locoplan.runs.journey.journey_run_summary`).
 
 :func:`execute` runs one :class:`Task` (a spec with its loaded inputs and its group's E_min) in
 whatever process it lands in; it never reads the spec's files again (the optimiser's parameters
@@ -33,7 +40,7 @@ from typing import Any
 from .. import bounds
 from ..catalogue import DEFAULT_CONSIST
 from ..errors import InfeasibleError, InputError, Problem
-from ..io.load import load_route, load_train, resolve_consist_path
+from ..io.load import load_journey, load_route, load_train, resolve_consist_path
 from ..runner import load_optimizer_params
 from ..optimize.registry import ALGORITHMS
 from ..runner import make_context, planned_time, run_strategy, schedule_verdict
@@ -52,7 +59,9 @@ TIMING_FIELDS = ("solve_time_s", "wall_time_s", "cpu_time_s")
 class RunSpec:
     """One run. Field names are the library's (``time_s``, ``e_min_kwh``), never a command's flags.
 
-    route: route file. consist: catalogue name or consist file. strategy: a name of
+    route: route file; or journey: a journey file (locoplan/journey@1), one of the two. A journey run plans
+    the journey whole (its legs' time shared for the least energy, each leg planned by ``strategy``), with
+    ``time_s`` its total running time, dwells excluded (None: the journey's own). consist: catalogue name or consist file. strategy: a name of
     ``strategy.registry.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
     parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
     schedule). weights: (w_time, w_energy) of seed 002 eq. 10. tolerance_s: punctuality window +- [s]
@@ -65,7 +74,7 @@ class RunSpec:
     into the record but not into the key (e.g. the study file's time factor '1.1x').
     """
 
-    route: str
+    route: str | None = None
     consist: str = DEFAULT_CONSIST
     strategy: str = "proposed"
     algorithm: str = "issa"
@@ -84,9 +93,22 @@ class RunSpec:
     yardstick: bool = False
     inputs: tuple[tuple[str, Any], ...] = ()
     tags: tuple[tuple[str, str], ...] = ()
+    journey: str | None = None
+
+    @property
+    def kind(self) -> str:
+        """'journey' for a journey run, else 'route'."""
+        return "route" if self.journey is None else "journey"
+
+    @property
+    def source(self) -> str:
+        """The file the run plans: its journey file, else its route file."""
+        return self.journey if self.journey is not None else self.route
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        if self.journey is None:  # a route run's dict (and so its key) as before journeys existed
+            d.pop("journey")
         d["weights"] = list(self.weights)
         d["inputs"] = {k: _plain(v) for k, v in self.inputs}
         d["tags"] = dict(self.tags)
@@ -114,18 +136,26 @@ def canonical_hash(obj: Any) -> str:
 
 @dataclass(frozen=True)
 class Inputs:
-    """What :func:`prepare` loaded: routes and trains by content hash, and each spec's hashes."""
+    """What :func:`prepare` loaded: routes, trains and journeys by content hash, and each spec's hashes."""
 
     routes: dict[str, Any]          # route hash -> Route
     trains: dict[str, Any]          # train hash -> Train
-    route_of: dict[str, str]        # route file -> route hash
+    route_of: dict[str, str]        # route file (a journey file: the route it names) -> route hash
     train_of: dict[tuple, str]      # (consist, stock_dir) -> train hash
     params_of: dict[tuple, dict]    # (algorithm, params file) -> parameters (validated), as hashed
     param_models: dict[tuple, Any] = field(default_factory=dict)  # the same as the optimiser's Params objects
+    journeys: dict[str, Any] = field(default_factory=dict)    # journey hash -> Journey
+    journey_of: dict[str, str] = field(default_factory=dict)  # journey file -> journey hash
 
     def params(self, algorithm: str, path: str | None):
         """The optimiser's parameters of a params file (None: no file, the algorithm's defaults)."""
         return None if path is None else self.param_models[(algorithm, path)]
+
+    def route_hash(self, spec: "RunSpec") -> str:
+        return self.route_of[spec.source]
+
+    def train_hash(self, spec: "RunSpec") -> str:
+        return self.train_of[(spec.consist, spec.stock_dir)]
 
 
 def _check_values(spec: RunSpec) -> None:
@@ -145,13 +175,17 @@ def _check_values(spec: RunSpec) -> None:
 
 
 def load_inputs(specs: list[RunSpec]) -> Inputs:
-    """Load every distinct route, consist and optimiser parameter file of ``specs`` once.
+    """Load every distinct route, journey, consist and optimiser parameter file of ``specs`` once.
 
     Raises :class:`InputError` for a bad file (naming file, line and field) or an unknown strategy,
     algorithm or builder (naming the spec field), before any run starts."""
     problems: list[Problem] = []
-    routes, trains, route_of, train_of, params_of, models = {}, {}, {}, {}, {}, {}
+    inputs = Inputs({}, {}, {}, {}, {}, {})
+    routes, trains, route_of, train_of = inputs.routes, inputs.trains, inputs.route_of, inputs.train_of
+    checked_journeys: set[tuple] = set()
     for spec in specs:
+        if (spec.route is None) == (spec.journey is None):
+            problems.append(Problem("", "route", "give a route file (route) or a journey file (journey): one of the two"))
         if registry.lookup(spec.strategy) is None:
             problems.append(Problem("", "strategy", registry.unknown_message(spec.strategy)))
         if spec.algorithm not in ALGORITHMS:
@@ -161,25 +195,64 @@ def load_inputs(specs: list[RunSpec]) -> Inputs:
         if problems:
             raise InputError(problems[:1])
         _check_values(spec)  # every run's numbers, before the first run starts
-        if spec.route not in route_of:
-            r = load_route(spec.route)
+        if spec.source not in route_of:
+            if spec.journey is not None:
+                j, r = load_journey(spec.journey)
+                jh = canonical_hash(_journey_identity(j))
+                inputs.journeys[jh], inputs.journey_of[spec.journey] = j, jh
+            else:
+                r = load_route(spec.route)
             h = canonical_hash(r.model_dump(mode="json"))
-            routes[h], route_of[spec.route] = r, h
-        if needs_time(spec):
+            routes[h], route_of[spec.source] = r, h
+        if spec.journey is None and needs_time(spec):
             planned_time(routes[route_of[spec.route]], spec.time_s)  # no schedule and no time: say so now
         ck = (spec.consist, spec.stock_dir)
         if ck not in train_of:
             t = load_train(spec.consist, spec.stock_dir)
             h = canonical_hash(_train_identity(t))
             trains[h], train_of[ck] = t, h
-        route, train = routes[route_of[spec.route]], trains[train_of[ck]]
-        if train.length_m >= route.length_m:
+        route, train = routes[route_of[spec.source]], trains[train_of[ck]]
+        if spec.journey is not None:
+            jk = (spec.journey, train_of[ck], spec.options, spec.time_s, spec.tolerance_s, spec.e_min_kwh)
+            if jk not in checked_journeys:
+                _check_journey(spec, inputs.journeys[inputs.journey_of[spec.journey]], route, train)
+                checked_journeys.add(jk)
+        elif train.length_m >= route.length_m:
             raise InputError(shorter_than_train(route, train, spec.route, str(resolve_consist_path(spec.consist))))
         for pk in ((spec.algorithm, spec.params), (ENERGY_SAVING_ALGORITHM, _e_min_params(spec))):
-            if pk not in params_of:
-                models[pk] = load_optimizer_params(*pk)
-                params_of[pk] = models[pk].model_dump()
-    return Inputs(routes, trains, route_of, train_of, params_of, models)
+            if pk not in inputs.params_of:
+                inputs.param_models[pk] = load_optimizer_params(*pk)
+                inputs.params_of[pk] = inputs.param_models[pk].model_dump()
+    return inputs
+
+
+def _journey_identity(journey) -> dict:
+    """A journey's content as hashed: its stations and timetable, not the path of the route file it names (the
+    route's content is hashed on its own)."""
+    d = journey.model_dump(mode="json", by_alias=True)
+    d.pop("route")
+    return d
+
+
+def _check_journey(spec: RunSpec, journey, route, train) -> None:
+    """What a journey run would otherwise find only when it runs, said before the batch starts: a total running
+    time to plan for, a leg no longer than the train, a punctuality window +- as long as a leg's fastest run,
+    an E_min given (each leg has its own)."""
+    from .journey import legs_of, total_running_time
+
+    if spec.e_min_kwh is not None:
+        raise InputError(Problem(spec.journey, "e_min_kwh", "a journey's legs each have their own E_min (the energy-saving "
+                                 "strategy's, found per leg): give none"))
+    total_running_time(journey, spec.time_s, spec.journey)  # none given and none in the journey: say so now
+    try:
+        legs = legs_of(journey, route, train, spec.options)
+    except InfeasibleError:  # a leg the train cannot run: the run's result (no feasible plan), not an input error
+        return
+    shortest = min(legs, key=lambda leg: leg.fastest_s)
+    if spec.tolerance_s is not None and spec.tolerance_s >= shortest.fastest_s:
+        raise InputError(Problem(spec.journey, "tolerance_s", f"a punctuality window of +-{spec.tolerance_s:g} s is not "
+                                 f"below the fastest run of the leg {shortest.route.name!r} ({shortest.fastest_s:.1f} s): "
+                                 "every leg is held to it, and its window would open at or before departure"))
 
 
 def _train_identity(train) -> dict:
@@ -210,7 +283,7 @@ def group_key(spec: RunSpec, inputs: Inputs) -> str:
     """Key of the spec's E_min group: route, train, model options, builder and E_min's optimiser
     parameters (E_min does not depend on the planned time, the seed or the algorithm studied)."""
     return canonical_hash({
-        "what": "e_min", "route": inputs.route_of[spec.route], "train": inputs.train_of[(spec.consist, spec.stock_dir)],
+        "what": "e_min", "route": inputs.route_hash(spec), "train": inputs.train_hash(spec),
         "options": _options_dict(spec.options), "builder": spec.resolved_builder,
         "params": inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))], "format": RESULTS_FORMAT,
     })
@@ -221,9 +294,15 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
     d = spec.to_dict()
     for k in ("route", "consist", "stock_dir", "params", "tags", "builder"):
         d.pop(k)
-    d.update(route=inputs.route_of[spec.route], train=inputs.train_of[(spec.consist, spec.stock_dir)],
+    d.update(route=inputs.route_hash(spec), train=inputs.train_hash(spec),
              params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
              e_min_group=None if spec.e_min_kwh is not None else group_key(spec, inputs), format=RESULTS_FORMAT)
+    if spec.journey is not None:
+        # the journey's content, not its file; its legs find their own E_min (with these parameters), and its
+        # E* and gaps are always computed (``yardstick`` changes nothing)
+        d.pop("yardstick")
+        d.update(kind="journey", journey=inputs.journey_of[spec.journey], e_min_group=None,
+                 e_min_params=inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))])
     return canonical_hash(d)
 
 
@@ -242,6 +321,8 @@ class Task:
     keep_profile: bool = False
     params: Any = None
     """The optimiser's parameters read from ``spec.params`` (None: no file, its defaults)."""
+    journey: Any = None
+    """A journey run's Journey (``route`` is then the whole line it names)."""
 
 
 @dataclass
@@ -264,9 +345,12 @@ class RunRecord:
     cpu_time_s: float | None = None
 
     def row(self) -> dict:
-        """One flat row: the summary's fields (their ``--json`` names), then the record's own."""
+        """One flat row: the summary's fields (their ``--json`` names), then the record's own: ``kind`` says
+        whether it is a route run or a journey run (``journey_file``)."""
         tags = self.spec.get("tags") or {}
-        return {**self.summary, "key": self.key, "route_file": self.spec.get("route"),
+        journey = {"journey_file": self.spec["journey"]} if self.spec.get("journey") else {}
+        return {**self.summary, "kind": self.summary.get("kind", "route"), "key": self.key,
+                "route_file": self.spec.get("route"), **journey,
                 "consist_file": self.spec.get("consist"), "time_spec": tags.get("time"),
                 "verdict": self.verdict, "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "worker": self.worker,
                 "locoplan_version": self.versions.get("locoplan")}
@@ -348,6 +432,8 @@ def _worker_name() -> str:
 def execute(task: Task) -> RunRecord:
     """Run one task (in any process). A run that has no feasible plan (InfeasibleError) is a result,
     recorded with ``feasible`` false and the reason; input errors propagate."""
+    if task.journey is not None:
+        return execute_journey(task)
     t, cpu = time.perf_counter(), time.process_time()
     spec = task.spec
     ctx, base = context_for(task)
@@ -366,6 +452,30 @@ def execute(task: Task) -> RunRecord:
             profile, history = run.result.profile, run.outcome.history
     return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
                      _worker_name(), profile, history, round(time.process_time() - cpu, 4))
+
+
+def execute_journey(task: Task) -> RunRecord:
+    """Run one journey task: the journey planned whole by the spec's strategy (``runs.journey.plan_journey``),
+    its record's summary the journey's totals. No feasible plan (a time below the fastest run, windows no run
+    keeps, a leg the train cannot run) is a result, as for a route run."""
+    from .journey import infeasible_journey_summary, journey_run_summary, plan_journey
+
+    t, cpu = time.perf_counter(), time.process_time()
+    spec = task.spec
+    try:
+        result = plan_journey(task.journey, task.route, task.train, spec.options, time_s=spec.time_s,
+                              strategies=(spec.strategy,), seed=spec.seed, algorithm=spec.algorithm, params=task.params,
+                              weights=spec.weights, tolerance_s=spec.tolerance_s, window=spec.window,
+                              builder=spec.builder, strict=spec.strict, inputs=spec.inputs, with_fitness=spec.fitness,
+                              source=spec.journey)
+    except InfeasibleError as exc:
+        summary = infeasible_journey_summary(task.journey, task.route, task.train, spec.strategy, spec.time_s, str(exc))
+        verdict = f"{spec.strategy}: {exc}"
+    else:
+        summary = journey_run_summary(result, task.journey, spec.strategy)
+        verdict = "; ".join(dict.fromkeys(result.failures)) or None
+    return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
+                     _worker_name(), None, None, round(time.process_time() - cpu, 4))
 
 
 def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:

@@ -3,9 +3,12 @@
 ```yaml
 schema: locoplan/study@1          # optional
 routes: [routes/real/*.yaml]      # files or globs, relative to the study file's folder
+journeys: [routes/journeys/*-journey.yaml]   # journey files or globs (routes, journeys or both)
 consists: [HXD1-C80x30, HXD1-C80x50]   # catalogue names or files (default: HXD1-C80x50)
 times: [1.1x, 1.2x, 1500]         # planned running times: seconds, or factors of each route's fastest
-                                  # run with each consist (default: each route's schedule)
+                                  # run with each consist (default: each route's schedule); for a journey
+                                  # its total running time, dwells excluded, the factors of its fastest
+                                  # total (default: the journey's own)
 strategies: [proposed]            # default: proposed
 algorithms: [issa, ssa, pso]      # default: issa
 seeds: [1, 2, 3, 4, 5]            # default: 1
@@ -15,11 +18,13 @@ Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``toler
 the plan's own running time, seconds per run), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).
 
-The batch is routes x consists x times x strategies x algorithms x seeds, except that algorithms and
-seeds multiply only the strategies whose result depends on the optimiser and its seed
+The batch is (routes + journeys) x consists x times x strategies x algorithms x seeds, except that
+algorithms and seeds multiply only the strategies whose result depends on the optimiser and its seed
 (``StrategyEntry.seeded`` in :mod:`locoplan.strategy.registry`); the others run once per route, consist
-and time. Every problem is reported as ``file:line: field: message`` (exit 2):
-an unknown key, strategy or algorithm, a glob that matches nothing, a time factor below 1.
+and time. A journey run plans the whole journey (``RunSpec.journey``). A glob takes the files of its
+kind (a route glob passes over journey files and the other way round). Every problem is reported as
+``file:line: field: message`` (exit 2): an unknown key, strategy or algorithm, a glob that matches nothing,
+a journey file under routes (or a route under journeys), a time factor below 1.
 """
 
 from __future__ import annotations
@@ -38,7 +43,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from .. import bounds
 from ..catalogue import DEFAULT_CONSIST
 from ..errors import InfeasibleError, InputError, Problem
-from ..io.load import _line_for, load_route, load_train, read_yaml, validate_model
+from ..io.load import SCHEMAS, _line_for, file_schema, load_journey, load_route, load_train, read_yaml, validate_model
+from ..model.journey import JOURNEY_SCHEMA
 from ..optimize.registry import ALGORITHMS
 from ..sim.calculator import DEFAULT_STEP_M, ModelOptions, TractionCalculator
 from ..strategy import registry
@@ -65,7 +71,8 @@ class StudyFile(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     schema_: Optional[str] = Field(None, alias="schema")
-    routes: list[str] = Field(min_length=1)
+    routes: list[str] = Field(default_factory=list)
+    journeys: list[str] = Field(default_factory=list)
     consists: list[str] = Field(default_factory=lambda: [DEFAULT_CONSIST], min_length=1)
     times: Optional[list[Any]] = Field(None, min_length=1)  # checked by _time_value (a bool is no time)
     strategies: list[str] = Field(default_factory=lambda: ["proposed"], min_length=1)
@@ -205,26 +212,18 @@ def load_study(path: str | Path) -> Study:
         except ValueError as exc:
             problems.append(Problem(name, f"times[{i}]", str(exc), where("times", i)))
     base = path.parent
-    routes: list[Path] = []
-    for i, pattern in enumerate(study.routes):
-        full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
-        if any(c in pattern for c in "*?["):
-            try:
-                found = sorted(Path(p) for p in safe_glob(str(full)) if p.endswith((".yaml", ".yml")))
-            except ValueError as exc:
-                problems.append(Problem(name, f"routes[{i}]", f"{pattern!r}: {exc}", where("routes", i)))
-                continue
-            if not found:
-                problems.append(Problem(name, f"routes[{i}]", f"{pattern!r} matches no route file (looked in {full.parent})",
-                                        where("routes", i)))
-            routes += found
-        elif not full.is_file():
-            problems.append(Problem(name, f"routes[{i}]", f"no such route file: {full}", where("routes", i)))
-        else:
-            routes.append(full)
+    if not study.routes and not study.journeys:
+        problems.append(Problem(name, "routes", "name the routes or the journeys to run (routes:, journeys:, or both)",
+                                where("routes") or where("journeys") or 1))
+    routes = [f for f, _ in _study_files(name, "routes", study.routes, base, where, problems)]
+    journeys = _study_files(name, "journeys", study.journeys, base, where, problems)
     if problems:
         raise InputError(problems)
     routes = list(dict.fromkeys(routes))  # a route matched by two globs runs once
+    first: dict[Path, int] = {}
+    for f, i in journeys:  # so does a journey (named by its first entry)
+        first.setdefault(f, i)
+    journeys = list(first.items())
 
     m = study.model
     options = ModelOptions(step_m=m.step_m, point_mass=m.point_mass,
@@ -234,18 +233,103 @@ def load_study(path: str | Path) -> Study:
                 for c in study.consists]
     stock = None if study.stock_dir is None else str(base / study.stock_dir)
     planned = _planned_times(name, routes, consists, stock, options, times, where, study.tolerance_s)
+    planned.update(_journey_times(name, journeys, consists, stock, options, times, where, study.tolerance_s))
     common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
                   builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap)
     specs: list[RunSpec] = []
-    for r in routes:
-        for c in consists:
-            for t_s, label in planned[(r, c)]:
-                for s in study.strategies:
-                    pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if registry.STRATEGIES[s].seeded \
-                        else [(study.algorithms[0], study.seeds[0])]
-                    for a, seed in pairs:
-                        specs.append(RunSpec(str(r), c, s, a, seed, t_s, tags=(("time", label),) if label else (), **common))
+    for kind, files in (("route", routes), ("journey", [j for j, _ in journeys])):
+        for f in files:
+            for c in consists:
+                for t_s, label in planned[(f, c)]:
+                    for s in study.strategies:
+                        pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if registry.STRATEGIES[s].seeded \
+                            else [(study.algorithms[0], study.seeds[0])]
+                        for a, seed in pairs:
+                            specs.append(RunSpec(**{kind: str(f)}, consist=c, strategy=s, algorithm=a, seed=seed, time_s=t_s,
+                                                 tags=(("time", label),) if label else (), **common))
     return Study(path, study, specs)
+
+
+_KINDS = {"routes": ("route", "locoplan/route@1", "journeys"), "journeys": ("journey", JOURNEY_SCHEMA, "routes")}
+
+
+def _declared(path: Path) -> str | None:
+    """The kind of file ``path`` declares (its schema), None when it cannot be read (its loader says why)."""
+    try:
+        return file_schema(path)
+    except InputError:
+        return None
+
+
+def _study_files(name: str, key: str, patterns: list[str], base: Path, where, problems: list[Problem]) -> list[tuple[Path, int]]:
+    """The files of a study's ``routes`` or ``journeys`` entries (files or globs, relative to the study's folder),
+    each with the index of the entry that named it. A glob takes the files of its kind; a file named outright
+    that is another locoplan kind (a journey under routes) is a problem naming the entry."""
+    what, schema, other = _KINDS[key]
+    out: list[tuple[Path, int]] = []
+    for i, pattern in enumerate(patterns):
+        full = Path(pattern) if Path(pattern).is_absolute() else base / pattern
+        if any(c in pattern for c in "*?["):
+            try:
+                found = sorted(Path(p) for p in safe_glob(str(full)) if p.endswith((".yaml", ".yml")))
+            except ValueError as exc:
+                problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r}: {exc}", where(key, i)))
+                continue
+            found = [f for f in found if _declared(f) not in set(SCHEMAS) - {schema}]
+            if not found:
+                problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r} matches no {what} file (looked in {full.parent})",
+                                        where(key, i)))
+            out += [(f, i) for f in found]
+        elif not full.is_file():
+            why = (f"{full} is a folder: name the {what} files in it, e.g. '{pattern.rstrip('/')}/*.yaml'" if full.is_dir()
+                   else f"{full} is not a regular file" if full.exists() else f"no such {what} file: {full}")
+            problems.append(Problem(name, f"{key}[{i}]", why, where(key, i)))
+        elif (declared := _declared(full)) in set(SCHEMAS) - {schema}:
+            hint = f": list it under {other}" if declared == _KINDS[other][1] else ""
+            problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r} is a {declared} file, not a {what}{hint}", where(key, i)))
+        else:
+            out.append((full, i))
+    return out
+
+
+def _journey_times(name, journeys, consists, stock, options, times, where, tolerance_s=None) -> dict:
+    """(journey, consist) -> [(total running time [s] or None, label)]: a journey's running time is its total,
+    dwells excluded; a factor is of its fastest total (its legs' fastest runs), rounded up to 0.1 s as
+    ``locoplan journey --time`` rounds it; no times: the journey's own (``timetable``)."""
+    from .journey import legs_of, total_running_time
+
+    out = {}
+    trains = {c: load_train(c, stock) for c in consists}
+    for j, i in journeys:
+        journey, route = load_journey(j)
+        if not times:
+            try:
+                total_running_time(journey, None, str(j))
+            except InputError:
+                raise InputError(Problem(name, f"journeys[{i}]", f"{j} gives no running time (no run_time_s, no time_s at "
+                                         "its last station): give the total running times (seconds, factors of the fastest "
+                                         "run such as '1.1x', or supplements on it such as '+10%')", where("journeys", i))) from None
+        for c in consists:
+            try:
+                legs = legs_of(journey, route, trains[c], options)
+            except InfeasibleError as exc:
+                if any(kind == "x" for (kind, _), _ in times):
+                    raise InfeasibleError(f"{name}:{where('journeys', i) or '?'}: journeys[{i}]: times are factors of the "
+                                          f"fastest run, but {j} has none with '{trains[c].name}': {exc}; drop that journey "
+                                          "or consist, or give seconds") from None
+                legs = None
+            if legs and tolerance_s is not None:
+                shortest = min(leg.fastest_s for leg in legs)
+                if tolerance_s >= shortest:
+                    raise InputError(Problem(name, "tolerance_s", f"a punctuality window of +-{tolerance_s:g} s is not below "
+                                             f"the fastest run of a leg of {j} ({shortest:.1f} s): each leg is held to it, "
+                                             "and its window would open at or before departure", where("tolerance_s")))
+            if not times:
+                out[(j, c)] = [(None, "timetable")]
+                continue
+            fastest = None if legs is None else sum(leg.fastest_s for leg in legs)
+            out[(j, c)] = [(bounds.time_of((kind, value), fastest), f"{value:g}{kind}") for (kind, value), _ in times]
+    return out
 
 
 def _planned_times(name, routes, consists, stock, options, times, where, tolerance_s=None) -> dict:
