@@ -38,8 +38,9 @@ import numpy as np
 
 from ..errors import InfeasibleError
 from ..physics.braking import full_brake_kn
+from ..physics.energy import recovered_energy_kwh
 from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
-from ..physics.traction import max_force_rounded_kn
+from ..physics.traction import max_force_kn, max_force_rounded_kn
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
@@ -260,6 +261,157 @@ class CellEnergyProblem:
         return xs[0::3] * self.v_ref
 
 
+class NetCellEnergyProblem(CellEnergyProblem):
+    """The minimum-*net*-energy problem on ``calc``'s cells: the traction work less what the electric brake
+    returns to the line, sum h (F - eta B_e), with eta the train's ``regen_efficiency``.
+
+    The electric and the air brake are two controls here, B_e <= B_e,max(vm) (0 where the catenary is off)
+    and B_a <= B_a,max(vm), where the traction problem has one, B <= B_e,max + B_a,max: the objective credits
+    only the electric part, and with two controls it stays smooth (min(B, B_e,max) would not be). Variables
+    ``[v_0, F_0, E_0, A_0, v_1, ...]``, three inequalities per cell. The optimum never brakes with air while
+    electric braking is left (that would give up a credit), so it brakes as the calculator does: the
+    electric brake first. E* of this problem is the least net energy of any run in the time, a true
+    optimum of the train model with the credit; for a train that regenerates nothing it is the traction E*.
+    """
+
+    STRIDE = 4
+
+    def __init__(self, calc: TractionCalculator, time_s: float, regen: float):
+        super().__init__(calc, time_s)
+        self.regen = float(regen)
+        N = self.N
+        powered = self.allowed > 0
+        has_electric = bool(np.any(np.asarray(calc.electric_brake_kn, float) > 0))
+        has_air = bool(np.any(np.asarray(calc.air_brake_kn, float) > 0))
+        self.electric_ok = powered & has_electric
+        self.air_ok = np.full(N, has_air)
+        n = 4 * N + 1
+        ref = np.empty(n)
+        ref[0::4] = self.v_ref
+        ref[1::4] = ref[2::4] = ref[3::4] = self.f_ref
+        self.ref = ref
+        lb, ub = np.zeros(n), np.full(n, np.inf)
+        ub[0::4] = self.ub[0::3]  # the speeds' bounds (the envelope, rest at both ends) as the traction problem's
+        ub[1::4] = np.where(powered, np.inf, 0.0)
+        ub[2::4] = np.where(self.electric_ok, np.inf, 0.0)
+        ub[3::4] = np.where(self.air_ok, np.inf, 0.0)
+        self.lb, self.ub = lb, ub
+        k = np.arange(N)
+        self.local = np.column_stack([4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3, 4 * k + 4])
+        pos_x = np.empty(n, dtype=np.int64)
+        pos_x[0::4] = 5 * np.arange(N + 1)
+        pos_x[1::4] = 5 * k + 1
+        pos_x[2::4] = 5 * k + 2
+        pos_x[3::4] = 5 * k + 3
+        self.pos_x = pos_x
+        self.pos_y = 5 * k + 4
+        self.active = np.column_stack([powered, self.electric_ok, self.air_ok])
+        self._last = None
+
+    def _physics(self, x: np.ndarray):
+        if self._last is not None and self._last[0] is x:
+            return self._last[1]
+        calc, tr = self.calc, self.calc.train
+        xp = x * self.ref
+        v = xp[0::4]
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
+        V = kmh(vm)
+        _, b, c = tr.resistance_kn
+        curves = {"Fm": (tr.traction_speed_kmh, tr.traction_kn, self.allowed),
+                  "Em": (calc.electric_brake_speed_kmh, calc.electric_brake_kn, self.allowed),
+                  "Am": (calc.air_brake_speed_kmh, calc.air_brake_kn, 1.0)}
+        phys = {"p": p, "q": q, "F": xp[1::4], "E": xp[2::4], "A": xp[3::4], "vm": vm,
+                "R": train_resistance_kn(V, tr.resistance_kn),
+                "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c),
+                "R_vv": KMH_PER_MS ** 2 * 2.0 * c}
+        for key, (xs, ys, on) in curves.items():  # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
+            phys[key] = tuple(f * on * KMH_PER_MS ** i for i, f in enumerate(self._rounded(V, xs, ys)))
+        self._last = (x, phys)
+        return phys
+
+    def values(self, x: np.ndarray) -> CellValues:
+        P = self._physics(x)
+        p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
+        e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["E"] - P["A"] - P["R"] - self.G)) / (h * fr)
+        g = np.where(self.active, np.stack([(P[u] - P[cap][0]) / fr for u, cap in (("F", "Fm"), ("E", "Em"), ("A", "Am"))],
+                                           axis=1), -1.0)
+        c = (np.einsum("jk,k->j", self.cmask, 2 * h / np.maximum(p + q, V_FLOOR_MS)) + self.cconst) / self.t_ref
+        return CellValues(float(np.sum(h * (P["F"] - self.regen * P["E"]))) / KJ_PER_KWH / self.e_ref, e, g, c)
+
+    def derivatives(self, x: np.ndarray) -> CellDerivatives:
+        P = self._physics(x)
+        vm_p, vm_q, *_ = self._vm_derivatives(P)
+        N, h, M, fr = self.N, self.h, self.M, self.f_ref
+        rl = self.ref[self.local]
+        ge = np.empty((N, 5))
+        ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
+        ge[:, 1] = -1.0 / fr
+        ge[:, 2] = ge[:, 3] = 1.0 / fr
+        ge[:, 4] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
+        gg = np.zeros((N, 3, 5))
+        for j, cap in enumerate((P["Fm"], P["Em"], P["Am"])):
+            gg[:, j, 0] = -cap[1] * vm_p / fr
+            gg[:, j, 4] = -cap[1] * vm_q / fr
+            gg[:, j, j + 1] = 1.0 / fr
+        gg[~self.active] = 0.0
+        dtau = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
+        gc = np.zeros((len(self.cmask), N, 5))
+        gc[:, :, 0] = gc[:, :, 4] = self.cmask * dtau
+        gf = np.zeros((N, 5))
+        gf[:, 1] = h / KJ_PER_KWH / self.e_ref
+        gf[:, 2] = -self.regen * h / KJ_PER_KWH / self.e_ref
+        return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
+
+    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
+        P = self._physics(x)
+        vm_p, vm_q, vm_pp, vm_pq, vm_qq = self._vm_derivatives(P)
+        h, M, fr = self.h, self.M, self.f_ref
+        R_v, R_vv = P["R_v"], P["R_vv"]
+        pp = y * (-M + h * (R_vv * vm_p ** 2 + R_v * vm_pp)) / (h * fr)
+        qq = y * (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
+        pq_ = y * (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
+        for j, cap in enumerate((P["Fm"], P["Em"], P["Am"])):
+            w = np.where(self.active[:, j], z[:, j], 0.0) / fr
+            pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
+            qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
+            pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
+        d2 = np.einsum("j,jk->k", zc, self.cmask) * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref
+        out = np.zeros((self.N, 5, 5))
+        vr2 = self.v_ref ** 2
+        out[:, 0, 0] = (pp + d2) * vr2
+        out[:, 4, 4] = (qq + d2) * vr2
+        out[:, 0, 4] = out[:, 4, 0] = (pq_ + d2) * vr2
+        return out
+
+    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
+        """A scaled start from node speeds [m/s]: each cell's force, braking electric first."""
+        v = np.clip(v_nodes_ms, 0.0, self.v_cap)
+        v[0] = v[-1] = 0.0
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(0.5 * (p * p + q * q))
+        u = 0.5 * self.M * (q * q - p * p) / self.h + train_resistance_kn(kmh(vm), self.calc.train.resistance_kn) + self.G
+        brake = np.clip(-u, 0.0, None)
+        e_max = max_force_kn(kmh(vm), self.calc.electric_brake_speed_kmh, self.calc.electric_brake_kn) * self.electric_ok
+        x = np.empty(4 * self.N + 1)
+        x[0::4] = v
+        x[1::4] = np.clip(u, 0.0, None) * (self.allowed > 0)
+        x[2::4] = np.minimum(brake, e_max)
+        x[3::4] = (brake - x[2::4]) * self.air_ok
+        return x / self.ref
+
+    def energy_kwh(self, xs: np.ndarray) -> float:
+        return float(np.sum(self.h * (xs[1::4] - self.regen * xs[2::4]) * self.f_ref)) / KJ_PER_KWH
+
+    def speeds_ms(self, xs: np.ndarray) -> np.ndarray:
+        return xs[0::4] * self.v_ref
+
+    def forces_kn(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(traction, electric brake, air brake) [kN] per cell at the scaled point ``xs``."""
+        x = xs * self.ref
+        return x[1::4], x[2::4], x[3::4]
+
+
 @dataclass(frozen=True)
 class CellSolution:
     """E* on one grid: the objective [kWh], the node positions [m] and speeds [m/s], the cells' forces
@@ -273,6 +425,11 @@ class CellSolution:
     slope_kwh_per_s: float
     result: IPMResult
     solve_time_s: float
+    traction_kwh: float = math.nan
+    recovered_kwh: float = math.nan
+    """The optimum's traction work and the energy its electric brake returns [kWh] (the train's
+    ``regen_efficiency`` x its electric braking work, the electric brake taking its share first): the
+    objective is the first (traction E*) or their difference (net E*)."""
 
 
 def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser: TractionCalculator | None = None,
@@ -305,12 +462,13 @@ def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
 
 
 def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | None = None,
-                settings: IPMSettings | None = None, mu_init: float | None = None) -> CellSolution:
+                settings: IPMSettings | None = None, mu_init: float | None = None, regen: float = 0.0) -> CellSolution:
     """E* on ``calc``'s cells in ``time_s`` [s]; ``start``: node speeds [m/s] to start from (default
-    :func:`initial_speeds`), ``mu_init`` the barrier parameter to start with. Raises ``InfeasibleError``
-    when the solver does not converge."""
+    :func:`initial_speeds`), ``mu_init`` the barrier parameter to start with; ``regen`` > 0: the least net
+    energy with that share of the electric brake's work credited (:class:`NetCellEnergyProblem`), else the
+    least traction work. Raises ``InfeasibleError`` when the solver does not converge."""
     t0 = _time.perf_counter()
-    prob = CellEnergyProblem(calc, time_s)
+    prob = NetCellEnergyProblem(calc, time_s, regen) if regen > 0 else CellEnergyProblem(calc, time_s)
     v0 = initial_speeds(calc, time_s) if start is None else start
     x0 = prob.start_from_profile(v0)
     if settings is None:  # near an optimum (a start from a solution): the adaptive barrier rule
@@ -319,10 +477,19 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
                               f"({res.status} after {res.iterations} iterations, error {res.error:.1e})")
-    x = res.x * prob.ref
     slope = -float(res.zc[0]) * prob.e_ref / prob.t_ref
-    return CellSolution(prob.energy_kwh(res.x), calc.s_m, x[0::3], x[1::3], x[2::3], slope, res,
-                        _time.perf_counter() - t0)
+    v = prob.speeds_ms(res.x)
+    vm_kmh = kmh(np.sqrt(0.5 * (v[:-1] ** 2 + v[1:] ** 2)))
+    if isinstance(prob, NetCellEnergyProblem):
+        f, electric, air = prob.forces_kn(res.x)
+        brake, recovered = electric + air, prob.regen * float(np.sum(calc.h_m * electric)) / KJ_PER_KWH
+    else:
+        x = res.x * prob.ref
+        f, brake = x[1::3], x[2::3]
+        e_max = max_force_kn(vm_kmh, calc.electric_brake_speed_kmh, calc.electric_brake_kn) * calc.traction_allowed
+        recovered = float(recovered_energy_kwh(calc.s_m, brake, e_max, calc.train.regen_efficiency))
+    return CellSolution(prob.energy_kwh(res.x), calc.s_m, v, f, brake, slope, res, _time.perf_counter() - t0,
+                        float(np.sum(calc.h_m * f)) / KJ_PER_KWH, recovered)
 
 
 def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -392,11 +559,11 @@ class EStar:
 
 def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
                 warm: CellSolution | None = None, coarse_step_m: float = COARSE_STEP_M,
-                finest_step_m: float = FINEST_STEP_M) -> EStar:
+                finest_step_m: float = FINEST_STEP_M, regen: float = 0.0) -> EStar:
     """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``coarse_step_m`` grid, then on
     grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
     ``max(E*, floor_kwh)``) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring
-    time to start the first grid from."""
+    time to start the first grid from. ``regen`` > 0: the least net energy (:func:`solve_cells`)."""
     t0 = _time.perf_counter()
     step = float(coarse_step_m)
     sols, steps, cells = [], [], []
@@ -411,7 +578,7 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
             start = x0 * prob.ref
             start = start[0::3]
         try:
-            sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU)
+            sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU, regen=regen)
         except InfeasibleError:
             if len(sols) < 2:
                 raise

@@ -216,8 +216,7 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
-    if "recovered_energy_kwh" in summary:  # the locomotives regenerate (vehicle field regen_efficiency)
-        rows.append(("recovered by the electric brake", _num(summary["recovered_energy_kwh"], ".2f", " kWh")))
+    rows += energy_rows(summary)
     if summary.get("planned_time_s") is not None:
         rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
@@ -233,8 +232,38 @@ def summary_table(summary: dict, width: int = 80) -> list:
                else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
                      f"the least energy in this running time ({why})"))
+    rows += coupler_rows(summary)
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
+
+
+def energy_rows(summary: dict) -> list[tuple[str, str]]:
+    """The recovered and the net energy of a summary (after its traction energy), and which the objective
+    counted when it is the net energy."""
+    if "recovered_energy_kwh" not in summary:
+        return []
+    rec = summary["recovered_energy_kwh"]
+    net = _num(summary.get("net_energy_kwh"), ".2f", " kWh") + ", traction less recovered"
+    if summary.get("objective") == "net" and summary.get("net_energy_kwh") is not None:
+        net += " (the objective)"
+    return [("recovered energy", _num(rec, ".2f", " kWh") + ("" if rec is None else " by the electric brake")),
+            ("net energy", net)]
+
+
+def coupler_rows(summary: dict) -> list[tuple[str, str]]:
+    """The largest coupler forces of a run (tension, compression) and where, with the consist's limit."""
+    ten, com = summary.get("max_coupler_tension_kn"), summary.get("max_coupler_compression_kn")
+    if ten is None and com is None:
+        return []
+    lim = summary.get("coupler_limit_kn")
+
+    def one(value, at, side):
+        return f"- {side}" if value is None else f"{value:,.0f} kN {side} (at {at:,.0f} m)"
+
+    text = (f"up to {one(ten, summary.get('max_coupler_tension_at_m'), 'tension')}, "
+            f"{one(com, summary.get('max_coupler_compression_at_m'), 'compression')}"
+            + (f"; limit {lim:,.0f} kN" if lim else ""))
+    return [("coupler forces", text)]
 
 
 def sequence_table(runs: list[dict], width: int = 80) -> list:

@@ -89,7 +89,7 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
         if g not in groups:
             groups[g] = EMinTask(g, inputs.routes[inputs.route_of[s.route]],
                                  inputs.trains[inputs.train_of[(s.consist, s.stock_dir)]], s.options,
-                                 s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)))
+                                 s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)), s.objective)
     known = store.refs("e_min") if store is not None else {}
     e_min = {g: known[g][0] for g in groups if g in known}
     todo = [t for g, t in groups.items() if g not in known]

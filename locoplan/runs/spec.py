@@ -62,7 +62,8 @@ class RunSpec:
     to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window
     fails its job whatever the strategy (None: only the timetabled strategies). inputs: further
     strategy inputs as (name, value) pairs (e.g. compare's logs and patterns). tags: labels carried
-    into the record but not into the key (e.g. the study file's time factor '1.1x').
+    into the record but not into the key (e.g. the study file's time factor '1.1x'). objective: what the
+    energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
     """
 
     route: str
@@ -84,6 +85,7 @@ class RunSpec:
     yardstick: bool = False
     inputs: tuple[tuple[str, Any], ...] = ()
     tags: tuple[tuple[str, str], ...] = ()
+    objective: str = "traction"
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -132,6 +134,7 @@ def _check_values(spec: RunSpec) -> None:
     """A spec's numbers inside the bounds a command line's would be held to (``bounds``), so that a bad one
     (a seed past 2**63 - 1 as seed + run, a NaN weight) stops the batch before any run, not at its turn."""
     bounds.seed(spec.seed, "seed")
+    bounds.objective(spec.objective, "objective")
     if spec.time_s is not None:
         bounds.planned_time(spec.time_s, "time_s")
     if spec.tolerance_s is not None:
@@ -213,6 +216,7 @@ def group_key(spec: RunSpec, inputs: Inputs) -> str:
         "what": "e_min", "route": inputs.route_of[spec.route], "train": inputs.train_of[(spec.consist, spec.stock_dir)],
         "options": _options_dict(spec.options), "builder": spec.resolved_builder,
         "params": inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))], "format": RESULTS_FORMAT,
+        **({} if spec.objective == "traction" else {"objective": spec.objective}),
     })
 
 
@@ -221,6 +225,8 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
     d = spec.to_dict()
     for k in ("route", "consist", "stock_dir", "params", "tags", "builder"):
         d.pop(k)
+    if d["objective"] == "traction":  # the default: the keys of runs stored before the field existed
+        d.pop("objective")
     d.update(route=inputs.route_of[spec.route], train=inputs.train_of[(spec.consist, spec.stock_dir)],
              params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
              e_min_group=None if spec.e_min_kwh is not None else group_key(spec, inputs), format=RESULTS_FORMAT)
@@ -326,7 +332,7 @@ def context_for(task: Task):
                        weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params=task.params,
                        need_time=needs_time(spec),
                        tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
-                       yardstick=spec.yardstick, calculators=(base.calc, base.search))
+                       yardstick=spec.yardstick, calculators=(base.calc, base.search), objective=spec.objective)
     dp = base._e_min_cache.get("dp")
     if dp is not None:
         ctx._e_min_cache["dp"] = dp
@@ -378,8 +384,8 @@ def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
     return {"route": ctx.calc.route.name, "consist": ctx.calc.train.name, "strategy": spec.strategy,
             "algorithm": spec.algorithm if named else None,
             "seed": spec.seed if named else None, "feasible": False, "reason": reason,
-            "running_time_s": None, "traction_energy_kwh": None,
-            "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
+            "running_time_s": None, "traction_energy_kwh": None, "recovered_energy_kwh": None, "net_energy_kwh": None,
+            "objective": spec.objective, "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
             "window_s": None, "fitness": None, "weights": None,
             "e_min_kwh": None if ctx.e_min_kwh is None else round(float(ctx.e_min_kwh), 2),
             "solve_time_s": None, "n_evaluations": 0, "plan": None, "switching_points_m": [], "sequence": []}
@@ -396,13 +402,14 @@ class EMinTask:
     builder: str
     params: Any
     """E_min's optimiser parameters (None: its defaults)."""
+    objective: str = "traction"
 
 
 def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
     (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
     ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params=task.params, yardstick=False)
+                       params=task.params, yardstick=False, objective=task.objective)
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:
