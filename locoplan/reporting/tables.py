@@ -224,14 +224,15 @@ def summary_table(summary: dict, width: int = 80) -> list:
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     acc = summary.get("optimum_accuracy_percent")
+    least = "the least net energy" if summary.get("objective") == "net" else "the least energy"
     if summary.get("gap_to_optimum_percent") is not None:
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E* (known to {within_percent(acc)}), "
-                     "the least energy in this running time"))
+                     f"{least} in this running time"))
     elif summary.get("gap_to_optimum_kwh") is not None:
         why = ("too little for a percentage" if acc is not None and acc < 0.5 * GAP_DIGIT_PERCENT
                else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
-                     f"the least energy in this running time ({why})"))
+                     f"{least} in this running time ({why})"))
     rows += coupler_rows(summary)
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
