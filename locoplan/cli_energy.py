@@ -103,9 +103,9 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
     if as_json:
         json_out(data if values is not None else {**data, **rows[0]})
     elif values is None:
-        out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
+        out.print(energy_bound_line(r.name, train.name, rows[0], objective), highlight=False)
     else:
-        show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
+        show(out, fit(energy_curve_table(r.name, train.name, rows, objective), out.width, drop=(3, 2), wrap=(6,)))
     fail_on(api.curve_verdict(rows))
 
 

@@ -304,8 +304,9 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     t9 = Table(title="Table 9: running time and traction energy"
                + ("; at T0: a punctual plan's energy carried to T0 (its gap over E* added to E* at T0)" if at_t0 else
                   ", each at its own running time"), title_justify="left")
-    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]") + (("at T0 [kWh]",) if at_t0 else ()) + (
-        "saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
+    net = any(r.get("objective") == "net" for r in rows)
+    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "recovered [kWh]", "net [kWh]") + (
+        ("at T0 [kWh]",) if at_t0 else ()) + ("saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
     for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
     notes, plans = [], []
@@ -332,13 +333,17 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
         e = s["traction_energy_kwh"]
         name = escape(s["strategy"]) + ("" if s["feasible"] else " [red](infeasible)[/]")
         # the derived columns are the rows' fields (runs.plans.compare_fields), as --json and --out have them
-        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"),
+        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"), _num(s.get("recovered_energy_kwh"), ".2f"),
+                   _num(s.get("net_energy_kwh"), ".2f"),
                    *((_num(s.get("energy_at_t0_kwh"), ".2f"),) if at_t0 else ()), _num(s.get("energy_reduction_percent"), ".1f"),
                    _num(s.get("gap_to_optimum_percent"), "+.2f"), _num(s.get("switches"), "d"), _num(s.get("coasts"), "d"),
                    _num(s["fitness"], ".4f"))
-    k = 1 if at_t0 else 0  # the columns after "energy" move one right when "at T0" is there
-    # left out first at a narrow width: switches, coasts, the saving against the fastest run; the gap to E* stays longest
-    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
+    k = 3 if at_t0 else 2  # the columns after "energy": recovered, net, (at T0)
+    # left out first at a narrow width: the recovered energy, the energy the objective does not count (net
+    # or traction), switches, coasts, the saving against the fastest run; the gap to E* stays longest
+    first = (4, 3) if net else (4, 5)
+    blocks = fit(t8, width, wrap=(0, 2))
+    blocks += fit(t9, width, drop=first + (6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))
         blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))
