@@ -168,3 +168,28 @@ def test_limits_are_validated_with_their_line(tmp_path):
         _train(tmp_path, "coupler_limit_kn: 20\n")
     p = exc.value.problems[0]
     assert p.field == "coupler_limit_kn" and p.line == 6 and "implausible" in p.message
+
+
+def test_the_cheap_bound_is_a_bound():
+    """The calculator computes the coupler forces only where ``CouplerBound`` reaches the limit: on the
+    distributed-power consist over the heavy-haul line, at random forces and speeds in every cell, no
+    coupler force is above it (and it is not loose by orders of magnitude)."""
+    from locoplan.io.load import load_route
+
+    calc = TractionCalculator(load_route("routes/heavy-haul-60km.yaml"), load_train("HXD1x2-C80x100"))
+    rng = np.random.default_rng(7)
+    n = len(calc.h_m)
+    bound = calc.coupler_bound
+    worst = 0.0
+    for _ in range(5):
+        v = rng.uniform(0.0, 100.0, n)
+        f = rng.uniform(0.0, 1.0, n) * np.interp(v, calc.train.traction_speed_kmh, calc.train.traction_kn)
+        b = rng.uniform(0.0, 1.0, n) * np.interp(v, calc.train.brake_speed_kmh, calc.train.brake_kn)
+        f = np.where(rng.uniform(size=n) < 0.5, f, 0.0)
+        b = np.where(f > 0, 0.0, b)
+        c = coupler_forces_kn(calc.vehicle_line, f, b, v, calc.vehicle_gravity_kn, calc.traction_allowed)
+        e = np.minimum(b, np.interp(v, calc.electric_brake_speed_kmh, calc.electric_brake_kn) * calc.traction_allowed)
+        lim = bound.kn(f, e, b - e)
+        assert np.all(np.abs(c).max(axis=1) <= lim + 1e-9)
+        worst = max(worst, float(np.max(np.abs(c).max(axis=1) / lim)))
+    assert worst > 0.3

@@ -129,6 +129,60 @@ def coupler_forces_kn(line: VehicleLine, traction_kn, brake_kn, speed_kmh, gravi
     return np.cumsum(net - a[:, None] * line.inertial_t[None, :], axis=1)[:, :-1]
 
 
+@dataclass(frozen=True)
+class CouplerBound:
+    """A bound on the largest coupler force that costs a few operations per cell instead of one per vehicle.
+
+    C_j is linear in the vehicles' forces: with S_j(x) = sum over i <= j of x_i - (M_j / M) sum of x_i (M_j
+    the inertial mass ahead of coupler j), C_j = F S_j(f) - B_e S_j(e) - B_a S_j(b) - S_j(r(v)) - S_j(g),
+    f, e, b each vehicle's share of the traction, the electric and the air brake, r its resistance and g its
+    gravity force. So |C_j| <= F s_f + B_e s_e + B_a s_b + s_r + s_g(cell), each s the largest |S_j| over the
+    couplers (and over the speeds, for the shares and the resistance). Where the bound is under a limit, no
+    coupler can be over it."""
+
+    traction: float
+    electric: float
+    air: float
+    resistance: float
+    gravity_kn: np.ndarray
+    """(cells,) the largest gravity imbalance in each cell [kN]."""
+
+    def kn(self, traction_kn, electric_kn, air_kn):
+        """The bound [kN] for cell-mean forces (any shape ending in cells)."""
+        return (np.asarray(traction_kn) * self.traction + np.asarray(electric_kn) * self.electric
+                + np.asarray(air_kn) * self.air + (self.resistance + self.gravity_kn))
+
+
+def coupler_bound(line: VehicleLine, gravity_kn: np.ndarray, top_kmh: float, step_kmh: float = 0.5) -> CouplerBound:
+    """The :class:`CouplerBound` of a train whose vehicles feel ``gravity_kn`` (cells, n) in each cell, over the
+    speeds 0 .. ``top_kmh`` (the shares and the resistance taken at every ``step_kmh`` and at each curve's
+    points, where a piecewise-linear share has its extremes)."""
+    m = line.inertial_t
+    ahead = np.cumsum(m)[:-1] / m.sum()
+
+    def imbalance(x: np.ndarray) -> np.ndarray:  # (..., n) -> (...) the largest |S_j| over the couplers
+        return np.max(np.abs(np.cumsum(x, axis=-1)[..., :-1] - ahead * x.sum(axis=-1, keepdims=True)), axis=-1)
+
+    knots = [np.arange(0.0, top_kmh + step_kmh, step_kmh)]
+    for curves in (line.traction, line.electric, line.air):
+        knots += [c[0] for c in curves if c is not None]
+    v = np.unique(np.clip(np.concatenate(knots), 0.0, top_kmh))
+    locos = np.array([c is not None for c in line.traction])[line.group].astype(float)
+
+    def worst(curves, fallback):
+        w = _shares(curves, line.group, v)
+        if w is None:
+            w = np.broadcast_to(fallback, (len(v), len(fallback)))
+        s = w.sum(axis=1, keepdims=True)
+        w = np.where(s > 0, w / np.where(s > 0, s, 1.0), fallback / fallback.sum())
+        return float(imbalance(w).max())
+
+    r = line.resistance_kn
+    resist = r[None, :, 0] + v[:, None] * (r[None, :, 1] + r[None, :, 2] * v[:, None])
+    return CouplerBound(worst(line.traction, locos), worst(line.electric, locos), worst(line.air, line.mass_t),
+                        float(imbalance(resist).max()), imbalance(np.asarray(gravity_kn, dtype=float)))
+
+
 def force_rate_kn_per_s(t_nodes_s, applied_kn) -> np.ndarray:
     """How fast the applied force changes between neighbouring cells [kN/s] (cells - 1,): the change of the
     cell-mean force ``applied_kn`` (cells,) over the time between the two cells' middles (``t_nodes_s``

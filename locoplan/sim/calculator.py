@@ -36,7 +36,8 @@ from ..model.conditions import CODE
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
 from ..physics.braking import full_brake_kn
-from ..physics.couplers import VehicleLine, coupler_forces_kn, force_rate_kn_per_s, vehicle_gravity_kn
+from ..physics.couplers import (CouplerBound, VehicleLine, coupler_bound, coupler_forces_kn, force_rate_kn_per_s,
+                                vehicle_gravity_kn)
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import running_load_kn, train_resistance_kn
@@ -272,6 +273,11 @@ class TractionCalculator:
         """Gravity on every vehicle [kN] (cells, vehicles), the head at each cell's middle."""
         return vehicle_gravity_kn(self.route, self.vehicle_line, 0.5 * (self.s_m[1:] + self.s_m[:-1]))
 
+    @cached_property
+    def coupler_bound(self) -> CouplerBound:
+        """A cheap bound on the largest coupler force in each cell (``physics.couplers.CouplerBound``)."""
+        return coupler_bound(self.vehicle_line, self.vehicle_gravity_kn, float(self.train.max_speed_kmh))
+
     @property
     def checks_forces(self) -> bool:
         """The consist limits its coupler forces or its force rate: every plan is checked against them."""
@@ -295,21 +301,31 @@ class TractionCalculator:
             compression[i, ok] = np.maximum(-c.min(axis=1), 0.0)
         return tension, compression
 
-    def _force_failures(self, t_nodes, trac, brk, tension, compression, ok):
+    def _force_failures(self, t_nodes, v_nodes, trac, brk, ok):
         """Plans (where ``ok``) refused by the consist's limits: (reason code, cell, the force or rate) per plan,
-        code OK where none is broken. The first cell where a limit is broken decides."""
+        code OK where none is broken. The first cell where a limit is broken decides. The coupler forces are
+        computed only for the plans whose cheap bound (``coupler_bound``) reaches the limit somewhere."""
         n, n_cells = trac.shape
         code = np.full(n, OK, dtype=np.int8)
         cell = np.full(n, n_cells, dtype=np.int64)
         value = np.full(n, np.nan)
         lim_c, lim_r = self.train.coupler_limit_kn, self.train.force_rate_limit_kn_per_s
+        suspect = np.zeros(n, dtype=bool)
+        if lim_c is not None and ok.any():
+            v_mid = 0.5 * (v_nodes[:, 1:] + v_nodes[:, :-1])
+            electric = np.minimum(brk, max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn)
+                                  * self.traction_allowed)
+            with np.errstate(invalid="ignore"):
+                suspect = ok & np.any(self.coupler_bound.kn(trac, electric, brk - electric) > lim_c, axis=1)
         for i in np.flatnonzero(ok):
-            if lim_c is not None:
-                over = np.flatnonzero((tension[i] > lim_c) | (compression[i] > lim_c))
+            if suspect[i]:
+                tension, compression = self.coupler_extremes(v_nodes[i:i + 1], trac[i:i + 1], brk[i:i + 1])
+                tension, compression = tension[0], compression[0]
+                over = np.flatnonzero((tension > lim_c) | (compression > lim_c))
                 if over.size:
                     k = int(over[0])
                     code[i], cell[i] = COUPLER_LIMIT, k
-                    value[i] = tension[i, k] if tension[i, k] > lim_c else -compression[i, k]
+                    value[i] = tension[k] if tension[k] > lim_c else -compression[k]
             if lim_r is not None:
                 rate = force_rate_kn_per_s(t_nodes[i], trac[i] - brk[i])
                 over = np.flatnonzero(rate > lim_r)
@@ -469,7 +485,13 @@ class TractionCalculator:
             res = self._run_kernel(conditions, sw, want, cap)
         else:
             res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap)
-        return res if profile or not want else replace(res, profile=None)
+        if not profile:
+            return replace(res, profile=None) if want else res
+        if self.vehicle_line is not None:  # the coupler forces of every cell, for the report
+            p = res.profile
+            tension, compression = self.coupler_extremes(p.v_kmh, p.traction_kn, p.brake_kn)
+            res = replace(res, profile=replace(p, coupler_tension_kn=tension, coupler_compression_kn=compression))
+        return res
 
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
@@ -737,19 +759,15 @@ class TractionCalculator:
                 trac[i, end[i]:] = np.nan
                 brk[i, end[i]:] = np.nan
                 cond[i, end[i]:] = -1
-            tension = compression = None
-            if self.vehicle_line is not None:
-                tension, compression = self.coupler_extremes(v_nodes, trac, brk)
             if self.checks_forces:  # refused by the consist's limits, the run itself kept whole
-                code, k, value = self._force_failures(t_nodes, trac, brk, tension, compression, ~failed)
+                code, k, value = self._force_failures(t_nodes, v_nodes, trac, brk, ~failed)
                 refused = code != OK
                 reason = np.where(refused, code, reason).astype(np.int8)
                 failed = failed | refused
                 cell = np.where(refused, np.minimum(k, last), cell)
                 fail_at = np.where(refused, 0.5 * (self.s_m[cell] + self.s_m[cell + 1]), fail_at)
                 force = value
-            profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event,
-                              tension, compression)
+            profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
             recovered = self.recovered_energy_kwh(v_nodes, brk)
         t = np.where(np.isin(reason, NEVER_ARRIVED), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]
