@@ -193,3 +193,30 @@ def test_the_cheap_bound_is_a_bound():
         assert np.all(np.abs(c).max(axis=1) <= lim + 1e-9)
         worst = max(worst, float(np.max(np.abs(c).max(axis=1) / lim)))
     assert worst > 0.3
+
+
+def test_the_shipped_heavy_haul_train_and_line():
+    """HXD1 x 2 (head and mid-train) + 100 x C80: 10,400 t, 1,270.4 m, found by its catalogue name; on the
+    heavy-haul line (48 km of descent, 30.5 km of it at -12 per mille) the optimised plan is on time and its
+    couplers stay within the consist's 2,250 kN; the mid-train locomotive carries half the traction, so the
+    largest tension at the start is the head's share less its own resistance and what its own mass takes:
+    760 - 2.7468 - 200 x (1520 - A) / 10400 kN (A = the train's resistance at rest, 95.7456 kN; the HXD1's
+    own 1.40 N/kN x 200 t x 9.81 / 1000 = 2.7468 kN) = 729.86 kN."""
+    from locoplan.io.load import load_route
+
+    train = load_train("HXD1x2-C80x100")
+    assert train.mass_t == 10400.0 and train.length_m == pytest.approx(1270.4)
+    assert [g.kind for g in train.layout] == ["locomotive", "wagon", "locomotive", "wagon"]
+    assert train.coupler_limit_kn == 2250.0
+    route = load_route("routes/heavy-haul-60km.yaml")
+    steep = sum(g.to_m - g.from_m for g in route.gradients if g.permille <= -12.0)
+    descent = sum(g.to_m - g.from_m for g in route.gradients if g.permille < 0)
+    assert steep == 30500.0 and descent == 48000.0
+    res = CliRunner().invoke(app, ["optimize", "routes/heavy-haul-60km.yaml", "--consist", "HXD1x2-C80x100", "--json"])
+    assert res.exit_code == 0, res.output
+    d = json.loads(res.output)
+    assert d["feasible"] and d["punctual"]
+    assert d["coupler_limit_kn"] == 2250.0
+    assert train.resistance_kn[0] == pytest.approx(95.7456, abs=1e-9)
+    assert d["max_coupler_tension_kn"] == pytest.approx(760.0 - 2.7468 - 200.0 * (1520.0 - 95.7456) / 10400.0, abs=0.05)
+    assert 0 < d["max_coupler_compression_kn"] < 2250.0
