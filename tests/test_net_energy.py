@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -113,3 +114,28 @@ def test_optimize_with_the_net_objective():
     assert n["net_energy_kwh"] <= tr["net_energy_kwh"] + 0.5
     res = CliRunner().invoke(app, [*args, "--objective", "power"])
     assert res.exit_code == 2 and "--objective" in res.output
+
+
+def test_a_batch_with_the_net_objective(tmp_path):
+    """A study file's ``objective: net`` reaches every run (its records say so and count the net energy in
+    their fitness), keys the runs apart from the traction ones, and leaves the traction runs' keys as they
+    were before the field existed; ``batch --objective`` overrides the file."""
+    from locoplan.runs import RunSpec, run_many
+    from locoplan.runs.spec import load_inputs, spec_key
+    from locoplan.runs.study import load_study
+
+    study = tmp_path / "s.yaml"
+    route = str(Path("routes/freight-20km.yaml").resolve())
+    study.write_text(f"routes: [{route}]\nstrategies: [four-stage]\nobjective: net\n")
+    specs = load_study(study).specs
+    assert [s.objective for s in specs] == ["net"]
+    traction = dataclasses.replace(specs[0], objective="traction")
+    inputs = load_inputs([specs[0], traction])
+    assert spec_key(specs[0], inputs) != spec_key(traction, inputs)
+    assert spec_key(traction, inputs) == spec_key(RunSpec(route, strategy="four-stage"), inputs)
+    rec = run_many(specs).records[0]
+    assert rec.summary["objective"] == "net" and rec.summary["feasible"]
+    assert rec.summary["net_energy_kwh"] < rec.summary["traction_energy_kwh"]
+    out = CliRunner().invoke(app, ["batch", str(study), "--store", str(tmp_path / "s.sqlite"), "--workers", "1",
+                                   "--objective", "traction", "--json"])
+    assert out.exit_code == 0, out.output
