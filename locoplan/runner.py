@@ -163,6 +163,8 @@ def gap_to_optimum(ctx: StrategyContext, res: BatchResult):
         return None
     from .ocp.bound import gap_to_optimum as gap
 
+    if ctx.objective != "traction" and res.recovered_energy_kwh is None:
+        return None
     c = ctx.calc
     return gap(c.route, c.train, c.options, float(res.running_time_s[0]), float(res.energy_kwh(ctx.objective)[0]), calc=c,
                objective=ctx.objective)
@@ -174,12 +176,14 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
     route, train = ctx.calc.route, ctx.calc.train
     t = float(res.running_time_s[0])
     e = float(res.traction_energy_kwh[0])
-    e_obj = float(res.energy_kwh(ctx.objective)[0])  # what the objective counts
+    # what the objective counts (a measured result without the recovered energy has no net energy)
+    e_obj = (e if ctx.objective == "traction" else math.nan if res.recovered_energy_kwh is None
+             else float(res.energy_kwh(ctx.objective)[0]))
     t0 = ctx.t0_s
     prof = res.profile
     e_min = outcome.e_min_kwh or ctx.e_min_kwh or ctx._e_min_cache.get("e")
     fit = None
-    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
+    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0) and not math.isnan(e_obj):
         fit = round(float(fitness_eq10(t, e_obj, t0, e_min, *ctx.weights)), 5)
     tol = ctx.tolerance_s
     gap = gap_to_optimum(ctx, res)

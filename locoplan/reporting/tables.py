@@ -301,10 +301,10 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"))
     at_t0 = any(r.get("energy_at_t0_kwh") is not None for r in rows)
-    t9 = Table(title="Table 9: running time and traction energy"
+    net = any(r.get("objective") == "net" for r in rows)
+    t9 = Table(title=f"Table 9: running time and {'net' if net else 'traction'} energy"
                + ("; at T0: a punctual plan's energy carried to T0 (its gap over E* added to E* at T0)" if at_t0 else
                   ", each at its own running time"), title_justify="left")
-    net = any(r.get("objective") == "net" for r in rows)
     heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "recovered [kWh]", "net [kWh]") + (
         ("at T0 [kWh]",) if at_t0 else ()) + ("saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
     for col in heads:
