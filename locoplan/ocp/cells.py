@@ -71,6 +71,11 @@ class CellEnergyProblem:
     one equality (the cell's work-energy balance) and two inequalities (F and B under their curves) per
     cell, and the running time as the one global inequality."""
 
+    FORCES = ("F", "B")
+    """A cell's forces, in the order of its variables: traction, then braking (keys of the point's physics)."""
+    CAPS = ("Fm", "Bm")
+    """Each force's cap, its inequality (keys of the point's physics)."""
+
     def __init__(self, calc: TractionCalculator, time_s: float, stops_m=(), windows=()):
         """``stops_m``: positions [m] (grid nodes) where the train also stands (a journey's stops);
         ``windows``: ``(position_m, earliest_s, latest_s)`` on the running time at a grid node (either end may
@@ -149,25 +154,29 @@ class CellEnergyProblem:
             return self._last[1]
         calc, tr = self.calc, self.calc.train
         xp = x * self.ref
-        v = xp[0::3]
-        p, q = v[:-1], v[1:]
-        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
-        V = kmh(vm)
-        a, b, c = tr.resistance_kn
+        phys, V = self._speed_terms(xp[0::3])
         ftr = self._rounded(V, tr.traction_speed_kmh, tr.traction_kn)
         fel = self._rounded(V, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
         fair = self._rounded(V, calc.air_brake_speed_kmh, calc.air_brake_kn)
-        phys = {
-            "p": p, "q": q, "F": xp[1::3], "B": xp[2::3], "vm": vm,
-            "R": train_resistance_kn(V, tr.resistance_kn),
-            "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c),  # dR/dvm [kN s/m]
-            "R_vv": KMH_PER_MS ** 2 * 2.0 * c,
+        phys.update({
+            "F": xp[1::3], "B": xp[2::3],
             # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
             "Fm": tuple(f * self.allowed * KMH_PER_MS ** i for i, f in enumerate(ftr)),
             "Bm": tuple(full_brake_kn(e, a_, self.allowed) * KMH_PER_MS ** i for i, (e, a_) in enumerate(zip(fel, fair))),
-        }
+        })
         self._last = (x, phys)
         return phys
+
+    def _speed_terms(self, v: np.ndarray):
+        """The cells' speeds from the node speeds ``v`` [m/s]: (``p``, ``q`` at the two nodes, the mean ``vm``,
+        the resistance ``R`` there with dR/dvm ``R_v`` [kN s/m] and ``R_vv``), and vm in km/h."""
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
+        V = kmh(vm)
+        tr = self.calc.train
+        _, b, c = tr.resistance_kn
+        return {"p": p, "q": q, "vm": vm, "R": train_resistance_kn(V, tr.resistance_kn),
+                "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c), "R_vv": KMH_PER_MS ** 2 * 2.0 * c}, V
 
     @staticmethod
     def _rounded(V, xs, ys):
@@ -184,36 +193,49 @@ class CellEnergyProblem:
             P["vm_d"] = (p * i2, q * i2, i2 - p * p * i4, -p * q * i4, i2 - q * q * i4)
         return P["vm_d"]
 
+    def cost(self) -> tuple[float, ...]:
+        """The objective's weight on each force of :data:`FORCES` (the traction work: 1 on F)."""
+        return (1.0, 0.0)
+
     def values(self, x: np.ndarray) -> CellValues:
         P = self._physics(x)
         p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
-        e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["B"] - P["R"] - self.G)) / (h * fr)
-        g = np.where(self.active, np.stack([(P["F"] - P["Fm"][0]) / fr, (P["B"] - P["Bm"][0]) / fr], axis=1), -1.0)
+        net = P[self.FORCES[0]]
+        for f in self.FORCES[1:]:  # traction less every brake
+            net = net - P[f]
+        e = (0.5 * self.M * (q * q - p * p) - h * (net - P["R"] - self.G)) / (h * fr)
+        g = np.where(self.active, np.stack([(P[f] - P[cap][0]) / fr for f, cap in zip(self.FORCES, self.CAPS)], axis=1),
+                     -1.0)
         c = (np.einsum("jk,k->j", self.cmask, 2 * h / np.maximum(p + q, V_FLOOR_MS)) + self.cconst) / self.t_ref
-        return CellValues(float(np.sum(h * P["F"])) / KJ_PER_KWH / self.e_ref, e, g, c)
+        work = sum(w * P[f] for f, w in zip(self.FORCES, self.cost()) if w)
+        return CellValues(float(np.sum(h * work)) / KJ_PER_KWH / self.e_ref, e, g, c)
 
     def derivatives(self, x: np.ndarray) -> CellDerivatives:
-        """Gradients on each cell's variables (v_k, F_k, B_k, v_k+1), in the scaled variables."""
+        """Gradients on each cell's variables (v_k, its forces, v_k+1), in the scaled variables."""
         P = self._physics(x)
         vm_p, vm_q, *_ = self._vm_derivatives(P)
         N, h, M, fr = self.N, self.h, self.M, self.f_ref
+        n = self.local.shape[1]
         rl = self.ref[self.local]
-        ge = np.empty((N, 4))
+        ge = np.empty((N, n))
         ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
-        ge[:, 1] = -1.0 / fr
-        ge[:, 2] = 1.0 / fr
-        ge[:, 3] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
-        gg = np.zeros((N, 2, 4))
-        for j, (col, cap) in enumerate(((1, P["Fm"]), (2, P["Bm"]))):
+        ge[:, 1] = -1.0 / fr  # traction
+        ge[:, 2:n - 1] = 1.0 / fr  # the brakes
+        ge[:, n - 1] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
+        gg = np.zeros((N, len(self.CAPS), n))
+        for j, key in enumerate(self.CAPS):  # force j under its cap
+            cap = P[key]
             gg[:, j, 0] = -cap[1] * vm_p / fr
-            gg[:, j, 3] = -cap[1] * vm_q / fr
-            gg[:, j, col] = 1.0 / fr
+            gg[:, j, n - 1] = -cap[1] * vm_q / fr
+            gg[:, j, j + 1] = 1.0 / fr
         gg[~self.active] = 0.0
         dtau = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
-        gc = np.zeros((len(self.cmask), N, 4))
-        gc[:, :, 0] = gc[:, :, 3] = self.cmask * dtau
-        gf = np.zeros((N, 4))
-        gf[:, 1] = h / KJ_PER_KWH / self.e_ref
+        gc = np.zeros((len(self.cmask), N, n))
+        gc[:, :, 0] = gc[:, :, n - 1] = self.cmask * dtau
+        gf = np.zeros((N, n))
+        for j, w in enumerate(self.cost()):
+            if w:
+                gf[:, j + 1] = w * h / KJ_PER_KWH / self.e_ref
         return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
 
     def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
@@ -227,27 +249,35 @@ class CellEnergyProblem:
         e_qq = (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
         e_pq = (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
         pp, pq_, qq = y * e_pp, y * e_pq, y * e_qq
-        for j, cap in enumerate((P["Fm"], P["Bm"])):  # - cap(vm) in each inequality
+        for j, key in enumerate(self.CAPS):  # - cap(vm) in each inequality
+            cap = P[key]
             w = np.where(self.active[:, j], z[:, j], 0.0) / fr
             pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
             qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
             pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
         d2 = np.einsum("j,jk->k", zc, self.cmask) * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref  # the times
-        out = np.zeros((self.N, 4, 4))
+        n = self.local.shape[1]  # the cell's variables: its two speeds first and last
+        out = np.zeros((self.N, n, n))
         vr2 = self.v_ref ** 2
         out[:, 0, 0] = (pp + d2) * vr2
-        out[:, 3, 3] = (qq + d2) * vr2
-        out[:, 0, 3] = out[:, 3, 0] = (pq_ + d2) * vr2
+        out[:, n - 1, n - 1] = (qq + d2) * vr2
+        out[:, 0, n - 1] = out[:, n - 1, 0] = (pq_ + d2) * vr2
         return out
 
     # ------------------------------------------------------------------ start and results
-    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
-        """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
+    def _needed_kn(self, v_nodes_ms: np.ndarray):
+        """(node speeds [m/s] under the envelope and at rest at both ends, the cells' mean speeds [m/s], the net
+        force each cell needs for them [kN])."""
         v = np.clip(v_nodes_ms, 0.0, self.v_cap)
         v[0] = v[-1] = 0.0
         p, q = v[:-1], v[1:]
         vm = np.sqrt(0.5 * (p * p + q * q))
         u = 0.5 * self.M * (q * q - p * p) / self.h + train_resistance_kn(kmh(vm), self.calc.train.resistance_kn) + self.G
+        return v, vm, u
+
+    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
+        """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
+        v, _, u = self._needed_kn(v_nodes_ms)
         F = np.clip(u, 0.0, None) * (self.allowed > 0)
         B = np.clip(-u, 0.0, None) * self.can_brake
         x = np.empty(3 * self.N + 1)
@@ -274,7 +304,8 @@ class NetCellEnergyProblem(CellEnergyProblem):
     optimum of the train model with the credit; for a train that regenerates nothing it is the traction E*.
     """
 
-    STRIDE = 4
+    FORCES = ("F", "E", "A")
+    CAPS = ("Fm", "Em", "Am")
 
     def __init__(self, calc: TractionCalculator, time_s: float, regen: float):
         super().__init__(calc, time_s)
@@ -313,84 +344,22 @@ class NetCellEnergyProblem(CellEnergyProblem):
             return self._last[1]
         calc, tr = self.calc, self.calc.train
         xp = x * self.ref
-        v = xp[0::4]
-        p, q = v[:-1], v[1:]
-        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
-        V = kmh(vm)
-        _, b, c = tr.resistance_kn
+        phys, V = self._speed_terms(xp[0::4])
+        phys.update({"F": xp[1::4], "E": xp[2::4], "A": xp[3::4]})
         curves = {"Fm": (tr.traction_speed_kmh, tr.traction_kn, self.allowed),
                   "Em": (calc.electric_brake_speed_kmh, calc.electric_brake_kn, self.allowed),
                   "Am": (calc.air_brake_speed_kmh, calc.air_brake_kn, 1.0)}
-        phys = {"p": p, "q": q, "F": xp[1::4], "E": xp[2::4], "A": xp[3::4], "vm": vm,
-                "R": train_resistance_kn(V, tr.resistance_kn),
-                "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c),
-                "R_vv": KMH_PER_MS ** 2 * 2.0 * c}
         for key, (xs, ys, on) in curves.items():  # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
             phys[key] = tuple(f * on * KMH_PER_MS ** i for i, f in enumerate(self._rounded(V, xs, ys)))
         self._last = (x, phys)
         return phys
 
-    def values(self, x: np.ndarray) -> CellValues:
-        P = self._physics(x)
-        p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
-        e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["E"] - P["A"] - P["R"] - self.G)) / (h * fr)
-        g = np.where(self.active, np.stack([(P[u] - P[cap][0]) / fr for u, cap in (("F", "Fm"), ("E", "Em"), ("A", "Am"))],
-                                           axis=1), -1.0)
-        c = (np.einsum("jk,k->j", self.cmask, 2 * h / np.maximum(p + q, V_FLOOR_MS)) + self.cconst) / self.t_ref
-        return CellValues(float(np.sum(h * (P["F"] - self.regen * P["E"]))) / KJ_PER_KWH / self.e_ref, e, g, c)
-
-    def derivatives(self, x: np.ndarray) -> CellDerivatives:
-        P = self._physics(x)
-        vm_p, vm_q, *_ = self._vm_derivatives(P)
-        N, h, M, fr = self.N, self.h, self.M, self.f_ref
-        rl = self.ref[self.local]
-        ge = np.empty((N, 5))
-        ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
-        ge[:, 1] = -1.0 / fr
-        ge[:, 2] = ge[:, 3] = 1.0 / fr
-        ge[:, 4] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
-        gg = np.zeros((N, 3, 5))
-        for j, cap in enumerate((P["Fm"], P["Em"], P["Am"])):
-            gg[:, j, 0] = -cap[1] * vm_p / fr
-            gg[:, j, 4] = -cap[1] * vm_q / fr
-            gg[:, j, j + 1] = 1.0 / fr
-        gg[~self.active] = 0.0
-        dtau = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
-        gc = np.zeros((len(self.cmask), N, 5))
-        gc[:, :, 0] = gc[:, :, 4] = self.cmask * dtau
-        gf = np.zeros((N, 5))
-        gf[:, 1] = h / KJ_PER_KWH / self.e_ref
-        gf[:, 2] = -self.regen * h / KJ_PER_KWH / self.e_ref
-        return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
-
-    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
-        P = self._physics(x)
-        vm_p, vm_q, vm_pp, vm_pq, vm_qq = self._vm_derivatives(P)
-        h, M, fr = self.h, self.M, self.f_ref
-        R_v, R_vv = P["R_v"], P["R_vv"]
-        pp = y * (-M + h * (R_vv * vm_p ** 2 + R_v * vm_pp)) / (h * fr)
-        qq = y * (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
-        pq_ = y * (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
-        for j, cap in enumerate((P["Fm"], P["Em"], P["Am"])):
-            w = np.where(self.active[:, j], z[:, j], 0.0) / fr
-            pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
-            qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
-            pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
-        d2 = np.einsum("j,jk->k", zc, self.cmask) * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref
-        out = np.zeros((self.N, 5, 5))
-        vr2 = self.v_ref ** 2
-        out[:, 0, 0] = (pp + d2) * vr2
-        out[:, 4, 4] = (qq + d2) * vr2
-        out[:, 0, 4] = out[:, 4, 0] = (pq_ + d2) * vr2
-        return out
+    def cost(self) -> tuple[float, ...]:
+        return (1.0, -self.regen, 0.0)
 
     def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
         """A scaled start from node speeds [m/s]: each cell's force, braking electric first."""
-        v = np.clip(v_nodes_ms, 0.0, self.v_cap)
-        v[0] = v[-1] = 0.0
-        p, q = v[:-1], v[1:]
-        vm = np.sqrt(0.5 * (p * p + q * q))
-        u = 0.5 * self.M * (q * q - p * p) / self.h + train_resistance_kn(kmh(vm), self.calc.train.resistance_kn) + self.G
+        v, vm, u = self._needed_kn(v_nodes_ms)
         brake = np.clip(-u, 0.0, None)
         e_max = max_force_kn(kmh(vm), self.calc.electric_brake_speed_kmh, self.calc.electric_brake_kn) * self.electric_ok
         x = np.empty(4 * self.N + 1)
