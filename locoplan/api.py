@@ -366,13 +366,22 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
     its electric brake recovers. On a ``curve`` a time whose optimum fails is its row with a ``reason``; a
     single time raises. ``check``: each E* also by the second, independent method (``ocp.bound.check_bound``:
     multi-phase Radau collocation, ``mesh_tol`` and ``max_degree`` its settings) and the two's difference."""
-    from .ocp.bound import check_bound, energy_bound
+    from .ocp.bound import check_bound, energy_bound, energy_bounds
+
     bounds.objective(objective)
     rows = []
+    if curve:
+        step(f"E* at {len(times_s)} running times")
+        curve_bounds = dict(zip(times_s, energy_bounds(route, train, options, times_s, objective=objective)))
     for t in times_s:
         step(f"E* at {t:g} s")
         try:
-            b = energy_bound(route, train, options, t, objective=objective)
+            if curve:
+                b = curve_bounds[t]
+                if isinstance(b, LocoplanError):
+                    raise b
+            else:
+                b = energy_bound(route, train, options, t, objective=objective)
             acc = b.accuracy_percent
 
             def kwh(x):

@@ -100,7 +100,7 @@ def test_nested_grids_converge_so_that_their_difference_bounds_the_error(small, 
     points are graded): then the finer grid's error is at most the two grids' difference, the accuracy
     E* states."""
     route, train = small
-    e = solve_estar(route, train, options, T_SMALL, tol=1e-12, coarse_step_m=40.0, finest_step_m=10.0)
+    e = solve_estar(route, train, options, T_SMALL, tol=1e-12, first_step_m=40.0, finest_step_m=10.0)
     e40, e20, e10 = e.energies_kwh
     assert abs(e40 - e20) / abs(e20 - e10) > 2.0
     assert e.steps_m == (40.0, 20.0, 10.0) and e.cells[1] >= 2 * e.cells[0] and e.cells[2] >= 2 * e.cells[1]
@@ -121,3 +121,34 @@ def test_e_star_is_below_what_the_calculator_drives_in_the_same_time(small):
                 continue
             b = energy_bound(route, train, ModelOptions(), float(res.running_time_s[0]))
             assert res.traction_energy_kwh[0] >= b.energy_kwh * (1 - 5e-4)
+
+
+@pytest.mark.parametrize("options", MODELS, ids=IDS)
+def test_a_curve_on_one_mesh_agrees_with_each_time_solved_alone_within_its_stated_accuracy(small, options, tmp_path,
+                                                                                          monkeypatch):
+    """``energy_bounds`` solves the times between the curve's ends once each, on the finer end's mesh: every
+    point lies within its stated accuracy (plus the single solve's own) of E* solved alone at that time, the
+    curve falls as the time grows, and each point's slope (the time's multiplier) lies between its chords."""
+    from locoplan.ocp import bound as B
+
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(B, "_BOUNDS", {})
+    monkeypatch.setattr(B, "_WARM", {})
+    route, train = small
+    t0 = round(1.08 * TractionCalculator(route, train, options).fastest_time_s)
+    times = [t0, t0 + 10.0, t0 + 20.0, t0 + 30.0, t0 + 40.0, t0 + 60.0]
+    curve = B.energy_bounds(route, train, options, times)
+    assert [b.method for b in curve] == [B.METHOD] + [B.CURVE_METHOD] * 4 + [B.METHOD]
+    assert all(b.converged and b.accuracy <= B.CURVE_TOL for b in curve)
+    assert len({b.cells for b in curve[1:-1]}) == 1 and curve[1].cells == max(curve[0].cells, curve[-1].cells)
+    energies = np.array([b.energy_kwh for b in curve])
+    assert np.all(np.diff(energies) < 0)
+    monkeypatch.setattr(B, "_BOUNDS", {})
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path / "alone"))
+    for b in curve:
+        alone = B.energy_bound(route, train, options, b.time_s)
+        assert abs(b.energy_kwh - alone.energy_kwh) <= (b.accuracy + alone.accuracy) * abs(alone.energy_kwh) + 1e-9
+    for k in (1, 2, 3):  # E*(T) is convex: each point's multiplier lies between the chords on either side
+        left = (energies[k] - energies[k - 1]) / (times[k] - times[k - 1])
+        right = (energies[k + 1] - energies[k]) / (times[k + 1] - times[k])
+        assert left - 1e-3 <= curve[k].slope_kwh_per_s <= right + 1e-3

@@ -163,13 +163,9 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     base = _base_key(route, train, options)
     if regen > 0:  # (the traction problem keeps its keys)
         base = (base, "net", regen)
-    key = (base, round(time_s, 2), METHOD, E_STAR_TOL)
-    if key not in _BOUNDS:
-        cached = _cache_read(key)
-        if cached is not None:
-            _BOUNDS[key] = cached
-    if key in _BOUNDS:
-        return replace(_BOUNDS[key], solve_time_s=0.0)
+    known = _known(base, time_s, E_STAR_TOL)
+    if known is not None:
+        return known
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
     from .cells import solve_estar
@@ -197,6 +193,114 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
         _WARM[base] = es.solution
         b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
                   es.slope_kwh_per_s, METHOD, objective, es.solution.traction_kwh, es.solution.recovered_kwh)
+    return _remember(base, time_s, E_STAR_TOL, METHOD, b)
+
+
+CURVE_TOL = 1e-4
+"""The tolerance of an energy-time curve (``energy_bounds``): E* at each time known to 0.01 %. A single E*
+(``energy_bound``) is held to ``E_STAR_TOL``, the finer digit a plan's gap needs."""
+CURVE_METHOD = "cells, curve mesh"
+CURVE_MIN_TIMES = 4
+"""Fewer times than this are each solved on their own (``energy_bound``)."""
+
+
+def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: list[float], *,
+                  calc: TractionCalculator | None = None, objective: str = "traction") -> list["Bound | LocoplanError"]:
+    """E* at each of ``times_s`` (an energy-time curve), one mesh for all: the longest time (the least E*) is
+    solved on successively halved grids to ``CURVE_TOL`` as ``energy_bound`` does, the shortest until its
+    error in kWh is as small against the longest time's E*; every time between is solved once, on the finer
+    of the two final grids, started from its neighbour's solution. Their stated accuracy is the mesh's: the
+    larger of the two ends' errors in kWh, relative to each time's own E* (at most ``CURVE_TOL``, E* falling
+    with the time). A time without an optimum is its ``LocoplanError``; a time already solved alone is
+    taken from there. ``objective``: as :func:`energy_bound`'s."""
+    from .cells import WARM_MU, cell_problem, solve_cells, solve_estar, warm_point
+    from .train_energy import check_runnable
+
+    options = options or ModelOptions()
+    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
+    regen = net_regen(train, objective)
+    base = _base_key(route, train, options)
+    if regen > 0:
+        base = (base, "net", regen)
+
+    def alone(t: float):  # E* at one time on its own nested grids
+        try:
+            return energy_bound(route, train, options, t, calc=calc, objective=objective)
+        except LocoplanError as exc:
+            return exc
+
+    def bound(t, e, converged, cells, step_m, solve_s, acc, slope, method, sol) -> Bound:
+        return Bound(t, e, converged, cells, step_m, solve_s, acc, slope, method, objective, sol.traction_kwh,
+                     sol.recovered_kwh)
+
+    out: dict[float, Bound | LocoplanError] = {}
+    todo = []
+    for t in dict.fromkeys(float(x) for x in times_s):
+        known = _known(base, t, E_STAR_TOL) or _known(base, t, CURVE_TOL, CURVE_METHOD)
+        if known is not None:
+            out[t] = known
+            continue
+        try:
+            check_runnable(calc, t)
+        except LocoplanError as exc:
+            out[t] = exc
+            continue
+        todo.append(t)
+    todo.sort()
+    if len(todo) < CURVE_MIN_TIMES:
+        for t in todo:
+            out[t] = alone(t)
+        return [out[float(t)] for t in times_s]
+    floor = percent_floor_kwh(route, train)
+    try:  # the longest time has the least E*: the other end's error in kWh must be as small against it
+        hi = solve_estar(route, train, options, todo[-1], tol=CURVE_TOL, floor_kwh=floor, regen=regen)
+        lo = solve_estar(route, train, options, todo[0], tol=CURVE_TOL, floor_kwh=floor,
+                         scale_kwh=max(abs(hi.energy_kwh), floor), regen=regen)
+        ends = [lo, hi]
+    except InfeasibleError:  # an end without an optimum on the grids: every time on its own
+        ends = None
+    if ends is None:
+        for t in todo:
+            out[t] = alone(t)
+        return [out[float(t)] for t in times_s]
+    error_kwh = max(e.accuracy * max(abs(e.energy_kwh), floor) for e in ends)
+    mesh = min(ends, key=lambda e: e.steps_m[-1])
+    for t, e in zip((todo[0], todo[-1]), ends):
+        out[t] = _remember(base, t, CURVE_TOL, CURVE_METHOD,
+                           bound(t, e.energy_kwh, e.converged, e.cells[-1], e.steps_m[-1], e.solve_time_s, e.accuracy,
+                                 e.slope_kwh_per_s, METHOD, e.solution))
+    prev = mesh.solution
+    for t in todo[1:-1]:
+        try:
+            try:
+                sol = solve_cells(mesh.calc, t, mu_init=WARM_MU, point=warm_point(cell_problem(mesh.calc, t, regen), prev)[0],
+                                  regen=regen)
+            except InfeasibleError:
+                sol = solve_cells(mesh.calc, t, regen=regen)
+        except InfeasibleError:
+            out[t] = alone(t)
+            continue
+        prev = sol
+        acc = error_kwh / max(abs(sol.energy_kwh), floor, 1e-9)
+        out[t] = _remember(base, t, CURVE_TOL, CURVE_METHOD,
+                           bound(t, sol.energy_kwh, acc <= CURVE_TOL, len(mesh.calc.h_m), mesh.steps_m[-1],
+                                 sol.solve_time_s, acc, sol.slope_kwh_per_s, CURVE_METHOD, sol))
+    return [out[float(t)] for t in times_s]
+
+
+def _known(base: tuple, time_s: float, tol: float, method: str = METHOD) -> "Bound | None":
+    """E* at ``time_s`` solved before (this process, or the disk cache), or None."""
+    key = (base, round(time_s, 2), method, tol)
+    if key not in _BOUNDS:
+        cached = _cache_read(key)
+        if cached is None:
+            return None
+        _BOUNDS[key] = cached
+    return replace(_BOUNDS[key], solve_time_s=0.0)
+
+
+def _remember(base: tuple, time_s: float, tol: float, method: str, b: "Bound") -> "Bound":
+    key = (base, round(time_s, 2), method, tol)
     _BOUNDS[key] = b
     _cache_write(key, b)
     return b

@@ -40,7 +40,7 @@ from ..errors import InfeasibleError
 from ..physics.braking import full_brake_kn
 from ..physics.energy import recovered_energy_kwh
 from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
-from ..physics.traction import max_force_kn, max_force_rounded_kn
+from ..physics.traction import max_force_kn, rounded_force_curve
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
@@ -124,9 +124,11 @@ class CellEnergyProblem:
         pos_x[2::3] = 4 * k + 2
         self.pos_x = pos_x
         self.pos_y = 4 * k + 3
+        self._rl = ref[self.local]  # each cell's variables' scales
         # which inequalities are real: F <= Fmax where traction is allowed, B <= Bmax where there is a brake
         self.active = np.column_stack([powered, self.can_brake])
         self._last = None
+        self._curves = None
         # the global inequalities: (sum over cells of cmask * tau + const) / t_ref <= 0
         rows, const = [np.ones(N)], [-self.time_s]
         for s_w, lo, hi in windows:
@@ -155,9 +157,7 @@ class CellEnergyProblem:
         calc, tr = self.calc, self.calc.train
         xp = x * self.ref
         phys, V = self._speed_terms(xp[0::3])
-        ftr = self._rounded(V, tr.traction_speed_kmh, tr.traction_kn)
-        fel = self._rounded(V, calc.electric_brake_speed_kmh, calc.electric_brake_kn)
-        fair = self._rounded(V, calc.air_brake_speed_kmh, calc.air_brake_kn)
+        ftr, fel, fair = (curve(V) for curve in self._force_curves())
         phys.update({
             "F": xp[1::3], "B": xp[2::3],
             # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
@@ -178,11 +178,20 @@ class CellEnergyProblem:
         return {"p": p, "q": q, "vm": vm, "R": train_resistance_kn(V, tr.resistance_kn),
                 "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c), "R_vv": KMH_PER_MS ** 2 * 2.0 * c}, V
 
+    def _force_curves(self):
+        """The traction, electric-brake and air-brake curves, rounded (``_rounded``), made once."""
+        if self._curves is None:
+            calc, tr = self.calc, self.calc.train
+            self._curves = tuple(self._rounded(xs, ys) for xs, ys in (
+                (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
+                (calc.air_brake_speed_kmh, calc.air_brake_kn)))
+        return self._curves
+
     @staticmethod
-    def _rounded(V, xs, ys):
+    def _rounded(xs, ys):
         xs = np.asarray(xs, dtype=float)
         width = min(ROUNDING_KMH, 0.5 * float(np.min(np.diff(xs)))) if xs.size > 1 else ROUNDING_KMH
-        return max_force_rounded_kn(V, xs, ys, width)
+        return rounded_force_curve(xs, ys, width)
 
     @staticmethod
     def _vm_derivatives(P):
@@ -216,7 +225,7 @@ class CellEnergyProblem:
         vm_p, vm_q, *_ = self._vm_derivatives(P)
         N, h, M, fr = self.N, self.h, self.M, self.f_ref
         n = self.local.shape[1]
-        rl = self.ref[self.local]
+        rl = self._rl
         ge = np.empty((N, n))
         ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
         ge[:, 1] = -1.0 / fr  # traction
@@ -336,21 +345,19 @@ class NetCellEnergyProblem(CellEnergyProblem):
         pos_x[3::4] = 5 * k + 3
         self.pos_x = pos_x
         self.pos_y = 5 * k + 4
+        self._rl = ref[self.local]
         self.active = np.column_stack([powered, self.electric_ok, self.air_ok])
         self._last = None
 
     def _physics(self, x: np.ndarray):
         if self._last is not None and self._last[0] is x:
             return self._last[1]
-        calc, tr = self.calc, self.calc.train
         xp = x * self.ref
         phys, V = self._speed_terms(xp[0::4])
         phys.update({"F": xp[1::4], "E": xp[2::4], "A": xp[3::4]})
-        curves = {"Fm": (tr.traction_speed_kmh, tr.traction_kn, self.allowed),
-                  "Em": (calc.electric_brake_speed_kmh, calc.electric_brake_kn, self.allowed),
-                  "Am": (calc.air_brake_speed_kmh, calc.air_brake_kn, 1.0)}
-        for key, (xs, ys, on) in curves.items():  # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
-            phys[key] = tuple(f * on * KMH_PER_MS ** i for i, f in enumerate(self._rounded(V, xs, ys)))
+        # the caps, d/dvm and d2/dvm2 (the curves are in km/h); traction and the electric brake need the catenary
+        for key, curve, on in zip(self.CAPS, self._force_curves(), (self.allowed, self.allowed, 1.0)):
+            phys[key] = tuple(f * on * KMH_PER_MS ** i for i, f in enumerate(curve(V)))
         self._last = (x, phys)
         return phys
 
@@ -396,6 +403,8 @@ class CellSolution:
     solve_time_s: float
     traction_kwh: float = math.nan
     recovered_kwh: float = math.nan
+    electric_kn: np.ndarray | None = None
+    """The net problem's electric part of ``brake_kn`` (None for the traction problem's solution)."""
     """The optimum's traction work and the energy its electric brake returns [kWh] (the train's
     ``regen_efficiency`` x its electric braking work, the electric brake taking its share first): the
     objective is the first (traction E*) or their difference (net E*)."""
@@ -431,17 +440,22 @@ def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
 
 
 def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | None = None,
-                settings: IPMSettings | None = None, mu_init: float | None = None, regen: float = 0.0) -> CellSolution:
+                settings: IPMSettings | None = None, mu_init: float | None = None,
+                point: np.ndarray | None = None, regen: float = 0.0) -> CellSolution:
     """E* on ``calc``'s cells in ``time_s`` [s]; ``start``: node speeds [m/s] to start from (default
-    :func:`initial_speeds`), ``mu_init`` the barrier parameter to start with; ``regen`` > 0: the least net
-    energy with that share of the electric brake's work credited (:class:`NetCellEnergyProblem`), else the
-    least traction work. Raises ``InfeasibleError`` when the solver does not converge."""
+    :func:`initial_speeds`), or ``point`` a whole scaled start (speeds and forces, :func:`warm_point`);
+    ``mu_init`` the barrier parameter to start with; ``regen`` > 0: the least net energy with that share of
+    the electric brake's work credited (:class:`NetCellEnergyProblem`), else the least traction work. Raises
+    ``InfeasibleError`` when the solver does not converge."""
     t0 = _time.perf_counter()
-    prob = NetCellEnergyProblem(calc, time_s, regen) if regen > 0 else CellEnergyProblem(calc, time_s)
-    v0 = initial_speeds(calc, time_s) if start is None else start
-    x0 = prob.start_from_profile(v0)
+    prob = cell_problem(calc, time_s, regen)
+    if point is not None:
+        x0 = point
+    else:
+        x0 = prob.start_from_profile(initial_speeds(calc, time_s) if start is None else start)
     if settings is None:  # near an optimum (a start from a solution): the adaptive barrier rule
-        settings = IPMSettings(mu_strategy="monotone" if start is None else "adaptive")
+        near = start is not None or point is not None
+        settings = IPMSettings(mu_strategy="adaptive" if near else "monotone", max_iter=MAX_ITER)
     res = CellIPM(prob, settings).solve(x0, mu_init=mu_init)
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
@@ -454,11 +468,17 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
         brake, recovered = electric + air, prob.regen * float(np.sum(calc.h_m * electric)) / KJ_PER_KWH
     else:
         x = res.x * prob.ref
-        f, brake = x[1::3], x[2::3]
+        f, brake, electric = x[1::3], x[2::3], None
         e_max = max_force_kn(vm_kmh, calc.electric_brake_speed_kmh, calc.electric_brake_kn) * calc.traction_allowed
         recovered = float(recovered_energy_kwh(calc.s_m, brake, e_max, calc.train.regen_efficiency))
     return CellSolution(prob.energy_kwh(res.x), calc.s_m, v, f, brake, slope, res, _time.perf_counter() - t0,
-                        float(np.sum(calc.h_m * f)) / KJ_PER_KWH, recovered)
+                        float(np.sum(calc.h_m * f)) / KJ_PER_KWH, recovered, electric)
+
+
+def cell_problem(calc: TractionCalculator, time_s: float, regen: float = 0.0) -> CellEnergyProblem:
+    """The minimum-energy problem on ``calc``'s cells: of the net energy with ``regen`` > 0
+    (:class:`NetCellEnergyProblem`), else of the traction work."""
+    return NetCellEnergyProblem(calc, time_s, regen) if regen > 0 else CellEnergyProblem(calc, time_s)
 
 
 def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -470,10 +490,24 @@ def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, 
     old = sol.s_m
     k = np.clip(np.searchsorted(old, mid) - 1, 0, len(old) - 2)
     v = np.interp(s_new, old, sol.v_ms)
-    x = np.empty(3 * prob.N + 1)
-    x[0::3] = v
-    x[1::3] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
-    x[2::3] = np.where(prob.can_brake, sol.brake_kn[k], 0.0)
+    if isinstance(prob, NetCellEnergyProblem):  # the braking split: the old one's, or electric first
+        x = np.empty(4 * prob.N + 1)
+        x[0::4] = v
+        x[1::4] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
+        brake = sol.brake_kn[k]
+        if sol.electric_kn is not None:
+            electric = sol.electric_kn[k]
+        else:
+            v_mid = kmh(np.sqrt(0.5 * (v[1:] ** 2 + v[:-1] ** 2)))
+            electric = np.minimum(brake, max_force_kn(v_mid, prob.calc.electric_brake_speed_kmh,
+                                                      prob.calc.electric_brake_kn))
+        x[2::4] = np.where(prob.electric_ok, electric, 0.0)
+        x[3::4] = np.where(prob.air_ok, brake - electric, 0.0)
+    else:
+        x = np.empty(3 * prob.N + 1)
+        x[0::3] = v
+        x[1::3] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
+        x[2::3] = np.where(prob.can_brake, sol.brake_kn[k], 0.0)
     h_old = np.diff(old)
     r = sol.result
     hm_old = float(np.mean(h_old))
@@ -485,8 +519,16 @@ def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, 
     return x / prob.ref, y, z, r.zc
 
 
+MAX_ITER = 150
+"""A solve that has not converged in this many iterations is given up (they converge in 25-80; one that
+ran on to 300 was a warm start that had lost its way, and a cold start then took 40)."""
 COARSE_STEP_M = 40.0
-"""The first grid's cell length [m]; the second has half of it."""
+"""The first grid's longest cell length [m]; the second has half of it."""
+COARSE_MIN_CELLS = 400
+"""The first grid solved has at least this many cells (or is the last but one before ``FINEST_STEP_M``): on
+a short route the coarser grids of the nest are built but not solved. Every grid costs the solver about
+the same number of iterations, and on grids of a few dozen cells those were spent on grids far too
+coarse for the tolerance (a 2 km leg needed 40, 20, 10 and 5 m)."""
 FINEST_STEP_M = 5.0
 """Grids are halved until two agree to the tolerance or the cells reach this length."""
 WARM_MU = 1e-3
@@ -524,30 +566,42 @@ class EStar:
     iterations: tuple
     solve_time_s: float
     solution: CellSolution
+    calc: TractionCalculator | None = None
+    """The finest grid's calculator (the mesh a curve of running times is solved on)."""
 
 
 def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
-                warm: CellSolution | None = None, coarse_step_m: float = COARSE_STEP_M,
-                finest_step_m: float = FINEST_STEP_M, regen: float = 0.0) -> EStar:
-    """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``coarse_step_m`` grid, then on
+                warm: CellSolution | None = None, first_step_m: float | None = None,
+                finest_step_m: float = FINEST_STEP_M, scale_kwh: float | None = None, regen: float = 0.0) -> EStar:
+    """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``first_step_m`` grid (default
+    ``COARSE_STEP_M``, halved while it has fewer than ``COARSE_MIN_CELLS`` cells), then on
     grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
-    ``max(E*, floor_kwh)``) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring
-    time to start the first grid from. ``regen`` > 0: the least net energy (:func:`solve_cells`)."""
+    ``max(E*, floor_kwh)``, or to ``scale_kwh`` where given: an error in kWh that must be small against
+    another E*) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring time to start
+    the first grid from. The accuracy returned is relative to ``max(E*, floor_kwh)`` in either case.
+    ``regen`` > 0: the least net energy (:func:`solve_cells`)."""
     t0 = _time.perf_counter()
-    step = float(coarse_step_m)
-    sols, steps, cells = [], [], []
+    step = float(COARSE_STEP_M if first_step_m is None else first_step_m)
+    sols, steps, cells, calcs = [], [], [], []
     prev = warm
-    calc = None
-    while True:
+    calc = cell_calculator(route, train, options, step)
+    while first_step_m is None and len(calc.h_m) < COARSE_MIN_CELLS and step / 4 >= finest_step_m - 1e-9:
+        step /= 2  # a grid too coarse to be worth a solve: the next of the nest
         calc = cell_calculator(route, train, options, step, coarser=calc)
-        start = None
-        if prev is not None:
-            prob = CellEnergyProblem(calc, time_s)
-            x0, *_ = warm_point(prob, prev)
-            start = x0 * prob.ref
-            start = start[0::3]
+    while True:
+        if sols:
+            calc = cell_calculator(route, train, options, step, coarser=calc)
+        calcs.append(calc)
+        point = None
+        if prev is not None:  # the coarser grid's (or the neighbouring time's) speeds and forces
+            point = warm_point(cell_problem(calc, time_s, regen), prev)[0]
         try:
-            sol = solve_cells(calc, time_s, start, mu_init=None if prev is None else WARM_MU, regen=regen)
+            try:
+                sol = solve_cells(calc, time_s, mu_init=None if prev is None else WARM_MU, point=point, regen=regen)
+            except InfeasibleError:
+                if point is None:
+                    raise
+                sol = solve_cells(calc, time_s, regen=regen)  # the start from the coarser grid led astray: a cold start
         except InfeasibleError:
             if len(sols) < 2:
                 raise
@@ -558,11 +612,13 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
         prev = sol
         if len(sols) >= 2:
             acc = grid_accuracy([s.energy_kwh for s in sols], floor_kwh)
-            if acc <= tol or step / 2 < finest_step_m - 1e-9:
+            ref = max(abs(sols[-1].energy_kwh), floor_kwh, 1e-9)
+            met = (acc if scale_kwh is None else acc * ref / scale_kwh) <= tol
+            if met or step / 2 < finest_step_m - 1e-9:
                 break
         step /= 2
     fine = sols[-1]
     steps, cells = steps[:len(sols)], cells[:len(sols)]
-    return EStar(fine.energy_kwh, acc, acc <= tol, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
+    return EStar(fine.energy_kwh, acc, met, fine.slope_kwh_per_s, tuple(steps), tuple(cells),
                  tuple(s.energy_kwh for s in sols), tuple(s.result.iterations for s in sols),
-                 _time.perf_counter() - t0, fine)
+                 _time.perf_counter() - t0, fine, calcs[len(sols) - 1])

@@ -127,10 +127,9 @@ class IPMSettings:
     """A step is taken when dx' W dx >= curvature * dx'dx, else the Hessian is regularised."""
 
 
-def _max_step(v: np.ndarray, dv: np.ndarray, tau: float) -> float:
-    """The largest step in (0, 1] keeping v + a dv >= (1 - tau) v (fraction to the boundary)."""
-    neg = dv < 0
-    return min(1.0, float(np.min(-tau * v[neg] / dv[neg]))) if neg.any() else 1.0
+def _raw(entry):
+    """A compiled entry point without its argument checks (``sim.native``), or the function itself."""
+    return getattr(entry, "fn", entry)
 
 
 class CellIPM:
@@ -156,6 +155,7 @@ class CellIPM:
         self.fixed_pos = np.ascontiguousarray(self.pos_x[self.fixed])
         self._flat = np.ascontiguousarray(loc.ravel())
         self._il, self._iu = np.flatnonzero(self.has_l), np.flatnonzero(self.has_u)  # index arrays: faster than masks
+        self._dist_last = None
         self._lb = np.where(self.has_l, problem.lb, 0.0)
         self._ub = np.where(self.has_u, problem.ub, 0.0)
 
@@ -171,8 +171,13 @@ class CellIPM:
         return out
 
     def _dist(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distances to the lower and upper bounds (1 where there is none)."""
-        return np.where(self.has_l, x - self._lb, 1.0), np.where(self.has_u, self._ub - x, 1.0)
+        """Distances to the lower and upper bounds (1 where there is none), kept for the last point asked."""
+        last = self._dist_last
+        if last is not None and last[0] is x:
+            return last[1]
+        out = np.where(self.has_l, x - self._lb, 1.0), np.where(self.has_u, self._ub - x, 1.0)
+        self._dist_last = (x, out)
+        return out
 
     def _barrier(self, v: CellValues, x, s, sc, mu) -> float:
         dl, du = self._dist(x)
@@ -234,6 +239,7 @@ class CellIPM:
         floor = 1e-2 if warm is None else mu
         s = np.maximum(-val.g, floor)
         sc = np.maximum(-val.c, floor)
+        all_s, all_c = np.arange(s.size, dtype=np.int64), np.arange(sc.size, dtype=np.int64)
         dl, du = self._dist(x)
         if warm is None:
             z, zc, y = mu / s, mu / sc, np.zeros(N)
@@ -250,6 +256,9 @@ class CellIPM:
         full = np.empty((self.size, 3 * self.bw + 1))
         piv = np.empty(self.size, dtype=np.int64)
         K = kernels()
+        # the solver's own calls skip the entry points' argument checks (its arrays are made right here)
+        factor, solve_b, assemble = _raw(K.band_factor), _raw(K.band_solve), _raw(K.band_assemble)
+        ftb = _raw(K.fraction_to_boundary)
         status, trace, it, err0 = "max_iter", [], 0, math.inf
         acceptable, f_prev = 0, math.inf
         adaptive = S.mu_strategy == "adaptive"
@@ -303,11 +312,11 @@ class CellIPM:
             # factorisation)
             delta_w, delta_c = (delta_w_last / 3 if delta_w_last > 0 and needed_last else 0.0), 0.0
             for _attempt in range(25):
-                K.band_assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
+                assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
                                 self.pos_y, np.full(N, -delta_c), self.fixed_pos)
-                if K.band_factor(full, self.bw, self.bw, piv) == 0:
+                if factor(full, self.bw, self.bw, piv) == 0:
                     sol = np.column_stack([first, a_mat])
-                    K.band_solve(full, self.bw, self.bw, piv, sol)
+                    solve_b(full, self.bw, self.bw, piv, sol)
                     qm = sol[:, 1:].copy()  # K_b^-1 A
                     small = np.diag(1.0 / sig_c) + np.einsum("nj,nk->jk", a_mat, qm)
 
@@ -316,7 +325,7 @@ class CellIPM:
                         by Sherman-Morrison-Woodbury on the factored banded part)."""
                         if sol is None:
                             sol = rv.reshape(-1, 1).copy()
-                            K.band_solve(full, self.bw, self.bw, piv, sol)
+                            solve_b(full, self.bw, self.bw, piv, sol)
                         pv = sol[:, 0]
                         return pv - np.einsum("nj,j->n", qm, np.linalg.solve(small, np.einsum("nj,n->j", a_mat, pv)))
 
@@ -343,8 +352,8 @@ class CellIPM:
                 return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - np.einsum("jn,n->j", grad_c, dx)
 
             def primal_step(dx, ds, dsc, tau):
-                return min(_max_step(s.ravel(), ds.ravel(), tau), _max_step(sc, dsc, tau),
-                           _max_step(dl[il], dx[il], tau), _max_step(du[iu], -dx[iu], tau))
+                return min(ftb(s.ravel(), ds.ravel(), all_s, 1.0, tau), ftb(sc, dsc, all_c, 1.0, tau),
+                           ftb(dl, dx, il, 1.0, tau), ftb(du, dx, iu, -1.0, tau))
 
             def dual_steps(dx, ds, dsc, mu_):
                 return (mu_ / s - z - sig * ds, mu_ / sc - zc - sig_c * dsc,
@@ -352,8 +361,8 @@ class CellIPM:
                         np.where(has_u, mu_ / du - zu + (zu / du) * dx, 0.0))
 
             def dual_step(dz, dzc, dzl, dzu, tau):
-                return min(_max_step(z.ravel(), dz.ravel(), tau), _max_step(zc, dzc, tau),
-                           _max_step(zl[il], dzl[il], tau), _max_step(zu[iu], dzu[iu], tau))
+                return min(ftb(z.ravel(), dz.ravel(), all_s, 1.0, tau), ftb(zc, dzc, all_c, 1.0, tau),
+                           ftb(zl, dzl, il, 1.0, tau), ftb(zu, dzu, iu, 1.0, tau))
 
             if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
                 ds_a, dsc_a = slack_steps(dx, r_g0, r_c0)

@@ -60,30 +60,42 @@ def piecewise_linear_slope(x, xs, ys):
     return slopes[np.searchsorted(xs, x, side="right")]
 
 
-def piecewise_linear_rounded(x, xs, ys, width: float):
-    """:func:`piecewise_linear` with every corner rounded over ``width`` (in x), for a Newton method: the
-    value, slope and curvature at ``x`` (numbers or arrays). At a point ``x_k`` where the slope changes by
-    ``d``, the corner ``d * max(t, 0)`` (t = x - x_k) becomes ``d * (t + width/2)^2 / (2 width)`` for
-    ``|t| < width/2``: continuous in value and slope, and nowhere further from the curve than
+class RoundedCurve:
+    """:func:`piecewise_linear` with every corner rounded over ``width`` (in x), for a Newton method: called
+    with ``x`` (numbers or arrays) it gives the value, slope and curvature there. At a point ``x_k`` where the
+    slope changes by ``d``, the corner ``d * max(t, 0)`` (t = x - x_k) becomes ``d * (t + width/2)^2 /
+    (2 width)`` for ``|t| < width/2``: continuous in value and slope, and nowhere further from the curve than
     ``|d| * width / 8``. ``width`` must be below the spacing of the points (then one corner at most is near
-    any x)."""
-    xs = np.asarray(xs, dtype=float)
-    ys = np.asarray(ys, dtype=float)
-    x = np.asarray(x, dtype=float)
-    slopes = np.concatenate([[0.0], np.diff(ys) / np.diff(xs), [0.0]])
-    dslope = np.diff(slopes)  # at each point
-    i = np.searchsorted(xs, x, side="right")  # x in [xs[i-1], xs[i]): the segment's slope is slopes[i]
-    left = np.maximum(i - 1, 0)
-    slope = slopes[i]
-    value = np.where(i > 0, ys[left] + slope * (x - xs[left]), ys[0])
-    right = np.minimum(i, len(xs) - 1)
-    j = np.where((i > 0) & (np.abs(x - xs[left]) <= np.abs(x - xs[right])), left, right)  # the nearest point
-    t = x - xs[j]
-    half = 0.5 * width
-    near = np.abs(t) < half
-    d = np.where(near, dslope[j], 0.0)
-    tn = np.where(near, t, 0.0)
-    value = value + d * ((tn + half) ** 2 / (2 * width) - np.maximum(tn, 0.0))
-    slope = slope + d * ((tn + half) / width - (tn >= 0))
-    curvature = d / width
-    return value, slope, curvature
+    any x). The segments' slopes are worked out once, when the curve is made (a solver evaluates the same
+    curve thousands of times)."""
+
+    def __init__(self, xs, ys, width: float):
+        self.xs = np.asarray(xs, dtype=float)
+        self.ys = np.asarray(ys, dtype=float)
+        self.width = float(width)
+        self.slopes = np.concatenate([[0.0], np.diff(self.ys) / np.diff(self.xs), [0.0]])
+        self.dslope = np.diff(self.slopes)  # at each point
+
+    def __call__(self, x):
+        xs, ys, slopes, width = self.xs, self.ys, self.slopes, self.width
+        x = np.asarray(x, dtype=float)
+        i = np.searchsorted(xs, x, side="right")  # x in [xs[i-1], xs[i]): the segment's slope is slopes[i]
+        left = np.maximum(i - 1, 0)
+        slope = slopes[i]
+        value = np.where(i > 0, ys[left] + slope * (x - xs[left]), ys[0])
+        right = np.minimum(i, len(xs) - 1)
+        j = np.where((i > 0) & (np.abs(x - xs[left]) <= np.abs(x - xs[right])), left, right)  # the nearest point
+        t = x - xs[j]
+        half = 0.5 * width
+        near = np.abs(t) < half
+        d = np.where(near, self.dslope[j], 0.0)
+        tn = np.where(near, t, 0.0)
+        value = value + d * ((tn + half) ** 2 / (2 * width) - np.maximum(tn, 0.0))
+        slope = slope + d * ((tn + half) / width - (tn >= 0))
+        curvature = d / width
+        return value, slope, curvature
+
+
+def piecewise_linear_rounded(x, xs, ys, width: float):
+    """:class:`RoundedCurve` of ``(xs, ys)`` over ``width`` at ``x``: (value, slope, curvature)."""
+    return RoundedCurve(xs, ys, width)(x)

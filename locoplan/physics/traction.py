@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .backend import as_operand, piecewise_linear, piecewise_linear_rounded, piecewise_linear_slope
+from .backend import RoundedCurve, as_operand, piecewise_linear, piecewise_linear_slope
 from .units import G_MS2
 
 
@@ -19,10 +19,11 @@ def max_force_slope_kn_per_kmh(speed_kmh, curve_speed_kmh: np.ndarray, curve_for
     return piecewise_linear_slope(speed_kmh, curve_speed_kmh, curve_force_kn)
 
 
-def max_force_rounded_kn(speed_kmh, curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray, width_kmh: float):
-    """:func:`max_force_kn` with its corners rounded over ``width_kmh``: (force [kN], slope [kN per km/h],
-    curvature [kN per (km/h)^2]) for a Newton method (``backend.piecewise_linear_rounded``)."""
-    return piecewise_linear_rounded(speed_kmh, curve_speed_kmh, curve_force_kn, width_kmh)
+def rounded_force_curve(curve_speed_kmh: np.ndarray, curve_force_kn: np.ndarray, width_kmh: float) -> RoundedCurve:
+    """:func:`max_force_kn` with its corners rounded over ``width_kmh``, for a Newton method, made once for a
+    curve and evaluated many times: ``curve(speed_kmh)`` gives (force [kN], slope [kN per km/h], curvature
+    [kN per (km/h)^2]) (``backend.RoundedCurve``)."""
+    return RoundedCurve(curve_speed_kmh, curve_force_kn, width_kmh)
 
 
 def gradient_force_kn(gradient_permille, mass_t: float):

@@ -55,6 +55,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
                        "i8[:]", _A1, "i8[:]")),
     "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
     "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
+    "fraction_to_boundary": ("locoplan.ocp.band_kernel", "fraction_to_boundary", "f8", (_A1, _A1, "i8[:]", _F, _F)),
 }
 _SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "ocp/band_kernel.py",
             "sim/native.py",
@@ -130,7 +131,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``)."""
+    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, ``fraction_to_boundary``)."""
     global _kernels
     if _kernels is None:
         why = "LOCOPLAN_NATIVE=0"

@@ -88,7 +88,10 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
 def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
     """The sequence with a speed hold (K) inside each long coasting run, coasting again after it: for a
     timetable slower than the least energy's own time (a falling line coasts faster than asked), the
-    extra time is spent holding a lower speed by braking on a descent, which costs no traction energy;
+    extra time is spent holding a lower speed by braking on a descent, which costs no traction energy.
+    A sequence without coasting (a climb driven in traction to the stop) gets a hold inside each traction
+    run, held to the run's end: a lower speed held with partial traction (accelerating again after it
+    would spend more);
     ISSA then places where each hold begins and ends (nominally a quarter and three quarters into the
     run; windows as far as the neighbours, less half a train). A hold that ran on to the next condition
     would hold its speed with traction up every rise after the descent (a 40 km falling line asked for
@@ -98,6 +101,7 @@ def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
     starts = np.concatenate([[0.0], seq.nominal_m])
     ends = np.concatenate([seq.nominal_m, [L]])
     body = seq.conditions[:-1]
+    run = "C" if "C" in body else "T"  # no coasting at all (a climb): hold inside the traction runs instead
     conditions: list[str] = []
     nominal: list[float] = []
     for j, (c, a, b) in enumerate(zip(body, starts, ends)):
@@ -107,7 +111,7 @@ def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
         if c == "C" and b - a > 4 * gap:
             conditions += ["K", "C"]
             nominal += [float(a + 0.25 * (b - a)), float(a + 0.75 * (b - a))]
-        elif c == "C" and b - a > 2 * gap:  # too short to hold and coast again: hold to its end
+        elif c == run and b - a > 2 * gap:  # too short to hold and coast again (or traction): hold to its end
             conditions.append("K")
             nominal.append(float(0.5 * (a + b)))
     nominal_m = np.array(nominal)

@@ -363,6 +363,10 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         slowest = solver.solve(LEAST_PRICE_KWH_PER_S)
         if slowest is not None and plan_time(slowest) < ctx.t0_s - tol:
             seq = with_holds(ctx.search, seq)  # even the least energy is too fast: spend the time holding
+    elif drive.time_s < ctx.t0_s - tol and "T" in seq.conditions:
+        # traction to the stop (a climb) and still too fast: no drive's sequence came nearer, so hold a
+        # lower speed inside the traction run (partial traction), where ISSA places it
+        seq = with_holds(ctx.search, seq)
     if not len(seq.nominal_m):  # one condition, then the stop: nothing to search
         return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min)
