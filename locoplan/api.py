@@ -269,16 +269,17 @@ def optimize(route, train, options: ModelOptions, *, time_s: Optional[float] = N
              weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa", seed: int = 1,
              e_min_kwh: Optional[float] = None, params: Optional[str] = None, tolerance_s: Optional[float] = None,
              window: bool = True, builder: Optional[str] = None, gap: bool = True,
-             callback: Optional[Callable[[int, float], None]] = None) -> Plan:
+             callback: Optional[Callable[[int, float], None]] = None, objective: str = "traction") -> Plan:
     """``optimize``: the proposed strategy (condition sequence + optimised switching points); E_min, when
-    not given, from the energy-saving run first. ``callback(iteration, best)`` follows the search."""
+    not given, from the energy-saving run first. ``callback(iteration, best)`` follows the search;
+    ``objective``: what its energy terms count (traction, or net of what the electric brake recovers)."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
 
     get_algorithm(algorithm)
     ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights, algorithm=algorithm,
                        seed=seed, params_path=params, callback=callback, tolerance_s=tolerance_s, window=window,
-                       builder=builder, yardstick=gap)
+                       builder=builder, yardstick=gap, objective=objective)
     if e_min_kwh is None:
         ctx.e_min()  # the energy-saving run first, so that a progress bar then shows the proposed run alone
     run = run_strategy(ctx, "proposed")
@@ -358,16 +359,19 @@ def bound_times(time_s: Optional[str], times: Optional[str]) -> Optional[list[tu
 
 
 def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, mesh_tol: float, max_degree: int,
-                 curve: bool, step: Callable[[str], None] = lambda text: None, check: bool = False) -> dict:
-    """The least traction energy E* at each running time: ``{"route", "consist", "results": [rows]}``.
-    On a ``curve`` a time whose optimum fails is its row with a ``reason``; a single time raises.
-    ``check``: each E* also by the second, independent method (``ocp.bound.check_bound``: multi-phase Radau
-    collocation, ``mesh_tol`` and ``max_degree`` its settings) and the two's difference."""
+                 curve: bool, step: Callable[[str], None] = lambda text: None, check: bool = False,
+                 objective: str = "traction") -> dict:
+    """The least energy E* at each running time: ``{"route", "consist", "objective", "results": [rows]}``, the
+    traction work or (``objective="net"``) the net energy, each row with the optimum's traction work and what
+    its electric brake recovers. On a ``curve`` a time whose optimum fails is its row with a ``reason``; a
+    single time raises. ``check``: each E* also by the second, independent method (``ocp.bound.check_bound``:
+    multi-phase Radau collocation, ``mesh_tol`` and ``max_degree`` its settings) and the two's difference."""
     from .ocp.bound import check_bound, energy_bound, energy_bounds
 
+    bounds.objective(objective)
     rows = []
     if curve:
-        curve_bounds = dict(zip(times_s, energy_bounds(route, train, options, times_s,
+        curve_bounds = dict(zip(times_s, energy_bounds(route, train, options, times_s, objective=objective,
                                                        progress=lambda t: step(f"E* at {t:g} s"))))
     for t in times_s:
         if not curve:
@@ -378,15 +382,22 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
                 if isinstance(b, LocoplanError):
                     raise b
             else:
-                b = energy_bound(route, train, options, t)
+                b = energy_bound(route, train, options, t, objective=objective)
             acc = b.accuracy_percent
-            row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "converged": b.converged,
+
+            def kwh(x):
+                return None if x is None else round(x, 3)
+
+            row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "traction_energy_kwh": kwh(b.traction_kwh),
+                   "recovered_energy_kwh": kwh(b.recovered_kwh),
+                   "net_energy_kwh": None if b.traction_kwh is None or b.recovered_kwh is None
+                   else round(b.traction_kwh - b.recovered_kwh, 3), "converged": b.converged,
                    "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
                    "slope_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 5),
                    "method": b.method, "cells": b.cells, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
             if check:
                 step(f"E* at {t:g} s, second method")
-                c = check_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree)
+                c = check_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree, objective=objective)
                 acc_c = c.accuracy_percent
                 row["check"] = {"method": "multi-phase Radau collocation", "lgr_points": c.cells,
                                 "energy_kwh": round(c.energy_kwh, 3),
@@ -397,10 +408,11 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
         except LocoplanError as exc:
             if not curve:
                 raise
-            rows.append({"time_s": t, "energy_kwh": None, "converged": False, "accuracy_percent": None,
+            rows.append({"time_s": t, "energy_kwh": None, "traction_energy_kwh": None, "recovered_energy_kwh": None,
+                         "net_energy_kwh": None, "converged": False, "accuracy_percent": None,
                          "slope_kwh_per_s": None, "method": None, "cells": None, "solve_time_s": None,
                          "reason": str(exc)})
-    return {"route": route.name, "consist": train.name, "results": rows}
+    return {"route": route.name, "consist": train.name, "objective": objective, "results": rows}
 
 
 def curve_verdict(rows: list[dict]) -> Verdict:

@@ -102,6 +102,16 @@ def step(step_m: float, length_m: float | None = None) -> float:
     return float(step_m)
 
 
+def objective(value: str, option: str = "--objective") -> str:
+    """What the energy terms count (``physics.energy.OBJECTIVES``): ``traction`` or ``net``; else ``InputError``."""
+    from .physics.energy import OBJECTIVES
+
+    if value not in OBJECTIVES:
+        raise InputError(Problem(_where(option), option, f"unknown objective {value!r}: use one of {', '.join(OBJECTIVES)} "
+                                 "(traction: the traction work sum F ds; net: less what the electric brake recovers)"))
+    return value
+
+
 def planned_time(time_s: float, option: str = "--time") -> float:
     lo, hi = LIMITS["time_s"]
     return finite(time_s, option, lo, hi, "s", "a planned running time (no stop-to-stop run is planned longer than a week)")

@@ -18,7 +18,8 @@ from rich.markup import escape
 from . import __version__
 from . import api, bounds
 from .api import ModelRequest
-from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, PARAMS, ROUTE, SEED, STOCK, TIME, TOL, WEIGHTS,
+from .cli_common import (ALGO, BUILDER, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, ROUTE, SEED, STOCK, TIME, TOL,
+                         WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
 from .io.load import check_folder, load_route, load_train
@@ -151,7 +152,8 @@ def simulate(route: Path = ROUTE,
         _emit(summary, as_json, out_file, plan.run.result.profile, r)
         if plot:
             plot_profiles(plot, [(summary["strategy"], plan.run.result.profile)],
-                          run_title(r.name, train.name, summary["strategy"], summary), route=r)
+                          run_title(r.name, train.name, summary["strategy"], summary), route=r,
+                          coupler_limit_kn=train.coupler_limit_kn)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
@@ -167,7 +169,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png, .svg or .pdf."),
              model: ModelRequest = MODEL,
-             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP):
+             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
+             objective: str = OBJECTIVE):
     """The least-energy plan on time: a condition sequence built from the limits and grades, its switching
     points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
     optimisation of freight trains on complex lines (ISSA switching points)."""
@@ -175,13 +178,14 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
 
     get_algorithm(algorithm)
     w = api.weights(weights)
+    bounds.objective(objective)
     _check_outputs(out_file, plot)
     r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
         plan = api.optimize(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
                             params=str(params) if params else None, callback=cb, tolerance_s=tolerance, window=window,
-                            builder=builder, gap=gap)
+                            builder=builder, gap=gap, objective=objective)
     summary, run = plan.summary, plan.run
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
@@ -190,7 +194,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
                           histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
                           if run.outcome.history is not None else None,
-                          route=r)
+                          route=r, coupler_limit_kn=train.coupler_limit_kn)
     if not as_json:
         show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
     _fail_if(plan.failures)
@@ -224,7 +228,7 @@ def compare(route: Path = ROUTE,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
-            workers: int = WORKERS):
+            workers: int = WORKERS, objective: str = OBJECTIVE):
     """Strategies side by side: sequence, switching points, running time, energy (every punctual plan's
     energy also at T0). Method: Li Wang et al., multi-objective optimisation of freight trains on complex
     lines (its Tables 8-9)."""
@@ -234,12 +238,14 @@ def compare(route: Path = ROUTE,
 
     names = _names(strategies or COMPARE_DEFAULT, "--strategies")
     w = api.weights(weights)
+    bounds.objective(objective)
     _check_outputs(out_file, plot)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
                       tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
-                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap)
+                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap,
+                      objective=objective)
     specs = compare_specs(base, names)
     if "proposed" not in names and e_min is None:  # E_min (an energy-saving run) only when a requested strategy needs it
         specs = [replace(x, fitness=False) for x in specs]
@@ -253,7 +259,7 @@ def compare(route: Path = ROUTE,
     results = {"results": compare_fields([x.summary for x in batch.records])}
     if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
         r_, train_ = load_route(route), load_train(consist, stock_dir)
-        results["optimum_at_t0_kwh"] = energies_at_planned_time(results["results"], r_, train_, opts)
+        results["optimum_at_t0_kwh"] = energies_at_planned_time(results["results"], r_, train_, opts, objective)
     with all_or_none():
         _emit(results, as_json, out_file)
         if plot:

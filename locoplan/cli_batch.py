@@ -74,14 +74,22 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
           workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: the core count; 1 = in this process).", show_default=False),
           scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT (instead of local processes; pip install 'locoplan[dask]')."),
           as_json: bool = JSON,
-          quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr (nor with --json).")):
+          quiet: bool = typer.Option(False, "--quiet", help="No progress on stderr (nor with --json)."),
+          objective: Optional[str] = typer.Option(None, "--objective", metavar="traction|net", show_default=False,
+                                                  help="What the energy terms count, for every run (default: the study file's objective, else traction): traction, or net of what the electric brake recovers.")):
     """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
+    from dataclasses import replace
+
     from .reporting.tables import store_summary_table
     from .runs import Store, make_executor, run_many
     from .runs.results import default_by, rows_of, summarize_rows
     from .runs.study import load_study
 
+    if objective is not None:
+        bounds.objective(objective)
     study = load_study(study_file)
+    if objective is not None:
+        study = replace(study, specs=[replace(s, objective=objective) for s in study.specs])
     with Store(store_path) as store:
         store.check_writer()
         executor = make_executor(workers, scheduler)

@@ -662,5 +662,6 @@ WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +
 PARAMS = typer.Option(None, "--params", help="Optimiser parameter YAML (default: configs/optimizers/<algorithm>.yaml).")
 GAP = typer.Option(True, "--gap/--no-gap", help="Report each plan's gap to the least energy E* at its own running time (a minimum-energy optimal control; a few seconds per plan).")
 WORKERS = typer.Option(1, "--workers", help="Runs in parallel on this many processes (1: in this process).")
+OBJECTIVE = typer.Option("traction", "--objective", metavar="traction|net", help="What the energy terms count: traction (the traction work sum F ds) or net (the traction work less what the electric brake returns to the line, the locomotives' regen_efficiency): the optimisers' fitness, E_min, E* and the gap to it.")
 
 __all__ = ["out", "err", "guarded", "all_or_none", "check_outputs", "json_out"]

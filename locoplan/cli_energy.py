@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out
+from .cli_common import CONSIST, JSON, MODEL, OBJECTIVE, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -70,7 +70,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
           mesh_tol: float = typer.Option(1e-5, "--mesh-tol", help="Relative discretisation error to reach."),
           max_phase_degree: int = typer.Option(10, "--max-phase-degree", help="Most LGR points per mesh interval."),
           check: bool = typer.Option(False, "--check/--no-check", help="Solve each E* a second way (trapezoidal collocation, 10 and 5 m; 2.5 and 1.25 m up to 5 km) and show both."),
-          model: ModelRequest = MODEL):
+          model: ModelRequest = MODEL, objective: str = OBJECTIVE):
     """The least traction energy E* for a running time: the yardstick of every plan. Method: multi-phase
     Radau optimal control after Bai Yun et al. (Beijing Jiaotong University), energy-saving high-speed
     train operation."""
@@ -92,7 +92,7 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
           else [planned_time(r, _time(time_s, (r, train), options=opts, quiet=as_json))])
     with step_progress("bound solves", len(ts) * (2 if check else 1), not as_json) as step:
         data = api.energy_curve(r, train, opts, ts, mesh_tol=mesh_tol, max_degree=max_phase_degree,
-                                curve=values is not None, step=step, check=check)
+                                curve=values is not None, step=step, check=check, objective=objective)
     rows = data["results"]
     if out_file:
         write_rows(out_file, data)
@@ -103,9 +103,9 @@ def bound(route: Path = ROUTE, time_s: Optional[str] = TIME,
     if as_json:
         json_out(data if values is not None else {**data, **rows[0]})
     elif values is None:
-        out.print(energy_bound_line(r.name, train.name, rows[0]), highlight=False)
+        out.print(energy_bound_line(r.name, train.name, rows[0], objective), highlight=False)
     else:
-        show(out, fit(energy_curve_table(r.name, train.name, rows), out.width, wrap=(3,)))
+        show(out, fit(energy_curve_table(r.name, train.name, rows, objective), out.width, drop=(3, 2), wrap=(6,)))
     fail_on(api.curve_verdict(rows))
 
 

@@ -62,7 +62,8 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
                  callback: Callable[[int, float], None] | None = None, need_time: bool = True,
                  tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
                  yardstick: bool = False,
-                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
+                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None,
+                 objective: str = "traction") -> StrategyContext:
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
@@ -70,8 +71,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
     options, to reuse (a batch's runs share them). ``params``: the optimiser's parameters, or
     ``params_path`` a file to read them from (neither: the algorithm's defaults, seed 002 Table 5).
+    ``objective``: what the energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
     Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
+    bounds.objective(objective, "objective")
     bounds.seed(seed, "seed")
     if e_min_kwh is not None:
         bounds.finite(e_min_kwh, "e_min_kwh", *bounds.LIMITS["e_min_kwh"], "kWh", "the least traction energy whatever the time")
@@ -106,7 +109,8 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     if params is None and params_path is not None:
         params = load_optimizer_params(algorithm, params_path)
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,
-                           tol, window, yardstick, builder)
+                           tol, window, yardstick, builder, objective)
+
 
 
 def load_optimizer_params(name: str, path: str | Path | None = None):
@@ -159,8 +163,11 @@ def gap_to_optimum(ctx: StrategyContext, res: BatchResult):
         return None
     from .ocp.bound import gap_to_optimum as gap
 
+    if ctx.objective != "traction" and res.recovered_energy_kwh is None:
+        return None
     c = ctx.calc
-    return gap(c.route, c.train, c.options, float(res.running_time_s[0]), float(res.traction_energy_kwh[0]), calc=c)
+    return gap(c.route, c.train, c.options, float(res.running_time_s[0]), float(res.energy_kwh(ctx.objective)[0]), calc=c,
+               objective=ctx.objective)
 
 
 def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: BatchResult,
@@ -169,12 +176,15 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
     route, train = ctx.calc.route, ctx.calc.train
     t = float(res.running_time_s[0])
     e = float(res.traction_energy_kwh[0])
+    # what the objective counts (a measured result without the recovered energy has no net energy)
+    e_obj = (e if ctx.objective == "traction" else math.nan if res.recovered_energy_kwh is None
+             else float(res.energy_kwh(ctx.objective)[0]))
     t0 = ctx.t0_s
     prof = res.profile
     e_min = outcome.e_min_kwh or ctx.e_min_kwh or ctx._e_min_cache.get("e")
     fit = None
-    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0):
-        fit = round(float(fitness_eq10(t, e, t0, e_min, *ctx.weights)), 5)
+    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0) and not math.isnan(e_obj):
+        fit = round(float(fitness_eq10(t, e_obj, t0, e_min, *ctx.weights)), 5)
     tol = ctx.tolerance_s
     gap = gap_to_optimum(ctx, res)
     return {
@@ -188,6 +198,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "running_time_s": round(t, 2),
         "traction_energy_kwh": round(e, 2),
         **recovered_energy(train, res),
+        "objective": ctx.objective,
         "planned_time_s": None if math.isnan(t0) else t0,
         "punctuality_error_s": None if (math.isnan(t0) or math.isnan(t)) else round(abs(t - t0), 2),
         "punctual": None if (math.isnan(t0) or tol is None or math.isnan(t)) else bool(abs(t - t0) <= tol + 1e-9),
@@ -205,17 +216,39 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "plan": outcome.plan.text(),
         "switching_points_m": [round(x, 1) for x in outcome.plan.starts_m[1:] if not math.isnan(x)],
         "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, None if prof.event_m is None else prof.event_m[0]),
+        **coupler_summary(train, prof),
         **(outcome.extra or {}),
     }
 
 
 def recovered_energy(train: Train, res: BatchResult) -> dict:
-    """``{"recovered_energy_kwh": ...}`` for a train whose locomotives regenerate (``regen_efficiency``),
-    else nothing (the output of a train without it stays as it was)."""
-    if train.regen_efficiency <= 0 or res.recovered_energy_kwh is None:
-        return {}
+    """``{"recovered_energy_kwh": ..., "net_energy_kwh": ...}``: what the electric brake returned to the line
+    (0 for a train whose locomotives give no ``regen_efficiency``) and the traction energy less it, rounded
+    as the traction energy is; None where the run has none (it failed before the end)."""
+    if res.recovered_energy_kwh is None:
+        return {"recovered_energy_kwh": None, "net_energy_kwh": None}
     x = float(res.recovered_energy_kwh[0])
-    return {"recovered_energy_kwh": None if math.isnan(x) else round(x, 2)}
+    e = float(res.traction_energy_kwh[0])
+    if not (math.isfinite(x) and math.isfinite(e)):
+        return {"recovered_energy_kwh": None, "net_energy_kwh": None}
+    return {"recovered_energy_kwh": round(x, 2), "net_energy_kwh": round(e - x, 2)}
+
+
+def coupler_summary(train: Train, prof) -> dict:
+    """The largest tensile and compressive coupler force of the run [kN] and where [m] (the head's position,
+    the middle of the cell), with the consist's limits (None where it gives none, or for a single vehicle)."""
+    out = {"max_coupler_tension_kn": None, "max_coupler_tension_at_m": None,
+           "max_coupler_compression_kn": None, "max_coupler_compression_at_m": None,
+           "coupler_limit_kn": train.coupler_limit_kn, "force_rate_limit_kn_per_s": train.force_rate_limit_kn_per_s}
+    if prof is None or prof.coupler_tension_kn is None:
+        return out
+    mid = 0.5 * (prof.s_m[1:] + prof.s_m[:-1])
+    for side, arr in (("tension", prof.coupler_tension_kn[0]), ("compression", prof.coupler_compression_kn[0])):
+        if np.isfinite(arr).any():
+            k = int(np.nanargmax(arr))
+            out[f"max_coupler_{side}_kn"] = round(float(arr[k]), 1)
+            out[f"max_coupler_{side}_at_m"] = round(float(mid[k]), 1)
+    return out
 
 
 def schedule_verdict(ctx: StrategyContext, run: RunResult, strict: bool | None = None) -> str | None:

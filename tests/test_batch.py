@@ -152,6 +152,7 @@ def test_dask_local_cluster_gives_identical_records(reference):
     ("routes: [{route}]\ntimes: [1.1x]\nseed: [1]\n", "small.yaml:3: seed: unknown key; did you mean 'seeds'?"),
     ("routes: [{route}]\ntimes: [1.1x]\nalgorithms: [ga]\n", "small.yaml:3: algorithms[0]: unknown optimiser 'ga'"),
     ("routes: [{route}]\n", "small.yaml:1: times: route"),  # a real line has no schedule: times are needed
+    ("routes: [{route}]\ntimes: [1.1x]\nobjective: power\n", "small.yaml:3: objective: unknown objective 'power'"),
 ])
 def test_bad_study_files_exit_2_naming_line_and_field(tmp_path, text, where):
     path = tmp_path / "small.yaml"

@@ -54,7 +54,11 @@ def test_out_csv_profile_agrees_with_summary(tmp_path):
     summary = json.loads(res.stdout)
     rows = list(csv.DictReader(io.StringIO(out.read_text())))
     assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn",
-                             "limit_file_kmh", "gradient_file_permille"]
+                             "coupler_tension_kn", "coupler_compression_kn", "limit_file_kmh", "gradient_file_permille"]
+    tension = [float(r["coupler_tension_kn"]) for r in rows]
+    assert max(tension) == pytest.approx(summary["max_coupler_tension_kn"], abs=0.05)
+    assert max(float(r["coupler_compression_kn"]) for r in rows) == pytest.approx(summary["max_coupler_compression_kn"],
+                                                                                  abs=0.05)
     s = np.array([float(r["s_m"]) for r in rows])
     f = np.array([float(r["traction_kn"]) for r in rows])
     assert s[0] == 0 and s[-1] == 20000

@@ -8,6 +8,7 @@ that work is the train's kinetic energy at the start of braking less the resista
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -25,16 +26,26 @@ STOCK = ROOT / "configs" / "rolling_stock"
 
 
 def _stock(tmp_path: Path, regen: float | None) -> Path:
-    """The shipped HXD1 + 50 x C80 with the locomotive's regen_efficiency set (None: as shipped)."""
+    """The shipped HXD1 + 50 x C80 with the locomotive's regen_efficiency set (None: without the field)."""
     d = tmp_path / "stock"
     d.mkdir()
     for f in ("HXD1.yaml", "C80.yaml"):
         text = (STOCK / f).read_text()
-        if f == "HXD1.yaml" and regen is not None:
-            text += f"\nregen_efficiency: {regen}\n"
+        if f == "HXD1.yaml":
+            text = re.sub(r"(?m)^regen_efficiency:.*\n", "", text)
+            assert "regen_efficiency:" not in text
+            if regen is not None:
+                text += f"\nregen_efficiency: {regen}\n"
         (d / f).write_text(text)
     shutil.copy(ROOT / "configs" / "consists" / "HXD1-C80x50.yaml", tmp_path / "consist.yaml")
     return d
+
+
+def _without_regen(tmp_path: Path) -> tuple[Path, Path]:
+    """(stock folder, consist file) of the shipped train with no regen_efficiency, beside the others."""
+    d = tmp_path / "plain"
+    d.mkdir()
+    return _stock(d, None), d / "consist.yaml"
 
 
 def _level_line():
@@ -123,8 +134,8 @@ def test_the_field_is_checked(tmp_path):
 
 
 def test_reported_beside_the_traction_energy(tmp_path):
-    """`simulate --json` carries recovered_energy_kwh right after traction_energy_kwh when the locomotive
-    regenerates, equal to the calculator's number; a train without the field prints no such key."""
+    """`simulate --json` carries recovered_energy_kwh right after traction_energy_kwh, equal to the
+    calculator's number, and net_energy_kwh, their difference; a train without the field recovers 0."""
     import json
 
     from typer.testing import CliRunner
@@ -146,8 +157,12 @@ def test_reported_beside_the_traction_energy(tmp_path):
     res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)  # time-saving: full traction, braking curves
     assert d["recovered_energy_kwh"] == pytest.approx(float(res.recovered_energy_kwh[0]), abs=0.006)
     assert 0 < d["recovered_energy_kwh"] < d["traction_energy_kwh"]
-    plain = CliRunner().invoke(app, ["simulate", line, "--strategy", "time-saving", "--json"])
-    assert "recovered_energy_kwh" not in json.loads(plain.output)
+    assert keys[keys.index("recovered_energy_kwh") + 1] == "net_energy_kwh"
+    assert d["net_energy_kwh"] == pytest.approx(d["traction_energy_kwh"] - d["recovered_energy_kwh"], abs=0.011)
+    plain_stock, plain_consist = _without_regen(tmp_path)
+    plain = json.loads(CliRunner().invoke(app, ["simulate", line, "--strategy", "time-saving", "--consist",
+                                                str(plain_consist), "--stock-dir", str(plain_stock), "--json"]).output)
+    assert plain["recovered_energy_kwh"] == 0.0 and plain["net_energy_kwh"] == plain["traction_energy_kwh"]
 
 
 def test_the_table_names_it(tmp_path):
@@ -160,14 +175,16 @@ def test_the_table_names_it(tmp_path):
     args = ["simulate", line, "--strategy", "time-saving", "--consist", str(tmp_path / "consist.yaml"), "--stock-dir", str(stock)]
     text = CliRunner().invoke(app, args).output
     js = __import__("json").loads(CliRunner().invoke(app, args + ["--json"]).output)
-    assert f"recovered by the electric brake │ {js['recovered_energy_kwh']:.2f} kWh" in text
+    assert f"recovered energy  │ {js['recovered_energy_kwh']:.2f} kWh by the electric brake" in text
+    assert f"net energy        │ {js['net_energy_kwh']:.2f} kWh, traction less recovered" in text
 
 
 def test_locomotives_are_weighted_by_their_electric_brake(tmp_path):
     """Two equal locomotives, one regenerating at 0.8 and one not: the train's share is half of 0.8; a
     third, twice as many of the regenerating one: (2 x 0.8) / 3."""
     stock = _stock(tmp_path, 0.8)
-    plain = (STOCK / "HXD1.yaml").read_text().replace("name: HXD1\n", "name: HXD1-old\n")
+    plain = (stock / "HXD1.yaml").read_text()
+    plain = re.sub(r"(?m)^regen_efficiency:.*\n", "", plain).replace("name: HXD1\n", "name: HXD1-old\n")
     assert "name: HXD1-old" in plain
     (stock / "HXD1-old.yaml").write_text(plain)
     for n_new, expect in ((1, 0.4), (2, 1.6 / 3)):
@@ -182,7 +199,8 @@ def test_store_keys_tell_a_regenerating_train_apart(tmp_path):
     it keeps the identity it had before the field existed (no regen_efficiency key at all)."""
     from locoplan.runs.spec import _train_identity
 
-    plain = load_train(ROOT / "configs" / "consists" / "HXD1-C80x50.yaml")
+    plain_stock, plain_consist = _without_regen(tmp_path)
+    plain = load_train(plain_consist, plain_stock)
     regen = load_train(tmp_path / "consist.yaml", _stock(tmp_path, 0.8))
     assert "regen_efficiency" not in _train_identity(plain)
     assert _train_identity(regen)["regen_efficiency"] == 0.8

@@ -22,6 +22,8 @@ PLAUSIBLE = {
     "count": 1000,  # vehicles in one consist entry, and in the whole consist
     "train_mass_t": 100_000.0,  # the heaviest train ever run (BHP Billiton, 2001) weighed 99,734 t
     "train_length_m": 8000.0,  # the same train was 7.35 km long
+    "coupler_kn": 10_000.0,  # 2.5 x the static breaking load of a heavy-haul coupler body (No. 16/17: 4,005 kN)
+    "force_rate_kn_per_s": 100_000.0,
 }
 
 
@@ -140,10 +142,19 @@ class ConsistEntry(Strict):
 class Consist(Strict):
     """A train: vehicles in order, and how its brakes are used.
 
+    ``vehicles`` lists the train from the head to the tail: an entry is a group of vehicles standing
+    one behind the other, so a locomotive mid-train (distributed power) is an entry between two groups
+    of wagons. The whole-train quantities do not depend on the order; the coupler forces do
+    (``physics.couplers``).
+
     ``service_brake_coefficient`` is beta_c of the air brake (TB/T 1407): the share of the full
     brake-cylinder force a service application gives; the planner brakes with the locomotives'
     electric brake plus the wagons' air brake at this coefficient. ``brake_deceleration_ms2``
     replaces all of that by a constant deceleration (railtoolkit's ``a_braking``).
+
+    ``coupler_limit_kn``: the largest quasi-static force a coupler may carry, in tension or in
+    compression; ``force_rate_limit_kn_per_s``: how fast the train's applied force (traction less
+    braking) may change. The calculator refuses a plan beyond either; without them nothing is checked.
     """
 
     schema_: Literal["locoplan/consist@1"] = Field(alias="schema")
@@ -151,6 +162,12 @@ class Consist(Strict):
     vehicles: list[ConsistEntry] = Field(min_length=1)
     service_brake_coefficient: float = Field(default=0.5, ge=0, le=1)
     brake_deceleration_ms2: float | None = Field(default=None, gt=0, le=3.0)
+    coupler_limit_kn: Annotated[float, plausible(100.0, PLAUSIBLE["coupler_kn"], "kN",
+                                                 "a coupler limit is hundreds to thousands of kN: a No. 16/17 coupler body breaks at 4,005 kN")] | None = Field(
+        default=None, gt=0, description="largest coupler force, tension or compression [kN]")
+    force_rate_limit_kn_per_s: Annotated[float, plausible(1.0, PLAUSIBLE["force_rate_kn_per_s"], "kN/s",
+                                                          "a rate of change outside this range is a slip of the unit")] | None = Field(
+        default=None, gt=0, description="largest rate of change of traction less braking [kN/s]")
 
     @model_validator(mode="after")
     def _check(self) -> "Consist":

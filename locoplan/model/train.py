@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -11,6 +12,24 @@ from ..errors import InputError, Problem
 from ..physics.braking import air_brake_curve_kn
 from ..physics.resistance import unit_to_train_coefficients_kn
 from .consist import PLAUSIBLE, Consist, Vehicle
+
+
+class VehicleGroup(NamedTuple):
+    """One consist entry as the coupler forces need it (``physics.couplers``): ``count`` vehicles of one
+    ``kind`` standing one behind the other, each of ``mass_t`` (with its load), ``inertial_factor``,
+    ``length_m``, its own basic resistance (A, B, C) [kN] and its own force curves ((speed_kmh, kN), ...):
+    traction and electric brake (locomotives), air brake at the consist's service coefficient (() where
+    it has none). Plain numbers and tuples, so that a train's content hash covers them."""
+
+    kind: str
+    count: int
+    mass_t: float
+    inertial_factor: float
+    length_m: float
+    resistance_kn: tuple[float, float, float]
+    traction_kn: tuple = ()
+    electric_brake_kn: tuple = ()
+    air_brake_kn: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -25,6 +44,8 @@ class Train:
     constant ``brake_deceleration_ms2``, what it takes on top of the electric brake to reach it).
     ``brake_curve(air=True)`` is what the planner brakes with.
     ``inertial_mass_t`` is the sum of mass x rotating-mass factor (= ``mass_t`` when no vehicle gives one).
+    ``layout``: the consist's entries head first (:class:`VehicleGroup`), for the coupler forces;
+    ``coupler_limit_kn`` and ``force_rate_limit_kn_per_s`` the consist's limits (None: not checked).
     """
 
     name: str
@@ -43,6 +64,9 @@ class Train:
     regen_efficiency: float = 0.0
     """Share of the electric brake's work returned to the line (0: none; the locomotives' own
     ``regen_efficiency``, weighted by their electric brake force when they differ)."""
+    layout: tuple = ()
+    coupler_limit_kn: float | None = None
+    force_rate_limit_kn_per_s: float | None = None
 
     def __post_init__(self):
         if not self.inertial_mass_t:
@@ -77,6 +101,7 @@ class Train:
         vmax = np.inf
         locos: list[tuple[Vehicle, int]] = []
         air: list[tuple[np.ndarray, int]] = []
+        layout = []
         for entry in consist.vehicles:
             veh = vehicles[entry.type]
             m = veh.mass_t + entry.load_t
@@ -89,11 +114,18 @@ class Train:
             n += entry.count
             if veh.kind == "locomotive":
                 locos.append((veh, entry.count))
+            curve = None
             if veh.air_brake is not None:
                 ab = veh.air_brake
                 curve = (np.asarray(ab.force_kn, float) if ab.force_kn is not None
                          else air_brake_curve_kn(ab.braking_ratio, ab.shoe, m, veh.max_speed_kmh))
                 air.append((curve, entry.count))
+            layout.append(VehicleGroup(
+                veh.kind, entry.count, float(m), float(veh.rotating_mass_factor), float(veh.length_m),
+                tuple(float(x) for x in unit_to_train_coefficients_kn(r.a, r.b, r.c, m)),
+                _pairs(veh.traction_kn), _pairs(veh.brake_kn),
+                () if curve is None or consist.brake_deceleration_ms2 is not None
+                else _pairs(np.column_stack([curve[:, 0], curve[:, 1] * consist.service_brake_coefficient]))))
         # regeneration weighted by each locomotive group's peak electric brake force
         weights = np.array([c * max(f for _, f in v.brake_kn) for v, c in locos], dtype=float)
         shares = np.array([v.regen_efficiency or 0.0 for v, _ in locos], dtype=float)
@@ -111,7 +143,13 @@ class Train:
         for a in (av, af):
             a.setflags(write=False)
         return cls(consist.name, mass, length, float(vmax), tuple(float(x) for x in coeffs),
-                   tv, tf, ev, ef, av, af, n, inertial, float(regen))
+                   tv, tf, ev, ef, av, af, n, inertial, float(regen), tuple(layout), consist.coupler_limit_kn,
+                   consist.force_rate_limit_kn_per_s)
+
+
+def _pairs(curve) -> tuple:
+    """A force curve as a tuple of (speed_kmh, force_kn) pairs (() for none)."""
+    return () if curve is None else tuple((float(v), float(f)) for v, f in np.asarray(curve, float))
 
 
 def _sum_curves(curves: list[tuple[list | np.ndarray, int]]) -> tuple[np.ndarray, np.ndarray]:

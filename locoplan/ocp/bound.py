@@ -73,6 +73,12 @@ class Bound:
     slope_kwh_per_s: float | None = None
     """dE*/dT at this time [kWh/s] (the running time's multiplier): what a second more saves."""
     method: str = METHOD
+    objective: str = "traction"
+    """What E* minimises: ``traction`` (the traction work) or ``net`` (less what the electric brake recovers)."""
+    traction_kwh: float | None = None
+    recovered_kwh: float | None = None
+    """The optimum's own traction work and the energy its electric brake returns [kWh] (None when unknown):
+    E* is the first, or with the ``net`` objective their difference."""
 
     @property
     def accuracy_percent(self) -> float | None:
@@ -135,9 +141,17 @@ def _cache_write(key: tuple, b: "Bound") -> None:
                 os.unlink(tmp)
 
 
+def net_regen(train: Train, objective: str) -> float:
+    """The share of the electric brake's work E* credits: the train's ``regen_efficiency`` with the ``net``
+    objective, else 0 (the traction work; for a train that regenerates nothing the two are one problem)."""
+    return float(train.regen_efficiency) if objective == "net" else 0.0
+
+
 def energy_bound(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
-                 calc: TractionCalculator | None = None) -> Bound:
-    """E* of ``train`` on ``route`` in ``time_s`` seconds (default: the route's schedule) [kWh].
+                 calc: TractionCalculator | None = None, objective: str = "traction") -> Bound:
+    """E* of ``train`` on ``route`` in ``time_s`` seconds (default: the route's schedule) [kWh]: the least
+    traction work, or with ``objective="net"`` the least net energy (traction less what the electric brake
+    recovers, ``ocp.cells.NetCellEnergyProblem``).
 
     Raises ``InfeasibleError`` when no run takes that little time, the consist cannot run the route, or
     the solver finds no optimum."""
@@ -145,7 +159,10 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
 
     options = options or ModelOptions()
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
+    regen = net_regen(train, objective)
     base = _base_key(route, train, options)
+    if regen > 0:  # (the traction problem keeps its keys)
+        base = (base, "net", regen)
     known = _known(base, time_s, E_STAR_TOL)
     if known is not None:
         return known
@@ -156,23 +173,26 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     floor = percent_floor_kwh(route, train)
     try:
         try:
-            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, warm=_WARM.get(base))
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, warm=_WARM.get(base),
+                             regen=regen)
         except InfeasibleError:
             if _WARM.get(base) is None:
                 raise
-            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor)  # cold, after all
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, regen=regen)  # cold
     except InfeasibleError:
-        fastest = calc.evaluate(("T",), np.zeros((1, 0)))
+        fastest = calc.evaluate(("T",), np.zeros((1, 0)), recovered=True)
         if time_s <= float(fastest.running_time_s[0]) * (1 + FASTEST_SHARE):
             # at the fastest run's time that run is the only one: its energy, with no accuracy to state
-            b = Bound(time_s, float(fastest.traction_energy_kwh[0]), False, len(calc.h_m), calc.options.step_m, 0.0,
-                      None, None, "fastest run")
+            e_tr, e_rec = float(fastest.traction_energy_kwh[0]), float(fastest.recovered_energy_kwh[0])
+            b = Bound(time_s, e_tr - (e_rec if regen > 0 else 0.0), False, len(calc.h_m), calc.options.step_m, 0.0,
+                      None, None, "fastest run", objective, e_tr, e_rec)
         else:  # the interior-point solve did not converge: the Radau method, slower but with IPOPT's restoration
-            b = check_bound(route, train, options, time_s, mesh_tol=DEFAULT_MESH_TOL, max_degree=DEFAULT_MAX_DEGREE)
+            b = check_bound(route, train, options, time_s, mesh_tol=DEFAULT_MESH_TOL, max_degree=DEFAULT_MAX_DEGREE,
+                            objective=objective)
     else:
         _WARM[base] = es.solution
         b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
-                  es.slope_kwh_per_s)
+                  es.slope_kwh_per_s, METHOD, objective, es.solution.traction_kwh, es.solution.recovered_kwh)
     return _remember(base, time_s, E_STAR_TOL, METHOD, b)
 
 
@@ -185,7 +205,7 @@ CURVE_MIN_TIMES = 4
 
 
 def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: list[float], *,
-                  calc: TractionCalculator | None = None,
+                  calc: TractionCalculator | None = None, objective: str = "traction",
                   progress=lambda time_s: None) -> list["Bound | LocoplanError"]:
     """E* at each of ``times_s`` (an energy-time curve), one mesh for all: the longest time (the least E*) is
     solved on successively halved grids to ``CURVE_TOL`` as ``energy_bound`` does, the shortest until its
@@ -193,13 +213,28 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     of the two final grids, started from its neighbour's solution. Their stated accuracy is the mesh's: the
     larger of the two ends' errors in kWh, relative to each time's own E* (at most ``CURVE_TOL``, E* falling
     with the time). A time without an optimum is its ``LocoplanError``; a time already solved alone is
-    taken from there. ``progress(time_s)`` is told of each time as its solve begins (or it is found solved)."""
-    from .cells import WARM_MU, CellEnergyProblem, solve_cells, solve_estar, warm_point
+    taken from there. ``objective``: as :func:`energy_bound`'s. ``progress(time_s)`` is told of each time
+    as its solve begins (or it is found solved)."""
+    from .cells import WARM_MU, cell_problem, solve_cells, solve_estar, warm_point
     from .train_energy import check_runnable
 
     options = options or ModelOptions()
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
+    regen = net_regen(train, objective)
     base = _base_key(route, train, options)
+    if regen > 0:
+        base = (base, "net", regen)
+
+    def alone(t: float):  # E* at one time on its own nested grids
+        try:
+            return energy_bound(route, train, options, t, calc=calc, objective=objective)
+        except LocoplanError as exc:
+            return exc
+
+    def bound(t, e, converged, cells, step_m, solve_s, acc, slope, method, sol) -> Bound:
+        return Bound(t, e, converged, cells, step_m, solve_s, acc, slope, method, objective, sol.traction_kwh,
+                     sol.recovered_kwh)
+
     out: dict[float, Bound | LocoplanError] = {}
     todo = []
     for t in dict.fromkeys(float(x) for x in times_s):
@@ -219,54 +254,46 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     if len(todo) < CURVE_MIN_TIMES:
         for t in todo:
             progress(t)
-            try:
-                out[t] = energy_bound(route, train, options, t, calc=calc)
-            except LocoplanError as exc:
-                out[t] = exc
+            out[t] = alone(t)
         return [out[float(t)] for t in times_s]
     floor = percent_floor_kwh(route, train)
     try:  # the longest time has the least E*: the other end's error in kWh must be as small against it
         progress(todo[-1])
-        hi = solve_estar(route, train, options, todo[-1], tol=CURVE_TOL, floor_kwh=floor)
+        hi = solve_estar(route, train, options, todo[-1], tol=CURVE_TOL, floor_kwh=floor, regen=regen)
         progress(todo[0])
         lo = solve_estar(route, train, options, todo[0], tol=CURVE_TOL, floor_kwh=floor,
-                         scale_kwh=max(abs(hi.energy_kwh), floor))
+                         scale_kwh=max(abs(hi.energy_kwh), floor), regen=regen)
         ends = [lo, hi]
     except InfeasibleError:  # an end without an optimum on the grids: every time on its own
         ends = None
     if ends is None:
         for t in todo:
             progress(t)
-            try:
-                out[t] = energy_bound(route, train, options, t, calc=calc)
-            except LocoplanError as exc:
-                out[t] = exc
+            out[t] = alone(t)
         return [out[float(t)] for t in times_s]
     error_kwh = max(e.accuracy * max(abs(e.energy_kwh), floor) for e in ends)
     mesh = min(ends, key=lambda e: e.steps_m[-1])
     for t, e in zip((todo[0], todo[-1]), ends):
         out[t] = _remember(base, t, CURVE_TOL, CURVE_METHOD,
-                           Bound(t, e.energy_kwh, e.converged, e.cells[-1], e.steps_m[-1], e.solve_time_s, e.accuracy,
-                                 e.slope_kwh_per_s))
+                           bound(t, e.energy_kwh, e.converged, e.cells[-1], e.steps_m[-1], e.solve_time_s, e.accuracy,
+                                 e.slope_kwh_per_s, METHOD, e.solution))
     prev = mesh.solution
     for t in todo[1:-1]:
         progress(t)
         try:
             try:
-                sol = solve_cells(mesh.calc, t, mu_init=WARM_MU, point=warm_point(CellEnergyProblem(mesh.calc, t), prev)[0])
+                sol = solve_cells(mesh.calc, t, mu_init=WARM_MU, point=warm_point(cell_problem(mesh.calc, t, regen), prev)[0],
+                                  regen=regen)
             except InfeasibleError:
-                sol = solve_cells(mesh.calc, t)
+                sol = solve_cells(mesh.calc, t, regen=regen)
         except InfeasibleError:
-            try:
-                out[t] = energy_bound(route, train, options, t, calc=calc)
-            except LocoplanError as exc:
-                out[t] = exc
+            out[t] = alone(t)
             continue
         prev = sol
         acc = error_kwh / max(abs(sol.energy_kwh), floor, 1e-9)
         out[t] = _remember(base, t, CURVE_TOL, CURVE_METHOD,
-                           Bound(t, sol.energy_kwh, acc <= CURVE_TOL, len(mesh.calc.h_m), mesh.steps_m[-1],
-                                 sol.solve_time_s, acc, sol.slope_kwh_per_s, CURVE_METHOD))
+                           bound(t, sol.energy_kwh, acc <= CURVE_TOL, len(mesh.calc.h_m), mesh.steps_m[-1],
+                                 sol.solve_time_s, acc, sol.slope_kwh_per_s, CURVE_METHOD, sol))
     return [out[float(t)] for t in times_s]
 
 
@@ -289,16 +316,20 @@ def _remember(base: tuple, time_s: float, tol: float, method: str, b: "Bound") -
 
 
 def check_bound(route: Route, train: Train, options: ModelOptions, time_s: float, *, mesh_tol: float,
-                max_degree: int) -> Bound:
+                max_degree: int, objective: str = "traction") -> Bound:
     """E* by the second, independent method: multi-phase Radau (LGR) collocation with hp mesh refinement
-    (``ocp/energy.py``, the solver of ``ocp --objective energy``), refined until E* moves by at most 2e-5
-    over a refinement or the mesh meets ``mesh_tol``; its accuracy is that last move."""
+    (``ocp/energy.py``, the solver of ``ocp --objective energy``; with the ``net`` objective, its regenerative
+    credit at the train's ``regen_efficiency``), refined until E* moves by at most 2e-5 over a refinement or
+    the mesh meets ``mesh_tol``; its accuracy is that last move."""
+    from ..physics.energy import EnergyModel
     from .energy import solve_energy
     from .train_energy import EnergyOptions, build_problem, check_runnable
 
     calc = TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
-    tep = build_problem(route, train, options, time_s, EnergyOptions())
+    regen = net_regen(train, objective)
+    tep = build_problem(route, train, options, time_s,
+                        EnergyOptions(energy=EnergyModel(regen_credit=regen)) if regen > 0 else EnergyOptions())
     es = solve_energy(tep, calc, mesh_tol=mesh_tol, max_degree=max_degree, energy_tol=2e-5)
     accuracy = es.accuracy
     if route.length_m <= SHORT_LEG_M:  # a second start: the lower of two local optima
@@ -315,7 +346,7 @@ def check_bound(route: Route, train: Train, options: ModelOptions, time_s: float
                 acc = max(apart, rest.accuracy)
                 accuracy = acc if best.accuracy is None else min(best.accuracy, acc)
     return Bound(time_s, es.objective_kwh, es.converged, es.solution.mesh.n_points, 0.0, es.wall_time_s, accuracy,
-                 es.slope_kwh_per_s, CHECK_METHOD)
+                 es.slope_kwh_per_s, CHECK_METHOD, objective)
 
 
 SHORT_LEG_M = 5000.0
@@ -382,16 +413,18 @@ def percent_floor_kwh(route: Route, train: Train) -> float:
 
 
 def gap_to_optimum(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
-                   calc: TractionCalculator | None = None) -> Gap | None:
-    """The plan's energy ``energy_kwh`` against E* at its own running time ``time_s``; None when there is
-    no E* there (an infeasible plan, a time the optimum cannot reach, a solver failure)."""
+                   calc: TractionCalculator | None = None, objective: str = "traction") -> Gap | None:
+    """The plan's energy ``energy_kwh`` (what ``objective`` counts) against E* of that objective at its own
+    running time ``time_s``; None when there is no E* there (an infeasible plan, a time the optimum cannot
+    reach, a solver failure)."""
     if not (math.isfinite(time_s) and math.isfinite(energy_kwh)):
         return None
     try:
-        b = energy_bound(route, train, options, time_s, calc=calc)
+        b = energy_bound(route, train, options, time_s, calc=calc, objective=objective)
     except LocoplanError:
         return None
-    e_star = max(b.energy_kwh, 0.0)  # traction work is never negative: below 0 is the solver's tolerance
+    # traction work is never negative: below 0 is the solver's tolerance (a net energy may be)
+    e_star = b.energy_kwh if net_regen(train, objective) > 0 else max(b.energy_kwh, 0.0)
     acc = b.accuracy_percent
     sure = acc is not None and acc < 0.5 * GAP_DIGIT_PERCENT
     pct = (round(100.0 * (energy_kwh - e_star) / e_star, 2) if sure and e_star >= percent_floor_kwh(route, train)
@@ -400,7 +433,7 @@ def gap_to_optimum(route: Route, train: Train, options: ModelOptions, time_s: fl
 
 
 def gap_to_optimum_percent(route: Route, train: Train, options: ModelOptions, time_s: float, energy_kwh: float,
-                           calc: TractionCalculator | None = None) -> float | None:
+                           calc: TractionCalculator | None = None, objective: str = "traction") -> float | None:
     """``(E - E*) / E* x 100`` at the plan's own running time ``time_s`` (see :func:`gap_to_optimum`)."""
-    g = gap_to_optimum(route, train, options, time_s, energy_kwh, calc)
+    g = gap_to_optimum(route, train, options, time_s, energy_kwh, calc, objective)
     return None if g is None else g.gap_percent

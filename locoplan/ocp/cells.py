@@ -38,8 +38,9 @@ import numpy as np
 
 from ..errors import InfeasibleError
 from ..physics.braking import full_brake_kn
+from ..physics.energy import recovered_energy_kwh
 from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
-from ..physics.traction import rounded_force_curve
+from ..physics.traction import max_force_kn, rounded_force_curve
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
@@ -69,6 +70,11 @@ class CellEnergyProblem:
     ``ocp.ipm.CellIPM`` solves: variables ``[v_0, F_0, B_0, v_1, F_1, B_1, ..., v_N]`` scaled to order one,
     one equality (the cell's work-energy balance) and two inequalities (F and B under their curves) per
     cell, and the running time as the one global inequality."""
+
+    FORCES = ("F", "B")
+    """A cell's forces, in the order of its variables: traction, then braking (keys of the point's physics)."""
+    CAPS = ("Fm", "Bm")
+    """Each force's cap, its inequality (keys of the point's physics)."""
 
     def __init__(self, calc: TractionCalculator, time_s: float, stops_m=(), windows=()):
         """``stops_m``: positions [m] (grid nodes) where the train also stands (a journey's stops);
@@ -150,27 +156,36 @@ class CellEnergyProblem:
             return self._last[1]
         calc, tr = self.calc, self.calc.train
         xp = x * self.ref
-        v = xp[0::3]
-        p, q = v[:-1], v[1:]
-        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
-        V = kmh(vm)
-        a, b, c = tr.resistance_kn
-        if self._curves is None:  # the three force curves, rounded, made once
-            self._curves = tuple(self._rounded(xs, ys) for xs, ys in (
-                (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
-                (calc.air_brake_speed_kmh, calc.air_brake_kn)))
-        ftr, fel, fair = (curve(V) for curve in self._curves)
-        phys = {
-            "p": p, "q": q, "F": xp[1::3], "B": xp[2::3], "vm": vm,
-            "R": train_resistance_kn(V, tr.resistance_kn),
-            "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c),  # dR/dvm [kN s/m]
-            "R_vv": KMH_PER_MS ** 2 * 2.0 * c,
+        phys, V = self._speed_terms(xp[0::3])
+        ftr, fel, fair = (curve(V) for curve in self._force_curves())
+        phys.update({
+            "F": xp[1::3], "B": xp[2::3],
             # the caps, d/dvm and d2/dvm2 (the curves are in km/h)
             "Fm": tuple(f * self.allowed * KMH_PER_MS ** i for i, f in enumerate(ftr)),
             "Bm": tuple(full_brake_kn(e, a_, self.allowed) * KMH_PER_MS ** i for i, (e, a_) in enumerate(zip(fel, fair))),
-        }
+        })
         self._last = (x, phys)
         return phys
+
+    def _speed_terms(self, v: np.ndarray):
+        """The cells' speeds from the node speeds ``v`` [m/s]: (``p``, ``q`` at the two nodes, the mean ``vm``,
+        the resistance ``R`` there with dR/dvm ``R_v`` [kN s/m] and ``R_vv``), and vm in km/h."""
+        p, q = v[:-1], v[1:]
+        vm = np.sqrt(np.maximum(0.5 * (p * p + q * q), V_FLOOR_MS ** 2))
+        V = kmh(vm)
+        tr = self.calc.train
+        _, b, c = tr.resistance_kn
+        return {"p": p, "q": q, "vm": vm, "R": train_resistance_kn(V, tr.resistance_kn),
+                "R_v": KMH_PER_MS * davis_slope_kn_per_kmh(V, b, c), "R_vv": KMH_PER_MS ** 2 * 2.0 * c}, V
+
+    def _force_curves(self):
+        """The traction, electric-brake and air-brake curves, rounded (``_rounded``), made once."""
+        if self._curves is None:
+            calc, tr = self.calc, self.calc.train
+            self._curves = tuple(self._rounded(xs, ys) for xs, ys in (
+                (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
+                (calc.air_brake_speed_kmh, calc.air_brake_kn)))
+        return self._curves
 
     @staticmethod
     def _rounded(xs, ys):
@@ -187,36 +202,49 @@ class CellEnergyProblem:
             P["vm_d"] = (p * i2, q * i2, i2 - p * p * i4, -p * q * i4, i2 - q * q * i4)
         return P["vm_d"]
 
+    def cost(self) -> tuple[float, ...]:
+        """The objective's weight on each force of :data:`FORCES` (the traction work: 1 on F)."""
+        return (1.0, 0.0)
+
     def values(self, x: np.ndarray) -> CellValues:
         P = self._physics(x)
         p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
-        e = (0.5 * self.M * (q * q - p * p) - h * (P["F"] - P["B"] - P["R"] - self.G)) / (h * fr)
-        g = np.where(self.active, np.stack([(P["F"] - P["Fm"][0]) / fr, (P["B"] - P["Bm"][0]) / fr], axis=1), -1.0)
+        net = P[self.FORCES[0]]
+        for f in self.FORCES[1:]:  # traction less every brake
+            net = net - P[f]
+        e = (0.5 * self.M * (q * q - p * p) - h * (net - P["R"] - self.G)) / (h * fr)
+        g = np.where(self.active, np.stack([(P[f] - P[cap][0]) / fr for f, cap in zip(self.FORCES, self.CAPS)], axis=1),
+                     -1.0)
         c = (np.einsum("jk,k->j", self.cmask, 2 * h / np.maximum(p + q, V_FLOOR_MS)) + self.cconst) / self.t_ref
-        return CellValues(float(np.sum(h * P["F"])) / KJ_PER_KWH / self.e_ref, e, g, c)
+        work = sum(w * P[f] for f, w in zip(self.FORCES, self.cost()) if w)
+        return CellValues(float(np.sum(h * work)) / KJ_PER_KWH / self.e_ref, e, g, c)
 
     def derivatives(self, x: np.ndarray) -> CellDerivatives:
-        """Gradients on each cell's variables (v_k, F_k, B_k, v_k+1), in the scaled variables."""
+        """Gradients on each cell's variables (v_k, its forces, v_k+1), in the scaled variables."""
         P = self._physics(x)
         vm_p, vm_q, *_ = self._vm_derivatives(P)
         N, h, M, fr = self.N, self.h, self.M, self.f_ref
+        n = self.local.shape[1]
         rl = self._rl
-        ge = np.empty((N, 4))
+        ge = np.empty((N, n))
         ge[:, 0] = (-M * P["p"] + h * P["R_v"] * vm_p) / (h * fr)
-        ge[:, 1] = -1.0 / fr
-        ge[:, 2] = 1.0 / fr
-        ge[:, 3] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
-        gg = np.zeros((N, 2, 4))
-        for j, (col, cap) in enumerate(((1, P["Fm"]), (2, P["Bm"]))):
+        ge[:, 1] = -1.0 / fr  # traction
+        ge[:, 2:n - 1] = 1.0 / fr  # the brakes
+        ge[:, n - 1] = (M * P["q"] + h * P["R_v"] * vm_q) / (h * fr)
+        gg = np.zeros((N, len(self.CAPS), n))
+        for j, key in enumerate(self.CAPS):  # force j under its cap
+            cap = P[key]
             gg[:, j, 0] = -cap[1] * vm_p / fr
-            gg[:, j, 3] = -cap[1] * vm_q / fr
-            gg[:, j, col] = 1.0 / fr
+            gg[:, j, n - 1] = -cap[1] * vm_q / fr
+            gg[:, j, j + 1] = 1.0 / fr
         gg[~self.active] = 0.0
         dtau = -2 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 2 / self.t_ref
-        gc = np.zeros((len(self.cmask), N, 4))
-        gc[:, :, 0] = gc[:, :, 3] = self.cmask * dtau
-        gf = np.zeros((N, 4))
-        gf[:, 1] = h / KJ_PER_KWH / self.e_ref
+        gc = np.zeros((len(self.cmask), N, n))
+        gc[:, :, 0] = gc[:, :, n - 1] = self.cmask * dtau
+        gf = np.zeros((N, n))
+        for j, w in enumerate(self.cost()):
+            if w:
+                gf[:, j + 1] = w * h / KJ_PER_KWH / self.e_ref
         return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
 
     def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
@@ -230,27 +258,35 @@ class CellEnergyProblem:
         e_qq = (M + h * (R_vv * vm_q ** 2 + R_v * vm_qq)) / (h * fr)
         e_pq = (R_vv * vm_p * vm_q + R_v * vm_pq) / fr
         pp, pq_, qq = y * e_pp, y * e_pq, y * e_qq
-        for j, cap in enumerate((P["Fm"], P["Bm"])):  # - cap(vm) in each inequality
+        for j, key in enumerate(self.CAPS):  # - cap(vm) in each inequality
+            cap = P[key]
             w = np.where(self.active[:, j], z[:, j], 0.0) / fr
             pp = pp - w * (cap[2] * vm_p ** 2 + cap[1] * vm_pp)
             qq = qq - w * (cap[2] * vm_q ** 2 + cap[1] * vm_qq)
             pq_ = pq_ - w * (cap[2] * vm_p * vm_q + cap[1] * vm_pq)
         d2 = np.einsum("j,jk->k", zc, self.cmask) * 4 * h / np.maximum(P["p"] + P["q"], V_FLOOR_MS) ** 3 / self.t_ref  # the times
-        out = np.zeros((self.N, 4, 4))
+        n = self.local.shape[1]  # the cell's variables: its two speeds first and last
+        out = np.zeros((self.N, n, n))
         vr2 = self.v_ref ** 2
         out[:, 0, 0] = (pp + d2) * vr2
-        out[:, 3, 3] = (qq + d2) * vr2
-        out[:, 0, 3] = out[:, 3, 0] = (pq_ + d2) * vr2
+        out[:, n - 1, n - 1] = (qq + d2) * vr2
+        out[:, 0, n - 1] = out[:, n - 1, 0] = (pq_ + d2) * vr2
         return out
 
     # ------------------------------------------------------------------ start and results
-    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
-        """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
+    def _needed_kn(self, v_nodes_ms: np.ndarray):
+        """(node speeds [m/s] under the envelope and at rest at both ends, the cells' mean speeds [m/s], the net
+        force each cell needs for them [kN])."""
         v = np.clip(v_nodes_ms, 0.0, self.v_cap)
         v[0] = v[-1] = 0.0
         p, q = v[:-1], v[1:]
         vm = np.sqrt(0.5 * (p * p + q * q))
         u = 0.5 * self.M * (q * q - p * p) / self.h + train_resistance_kn(kmh(vm), self.calc.train.resistance_kn) + self.G
+        return v, vm, u
+
+    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
+        """A scaled start vector from node speeds [m/s] (the forces each cell needs for them)."""
+        v, _, u = self._needed_kn(v_nodes_ms)
         F = np.clip(u, 0.0, None) * (self.allowed > 0)
         B = np.clip(-u, 0.0, None) * self.can_brake
         x = np.empty(3 * self.N + 1)
@@ -262,6 +298,94 @@ class CellEnergyProblem:
 
     def speeds_ms(self, xs: np.ndarray) -> np.ndarray:
         return xs[0::3] * self.v_ref
+
+
+class NetCellEnergyProblem(CellEnergyProblem):
+    """The minimum-*net*-energy problem on ``calc``'s cells: the traction work less what the electric brake
+    returns to the line, sum h (F - eta B_e), with eta the train's ``regen_efficiency``.
+
+    The electric and the air brake are two controls here, B_e <= B_e,max(vm) (0 where the catenary is off)
+    and B_a <= B_a,max(vm), where the traction problem has one, B <= B_e,max + B_a,max: the objective credits
+    only the electric part, and with two controls it stays smooth (min(B, B_e,max) would not be). Variables
+    ``[v_0, F_0, E_0, A_0, v_1, ...]``, three inequalities per cell. The optimum never brakes with air while
+    electric braking is left (that would give up a credit), so it brakes as the calculator does: the
+    electric brake first. E* of this problem is the least net energy of any run in the time, a true
+    optimum of the train model with the credit; for a train that regenerates nothing it is the traction E*.
+    """
+
+    FORCES = ("F", "E", "A")
+    CAPS = ("Fm", "Em", "Am")
+
+    def __init__(self, calc: TractionCalculator, time_s: float, regen: float):
+        super().__init__(calc, time_s)
+        self.regen = float(regen)
+        N = self.N
+        powered = self.allowed > 0
+        has_electric = bool(np.any(np.asarray(calc.electric_brake_kn, float) > 0))
+        has_air = bool(np.any(np.asarray(calc.air_brake_kn, float) > 0))
+        self.electric_ok = powered & has_electric
+        self.air_ok = np.full(N, has_air)
+        n = 4 * N + 1
+        ref = np.empty(n)
+        ref[0::4] = self.v_ref
+        ref[1::4] = ref[2::4] = ref[3::4] = self.f_ref
+        self.ref = ref
+        lb, ub = np.zeros(n), np.full(n, np.inf)
+        ub[0::4] = self.ub[0::3]  # the speeds' bounds (the envelope, rest at both ends) as the traction problem's
+        ub[1::4] = np.where(powered, np.inf, 0.0)
+        ub[2::4] = np.where(self.electric_ok, np.inf, 0.0)
+        ub[3::4] = np.where(self.air_ok, np.inf, 0.0)
+        self.lb, self.ub = lb, ub
+        k = np.arange(N)
+        self.local = np.column_stack([4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3, 4 * k + 4])
+        pos_x = np.empty(n, dtype=np.int64)
+        pos_x[0::4] = 5 * np.arange(N + 1)
+        pos_x[1::4] = 5 * k + 1
+        pos_x[2::4] = 5 * k + 2
+        pos_x[3::4] = 5 * k + 3
+        self.pos_x = pos_x
+        self.pos_y = 5 * k + 4
+        self._rl = ref[self.local]
+        self.active = np.column_stack([powered, self.electric_ok, self.air_ok])
+        self._last = None
+
+    def _physics(self, x: np.ndarray):
+        if self._last is not None and self._last[0] is x:
+            return self._last[1]
+        xp = x * self.ref
+        phys, V = self._speed_terms(xp[0::4])
+        phys.update({"F": xp[1::4], "E": xp[2::4], "A": xp[3::4]})
+        # the caps, d/dvm and d2/dvm2 (the curves are in km/h); traction and the electric brake need the catenary
+        for key, curve, on in zip(self.CAPS, self._force_curves(), (self.allowed, self.allowed, 1.0)):
+            phys[key] = tuple(f * on * KMH_PER_MS ** i for i, f in enumerate(curve(V)))
+        self._last = (x, phys)
+        return phys
+
+    def cost(self) -> tuple[float, ...]:
+        return (1.0, -self.regen, 0.0)
+
+    def start_from_profile(self, v_nodes_ms: np.ndarray) -> np.ndarray:
+        """A scaled start from node speeds [m/s]: each cell's force, braking electric first."""
+        v, vm, u = self._needed_kn(v_nodes_ms)
+        brake = np.clip(-u, 0.0, None)
+        e_max = max_force_kn(kmh(vm), self.calc.electric_brake_speed_kmh, self.calc.electric_brake_kn) * self.electric_ok
+        x = np.empty(4 * self.N + 1)
+        x[0::4] = v
+        x[1::4] = np.clip(u, 0.0, None) * (self.allowed > 0)
+        x[2::4] = np.minimum(brake, e_max)
+        x[3::4] = (brake - x[2::4]) * self.air_ok
+        return x / self.ref
+
+    def energy_kwh(self, xs: np.ndarray) -> float:
+        return float(np.sum(self.h * (xs[1::4] - self.regen * xs[2::4]) * self.f_ref)) / KJ_PER_KWH
+
+    def speeds_ms(self, xs: np.ndarray) -> np.ndarray:
+        return xs[0::4] * self.v_ref
+
+    def forces_kn(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(traction, electric brake, air brake) [kN] per cell at the scaled point ``xs``."""
+        x = xs * self.ref
+        return x[1::4], x[2::4], x[3::4]
 
 
 @dataclass(frozen=True)
@@ -277,6 +401,13 @@ class CellSolution:
     slope_kwh_per_s: float
     result: IPMResult
     solve_time_s: float
+    traction_kwh: float = math.nan
+    recovered_kwh: float = math.nan
+    electric_kn: np.ndarray | None = None
+    """The net problem's electric part of ``brake_kn`` (None for the traction problem's solution)."""
+    """The optimum's traction work and the energy its electric brake returns [kWh] (the train's
+    ``regen_efficiency`` x its electric braking work, the electric brake taking its share first): the
+    objective is the first (traction E*) or their difference (net E*)."""
 
 
 def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser: TractionCalculator | None = None,
@@ -310,13 +441,14 @@ def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
 
 def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | None = None,
                 settings: IPMSettings | None = None, mu_init: float | None = None,
-                point: np.ndarray | None = None) -> CellSolution:
+                point: np.ndarray | None = None, regen: float = 0.0) -> CellSolution:
     """E* on ``calc``'s cells in ``time_s`` [s]; ``start``: node speeds [m/s] to start from (default
     :func:`initial_speeds`), or ``point`` a whole scaled start (speeds and forces, :func:`warm_point`);
-    ``mu_init`` the barrier parameter to start with. Raises ``InfeasibleError`` when the solver does not
-    converge."""
+    ``mu_init`` the barrier parameter to start with; ``regen`` > 0: the least net energy with that share of
+    the electric brake's work credited (:class:`NetCellEnergyProblem`), else the least traction work. Raises
+    ``InfeasibleError`` when the solver does not converge."""
     t0 = _time.perf_counter()
-    prob = CellEnergyProblem(calc, time_s)
+    prob = cell_problem(calc, time_s, regen)
     if point is not None:
         x0 = point
     else:
@@ -328,10 +460,25 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
                               f"({res.status} after {res.iterations} iterations, error {res.error:.1e})")
-    x = res.x * prob.ref
     slope = -float(res.zc[0]) * prob.e_ref / prob.t_ref
-    return CellSolution(prob.energy_kwh(res.x), calc.s_m, x[0::3], x[1::3], x[2::3], slope, res,
-                        _time.perf_counter() - t0)
+    v = prob.speeds_ms(res.x)
+    vm_kmh = kmh(np.sqrt(0.5 * (v[:-1] ** 2 + v[1:] ** 2)))
+    if isinstance(prob, NetCellEnergyProblem):
+        f, electric, air = prob.forces_kn(res.x)
+        brake, recovered = electric + air, prob.regen * float(np.sum(calc.h_m * electric)) / KJ_PER_KWH
+    else:
+        x = res.x * prob.ref
+        f, brake, electric = x[1::3], x[2::3], None
+        e_max = max_force_kn(vm_kmh, calc.electric_brake_speed_kmh, calc.electric_brake_kn) * calc.traction_allowed
+        recovered = float(recovered_energy_kwh(calc.s_m, brake, e_max, calc.train.regen_efficiency))
+    return CellSolution(prob.energy_kwh(res.x), calc.s_m, v, f, brake, slope, res, _time.perf_counter() - t0,
+                        float(np.sum(calc.h_m * f)) / KJ_PER_KWH, recovered, electric)
+
+
+def cell_problem(calc: TractionCalculator, time_s: float, regen: float = 0.0) -> CellEnergyProblem:
+    """The minimum-energy problem on ``calc``'s cells: of the net energy with ``regen`` > 0
+    (:class:`NetCellEnergyProblem`), else of the traction work."""
+    return NetCellEnergyProblem(calc, time_s, regen) if regen > 0 else CellEnergyProblem(calc, time_s)
 
 
 def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -343,10 +490,24 @@ def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, 
     old = sol.s_m
     k = np.clip(np.searchsorted(old, mid) - 1, 0, len(old) - 2)
     v = np.interp(s_new, old, sol.v_ms)
-    x = np.empty(3 * prob.N + 1)
-    x[0::3] = v
-    x[1::3] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
-    x[2::3] = np.where(prob.can_brake, sol.brake_kn[k], 0.0)
+    if isinstance(prob, NetCellEnergyProblem):  # the braking split: the old one's, or electric first
+        x = np.empty(4 * prob.N + 1)
+        x[0::4] = v
+        x[1::4] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
+        brake = sol.brake_kn[k]
+        if sol.electric_kn is not None:
+            electric = sol.electric_kn[k]
+        else:
+            v_mid = kmh(np.sqrt(0.5 * (v[1:] ** 2 + v[:-1] ** 2)))
+            electric = np.minimum(brake, max_force_kn(v_mid, prob.calc.electric_brake_speed_kmh,
+                                                      prob.calc.electric_brake_kn))
+        x[2::4] = np.where(prob.electric_ok, electric, 0.0)
+        x[3::4] = np.where(prob.air_ok, brake - electric, 0.0)
+    else:
+        x = np.empty(3 * prob.N + 1)
+        x[0::3] = v
+        x[1::3] = np.where(prob.allowed > 0, sol.traction_kn[k], 0.0)
+        x[2::3] = np.where(prob.can_brake, sol.brake_kn[k], 0.0)
     h_old = np.diff(old)
     r = sol.result
     hm_old = float(np.mean(h_old))
@@ -411,13 +572,14 @@ class EStar:
 
 def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: float, floor_kwh: float = 0.0,
                 warm: CellSolution | None = None, first_step_m: float | None = None,
-                finest_step_m: float = FINEST_STEP_M, scale_kwh: float | None = None) -> EStar:
+                finest_step_m: float = FINEST_STEP_M, scale_kwh: float | None = None, regen: float = 0.0) -> EStar:
     """E* of ``train`` on ``route`` in ``time_s`` [s]: the cell scheme on a ``first_step_m`` grid (default
     ``COARSE_STEP_M``, halved while it has fewer than ``COARSE_MIN_CELLS`` cells), then on
     grids of half the step, each started from the one before, until two agree to ``tol`` (relative to
     ``max(E*, floor_kwh)``, or to ``scale_kwh`` where given: an error in kWh that must be small against
     another E*) or the cells reach ``finest_step_m``. ``warm``: a solution at a neighbouring time to start
-    the first grid from. The accuracy returned is relative to ``max(E*, floor_kwh)`` in either case."""
+    the first grid from. The accuracy returned is relative to ``max(E*, floor_kwh)`` in either case.
+    ``regen`` > 0: the least net energy (:func:`solve_cells`)."""
     t0 = _time.perf_counter()
     step = float(COARSE_STEP_M if first_step_m is None else first_step_m)
     sols, steps, cells, calcs = [], [], [], []
@@ -432,14 +594,14 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
         calcs.append(calc)
         point = None
         if prev is not None:  # the coarser grid's (or the neighbouring time's) speeds and forces
-            point = warm_point(CellEnergyProblem(calc, time_s), prev)[0]
+            point = warm_point(cell_problem(calc, time_s, regen), prev)[0]
         try:
             try:
-                sol = solve_cells(calc, time_s, mu_init=None if prev is None else WARM_MU, point=point)
+                sol = solve_cells(calc, time_s, mu_init=None if prev is None else WARM_MU, point=point, regen=regen)
             except InfeasibleError:
                 if point is None:
                     raise
-                sol = solve_cells(calc, time_s)  # the start from the coarser grid led astray: a cold start
+                sol = solve_cells(calc, time_s, regen=regen)  # the start from the coarser grid led astray: a cold start
         except InfeasibleError:
             if len(sols) < 2:
                 raise

@@ -40,8 +40,9 @@ def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: floa
 class SwitchingProblem:
     """Box-bounded switching-point problem over one calculator; ``evaluate`` takes the whole population.
 
-    objective: "eq10" (seed 002 fitness) or "energy" (traction energy alone [kWh], the energy-saving
-    strategy that ignores the timetable).
+    objective: "eq10" (seed 002 fitness) or "energy" (the energy alone [kWh], the energy-saving strategy
+    that ignores the timetable). energy: what E counts in either (``physics.energy.OBJECTIVES``): the
+    traction work (default) or the net energy, traction less what the electric brake recovers.
     """
 
     calc: TractionCalculator
@@ -52,6 +53,7 @@ class SwitchingProblem:
     e_min_kwh: float = 1.0
     weights: tuple[float, float] = (0.5, 0.5)
     objective: str = "eq10"
+    energy: str = "traction"
     tolerance_s: float | None = None
     min_gap_m: float | None = None
     center: np.ndarray | None = None
@@ -83,13 +85,14 @@ class SwitchingProblem:
 
     def simulate(self, X: np.ndarray, profile: bool = False) -> BatchResult:
         """Traction calculation of candidates X (n, n_var)."""
-        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile)
+        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile, recovered=self.energy == "net")
 
     def fitness(self, res: BatchResult) -> np.ndarray:
+        e = res.energy_kwh(self.energy)
         if self.objective == "energy":
-            f = res.traction_energy_kwh.copy()
+            f = e.copy()
         else:
-            f = fitness_eq10(res.running_time_s, res.traction_energy_kwh, self.t0_s, self.e_min_kwh, *self.weights)
+            f = fitness_eq10(res.running_time_s, e, self.t0_s, self.e_min_kwh, *self.weights)
             if self.tolerance_s is not None:
                 excess = np.abs(res.running_time_s - self.t0_s) - self.tolerance_s
                 f = np.where(excess > 0, OUTSIDE_WINDOW + excess / self.t0_s, f)

@@ -54,6 +54,11 @@ class EnergyModel:
 
 WHEEL_WORK = EnergyModel()
 
+OBJECTIVES = ("traction", "net")
+"""What a planner's energy term counts (``--objective``): ``traction``, the traction work at the wheel
+sum F ds (seed 002 eq. 1, the default); ``net``, that work less the energy the electric brake returns
+to the line, eta x sum B_e ds (:func:`recovered_energy_kwh`)."""
+
 
 def energy_rate_kn(traction_kn, electric_brake_kn, speed_kmh, model: EnergyModel = WHEEL_WORK):
     """Energy per metre [kN = kJ/m]: F / eta(v) - r B_e (numbers, arrays or CasADi symbols)."""

@@ -87,17 +87,26 @@ def strip_gradient_permille(route: Track, s_m, train_length_m: float):
     """Equivalent gradient averaged over the train's body [s - L, s] (train as a uniform strip) [per mille].
 
     A 650 m train on a 600 m curve is not a point: this is the mean of the point-mass equivalent
-    gradient (curves at 600/R over their extent) under the train, computed exactly from the running
-    integral of the step function (piecewise linear between its knots). Before the start the first
-    piece's value is assumed (the train stands in the station), beyond the end the last piece's.
+    gradient (curves at 600/R over their extent) under the train (:func:`mean_gradient_permille`).
     """
     s = np.asarray(s_m, dtype=float)
+    return mean_gradient_permille(route, s - train_length_m, s)
+
+
+def mean_gradient_permille(route: Track, from_m, to_m):
+    """Mean of the point-mass equivalent gradient (curves at 600/R over their extent) over [from_m, to_m]
+    [per mille] (arrays of equal shape, to_m > from_m): computed exactly from the running integral of the
+    step function (piecewise linear between its knots). Before the start the first piece's value is
+    assumed (the train stands in the station), beyond the end the last piece's. The strip train's gradient
+    is this over its body; one vehicle's is this over its own length (``physics.couplers``)."""
+    a = np.asarray(from_m, dtype=float)
+    b = np.asarray(to_m, dtype=float)
     x, val = point_gradient_knots(route)
     cum = np.concatenate([[0.0], np.cumsum(val * np.diff(x))])
-    pad = float(train_length_m) + 1.0
+    pad = float(max(np.max(b - a, initial=0.0), np.max(-a, initial=0.0), np.max(b - x[-1], initial=0.0))) + 1.0
     xs = np.concatenate([[x[0] - pad], x, [x[-1] + pad]])
     cs = np.concatenate([[-val[0] * pad], cum, [cum[-1] + val[-1] * pad]])
-    return (np.interp(s, xs, cs) - np.interp(s - train_length_m, xs, cs)) / train_length_m
+    return (np.interp(b, xs, cs) - np.interp(a, xs, cs)) / (b - a)
 
 
 def equivalent_gradient_permille(route: Track, s_m, train_length_m: float, strip: bool = False):

@@ -48,8 +48,10 @@ def journey_summary_table(s: dict) -> Table:
         pct = p.get("gap_to_optimum_percent")
         gap = ("-" if p["gap_to_optimum_kwh"] is None else f"{pct:+.2f} %" if pct is not None
                else f"{p['gap_to_optimum_kwh']:+.2f} kWh")
+        rec = p.get("recovered_energy_kwh")
         t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s; {gap} over E* (each leg "
-                  "at its plan's own time)")
+                  "at its plan's own time)" + ("" if rec is None else f"; recovered by the electric brake {rec:.2f} kWh, "
+                                               f"net {p['net_energy_kwh']:.2f} kWh"))
     return t
 
 

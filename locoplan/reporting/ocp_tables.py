@@ -139,35 +139,50 @@ def plan_sequence_table(runs: list[dict]) -> Table:
     return table
 
 
-def energy_curve_table(route: str, consist: str, rows: list[dict]) -> Table:
-    """``bound --times``: E* at each running time (a time without an optimum: its reason)."""
-    table = Table(title=escape(f"{route} — {consist}: least traction energy E*(T)"), title_justify="left")
+def energy_curve_table(route: str, consist: str, rows: list[dict], objective: str = "traction") -> Table:
+    """``bound --times``: E* at each running time (a time without an optimum: its reason), with its run's
+    traction work and what its electric brake recovers (columns 2 and 3)."""
+    what = "net energy" if objective == "net" else "traction energy"
+    table = Table(title=escape(f"{route} — {consist}: least {what} E*(T)"), title_justify="left")
     check = any(r.get("check") for r in rows)
-    cols = ["T [s]", "E* [kWh]", "within [%]", "converged", "solve [s]"] + (["2nd method [kWh]", "diff. [%]"] if check else [])
+    cols = ["T [s]", "E* [kWh]", "traction [kWh]", "recovered [kWh]", "within [%]", "converged", "solve [s]"] + (
+        ["2nd method [kWh]", "diff. [%]"] if check else [])
     for col in cols:
         table.add_column(escape(col), justify="right")
     for row in rows:
         if row["energy_kwh"] is None:
-            table.add_row(f"{row['time_s']:g}", "-", "-", "-", escape(row["reason"] or ""), *(["-", "-"] if check else []))
+            table.add_row(f"{row['time_s']:g}", "-", "-", "-", "-", "-", escape(row["reason"] or ""),
+                          *(["-", "-"] if check else []))
         else:
             c = row.get("check")
-            table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", _acc(row.get("accuracy_percent")),
+            table.add_row(f"{row['time_s']:g}", f"{row['energy_kwh']:.2f}", _kwh(row.get("traction_energy_kwh")),
+                          _kwh(row.get("recovered_energy_kwh")), _acc(row.get("accuracy_percent")),
                           "yes" if row["converged"] else "no", f"{row['solve_time_s']:.2f}",
                           *([f"{c['energy_kwh']:.2f}", f"{c['difference_percent']:+.3f}"] if c else (["-", "-"] if check else [])))
     return table
+
+
+def _kwh(x: float | None) -> str:
+    return "-" if x is None else f"{x:.2f}"
 
 
 def _acc(pct: float | None) -> str:
     return "?" if pct is None else within_percent(pct).removesuffix(" %")
 
 
-def energy_bound_line(route: str, consist: str, row: dict) -> str:
-    """``bound --time``: the one E* as a line."""
+def energy_bound_line(route: str, consist: str, row: dict, objective: str = "traction") -> str:
+    """``bound --time``: the one E* as a line, then its run's traction, recovered and net energy."""
+    parts = ("traction_energy_kwh", "recovered_energy_kwh", "net_energy_kwh")
+    run = ("" if any(row.get(k) is None for k in parts) else
+           f"\nits run: traction {row['traction_energy_kwh']:.2f} kWh, recovered by the electric brake "
+           f"{row['recovered_energy_kwh']:.2f} kWh, net {row['net_energy_kwh']:.2f} kWh"
+           + (" (E* is the least net energy)" if objective == "net" else ""))
     return (f"E* = {row['energy_kwh']:.2f} kWh  ({escape(route)}, {escape(consist)}, {row['time_s']:g} s; "
             f"{row['cells']:,} cells, "
             + (f"solved in {row['solve_time_s']:.2f} s" if row["solve_time_s"] else "from the cache of earlier solves")
             + f"; within {within_percent(row.get('accuracy_percent'))}"
             + ")"
+            + run
             + (f"\nsecond method ({c['method']}, {c['lgr_points']:,} LGR points): {c['energy_kwh']:.2f} kWh "
                f"within {within_percent(c['accuracy_percent'])}; E* - it = {c['difference_percent']:+.3f} %"
                if (c := row.get("check")) else ""))

@@ -45,7 +45,7 @@ def run_title(route: str, train: str, label: str, summary: dict) -> str:
 
 
 def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str,
-                  histories: list[tuple] | None = None, route=None) -> None:
+                  histories: list[tuple] | None = None, route=None, coupler_limit_kn: float | None = None) -> None:
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
     equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
     (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
@@ -53,13 +53,15 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     reports, drawn at the curve's end; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,
     written atomically. A plan that failed (stalled, overshot) is drawn up to where it failed. With
     ``route``, the file's own limit and gradient are drawn beside the train's, and the stations, neutral
-    sections, tunnels and curves are marked."""
+    sections, tunnels and curves are marked. A train of several vehicles has a panel of its largest coupler
+    forces along the route (tension up, compression down), with ``coupler_limit_kn`` if given."""
     path = check_plot_path(path)
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    couplers = any(p.coupler_tension_kn is not None for _, p in profiles)
     if histories:
         # one convergence panel per quantity: a fitness (no unit) and an energy [kWh] never share an axis
         groups: dict[str, list] = {}
@@ -67,12 +69,14 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
             label, hist = item[0], item[1]
             final = item[3] if len(item) > 3 else None
             groups.setdefault(item[2] if len(item) > 2 and item[2] else FITNESS, []).append((label, hist, final))
-        fig = plt.figure(figsize=(11, 9))
-        grid = fig.add_gridspec(3, len(groups), height_ratios=[3, 1, 2], hspace=0.35, wspace=0.25)
+        fig = plt.figure(figsize=(11, 11 if couplers else 9))
+        grid = fig.add_gridspec(4 if couplers else 3, len(groups), height_ratios=[3, 1, 1, 2] if couplers else [3, 1, 2],
+                                hspace=0.35, wspace=0.25)
         ax = fig.add_subplot(grid[0, :])
         axg = fig.add_subplot(grid[1, :], sharex=ax)
+        axk = fig.add_subplot(grid[2, :], sharex=ax) if couplers else None
         for k, (quantity, items) in enumerate(groups.items()):
-            axc = fig.add_subplot(grid[2, k])
+            axc = fig.add_subplot(grid[-1, k])
             for label, hist, final in items:
                 colour = _colour(label, profiles)
                 searched = final is not None and np.isfinite(final)
@@ -90,9 +94,14 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
                 axc.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
             else:  # panels side by side: inside, where matplotlib finds the fewest points
                 axc.legend(loc="best", fontsize=8)
+    elif couplers:
+        fig, (ax, axg, axk) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True, gridspec_kw={"height_ratios": [3, 1, 1]})
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
     draw_profiles(ax, axg, profiles, title, route)
+    if couplers:
+        axg.set_xlabel("")
+        draw_couplers(axk, profiles, coupler_limit_kn)
     if not histories:
         fig.tight_layout()
     fmt = path.suffix.lower().lstrip(".")
@@ -231,3 +240,27 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
     axg.set_ylabel("gradient [‰]")
     axg.set_xlabel("position [km]")
     axg.grid(alpha=0.3)
+
+
+def draw_couplers(ax, profiles: list[tuple[str, Profile]], limit_kn: float | None = None) -> None:
+    """The largest tensile (up) and compressive (down) coupler force [kN] in each cell, per profile, with the
+    consist's limit on both sides when given."""
+    single = len(profiles) == 1
+    for label, prof in profiles:
+        if prof.coupler_tension_kn is None:
+            continue
+        s_km = prof.s_m / 1000.0
+        colour = "#d62728" if single else _colour(label, profiles)
+        name = "" if single else f"{label}: "
+        ax.step(s_km[:-1], prof.coupler_tension_kn[0], where="post", color=colour, lw=1.0,
+                label=f"{name}largest tension")
+        ax.step(s_km[:-1], -prof.coupler_compression_kn[0], where="post", color="#1f77b4" if single else colour,
+                lw=1.0, ls="-" if single else "--", label=f"{name}largest compression (down)")
+    if limit_kn:
+        for sign in (1, -1):
+            ax.axhline(sign * limit_kn, color="black", lw=0.9, ls=":", label="coupler limit" if sign > 0 else None)
+    ax.axhline(0, color="black", lw=0.6)
+    ax.set_ylabel("coupler force [kN]")
+    ax.set_xlabel("position [km]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)

@@ -216,8 +216,7 @@ def summary_table(summary: dict, width: int = 80) -> list:
     rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
-    if "recovered_energy_kwh" in summary:  # the locomotives regenerate (vehicle field regen_efficiency)
-        rows.append(("recovered by the electric brake", _num(summary["recovered_energy_kwh"], ".2f", " kWh")))
+    rows += energy_rows(summary)
     if summary.get("planned_time_s") is not None:
         rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
@@ -225,16 +224,47 @@ def summary_table(summary: dict, width: int = 80) -> list:
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     acc = summary.get("optimum_accuracy_percent")
+    least = "the least net energy" if summary.get("objective") == "net" else "the least energy"
     if summary.get("gap_to_optimum_percent") is not None:
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_percent']:+.2f} % over E* (known to {within_percent(acc)}), "
-                     "the least energy in this running time"))
+                     f"{least} in this running time"))
     elif summary.get("gap_to_optimum_kwh") is not None:
         why = ("too little for a percentage" if acc is not None and acc < 0.5 * GAP_DIGIT_PERCENT
                else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
-                     f"the least energy in this running time ({why})"))
+                     f"{least} in this running time ({why})"))
+    rows += coupler_rows(summary)
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
+
+
+def energy_rows(summary: dict) -> list[tuple[str, str]]:
+    """The recovered and the net energy of a summary (after its traction energy), and which the objective
+    counted when it is the net energy."""
+    if "recovered_energy_kwh" not in summary:
+        return []
+    rec = summary["recovered_energy_kwh"]
+    net = _num(summary.get("net_energy_kwh"), ".2f", " kWh") + ", traction less recovered"
+    if summary.get("objective") == "net" and summary.get("net_energy_kwh") is not None:
+        net += " (the objective)"
+    return [("recovered energy", _num(rec, ".2f", " kWh") + ("" if rec is None else " by the electric brake")),
+            ("net energy", net)]
+
+
+def coupler_rows(summary: dict) -> list[tuple[str, str]]:
+    """The largest coupler forces of a run (tension, compression) and where, with the consist's limit."""
+    ten, com = summary.get("max_coupler_tension_kn"), summary.get("max_coupler_compression_kn")
+    if ten is None and com is None:
+        return []
+    lim = summary.get("coupler_limit_kn")
+
+    def one(value, at, side):
+        return f"- {side}" if value is None else f"{value:,.0f} kN {side} (at {at:,.0f} m)"
+
+    text = (f"up to {one(ten, summary.get('max_coupler_tension_at_m'), 'tension')}, "
+            f"{one(com, summary.get('max_coupler_compression_at_m'), 'compression')}"
+            + (f"; limit {lim:,.0f} kN" if lim else ""))
+    return [("coupler forces", text)]
 
 
 def sequence_table(runs: list[dict], width: int = 80) -> list:
@@ -271,11 +301,12 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     t8.add_column("sequence")
     t8.add_column(escape("switching points [m]"))
     at_t0 = any(r.get("energy_at_t0_kwh") is not None for r in rows)
-    t9 = Table(title="Table 9: running time and traction energy"
+    net = any(r.get("objective") == "net" for r in rows)
+    t9 = Table(title=f"Table 9: running time and {'net' if net else 'traction'} energy"
                + ("; at T0: a punctual plan's energy carried to T0 (its gap over E* added to E* at T0)" if at_t0 else
                   ", each at its own running time"), title_justify="left")
-    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]") + (("at T0 [kWh]",) if at_t0 else ()) + (
-        "saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
+    heads = ("strategy", "time [s]", "|T-T0| [s]", "energy [kWh]", "recovered [kWh]", "net [kWh]") + (
+        ("at T0 [kWh]",) if at_t0 else ()) + ("saved vs fastest [%]", "vs E* [%]", "switches", "coasts", "fitness")
     for col in heads:
         t9.add_column(escape(col), justify="left" if col == "strategy" else "right")
     notes, plans = [], []
@@ -302,13 +333,17 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
         e = s["traction_energy_kwh"]
         name = escape(s["strategy"]) + ("" if s["feasible"] else " [red](infeasible)[/]")
         # the derived columns are the rows' fields (runs.plans.compare_fields), as --json and --out have them
-        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"),
+        t9.add_row(name, _num(s["running_time_s"], ".1f"), late, _num(e, ".2f"), _num(s.get("recovered_energy_kwh"), ".2f"),
+                   _num(s.get("net_energy_kwh"), ".2f"),
                    *((_num(s.get("energy_at_t0_kwh"), ".2f"),) if at_t0 else ()), _num(s.get("energy_reduction_percent"), ".1f"),
                    _num(s.get("gap_to_optimum_percent"), "+.2f"), _num(s.get("switches"), "d"), _num(s.get("coasts"), "d"),
                    _num(s["fitness"], ".4f"))
-    k = 1 if at_t0 else 0  # the columns after "energy" move one right when "at T0" is there
-    # left out first at a narrow width: switches, coasts, the saving against the fastest run; the gap to E* stays longest
-    blocks = fit(t8, width, wrap=(0, 2)) + fit(t9, width, drop=(6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
+    k = 3 if at_t0 else 2  # the columns after "energy": recovered, net, (at T0)
+    # left out first at a narrow width: the recovered energy, the energy the objective does not count (net
+    # or traction), switches, coasts, the saving against the fastest run; the gap to E* stays longest
+    first = (4, 3) if net else (4, 5)
+    blocks = fit(t8, width, wrap=(0, 2))
+    blocks += fit(t9, width, drop=first + (6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))
         blocks += [Line(f"{name:<{max(len(n) for n, _, _ in plans)}}  {plan}" + (f"  (cruise {c:g} km/h)" if c else ""))

@@ -119,6 +119,9 @@ def to_json(obj: Any) -> str:
 
 
 PROFILE_COLUMNS = ("s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn")
+COUPLER_COLUMNS = ("coupler_tension_kn", "coupler_compression_kn")
+"""The largest tensile and the largest compressive force in any coupler of the train in the cell that starts
+at the node [kN] (``physics.couplers``; both >= 0); written for a train of more than one vehicle."""
 FILE_COLUMNS = ("limit_file_kmh", "gradient_file_permille")
 """The route file's own limit and gradient at each node, beside ``limit_kmh`` / ``gradient_permille``,
 which are what the train meets: the lowest of the limits under its length (held until the tail clears
@@ -133,6 +136,13 @@ def section_values(sections, attr: str, s_m) -> np.ndarray:
     values = np.array([getattr(x, attr) for x in sections], dtype=float)
     k = np.clip(np.searchsorted(starts, np.asarray(s_m, dtype=float), side="right") - 1, 0, len(values) - 1)
     return values[k]
+
+
+def profile_columns(profile: Profile, route=None) -> tuple[str, ...]:
+    """The columns of a profile's CSV: :data:`PROFILE_COLUMNS`, the coupler forces where the profile has them,
+    the route file's own values where the route is known."""
+    return (PROFILE_COLUMNS + (COUPLER_COLUMNS if profile.coupler_tension_kn is not None else ())
+            + (FILE_COLUMNS if route is not None else ()))
 
 
 def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
@@ -159,6 +169,9 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
             "condition": "" if last else CONDITIONS[int(profile.condition[plan, c])],
             "traction_kn": 0.0 if last else round(float(profile.traction_kn[plan, c]), 3),
             "brake_kn": 0.0 if last else round(float(profile.brake_kn[plan, c]), 3),
+            **({} if profile.coupler_tension_kn is None else {
+                "coupler_tension_kn": 0.0 if last else round(float(profile.coupler_tension_kn[plan, c]), 1),
+                "coupler_compression_kn": 0.0 if last else round(float(profile.coupler_compression_kn[plan, c]), 1)}),
             **({} if route is None else {"limit_file_kmh": float(file_limit[k]),
                                          "gradient_file_permille": round(float(file_grade[k]), 4)}),
         })
@@ -166,10 +179,10 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
 
 
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
-               "reason", "running_time_s", "traction_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
+               "reason", "running_time_s", "traction_energy_kwh", "recovered_energy_kwh", "net_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
                "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
-               "switches", "coasts", "energy_reduction_percent", "n_evaluations",
-               "solve_time_s", "plan")
+               "switches", "coasts", "energy_reduction_percent", "max_coupler_tension_kn", "max_coupler_compression_kn",
+               "objective", "n_evaluations", "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
 run, the ``--json`` summary's fields of the same names (weights split into w_time, w_energy; empty when
 a run has no value, e.g. no running time for a plan that stalls)."""
@@ -208,8 +221,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         if profile is None:
             raise InputError(Problem(str(path), "--out", "this command has no profile to write as CSV; use .json"))
         buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ()),
-                                lineterminator="\n")
+        writer = csv.DictWriter(buf, fieldnames=profile_columns(profile, route), lineterminator="\n")
         writer.writeheader()
         writer.writerows({k: csv_cell(v) for k, v in r.items()} for r in profile_rows(profile, route=route))
         atomic_write_text(path, buf.getvalue())
@@ -217,7 +229,7 @@ def write_output(path: str | Path, summary: dict, profile: Profile | None, route
         data = dict(summary)
         if profile is not None:
             rows = profile_rows(profile, route=route)
-            data["profile"] = {col: [r[col] for r in rows] for col in PROFILE_COLUMNS + (FILE_COLUMNS if route is not None else ())}
+            data["profile"] = {col: [r[col] for r in rows] for col in profile_columns(profile, route)}
         atomic_write_text(path, to_json(with_provenance(data)) + "\n")
     else:
         raise InputError(Problem(str(path), "--out", f"unknown output type {suffix or '(none)'!r}; use .csv or .json"))

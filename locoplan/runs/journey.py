@@ -286,6 +286,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
     leg_rows = []
     plan_clock = {s: 0.0 for s in strategies}  # each strategy's clock at the leg's departure (its own times)
     plan_total = {s: 0.0 for s in strategies}
+    plan_recovered = {s: 0.0 for s in strategies}
     plan_time = {s: 0.0 for s in strategies}
     plan_gap = {s: 0.0 for s in strategies}  # each leg's plan against its leg's E* at the plan's own time
     for leg, t, b in zip(legs, times, bounds):
@@ -311,7 +312,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                 result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {verdict}")
             row["plans"][name] = {k: s.get(k) for k in ("feasible", "running_time_s", "traction_energy_kwh",
                                                          "gap_to_optimum_kwh", "gap_to_optimum_percent", "reason",
-                                                         "recovered_energy_kwh") if k in s}
+                                                         "recovered_energy_kwh", "net_energy_kwh") if k in s}
             result.runs.append({"leg": leg.index, "strategy": name, "run": run, "clock_s": plan_clock[name]})
             for i, pass_s in timing_passes(leg, run, journey, clock_at_departure=plan_clock[name]):
                 st = journey.stations[i]
@@ -322,6 +323,7 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                                            "keeps the leg's time, not the timing point's window)")
             if s.get("feasible"):
                 plan_total[name] += float(s["traction_energy_kwh"])
+                plan_recovered[name] += math.nan if s.get("recovered_energy_kwh") is None else s["recovered_energy_kwh"]
                 plan_time[name] += float(s["running_time_s"])
                 g = s.get("gap_to_optimum_kwh")
                 plan_gap[name] += math.nan if g is None else float(g)
@@ -359,6 +361,10 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             "vs_optimal_percent": pct(e),
             "missed_windows": window_misses(journey, legs, ts)} for name, ts, e in comparisons],
         "plans": {name: {"traction_energy_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name], 3),
+                         "recovered_energy_kwh": None if math.isnan(plan_total[name] + plan_recovered[name])
+                         else round(plan_recovered[name], 3),
+                         "net_energy_kwh": None if math.isnan(plan_total[name] + plan_recovered[name])
+                         else round(plan_total[name] - plan_recovered[name], 3),
                          "running_time_s": round(plan_time[name], 1),
                          "gap_to_optimum_kwh": None if math.isnan(plan_gap[name]) else round(plan_gap[name], 3),
                          "gap_to_optimum_percent": None if math.isnan(plan_gap[name]) else pct(

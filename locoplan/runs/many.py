@@ -88,7 +88,7 @@ def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, stor
         g = group_key(s, inputs)
         if g not in groups:
             groups[g] = EMinTask(g, inputs.routes[inputs.route_hash(s)], inputs.trains[inputs.train_hash(s)], s.options,
-                                 s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)))
+                                 s.resolved_builder, inputs.params(ENERGY_SAVING_ALGORITHM, _e_min_params(s)), s.objective)
     known = store.refs("e_min") if store is not None else {}
     e_min = {g: known[g][0] for g in groups if g in known}
     todo = [t for g, t in groups.items() if g not in known]

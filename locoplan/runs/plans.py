@@ -102,7 +102,7 @@ def compare_fields(rows: list[dict]) -> list[dict]:
     return rows
 
 
-def energies_at_planned_time(rows: list[dict], route, train, options) -> float | None:
+def energies_at_planned_time(rows: list[dict], route, train, options, objective: str = "traction") -> float | None:
     """Every plan's energy also at the planned time T0, so that plans that arrive at different times
     (an optimiser spends its window: 917.9 s against four-stage's 901.0 s for T0 = 900 s) compare at one
     running time: ``energy_at_t0_kwh = E*(T0) + (E - E*(T))``, the plan's gap over the least energy at its
@@ -115,7 +115,8 @@ def energies_at_planned_time(rows: list[dict], route, train, options) -> float |
     if t0 is None or not any(r.get("gap_to_optimum_kwh") is not None for r in rows):
         return None
     try:
-        e0 = max(energy_bound(route, train, options, t0).energy_kwh, 0.0)
+        e0 = energy_bound(route, train, options, t0, objective=objective).energy_kwh
+        e0 = e0 if objective == "net" else max(e0, 0.0)
     except LocoplanError:
         return None
     for r in rows:

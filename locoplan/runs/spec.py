@@ -71,7 +71,8 @@ class RunSpec:
     to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window
     fails its job whatever the strategy (None: only the timetabled strategies). inputs: further
     strategy inputs as (name, value) pairs (e.g. compare's logs and patterns). tags: labels carried
-    into the record but not into the key (e.g. the study file's time factor '1.1x').
+    into the record but not into the key (e.g. the study file's time factor '1.1x'). objective: what the
+    energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
     """
 
     route: str | None = None
@@ -93,6 +94,7 @@ class RunSpec:
     yardstick: bool = False
     inputs: tuple[tuple[str, Any], ...] = ()
     tags: tuple[tuple[str, str], ...] = ()
+    objective: str = "traction"
     journey: str | None = None
 
     @property
@@ -162,6 +164,7 @@ def _check_values(spec: RunSpec) -> None:
     """A spec's numbers inside the bounds a command line's would be held to (``bounds``), so that a bad one
     (a seed past 2**63 - 1 as seed + run, a NaN weight) stops the batch before any run, not at its turn."""
     bounds.seed(spec.seed, "seed")
+    bounds.objective(spec.objective, "objective")
     if spec.time_s is not None:
         bounds.planned_time(spec.time_s, "time_s")
     if spec.tolerance_s is not None:
@@ -237,12 +240,15 @@ def _journey_identity(journey) -> dict:
 def _check_journey(spec: RunSpec, journey, route, train) -> None:
     """What a journey run would otherwise find only when it runs, said before the batch starts: a total running
     time to plan for, a leg no longer than the train, a punctuality window +- as long as a leg's fastest run,
-    an E_min given (each leg has its own)."""
+    an E_min given (each leg has its own), an objective other than traction energy."""
     from .journey import legs_of, total_running_time
 
     if spec.e_min_kwh is not None:
         raise InputError(Problem(spec.journey, "e_min_kwh", "a journey's legs each have their own E_min (the energy-saving "
                                  "strategy's, found per leg): give none"))
+    if spec.objective != "traction":
+        raise InputError(Problem(spec.journey, "objective", "a journey is planned and priced by its traction energy "
+                                 f"(its summary shows the recovered and net energy too): not '{spec.objective}'"))
     total_running_time(journey, spec.time_s, spec.journey)  # none given and none in the journey: say so now
     try:
         legs = legs_of(journey, route, train, spec.options)
@@ -286,6 +292,7 @@ def group_key(spec: RunSpec, inputs: Inputs) -> str:
         "what": "e_min", "route": inputs.route_hash(spec), "train": inputs.train_hash(spec),
         "options": _options_dict(spec.options), "builder": spec.resolved_builder,
         "params": inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))], "format": RESULTS_FORMAT,
+        **({} if spec.objective == "traction" else {"objective": spec.objective}),
     })
 
 
@@ -294,6 +301,8 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
     d = spec.to_dict()
     for k in ("route", "consist", "stock_dir", "params", "tags", "builder"):
         d.pop(k)
+    if d["objective"] == "traction":  # the default: the keys of runs stored before the field existed
+        d.pop("objective")
     d.update(route=inputs.route_hash(spec), train=inputs.train_hash(spec),
              params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
              e_min_group=None if spec.e_min_kwh is not None else group_key(spec, inputs), format=RESULTS_FORMAT)
@@ -410,7 +419,7 @@ def context_for(task: Task):
                        weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params=task.params,
                        need_time=needs_time(spec),
                        tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
-                       yardstick=spec.yardstick, calculators=(base.calc, base.search))
+                       yardstick=spec.yardstick, calculators=(base.calc, base.search), objective=spec.objective)
     dp = base._e_min_cache.get("dp")
     if dp is not None:
         ctx._e_min_cache["dp"] = dp
@@ -488,8 +497,8 @@ def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
     return {"route": ctx.calc.route.name, "consist": ctx.calc.train.name, "strategy": spec.strategy,
             "algorithm": spec.algorithm if named else None,
             "seed": spec.seed if named else None, "feasible": False, "reason": reason,
-            "running_time_s": None, "traction_energy_kwh": None,
-            "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
+            "running_time_s": None, "traction_energy_kwh": None, "recovered_energy_kwh": None, "net_energy_kwh": None,
+            "objective": spec.objective, "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
             "window_s": None, "fitness": None, "weights": None,
             "e_min_kwh": None if ctx.e_min_kwh is None else round(float(ctx.e_min_kwh), 2),
             "solve_time_s": None, "n_evaluations": 0, "plan": None, "switching_points_m": [], "sequence": []}
@@ -506,13 +515,14 @@ class EMinTask:
     builder: str
     params: Any
     """E_min's optimiser parameters (None: its defaults)."""
+    objective: str = "traction"
 
 
 def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
     (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
     ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params=task.params, yardstick=False)
+                       params=task.params, yardstick=False, objective=task.objective)
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:

@@ -15,7 +15,8 @@ seeds: [1, 2, 3, 4, 5]            # default: 1
 ```
 Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``tolerance_s``, ``window``,
 ``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, seed 001's bound at
-the plan's own running time, seconds per run), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
+the plan's own running time, seconds per run), ``objective`` (``traction``, the default, or ``net``: what
+the energy terms count, as ``--objective``), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).
 
 The batch is (routes + journeys) x consists x times x strategies x algorithms x seeds, except that
@@ -46,6 +47,7 @@ from ..errors import InfeasibleError, InputError, Problem
 from ..io.load import SCHEMAS, _line_for, file_schema, load_journey, load_route, load_train, read_yaml, validate_model
 from ..model.journey import JOURNEY_SCHEMA
 from ..optimize.registry import ALGORITHMS
+from ..physics.energy import OBJECTIVES
 from ..sim.calculator import DEFAULT_STEP_M, ModelOptions, TractionCalculator
 from ..strategy import registry
 from .spec import RunSpec
@@ -84,6 +86,7 @@ class StudyFile(BaseModel):
     builder: Optional[str] = None
     stock_dir: Optional[str] = None
     gap: bool = False
+    objective: str = "traction"
     model: _Model = Field(default_factory=_Model)
 
 
@@ -186,6 +189,9 @@ def load_study(path: str | Path) -> Study:
                                     where("algorithms", i)))
     if study.builder is not None and study.builder not in registry.BUILDERS:
         problems.append(Problem(name, "builder", registry.builder_message(study.builder), where("builder")))
+    if study.objective not in OBJECTIVES:
+        problems.append(Problem(name, "objective", f"unknown objective {study.objective!r}: use one of "
+                                f"{', '.join(OBJECTIVES)}", where("objective")))
     w = study.weights
     if min(w) < 0 or abs(sum(w) - 1) > 1e-9:
         problems.append(Problem(name, "weights", f"expected two non-negative weights summing to 1 (w_time, w_energy), got {list(w)}",
@@ -235,7 +241,7 @@ def load_study(path: str | Path) -> Study:
     planned = _planned_times(name, routes, consists, stock, options, times, where, study.tolerance_s)
     planned.update(_journey_times(name, journeys, consists, stock, options, times, where, study.tolerance_s))
     common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
-                  builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap)
+                  builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap, objective=study.objective)
     specs: list[RunSpec] = []
     for kind, files in (("route", routes), ("journey", [j for j, _ in journeys])):
         for f in files:

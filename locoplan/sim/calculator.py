@@ -25,7 +25,7 @@ Why it is accurate on a coarse grid:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -36,6 +36,8 @@ from ..model.conditions import CODE
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
 from ..physics.braking import full_brake_kn
+from ..physics.couplers import (CouplerBound, VehicleLine, coupler_bound, coupler_forces_kn, force_rate_kn_per_s,
+                                vehicle_gravity_kn)
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import running_load_kn, train_resistance_kn
@@ -44,7 +46,8 @@ from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_
 from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
-from .result import CANNOT_HOLD, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT, BatchResult, Profile
+from .result import (CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK, STALLED,
+                     STOPPED_SHORT, BatchResult, Profile)
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -256,6 +259,81 @@ class TractionCalculator:
         electric = max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
         return recovered_energy_kwh(self.s_m, brake_kn, electric, self.train.regen_efficiency)
 
+    # ----------------------------------------------------------------- couplers
+    @cached_property
+    def vehicle_line(self) -> VehicleLine | None:
+        """The train vehicle by vehicle (``physics.couplers``), None for a train of one vehicle."""
+        layout = self.train.layout
+        if sum(g.count for g in layout) < 2:
+            return None
+        return VehicleLine.from_layout(layout, self.options.rotating_mass)
+
+    @cached_property
+    def vehicle_gravity_kn(self) -> np.ndarray:
+        """Gravity on every vehicle [kN] (cells, vehicles), the head at each cell's middle."""
+        return vehicle_gravity_kn(self.route, self.vehicle_line, 0.5 * (self.s_m[1:] + self.s_m[:-1]))
+
+    @cached_property
+    def coupler_bound(self) -> CouplerBound:
+        """A cheap bound on the largest coupler force in each cell (``physics.couplers.CouplerBound``)."""
+        return coupler_bound(self.vehicle_line, self.vehicle_gravity_kn, float(self.train.max_speed_kmh))
+
+    @property
+    def checks_forces(self) -> bool:
+        """The consist limits its coupler forces or its force rate: every plan is checked against them."""
+        return self.vehicle_line is not None and (self.train.coupler_limit_kn is not None
+                                                  or self.train.force_rate_limit_kn_per_s is not None)
+
+    def coupler_extremes(self, v_nodes_kmh: np.ndarray, traction_kn: np.ndarray, brake_kn: np.ndarray):
+        """(tension, compression) [kN], each (plans, cells) >= 0: the largest tensile and compressive force in
+        any coupler in each cell of runs given by their node speeds and cell forces (``physics.couplers``,
+        the electric brake cut where the catenary is); NaN where a failed run has no forces."""
+        line, gravity = self.vehicle_line, self.vehicle_gravity_kn
+        v = np.atleast_2d(v_nodes_kmh)
+        tension = np.full(traction_kn.shape, np.nan)
+        compression = np.full(traction_kn.shape, np.nan)
+        for i in range(traction_kn.shape[0]):
+            v_mid = 0.5 * (v[i, 1:] + v[i, :-1])
+            ok = np.isfinite(traction_kn[i]) & np.isfinite(brake_kn[i]) & np.isfinite(v_mid)
+            c = coupler_forces_kn(line, traction_kn[i, ok], brake_kn[i, ok], v_mid[ok], gravity[ok],
+                                  self.traction_allowed[ok])
+            tension[i, ok] = np.maximum(c.max(axis=1), 0.0)
+            compression[i, ok] = np.maximum(-c.min(axis=1), 0.0)
+        return tension, compression
+
+    def _force_failures(self, t_nodes, v_nodes, trac, brk, ok):
+        """Plans (where ``ok``) refused by the consist's limits: (reason code, cell, the force or rate) per plan,
+        code OK where none is broken. The first cell where a limit is broken decides. The coupler forces are
+        computed only for the plans whose cheap bound (``coupler_bound``) reaches the limit somewhere."""
+        n, n_cells = trac.shape
+        code = np.full(n, OK, dtype=np.int8)
+        cell = np.full(n, n_cells, dtype=np.int64)
+        value = np.full(n, np.nan)
+        lim_c, lim_r = self.train.coupler_limit_kn, self.train.force_rate_limit_kn_per_s
+        suspect = np.zeros(n, dtype=bool)
+        if lim_c is not None and ok.any():
+            v_mid = 0.5 * (v_nodes[:, 1:] + v_nodes[:, :-1])
+            electric = np.minimum(brk, max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn)
+                                  * self.traction_allowed)
+            with np.errstate(invalid="ignore"):
+                suspect = ok & np.any(self.coupler_bound.kn(trac, electric, brk - electric) > lim_c, axis=1)
+        for i in np.flatnonzero(ok):
+            if suspect[i]:
+                tension, compression = self.coupler_extremes(v_nodes[i:i + 1], trac[i:i + 1], brk[i:i + 1])
+                tension, compression = tension[0], compression[0]
+                over = np.flatnonzero((tension > lim_c) | (compression > lim_c))
+                if over.size:
+                    k = int(over[0])
+                    code[i], cell[i] = COUPLER_LIMIT, k
+                    value[i] = tension[k] if tension[k] > lim_c else -compression[k]
+            if lim_r is not None:
+                rate = force_rate_kn_per_s(t_nodes[i], trac[i] - brk[i])
+                over = np.flatnonzero(rate > lim_r)
+                if over.size and over[0] + 1 < cell[i]:
+                    k = int(over[0]) + 1  # the cell the jump arrives in
+                    code[i], cell[i], value[i] = FORCE_RATE, k, rate[k - 1]
+        return code, cell, value
+
     def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
         """Highest e at each node from which max braking still respects every later limit and stops at
         the end: backward integration (RK2, fine sub-steps) from each limit drop and from the stop.
@@ -379,15 +457,18 @@ class TractionCalculator:
                 frac[code] = share[:, sel, :].sum(axis=1)
         return frac
 
-    def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None) -> BatchResult:
+    def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
+                 recovered: bool = False) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
         switches_m: (n_plans, len(conditions) - 1) positions [m] where conditions 2.. begin, rising.
         cruise_kmh: optional (n_plans,) cruise speed [km/h] (seed 002's four-stage): traction stops at it
         and cruise holds it, braking if need be (below the limits); coasting is not held to it.
+        recovered: compute the energy the electric brake recovers (and so the net energy) without the profile.
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
-        and on request the per-cell profile.
+        and on request the per-cell profile. A consist with a coupler or force-rate limit has every plan
+        checked against it (on the profile, computed for that even when not returned).
         """
         conditions = tuple(conditions)
         sw = np.atleast_2d(np.asarray(switches_m, dtype=float))
@@ -399,10 +480,18 @@ class TractionCalculator:
         cap = None
         if cruise_kmh is not None:
             cap = np.ascontiguousarray(kinetic_e(np.broadcast_to(np.asarray(cruise_kmh, dtype=float), (sw.shape[0],))))
+        want = profile or recovered or self.checks_forces
         if self.backend == "numba":
-            return self._run_kernel(conditions, sw, profile, cap)
-        frac = self.condition_fractions(conditions, sw)
-        return self._integrate(frac, profile, sw, cap)
+            res = self._run_kernel(conditions, sw, want, cap)
+        else:
+            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap)
+        if not profile:
+            return replace(res, profile=None) if want else res
+        if self.vehicle_line is not None:  # the coupler forces of every cell, for the report
+            p = res.profile
+            tension, compression = self.coupler_extremes(p.v_kmh, p.traction_kn, p.brake_kn)
+            res = replace(res, profile=replace(p, coupler_tension_kn=tension, coupler_compression_kn=compression))
+        return res
 
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
@@ -651,7 +740,7 @@ class TractionCalculator:
             short = np.zeros_like(short)
         at_node = np.where((cannot_hold & ~unholdable) | short, cell, cell + 1)
         fail_at = np.where(failed, self.s_m[at_node], np.nan)
-        profile = recovered = None
+        profile = recovered = force = None
         if want_profile:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
                 x = switches_m[:, j]
@@ -670,13 +759,22 @@ class TractionCalculator:
                 trac[i, end[i]:] = np.nan
                 brk[i, end[i]:] = np.nan
                 cond[i, end[i]:] = -1
+            if self.checks_forces:  # refused by the consist's limits, the run itself kept whole
+                code, k, value = self._force_failures(t_nodes, v_nodes, trac, brk, ~failed)
+                refused = code != OK
+                reason = np.where(refused, code, reason).astype(np.int8)
+                failed = failed | refused
+                cell = np.where(refused, np.minimum(k, last), cell)
+                fail_at = np.where(refused, 0.5 * (self.s_m[cell] + self.s_m[cell + 1]), fail_at)
+                force = value
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
             recovered = self.recovered_energy_kwh(v_nodes, brk)
-        t = np.where((reason == STALLED) | (reason == STOPPED_SHORT) | (reason >= CANNOT_HOLD), np.nan, t)  # never arrived
+        t = np.where(np.isin(reason, NEVER_ARRIVED), np.nan, t)  # never arrived
         lim = self.limit_kmh[cell]
         return BatchResult(running_time_s=t, traction_energy_kwh=kwh(work), feasible=reason == OK,
                            reason_code=reason, failure_m=fail_at, profile=profile,
                            failure_limit_kmh=np.where(failed, lim, np.nan),
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
                            failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan),
-                           impossible=self.impossible, recovered_energy_kwh=recovered)
+                           impossible=self.impossible, recovered_energy_kwh=recovered, failure_force=force,
+                           force_limits=(self.train.coupler_limit_kn, self.train.force_rate_limit_kn_per_s))

@@ -8,10 +8,15 @@ import numpy as np
 
 from ..model.conditions import CODE, CONDITIONS  # noqa: F401  (the codes of ``Profile.condition``)
 
-OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE = 0, 1, 2, 3, 4, 5
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, COUPLER_LIMIT, FORCE_RATE = 0, 1, 2, 3, 4, 5, 6, 7
 REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",
            CANNOT_HOLD: "full braking cannot hold the limit",
-           IMPOSSIBLE: "no entry speed keeps the limit under full braking"}
+           IMPOSSIBLE: "no entry speed keeps the limit under full braking",
+           COUPLER_LIMIT: "coupler force over the consist's limit",
+           FORCE_RATE: "force changes faster than the consist's limit"}
+NEVER_ARRIVED = (STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE)
+"""Failures after which the train does not reach the stop (no running time); a plan refused for its coupler
+forces or its force rate runs to the end and keeps its time and energy."""
 
 
 @dataclass(frozen=True)
@@ -36,13 +41,21 @@ class Profile:
 
     """``event_m`` (n_plans, n_cells): where inside a cell the condition changes (a limit or braking
     curve reached, or a plan's switch), NaN where it does not; used to report exact switching points."""
+    coupler_tension_kn: np.ndarray | None = None
+    coupler_compression_kn: np.ndarray | None = None
+    """(n_plans, n_cells): the largest tensile and the largest compressive force [kN] (both >= 0) in any
+    coupler of the train in each cell (``physics.couplers``); None for a train of one vehicle."""
 
     def plan(self, i: int) -> "Profile":
         """The profile of plan ``i`` alone (rows kept 2-D)."""
         sl = slice(i, i + 1)
+
+        def rows(a):
+            return None if a is None else a[sl]
+
         return Profile(self.s_m, self.t_s[sl], self.v_kmh[sl], self.condition[sl], self.traction_kn[sl],
-                       self.brake_kn[sl], self.limit_kmh, self.gradient_permille,
-                       None if self.event_m is None else self.event_m[sl])
+                       self.brake_kn[sl], self.limit_kmh, self.gradient_permille, rows(self.event_m),
+                       rows(self.coupler_tension_kn), rows(self.coupler_compression_kn))
 
 
 @dataclass(frozen=True)
@@ -63,7 +76,29 @@ class BatchResult:
     at the top of a descent); every plan then has the reason code ``IMPOSSIBLE``."""
     recovered_energy_kwh: np.ndarray | None = None
     """Energy the electric brake returned to the line [kWh] per plan (``physics.energy.recovered_energy_kwh``,
-    0 for locomotives without ``regen_efficiency``); computed with the profile, None without one."""
+    0 for locomotives without ``regen_efficiency``); computed with the profile (or on request), else None."""
+    failure_force: np.ndarray | None = None
+    """The coupler force [kN] (+ tension, - compression) or the force rate [kN/s] that refused a plan
+    (``COUPLER_LIMIT``, ``FORCE_RATE``), NaN for the others."""
+    force_limits: tuple[float | None, float | None] = (None, None)
+    """The consist's coupler limit [kN] and force-rate limit [kN/s] the plans were checked against."""
+
+    @property
+    def net_energy_kwh(self) -> np.ndarray | None:
+        """Traction energy less the energy the electric brake recovered [kWh] per plan (None without the
+        recovered energy)."""
+        if self.recovered_energy_kwh is None:
+            return None
+        return self.traction_energy_kwh - self.recovered_energy_kwh
+
+    def energy_kwh(self, objective: str = "traction") -> np.ndarray:
+        """The energy an objective counts [kWh] per plan: ``traction`` (sum F ds) or ``net`` (less the
+        recovered energy, which must have been computed)."""
+        if objective == "traction":
+            return self.traction_energy_kwh
+        if self.recovered_energy_kwh is None:
+            raise ValueError("the net energy needs the recovered energy: evaluate with recovered=True")
+        return self.net_energy_kwh
 
     def failures(self) -> str:
         """Why the infeasible plans of this batch failed, most common first, each with an example:
@@ -94,6 +129,14 @@ class BatchResult:
             return f"full braking ({brake:,.0f} kN) cannot hold {limit:g} km/h{on} at {where:,.0f} m"
         if code == LIMIT_EXCEEDED:
             return f"limit exceeded at {where:,.0f} m"
+        if code == COUPLER_LIMIT:
+            x = float(self.failure_force[i])
+            side = "tension" if x > 0 else "compression"
+            return (f"coupler force {abs(x):,.0f} kN in {side} over the consist's limit {self.force_limits[0]:,.0f} kN "
+                    f"at {where:,.0f} m{on}")
+        if code == FORCE_RATE:
+            return (f"traction less braking changes at {float(self.failure_force[i]):,.0f} kN/s, over the consist's "
+                    f"limit {self.force_limits[1]:,.0f} kN/s, at {where:,.0f} m")
         if code == STALLED:
             return f"stalled at {where:,.0f} m{on}"
         return f"did not stop at the end: came to rest at {where:,.0f} m"

@@ -63,6 +63,9 @@ class StrategyContext:
     yardstick: bool = False
     """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
     builder: str = "general"
+    objective: str = "traction"
+    """What the energy terms count (``physics.energy.OBJECTIVES``): the optimisers' eq. 10, E_min, E* and the
+    gap to it; ``net`` is the traction work less what the electric brake recovers."""
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
     """Strategy inputs from the command line beyond route and train, as given (e.g. compare's --logs and
@@ -80,13 +83,14 @@ class StrategyContext:
         return np.random.default_rng([self.seed if seed is None else seed, salt])
 
     def e_min(self) -> float:
-        """E_min of eq. 11: the user's value, else the energy-saving strategy's energy."""
+        """E_min of eq. 11: the user's value, else the energy-saving strategy's energy (traction, or net with
+        the ``net`` objective)."""
         if self.e_min_kwh is not None:
             return self.e_min_kwh
         if "e" not in self._e_min_cache:
             out = energy_saving(self)
-            res = evaluate_outcome(self.calc, out)
-            e = float(res.traction_energy_kwh[0])
+            res = evaluate_outcome(self.calc, out, recovered=self.objective == "net")
+            e = float(res.energy_kwh(self.objective)[0])
             # a falling line may be coasted from end to end: eq. 11 divides by E_min, so it is floored
             # at 1 % of the fastest run's energy
             fastest = float(self.calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0])
@@ -116,11 +120,12 @@ class StrategyOutcome:
     """More fields for the strategy's summary (e.g. the drivers' mean and best energies)."""
 
 
-def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile: bool = False):
+def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile: bool = False, recovered: bool = False):
     """Simulate a strategy's plan (with its cruise speed, if any) on ``calc``."""
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
-    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise)
+    return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
+                                           recovered=recovered)
 
 
 def _plan(conditions, switches) -> Plan:
@@ -205,7 +210,7 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     t = time.perf_counter()
     if ctx.builder == "seed002":
         conditions, _, lower, upper = energy_saving_sequence(ctx.search)
-        problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy")
+        problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy", energy=ctx.objective)
         result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED)
         x = _confirmed(ctx, problem, result, prefer_best=True)
         return StrategyOutcome(_plan(conditions, x), algorithm=ENERGY_SAVING_ALGORITHM, history=result.history,
@@ -279,7 +284,8 @@ def four_stage(ctx: StrategyContext) -> StrategyOutcome:
             x_grid = np.arange(best[1] - x_step * 20, best[1] + x_step * 20.5, x_step)
             v_grid, x_grid = v_grid[(v_grid > 0) & (v_grid <= v_top)], x_grid[(x_grid > 0) & (x_grid < L)]
         V, X = (a.ravel() for a in np.meshgrid(v_grid, x_grid))
-        res = calc.evaluate(("T", "C", "B"), np.column_stack([X, np.full_like(X, np.nan)]), cruise_kmh=V)
+        res = calc.evaluate(("T", "C", "B"), np.column_stack([X, np.full_like(X, np.nan)]), cruise_kmh=V,
+                            recovered=ctx.objective == "net")
         ok = res.feasible
         if not ok.any():
             raise InfeasibleError("four-stage: no feasible cruise speed / coasting point on this route")
@@ -288,7 +294,7 @@ def four_stage(ctx: StrategyContext) -> StrategyOutcome:
         late = np.abs(res.running_time_s - ctx.t0_s)
         punctual = ok & (late <= 1.0)
         if punctual.any():
-            i = int(np.argmin(np.where(punctual, res.traction_energy_kwh, np.inf)))
+            i = int(np.argmin(np.where(punctual, res.energy_kwh(ctx.objective), np.inf)))
         else:
             i = int(np.argmin(np.where(ok, late, np.inf)))
         best = (float(V[i]), float(X[i]))
@@ -329,7 +335,8 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
     t = time.perf_counter()
-    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s)
+    common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s,
+                  energy=ctx.objective)
     if ctx.builder == "seed002":
         seq = build_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
