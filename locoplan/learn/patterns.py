@@ -183,16 +183,24 @@ class PolyLayer:
         return n + (len(self.features) - 1 if self.interact else 0)
 
     def design(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
+        """The design matrix (rows of X, ``n_coef`` columns in the order of ``coef``), filled in place: at
+        20,000 logs it has a million rows, and joining its columns would hold it twice."""
         X = np.atleast_2d(X)
         if self.low is not None:  # no polynomial extrapolation beyond the data: a 7th power explodes there
             X = np.clip(X, self.low, self.high)
         Z = (X - self.mean) / self.std
-        onehot = np.array([[1.0 if k == t else 0.0 for t in SECTION_TYPES] for k in kinds]).reshape(len(Z), len(SECTION_TYPES))
-        cols = [np.ones((len(Z), 1)), onehot, odd_powers(Z, self.order)]
+        n, m = Z.shape
+        A = np.empty((n, self.n_coef))
+        A[:, 0] = 1.0
+        A[:, 1:1 + len(SECTION_TYPES)] = np.asarray(kinds, dtype=str).reshape(n, 1) == np.array(SECTION_TYPES)
+        c = 1 + len(SECTION_TYPES)
+        for i in range(1, self.order + 1):  # the odd powers, as odd_powers() lays them out
+            A[:, c:c + m] = Z ** (2 * i - 1)
+            c += m
         if self.interact:
             j = self.features.index(self.interact)
-            cols.append(Z[:, [j]] * np.delete(Z, j, axis=1))
-        return np.hstack(cols)
+            A[:, c:] = Z[:, [j]] * np.delete(Z, j, axis=1)
+        return A
 
     def predict(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
         A = self.design(X, kinds)
@@ -348,30 +356,31 @@ def observed(run: LoggedRun, line: LineModel) -> tuple[np.ndarray, np.ndarray]:
 
 
 def layer_data(runs: list[LoggedRun], lines: list[LineModel], settings: LearnSettings) -> tuple[LayerData, LayerData, list]:
-    """Rows of both layers from the given runs (each with its line model)."""
-    ux, uk, uy, ur, ul = [], [], [], [], []
-    lx, lk, ly, lr, ls = [], [], [], [], []
+    """Rows of both layers from the given runs (each with its line model), each run's log read in turn."""
+    n_up = sum(len(line.sections) for line in lines)
+    n_lo = sum(len(line.sections) * line.divisions for line in lines)
+    ux, uy, ur, ul = np.empty((n_up, len(UPPER_FEATURES))), np.empty(n_up), np.empty(n_up, dtype=int), np.empty(n_up)
+    lx, ly, lr, ls = np.empty((n_lo, len(LOWER_FEATURES))), np.empty(n_lo), np.empty(n_lo, dtype=int), np.empty(n_lo, dtype=int)
+    uk: list[str] = []
+    lk: list[str] = []
     obs = []
+    u = lo = 0
     for j, (run, line) in enumerate(zip(runs, lines)):
         shares, speeds = observed(run, line)
         obs.append((shares, speeds))
         T = run.running_time_s
         X, kinds, ell = line.upper_inputs(run.mass_t, T)
-        ux.append(X)
+        n = len(shares)
+        ux[u:u + n], uy[u:u + n], ur[u:u + n], ul[u:u + n] = X, shares, j, ell
         uk += kinds
-        uy.append(shares)
-        ur += [j] * len(shares)
-        ul.append(ell)
+        u += n
         for i in range(len(line.sections)):
             for k in range(1, line.divisions + 1):
-                lx.append(line.lower_inputs(i, k, settings.entry(speeds[i], k), shares[i], run.mass_t, T))
+                lx[lo] = line.lower_inputs(i, k, settings.entry(speeds[i], k), shares[i], run.mass_t, T)
+                ly[lo], lr[lo], ls[lo] = speeds[i, k], j, i
                 lk.append(line.sections[i].kind)
-                ly.append(speeds[i, k])
-                lr.append(j)
-                ls.append(i)
-    upper = LayerData(np.vstack(ux), uk, np.concatenate(uy), np.array(ur), np.concatenate(ul))
-    lower = LayerData(np.array(lx), lk, np.array(ly), np.array(lr), np.array(ls))
-    return upper, lower, obs
+                lo += 1
+    return LayerData(ux, uk, uy, ur, ul), LayerData(lx, lk, ly, lr, ls), obs
 
 
 def upper_response(form: str, share: np.ndarray, ell: np.ndarray) -> np.ndarray:
