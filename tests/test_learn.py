@@ -291,6 +291,54 @@ def test_equivalent_gradient_has_claim_6_curve_and_tunnel_terms(base):
 
 
 # ------------------------------------------------------------------------------------------ learning
+def _joined_design(layer, X, kinds):
+    """The design matrix as its columns joined, the plain way (what PolyLayer.design fills in place)."""
+    from locoplan.learn.segments import SECTION_TYPES
+
+    Z = (np.clip(X, layer.low, layer.high) - layer.mean) / layer.std
+    onehot = np.array([[1.0 if k == t else 0.0 for t in SECTION_TYPES] for k in kinds])
+    cols = [np.ones((len(Z), 1)), onehot] + [Z ** (2 * i - 1) for i in range(1, layer.order + 1)]
+    j = layer.features.index(layer.interact)
+    return np.hstack(cols + [Z[:, [j]] * np.delete(Z, j, axis=1)])
+
+
+def test_layers_in_place_and_in_blocks_give_the_plain_numbers_bit_for_bit(monkeypatch):
+    """learn holds one design matrix at a time (20,000 logs make most of a million rows): filled in place,
+    each section type's rows made again rather than copied, predictions a block of rows at a time. Each is
+    the plain computation's numbers exactly, not within a tolerance."""
+    import locoplan.learn.patterns as patterns
+    from locoplan.learn.patterns import PolyLayer, fit_layer
+    from locoplan.learn.segments import SECTION_TYPES
+
+    rng = np.random.default_rng(4)
+    n = 3001
+    X = rng.normal(size=(n, len(LOWER_FEATURES))) * rng.uniform(1, 300, len(LOWER_FEATURES))
+    kinds = list(rng.choice(SECTION_TYPES[:4], n))  # one type absent: it keeps the pooled coefficients
+    y = rng.normal(size=n)
+    for order in (1, 3, 4):
+        layer = fit_layer(X, kinds, y, order, LOWER_FEATURES, "position", by_type=True)
+        A = _joined_design(layer, X, kinds)
+        assert np.array_equal(layer.design(X, kinds), A)
+        # the fit, as it was: the pooled fit, then each type's rows of the one matrix, shrunk towards it
+        penalty = np.full(A.shape[1], patterns.RIDGE * n)
+        penalty[0] = 0.0
+        pooled = np.linalg.solve(A.T @ A + np.diag(penalty), A.T @ y)
+        coef = np.tile(pooled, (len(SECTION_TYPES), 1))
+        for i, kind in enumerate(SECTION_TYPES[:4]):
+            sel = np.array(kinds) == kind
+            At, lam = A[sel], patterns.TYPE_SHRINK * np.ones(A.shape[1])
+            coef[i] = np.linalg.solve(At.T @ At + np.diag(lam), At.T @ y[sel] + lam * pooled)
+        assert np.array_equal(layer.coef, coef)
+        whole = np.einsum("ij,ij->i", A, coef[[SECTION_TYPES.index(k) for k in kinds]])
+        assert np.array_equal(layer.predict(X, kinds), whole)
+        monkeypatch.setattr(patterns, "PREDICT_BLOCK_ROWS", 7)
+        assert np.array_equal(layer.predict(X, kinds), whole)
+        monkeypatch.undo()
+    pooled_layer = PolyLayer(LOWER_FEATURES, 2, X.mean(0), X.std(0), rng.normal(size=1 + 5 + 22 + 10), "position",
+                             X.min(0), X.max(0))
+    assert np.array_equal(pooled_layer.predict(X, kinds), _joined_design(pooled_layer, X, kinds) @ pooled_layer.coef)
+
+
 def test_order_is_chosen_by_cross_validation_not_in_sample_fit():
     rng = np.random.default_rng(0)
     X = rng.uniform(-1, 1, size=(240, 2))

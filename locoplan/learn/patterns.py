@@ -65,6 +65,9 @@ TYPE_SHRINK = 1.0
 design's columns are z-scores, so 1 weighs like one row of data)."""
 ORDER_TOLERANCE = 0.01
 """An order is chosen when its CV error is within this share of the best order's (prefer the simpler)."""
+PREDICT_BLOCK_ROWS = 16_384
+"""Rows predicted at a time by a layer with coefficients per section type (its design matrix and each row's
+coefficients are made a block at a time; each row's value is the same)."""
 
 
 @dataclass(frozen=True)
@@ -159,11 +162,6 @@ def line_model(route: Route, train: Train, options: ModelOptions, settings: Lear
 
 
 # ------------------------------------------------------------------------------------------ one layer
-def odd_powers(Z: np.ndarray, order: int) -> np.ndarray:
-    """[Z, Z^3, ..., Z^(2 order - 1)] side by side: the odd-power terms of eq. I / II."""
-    return np.hstack([Z ** (2 * i - 1) for i in range(1, order + 1)])
-
-
 @dataclass(frozen=True)
 class PolyLayer:
     """One layer: y = b0 + offset(S) + sum_i sum_f b_if z_f^(2i-1), z the standardised inputs."""
@@ -182,32 +180,40 @@ class PolyLayer:
         n = 1 + len(SECTION_TYPES) + self.order * len(self.features)
         return n + (len(self.features) - 1 if self.interact else 0)
 
-    def design(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
+    def design(self, X: np.ndarray, kinds) -> np.ndarray:
         """The design matrix (rows of X, ``n_coef`` columns in the order of ``coef``), filled in place: at
-        20,000 logs it has a million rows, and joining its columns would hold it twice."""
+        20,000 logs it has most of a million rows, and joining its columns would hold it twice. Each row
+        depends on its own inputs only, so the rows of a part of X are those rows of the whole."""
         X = np.atleast_2d(X)
-        if self.low is not None:  # no polynomial extrapolation beyond the data: a 7th power explodes there
-            X = np.clip(X, self.low, self.high)
-        Z = (X - self.mean) / self.std
+        # no polynomial extrapolation beyond the data: a 7th power explodes there
+        Z = np.clip(X, self.low, self.high) if self.low is not None else np.array(X, dtype=float)
+        np.subtract(Z, self.mean, out=Z)  # standardised in place
+        np.divide(Z, self.std, out=Z)
         n, m = Z.shape
         A = np.empty((n, self.n_coef))
         A[:, 0] = 1.0
         A[:, 1:1 + len(SECTION_TYPES)] = np.asarray(kinds, dtype=str).reshape(n, 1) == np.array(SECTION_TYPES)
         c = 1 + len(SECTION_TYPES)
-        for i in range(1, self.order + 1):  # the odd powers, as odd_powers() lays them out
-            A[:, c:c + m] = Z ** (2 * i - 1)
+        for i in range(1, self.order + 1):  # [Z, Z^3, ..., Z^(2 order - 1)]: the odd-power terms of eq. I / II
+            np.power(Z, 2 * i - 1, out=A[:, c:c + m])
             c += m
         if self.interact:
             j = self.features.index(self.interact)
-            A[:, c:] = Z[:, [j]] * np.delete(Z, j, axis=1)
+            for q in (q for q in range(m) if q != j):
+                np.multiply(Z[:, j], Z[:, q], out=A[:, c])
+                c += 1
         return A
 
-    def predict(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
-        A = self.design(X, kinds)
+    def predict(self, X: np.ndarray, kinds) -> np.ndarray:
         if self.coef.ndim == 1:
-            return A @ self.coef
-        rows = np.array([SECTION_TYPES.index(k) for k in kinds])
-        return np.einsum("ij,ij->i", A, self.coef[rows])
+            return self.design(X, kinds) @ self.coef
+        X = np.atleast_2d(X)  # one set of coefficients per section type: a block of rows at a time
+        types = np.array([SECTION_TYPES.index(k) for k in kinds], dtype=int)
+        out = np.empty(len(X))
+        for a in range(0, len(X), PREDICT_BLOCK_ROWS):
+            b = a + PREDICT_BLOCK_ROWS
+            out[a:b] = np.einsum("ij,ij->i", self.design(X[a:b], kinds[a:b]), self.coef[types[a:b]])
+        return out
 
     def to_dict(self) -> dict:
         return {"features": list(self.features), "order": self.order, "types": list(SECTION_TYPES),
@@ -243,13 +249,14 @@ def fit_layer(X: np.ndarray, kinds: list[str], y: np.ndarray, order: int, featur
     pooled = np.linalg.solve(A.T @ A + np.diag(penalty), A.T @ y)
     if not by_type:
         return PolyLayer(features, order, mean, std, pooled, interact, low, high)
+    del A  # each type's rows are made again (the same rows): never a second copy beside the whole matrix
     coef = np.tile(pooled, (len(SECTION_TYPES), 1))
     kinds = np.asarray(kinds)
     for i, kind in enumerate(SECTION_TYPES):
         sel = kinds == kind
         if sel.sum() == 0:
             continue
-        At = A[sel]
+        At = layer.design(X[sel], kinds[sel])
         lam = TYPE_SHRINK * (1.0 + sel.sum() * 0.0) * np.ones(At.shape[1])
         coef[i] = np.linalg.solve(At.T @ At + np.diag(lam), At.T @ y[sel] + lam * pooled)
     return PolyLayer(features, order, mean, std, coef, interact, low, high)
@@ -550,6 +557,7 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
     trial = Patterns(settings, {}, form, upper, lower)
     held_report = evaluate(trial, [chosen[i] for i in hold_idx], [lines[i] for i in hold_idx], [obs[i] for i in hold_idx])
     fit_report = evaluate(trial, [chosen[i] for i in fit_idx], [lines[i] for i in fit_idx], [obs[i] for i in fit_idx])
+    del up_fit, lo_fit  # a copy of most rows: not beside the refit's design matrix
     # the saved pattern: the same forms and orders, refitted on every good run
     upper = fit_layer(up_all.X, up_all.kinds, upper_response(form, up_all.y, up_all.extra), up_order, UPPER_FEATURES)
     lower = fit_layer(lo_all.X, lo_all.kinds, lo_all.y, lo_order, LOWER_FEATURES, settings.interact,
