@@ -303,9 +303,10 @@ def _joined_design(layer, X, kinds):
 
 
 def test_layers_in_place_and_in_blocks_give_the_plain_numbers_bit_for_bit(monkeypatch):
-    """learn holds one design matrix at a time (20,000 logs make most of a million rows): filled in place,
-    each section type's rows made again rather than copied, predictions a block of rows at a time. Each is
-    the plain computation's numbers exactly, not within a tolerance."""
+    """learn never holds more than one block of a design matrix (20,000 logs make 800,000 rows): filled in
+    place, each section type's rows made again rather than copied, predictions a block of rows at a time.
+    A fit in one block gives the plain computation's numbers exactly, not within a tolerance; predictions
+    are the same in blocks of any size."""
     import locoplan.learn.patterns as patterns
     from locoplan.learn.patterns import PolyLayer, fit_layer
     from locoplan.learn.segments import SECTION_TYPES
@@ -318,7 +319,7 @@ def test_layers_in_place_and_in_blocks_give_the_plain_numbers_bit_for_bit(monkey
     for order in (1, 3, 4):
         layer = fit_layer(X, kinds, y, order, LOWER_FEATURES, "position", by_type=True)
         A = _joined_design(layer, X, kinds)
-        assert np.array_equal(layer.design(X, kinds), A)
+        assert layer.block_rows() > n and np.array_equal(layer.design(X, kinds), A)
         # the fit, as it was: the pooled fit, then each type's rows of the one matrix, shrunk towards it
         penalty = np.full(A.shape[1], patterns.RIDGE * n)
         penalty[0] = 0.0
@@ -331,12 +332,49 @@ def test_layers_in_place_and_in_blocks_give_the_plain_numbers_bit_for_bit(monkey
         assert np.array_equal(layer.coef, coef)
         whole = np.einsum("ij,ij->i", A, coef[[SECTION_TYPES.index(k) for k in kinds]])
         assert np.array_equal(layer.predict(X, kinds), whole)
-        monkeypatch.setattr(patterns, "PREDICT_BLOCK_ROWS", 7)
-        assert np.array_equal(layer.predict(X, kinds), whole)
+        monkeypatch.setattr(patterns, "BLOCK_BYTES", 56 * 8 * layer.n_coef)  # predictions in blocks of 7 rows
+        assert layer.block_rows() == 56 and np.array_equal(layer.predict(X, kinds), whole)
         monkeypatch.undo()
     pooled_layer = PolyLayer(LOWER_FEATURES, 2, X.mean(0), X.std(0), rng.normal(size=1 + 5 + 22 + 10), "position",
                              X.min(0), X.max(0))
     assert np.array_equal(pooled_layer.predict(X, kinds), _joined_design(pooled_layer, X, kinds) @ pooled_layer.coef)
+
+
+def test_layer_rows_split_into_fit_and_held_out_runs_join_back_unchanged():
+    from locoplan.learn.patterns import LayerData
+
+    rng = np.random.default_rng(6)
+    run = np.repeat(np.arange(30), 8)
+    data = LayerData(rng.normal(size=(240, 3)), list(rng.choice(["level", "steep-up"], 240)), rng.normal(size=240), run,
+                     np.tile(np.arange(8), 30))
+    fit, held, sel = data.split(rng.permutation(30)[:24])
+    assert len(fit.y) == 24 * 8 and len(held.y) == 6 * 8 and set(fit.run).isdisjoint(held.run)
+    back = LayerData.joined(fit, held, sel)
+    assert back.kinds == data.kinds and all(np.array_equal(getattr(back, f), getattr(data, f)) and
+                                            getattr(back, f).dtype == getattr(data, f).dtype for f in ("X", "y", "run", "extra"))
+
+
+def test_a_fit_larger_than_a_block_sums_its_normal_equations_block_by_block(monkeypatch):
+    """Above BLOCK_BYTES the normal equations are summed a block of rows at a time: the same fit up to
+    rounding (the sums' order differs), with one block's memory."""
+    import locoplan.learn.patterns as patterns
+    from locoplan.learn.patterns import fit_layer
+    from locoplan.learn.segments import SECTION_TYPES
+
+    rng = np.random.default_rng(5)
+    n = 4000
+    X = rng.normal(size=(n, len(LOWER_FEATURES))) * rng.uniform(1, 300, len(LOWER_FEATURES))
+    kinds = list(rng.choice(SECTION_TYPES, n))
+    y = np.sin(X[:, 0] / 100) + 0.1 * rng.normal(size=n)
+    whole = fit_layer(X, kinds, y, 3, LOWER_FEATURES, "position", by_type=True)
+    made = []
+    design = patterns.PolyLayer.design
+    monkeypatch.setattr(patterns.PolyLayer, "design", lambda self, X, kinds: made.append(len(X)) or design(self, X, kinds))
+    monkeypatch.setattr(patterns, "BLOCK_BYTES", 300 * 8 * whole.n_coef)
+    blocks = fit_layer(X, kinds, y, 3, LOWER_FEATURES, "position", by_type=True)
+    assert max(made) == 300 and sum(made) == 2 * n  # every row twice (pooled, then its type), 300 at a time
+    assert not np.array_equal(blocks.coef, whole.coef)  # summed in another order ...
+    assert np.allclose(blocks.predict(X, kinds), whole.predict(X, kinds), rtol=0, atol=1e-10)  # ... the same fit
 
 
 def test_order_is_chosen_by_cross_validation_not_in_sample_fit():

@@ -65,9 +65,10 @@ TYPE_SHRINK = 1.0
 design's columns are z-scores, so 1 weighs like one row of data)."""
 ORDER_TOLERANCE = 0.01
 """An order is chosen when its CV error is within this share of the best order's (prefer the simpler)."""
-PREDICT_BLOCK_ROWS = 16_384
-"""Rows predicted at a time by a layer with coefficients per section type (its design matrix and each row's
-coefficients are made a block at a time; each row's value is the same)."""
+BLOCK_BYTES = 32 * 2**20
+"""Most memory for a block of a layer's design matrix [bytes]. A larger matrix (the lower layer's from 20,000
+logs: 800,000 rows, 380 MB) is made, summed into the normal equations and predicted from a block of rows at a
+time; one that fits in a block is one matrix, and its numbers are those of the plain computation, bit for bit."""
 
 
 @dataclass(frozen=True)
@@ -204,16 +205,32 @@ class PolyLayer:
                 c += 1
         return A
 
+    def block_rows(self) -> int:
+        """Rows of the design matrix in one block of ``BLOCK_BYTES``."""
+        return max(1, BLOCK_BYTES // (8 * self.n_coef))
+
     def predict(self, X: np.ndarray, kinds) -> np.ndarray:
-        if self.coef.ndim == 1:
-            return self.design(X, kinds) @ self.coef
-        X = np.atleast_2d(X)  # one set of coefficients per section type: a block of rows at a time
-        types = np.array([SECTION_TYPES.index(k) for k in kinds], dtype=int)
+        X = np.atleast_2d(X)
+        types = None if self.coef.ndim == 1 else np.array([SECTION_TYPES.index(k) for k in kinds], dtype=int)
         out = np.empty(len(X))
-        for a in range(0, len(X), PREDICT_BLOCK_ROWS):
-            b = a + PREDICT_BLOCK_ROWS
-            out[a:b] = np.einsum("ij,ij->i", self.design(X[a:b], kinds[a:b]), self.coef[types[a:b]])
+        # each row's value is the same in a block as in the whole matrix; with coefficients per type each row's
+        # are copied beside it, so the blocks are smaller
+        step = self.block_rows() if types is None else max(1, self.block_rows() // 8)
+        for a in range(0, len(X), step):
+            A = self.design(X[a:a + step], kinds[a:a + step])
+            # one set of coefficients per section type: each row with its own
+            out[a:a + step] = A @ self.coef if types is None else np.einsum("ij,ij->i", A, self.coef[types[a:a + step]])
         return out
+
+    def normal_equations(self, X: np.ndarray, kinds, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A^T A and A^T y of the design matrix A of the rows X, summed a block of rows at a time."""
+        G = r = None
+        step = self.block_rows()
+        for a in range(0, len(X), step):
+            A = self.design(X[a:a + step], kinds[a:a + step])
+            g, q = A.T @ A, A.T @ y[a:a + step]
+            G, r = (g, q) if G is None else (G + g, r + q)
+        return G, r
 
     def to_dict(self) -> dict:
         return {"features": list(self.features), "order": self.order, "types": list(SECTION_TYPES),
@@ -243,22 +260,21 @@ def fit_layer(X: np.ndarray, kinds: list[str], y: np.ndarray, order: int, featur
     mean, std = scale if scale is not None else standardisation(X)
     low, high = X.min(axis=0), X.max(axis=0)
     layer = PolyLayer(features, order, mean, std, np.zeros(0), interact, low, high)
-    A = layer.design(X, kinds)
-    penalty = np.full(A.shape[1], RIDGE * len(y))
+    G, r = layer.normal_equations(X, kinds, y)
+    penalty = np.full(layer.n_coef, RIDGE * len(y))
     penalty[0] = 0.0
-    pooled = np.linalg.solve(A.T @ A + np.diag(penalty), A.T @ y)
+    pooled = np.linalg.solve(G + np.diag(penalty), r)
     if not by_type:
         return PolyLayer(features, order, mean, std, pooled, interact, low, high)
-    del A  # each type's rows are made again (the same rows): never a second copy beside the whole matrix
     coef = np.tile(pooled, (len(SECTION_TYPES), 1))
-    kinds = np.asarray(kinds)
+    types = np.array([SECTION_TYPES.index(k) for k in kinds], dtype=np.int8)
     for i, kind in enumerate(SECTION_TYPES):
-        sel = kinds == kind
+        sel = types == i
         if sel.sum() == 0:
             continue
-        At = layer.design(X[sel], kinds[sel])
-        lam = TYPE_SHRINK * (1.0 + sel.sum() * 0.0) * np.ones(At.shape[1])
-        coef[i] = np.linalg.solve(At.T @ At + np.diag(lam), At.T @ y[sel] + lam * pooled)
+        G, r = layer.normal_equations(X[sel], [kind] * int(sel.sum()), y[sel])
+        lam = TYPE_SHRINK * (1.0 + sel.sum() * 0.0) * np.ones(layer.n_coef)
+        coef[i] = np.linalg.solve(G + np.diag(lam), r + lam * pooled)
     return PolyLayer(features, order, mean, std, coef, interact, low, high)
 
 
@@ -344,6 +360,27 @@ class LayerData:
     y: np.ndarray
     run: np.ndarray  # run index of each row
     extra: np.ndarray  # upper: L / L_line per row; lower: section index per row
+
+    def rows(self, sel: np.ndarray) -> "LayerData":
+        """The rows where ``sel`` (a mask), in their order."""
+        return LayerData(self.X[sel], [k for k, s in zip(self.kinds, sel) if s], self.y[sel], self.run[sel], self.extra[sel])
+
+    def split(self, runs: np.ndarray) -> tuple["LayerData", "LayerData", np.ndarray]:
+        """The rows of the given runs, the others, and the mask of the first: two parts that hold the rows once
+        (at 20,000 logs the lower layer's rows are 100 MB), joined again by :meth:`joined`."""
+        sel = np.isin(self.run, runs)
+        return self.rows(sel), self.rows(~sel), sel
+
+    @staticmethod
+    def joined(first: "LayerData", other: "LayerData", sel: np.ndarray) -> "LayerData":
+        """The rows of ``first`` where ``sel``, of ``other`` elsewhere: what :meth:`split` split."""
+        def merge(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            out = np.empty((len(sel),) + a.shape[1:], dtype=a.dtype)
+            out[sel], out[~sel] = a, b
+            return out
+        kinds_a, kinds_b = iter(first.kinds), iter(other.kinds)
+        return LayerData(merge(first.X, other.X), [next(kinds_a) if s else next(kinds_b) for s in sel],
+                         merge(first.y, other.y), merge(first.run, other.run), merge(first.extra, other.extra))
 
 
 def observed(run: LoggedRun, line: LineModel) -> tuple[np.ndarray, np.ndarray]:
@@ -527,10 +564,6 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
     fit_idx, hold_idx = np.flatnonzero(~held), np.flatnonzero(held)
     up_all, lo_all, obs = layer_data(chosen, lines, settings)
 
-    def rows(data: LayerData, idx: np.ndarray) -> LayerData:
-        sel = np.isin(data.run, idx)
-        return LayerData(data.X[sel], [k for k, s in zip(data.kinds, sel) if s], data.y[sel], data.run[sel], data.extra[sel])
-
     def choose(up: LayerData, lo: LayerData):
         """Form and order of the upper layer, order of the lower layer, by grouped CV."""
         tables = {}
@@ -549,7 +582,9 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
                                           by_type=settings.lower_by_type)
         return best[0], best[1], tables, lo_order, lo_table
 
-    up_fit, lo_fit = rows(up_all, fit_idx), rows(lo_all, fit_idx)
+    # the rows of the fit runs, and of the held-out runs apart: together they hold every row once
+    (up_fit, up_held, up_sel), (lo_fit, lo_held, lo_sel) = up_all.split(fit_idx), lo_all.split(fit_idx)
+    del up_all, lo_all
     form, up_order, up_tables, lo_order, lo_table = choose(up_fit, lo_fit)
     upper = fit_layer(up_fit.X, up_fit.kinds, upper_response(form, up_fit.y, up_fit.extra), up_order, UPPER_FEATURES)
     lower = fit_layer(lo_fit.X, lo_fit.kinds, lo_fit.y, lo_order, LOWER_FEATURES, settings.interact,
@@ -557,7 +592,8 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
     trial = Patterns(settings, {}, form, upper, lower)
     held_report = evaluate(trial, [chosen[i] for i in hold_idx], [lines[i] for i in hold_idx], [obs[i] for i in hold_idx])
     fit_report = evaluate(trial, [chosen[i] for i in fit_idx], [lines[i] for i in fit_idx], [obs[i] for i in fit_idx])
-    del up_fit, lo_fit  # a copy of most rows: not beside the refit's design matrix
+    up_all, lo_all = LayerData.joined(up_fit, up_held, up_sel), LayerData.joined(lo_fit, lo_held, lo_sel)
+    del up_fit, up_held, lo_fit, lo_held
     # the saved pattern: the same forms and orders, refitted on every good run
     upper = fit_layer(up_all.X, up_all.kinds, upper_response(form, up_all.y, up_all.extra), up_order, UPPER_FEATURES)
     lower = fit_layer(lo_all.X, lo_all.kinds, lo_all.y, lo_order, LOWER_FEATURES, settings.interact,
