@@ -6,7 +6,7 @@ the hostile corpus's 1 GiB address-space cap, with its peak memory (the child's 
 - ``drivers simulate`` at its limit of 20,000 logs: 20 drivers x 1 run x 1,000 planned times (the logs are
   written as they are made, the runs searched and recorded a block at a time);
 - ``learn`` on those 20,000 logs (each log read and checked, then only its summary kept; the good runs' logs
-  read again one at a time for the layers' rows).
+  read again one at a time for the layers' rows), and ``compare --strategies drivers --logs`` on them.
 
     python benchmarks/large_outputs.py                       # all three (drivers and learn: about 20 min on freight-20km)
     python benchmarks/large_outputs.py --only results        # about 3 minutes
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sqlite3
 import sys
 import tempfile
@@ -103,15 +104,22 @@ def drivers_case(tmp: Path, route: str, drivers: int, times: int) -> tuple[dict,
     return row, out_dir
 
 
-def learn_case(tmp: Path, logs: Path) -> dict:
-    n = sum(1 for _ in (logs / "logs").iterdir()) if (logs / "logs").is_dir() else "?"
+def learn_cases(tmp: Path, logs: Path, route: str) -> list[dict]:
+    n = sum(1 for _ in (logs / "logs").iterdir()) if (logs / "logs").is_dir() else 0
     out = tmp / "patterns.json"
-    row = run(["learn", str(logs), "--out", str(out), "--json"], tmp, f"learn: {n:,} logs" if n != "?" else "learn")
-    if row["exit"] == 0:
+    rows = [run(["learn", str(logs), "--out", str(out), "--json"], tmp, f"learn: {n:,} logs")]
+    if rows[0]["exit"] == 0:
         report = json.loads(out.read_text())["report"]
         print(f"  {report['data']['runs']:,} runs, {report['data']['good_runs']:,} good runs; held-out R^2: upper "
               f"{report['heldout']['upper']['r2']}, lower chained {report['heldout']['lower']['chained_r2']}")
-    return row
+    # the drivers of the first run's job (consist and planned time) among all the logs
+    with open(logs / "manifest.yaml", encoding="utf-8") as fh:
+        first = next(line for line in fh if line.lstrip().startswith("- {log:"))
+    consist = re.search(r"consist: ([^,}]+)", first).group(1).strip()
+    time_s = re.search(r"scheduled_time_s: ([0-9.]+)", first).group(1)
+    rows.append(run(["compare", route, "--strategies", "drivers", "--logs", str(logs), "--consist", str(logs / consist),
+                     "--time", time_s, "--e-min", "1", "--no-gap", "--json"], tmp, f"compare --strategies drivers: {n:,} logs"))
+    return rows
 
 
 def main() -> int:
@@ -134,7 +142,7 @@ def main() -> int:
             row, logs = drivers_case(tmp, args.route, args.drivers, args.times)
             rows.append(row)
         if args.only in (None, "drivers", "learn"):
-            rows.append(learn_case(tmp, logs.resolve()))
+            rows += learn_cases(tmp, logs.resolve(), args.route)
     worst = max(r["peak_mib"] for r in rows)
     print(f"\nlargest peak: {worst} MiB (limit {hostile.MEMORY_CAP_BYTES / 2**20:.0f} MiB of address space)")
     return 0 if all(r["exit"] == 0 for r in rows) and worst < hostile.MEMORY_CAP_BYTES / 2**20 else 1
