@@ -119,6 +119,30 @@ def test_manifest_mass_must_match_the_consist(tmp_path):
     assert "runs[0].mass_t: 4000 t disagrees with the consist 'HXD1 + 50 x C80 (5200 t)'" in str(exc.value)
 
 
+def test_a_log_set_keeps_summaries_and_reads_the_rows_again_as_checked(sim_logs, tmp_path):
+    """A log set holds each run's summary, not its rows: ``data`` reads the log again, the same rows as read
+    and checked first; a log whose content changed since is refused (file named), not used unchecked."""
+    import shutil
+
+    from locoplan.io.logs import LogFile
+
+    out = tmp_path / "logs"
+    shutil.copytree(sim_logs[0], out)
+    runs = load_logs(out)
+    run = runs[0]
+    assert isinstance(run.read, LogFile) and "data" not in vars(run)  # no rows held
+    first = read_log_csv(run.log_file)
+    again = run.data
+    assert all(np.array_equal(getattr(again, c), getattr(first, c)) for c in ("time_s", "position_m", "speed_kmh",
+                                                                              "force_kn", "notch", "action"))
+    assert run.running_time_s == first.running_time_s and run.traction_energy_kwh == first.traction_energy_kwh
+    text = run.log_file.read_text()
+    run.log_file.write_text(text.replace("\n2.0,", "\n2.00,", 1))  # the same numbers, other bytes: changed all the same
+    with pytest.raises(InputError) as exc:
+        run.data
+    assert f"{run.log_file}: changed while locoplan was using it" in str(exc.value)
+
+
 # ------------------------------------------------------------------------------------------ simulator
 def test_consist_for_mass_uses_the_train_model(base):
     c = consist_for_mass(base[0], base[1], 3700)
