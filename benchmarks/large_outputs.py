@@ -4,10 +4,14 @@ the hostile corpus's 1 GiB address-space cap, with its peak memory (the child's 
 - ``results`` on a store of 100,000 runs: the summary, and the csv, json (to a file and to stdout) and parquet
   exports (each streamed from the store a row at a time);
 - ``drivers simulate`` at its limit of 20,000 logs: 20 drivers x 1 run x 1,000 planned times (the logs are
-  written as they are made, the runs searched and recorded a block at a time).
+  written as they are made, the runs searched and recorded a block at a time);
+- ``learn`` on those 20,000 logs (each log read and checked, then only its summary kept; the good runs' logs
+  read again one at a time for the layers' rows), and ``compare --strategies drivers --logs`` on them.
 
-    python benchmarks/large_outputs.py                       # both (drivers: about 30 min of one core on freight-20km)
+    python benchmarks/large_outputs.py                       # all three (drivers and learn: about 20 min on freight-20km)
     python benchmarks/large_outputs.py --only results        # about 3 minutes
+    python benchmarks/large_outputs.py --only drivers        # the logs, then learn from them
+    python benchmarks/large_outputs.py --only learn --logs DIR   # learn from logs made before
     python benchmarks/large_outputs.py --only drivers --route routes/real/CH_Stadelhofen_Altstetten-leg1.yaml
 """
 
@@ -15,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sqlite3
 import sys
 import tempfile
@@ -84,7 +89,7 @@ def results_cases(tmp: Path, runs: int) -> list[dict]:
     return rows
 
 
-def drivers_case(tmp: Path, route: str, drivers: int, times: int) -> dict:
+def drivers_case(tmp: Path, route: str, drivers: int, times: int) -> tuple[dict, Path]:
     first = 1450 if "freight-20km" in route else None
     if first is None:  # a planned time every second from 1.15 x the fastest run
         code, out, err, _, _ = hostile.run(["simulate", route, "--strategy", "time-saving", "--json"], tmp, timeout_s=600)
@@ -96,12 +101,31 @@ def drivers_case(tmp: Path, route: str, drivers: int, times: int) -> dict:
     row["logs"] = len(list((out_dir / "logs").iterdir())) if (out_dir / "logs").is_dir() else 0
     print(f"  {row['logs']:,} logs written to {out_dir}; left beside it: "
           f"{sorted(p.name for p in tmp.iterdir() if p.name.startswith('logs.'))}")
-    return row
+    return row, out_dir
+
+
+def learn_cases(tmp: Path, logs: Path, route: str) -> list[dict]:
+    n = sum(1 for _ in (logs / "logs").iterdir()) if (logs / "logs").is_dir() else 0
+    out = tmp / "patterns.json"
+    rows = [run(["learn", str(logs), "--out", str(out), "--json"], tmp, f"learn: {n:,} logs")]
+    if rows[0]["exit"] == 0:
+        report = json.loads(out.read_text())["report"]
+        print(f"  {report['data']['runs']:,} runs, {report['data']['good_runs']:,} good runs; held-out R^2: upper "
+              f"{report['heldout']['upper']['r2']}, lower chained {report['heldout']['lower']['chained_r2']}")
+    # the drivers of the first run's job (consist and planned time) among all the logs
+    with open(logs / "manifest.yaml", encoding="utf-8") as fh:
+        first = next(line for line in fh if line.lstrip().startswith("- {log:"))
+    consist = re.search(r"consist: ([^,}]+)", first).group(1).strip()
+    time_s = re.search(r"scheduled_time_s: ([0-9.]+)", first).group(1)
+    rows.append(run(["compare", route, "--strategies", "drivers", "--logs", str(logs), "--consist", str(logs / consist),
+                     "--time", time_s, "--e-min", "1", "--no-gap", "--json"], tmp, f"compare --strategies drivers: {n:,} logs"))
+    return rows
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--only", choices=("results", "drivers"))
+    ap.add_argument("--only", choices=("results", "drivers", "learn"))
+    ap.add_argument("--logs", type=Path, help="learn from this log folder (default: the logs drivers simulate makes)")
     ap.add_argument("--runs", type=int, default=100_000, help="runs in the store")
     ap.add_argument("--route", default=str(ROOT / "routes/freight-20km.yaml"), help="route of drivers simulate")
     ap.add_argument("--drivers", type=int, default=20)
@@ -113,8 +137,12 @@ def main() -> int:
         rows = []
         if args.only in (None, "results"):
             rows += results_cases(tmp, args.runs)
-        if args.only in (None, "drivers"):
-            rows.append(drivers_case(tmp, args.route, args.drivers, args.times))
+        logs = args.logs
+        if args.only in (None, "drivers") or (args.only == "learn" and logs is None):
+            row, logs = drivers_case(tmp, args.route, args.drivers, args.times)
+            rows.append(row)
+        if args.only in (None, "drivers", "learn"):
+            rows += learn_cases(tmp, logs.resolve(), args.route)
     worst = max(r["peak_mib"] for r in rows)
     print(f"\nlargest peak: {worst} MiB (limit {hostile.MEMORY_CAP_BYTES / 2**20:.0f} MiB of address space)")
     return 0 if all(r["exit"] == 0 for r in rows) and worst < hostile.MEMORY_CAP_BYTES / 2**20 else 1

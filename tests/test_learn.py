@@ -119,6 +119,30 @@ def test_manifest_mass_must_match_the_consist(tmp_path):
     assert "runs[0].mass_t: 4000 t disagrees with the consist 'HXD1 + 50 x C80 (5200 t)'" in str(exc.value)
 
 
+def test_a_log_set_keeps_summaries_and_reads_the_rows_again_as_checked(sim_logs, tmp_path):
+    """A log set holds each run's summary, not its rows: ``data`` reads the log again, the same rows as read
+    and checked first; a log whose content changed since is refused (file named), not used unchecked."""
+    import shutil
+
+    from locoplan.io.logs import LogFile
+
+    out = tmp_path / "logs"
+    shutil.copytree(sim_logs[0], out)
+    runs = load_logs(out)
+    run = runs[0]
+    assert isinstance(run.read, LogFile) and "data" not in vars(run)  # no rows held
+    first = read_log_csv(run.log_file)
+    again = run.data
+    assert all(np.array_equal(getattr(again, c), getattr(first, c)) for c in ("time_s", "position_m", "speed_kmh",
+                                                                              "force_kn", "notch", "action"))
+    assert run.running_time_s == first.running_time_s and run.traction_energy_kwh == first.traction_energy_kwh
+    text = run.log_file.read_text()
+    run.log_file.write_text(text.replace("\n2.0,", "\n2.00,", 1))  # the same numbers, other bytes: changed all the same
+    with pytest.raises(InputError) as exc:
+        run.data
+    assert f"{run.log_file}: changed while locoplan was using it" in str(exc.value)
+
+
 # ------------------------------------------------------------------------------------------ simulator
 def test_consist_for_mass_uses_the_train_model(base):
     c = consist_for_mass(base[0], base[1], 3700)
@@ -157,6 +181,30 @@ def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
     assert np.mean(late <= 15.0) >= 0.75  # most within the line's tolerance (some drivers cannot make a tight time)
     e = np.array([r.traction_energy_kwh for r in runs if r.mass_t == 4200 and r.scheduled_time_s == 520])
     assert e.max() / e.min() > 1.05  # good and wasteful drivers differ
+
+
+def test_every_simulated_log_reads_back_even_a_creeping_arrival(base):
+    """400 runs of random drivers and cruise speeds on the 6 km line, each log written and read back: every
+    one reads (time rises at the 0.1 s the log writes). Among them (seed 0) a train that creeps the last
+    1.3 m at 0.0003 km/h, whose arrival took 0.05 s: its last two rows had one time, and learn refused it."""
+    from locoplan.learn.drivers import MIN_ARRIVAL_S, SpeedNoise, draw_drivers, route_tables, simulate_runs
+
+    from locoplan.io.load import load_train
+
+    calc = TractionCalculator(load_route(LINE), load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"))
+    rng = np.random.default_rng(0)
+    p = draw_drivers(400, rng)
+    cruise = rng.uniform(40, 80, 400)
+    out = simulate_runs(calc, route_tables(calc), p, cruise, SpeedNoise(rng, p.noise_kmh, 1500, 400).block(0), 1500.0,
+                        record=True)
+    assert not any(out.failure)
+    for i, log in enumerate(out.logs):
+        path = Path(f"run{i}.csv")
+        back = read_log_csv(path, log_csv_text(log))
+        assert back.time_s[-1] == pytest.approx(log.time_s[-1], abs=0.05)
+    last_steps = np.array([log.time_s[-1] - log.time_s[-2] for log in out.logs])
+    creeping = [log for log in out.logs if log.position_m[-1] - log.position_m[-2] > 1.0 and log.speed_kmh[-2] < 0.01]
+    assert creeping and last_steps.min() == pytest.approx(MIN_ARRIVAL_S)  # the case is here, and its step bounded
 
 
 def test_simulator_same_seed_same_logs_other_seed_differs(sim_logs, tmp_path, base):
@@ -267,6 +315,92 @@ def test_equivalent_gradient_has_claim_6_curve_and_tunnel_terms(base):
 
 
 # ------------------------------------------------------------------------------------------ learning
+def _joined_design(layer, X, kinds):
+    """The design matrix as its columns joined, the plain way (what PolyLayer.design fills in place)."""
+    from locoplan.learn.segments import SECTION_TYPES
+
+    Z = (np.clip(X, layer.low, layer.high) - layer.mean) / layer.std
+    onehot = np.array([[1.0 if k == t else 0.0 for t in SECTION_TYPES] for k in kinds])
+    cols = [np.ones((len(Z), 1)), onehot] + [Z ** (2 * i - 1) for i in range(1, layer.order + 1)]
+    j = layer.features.index(layer.interact)
+    return np.hstack(cols + [Z[:, [j]] * np.delete(Z, j, axis=1)])
+
+
+def test_layers_in_place_and_in_blocks_give_the_plain_numbers_bit_for_bit(monkeypatch):
+    """learn never holds more than one block of a design matrix (20,000 logs make 800,000 rows): filled in
+    place, each section type's rows made again rather than copied, predictions a block of rows at a time.
+    A fit in one block gives the plain computation's numbers exactly, not within a tolerance; predictions
+    are the same in blocks of any size."""
+    import locoplan.learn.patterns as patterns
+    from locoplan.learn.patterns import PolyLayer, fit_layer
+    from locoplan.learn.segments import SECTION_TYPES
+
+    rng = np.random.default_rng(4)
+    n = 3001
+    X = rng.normal(size=(n, len(LOWER_FEATURES))) * rng.uniform(1, 300, len(LOWER_FEATURES))
+    kinds = list(rng.choice(SECTION_TYPES[:4], n))  # one type absent: it keeps the pooled coefficients
+    y = rng.normal(size=n)
+    for order in (1, 3, 4):
+        layer = fit_layer(X, kinds, y, order, LOWER_FEATURES, "position", by_type=True)
+        A = _joined_design(layer, X, kinds)
+        assert layer.block_rows() > n and np.array_equal(layer.design(X, kinds), A)
+        # the fit, as it was: the pooled fit, then each type's rows of the one matrix, shrunk towards it
+        penalty = np.full(A.shape[1], patterns.RIDGE * n)
+        penalty[0] = 0.0
+        pooled = np.linalg.solve(A.T @ A + np.diag(penalty), A.T @ y)
+        coef = np.tile(pooled, (len(SECTION_TYPES), 1))
+        for i, kind in enumerate(SECTION_TYPES[:4]):
+            sel = np.array(kinds) == kind
+            At, lam = A[sel], patterns.TYPE_SHRINK * np.ones(A.shape[1])
+            coef[i] = np.linalg.solve(At.T @ At + np.diag(lam), At.T @ y[sel] + lam * pooled)
+        assert np.array_equal(layer.coef, coef)
+        whole = np.einsum("ij,ij->i", A, coef[[SECTION_TYPES.index(k) for k in kinds]])
+        assert np.array_equal(layer.predict(X, kinds), whole)
+        monkeypatch.setattr(patterns, "BLOCK_BYTES", 56 * 8 * layer.n_coef)  # predictions in blocks of 7 rows
+        assert layer.block_rows() == 56 and np.array_equal(layer.predict(X, kinds), whole)
+        monkeypatch.undo()
+    pooled_layer = PolyLayer(LOWER_FEATURES, 2, X.mean(0), X.std(0), rng.normal(size=1 + 5 + 22 + 10), "position",
+                             X.min(0), X.max(0))
+    assert np.array_equal(pooled_layer.predict(X, kinds), _joined_design(pooled_layer, X, kinds) @ pooled_layer.coef)
+
+
+def test_layer_rows_split_into_fit_and_held_out_runs_join_back_unchanged():
+    from locoplan.learn.patterns import LayerData
+
+    rng = np.random.default_rng(6)
+    run = np.repeat(np.arange(30), 8)
+    data = LayerData(rng.normal(size=(240, 3)), list(rng.choice(["level", "steep-up"], 240)), rng.normal(size=240), run,
+                     np.tile(np.arange(8), 30))
+    fit, held, sel = data.split(rng.permutation(30)[:24])
+    assert len(fit.y) == 24 * 8 and len(held.y) == 6 * 8 and set(fit.run).isdisjoint(held.run)
+    back = LayerData.joined(fit, held, sel)
+    assert back.kinds == data.kinds and all(np.array_equal(getattr(back, f), getattr(data, f)) and
+                                            getattr(back, f).dtype == getattr(data, f).dtype for f in ("X", "y", "run", "extra"))
+
+
+def test_a_fit_larger_than_a_block_sums_its_normal_equations_block_by_block(monkeypatch):
+    """Above BLOCK_BYTES the normal equations are summed a block of rows at a time: the same fit up to
+    rounding (the sums' order differs), with one block's memory."""
+    import locoplan.learn.patterns as patterns
+    from locoplan.learn.patterns import fit_layer
+    from locoplan.learn.segments import SECTION_TYPES
+
+    rng = np.random.default_rng(5)
+    n = 4000
+    X = rng.normal(size=(n, len(LOWER_FEATURES))) * rng.uniform(1, 300, len(LOWER_FEATURES))
+    kinds = list(rng.choice(SECTION_TYPES, n))
+    y = np.sin(X[:, 0] / 100) + 0.1 * rng.normal(size=n)
+    whole = fit_layer(X, kinds, y, 3, LOWER_FEATURES, "position", by_type=True)
+    made = []
+    design = patterns.PolyLayer.design
+    monkeypatch.setattr(patterns.PolyLayer, "design", lambda self, X, kinds: made.append(len(X)) or design(self, X, kinds))
+    monkeypatch.setattr(patterns, "BLOCK_BYTES", 300 * 8 * whole.n_coef)
+    blocks = fit_layer(X, kinds, y, 3, LOWER_FEATURES, "position", by_type=True)
+    assert max(made) == 300 and sum(made) == 2 * n  # every row twice (pooled, then its type), 300 at a time
+    assert not np.array_equal(blocks.coef, whole.coef)  # summed in another order ...
+    assert np.allclose(blocks.predict(X, kinds), whole.predict(X, kinds), rtol=0, atol=1e-10)  # ... the same fit
+
+
 def test_order_is_chosen_by_cross_validation_not_in_sample_fit():
     rng = np.random.default_rng(0)
     X = rng.uniform(-1, 1, size=(240, 2))

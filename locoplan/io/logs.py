@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import csv
 import difflib
+import hashlib
 import io
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +22,7 @@ from ..model.logs import (ACTIONS, MANIFEST_NAME, MANIFEST_SCHEMAS, OPTIONAL_COL
                           LogData, LoggedRun)
 from ..model.route import Route
 from ..model.train import Train
-from .load import _line_for, load_route, load_train, read_text, read_yaml, validate_model
+from .load import _line_for, decode_text, load_route, load_train, read_bytes, read_text, read_yaml, validate_model
 
 MAX_PROBLEMS_PER_FILE = 20
 """After this many problems in one CSV the rest of it is summarised (a wrong file has thousands)."""
@@ -167,6 +169,29 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
                    np.asarray(values["action"]) if "action" in idx else None)
 
 
+@dataclass(frozen=True)
+class LogFile:
+    """A log CSV read and checked once, read again whenever its rows are wanted (``LoggedRun.data``): a log
+    set is not held in memory (20,000 logs of a 20 km line are 1.7 GB of rows). The content's hash from the
+    first read makes sure the rows read again are the ones checked: a log changed since is an input error."""
+
+    path: Path
+    sha256: bytes
+
+    @classmethod
+    def read_checked(cls, path: Path) -> tuple["LogFile", LogData]:
+        """The file and its rows, read and checked (``read_log_csv``)."""
+        raw = read_bytes(path)
+        return cls(path, hashlib.sha256(raw).digest()), read_log_csv(path, decode_text(raw, str(path)))
+
+    def __call__(self) -> LogData:
+        raw = read_bytes(self.path)
+        if hashlib.sha256(raw).digest() != self.sha256:
+            raise InputError(Problem(str(self.path), "", "changed while locoplan was using it (it was read and checked "
+                                     "earlier in this command): run the command again"))
+        return read_log_csv(self.path, decode_text(raw, str(self.path)))
+
+
 MANIFEST_MAX_NODES = 400_000
 """Most values in a manifest: 20,000 runs (what ``drivers simulate`` writes at most) of 15 values each, with room
 (a route's 100,000 would stop at about 6,600 runs)."""
@@ -208,7 +233,8 @@ def _manifest_files(path: Path) -> list[Path]:
 
 def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> list[LoggedRun]:
     """Every run of the given log folders / manifests, checked. All problems are collected and raised
-    together (``InputError``, exit 2): a log set is used whole or not at all."""
+    together (``InputError``, exit 2): a log set is used whole or not at all. Each log is read and checked
+    here, and its rows dropped: ``LoggedRun.data`` reads them again (``LogFile``)."""
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     problems: list[Problem] = []
     runs: list[LoggedRun] = []
@@ -263,7 +289,7 @@ def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> 
                 key = (consist_spec, str(stock_dir))
                 if key not in trains:
                     trains[key] = load_train(consist_spec, stock_dir)
-                data = read_log_csv(log_path)
+                log_file, data = LogFile.read_checked(log_path)
             except InputError as exc:
                 problems += exc.problems
                 continue
@@ -287,7 +313,8 @@ def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> 
                 continue
             runs.append(LoggedRun(log_path, mf, _line_for(lines, loc) if loc else None, entry.driver_id, route_path,
                                   route, Path(consist_spec), train, entry.mass_t, entry.scheduled_time_s,
-                                  entry.actual_time_s, entry.date, synthetic, data))
+                                  entry.actual_time_s, entry.date, synthetic, data.running_time_s,
+                                  data.traction_energy_kwh, log_file))
     if problems:
         raise InputError(problems)
     if not runs:

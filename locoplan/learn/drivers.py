@@ -59,6 +59,12 @@ from ..strategy.sequence import classify_grades
 DT_S = 1.0
 """Time step and log sampling interval [s] (recorders log at about 1 Hz)."""
 
+MIN_ARRIVAL_S = 0.15
+"""Shortest last step, the one that closes the last metres to the stop [s]: the logs write time to 0.1 s, and
+a train creeping the last metre at a few mm/s would otherwise arrive 0.01 s after the row before, a log with
+two rows at one time (which ``learn`` refuses: time must rise). 0.15 s is more than the 0.1 s a rounded time
+can lose."""
+
 NOTCHES = 8
 """Traction and braking notches of the handle (force = notch / 8 of the full curve at that speed)."""
 
@@ -323,7 +329,7 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         arrive = live & ((s + ds >= L - 0.5) | (halts & stopping & (s + ds >= L - np.maximum(5.0, 0.5 / a_brake + 1.0))))
         if arrive.any():  # the last step ends exactly at the end of the route, at rest
             dt_arrive = 2 * np.maximum(L - s, 0.0) / np.maximum(v, 1e-9)
-            dt_step = np.where(arrive, np.minimum(dt_arrive, dt_step * 4), dt_step)
+            dt_step = np.where(arrive, np.maximum(np.minimum(dt_arrive, dt_step * 4), MIN_ARRIVAL_S), dt_step)
             ds = np.where(arrive, L - s, ds)
             overrun = arrive & (v_kmh > 10.0) & (s + 0.5 * (v + v_new) * DT_S > L + 1.0)
         else:

@@ -65,6 +65,10 @@ TYPE_SHRINK = 1.0
 design's columns are z-scores, so 1 weighs like one row of data)."""
 ORDER_TOLERANCE = 0.01
 """An order is chosen when its CV error is within this share of the best order's (prefer the simpler)."""
+BLOCK_BYTES = 32 * 2**20
+"""Most memory for a block of a layer's design matrix [bytes]. A larger matrix (the lower layer's from 20,000
+logs: 800,000 rows, 380 MB) is made, summed into the normal equations and predicted from a block of rows at a
+time; one that fits in a block is one matrix, and its numbers are those of the plain computation, bit for bit."""
 
 
 @dataclass(frozen=True)
@@ -159,11 +163,6 @@ def line_model(route: Route, train: Train, options: ModelOptions, settings: Lear
 
 
 # ------------------------------------------------------------------------------------------ one layer
-def odd_powers(Z: np.ndarray, order: int) -> np.ndarray:
-    """[Z, Z^3, ..., Z^(2 order - 1)] side by side: the odd-power terms of eq. I / II."""
-    return np.hstack([Z ** (2 * i - 1) for i in range(1, order + 1)])
-
-
 @dataclass(frozen=True)
 class PolyLayer:
     """One layer: y = b0 + offset(S) + sum_i sum_f b_if z_f^(2i-1), z the standardised inputs."""
@@ -182,24 +181,56 @@ class PolyLayer:
         n = 1 + len(SECTION_TYPES) + self.order * len(self.features)
         return n + (len(self.features) - 1 if self.interact else 0)
 
-    def design(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
+    def design(self, X: np.ndarray, kinds) -> np.ndarray:
+        """The design matrix (rows of X, ``n_coef`` columns in the order of ``coef``), filled in place: at
+        20,000 logs it has most of a million rows, and joining its columns would hold it twice. Each row
+        depends on its own inputs only, so the rows of a part of X are those rows of the whole."""
         X = np.atleast_2d(X)
-        if self.low is not None:  # no polynomial extrapolation beyond the data: a 7th power explodes there
-            X = np.clip(X, self.low, self.high)
-        Z = (X - self.mean) / self.std
-        onehot = np.array([[1.0 if k == t else 0.0 for t in SECTION_TYPES] for k in kinds]).reshape(len(Z), len(SECTION_TYPES))
-        cols = [np.ones((len(Z), 1)), onehot, odd_powers(Z, self.order)]
+        # no polynomial extrapolation beyond the data: a 7th power explodes there
+        Z = np.clip(X, self.low, self.high) if self.low is not None else np.array(X, dtype=float)
+        np.subtract(Z, self.mean, out=Z)  # standardised in place
+        np.divide(Z, self.std, out=Z)
+        n, m = Z.shape
+        A = np.empty((n, self.n_coef))
+        A[:, 0] = 1.0
+        A[:, 1:1 + len(SECTION_TYPES)] = np.asarray(kinds, dtype=str).reshape(n, 1) == np.array(SECTION_TYPES)
+        c = 1 + len(SECTION_TYPES)
+        for i in range(1, self.order + 1):  # [Z, Z^3, ..., Z^(2 order - 1)]: the odd-power terms of eq. I / II
+            np.power(Z, 2 * i - 1, out=A[:, c:c + m])
+            c += m
         if self.interact:
             j = self.features.index(self.interact)
-            cols.append(Z[:, [j]] * np.delete(Z, j, axis=1))
-        return np.hstack(cols)
+            for q in (q for q in range(m) if q != j):
+                np.multiply(Z[:, j], Z[:, q], out=A[:, c])
+                c += 1
+        return A
 
-    def predict(self, X: np.ndarray, kinds: list[str]) -> np.ndarray:
-        A = self.design(X, kinds)
-        if self.coef.ndim == 1:
-            return A @ self.coef
-        rows = np.array([SECTION_TYPES.index(k) for k in kinds])
-        return np.einsum("ij,ij->i", A, self.coef[rows])
+    def block_rows(self) -> int:
+        """Rows of the design matrix in one block of ``BLOCK_BYTES``."""
+        return max(1, BLOCK_BYTES // (8 * self.n_coef))
+
+    def predict(self, X: np.ndarray, kinds) -> np.ndarray:
+        X = np.atleast_2d(X)
+        types = None if self.coef.ndim == 1 else np.array([SECTION_TYPES.index(k) for k in kinds], dtype=int)
+        out = np.empty(len(X))
+        # each row's value is the same in a block as in the whole matrix; with coefficients per type each row's
+        # are copied beside it, so the blocks are smaller
+        step = self.block_rows() if types is None else max(1, self.block_rows() // 8)
+        for a in range(0, len(X), step):
+            A = self.design(X[a:a + step], kinds[a:a + step])
+            # one set of coefficients per section type: each row with its own
+            out[a:a + step] = A @ self.coef if types is None else np.einsum("ij,ij->i", A, self.coef[types[a:a + step]])
+        return out
+
+    def normal_equations(self, X: np.ndarray, kinds, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A^T A and A^T y of the design matrix A of the rows X, summed a block of rows at a time."""
+        G = r = None
+        step = self.block_rows()
+        for a in range(0, len(X), step):
+            A = self.design(X[a:a + step], kinds[a:a + step])
+            g, q = A.T @ A, A.T @ y[a:a + step]
+            G, r = (g, q) if G is None else (G + g, r + q)
+        return G, r
 
     def to_dict(self) -> dict:
         return {"features": list(self.features), "order": self.order, "types": list(SECTION_TYPES),
@@ -229,21 +260,21 @@ def fit_layer(X: np.ndarray, kinds: list[str], y: np.ndarray, order: int, featur
     mean, std = scale if scale is not None else standardisation(X)
     low, high = X.min(axis=0), X.max(axis=0)
     layer = PolyLayer(features, order, mean, std, np.zeros(0), interact, low, high)
-    A = layer.design(X, kinds)
-    penalty = np.full(A.shape[1], RIDGE * len(y))
+    G, r = layer.normal_equations(X, kinds, y)
+    penalty = np.full(layer.n_coef, RIDGE * len(y))
     penalty[0] = 0.0
-    pooled = np.linalg.solve(A.T @ A + np.diag(penalty), A.T @ y)
+    pooled = np.linalg.solve(G + np.diag(penalty), r)
     if not by_type:
         return PolyLayer(features, order, mean, std, pooled, interact, low, high)
     coef = np.tile(pooled, (len(SECTION_TYPES), 1))
-    kinds = np.asarray(kinds)
+    types = np.array([SECTION_TYPES.index(k) for k in kinds], dtype=np.int8)
     for i, kind in enumerate(SECTION_TYPES):
-        sel = kinds == kind
+        sel = types == i
         if sel.sum() == 0:
             continue
-        At = A[sel]
-        lam = TYPE_SHRINK * (1.0 + sel.sum() * 0.0) * np.ones(At.shape[1])
-        coef[i] = np.linalg.solve(At.T @ At + np.diag(lam), At.T @ y[sel] + lam * pooled)
+        G, r = layer.normal_equations(X[sel], [kind] * int(sel.sum()), y[sel])
+        lam = TYPE_SHRINK * (1.0 + sel.sum() * 0.0) * np.ones(layer.n_coef)
+        coef[i] = np.linalg.solve(G + np.diag(lam), r + lam * pooled)
     return PolyLayer(features, order, mean, std, coef, interact, low, high)
 
 
@@ -330,6 +361,27 @@ class LayerData:
     run: np.ndarray  # run index of each row
     extra: np.ndarray  # upper: L / L_line per row; lower: section index per row
 
+    def rows(self, sel: np.ndarray) -> "LayerData":
+        """The rows where ``sel`` (a mask), in their order."""
+        return LayerData(self.X[sel], [k for k, s in zip(self.kinds, sel) if s], self.y[sel], self.run[sel], self.extra[sel])
+
+    def split(self, runs: np.ndarray) -> tuple["LayerData", "LayerData", np.ndarray]:
+        """The rows of the given runs, the others, and the mask of the first: two parts that hold the rows once
+        (at 20,000 logs the lower layer's rows are 100 MB), joined again by :meth:`joined`."""
+        sel = np.isin(self.run, runs)
+        return self.rows(sel), self.rows(~sel), sel
+
+    @staticmethod
+    def joined(first: "LayerData", other: "LayerData", sel: np.ndarray) -> "LayerData":
+        """The rows of ``first`` where ``sel``, of ``other`` elsewhere: what :meth:`split` split."""
+        def merge(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+            out = np.empty((len(sel),) + a.shape[1:], dtype=a.dtype)
+            out[sel], out[~sel] = a, b
+            return out
+        kinds_a, kinds_b = iter(first.kinds), iter(other.kinds)
+        return LayerData(merge(first.X, other.X), [next(kinds_a) if s else next(kinds_b) for s in sel],
+                         merge(first.y, other.y), merge(first.run, other.run), merge(first.extra, other.extra))
+
 
 def observed(run: LoggedRun, line: LineModel) -> tuple[np.ndarray, np.ndarray]:
     """A run's time shares per section (n_sections,) and its speeds at every section's division points
@@ -348,30 +400,31 @@ def observed(run: LoggedRun, line: LineModel) -> tuple[np.ndarray, np.ndarray]:
 
 
 def layer_data(runs: list[LoggedRun], lines: list[LineModel], settings: LearnSettings) -> tuple[LayerData, LayerData, list]:
-    """Rows of both layers from the given runs (each with its line model)."""
-    ux, uk, uy, ur, ul = [], [], [], [], []
-    lx, lk, ly, lr, ls = [], [], [], [], []
+    """Rows of both layers from the given runs (each with its line model), each run's log read in turn."""
+    n_up = sum(len(line.sections) for line in lines)
+    n_lo = sum(len(line.sections) * line.divisions for line in lines)
+    ux, uy, ur, ul = np.empty((n_up, len(UPPER_FEATURES))), np.empty(n_up), np.empty(n_up, dtype=int), np.empty(n_up)
+    lx, ly, lr, ls = np.empty((n_lo, len(LOWER_FEATURES))), np.empty(n_lo), np.empty(n_lo, dtype=int), np.empty(n_lo, dtype=int)
+    uk: list[str] = []
+    lk: list[str] = []
     obs = []
+    u = lo = 0
     for j, (run, line) in enumerate(zip(runs, lines)):
         shares, speeds = observed(run, line)
         obs.append((shares, speeds))
         T = run.running_time_s
         X, kinds, ell = line.upper_inputs(run.mass_t, T)
-        ux.append(X)
+        n = len(shares)
+        ux[u:u + n], uy[u:u + n], ur[u:u + n], ul[u:u + n] = X, shares, j, ell
         uk += kinds
-        uy.append(shares)
-        ur += [j] * len(shares)
-        ul.append(ell)
+        u += n
         for i in range(len(line.sections)):
             for k in range(1, line.divisions + 1):
-                lx.append(line.lower_inputs(i, k, settings.entry(speeds[i], k), shares[i], run.mass_t, T))
+                lx[lo] = line.lower_inputs(i, k, settings.entry(speeds[i], k), shares[i], run.mass_t, T)
+                ly[lo], lr[lo], ls[lo] = speeds[i, k], j, i
                 lk.append(line.sections[i].kind)
-                ly.append(speeds[i, k])
-                lr.append(j)
-                ls.append(i)
-    upper = LayerData(np.vstack(ux), uk, np.concatenate(uy), np.array(ur), np.concatenate(ul))
-    lower = LayerData(np.array(lx), lk, np.array(ly), np.array(lr), np.array(ls))
-    return upper, lower, obs
+                lo += 1
+    return LayerData(ux, uk, uy, ur, ul), LayerData(lx, lk, ly, lr, ls), obs
 
 
 def upper_response(form: str, share: np.ndarray, ell: np.ndarray) -> np.ndarray:
@@ -511,10 +564,6 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
     fit_idx, hold_idx = np.flatnonzero(~held), np.flatnonzero(held)
     up_all, lo_all, obs = layer_data(chosen, lines, settings)
 
-    def rows(data: LayerData, idx: np.ndarray) -> LayerData:
-        sel = np.isin(data.run, idx)
-        return LayerData(data.X[sel], [k for k, s in zip(data.kinds, sel) if s], data.y[sel], data.run[sel], data.extra[sel])
-
     def choose(up: LayerData, lo: LayerData):
         """Form and order of the upper layer, order of the lower layer, by grouped CV."""
         tables = {}
@@ -533,7 +582,9 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
                                           by_type=settings.lower_by_type)
         return best[0], best[1], tables, lo_order, lo_table
 
-    up_fit, lo_fit = rows(up_all, fit_idx), rows(lo_all, fit_idx)
+    # the rows of the fit runs, and of the held-out runs apart: together they hold every row once
+    (up_fit, up_held, up_sel), (lo_fit, lo_held, lo_sel) = up_all.split(fit_idx), lo_all.split(fit_idx)
+    del up_all, lo_all
     form, up_order, up_tables, lo_order, lo_table = choose(up_fit, lo_fit)
     upper = fit_layer(up_fit.X, up_fit.kinds, upper_response(form, up_fit.y, up_fit.extra), up_order, UPPER_FEATURES)
     lower = fit_layer(lo_fit.X, lo_fit.kinds, lo_fit.y, lo_order, LOWER_FEATURES, settings.interact,
@@ -541,6 +592,8 @@ def learn(runs: list[LoggedRun], settings: LearnSettings, options: ModelOptions)
     trial = Patterns(settings, {}, form, upper, lower)
     held_report = evaluate(trial, [chosen[i] for i in hold_idx], [lines[i] for i in hold_idx], [obs[i] for i in hold_idx])
     fit_report = evaluate(trial, [chosen[i] for i in fit_idx], [lines[i] for i in fit_idx], [obs[i] for i in fit_idx])
+    up_all, lo_all = LayerData.joined(up_fit, up_held, up_sel), LayerData.joined(lo_fit, lo_held, lo_sel)
+    del up_fit, up_held, lo_fit, lo_held
     # the saved pattern: the same forms and orders, refitted on every good run
     upper = fit_layer(up_all.X, up_all.kinds, upper_response(form, up_all.y, up_all.extra), up_order, UPPER_FEATURES)
     lower = fit_layer(lo_all.X, lo_all.kinds, lo_all.y, lo_order, LOWER_FEATURES, settings.interact,

@@ -37,9 +37,8 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, field
-from functools import cached_property
 from pathlib import Path
-from typing import Literal
+from typing import Callable, Literal
 
 import numpy as np
 from pydantic import Field
@@ -128,7 +127,10 @@ class LogData:
 # ------------------------------------------------------------------------------------------ log sets
 @dataclass(frozen=True)
 class LoggedRun:
-    """One run: its log, what the manifest says about it, and the route and train it ran with."""
+    """One run: what the manifest says about it, the route and train it ran with, and its log's running
+    time and traction energy. The log's rows are not held: ``data`` reads them again from the file each
+    time (``read``, given by the reader), so that a log set of 20,000 runs costs its summaries in memory,
+    not its rows."""
 
     log_file: Path
     manifest_file: Path
@@ -143,12 +145,11 @@ class LoggedRun:
     actual_time_s: float
     date: dt.date
     synthetic: bool
-    data: LogData = field(repr=False)
-
-    @cached_property
-    def traction_energy_kwh(self) -> float:
-        return self.data.traction_energy_kwh
+    running_time_s: float  # the log's, LogData.running_time_s
+    traction_energy_kwh: float  # the log's, LogData.traction_energy_kwh
+    read: Callable[[], LogData] = field(repr=False, compare=False)
 
     @property
-    def running_time_s(self) -> float:
-        return self.data.running_time_s
+    def data(self) -> LogData:
+        """The log's rows, read again (the same rows as checked when the log set was read)."""
+        return self.read()
