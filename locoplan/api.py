@@ -385,11 +385,11 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
                 b = energy_bound(route, train, options, t, objective=objective)
             acc = b.accuracy_percent
 
-            def kwh(x):
+            def rounded(x):
                 return None if x is None else round(x, 3)
 
-            row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "traction_energy_kwh": kwh(b.traction_kwh),
-                   "recovered_energy_kwh": kwh(b.recovered_kwh),
+            row = {"time_s": t, "energy_kwh": round(b.energy_kwh, 3), "traction_energy_kwh": rounded(b.traction_kwh),
+                   "recovered_energy_kwh": rounded(b.recovered_kwh),
                    "net_energy_kwh": None if b.traction_kwh is None or b.recovered_kwh is None
                    else round(b.traction_kwh - b.recovered_kwh, 3), "converged": b.converged,
                    "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),

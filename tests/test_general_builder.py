@@ -261,3 +261,26 @@ def test_stall_boundary_below_a_cap_too_fast_to_hold():
     raised[k] = 4.0 * e_next  # twice the speed: coasting one cell cannot come down to the next cap
     low = dp_kernel._lowest_energy.py_func(k, n, cells._replace(e_cap=raised), fo, solver._low[k + 1])
     assert math.isfinite(low) and solver._low[k + 1] <= low <= e_next * 1.01
+
+
+
+@pytest.mark.parametrize("options, consist", [(ModelOptions(), "HXD1-C80x50"), (ModelOptions(air_brake=False), "HXD1-C80x50"),
+                                              (ModelOptions(point_mass=True), "HXD1-C80x30")],
+                         ids=["default", "no-air-brake", "point-mass"])  # (as a point mass 50 wagons stall at 596 m, +24 per mille)
+def test_a_climb_asked_for_just_more_than_its_fastest_run(root, options, consist):
+    """CN_Songjiazhuang_Yizhuang's stop 11 - stop 12, a 2.1 km climb driven in traction to the stop, at 1.02 x
+    its fastest run: the priced drives nearest that time all become the fastest run's sequence (T-B), with
+    nothing to place. The proposed plan then holds a lower speed with partial traction: on time, with less
+    traction energy than the fastest run (each model fails without the hold)."""
+    from locoplan.io.load import load_journey
+    from locoplan.runs.journey import legs_of
+
+    journey, line = load_journey(root / "routes/journeys/CN_Songjiazhuang_Yizhuang-journey.yaml")
+    train = load_train(root / f"configs/consists/{consist}.yaml")
+    route = legs_of(journey, line, train, options)[10].route
+    calc = TractionCalculator(route, train, options)
+    fastest = calc.evaluate(("T",), np.zeros((1, 0)))
+    ctx = make_context(route, train, options, time_s=1.02 * calc.fastest_time_s)
+    run = run_strategy(ctx, "proposed")
+    assert not schedule_verdict(ctx, run), run.summary
+    assert run.summary["traction_energy_kwh"] < float(fastest.traction_energy_kwh[0])

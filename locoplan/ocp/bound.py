@@ -160,9 +160,7 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     options = options or ModelOptions()
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
     regen = net_regen(train, objective)
-    base = _base_key(route, train, options)
-    if regen > 0:  # (the traction problem keeps its keys)
-        base = (base, "net", regen)
+    base = _problem_key(route, train, options, regen)
     known = _known(base, time_s, E_STAR_TOL)
     if known is not None:
         return known
@@ -221,9 +219,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     options = options or ModelOptions()
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
     regen = net_regen(train, objective)
-    base = _base_key(route, train, options)
-    if regen > 0:
-        base = (base, "net", regen)
+    base = _problem_key(route, train, options, regen)
 
     def alone(t: float):  # E* at one time on its own nested grids
         try:
@@ -295,6 +291,13 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
                            bound(t, sol.energy_kwh, acc <= CURVE_TOL, len(mesh.calc.h_m), mesh.steps_m[-1],
                                  sol.solve_time_s, acc, sol.slope_kwh_per_s, CURVE_METHOD, sol))
     return [out[float(t)] for t in times_s]
+
+
+def _problem_key(route: Route, train: Train, options: ModelOptions, regen: float) -> tuple:
+    """The key of E*'s problem: route, train and model, and the regenerative credit of the ``net`` objective
+    (the traction problem keeps the keys it always had)."""
+    base = _base_key(route, train, options)
+    return (base, "net", regen) if regen > 0 else base
 
 
 def _known(base: tuple, time_s: float, tol: float, method: str = METHOD) -> "Bound | None":

@@ -88,12 +88,11 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
 def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
     """The sequence with a speed hold (K) inside each long coasting run, coasting again after it: for a
     timetable slower than the least energy's own time (a falling line coasts faster than asked), the
-    extra time is spent holding a lower speed by braking on a descent, which costs no traction energy.
-    A sequence without coasting (a climb driven in traction to the stop) gets a hold inside each traction
-    run, held to the run's end: a lower speed held with partial traction (accelerating again after it
-    would spend more);
+    extra time is spent holding a lower speed by braking on a descent, which costs no traction energy;
     ISSA then places where each hold begins and ends (nominally a quarter and three quarters into the
-    run; windows as far as the neighbours, less half a train). A hold that ran on to the next condition
+    run; windows as far as the neighbours, less half a train). A sequence without coasting (a climb driven
+    in traction to the stop) gets instead a hold inside each traction run, nominally halfway and held to
+    the run's end: a lower speed held with partial traction (accelerating again after it would spend more). A hold that ran on to the next condition
     would hold its speed with traction up every rise after the descent (a 40 km falling line asked for
     61 s more than coasting takes: 219.6 kWh with such holds, 4.4 kWh with holds that end)."""
     L = calc.route.length_m
