@@ -39,6 +39,12 @@ RUN_BUCKETS = 6
 """Resolution of the run-length state: a run's length so far in sixths of the minimum run (more on fine
 cells: a bucket is never longer than the shortest cell, up to ``MAX_RUN_BUCKETS``)."""
 MAX_RUN_BUCKETS = 32
+HINT_STEP = 0.02
+HINT_WALK = 8
+HINT_CLOSE = 1.005
+"""A priced-drive search from a hint (``PricedDriveSolver.for_time``): steps of 2 % of the price away from
+it, doubling, at most ``HINT_WALK`` of them, until the drive's time crosses the target; then bisection
+until the two prices that bracket it are within 0.5 % of each other."""
 SWITCH_PENALTY_SHARE = 0.002
 """A change of condition costs this share of the fastest run's energy in the DP: drivers (and seed 002's
 eq. 3) do not switch every few metres, and the drive's runs become the sequence's conditions."""
@@ -130,25 +136,62 @@ class PricedDriveSolver:
         return PricedDrive(float(price_kwh_per_s), self.s_m, controls, speeds, float(t), kwh(float(work)))
 
     def for_time(self, t0_s: float, n_bisect: int = 12, price_range=(1e-4, 50.0), timer=None,
-                 close_s: float = 0.0) -> PricedDrive | None:
+                 close_s: float = 0.0, price_hint: float | None = None) -> PricedDrive | None:
         """The priced optimum whose running time is closest to ``t0_s``: geometric bisection on lambda;
         when even the cheapest time is too fast (a falling line where the least energy comes with speed),
         a negative price (time rewarded: holding lower speeds by braking) is bisected as well.
         ``timer(drive)`` [s], if given, replaces the drive's own time (e.g. its plan on the exact calculator);
-        the search stops as soon as a drive is within ``close_s`` of ``t0_s``."""
+        the search stops as soon as a drive is within ``close_s`` of ``t0_s``. ``price_hint`` [kWh/s]: where
+        the price is expected (E*'s -dE*/dT at ``t0_s``, the same problem's multiplier of the running time):
+        the search begins there and walks away from it until the time crosses ``t0_s``, then bisects until
+        the two prices that bracket it are within ``HINT_CLOSE`` of each other (the drive's time is a
+        staircase in the price: a narrower bracket finds hardly another drive); a hint from which no
+        walk brackets ``t0_s`` falls back to the whole range."""
         best = None
         best_t = math.inf
+        slower_seen = False  # a drive slower than t0_s: then the slowest one is slower still (time falls with price)
 
         def consider(d):
-            nonlocal best, best_t
+            nonlocal best, best_t, slower_seen
             if d is None:
                 return
             t = timer(d) if timer is not None else d.time_s
             d = PricedDrive(d.price_kwh_per_s, d.s_m, d.controls, d.speed_kmh, t, d.energy_kwh) if timer is not None else d
             if best is None or abs(t - t0_s) < abs(best_t - t0_s):
                 best, best_t = d, t
+            if t > t0_s:
+                slower_seen = True
             return d
 
+        if price_hint is not None and price_range[0] < price_hint < price_range[1]:
+            # from the hint, steps away from it (doubling) until the time crosses t0_s, then bisection
+            bottom, top = math.log(price_range[0]), math.log(price_range[1])
+            x, lo, hi = math.log(price_hint), None, None
+            for k in range(HINT_WALK + 1):
+                d = consider(self.solve(math.exp(x)))
+                if d is not None and abs(d.time_s - t0_s) <= close_s:
+                    return best
+                slow = d is None or d.time_s > t0_s
+                if slow:
+                    lo = x
+                else:
+                    hi = x
+                if lo is not None and hi is not None:
+                    break
+                x = min(top, x + HINT_STEP * 2 ** k) if slow else max(bottom, x - HINT_STEP * 2 ** k)
+                if x in (bottom, top):
+                    break
+            if lo is not None and hi is not None:
+                while hi - lo > math.log(HINT_CLOSE):
+                    mid = 0.5 * (lo + hi)
+                    d = consider(self.solve(math.exp(mid)))
+                    if d is not None and abs(d.time_s - t0_s) <= close_s:
+                        return best
+                    if d is None or d.time_s > t0_s:
+                        lo = mid
+                    else:
+                        hi = mid
+                return best
         lo, hi = (math.log(p) for p in price_range)
         for _ in range(n_bisect):
             mid = 0.5 * (lo + hi)
@@ -160,7 +203,8 @@ class PricedDriveSolver:
             else:
                 hi = mid
         # even the lowest price drives too fast? (the bisection never reaches its lower end exactly)
-        slowest = consider(self.solve(price_range[0])) if best is not None and best.time_s < t0_s - 1e-6 else None
+        slowest = (consider(self.solve(price_range[0])) if best is not None and best.time_s < t0_s - 1e-6
+                   and not slower_seen else None)
         if slowest is not None and slowest.time_s < t0_s - 1e-6:
             # reward time (a negative price): slower drives, holding lower speeds by braking. The running
             # time changes fastest just below zero, so bisect on log |price| (from -1e-8 to -0.1 kWh/s)

@@ -305,6 +305,8 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                                params=params, weights=weights, tolerance_s=tolerance_s, window=window, builder=builder,
                                calculators=None if ctx is None else (ctx.calc, ctx.search))
             ctx.inputs.update(dict(inputs))
+            if b.slope_kwh_per_s is not None and b.slope_kwh_per_s < 0:  # the leg's price of time: where its drive is
+                ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
             run = run_strategy(ctx, name, with_fitness=with_fitness)
             s = run.summary
             verdict = schedule_verdict(ctx, run, strict=strict)

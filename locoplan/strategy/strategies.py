@@ -66,6 +66,9 @@ class StrategyContext:
     objective: str = "traction"
     """What the energy terms count (``physics.energy.OBJECTIVES``): the optimisers' eq. 10, E_min, E* and the
     gap to it; ``net`` is the traction work less what the electric brake recovers."""
+    price_hint_kwh_per_s: float | None = None
+    """The price of time at ``t0_s`` where the caller knows it (E*'s -dE*/dT there, e.g. a journey's leg): the
+    priced-drive search of the general builder starts from it (``optimize.dp.PricedDriveSolver.for_time``)."""
     _e_min_cache: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
     """Strategy inputs from the command line beyond route and train, as given (e.g. compare's --logs and
@@ -354,7 +357,8 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         res = ctx.search.evaluate(q.conditions, np.array([[*q.nominal_m, np.nan]]))
         return float(res.running_time_s[0]) if res.feasible[0] else math.inf
 
-    drive = solver.for_time(ctx.t0_s, timer=plan_time, close_s=0.25 * (ctx.tolerance_s or 0.0))
+    drive = solver.for_time(ctx.t0_s, timer=plan_time, close_s=0.25 * (ctx.tolerance_s or 0.0),
+                            price_hint=ctx.price_hint_kwh_per_s)
     if drive is None:
         raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
     seq = sequence_from_drive(solver.calc, drive)
