@@ -60,6 +60,39 @@ def test_dp_price_trades_energy_for_time(hilly):
     assert abs(close.time_s - target) < 0.05 * target
 
 
+@pytest.mark.parametrize("model", ["default", "point_mass", "no_air_brake"])
+def test_a_search_from_e_stars_price_finds_the_drive_in_fewer_solves(hilly, model):
+    """E*'s multiplier of the running time is the price of time the DP needs: from it the priced-drive search
+    lands as near the target as the bisection over the whole range (within the staircase of the drives'
+    times: no drive lies between the two it ends on), with at most half the DP solves; a hint 50 times off
+    still finds it (the walk doubles its steps)."""
+    from locoplan.ocp.bound import energy_bound
+
+    route, train = hilly
+    options = {"default": ModelOptions(), "point_mass": ModelOptions(point_mass=True),
+               "no_air_brake": ModelOptions(air_brake=False)}[model]
+    calc = TractionCalculator(route, train, options)
+    target = 1.15 * calc.fastest_time_s
+    price = -energy_bound(route, train, options, target).slope_kwh_per_s
+    assert price > 0
+    counts = {}
+    for name, hint in (("whole range", None), ("hint", price), ("far hint", 50 * price)):
+        solver = PricedDriveSolver(calc)
+        solve, n = solver.solve, [0]
+
+        def counted(p, solve=solve, n=n):
+            n[0] += 1
+            return solve(p)
+        solver.solve = counted
+        d = solver.for_time(target, price_hint=hint)
+        counts[name] = (n[0], d.time_s)
+    base_n, base_t = counts["whole range"]
+    hint_n, hint_t = counts["hint"]
+    assert hint_n <= base_n / 2
+    assert abs(hint_t - target) <= abs(base_t - target) + 1e-9
+    assert abs(counts["far hint"][1] - target) <= abs(base_t - target) + 1e-9
+
+
 def test_every_run_but_the_departure_is_half_a_train_long(freight):
     """Seed 002 eq. 3 (S >= L/2) holds by construction: the DP's runs, hence the sequence's."""
     route, train = freight
