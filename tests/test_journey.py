@@ -134,3 +134,50 @@ def test_a_missing_route_file_and_a_stop_in_a_neutral_section(root, tmp_path):
     with pytest.raises(InputError) as exc:
         load_journey(f)
     assert exc.value.problems[0].field == "stations[1].at_m" and "neutral section" in exc.value.problems[0].message
+
+
+def _random_track(rng: np.random.Generator, n_stops: int) -> dict:
+    """A TTOBench track drawn at random (not one of the repository's): stops 1.5-3.5 km apart, limits of
+    60-120 km/h changing every 0.5-2 km, gradients of -6..+6 per mille every 300-1200 m."""
+    stops = np.concatenate([[0.0], np.cumsum(rng.uniform(1500.0, 3500.0, n_stops - 1))]).round(1)
+    end = float(stops[-1])
+
+    def steps(lo, hi):
+        out = [0.0]
+        while out[-1] + hi < end:
+            out.append(round(out[-1] + float(rng.uniform(lo, hi)), 1))
+        return out
+    limits = [[x, int(rng.choice([60, 80, 100, 120]))] for x in steps(500.0, 2000.0)]
+    grades = [[x, round(float(rng.uniform(-6.0, 6.0)), 1)] for x in steps(300.0, 1200.0)]
+    return {"metadata": {"id": "Random_Line", "library version": "TTOBench v1.1"},
+            "stops": {"unit": "m", "values": stops.tolist()},
+            "speed limits": {"units": {"position": "m", "velocity": "km/h"}, "values": limits},
+            "gradients": {"units": {"position": "m", "slope": "permil"}, "values": grades}}
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_a_journey_imported_from_a_track_not_in_the_repository(tmp_path, monkeypatch, seed):
+    """`import ttobench --journey` on a random track, then `journey --time 1.15x`: every leg planned and on
+    time, the allocation adds up to the total, and no other allocation's E* sum is lower."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path / "cache"))
+    rng = np.random.default_rng(seed)
+    src = tmp_path / "track.json"
+    src.write_text(json.dumps(_random_track(rng, 4)))
+    out = tmp_path / "out"
+    r = runner.invoke(app, ["import", "ttobench", str(src), "--out", str(out), "--journey", "--cap-kmh", "80"])
+    assert r.exit_code == 0, r.output
+    jfile = out / "Random_Line-journey.yaml"
+    r = runner.invoke(app, ["journey", str(jfile), "--consist", "HXD1-C80x30", "--time", "1.15x", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert d["legs"] == 3 and d["stops"] == 4 and not d["errors"]
+    assert d["running_time_s"] == pytest.approx(1.15 * d["fastest_running_time_s"], abs=0.15)
+    times = d["allocations"][0]["leg_times_s"]
+    assert sum(times) == pytest.approx(d["running_time_s"], abs=0.2)
+    assert all(t >= row["fastest_s"] - 0.05 for t, row in zip(times, d["legs_table"]))
+    assert all(a["optimum_kwh"] >= d["optimum_kwh"] * (1 - 1e-4) for a in d["allocations"])
+    plans = [row["plans"]["proposed"] for row in d["legs_table"]]
+    assert all(p["feasible"] for p in plans)
+    tol = [max(1.0, 0.01 * t) for t in times]  # each leg's punctuality window (+-1 % of its time, >= 1 s)
+    assert all(abs(p["running_time_s"] - t) <= w + 0.05 for p, t, w in zip(plans, times, tol))
+    assert d["plans"]["proposed"]["traction_energy_kwh"] == pytest.approx(sum(p["traction_energy_kwh"] for p in plans), abs=0.01)
