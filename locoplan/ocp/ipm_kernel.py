@@ -250,25 +250,40 @@ def ipm_steps(lay, d, gg, r_g, r_c, grad_c, s, sc, z, zc, zl, zu, dl, du, sig, s
 
 
 @njit(cache=True)
+def _add_log(v, logs, prod):
+    """Sum of logarithms by products: ``v`` multiplied into ``prod``, which goes into ``logs`` as one logarithm
+    before it could leave [1e-300, 1e300] (a logarithm costs twenty multiplications); a ``v`` that is not
+    in [1e-150, 1e150] (zero, negative, NaN among them) is taken alone. Returns (logs, prod); the sum is
+    ``logs + log(prod)``."""
+    if not (1e-150 <= v <= 1e150):
+        return logs + np.log(v), prod
+    if not (1e-150 <= prod <= 1e150):
+        logs += np.log(prod)
+        prod = 1.0
+    return logs, prod * v
+
+
+@njit(cache=True)
 def ipm_merit(lay, x, s, sc, e, g, c):
     """(the barrier terms' sum of logarithms, the constraint violation) at the point ``x`` with slacks ``s``,
-    ``sc`` and the constraints' values ``e``, ``g``, ``c`` there: the barrier function is f - mu * the first."""
+    ``sc`` and the constraints' values ``e``, ``g``, ``c`` there: the barrier function is f - mu * the first
+    (-inf or NaN where a slack or a distance to a bound is 0 or negative: off the domain)."""
     il, iu, lb, ub = lay.il, lay.iu, lay.lb, lay.ub
     N, q = s.shape
-    logs, theta = 0.0, 0.0
+    logs, prod, theta = 0.0, 1.0, 0.0
     for k in range(N):
         theta += abs(e[k])
         for j in range(q):
-            logs += np.log(s[k, j])
+            logs, prod = _add_log(s[k, j], logs, prod)
             theta += abs(g[k, j] + s[k, j])
     for j in range(sc.shape[0]):
-        logs += np.log(sc[j])
+        logs, prod = _add_log(sc[j], logs, prod)
         theta += abs(c[j] + sc[j])
     for i in il:
-        logs += np.log(x[i] - lb[i])
+        logs, prod = _add_log(x[i] - lb[i], logs, prod)
     for i in iu:
-        logs += np.log(ub[i] - x[i])
-    return logs, theta
+        logs, prod = _add_log(ub[i] - x[i], logs, prod)
+    return logs + np.log(prod), theta
 
 
 @njit(cache=True)
