@@ -20,11 +20,11 @@ from numba import njit
 from ..physics import backend, braking, resistance, units
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS
 
-rounded_curve_at = njit(cache=True, _nrt=False)(backend.rounded_curve_at)
-full_brake_kn = njit(cache=True)(braking.full_brake_kn)
-davis_kn = njit(cache=True)(resistance.davis_kn)
-davis_slope_kn_per_kmh = njit(cache=True)(resistance.davis_slope_kn_per_kmh)
-kmh = njit(cache=True)(units.kmh)
+rounded_curve_at = njit(cache=True, _nrt=False, error_model="numpy")(backend.rounded_curve_at)
+full_brake_kn = njit(cache=True, error_model="numpy")(braking.full_brake_kn)
+davis_kn = njit(cache=True, error_model="numpy")(resistance.davis_kn)
+davis_slope_kn_per_kmh = njit(cache=True, error_model="numpy")(resistance.davis_slope_kn_per_kmh)
+kmh = njit(cache=True, error_model="numpy")(units.kmh)
 
 V_FLOOR_MS = 1e-6
 """As ``cells.V_FLOOR_MS`` (the mean speed's floor [m/s])."""
@@ -33,7 +33,7 @@ _D2 = KMH_PER_MS ** 2
 """A curve's slope and curvature per km/h, in m/s (the numpy form's ``KMH_PER_MS ** i``)."""
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _curve(cx, cy, cw, coff, i, v_kmh):
     """Rounded curve ``i`` of the model's curves at ``v_kmh``: (value, slope, curvature) per km/h; (0, 0, 0)
     for ``i`` < 0. (The helpers take the record's arrays, not the record: passing it costs a reference count
@@ -43,7 +43,7 @@ def _curve(cx, cy, cw, coff, i, v_kmh):
     return rounded_curve_at(v_kmh, cx, cy, cw[i], coff[i], coff[i + 1])
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, error_model="numpy")
 def _cap(cx, cy, cw, coff, cat, free, on, v_kmh):
     """A force's cap at ``v_kmh``, its curve ``cat`` fed by the catenary (``on`` 1/0) plus ``free``: (value
     [kN], d/dvm, d2/dvm2 [per m/s])."""
@@ -52,7 +52,7 @@ def _cap(cx, cy, cw, coff, cat, free, on, v_kmh):
     return full_brake_kn(c0, f0, on), full_brake_kn(c1, f1, on) * _D1, full_brake_kn(c2, f2, on) * _D2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _speeds(x, k, st, v_ref):
     """Cell ``k``'s node speeds p, q and mean speed vm [m/s], vm in km/h (``st`` variables per cell)."""
     p = x[st * k] * v_ref
@@ -61,7 +61,7 @@ def _speeds(x, k, st, v_ref):
     return p, q, vm, kmh(vm)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cell_values(cm, x, e, g, c, caps):
     """The objective (returned), each cell's equality ``e`` (N,), inequalities ``g`` (N, nf) and the global
     inequalities ``c`` (m,) at the scaled point ``x``; ``caps`` (N, nf, 3): each real cap's value, d/dvm
@@ -100,7 +100,7 @@ def cell_values(cm, x, e, g, c, caps):
     return obj / KJ_PER_KWH / cm.e_ref
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cell_derivatives(cm, x, caps, gf, ge, gg, gc):
     """The gradients on each cell's variables (v_k, its forces, v_k+1), scaled, with ``caps`` from
     :func:`cell_values` at ``x``: of the objective ``gf`` (N, p), the equality ``ge`` (N, p), the
@@ -136,7 +136,7 @@ def cell_derivatives(cm, x, caps, gf, ge, gg, gc):
             gc[i, k, n - 1] = w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cell_hessian(cm, x, caps, y, z, zc, out):
     """The Lagrangian's Hessian on each cell's variables ``out`` (N, p, p), with ``caps`` from
     :func:`cell_values` at ``x``, for the equality multipliers ``y``, the inequalities' ``z`` (N, nf) and the

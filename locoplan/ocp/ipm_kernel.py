@@ -9,6 +9,9 @@ constraint violation of a trial point, and the multipliers' update. The layout (
 the bounds, the KKT ordering) is one record, ``sim/records.py``'s ``IPMLayout``; the functions read its
 arrays once and pass no record on (that costs a reference count per array and call).
 
+They divide as numpy does (``error_model="numpy"``, in the ahead-of-time build too): a trial point on a
+bound gives an infinite or NaN barrier, which the line search rejects, not an exception.
+
 Shapes: N cells of p variables, q inequalities each, m global inequalities, n variables, ``size`` = the
 KKT system's unknowns (n + N). A variable without a lower (upper) bound has its distance to it 1 and its
 bound multiplier 0.
@@ -22,7 +25,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_errors(lay, gf, ge, y, gg, z, gc, zc, zl, zu, e, g, s, c, sc, dl, du, r_d):
     """The pieces of IPOPT's scaled optimality error at a point, the dual residual left in ``r_d`` (n,):
     (dual error / s_d, primal error, largest and smallest complementarity product, s_c, the mean product).
@@ -76,7 +79,7 @@ def ipm_errors(lay, gf, ge, y, gg, z, gc, zc, zl, zu, e, g, s, c, sc, dl, du, r_
     return dual / s_d, prim, pmax, pmin, s_c, psum / max(count, 1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_newton(lay, gf, ge, y, gc, s, z, sc, zc, dl, du, zl, zu, sig, sig_c, sig_x, grad_f, base_x, bound_x,
                grad_c, a_mat):
     """The Newton system's terms at a point, written into the arrays after ``zu``: the slacks' and bounds'
@@ -119,7 +122,7 @@ def ipm_newton(lay, gf, ge, y, gc, s, z, sc, zc, dl, du, zl, zu, sig, sig_c, sig
                 a_mat[pos_x[i], j] = grad_c[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_rhs(lay, base_x, bound_x, gg, s, sig, r_g, grad_c, sc, sig_c, r_c, r_e, mu, out):
     """The Newton system's right-hand side ``out`` (size,) for the residuals ``r_e`` (the equalities),
     ``r_g = g + s``, ``r_c = c + sc`` and the barrier parameter ``mu``, the slacks eliminated."""
@@ -148,7 +151,7 @@ def ipm_rhs(lay, base_x, bound_x, gg, s, sig, r_g, grad_c, sc, sig_c, r_c, r_e, 
         out[pos_y[k]] = -r_e[k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_curvature(lay, dx, hess, gg, sig, sig_x, delta_w, sig_c, grad_c):
     """(dx' W dx, dx' dx) for the step ``dx`` (n,): W the Hessian of the Lagrangian with the slacks' and the
     bounds' eliminated terms and the regularisation ``delta_w``."""
@@ -180,7 +183,7 @@ def ipm_curvature(lay, dx, hess, gg, sig, sig_x, delta_w, sig_c, grad_c):
     return curv, dd
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ftb(a, v, dv, sign, tau):
     """The fraction-to-the-boundary rule for one entry (``band_kernel.fraction_to_boundary``'s)."""
     d = sign * dv
@@ -191,7 +194,7 @@ def _ftb(a, v, dv, sign, tau):
     return a
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_steps(lay, d, gg, r_g, r_c, grad_c, s, sc, z, zc, zl, zu, dl, du, sig, sig_c, grad_f, mu, tau, dual,
               dx, dy, ds, dsc, dz, dzc, dzl, dzu):
     """From the Newton solution ``d`` (size,): the primal step ``dx``, ``dy``, the slacks' ``ds`` = -r_g - J_g
@@ -249,7 +252,7 @@ def ipm_steps(lay, d, gg, r_g, r_c, grad_c, s, sc, z, zc, zl, zu, dl, du, sig, s
     return a_p, a_d, dphi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _add_log(v, logs, prod):
     """Sum of logarithms by products: ``v`` multiplied into ``prod``, which goes into ``logs`` as one logarithm
     before it could leave [1e-300, 1e300] (a logarithm costs twenty multiplications); a ``v`` that is not
@@ -263,7 +266,7 @@ def _add_log(v, logs, prod):
     return logs, prod * v
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_merit(lay, x, s, sc, e, g, c):
     """(the barrier terms' sum of logarithms, the constraint violation) at the point ``x`` with slacks ``s``,
     ``sc`` and the constraints' values ``e``, ``g``, ``c`` there: the barrier function is f - mu * the first
@@ -286,7 +289,7 @@ def ipm_merit(lay, x, s, sc, e, g, c):
     return logs + np.log(prod), theta
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_mean_complementarity(lay, ap, ad, x, dx, s, ds, sc, dsc, z, dz, zc, dzc, zl, dzl, zu, dzu):
     """The mean complementarity product at the point a primal step ``ap`` and a dual step ``ad`` along the
     given steps away (Mehrotra's probing)."""
@@ -306,7 +309,7 @@ def ipm_mean_complementarity(lay, ap, ad, x, dx, s, ds, sc, dsc, z, dz, zc, dzc,
     return tot / max(count, 1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_update(lay, x, s, sc, alpha, dy, a_d, dz, dzc, dzl, dzu, mu, y, z, zc, zl, zu, dl, du):
     """The multipliers after a step (``y`` by ``alpha``, the rest by ``a_d``), in place, kept near the central
     path (IPOPT's kappa_sigma safeguard: each product within a factor 1e10 of mu), at the new point ``x``,

@@ -288,13 +288,29 @@ def _compile_here(out_dir: str, name: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pycc's pending-deprecation notice
         from numba.pycc import CC
+    from numba.pycc import compiler as pycc_compiler
+
     cc = CC(name)
     cc.output_dir = out_dir
     cc.verbose = False
+    error_models = {}
     for export, (mod, fn, ret, args) in ENTRY_POINTS.items():
         func = getattr(importlib.import_module(mod), fn)
+        error_models[func.py_func] = func.targetoptions.get("error_model", "python")
         cc.export(export, _signature(ret, args))(func.py_func)
-    cc.compile()
+    # pycc compiles every export with the same flags; each keeps its JIT function's error model here (the
+    # E* kernels divide as numpy does, a division by zero giving inf, not an exception: same results as JIT)
+    compile_extra = pycc_compiler.compile_extra
+
+    def compile_with_error_model(typingctx, targetctx, func, args, return_type, flags, *rest, **kw):
+        flags = flags.copy()
+        flags.error_model = error_models.get(func, "python")
+        return compile_extra(typingctx, targetctx, func, args, return_type, flags, *rest, **kw)
+    pycc_compiler.compile_extra = compile_with_error_model
+    try:
+        cc.compile()
+    finally:
+        pycc_compiler.compile_extra = compile_extra
 
 
 def _numba_type(a):
