@@ -125,19 +125,3 @@ def band_assemble(full, bw, pos, hess, grad_g, sig, grad_e, pos_x, diag_x, pos_y
             if 0 <= i < n:
                 full[f, kv + d] = 0.0
         full[f, kv] = 1.0
-
-
-@njit(cache=True)
-def fraction_to_boundary(v, dv, idx, sign, tau):
-    """The largest step a in (0, 1] keeping ``v[i] + a sign dv[i] >= (1 - tau) v[i]`` for every ``i`` of
-    ``idx``: an interior-point method's fraction-to-the-boundary rule over some entries of a vector,
-    without copying them out."""
-    a = 1.0
-    for t in range(idx.shape[0]):
-        i = idx[t]
-        d = sign * dv[i]
-        if d < 0.0:
-            r = -tau * v[i] / d
-            if r < a:
-                a = r
-    return a

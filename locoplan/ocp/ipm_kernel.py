@@ -185,7 +185,8 @@ def ipm_curvature(lay, dx, hess, gg, sig, sig_x, delta_w, sig_c, grad_c):
 
 @njit(cache=True, error_model="numpy")
 def _ftb(a, v, dv, sign, tau):
-    """The fraction-to-the-boundary rule for one entry (``band_kernel.fraction_to_boundary``'s)."""
+    """The fraction-to-the-boundary rule for one entry: the step ``a`` limited so that ``v + a sign dv >=
+    (1 - tau) v``."""
     d = sign * dv
     if d < 0.0:
         r = -tau * v / d

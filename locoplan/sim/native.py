@@ -55,7 +55,6 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
                        "i8[:]", _A1, "i8[:]")),
     "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
     "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
-    "fraction_to_boundary": ("locoplan.ocp.band_kernel", "fraction_to_boundary", "f8", (_A1, _A1, "i8[:]", _F, _F)),
     "cell_values": ("locoplan.ocp.cell_kernel", "cell_values", "f8", (CellModel, _A1, _A1, _A2, _A1, _A3)),
     "cell_derivatives": ("locoplan.ocp.cell_kernel", "cell_derivatives", "void",
                          (CellModel, _A1, _A3, _A2, _A2, _A3, _A3)),
@@ -154,7 +153,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, ``fraction_to_boundary``, E*'s
+    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
     ``cell_values``, ``cell_derivatives``, ``cell_hessian`` and the interior-point method's ``ipm_*``)."""
     global _kernels
     if _kernels is None:
