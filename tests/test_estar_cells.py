@@ -9,8 +9,8 @@ import pytest
 
 from locoplan.io.load import load_route, load_train
 from locoplan.ocp.band_kernel import band_factor, band_solve
-from locoplan.ocp.cells import CellEnergyProblem, cell_calculator, solve_cells, solve_estar
-from locoplan.physics.backend import piecewise_linear, piecewise_linear_rounded
+from locoplan.ocp.cells import CellEnergyProblem, cell_calculator, cell_problem, solve_cells, solve_estar
+from locoplan.physics.backend import RoundedCurve, piecewise_linear, piecewise_linear_rounded, rounded_curve_at
 from locoplan.physics.units import KJ_PER_KWH, kmh
 from locoplan.sim.calculator import ModelOptions, TractionCalculator, neutral_spans_m
 
@@ -58,6 +58,63 @@ def test_rounded_curve_is_the_curve_away_from_its_corners_and_smooth_at_them():
     fd = np.gradient(v, x)
     assert np.max(np.abs(fd - s)[2:-2]) < 1e-3 * np.max(np.abs(s))  # the slope is continuous: C1
     assert np.all(c[~near] == 0.0)
+
+
+def test_the_scalar_rounded_curve_is_the_rounded_curve():
+    """``rounded_curve_at`` (what the compiled cell evaluation runs) gives ``RoundedCurve``'s numbers, on a
+    curve alone and on one lying in a longer array (the compiled problem keeps its curves end to end), at
+    random speeds, at the points, inside their rounded corners and beyond both ends."""
+    rng = np.random.default_rng(11)
+    xs, ys, w = np.array([0.0, 10.0, 20.0, 40.0, 41.0]), np.array([500.0, 500.0, 300.0, 150.0, 90.0]), 0.2
+    curve = RoundedCurve(xs, ys, w)
+    x = np.concatenate([rng.uniform(-5.0, 45.0, 4000), xs, (xs + rng.uniform(-0.1, 0.1, (50, xs.size))).ravel()])
+    cx, cy = np.concatenate([[-3.0, 7.0], xs, [1.0]]), np.concatenate([[1.0, 2.0], ys, [5.0]])
+    ref = np.array(curve(x))
+    for arr_x, arr_y, lo in ((xs, ys, 0), (cx, cy, 2)):
+        got = np.array([rounded_curve_at(v, arr_x, arr_y, w, lo, lo + xs.size) for v in x]).T
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=0)
+
+
+def _cell_problems(route, train, options):
+    """The traction and the net problem on a 20 m grid, and a journey's form of the first (a stop inside,
+    a window on the running time to it)."""
+    calc = cell_calculator(route, train, options, 20.0)
+    mid = float(calc.s_m[len(calc.s_m) // 2])
+    return (CellEnergyProblem(calc, T_SMALL), cell_problem(calc, T_SMALL, 0.8),
+            CellEnergyProblem(calc, T_SMALL, stops_m=(mid,), windows=((mid, 100.0, 200.0),)))
+
+
+@pytest.mark.parametrize("options", MODELS, ids=IDS)
+def test_the_compiled_cell_evaluation_is_the_numpy_one(small, options):
+    """``values`` / ``derivatives`` / ``hessian`` (compiled, ocp/cell_kernel.py) equal ``values_numpy`` /
+    ``derivatives_numpy`` / ``hessian_numpy`` to 1e-12 relative at random points, speeds from rest to above
+    the envelope (every branch of the rounded curves), in the traction and the net problem and with a
+    journey's window (several global inequalities). A sum over all cells (the objective, the running
+    time) is relative to its terms' magnitudes, and a Hessian entry to its cell's largest term: the
+    summation order and a power's last bit differ, the formulas do not."""
+    route, train = small
+    rng = np.random.default_rng(5)
+    for prob in _cell_problems(route, train, options):
+        N, q, n = prob.N, len(prob.CAPS), len(prob.lb)
+        assert prob.model().active.shape == (N, q)
+        for _ in range(3):
+            x = rng.uniform(0.0, 1.2, n)
+            x[0::q + 1] *= rng.uniform(0.0, 1.3, N + 1) * np.maximum(prob.ub[0::q + 1], 0.05)
+            y, z, zc = rng.normal(size=N), rng.uniform(0.0, 2.0, (N, q)), rng.uniform(0.0, 2.0, len(prob.cmask))
+            a, b = prob.values(x), prob.values_numpy(x)
+            xp = x * prob.ref
+            terms = np.sum(prob.h * sum(abs(w) * xp[1 + j::q + 1] for j, w in enumerate(prob.cost())))
+            assert abs(a.f - b.f) <= 1e-12 * terms / KJ_PER_KWH / prob.e_ref
+            np.testing.assert_allclose(a.e, b.e, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(a.g, b.g, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(a.c, b.c, rtol=1e-12, atol=1e-12 * np.max(np.abs(prob.cconst)) / prob.t_ref)
+            da, db = prob.derivatives(x), prob.derivatives_numpy(x)
+            for field in ("grad_f", "grad_e", "grad_g", "grad_c"):
+                np.testing.assert_allclose(getattr(da, field), getattr(db, field), rtol=1e-12, atol=0, err_msg=field)
+            ha, hb = prob.hessian(x, y, z, zc), prob.hessian_numpy(x, y, z, zc)
+            scale = np.max(np.abs(hb), axis=(1, 2))[:, None, None]
+            assert np.all(np.abs(ha - hb) <= 1e-12 * (np.abs(hb) + scale))
+            assert np.count_nonzero(hb) > 2 * N  # the test sees the speeds' blocks
 
 
 @pytest.mark.parametrize("options", MODELS, ids=IDS)

@@ -76,6 +76,27 @@ def test_dp_agrees_with_the_jit_kernel(freight, both, monkeypatch):
     assert drives[0][0].time_s > drives[0][2].time_s  # a higher price of time: a faster drive
 
 
+def test_the_estar_kernels_divide_as_numpy_does(both):
+    """A slack or a distance to a bound at zero gives the interior-point kernels an infinite or NaN
+    barrier and multipliers (which the line search rejects), not a ZeroDivisionError, ahead of time as
+    with the JIT (``error_model="numpy"``)."""
+    from locoplan.sim.records import IPMLayout
+
+    n, N = 3, 1
+    lay = IPMLayout(np.array([[0, 1, 2]], dtype=np.int64), np.zeros(n, dtype=bool), np.arange(n, dtype=np.int64),
+                    np.arange(0, n, 2, dtype=np.int64), np.zeros(n), np.full(n, 2.0), np.arange(n, dtype=np.int64),
+                    np.array([n], dtype=np.int64))
+    x, s, sc = np.array([0.0, 0.5, 2.0]), np.array([[0.0, 1.0]]), np.array([1.0])
+    e, g, c = np.zeros(N), -s, -sc
+    for ns in both:
+        logs, theta = getattr(ns.ipm_merit, "fn", ns.ipm_merit)(lay, x, s, sc, e, g, c)
+        assert logs == -np.inf and theta == 0.0
+        y, z, zc, zl, zu, dl, du = np.zeros(N), np.ones((N, 2)), np.ones(1), np.ones(n), np.ones(n), np.empty(n), np.empty(n)
+        getattr(ns.ipm_update, "fn", ns.ipm_update)(lay, x, s, sc, 1.0, np.zeros(N), 1.0, np.zeros((N, 2)), np.zeros(1),
+                                                    np.zeros(n), np.zeros(n), 0.1, y, z, zc, zl, zu, dl, du)
+        assert z[0, 0] == np.inf and zl[0] == np.inf and dl[0] == 0.0 and du[2] == 0.0
+
+
 def test_wrong_argument_types_are_refused(both):
     """The ahead-of-time functions read memory as their signature says: every array, inside the records
     too, is checked for dtype, rank and contiguity before the call."""

@@ -58,13 +58,15 @@ def band_factor(ab, kl, ku, piv):
 
 @njit(cache=True)
 def band_solve(ab, kl, ku, piv, b):
-    """Solve A x = b in place for each column of ``b`` (n, m) with the factors of :func:`band_factor`."""
+    """Solve A x = b in place for each column of ``b`` (n, m) with the factors of :func:`band_factor` (every
+    column in one sweep over the factors; each column's arithmetic is dgbtrs' own)."""
     n = ab.shape[0]
     kv = kl + ku
-    for col in range(b.shape[1]):
-        for j in range(n - 1):
-            lm = min(kl, n - 1 - j)
-            p = piv[j]
+    m = b.shape[1]
+    for j in range(n - 1):
+        lm = min(kl, n - 1 - j)
+        p = piv[j]
+        for col in range(m):
             if p != j:
                 tmp = b[p, col]
                 b[p, col] = b[j, col]
@@ -73,11 +75,13 @@ def band_solve(ab, kl, ku, piv, b):
             if bj != 0.0:
                 for t in range(1, lm + 1):
                     b[j + t, col] -= ab[j, kv + t] * bj
-        for j in range(n - 1, -1, -1):
+    for j in range(n - 1, -1, -1):
+        i0 = max(0, j - kv)
+        for col in range(m):
             b[j, col] /= ab[j, kv]
             bj = b[j, col]
             if bj != 0.0:
-                for i in range(max(0, j - kv), j):
+                for i in range(i0, j):
                     b[i, col] -= ab[j, kv + i - j] * bj
 
 
@@ -121,19 +125,3 @@ def band_assemble(full, bw, pos, hess, grad_g, sig, grad_e, pos_x, diag_x, pos_y
             if 0 <= i < n:
                 full[f, kv + d] = 0.0
         full[f, kv] = 1.0
-
-
-@njit(cache=True)
-def fraction_to_boundary(v, dv, idx, sign, tau):
-    """The largest step a in (0, 1] keeping ``v[i] + a sign dv[i] >= (1 - tau) v[i]`` for every ``i`` of
-    ``idx``: an interior-point method's fraction-to-the-boundary rule over some entries of a vector,
-    without copying them out."""
-    a = 1.0
-    for t in range(idx.shape[0]):
-        i = idx[t]
-        d = sign * dv[i]
-        if d < 0.0:
-            r = -tau * v[i] / d
-            if r < a:
-                a = r
-    return a

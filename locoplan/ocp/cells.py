@@ -43,7 +43,9 @@ from ..physics.resistance import davis_slope_kn_per_kmh, train_resistance_kn
 from ..physics.traction import max_force_kn, rounded_force_curve
 from ..physics.units import KJ_PER_KWH, KMH_PER_MS, kmh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
-from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings
+from ..sim.native import kernels
+from ..sim.records import CellModel, contiguous
+from .ipm import CellDerivatives, CellIPM, CellValues, IPMResult, IPMSettings, _raw
 
 END_GRADING_M = 300.0
 """Length [m] at each end of the route over which the cells shrink quadratically towards the rest point."""
@@ -129,6 +131,8 @@ class CellEnergyProblem:
         self.active = np.column_stack([powered, self.can_brake])
         self._last = None
         self._curves = None
+        self._model = None
+        self._caps_last = None
         # the global inequalities: (sum over cells of cmask * tau + const) / t_ref <= 0
         rows, const = [np.ones(N)], [-self.time_s]
         for s_w, lo, hi in windows:
@@ -206,7 +210,66 @@ class CellEnergyProblem:
         """The objective's weight on each force of :data:`FORCES` (the traction work: 1 on F)."""
         return (1.0, 0.0)
 
+    # ------------------------------------------------------------------ the compiled evaluation
+    CAP_CURVES = ((0, -1), (1, 2))
+    """Each cap of :data:`CAPS` as (the curve fed by the catenary, the curve that works everywhere), indices
+    of ``_force_curves`` (traction, electric brake, air brake), -1 for none: ``full_brake_kn`` of the two."""
+
+    def model(self) -> CellModel:
+        """The problem as the compiled evaluation reads it (``ocp/cell_kernel.py``), made once."""
+        if self._model is None:
+            curves = self._force_curves()
+            coff = np.cumsum([0] + [c.xs.size for c in curves])
+            self._model = contiguous(CellModel(
+                len(self.FORCES), self.h, self.G, np.asarray(self.allowed, float), self.active.astype(float),
+                self.M, self.f_ref, self.v_ref, self.e_ref, self.t_ref, *self.calc.train.resistance_kn,
+                np.array(self.cost(), float), np.array([c[0] for c in self.CAP_CURVES], np.int64),
+                np.array([c[1] for c in self.CAP_CURVES], np.int64), np.concatenate([c.xs for c in curves]),
+                np.concatenate([c.ys for c in curves]), np.concatenate([c.slopes for c in curves]),
+                np.concatenate([c.dslope for c in curves]), coff.astype(np.int64),
+                np.array([c.width for c in curves]), np.asarray(self.cmask, float), np.asarray(self.cconst, float)))
+        return self._model
+
     def values(self, x: np.ndarray) -> CellValues:
+        """The objective, each cell's equality and inequalities and the global inequalities (compiled:
+        :meth:`values_numpy`'s arithmetic cell by cell)."""
+        x = np.ascontiguousarray(x, dtype=float)
+        e, g, c = np.empty(self.N), np.empty((self.N, len(self.CAPS))), np.empty(len(self.cmask))
+        caps = np.empty((self.N, len(self.CAPS), 3))
+        f = _raw(kernels().cell_values)(self.model(), x, e, g, c, caps)
+        self._caps_last = (x, caps)
+        return CellValues(f, e, g, c)
+
+    def _caps(self, x: np.ndarray) -> np.ndarray:
+        """The caps at ``x`` (N, q, 3) as :meth:`values` left them there (the solver asks for the values at
+        a point before its derivatives), else worked out now."""
+        last = self._caps_last
+        if last is None or last[0] is not x:
+            self.values(x)
+        return self._caps_last[1]
+
+    def derivatives(self, x: np.ndarray) -> CellDerivatives:
+        """Gradients on each cell's variables (v_k, its forces, v_k+1), in the scaled variables (compiled:
+        :meth:`derivatives_numpy`)."""
+        x = np.ascontiguousarray(x, dtype=float)
+        n, q = self.local.shape[1], len(self.CAPS)
+        gf, ge, gg, gc = np.empty((self.N, n)), np.empty((self.N, n)), np.empty((self.N, q, n)), \
+            np.empty((len(self.cmask), self.N, n))
+        _raw(kernels().cell_derivatives)(self.model(), x, self._caps(x), gf, ge, gg, gc)
+        return CellDerivatives(gf, ge, gg, gc)
+
+    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
+        """The Lagrangian's Hessian on each cell's variables (compiled: :meth:`hessian_numpy`)."""
+        x = np.ascontiguousarray(x, dtype=float)
+        n = self.local.shape[1]
+        out = np.empty((self.N, n, n))
+        f8 = np.float64
+        _raw(kernels().cell_hessian)(self.model(), x, self._caps(x), np.ascontiguousarray(y, f8),
+                                     np.ascontiguousarray(z, f8), np.ascontiguousarray(zc, f8), out)
+        return out
+
+    # ------------------------------------------------------------------ the same in numpy (the reference)
+    def values_numpy(self, x: np.ndarray) -> CellValues:
         P = self._physics(x)
         p, q, h, fr = P["p"], P["q"], self.h, self.f_ref
         net = P[self.FORCES[0]]
@@ -219,7 +282,7 @@ class CellEnergyProblem:
         work = sum(w * P[f] for f, w in zip(self.FORCES, self.cost()) if w)
         return CellValues(float(np.sum(h * work)) / KJ_PER_KWH / self.e_ref, e, g, c)
 
-    def derivatives(self, x: np.ndarray) -> CellDerivatives:
+    def derivatives_numpy(self, x: np.ndarray) -> CellDerivatives:
         """Gradients on each cell's variables (v_k, its forces, v_k+1), in the scaled variables."""
         P = self._physics(x)
         vm_p, vm_q, *_ = self._vm_derivatives(P)
@@ -247,7 +310,7 @@ class CellEnergyProblem:
                 gf[:, j + 1] = w * h / KJ_PER_KWH / self.e_ref
         return CellDerivatives(gf * rl, ge * rl, gg * rl[:, None, :], gc * rl[None])
 
-    def hessian(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
+    def hessian_numpy(self, x: np.ndarray, y: np.ndarray, z: np.ndarray, zc: np.ndarray) -> np.ndarray:
         """The Lagrangian's Hessian on each cell's variables: only the two speeds enter nonlinearly."""
         P = self._physics(x)
         vm_p, vm_q, vm_pp, vm_pq, vm_qq = self._vm_derivatives(P)
@@ -315,6 +378,7 @@ class NetCellEnergyProblem(CellEnergyProblem):
 
     FORCES = ("F", "E", "A")
     CAPS = ("Fm", "Em", "Am")
+    CAP_CURVES = ((0, -1), (1, -1), (-1, 2))
 
     def __init__(self, calc: TractionCalculator, time_s: float, regen: float):
         super().__init__(calc, time_s)

@@ -8,7 +8,8 @@ multiplier placed beside its variables, is therefore banded (half-bandwidth 4 th
 rank from the global ones. A banded LU solves that in time linear in the number of cells, and the low-rank
 term costs one more right-hand side per global inequality (Sherman-Morrison-Woodbury).
 Through IPOPT (CasADi, MUMPS) the same Newton steps cost 10-40 us per variable and iteration on this
-problem, and IPOPT needed 80-160 iterations from the same start; this solver takes about 1 us and 30-60.
+problem, and IPOPT needed 80-160 iterations from the same start; this solver takes about 0.3 us and 30-60
+(its per-iteration vector work compiled, ``ocp/ipm_kernel.py``).
 
 The algorithm is IPOPT's (Waechter and Biegler, Math. Program. 106, 2006) in a compact form: slacks
 for the inequalities; the barrier problem solved approximately for a falling barrier parameter
@@ -41,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sim.native import kernels
+from ..sim.records import IPMLayout, contiguous
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -157,63 +159,15 @@ class CellIPM:
         self.pos_x = np.ascontiguousarray(problem.pos_x, dtype=np.int64)
         self.pos_y = np.ascontiguousarray(problem.pos_y, dtype=np.int64)
         self.fixed_pos = np.ascontiguousarray(self.pos_x[self.fixed])
-        self._flat = np.ascontiguousarray(loc.ravel())
-        self._il, self._iu = np.flatnonzero(self.has_l), np.flatnonzero(self.has_u)  # index arrays: faster than masks
-        self._dist_last = None
         self._lb = np.where(self.has_l, problem.lb, 0.0)
         self._ub = np.where(self.has_u, problem.ub, 0.0)
+        self.layout = contiguous(IPMLayout(np.asarray(loc, dtype=np.int64), self.fixed, np.flatnonzero(self.has_l),
+                                           np.flatnonzero(self.has_u), self._lb, self._ub, self.pos_x, self.pos_y))
 
     # ------------------------------------------------------------------ helpers
-    def _scatter(self, local_vals: np.ndarray) -> np.ndarray:
-        """Per-cell parts (N, p) summed into a vector over the variables."""
-        return np.bincount(self._flat, weights=local_vals.ravel(), minlength=self.n)
-
-    def _to_kkt(self, vx: np.ndarray, vy: np.ndarray) -> np.ndarray:
-        out = np.zeros(self.size)
-        out[self.pos_x] = vx
-        out[self.pos_y] = vy
-        return out
-
     def _dist(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distances to the lower and upper bounds (1 where there is none), kept for the last point asked."""
-        last = self._dist_last
-        if last is not None and last[0] is x:
-            return last[1]
-        out = np.where(self.has_l, x - self._lb, 1.0), np.where(self.has_u, self._ub - x, 1.0)
-        self._dist_last = (x, out)
-        return out
-
-    def _barrier(self, v: CellValues, x, s, sc, mu) -> float:
-        dl, du = self._dist(x)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            bar = (np.log(s).sum() + np.log(sc).sum() + np.log(dl[self._il]).sum() + np.log(du[self._iu]).sum())
-        return v.f - mu * bar
-
-    @staticmethod
-    def _violation(v: CellValues, s, sc) -> float:
-        return float(np.abs(v.e).sum() + np.abs(v.g + s).sum() + np.abs(v.c + sc).sum())
-
-    def _errors(self, v: CellValues, d: CellDerivatives, x, s, sc, y, z, zc, zl, zu, mu) -> tuple[float, float]:
-        """IPOPT's scaled optimality error of the NLP and of the barrier problem for ``mu``."""
-        r_d = self._scatter(d.grad_f + d.grad_e * y[:, None] + np.einsum("kqp,kq->kp", d.grad_g, z)
-                            + np.einsum("jkp,j->kp", d.grad_c, zc))
-        r_d = r_d - zl + zu
-        r_d[self.fixed] = 0.0
-        prim = max(np.max(np.abs(v.e), initial=0.0), np.max(np.abs(v.g + s), initial=0.0), np.max(np.abs(v.c + sc)))
-        dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self._il], (du * zu)[self._iu]])
-        n_dual = y.size + prods.size
-        duals = z.sum() + zc.sum() + zl.sum() + zu.sum()
-        s_d = max(100.0, (np.abs(y).sum() + duals) / n_dual) / 100.0
-        s_c = max(100.0, duals / max(prods.size, 1)) / 100.0
-        dual = np.max(np.abs(r_d)) / s_d
-        return (max(dual, prim, np.max(prods) / s_c),
-                max(dual, prim, max(np.max(prods) - mu, mu - np.min(prods)) / s_c))
-
-    def _mean_complementarity(self, x, s, sc, z, zc, zl, zu) -> float:
-        dl, du = self._dist(x)
-        prods = np.concatenate([(s * z).ravel(), sc * zc, (dl * zl)[self._il], (du * zu)[self._iu]])
-        return float(prods.mean())
+        """Distances to the lower and upper bounds (1 where there is none)."""
+        return np.where(self.has_l, x - self._lb, 1.0), np.where(self.has_u, self._ub - x, 1.0)
 
     # ------------------------------------------------------------------ the method
     def solve(self, x0: np.ndarray, mu_init: float | None = None, warm: "IPMResult | None" = None) -> IPMResult:
@@ -226,10 +180,8 @@ class CellIPM:
             return self._solve(x0, mu_init, warm)
 
     def _solve(self, x0: np.ndarray, mu_init: float | None, warm: "IPMResult | None") -> IPMResult:
-        S, p, N = self.set, self.p, self.N
+        S, p, N, n = self.set, self.p, self.N, self.n
         has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
-        il, iu = self._il, self._iu
-        loc = p.local
         lb, ub = self._lb, self._ub
         x = np.array(x0, dtype=float)
         push = S.bound_push if warm is None else 1e-9
@@ -237,13 +189,12 @@ class CellIPM:
             span = np.where(has_l & has_u, ub - lb, np.inf)
         x = np.where(has_l, np.maximum(x, lb + np.minimum(push * np.maximum(1.0, np.abs(lb)), 0.49 * span)), x)
         x = np.where(has_u, np.minimum(x, ub - np.minimum(push * np.maximum(1.0, np.abs(ub)), 0.49 * span)), x)
-        x = np.where(fixed, p.lb, x)
+        x = np.ascontiguousarray(np.where(fixed, p.lb, x))
         mu = float(mu_init if mu_init is not None else S.mu_init)
         val = p.values(x)
         floor = 1e-2 if warm is None else mu
         s = np.maximum(-val.g, floor)
         sc = np.maximum(-val.c, floor)
-        all_s, all_c = np.arange(s.size, dtype=np.int64), np.arange(sc.size, dtype=np.int64)
         dl, du = self._dist(x)
         if warm is None:
             z, zc, y = mu / s, mu / sc, np.zeros(N)
@@ -255,6 +206,8 @@ class CellIPM:
             zc = np.maximum(warm.zc, mu / sc * 1e-2)
             zl = np.where(has_l, np.maximum(warm.zl, mu / dl * 1e-2), 0.0)
             zu = np.where(has_u, np.maximum(warm.zu, mu / du * 1e-2), 0.0)
+        y, z, zc, zl, zu = (np.ascontiguousarray(v, dtype=float) for v in (y, z, zc, zl, zu))
+        q, m = s.shape[1], sc.shape[0]
         filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
         delta_w_last, needed_last = 0.0, False
         full = np.empty((self.size, 3 * self.bw + 1))
@@ -262,15 +215,41 @@ class CellIPM:
         K = kernels()
         # the solver's own calls skip the entry points' argument checks (its arrays are made right here)
         factor, solve_b, assemble = _raw(K.band_factor), _raw(K.band_solve), _raw(K.band_assemble)
-        ftb = _raw(K.fraction_to_boundary)
+        errors_k, newton_k, rhs_k = _raw(K.ipm_errors), _raw(K.ipm_newton), _raw(K.ipm_rhs)
+        curvature_k, steps_k, merit_k = _raw(K.ipm_curvature), _raw(K.ipm_steps), _raw(K.ipm_merit)
+        mean_k, update_k = _raw(K.ipm_mean_complementarity), _raw(K.ipm_update)
+        lay = self.layout
+        # the iteration's work arrays, made once
+        r_d = np.empty(n)
+        sig, sig_c, sig_x = np.empty((N, q)), np.empty(m), np.empty(n)
+        grad_f, base_x, bound_x = np.empty(n), np.empty(n), np.empty(n)
+        grad_c, a_mat = np.empty((m, n)), np.empty((self.size, m))
+        diag_y = np.empty(N)
         status, trace, it, err0 = "max_iter", [], 0, math.inf
         rejected = 0
         acceptable, f_prev = 0, math.inf
         adaptive = S.mu_strategy == "adaptive"
         errs: list[float] = []
+
+        def steps(d, r_g, r_c, mu_, tau_, dual=True):
+            """(dx, dy, ds, dsc, dz, dzc, dzl, dzu, primal step, dual step, the barrier function's slope)."""
+            out = (np.empty(n), np.empty(N), np.empty((N, q)), np.empty(m), np.empty((N, q)), np.empty(m),
+                   np.empty(n), np.empty(n))
+            a_p_, a_d_, dphi_ = steps_k(lay, d, der.grad_g, r_g, r_c, grad_c, s, sc, z, zc, zl, zu, dl, du, sig, sig_c,
+                                        grad_f, mu_, tau_, dual, *out)
+            return (*out, a_p_, a_d_, dphi_)
+
         for it in range(1, S.max_iter + 1):
             der = p.derivatives(x)
-            err0, err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)
+            e_dual, e_prim, p_max, p_min, s_c, mean_c = errors_k(
+                lay, der.grad_f, der.grad_e, y, der.grad_g, z, der.grad_c, zc, zl, zu, val.e, val.g, s, val.c, sc,
+                dl, du, r_d)
+
+            def err_at(mu_):
+                """The barrier problem's optimality error for ``mu_``."""
+                return max(e_dual, e_prim, max(p_max - mu_, mu_ - p_min) / s_c)
+
+            err0, err_mu = max(e_dual, e_prim, p_max / s_c), err_at(mu)
             if not (np.isfinite(err0) and np.all(np.isfinite(x))):  # lost: say so at once
                 status = "not finite"
                 break
@@ -286,29 +265,22 @@ class CellIPM:
             errs.append(err0)
             if adaptive and len(errs) > 12 and err0 > 0.9999 * errs[-5]:  # no progress: the monotone rule
                 adaptive = False
-                mu = max(S.tol / 10, 0.8 * self._mean_complementarity(x, s, sc, z, zc, zl, zu))
-                err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)[1]
+                mu = max(S.tol / 10, 0.8 * mean_c)
+                err_mu = err_at(mu)
             while not adaptive and err_mu <= S.kappa_eps * mu and mu > S.tol / 10:
                 mu = max(S.tol / 10, min(S.kappa_mu * mu, mu ** S.theta_mu))
-                err_mu = self._errors(val, der, x, s, sc, y, z, zc, zl, zu, mu)[1]
+                err_mu = err_at(mu)
             # ---- the Newton system: W dx + A' dy = rhs_x, A dx = -e (slacks and bound multipliers eliminated)
-            sig, sig_c = z / s, zc / sc
-            dl, du = self._dist(x)
-            sig_x = np.where(has_l, zl / dl, 0.0) + np.where(has_u, zu / du, 0.0)
+            newton_k(lay, der.grad_f, der.grad_e, y, der.grad_c, s, z, sc, zc, dl, du, zl, zu, sig, sig_c, sig_x,
+                     grad_f, base_x, bound_x, grad_c, a_mat)
             hess = p.hessian(x, y, z, zc)
-            grad_c = np.stack([self._scatter(gj) for gj in der.grad_c])  # (m, n)
-            grad_f = self._scatter(der.grad_f)
-            base_x = grad_f + self._scatter(der.grad_e * y[:, None])
-            bound_x = np.where(has_u, 1 / du, 0.0) - np.where(has_l, 1 / dl, 0.0)
-            a_mat = np.stack([self._to_kkt(np.where(fixed, 0.0, gj), np.zeros(N)) for gj in grad_c], axis=1)  # (size, m)
 
             def rhs(r_e, r_g, r_c, mu_):
                 """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc, and the
                 barrier parameter mu_."""
-                rx = -(base_x + mu_ * bound_x + self._scatter(np.einsum("kqp,kq->kp", der.grad_g, mu_ / s + sig * r_g))
-                       + np.einsum("jn,j->n", grad_c, mu_ / sc + sig_c * r_c))
-                rx[fixed] = 0.0
-                return self._to_kkt(rx, -r_e)
+                out = np.empty(self.size)
+                rhs_k(lay, base_x, bound_x, der.grad_g, s, sig, r_g, grad_c, sc, sig_c, r_c, r_e, mu_, out)
+                return out
 
             r_g0, r_c0 = val.g + s, val.c + sc
             first = rhs(val.e, r_g0, r_c0, 0.0 if adaptive else mu)
@@ -317,10 +289,13 @@ class CellIPM:
             # factorisation)
             delta_w, delta_c = (delta_w_last / 3 if delta_w_last > 0 and needed_last else 0.0), 0.0
             for _attempt in range(25):
+                diag_y.fill(-delta_c)
                 assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
-                                self.pos_y, np.full(N, -delta_c), self.fixed_pos)
+                         self.pos_y, diag_y, self.fixed_pos)
                 if factor(full, self.bw, self.bw, piv) == 0:
-                    sol = np.column_stack([first, a_mat])
+                    sol = np.empty((self.size, 1 + m))
+                    sol[:, 0] = first
+                    sol[:, 1:] = a_mat
                     solve_b(full, self.bw, self.bw, piv, sol)
                     qm = sol[:, 1:].copy()  # K_b^-1 A
                     small = np.diag(1.0 / sig_c) + np.einsum("nj,nk->jk", a_mat, qm)
@@ -332,16 +307,15 @@ class CellIPM:
                             sol = rv.reshape(-1, 1).copy()
                             solve_b(full, self.bw, self.bw, piv, sol)
                         pv = sol[:, 0]
+                        if m == 1:  # the running time alone: a division (what LAPACK does for 1 x 1)
+                            return pv - qm[:, 0] * (_dot(a_mat[:, 0], pv) / small[0, 0])
                         return pv - np.einsum("nj,j->n", qm, np.linalg.solve(small, np.einsum("nj,n->j", a_mat, pv)))
 
                     d = direction(first, sol)
-                    dx = d[self.pos_x]
                     if np.all(np.isfinite(d)):
-                        dloc = dx[loc]
-                        jd = np.einsum("kqp,kp->kq", der.grad_g, dloc)
-                        curv = (np.einsum("ka,kab,kb->", dloc, hess, dloc) + np.einsum("kq,kq->", sig, jd * jd)
-                                + _dot(sig_x + delta_w, dx * dx) + _dot(sig_c, np.einsum("jn,n->j", grad_c, dx) ** 2))
-                        if curv >= S.curvature * _dot(dx, dx):
+                        dx = d[self.pos_x]
+                        curv, dxdx = curvature_k(lay, dx, hess, der.grad_g, sig, sig_x, delta_w, sig_c, grad_c)
+                        if curv >= S.curvature * dxdx:
                             break
                 else:  # a zero pivot: regularise the equality block too, more each time
                     delta_c = 10 * delta_c if delta_c > 0 else 1e-8 * mu ** 0.25
@@ -353,84 +327,56 @@ class CellIPM:
             needed_last = delta_w > 0
             delta_w_last = delta_w if delta_w > 0 else delta_w_last
 
-            def slack_steps(dx, r_g, r_c):
-                return -r_g - np.einsum("kqp,kp->kq", der.grad_g, dx[loc]), -r_c - np.einsum("jn,n->j", grad_c, dx)
-
-            def primal_step(dx, ds, dsc, tau):
-                return min(ftb(s.ravel(), ds.ravel(), all_s, 1.0, tau), ftb(sc, dsc, all_c, 1.0, tau),
-                           ftb(dl, dx, il, 1.0, tau), ftb(du, dx, iu, -1.0, tau))
-
-            def dual_steps(dx, ds, dsc, mu_):
-                return (mu_ / s - z - sig * ds, mu_ / sc - zc - sig_c * dsc,
-                        np.where(has_l, mu_ / dl - zl - (zl / dl) * dx, 0.0),
-                        np.where(has_u, mu_ / du - zu + (zu / du) * dx, 0.0))
-
-            def dual_step(dz, dzc, dzl, dzu, tau):
-                return min(ftb(z.ravel(), dz.ravel(), all_s, 1.0, tau), ftb(zc, dzc, all_c, 1.0, tau),
-                           ftb(zl, dzl, il, 1.0, tau), ftb(zu, dzu, iu, 1.0, tau))
-
             if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
-                ds_a, dsc_a = slack_steps(dx, r_g0, r_c0)
-                dz_a, dzc_a, dzl_a, dzu_a = dual_steps(dx, ds_a, dsc_a, 0.0)
-                ap, ad = primal_step(dx, ds_a, dsc_a, 1.0), dual_step(dz_a, dzc_a, dzl_a, dzu_a, 1.0)
-                mu_avg = self._mean_complementarity(x, s, sc, z, zc, zl, zu)
-                mu_aff = self._mean_complementarity(x + ap * dx, s + ap * ds_a, sc + ap * dsc_a, z + ad * dz_a,
-                                                    zc + ad * dzc_a, zl + ad * dzl_a, zu + ad * dzu_a)
-                mu = max(S.tol / 10, min(max((mu_aff / mu_avg) ** 3, 0.1), 1.0) * mu_avg)
+                dx_a, _, ds_a, dsc_a, dz_a, dzc_a, dzl_a, dzu_a, ap, ad, _ = steps(d, r_g0, r_c0, 0.0, 1.0)
+                mu_aff = mean_k(lay, ap, ad, x, dx_a, s, ds_a, sc, dsc_a, z, dz_a, zc, dzc_a, zl, dzl_a, zu, dzu_a)
+                mu = max(S.tol / 10, min(max((mu_aff / mean_c) ** 3, 0.1), 1.0) * mean_c)
                 d = direction(rhs(val.e, r_g0, r_c0, mu))
-                dx = d[self.pos_x]
             tau = max(S.tau_min, 1.0 - mu)
-            dy = d[self.pos_y]
-            ds, dsc = slack_steps(dx, r_g0, r_c0)
-            dz, dzc, dzl, dzu = dual_steps(dx, ds, dsc, mu)
-            a_p = primal_step(dx, ds, dsc, tau)
-            a_d = dual_step(dz, dzc, dzl, dzu, tau)
+            dx, dy, ds, dsc, dz, dzc, dzl, dzu, a_p, a_d, dphi = steps(d, r_g0, r_c0, mu, tau)
             # ---- filter line search with second-order corrections
-            phi0, theta0 = self._barrier(val, x, s, sc, mu), self._violation(val, s, sc)
+            logs0, theta0 = merit_k(lay, x, s, sc, val.e, val.g, val.c)
+            phi0 = val.f - mu * logs0
             if mu != filter_mu:  # a new barrier problem: a new filter
                 filt, filter_mu = [], mu
                 theta_max, theta_min = 1e4 * max(1.0, theta0), 1e-4 * max(1.0, theta0)
-            dphi = (_dot(grad_f, dx) - mu * (ds / s).sum() - mu * (dsc / sc).sum()
-                    - mu * np.sum(dx[il] / dl[il]) + mu * np.sum(dx[iu] / du[iu]))
 
-            def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool]:
-                """(accepted, f-type): acceptable to the filter, and either an Armijo decrease of the
-                barrier function (when the step is mostly an objective step) or a sufficient decrease
+            def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool, float]:
+                """(accepted, f-type, the violation): acceptable to the filter, and either an Armijo decrease
+                of the barrier function (when the step is mostly an objective step) or a sufficient decrease
                 of the violation or of the barrier function."""
                 if not v_t.finite():
-                    return False, False
-                phi_t, theta_t = self._barrier(v_t, x_t, s_t, sc_t, mu), self._violation(v_t, s_t, sc_t)
+                    return False, False, math.inf
+                logs_t, theta_t = merit_k(lay, x_t, s_t, sc_t, v_t.e, v_t.g, v_t.c)
+                phi_t = v_t.f - mu * logs_t
                 if not np.isfinite(phi_t) or theta_t > theta_max:
-                    return False, False
+                    return False, False, theta_t
                 if any(theta_t >= th and phi_t >= ph for th, ph in filt):
-                    return False, False
+                    return False, False, theta_t
                 if dphi < 0 and alpha * (-dphi) ** 2.3 > theta0 ** 1.1 and theta0 <= theta_min:
-                    return bool(phi_t <= phi0 + 1e-8 * alpha * dphi + 1e-14 * abs(phi0)), True
-                return bool(theta_t <= (1 - 1e-5) * theta0 or phi_t <= phi0 - 1e-8 * theta0), False
+                    return bool(phi_t <= phi0 + 1e-8 * alpha * dphi + 1e-14 * abs(phi0)), True, theta_t
+                return bool(theta_t <= (1 - 1e-5) * theta0 or phi_t <= phi0 - 1e-8 * theta0), False, theta_t
 
             alpha, accepted, f_type = a_p, False, False
             for trial in range(40):
                 xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
                 vn = p.values(xn)
-                accepted, f_type = judge(vn, xn, sn, scn, alpha)
+                accepted, f_type, theta_n = judge(vn, xn, sn, scn, alpha)
                 if accepted:
                     break
-                if trial == 0 and S.max_soc > 0 and vn.finite() and self._violation(vn, sn, scn) >= theta0:
+                if trial == 0 and S.max_soc > 0 and theta_n >= theta0 and vn.finite():
                     c_e, c_g, c_c = alpha * val.e + vn.e, alpha * r_g0 + (vn.g + sn), alpha * r_c0 + (vn.c + scn)
                     theta_soc = theta0
                     for _ in range(S.max_soc):  # second-order corrections of the full step
                         d_soc = direction(rhs(c_e, c_g, c_c, mu))
-                        dx_s = d_soc[self.pos_x]
-                        ds_s, dsc_s = slack_steps(dx_s, c_g, c_c)
-                        a_s = primal_step(dx_s, ds_s, dsc_s, tau)
+                        dx_s, dy_s, ds_s, dsc_s, *_, a_s, _, _ = steps(d_soc, c_g, c_c, mu, tau, False)
                         xs_, ss_, scs_ = x + a_s * dx_s, s + a_s * ds_s, sc + a_s * dsc_s
                         vs = p.values(xs_)
-                        accepted, f_type = judge(vs, xs_, ss_, scs_, alpha)
+                        accepted, f_type, theta_new = judge(vs, xs_, ss_, scs_, alpha)
                         if accepted:
                             xn, sn, scn, vn = xs_, ss_, scs_, vs
-                            dy = d_soc[self.pos_y]
+                            dy = dy_s
                             break
-                        theta_new = self._violation(vs, ss_, scs_) if vs.finite() else math.inf
                         if theta_new > 0.99 * theta_soc:
                             break
                         theta_soc = theta_new
@@ -440,7 +386,7 @@ class CellIPM:
                 alpha *= 0.5
             if not accepted and adaptive:  # the adaptive rule lost its way: the monotone one from here
                 adaptive = False
-                mu = max(S.tol / 10, 0.8 * self._mean_complementarity(x, s, sc, z, zc, zl, zu))
+                mu = max(S.tol / 10, 0.8 * mean_c)
             rejected = 0 if accepted else rejected + 1
             if rejected > S.max_rejected:  # the line search has found nothing for a while: give up
                 status = "stalled"
@@ -453,15 +399,7 @@ class CellIPM:
                 filt.append(((1 - 1e-5) * theta0, phi0 - 1e-8 * theta0))
             trace.append((err0, mu, alpha, a_d, delta_w, val.f))
             x, s, sc, val = xn, sn, scn, vn
-            y = y + alpha * dy
-            z, zc = z + a_d * dz, zc + a_d * dzc
-            zl, zu = zl + a_d * dzl, zu + a_d * dzu
-            # keep the multipliers near the central path (IPOPT's kappa_sigma safeguard)
-            ks = 1e10
-            z = np.clip(z, mu / (ks * s), ks * mu / s)
-            zc = np.clip(zc, mu / (ks * sc), ks * mu / sc)
-            dl, du = self._dist(x)
-            zl = np.where(has_l, np.clip(zl, mu / (ks * dl), ks * mu / dl), 0.0)
-            zu = np.where(has_u, np.clip(zu, mu / (ks * du), ks * mu / du), 0.0)
+            dl, du = np.empty(n), np.empty(n)
+            update_k(lay, x, s, sc, alpha, dy, a_d, dz, dzc, dzl, dzu, mu, y, z, zc, zl, zu, dl, du)
         return IPMResult(x, y, z, zc, zl, zu, float(val.f), status in ("converged", "acceptable"), it, float(err0),
                          status, trace)

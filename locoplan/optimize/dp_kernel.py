@@ -20,7 +20,7 @@ from ..sim.kernel import brake_kn, davis_kn, e_from_ms, kmh_from_e, locate, ms_f
 # (controls: T_ full traction, H_ hold the speed (cruise, K), C coast, B_ full braking)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _interp1(x, xs, ys):
     """np.interp for one value, safe with infinite values (``_blend``)."""
     lo, hi, w = locate(x, xs)
@@ -29,7 +29,7 @@ def _interp1(x, xs, ys):
     return _blend(ys[lo], ys[hi], w)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _blend(a, b, w):
     """a + w (b - a) for w in [0, 1], safe with infinite ends: w = 0 or 1 is exactly a or b (an
     infinite neighbour must not turn a reachable state into nan or -inf), strictly between it is
@@ -43,7 +43,7 @@ def _blend(a, b, w):
     return a + w * (b - a)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
     """Cost-to-go at speed v1 on a node's grid: the shared speed grid below the node's cap, plus the cap
     itself as the last point (``ctg_row[-1]``), so that a state just under a limit or a braking curve is
@@ -69,7 +69,7 @@ def _interp_node(v1, v_grid, ctg_row, v_cap, v_low):
     return _blend(ctg_row[top], ctg_row[nv], w)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _step(e, u, h, g_k, allowed, fo):
     """One cell under control u from e = v^2/2: (e_end, traction work [kJ]); e_end < 0 = cannot."""
     v_kmh = kmh_from_e(e)
@@ -98,7 +98,7 @@ def _step(e, u, h, g_k, allowed, fo):
     return e1, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bracket(v1, dv, nv, v_cap):
     """Where speed v1 lies on a node's grid (the uniform grid below the node's cap, then the cap itself as
     column nv): (i0, i1, w) with value = (1 - w) row[i0] + w row[i1]; i0 < 0 = above the cap."""
@@ -118,7 +118,7 @@ def _bracket(v1, dv, nv, v_cap):
     return top, nv, min((v1 - top * dv) / span, 1.0)  # v1 may pass the cap by the tolerance above
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _capped_step(e, u, k, n, dp, fo):
     """One cell under control u, held under the next node's cap (a limit or braking curve) the way the
     calculator holds a train there (braking as needed, if full braking can): (e_end, work [kJ]), e_end < 0
@@ -139,7 +139,7 @@ def _capped_step(e, u, k, n, dp, fo):
     return e1, w
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _move(e, v, u, k, n, dp, fo):
     """Control u over cell k from e (speed v): (e at its end, work [kJ], speed at its end); e < 0 = not
     possible (no hold from rest, a cap it cannot stay under, or no motion at all)."""
@@ -154,14 +154,14 @@ def _move(e, v, u, k, n, dp, fo):
     return e1, w, v1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _arrives(e, k, n, dp, fo, e_low_next):
     """Full traction over cell k from e arrives at or above the next node's lowest (``_lowest_energy``)."""
     e1, _ = _capped_step(e, T_, k, n, dp, fo)
     return e1 >= 0.0 and e1 >= e_low_next * (1.0 - 1e-9) - 1e-12 and not (e <= 0.0 and e1 <= 0.0 and k < n - 1)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _too_fast(e, k, n, dp, fo):
     """Full traction over cell k from e cannot be held under the next node's cap (not a stall: the uncapped
     step moves on)."""
@@ -169,7 +169,7 @@ def _too_fast(e, k, n, dp, fo):
     return e1 >= 0.0 and _capped_step(e, T_, k, n, dp, fo)[0] < 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bisect(e_no, e_yes, k, n, dp, fo, e_low_next, arrives):
     """Where ``_arrives`` (or, with ``arrives`` False, ``_too_fast``) turns from false at ``e_no`` to true at
     ``e_yes``: both ends after 40 halvings."""
@@ -182,7 +182,7 @@ def _bisect(e_no, e_yes, k, n, dp, fo, e_low_next, arrives):
     return e_no, e_yes
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lowest_energy(k, n, dp, fo, e_low_next):
     """The lowest e = v^2/2 at node k from which full traction over cell k arrives at or above the next
     node's lowest (``e_low_next``), by bisection (the step is monotone in e); inf when no speed up to the
@@ -218,7 +218,7 @@ def _stall_boundary(dp, fo, e_low):
         e_low[k] = _lowest_energy(k, n, dp, fo, e_low[k + 1])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _run_bucket(r, min_run, n_buckets):
     """Index of a run length [m] (0 .. n_buckets; the last = at least ``min_run``, free to switch)."""
     if r >= min_run - 1e-9:

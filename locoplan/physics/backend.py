@@ -96,6 +96,38 @@ class RoundedCurve:
         return value, slope, curvature
 
 
+def rounded_curve_at(x, xs, ys, width, lo, hi):
+    """:class:`RoundedCurve` of the points ``xs[lo:hi]``, ``ys[lo:hi]`` over ``width`` at one number ``x``:
+    (value, slope, curvature). The scalar twin of ``RoundedCurve.__call__``, step for step the same
+    arithmetic (each slope and change of slope from the same difference quotients), in plain Python that the
+    compiled kernels take (``ocp/cell_kernel.py``, where the curves lie end to end in one array; tests/
+    test_estar_cells.py holds the two equal)."""
+    a, b = lo, hi  # i = the first point > x (np.searchsorted(xs, x, side="right"), from lo)
+    while a < b:
+        mid = (a + b) // 2
+        if xs[mid] <= x:
+            a = mid + 1
+        else:
+            b = mid
+    i = a
+    left = max(i - 1, lo)
+    # the slope of the segment ending at point i (0 before the first point and beyond the last)
+    slope = (ys[i] - ys[i - 1]) / (xs[i] - xs[i - 1]) if lo < i < hi else 0.0
+    value = ys[left] + slope * (x - xs[left]) if i > lo else ys[lo]
+    right = min(i, hi - 1)
+    j = left if i > lo and abs(x - xs[left]) <= abs(x - xs[right]) else right  # the nearest point
+    t = x - xs[j]
+    half = 0.5 * width
+    d = 0.0
+    if abs(t) < half:
+        after = (ys[j + 1] - ys[j]) / (xs[j + 1] - xs[j]) if j + 1 < hi else 0.0
+        before = (ys[j] - ys[j - 1]) / (xs[j] - xs[j - 1]) if j > lo else 0.0
+        d = after - before
+        value = value + d * ((t + half) ** 2 / (2 * width) - max(t, 0.0))
+        slope = slope + d * ((t + half) / width - (1.0 if t >= 0 else 0.0))
+    return value, slope, d / width
+
+
 def piecewise_linear_rounded(x, xs, ys, width: float):
     """:class:`RoundedCurve` of ``(xs, ys)`` over ``width`` at ``x``: (value, slope, curvature)."""
     return RoundedCurve(xs, ys, width)(x)

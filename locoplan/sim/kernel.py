@@ -32,20 +32,20 @@ e_from_ms = njit(cache=True)(units.e_from_ms)
 kmh = njit(cache=True)(units.kmh)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def brake_kn(v_kmh, allowed_k, fo):
     """Full braking [kN] at ``v_kmh`` (the calculator's ``brake_kn_at``): the electric brake where the
     catenary feeds it (``allowed_k`` 0 in a neutral section's span) plus the air brake everywhere."""
     return full_brake_kn(_interp(v_kmh, fo.ev, fo.ef), _interp(v_kmh, fo.av, fo.af), allowed_k)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def load_kn(v_kmh, g_k, fo):
     """Resistance plus gravity [kN] at ``v_kmh`` in a cell of gravity force ``g_k``."""
     return running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, g_k)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _crawl(e, hk, fT, fK, g_k, allowed_k, fo, last):
     """A slowing cell at crawling speed, integrated again in sub-steps of at most ``CRAWL_STEP_M``
     (midpoint rule in e = v^2/2): whether a weak train makes it over a crest, or coasting up to the stop
@@ -72,7 +72,7 @@ def _crawl(e, hk, fT, fK, g_k, allowed_k, fo, last):
     return e, t, w
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _crawl_accel(e, fT, fK, g_k, allowed_k, fo):
     """de/ds and the traction force [kN] at e under a cell's traction / cruise shares (no braking)."""
     v_kmh = kmh_from_e(e)
@@ -83,7 +83,7 @@ def _crawl_accel(e, fT, fK, g_k, allowed_k, fo):
     return (fT * f_max + fK * hold - load) / fo.m, fT * f_max + fK * max(hold, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def locate(x, xs):
     """Where x lies in the rising knots xs, by bisection: (lo, hi, w) with x = xs[lo] + w (xs[hi] - xs[lo]);
     beyond the ends the end knot itself (lo = hi, w = 0: flat, as np.interp)."""
@@ -102,7 +102,7 @@ def locate(x, xs):
     return lo, hi, (x - xs[lo]) / (xs[hi] - xs[lo])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _interp(x, xs, ys):
     """np.interp for one value (flat beyond the ends)."""
     lo, hi, w = locate(x, xs)
@@ -111,7 +111,7 @@ def _interp(x, xs, ys):
     return ys[lo] + w * (ys[hi] - ys[lo])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _shares(s0, s1, codes, starts, ends, j0, out):
     """Share of cell [s0, s1] under each condition (out[4]); runs j0.. of the plan; returns the first run
     that may still overlap the next cell."""
@@ -322,7 +322,7 @@ def braking_envelope(ce_, fo, n_sub, e_env, entries):
     return n_entries
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _decel(e, k, ce_, fo):
     """-de/ds under full braking at e in cell k [m/s^2]."""
     v_kmh = kmh_from_e(max(e, 0.0))

@@ -38,9 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .records import FIELD_TYPES, Cells, DPCells, Forces, Outputs, Plans
+from .records import FIELD_TYPES, CellModel, Cells, DPCells, Forces, IPMLayout, Outputs, Plans
 
-_F, _I, _A1, _A4 = "f8", "i8", "f8[:]", "f8[:, :, :, :]"
+_F, _I, _A1, _A2, _A3, _A4 = "f8", "i8", "f8[:]", "f8[:, :]", "f8[:, :, :]", "f8[:, :, :, :]"
 
 ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     # name: (module, function, return type, argument types: a type string or a record class)
@@ -55,11 +55,33 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
                        "i8[:]", _A1, "i8[:]")),
     "band_factor": ("locoplan.ocp.band_kernel", "band_factor", "i8", ("f8[:, :]", _I, _I, "i8[:]")),
     "band_solve": ("locoplan.ocp.band_kernel", "band_solve", "void", ("f8[:, :]", _I, _I, "i8[:]", "f8[:, :]")),
-    "fraction_to_boundary": ("locoplan.ocp.band_kernel", "fraction_to_boundary", "f8", (_A1, _A1, "i8[:]", _F, _F)),
+    "cell_values": ("locoplan.ocp.cell_kernel", "cell_values", "f8", (CellModel, _A1, _A1, _A2, _A1, _A3)),
+    "cell_derivatives": ("locoplan.ocp.cell_kernel", "cell_derivatives", "void",
+                         (CellModel, _A1, _A3, _A2, _A2, _A3, _A3)),
+    "cell_hessian": ("locoplan.ocp.cell_kernel", "cell_hessian", "void", (CellModel, _A1, _A3, _A1, _A2, _A1, _A3)),
+    "ipm_errors": ("locoplan.ocp.ipm_kernel", "ipm_errors", "UniTuple(f8, 6)",
+                   (IPMLayout, _A2, _A2, _A1, _A3, _A2, _A3, _A1, _A1, _A1, _A1, _A2, _A2, _A1, _A1, _A1, _A1, _A1)),
+    "ipm_newton": ("locoplan.ocp.ipm_kernel", "ipm_newton", "void",
+                   (IPMLayout, _A2, _A2, _A1, _A3, _A2, _A2, _A1, _A1, _A1, _A1, _A1, _A1, _A2, _A1, _A1, _A1, _A1, _A1,
+                    _A2, _A2)),
+    "ipm_rhs": ("locoplan.ocp.ipm_kernel", "ipm_rhs", "void",
+                (IPMLayout, _A1, _A1, _A3, _A2, _A2, _A2, _A2, _A1, _A1, _A1, _A1, _F, _A1)),
+    "ipm_curvature": ("locoplan.ocp.ipm_kernel", "ipm_curvature", "UniTuple(f8, 2)",
+                      (IPMLayout, _A1, _A3, _A3, _A2, _A1, _F, _A1, _A2)),
+    "ipm_steps": ("locoplan.ocp.ipm_kernel", "ipm_steps", "UniTuple(f8, 3)",
+                  (IPMLayout, _A1, _A3, _A2, _A1, _A2, _A2, _A1, _A2, _A1, _A1, _A1, _A1, _A1, _A2, _A1, _A1, _F, _F,
+                   "b1", _A1, _A1, _A2, _A1, _A2, _A1, _A1, _A1)),
+    "ipm_merit": ("locoplan.ocp.ipm_kernel", "ipm_merit", "UniTuple(f8, 2)", (IPMLayout, _A1, _A2, _A1, _A1, _A2, _A1)),
+    "ipm_mean_complementarity": ("locoplan.ocp.ipm_kernel", "ipm_mean_complementarity", "f8",
+                                 (IPMLayout, _F, _F, _A1, _A1, _A2, _A2, _A1, _A1, _A2, _A2, _A1, _A1, _A1, _A1, _A1,
+                                  _A1)),
+    "ipm_update": ("locoplan.ocp.ipm_kernel", "ipm_update", "void",
+                   (IPMLayout, _A1, _A2, _A1, _F, _A1, _F, _A2, _A1, _A1, _A1, _F, _A1, _A2, _A1, _A1, _A1, _A1, _A1)),
 }
 _SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "ocp/band_kernel.py",
-            "sim/native.py",
-            "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py")
+            "ocp/cell_kernel.py", "ocp/ipm_kernel.py", "sim/native.py",
+            "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py",
+            "physics/backend.py")
 BUILD_TIMEOUT_S = 900.0
 
 _kernels = None
@@ -131,7 +153,8 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, ``fraction_to_boundary``)."""
+    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
+    ``cell_values``, ``cell_derivatives``, ``cell_hessian`` and the interior-point method's ``ipm_*``)."""
     global _kernels
     if _kernels is None:
         why = "LOCOPLAN_NATIVE=0"
@@ -264,13 +287,29 @@ def _compile_here(out_dir: str, name: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pycc's pending-deprecation notice
         from numba.pycc import CC
+    from numba.pycc import compiler as pycc_compiler
+
     cc = CC(name)
     cc.output_dir = out_dir
     cc.verbose = False
+    error_models = {}
     for export, (mod, fn, ret, args) in ENTRY_POINTS.items():
         func = getattr(importlib.import_module(mod), fn)
+        error_models[func.py_func] = func.targetoptions.get("error_model", "python")
         cc.export(export, _signature(ret, args))(func.py_func)
-    cc.compile()
+    # pycc compiles every export with the same flags; each keeps its JIT function's error model here (the
+    # E* kernels divide as numpy does, a division by zero giving inf, not an exception: same results as JIT)
+    compile_extra = pycc_compiler.compile_extra
+
+    def compile_with_error_model(typingctx, targetctx, func, args, return_type, flags, *rest, **kw):
+        flags = flags.copy()
+        flags.error_model = error_models.get(func, "python")
+        return compile_extra(typingctx, targetctx, func, args, return_type, flags, *rest, **kw)
+    pycc_compiler.compile_extra = compile_with_error_model
+    try:
+        cc.compile()
+    finally:
+        pycc_compiler.compile_extra = compile_extra
 
 
 def _numba_type(a):

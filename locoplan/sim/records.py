@@ -91,6 +91,60 @@ class DPCells(NamedTuple):
     v_grid: np.ndarray
 
 
+class CellModel(NamedTuple):
+    """E*'s cell problem (``ocp/cells.py``) for its compiled evaluation (``ocp/cell_kernel.py``): ``nf``
+    forces per cell (variables ``[v_0, f_0.., v_1, ...]`` scaled by ``v_ref`` and ``f_ref``), the cells'
+    lengths ``h`` [m], gravity ``grav`` [kN] and ``allowed`` (catenary 1/0), which caps are real
+    (``active`` (N, nf), 1/0), the inertial mass ``m`` [t], the scales (forces, speeds, objective, time), the
+    Davis coefficients, the objective's weight on each force (``cost``), each force's cap as a curve fed by
+    the catenary (``cap_cat``) plus one that works everywhere (``cap_free``) (indices of the curves, -1 for
+    none), the rounded curves end to end (points ``cx``, ``cy``, segment slopes ``cs`` (one more per curve),
+    changes of slope ``cd``; curve i's points from ``coff[i]``, its slopes from ``coff[i] + i``; ``cw`` its
+    width), and the global inequalities ``(cmask @ tau + cconst) / t_ref <= 0``."""
+
+    nf: int
+    h: np.ndarray
+    grav: np.ndarray
+    allowed: np.ndarray
+    active: np.ndarray
+    m: float
+    f_ref: float
+    v_ref: float
+    e_ref: float
+    t_ref: float
+    ra: float
+    rb: float
+    rc: float
+    cost: np.ndarray
+    cap_cat: np.ndarray
+    cap_free: np.ndarray
+    cx: np.ndarray
+    cy: np.ndarray
+    cs: np.ndarray
+    cd: np.ndarray
+    coff: np.ndarray
+    cw: np.ndarray
+    cmask: np.ndarray
+    cconst: np.ndarray
+
+
+class IPMLayout(NamedTuple):
+    """A cell-structured NLP's layout for the interior-point method's compiled vector work
+    (``ocp/ipm_kernel.py``): each cell's variables ``loc`` (N, p), which variables are ``fixed``, the indices
+    of those with a lower (``il``) and an upper (``iu``) bound and the bounds ``lb``, ``ub`` (0 where none),
+    and the KKT ordering's places of the variables (``pos_x``) and of the cells' equality multipliers
+    (``pos_y``)."""
+
+    loc: np.ndarray
+    fixed: np.ndarray
+    il: np.ndarray
+    iu: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    pos_x: np.ndarray
+    pos_y: np.ndarray
+
+
 _F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
 FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
@@ -98,6 +152,9 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B),
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
+    CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
+                "i8[:]", _A1, _A2, _A1),
+    IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),
 }
 """Each record's field types, in field order ("f8[:]" = a C-contiguous float64 vector)."""
 assert all(len(t) == len(r._fields) for r, t in FIELD_TYPES.items())
