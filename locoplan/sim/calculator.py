@@ -668,18 +668,19 @@ class TractionCalculator:
                 state = np.zeros(n, dtype=np.int8)
                 e_hold = self.e_limit_cell[k] if cruise_e is None else np.minimum(self.e_limit_cell[k], cruise_cap[k])
                 e_hold = np.broadcast_to(e_hold, (n,))
-                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9)
+                e_app, e_r = np.full(n, np.inf), np.zeros(n)
+                if short.any():
+                    e_app, e_r = self._cycle_speeds(e_hold, k, drop)
+                    e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
+                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9) & (~short | (e <= e_r))
                 if rel.any():
-                    rel &= ~short | (e <= self._cycle_speeds(e_hold, k, drop)[1])
                     air_on &= ~rel
                     released |= rel
                     t_rel = np.where(rel, t, t_rel)
                     state[rel] = AIR_RELEASED
-                cand = ~air_on & ((fB_k > 0.0) | short)
-                applied_b = np.zeros(n, dtype=bool)
-                if cand.any():
-                    app = cand & ((fB_k > 0.0) | (e >= self._cycle_speeds(e_hold, k, drop)[0]))
-                    applied_b = app & (fB_k > 0.0)
+                app = ~air_on & ((fB_k > 0.0) | (e >= e_app))
+                applied_b = app & (fB_k > 0.0)
+                if app.any():
                     apply(app, t, state)
                 state[air_on & (state != AIR_APPLIED)] = AIR_ON
                 t_mid = t + hk / (v + ms_from_e(np.maximum(e_mid, 0.0)) + 1e-12)
@@ -687,8 +688,10 @@ class TractionCalculator:
                     ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
                 lvl = np.where(air_on, ramp, 0.0)
                 ov = air_on & ~applied_b  # the application brakes the whole cell, whatever the plan's condition
-                fT_k, fk, fB_k = np.where(ov, 0.0, fT_k), np.where(ov, 0.0, fk), np.where(ov, 1.0, fB_k)
-                may_ex = may_ex & ~ov
+                band = ~air_on & (e >= e_r) & short  # in the cycle's band: the electric brake at full
+                both = ov | band
+                fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(both, 0.0, fk), np.where(both, 1.0, fB_k)
+                may_ex = may_ex & ~both
                 b_use = b_el + lvl * _interp(v_kmh, av, af)
             hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
             full = fT_k * f_max
@@ -780,8 +783,8 @@ class TractionCalculator:
                 dominant = np.argmax(frac[:, :, k], axis=0)
                 if not allowed[k]:  # no traction in a neutral section: what was T is coasting
                     dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)
-                if ov is not None:  # the air brake applied: braking
-                    dominant = np.where(ov, CODE["B"], dominant)
+                if ov is not None:  # the air brake applied: braking; in a cycle's band held by the electric brake
+                    dominant = np.where(ov, CODE["B"], np.where(band, CODE["K"], dominant))
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node

@@ -249,38 +249,39 @@ def run_plans(ce_, fo, pl, out):
             b_use = b_max  # what braking and holding may use
             state = AIR_OFF
             ov = False
+            band = False
             if cycle:
                 b_el = _interp(v_kmh, fo.ev, fo.ef) * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
                 e_hold = e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
                 if has_cruise and fC == 0.0 and cruise_e[i] < e_hold:
                     e_hold = cruise_e[i]
-                if air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9:
-                    if short:
-                        e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)[1]
-                    if not short or e <= e_r:
-                        air_on = False
-                        released = True
-                        t_rel = t
-                        state = AIR_RELEASED
+                e_app = np.inf
+                e_r = 0.0
+                if short:
+                    e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)
+                if (air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9
+                        and (not short or e <= e_r)):
+                    air_on = False
+                    released = True
+                    t_rel = t
+                    state = AIR_RELEASED
                 applied_b = False
-                if not air_on and (fB > 0.0 or short):
-                    e_app = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)[0]
-                    if fB > 0.0 or e >= e_app:
-                        if released:
-                            wait = t - t_rel
-                            if wait - t_rec < air_margin[i]:
-                                air_margin[i] = wait - t_rec
-                            if wait < t_rec - 1e-9 and air_at[i] < 0:
-                                air_at[i] = k
-                                air_wait[i] = wait
-                        air_apps[i] += 1
-                        air_on = True
-                        applied_b = fB > 0.0
-                        t_app = t
-                        tb_app = t_build[k]
-                        hold_app = min_hold if min_hold >= 0.0 else tb_app
-                        state = AIR_APPLIED
+                if not air_on and (fB > 0.0 or e >= e_app):
+                    if released:
+                        wait = t - t_rel
+                        if wait - t_rec < air_margin[i]:
+                            air_margin[i] = wait - t_rec
+                        if wait < t_rec - 1e-9 and air_at[i] < 0:
+                            air_at[i] = k
+                            air_wait[i] = wait
+                    air_apps[i] += 1
+                    air_on = True
+                    applied_b = fB > 0.0
+                    t_app = t
+                    tb_app = t_build[k]
+                    hold_app = min_hold if min_hold >= 0.0 else tb_app
+                    state = AIR_APPLIED
                 lvl = 0.0
                 if air_on:
                     if state != AIR_APPLIED:
@@ -290,6 +291,9 @@ def run_plans(ce_, fo, pl, out):
                     if not applied_b:  # the application brakes the whole cell, whatever the plan's condition
                         fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
                         ov = True
+                elif e >= e_r and short:  # in the cycle's band: the electric brake at full
+                    fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                    band = True
                 b_use = b_el + lvl * _interp(v_kmh, fo.av, fo.af)
             hold = min(max(load, -b_use), f_max)
             full = fT * f_max
@@ -389,6 +393,8 @@ def run_plans(ce_, fo, pl, out):
                     dom = C
                 if ov:  # the air brake applied: braking
                     dom = B
+                elif band:  # in a cycle's band, held by the electric brake: cruise
+                    dom = K
                 if capped and phi < 0.5:
                     # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
                     # (B); on a level cap it holds the limit (K)
