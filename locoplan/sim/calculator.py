@@ -625,7 +625,7 @@ class TractionCalculator:
         cyc = self.air_cycle
         if cyc is not None:  # the air brake's cycle (kernel.run_plans): per plan its state
             t_rec, min_hold = cyc.recharge_s, self._min_hold_s
-            air_on, released, curve_prev = (np.zeros(n, dtype=bool) for _ in range(3))
+            air_on, released, curve_prev, curve_kind = (np.zeros(n, dtype=bool) for _ in range(4))
             t_app, t_rel, tb_app, hold_app = (np.zeros(n) for _ in range(4))
             air_at = np.full(n, n_cells, dtype=np.int64)
             air_wait = np.full(n, np.nan)
@@ -643,6 +643,7 @@ class TractionCalculator:
                 air_wait[early] = wait[early]
                 air_apps[mask] += 1
                 air_on[mask] = True
+                curve_kind[mask] = False
                 t_app[mask] = t_at[mask]
                 tb_app[mask] = self.t_build_s[k]
                 hold_app[mask] = min_hold if min_hold >= 0.0 else self.t_build_s[k]
@@ -678,6 +679,7 @@ class TractionCalculator:
                     released |= rel
                     t_rel = np.where(rel, t, t_rel)
                     state[rel] = AIR_RELEASED
+                curve_kind &= ~(air_on & ~curve_prev)  # past its curve and still needed: a cycle's now
                 app = ~air_on & ((fB_k > 0.0) | (e >= e_app))
                 applied_b = app & (fB_k > 0.0)
                 if app.any():
@@ -687,8 +689,9 @@ class TractionCalculator:
                 with np.errstate(divide="ignore", invalid="ignore"):
                     ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
                 lvl = np.where(air_on, ramp, 0.0)
-                ov = air_on & ~applied_b  # the application brakes the whole cell, whatever the plan's condition
-                band = ~air_on & (e >= e_r) & short  # in the cycle's band: the electric brake at full
+                ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition
+                # in the cycle's band, or recharging: the electric brake at full
+                band = ~air_on & short & ((e >= e_r) | (released & (t - t_rel < t_rec)))
                 both = ov | band
                 fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(both, 0.0, fk), np.where(both, 1.0, fB_k)
                 may_ex = may_ex & ~both
@@ -770,8 +773,15 @@ class TractionCalculator:
                     with np.errstate(divide="ignore", invalid="ignore"):
                         need = np.where(part, -cap_work / (hk * (1.0 - phi)), -np.inf)
                     on_cap = part & (need > b_el * (1.0 + 1e-9) + 1e-6)
-                if (on_cap & ~air_on).any():
-                    apply(on_cap & ~air_on, t_start, state)
+                new_cap = on_cap & ~air_on
+                if new_cap.any():  # (the braking curves assume a charged brake: not judged by the recharge)
+                    air_apps[new_cap] += 1
+                    air_on[new_cap] = True
+                    curve_kind[new_cap] = True
+                    t_app[new_cap] = t_start[new_cap]
+                    tb_app[new_cap] = self.t_build_s[k]
+                    hold_app[new_cap] = 0.0  # its force follows the curve; released where the curve ends
+                    state[new_cap] = AIR_APPLIED
                 curve_prev = on_cap
                 if want_profile:
                     air_prof[:, k] = state

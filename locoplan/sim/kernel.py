@@ -179,9 +179,10 @@ def run_plans(ce_, fo, pl, out):
     the electric brake; its force builds up linearly over the cell's ``t_build``; while it is on the train
     brakes with it and the full electric brake, whatever the plan's condition; it is released in full (at a
     cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed or where
-    the electric brake alone holds; applied again before ``recharge_s`` has passed since the release, the plan
-    is refused (``air_at``). Holding a limit or following a braking curve is bounded by full braking as
-    without the cycle.
+    the electric brake alone holds; applied again (in a cycle, or to brake) before ``recharge_s`` has passed
+    since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
+    bounded by full braking as without the cycle; such an application is counted and released where the curve
+    ends, not held, and not judged by the recharge (the braking envelope assumes a charged brake).
     """
     s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
     holds_limit, brake_holds = ce_.holds_limit, ce_.brake_holds
@@ -218,6 +219,7 @@ def run_plans(ce_, fo, pl, out):
         tb_app = 0.0
         hold_app = 0.0
         curve_prev = False
+        curve_kind = False
         b_el = 0.0
         e_r = 0.0
         for k in range(n_cells):
@@ -266,6 +268,8 @@ def run_plans(ce_, fo, pl, out):
                     released = True
                     t_rel = t
                     state = AIR_RELEASED
+                elif air_on and curve_kind and not curve_prev:  # past its curve and still needed: a cycle's now
+                    curve_kind = False
                 applied_b = False
                 if not air_on and (fB > 0.0 or e >= e_app):
                     if released:
@@ -277,6 +281,7 @@ def run_plans(ce_, fo, pl, out):
                             air_wait[i] = wait
                     air_apps[i] += 1
                     air_on = True
+                    curve_kind = False
                     applied_b = fB > 0.0
                     t_app = t
                     tb_app = t_build[k]
@@ -288,10 +293,11 @@ def run_plans(ce_, fo, pl, out):
                         state = AIR_ON
                     t_mid = t + hk / (v + ms_from_e(max(e_mid, 0.0)) + 1e-12)
                     lvl = 1.0 if tb_app <= 0.0 else min(max((t_mid - t_app) / tb_app, 0.0), 1.0)
-                    if not applied_b:  # the application brakes the whole cell, whatever the plan's condition
+                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition
                         fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
                         ov = True
-                elif e >= e_r and short:  # in the cycle's band: the electric brake at full
+                elif short and (e >= e_r or (released and t - t_rel < t_rec)):
+                    # in the cycle's band, or recharging: the electric brake at full
                     fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
                     band = True
                 b_use = b_el + lvl * _interp(v_kmh, fo.av, fo.af)
@@ -361,19 +367,13 @@ def run_plans(ce_, fo, pl, out):
                 if capped and phi < 1.0:
                     need = -cap_work / (hk * (1.0 - phi))
                     on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
-                if on_cap and not air_on:
-                    if released:
-                        wait = t_start - t_rel
-                        if wait - t_rec < air_margin[i]:
-                            air_margin[i] = wait - t_rec
-                        if wait < t_rec - 1e-9 and air_at[i] < 0:
-                            air_at[i] = k
-                            air_wait[i] = wait
+                if on_cap and not air_on:  # (the braking curves assume a charged brake: not judged by the recharge)
                     air_apps[i] += 1
                     air_on = True
+                    curve_kind = True
                     t_app = t_start
                     tb_app = t_build[k]
-                    hold_app = min_hold if min_hold >= 0.0 else tb_app
+                    hold_app = 0.0  # its force follows the curve; released where the curve ends
                     state = AIR_APPLIED
                 curve_prev = on_cap
                 if want_profile:
