@@ -659,12 +659,13 @@ class TractionCalculator:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = full_brake_kn(_interp(v_kmh, ev, ef), _interp(v_kmh, av, af), allowed[k])
+            el_k, air_k = _interp(v_kmh, ev, ef), _interp(v_kmh, av, af)
+            b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
             fT_k, fk, fB_k, b_use, may_ex = fT[k], fK[k], fB[k], b_max, may_exceed[k]
             ov = None
             if cyc is not None:
-                b_el = _interp(v_kmh, ev, ef) * allowed[k]
+                b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
                 state = np.zeros(n, dtype=np.int8)
                 e_hold = self.e_limit_cell[k] if cruise_e is None else np.minimum(self.e_limit_cell[k], cruise_cap[k])
@@ -695,7 +696,7 @@ class TractionCalculator:
                 both = ov | band
                 fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(both, 0.0, fk), np.where(both, 1.0, fB_k)
                 may_ex = may_ex & ~both
-                b_use = b_el + lvl * _interp(v_kmh, av, af)
+                b_use = b_el + lvl * air_k
             hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
             full = fT_k * f_max
             tr = full + fk * np.maximum(hold, 0.0)

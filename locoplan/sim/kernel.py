@@ -246,14 +246,16 @@ def run_plans(ce_, fo, pl, out):
                 c1 = ce
             v_kmh = math.sqrt(max(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = brake_kn(v_kmh, allowed[k], fo)
+            el_k = _interp(v_kmh, fo.ev, fo.ef)
+            air_k = _interp(v_kmh, fo.av, fo.af)
+            b_max = full_brake_kn(el_k, air_k, allowed[k])  # (brake_kn, its two curves kept for the cycle)
             load = load_kn(v_kmh, grav[k], fo)
             b_use = b_max  # what braking and holding may use
             state = AIR_OFF
             ov = False
             band = False
             if cycle:
-                b_el = _interp(v_kmh, fo.ev, fo.ef) * allowed[k]
+                b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
                 e_hold = e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
                 if has_cruise and fC == 0.0 and cruise_e[i] < e_hold:
@@ -300,7 +302,7 @@ def run_plans(ce_, fo, pl, out):
                     # in the cycle's band, or recharging: the electric brake at full
                     fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
                     band = True
-                b_use = b_el + lvl * _interp(v_kmh, fo.av, fo.af)
+                b_use = b_el + lvl * air_k
             hold = min(max(load, -b_use), f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
