@@ -253,3 +253,25 @@ def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):
     for t in t_app:
         before = t_rel[t_rel < t]
         assert not before.size or t - before[-1] >= 90.0 - 1e-6 or math.isclose(t, before[-1])
+
+
+@pytest.mark.parametrize("strategy", ["time-saving", "energy-saving", "four-stage", "proposed"])
+def test_every_strategy_plans_drivable_cycles(c80x50, strategy):
+    """Every strategy's plan down the 7 km at -15 per mille is accepted by the calculator, so its air brake keeps
+    the recharge (each application at least 60 s after the release before it) and the limit."""
+    from locoplan.runner import make_context, run_strategy
+
+    route = hand_made_route([(10000, 60.0)], [(2000, 0.0), (9000, -15.0), (10000, 0.0)], 10000,
+                            schedule={"run_time_s": 900, "tolerance_s": 30})
+    ctx = make_context(route, c80x50, ModelOptions(), yardstick=False)
+    out = run_strategy(ctx, strategy)
+    s = out.summary
+    assert s["feasible"], s["reason"]
+    assert s["air_applications"] >= 3 and s["min_recharge_margin_s"] >= 0.0
+    p = out.result.profile
+    assert np.nanmax(p.v_kmh[0]) <= 60.0 + 1e-9
+    t_app = p.t_s[0, :-1][(p.air[0] == AIR_APPLIED) & (p.s_m[:-1] < 9000)]
+    t_rel = p.t_s[0, :-1][p.air[0] == AIR_RELEASED]
+    for t in t_app:
+        before = t_rel[t_rel < t]
+        assert not before.size or t - before[-1] >= RECHARGE_S - 1e-6
