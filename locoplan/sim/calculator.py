@@ -663,7 +663,7 @@ class TractionCalculator:
             b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
             fT_k, fk, fB_k, b_use, may_ex = fT[k], fK[k], fB[k], b_max, may_exceed[k]
-            ov = None
+            ov = band = None
             if cyc is not None:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
@@ -691,10 +691,11 @@ class TractionCalculator:
                     ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
                 lvl = np.where(air_on, ramp, 0.0)
                 ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition
-                # in the cycle's band, or recharging: the electric brake at full
-                band = ~air_on & short & ((e >= e_r) | (released & (t - t_rel < t_rec)))
+                # in the cycle's band, or recharging on a descent: held by the electric brake alone (at full
+                # where it cannot hold), whatever the plan's condition
+                band = ~air_on & ((short & (e >= e_r)) | (released & (t - t_rel < t_rec) & (load < 0.0)))
                 both = ov | band
-                fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(both, 0.0, fk), np.where(both, 1.0, fB_k)
+                fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(band, 1.0, np.where(ov, 0.0, fk)), np.where(ov, 1.0, fB_k)
                 may_ex = may_ex & ~both
                 b_use = b_el + lvl * air_k
             hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
@@ -710,6 +711,8 @@ class TractionCalculator:
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
                 crawl = ~capped & (fB_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
+                if band is not None:
+                    crawl &= ~band
             if crawl.any():
                 e_c, t_c, w_c = self._crawl(k, e[crawl], np.broadcast_to(fT_k, (n,))[crawl],
                                             np.broadcast_to(fk, (n,))[crawl], k == last)
@@ -795,7 +798,7 @@ class TractionCalculator:
                 if not allowed[k]:  # no traction in a neutral section: what was T is coasting
                     dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)
                 if ov is not None:  # the air brake applied: braking; in a cycle's band held by the electric brake
-                    dominant = np.where(ov, CODE["B"], np.where(band, CODE["K"], dominant))
+                    dominant = np.where(ov, CODE["B"], np.where(band & (allowed[k] > 0.0), CODE["K"], dominant))
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node

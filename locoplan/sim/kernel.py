@@ -177,7 +177,9 @@ def run_plans(ce_, fo, pl, out):
     cycle'): made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric
     brake alone cannot hold (``cycle_speeds``), or where following a limit or a braking curve takes more than
     the electric brake; its force builds up linearly over the cell's ``t_build``; while it is on the train
-    brakes with it and the full electric brake, whatever the plan's condition; it is released in full (at a
+    brakes with it and the full electric brake, whatever the plan's condition (and between its release and the
+    apply speed on such a grade, or while it recharges on a descent, with the electric brake alone, holding
+    the speed where that suffices); it is released in full (at a
     cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed or where
     the electric brake alone holds; applied again (in a cycle, or to brake) before ``recharge_s`` has passed
     since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
@@ -298,9 +300,10 @@ def run_plans(ce_, fo, pl, out):
                     if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition
                         fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
                         ov = True
-                elif short and (e >= e_r or (released and t - t_rel < t_rec)):
-                    # in the cycle's band, or recharging: the electric brake at full
-                    fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
+                    # in the cycle's band, or recharging on a descent: held by the electric brake alone (at
+                    # full where it cannot hold), whatever the plan's condition
+                    fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0
                     band = True
                 b_use = b_el + lvl * air_k
             hold = min(max(load, -b_use), f_max)
@@ -308,14 +311,14 @@ def run_plans(ce_, fo, pl, out):
             tr = full + fK * max(hold, 0.0)
             e_pred = e + (hk / m) * (full - fB * b_use + fK * hold - load)
             if strict and over_at[i] < 0:
-                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0:
+                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
                     over_at[i] = k
             capped = e_pred > c1
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = ((not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
-                     and stop_at[i] < 0)
+                     and stop_at[i] < 0 and not band)
             t_crawl = 0.0
             w_crawl = 0.0
             if crawl:
@@ -395,7 +398,7 @@ def run_plans(ce_, fo, pl, out):
                     dom = C
                 if ov:  # the air brake applied: braking
                     dom = B
-                elif band:  # in a cycle's band, held by the electric brake: cruise
+                elif band and allowed[k] > 0.0:  # in a cycle's band, held by the electric brake: cruise
                     dom = K
                 if capped and phi < 0.5:
                     # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
