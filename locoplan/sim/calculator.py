@@ -220,6 +220,14 @@ class TractionCalculator:
         self.traction_allowed = np.ones(len(mid))
         for a, b in neutral_spans_m(route, train.length_m if self.options.strip else 0.0):
             self.traction_allowed[(mid > a) & (mid < b)] = 0.0
+        # the first cell from each on whose grade the electric brake alone cannot hold the limit (-1: none): an
+        # application is not released ahead of one the train would reach within the recharge time
+        lim = self.limit_kmh
+        short = (max_force_kn(lim, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
+                 + train_resistance_kn(lim, train.resistance_kn) + self.gravity_kn) < 0.0
+        idx = np.where(short, np.arange(len(mid)), len(mid))
+        nxt = np.minimum.accumulate(idx[::-1])[::-1]
+        self.next_short = np.where(nxt < len(mid), nxt, -1).astype(np.int64)
         e_cell = kinetic_e(self.limit_kmh)
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
@@ -239,7 +247,7 @@ class TractionCalculator:
 
     def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray) -> Cells:
         return contiguous(Cells(self.s_m, self.h_m, e_env, self.e_limit_node, self.e_limit_cell, self.traction_allowed,
-                                self.gravity_kn, holds_limit, self.brake_holds_limit, self.t_build_s))
+                                self.gravity_kn, holds_limit, self.brake_holds_limit, self.t_build_s, self.next_short))
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -674,7 +682,15 @@ class TractionCalculator:
                 if short.any():
                     e_app, e_r = self._cycle_speeds(e_hold, k, drop)
                     e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
-                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9) & (~short | (e <= e_r))
+                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9)
+                j = self.next_short[k]
+                if rel.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
+                    e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
+                    ahead = ~short & (self.s_m[j] - self.s_m[k] < v * t_rec)
+                    e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, drop)[1]
+                    rel &= np.where(short, e <= e_r, ~ahead | (e <= e_r_j))
+                else:
+                    rel &= ~short | (e <= e_r)
                 if rel.any():
                     air_on &= ~rel
                     released |= rel

@@ -180,8 +180,9 @@ def run_plans(ce_, fo, pl, out):
     brakes with it and the full electric brake, whatever the plan's condition (and between its release and the
     apply speed on such a grade, or while it recharges on a descent, with the electric brake alone, holding
     the speed where that suffices); it is released in full (at a
-    cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed or where
-    the electric brake alone holds; applied again (in a cycle, or to brake) before ``recharge_s`` has passed
+    cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed, or where
+    the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the distance the
+    train covers in the recharge time (else at that grade's release speed); applied again (in a cycle, or to brake) before ``recharge_s`` has passed
     since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
     bounded by full braking as without the cycle; such an application is counted and released where the curve
     ends, not held, and not judged by the recharge (the braking envelope assumes a charged brake).
@@ -194,6 +195,7 @@ def run_plans(ce_, fo, pl, out):
     t_out, work_out, over_at, stop_at, hold_at, fb_at = out.t, out.work, out.over_at, out.stop_at, out.hold_at, out.fb_at
     t_nodes, v_nodes, cond, trac, brk, event = out.t_nodes, out.v_nodes, out.cond, out.trac, out.brk, out.event
     cycle, t_rec, min_hold, drop, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, pl.release_drop_kmh, ce_.t_build
+    next_short = ce_.next_short
     air_at, air_wait, air_apps, air_margin, air_state = out.air_at, out.air_wait, out.air_apps, out.air_margin, out.air
     n = starts.shape[0]
     n_cells = h.shape[0]
@@ -266,8 +268,16 @@ def run_plans(ce_, fo, pl, out):
                 e_r = 0.0
                 if short:
                     e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)
+                e_rel_now = e_r if short else np.inf
+                j = next_short[k]
+                if not short and air_on and j >= 0 and s[j] - s[k] < v * t_rec:
+                    # a grade it cannot hold within the recharge: kept on until its release speed there
+                    e_hold_j = e_limit_cell[j]
+                    if has_cruise and fC == 0.0 and cruise_e[i] < e_hold_j:
+                        e_hold_j = cruise_e[i]
+                    e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, drop[i], fo)[1]
                 if (air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9
-                        and (not short or e <= e_r)):
+                        and e <= e_rel_now):
                     air_on = False
                     released = True
                     t_rel = t

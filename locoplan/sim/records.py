@@ -34,7 +34,9 @@ class Cells(NamedTuple):
     and the limits (``e_limit_node``, ``e_limit_cell``) as e = v^2/2 [m^2/s^2], ``allowed`` (1 where the
     catenary feeds traction and the electric brake), ``grav`` the cell's gravity force [kN],
     ``holds_limit`` (the cell's cap is its limit, to be held), ``brake_holds`` (full braking holds the
-    limit there) and ``t_build`` the air brake's build-up time [s] of an application made in the cell."""
+    limit there), ``t_build`` the air brake's build-up time [s] of an application made in the cell and
+    ``next_short`` the first cell from this one on whose grade the electric brake alone cannot hold the limit
+    (-1: none)."""
 
     s: np.ndarray
     h: np.ndarray
@@ -46,6 +48,7 @@ class Cells(NamedTuple):
     holds_limit: np.ndarray
     brake_holds: np.ndarray
     t_build: np.ndarray
+    next_short: np.ndarray
 
 
 class Plans(NamedTuple):
@@ -111,7 +114,7 @@ class DPCells(NamedTuple):
 _F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
 FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
-    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1),
+    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1, "i8[:]"),
     Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B, _B, _F, _F, _A1),
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
