@@ -1,7 +1,7 @@
 """Seed 002 on real lines: `optimize` on the six TTOBench lines x two trains x two times, in any train model.
 
     python benchmarks/real_lines.py [--lines ...] [--consists HXD1-C80x30,HXD1-C80x50] [--factors 1.1,1.2]
-                                    [--point-mass | --no-air-brake] [--json out.json]
+                                    [--point-mass | --no-air-brake | --continuous-air-brake] [--json out.json]
 
 For every case: the fastest run, T0 = factor x fastest, the proposed plan (ISSA seed 1, window +-1 % of
 T0) with its running time, energy and whether it is on time, four-stage beside it, and the gap to the
@@ -10,7 +10,8 @@ optimum, (E - E*) / E*, with E* the minimum traction energy at the plan's own ru
 median gap. Targets: every case on time and within 1 % of T0, gap <= 3 % everywhere, median <= 1.5 %.
 ``--point-mass`` runs the seeds' train model (point mass, electric brake alone), ``--no-air-brake`` the
 train-length model with the electric brake alone: the locomotive then holds long descents by itself, and
-plans enter them slower where it cannot (the braking envelope, docs/model.md).
+plans enter them slower where it cannot (the braking envelope, docs/model.md). ``--continuous-air-brake``
+lets the plans modulate the wagons' air brake at will instead of cycling it (what E* relaxes it to).
 
     python benchmarks/real_lines.py --compare [--strategies time-saving,energy-saving,four-stage,proposed]
 
@@ -67,9 +68,13 @@ def main() -> None:
     model = ap.add_mutually_exclusive_group()
     model.add_argument("--point-mass", action="store_true", help="the seeds' model: point mass, electric brake alone")
     model.add_argument("--no-air-brake", action="store_true", help="the train-length model, electric brake alone")
+    model.add_argument("--continuous-air-brake", action="store_true",
+                       help="the air brake as a continuous force, not cycled (ModelOptions(air_cycle=False))")
     args = ap.parse_args()
     args.options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
-                    else ModelOptions())
+                    else ModelOptions(air_cycle=False) if args.continuous_air_brake else ModelOptions())
+    if args.continuous_air_brake and args.compare:
+        ap.error("--continuous-air-brake is not a command-line option of locoplan compare")
     args.model_flags = ["--point-mass"] if args.point_mass else ["--no-air-brake"] if args.no_air_brake else []
     if args.compare:
         return compare_cases(args)

@@ -217,8 +217,21 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "switching_points_m": [round(x, 1) for x in outcome.plan.starts_m[1:] if not math.isnan(x)],
         "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, None if prof.event_m is None else prof.event_m[0]),
         **coupler_summary(train, prof),
+        **air_brake_summary(res),
         **(outcome.extra or {}),
     }
+
+
+def air_brake_summary(res: BatchResult) -> dict:
+    """The air brake's cycle in a run: its applications, the shortest recharge margin [s] (time from a release
+    to the next application less the recharge time; None when no application follows a release) and the
+    recharge time; all None without the cycle (the electric brake alone, the seeds' model)."""
+    if res.air_applications is None:
+        return {"air_applications": None, "min_recharge_margin_s": None, "recharge_s": None}
+    margin = float(res.air_margin_s[0])
+    return {"air_applications": int(res.air_applications[0]),
+            "min_recharge_margin_s": round(margin, 1) if math.isfinite(margin) else None,
+            "recharge_s": round(float(res.recharge_s), 1)}
 
 
 def recovered_energy(train: Train, res: BatchResult) -> dict:

@@ -17,6 +17,13 @@ def freight():
 
 
 @pytest.fixture(scope="session")
+def heavy_haul():
+    """The heavy-haul line (30.5 km at -12 per mille) and HXD1 x 2 + 100 x C80, whose electric brake cannot hold it."""
+    from locoplan.io.load import load_route, load_train
+    return load_route(ROOT / "routes/heavy-haul-60km.yaml"), load_train(ROOT / "configs/consists/HXD1x2-C80x100.yaml")
+
+
+@pytest.fixture(scope="session")
 def seed000():
     from locoplan.io.load import load_route, load_train
     train = load_train(ROOT / "configs/consists/HXD1-C64-seed000.yaml")

@@ -54,7 +54,13 @@ def test_out_csv_profile_agrees_with_summary(tmp_path):
     summary = json.loads(res.stdout)
     rows = list(csv.DictReader(io.StringIO(out.read_text())))
     assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn",
-                             "coupler_tension_kn", "coupler_compression_kn", "limit_file_kmh", "gradient_file_permille"]
+                             "coupler_tension_kn", "coupler_compression_kn", "air_brake", "air_event", "limit_file_kmh",
+                             "gradient_file_permille"]
+    # the air brake in each cell: applied where the plan follows a braking curve, an event where it begins / ends
+    assert {r["air_brake"] for r in rows} == {"applied", "released", ""}
+    events = [r["air_event"] for r in rows if r["air_event"]]
+    assert events and set(events) <= {"apply", "release"} and events[0] == "apply"
+    assert sum(e == "apply" for e in events) == summary["air_applications"]
     tension = [float(r["coupler_tension_kn"]) for r in rows]
     assert max(tension) == pytest.approx(summary["max_coupler_tension_kn"], abs=0.05)
     assert max(float(r["coupler_compression_kn"]) for r in rows) == pytest.approx(summary["max_coupler_compression_kn"],

@@ -523,7 +523,8 @@ def test_profile_csv_is_numbers_and_conditions(tmp_path):
     assert _python_spellings(out.read_text()) == []
     for r in rows:
         assert r["condition"] in ("T", "K", "C", "B", "")  # the last node (the stop) has none
-        [float(v) for k, v in r.items() if k != "condition" and v != ""]
+        assert r["air_brake"] in ("applied", "released", "") and r["air_event"] in ("apply", "release", "")
+        [float(v) for k, v in r.items() if k not in ("condition", "air_brake", "air_event") and v != ""]
     assert float(rows[-1]["t_s"]) == pytest.approx(1227.1, abs=0.05)
 
 

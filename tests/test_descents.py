@@ -161,7 +161,11 @@ def test_every_model_plans_the_hand_case(root, monkeypatch, options):
     s = out.summary
     assert s["feasible"], s
     assert abs(s["running_time_s"] - 1000) <= 10
-    assert -0.05 <= s["gap_to_optimum_percent"] <= 1.0  # E* exists for it, and the plan is near it
+    # E* exists for it, and the plan is near it; in the default model the electric brake cannot hold 60 km/h
+    # on -12 per mille and the wagons' air brake is cycled (released at 53 .. 56 km/h, tests/test_air_cycle.py),
+    # while E* relaxes it to a continuous force that holds the limit: the gap is that much larger
+    assert -0.05 <= s["gap_to_optimum_percent"] <= (3.0 if options.air_cycle and options.air_brake and not options.point_mass
+                                                    else 1.0)
     assert np.nanmax(out.result.profile.v_kmh[0]) <= 60.0 + 1e-9
 
 

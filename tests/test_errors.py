@@ -36,6 +36,7 @@ EXPECTED = {
     "consist_no_brake.yaml": ("vehicles", "the train has no brake: no locomotive gives a brake_kn above 0 kN", 5),
     "consist_overloaded.yaml": ("vehicles[1].load_t", "95 t exceeds C80's max_load_t 80 t", 5),
     "consist_zero_count.yaml": ("vehicles[0].count", "greater than or equal to 1", 4),
+    "consist_air_reduction.yaml": ("air_brake_cycle.reduction_kpa", "greater than or equal to 50 (got 20)", 7),
     "vehicle_locomotive_without_curves.yaml": ("traction_kn", "needs its max force curve", 1),
     "vehicle_curve_not_rising.yaml": ("traction_kn[2]", "speeds must increase (40 after 50)", 8),
 }

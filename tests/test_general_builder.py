@@ -161,7 +161,10 @@ def test_dp_drives_a_heavy_train_through_neutral_sections_near_its_top_speed(roo
     calc = TractionCalculator(route, train, ModelOptions(step_m=100))
     solver = PricedDriveSolver(calc)
     times = [solver.solve(p).time_s for p in (50.0, 1.0, 1e-2)]
-    assert times[0] < times[1] < times[2] and times[0] >= calc.fastest_time_s - 1.0
+    # (the DP drives with the air brake as a continuous force, as E* does: its fastest drive is bounded by
+    # that relaxation's fastest run; the calculator's own, cycling the air brake down the descent, is slower)
+    relaxed = TractionCalculator(route, train, ModelOptions(step_m=100, air_cycle=False))
+    assert times[0] < times[1] < times[2] and times[0] >= relaxed.fastest_time_s - 1.0
     ctx = make_context(route, train, time_s=1500.0)
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None

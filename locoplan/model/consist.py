@@ -139,6 +139,28 @@ class ConsistEntry(Strict):
         default=0.0, ge=0, description="payload per wagon [t]")
 
 
+class AirBrakeCycle(Strict):
+    """How the wagons' direct-release air brake (control valves 120 / 120-1) may be cycled on a long descent.
+
+    An application stays on until a full release; after it the brake pipe and the auxiliary reservoirs must
+    recharge before the next application can be relied on. The build-up time of an application is the brake
+    idle (propagation) time of TB/T 1407 (《列车牵引计算规程》), t_k = (3.6 + 0.00176 r n)(1 - 0.032 i_j) s, r the
+    brake-pipe reduction [kPa], n the vehicles in the train, i_j the gradient [per mille] (docs/files.md).
+    """
+
+    reduction_kpa: float = Field(default=50.0, ge=50.0, le=170.0, description=(
+        "brake-pipe reduction of a cycle's application [kPa]: a service reduction is at least 50 kPa, a full "
+        "service one 140 kPa (500 kPa pipe) or 170 kPa (600 kPa pipe), 《机车操作规程》"))
+    build_up_s: float | None = Field(default=None, gt=0, le=300.0, description=(
+        "time for an application to reach full force along the train [s]; default TB/T 1407's t_k"))
+    recharge_s: float = Field(default=30.0, ge=0, le=3600.0, description=(
+        "recharge time after a full release, the part independent of the train's length [s]"))
+    recharge_s_per_wagon: float = Field(default=0.6, ge=0, le=60.0, description=(
+        "recharge time after a full release per wagon [s]"))
+    min_hold_s: float | None = Field(default=None, ge=0, le=3600.0, description=(
+        "shortest time an application is held before its release [s]; default its build-up time"))
+
+
 class Consist(Strict):
     """A train: vehicles in order, and how its brakes are used.
 
@@ -155,6 +177,10 @@ class Consist(Strict):
     ``coupler_limit_kn``: the largest quasi-static force a coupler may carry, in tension or in
     compression; ``force_rate_limit_kn_per_s``: how fast the train's applied force (traction less
     braking) may change. The calculator refuses a plan beyond either; without them nothing is checked.
+
+    ``air_brake_cycle``: the wagons' air brake applied, held, released and recharged (:class:`AirBrakeCycle`;
+    its defaults when the file gives none). A consist braking at a constant ``brake_deceleration_ms2``, or
+    without wagon air brakes, has no cycle.
     """
 
     schema_: Literal["locoplan/consist@1"] = Field(alias="schema")
@@ -168,6 +194,7 @@ class Consist(Strict):
     force_rate_limit_kn_per_s: Annotated[float, plausible(1.0, PLAUSIBLE["force_rate_kn_per_s"], "kN/s",
                                                           "a rate of change outside this range is a slip of the unit")] | None = Field(
         default=None, gt=0, description="largest rate of change of traction less braking [kN/s]")
+    air_brake_cycle: AirBrakeCycle = Field(default_factory=AirBrakeCycle)
 
     @model_validator(mode="after")
     def _check(self) -> "Consist":

@@ -14,6 +14,28 @@ from ..physics.resistance import unit_to_train_coefficients_kn
 from .consist import PLAUSIBLE, Consist, Vehicle
 
 
+@dataclass(frozen=True)
+class AirCycle:
+    """The wagons' direct-release air brake as a cycle (``Consist.air_brake_cycle``, resolved for the train):
+    ``recharge_s`` after a full release before the next application, an application held at least
+    ``min_hold_s`` (None: its build-up time) and reaching full force ``build_up_s(gradient)`` after it is made."""
+
+    recharge_s: float
+    min_hold_s: float | None
+    reduction_kpa: float
+    n_vehicles: int
+    fixed_build_up_s: float | None = None
+
+    def build_up_s(self, gradient_permille):
+        """Build-up time [s] of an application on ``gradient_permille``: the given ``build_up_s``, else TB/T 1407's
+        brake idle time t_k = (3.6 + 0.00176 r n)(1 - 0.032 i_j), the gradient held to [-30, +15] per mille
+        (longer on a descent; the up-grade's shortening kept to half)."""
+        i = np.clip(np.asarray(gradient_permille, dtype=float), -30.0, 15.0)
+        if self.fixed_build_up_s is not None:
+            return np.full_like(i, self.fixed_build_up_s)
+        return (3.6 + 0.00176 * self.reduction_kpa * self.n_vehicles) * (1.0 - 0.032 * i)
+
+
 class VehicleGroup(NamedTuple):
     """One consist entry as the coupler forces need it (``physics.couplers``): ``count`` vehicles of one
     ``kind`` standing one behind the other, each of ``mass_t`` (with its load), ``inertial_factor``,
@@ -67,6 +89,8 @@ class Train:
     layout: tuple = ()
     coupler_limit_kn: float | None = None
     force_rate_limit_kn_per_s: float | None = None
+    air_cycle: AirCycle | None = None
+    """The air brake's cycle (None: no wagon air brake, or a constant ``brake_deceleration_ms2``)."""
 
     def __post_init__(self):
         if not self.inertial_mass_t:
@@ -98,6 +122,7 @@ class Train:
         mass = inertial = length = 0.0
         coeffs = np.zeros(3)
         n = 0
+        n_braked_wagons = 0
         vmax = np.inf
         locos: list[tuple[Vehicle, int]] = []
         air: list[tuple[np.ndarray, int]] = []
@@ -120,6 +145,8 @@ class Train:
                 curve = (np.asarray(ab.force_kn, float) if ab.force_kn is not None
                          else air_brake_curve_kn(ab.braking_ratio, ab.shoe, m, veh.max_speed_kmh))
                 air.append((curve, entry.count))
+                if veh.kind == "wagon":
+                    n_braked_wagons += entry.count
             layout.append(VehicleGroup(
                 veh.kind, entry.count, float(m), float(veh.rotating_mass_factor), float(veh.length_m),
                 tuple(float(x) for x in unit_to_train_coefficients_kn(r.a, r.b, r.c, m)),
@@ -142,9 +169,14 @@ class Train:
             af = np.maximum(total - np.interp(av, ev, ef), 0.0)
         for a in (av, af):
             a.setflags(write=False)
+        cyc = consist.air_brake_cycle
+        cycle = None
+        if n_braked_wagons and consist.brake_deceleration_ms2 is None:
+            cycle = AirCycle(float(cyc.recharge_s + cyc.recharge_s_per_wagon * n_braked_wagons), cyc.min_hold_s,
+                             float(cyc.reduction_kpa), n, cyc.build_up_s)
         return cls(consist.name, mass, length, float(vmax), tuple(float(x) for x in coeffs),
                    tv, tf, ev, ef, av, af, n, inertial, float(regen), tuple(layout), consist.coupler_limit_kn,
-                   consist.force_rate_limit_kn_per_s)
+                   consist.force_rate_limit_kn_per_s, cycle)
 
 
 def _pairs(curve) -> tuple:

@@ -85,6 +85,13 @@ class Bound:
         return None if self.accuracy is None else 100.0 * self.accuracy
 
 
+def relaxed(options: ModelOptions | None) -> ModelOptions:
+    """The model E* is computed in: ``options`` with the air brake relaxed to a continuous force the run may
+    modulate at will (no cycle: ``ModelOptions.air_cycle`` False). Every run that keeps the cycle's rules is a
+    run of the relaxation, so E* stays a lower bound on the energy of any plan the calculator accepts."""
+    return replace(options or ModelOptions(), air_cycle=False)
+
+
 def _train_key(train: Train) -> tuple:
     arrays = (train.traction_speed_kmh, train.traction_kn, train.electric_brake_speed_kmh, train.electric_brake_kn,
               train.air_brake_speed_kmh, train.air_brake_kn)
@@ -157,7 +164,7 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     the solver finds no optimum."""
     from .train_energy import check_runnable
 
-    options = options or ModelOptions()
+    options = relaxed(options)
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
     regen = net_regen(train, objective)
     base = _problem_key(route, train, options, regen)
@@ -216,7 +223,7 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     from .cells import WARM_MU, cell_problem, solve_cells, solve_estar, warm_point
     from .train_energy import check_runnable
 
-    options = options or ModelOptions()
+    options = relaxed(options)
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
     regen = net_regen(train, objective)
     base = _problem_key(route, train, options, regen)
@@ -328,6 +335,7 @@ def check_bound(route: Route, train: Train, options: ModelOptions, time_s: float
     from .energy import solve_energy
     from .train_energy import EnergyOptions, build_problem, check_runnable
 
+    options = relaxed(options)
     calc = TractionCalculator(route, train, options)
     check_runnable(calc, time_s)
     regen = net_regen(train, objective)

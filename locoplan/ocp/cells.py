@@ -481,7 +481,8 @@ def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser:
     grids: their optima differ by the discretisation alone, not by where the route's breakpoints happen to
     fall between uniform nodes)."""
     opts = ModelOptions(step_m=step_m, point_mass=options.point_mass, air_brake=options.air_brake,
-                        rotating_mass=options.rotating_mass, strict_limits=options.strict_limits)
+                        rotating_mass=options.rotating_mass, strict_limits=options.strict_limits,
+                        air_cycle=False)  # E*'s relaxation: the air brake a continuous force (ocp.bound.relaxed)
     nodes = np.concatenate([graded_end_nodes(route.length_m), np.asarray(extra_m, dtype=float)])
     if coarser is not None:
         s = coarser.s_m

@@ -161,6 +161,8 @@ def journey_estar(legs: list[Route], offsets_m: list[float], train: Train, optio
     t0 = _time.perf_counter()
     points_m = points_m or [[] for _ in legs]
     n = len(legs)
+    from .bound import relaxed
+    options = relaxed(options)  # E*'s relaxation: the air brake a continuous force
     fastest = np.array([TractionCalculator(r, train, options).fastest_time_s for r in legs])
     guess = fastest * (time_s / fastest.sum())
     stops = [offsets_m[i] for i in range(1, n)]

@@ -224,6 +224,14 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
                 ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
         else:
             ax.plot(s_km, v, lw=1.6, label=label, color=_colour(label, profiles))
+    if single and ref.air is not None:  # the air brake's applications as shaded spans
+        from ..sim.result import AIR_APPLIED, AIR_ON
+
+        on = np.isin(ref.air[0], (AIR_ON, AIR_APPLIED)).astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], on, [0]])))
+        for j, (a, b) in enumerate(zip(edges[::2], edges[1::2])):
+            ax.axvspan(s_km[a], s_km[b], color="#d62728", alpha=0.12, lw=0,
+                       label=f"air brake applied ({len(edges) // 2})" if j == 0 else None)
     ax.set_ylabel("speed [km/h]")
     ax.set_ylim(0, max(float(ref.limit_kmh.max()), max(float(np.nanmax(p.v_kmh)) for _, p in profiles)) * 1.12)
     ax.set_title(title, wrap=True, pad=STATION_TITLE_PAD if route is not None else None)

@@ -233,7 +233,11 @@ def summary_table(summary: dict, width: int = 80) -> list:
                else f"E* within {within_percent(acc)}: too uncertain for a percentage to the last digit")
         rows.append(("gap to optimum", f"{summary['gap_to_optimum_kwh']:+.2f} kWh over E* = {summary['optimum_kwh']:.2f} kWh, "
                      f"{least} in this running time ({why})"))
+    if summary.get("gap_to_optimum_kwh") is not None and summary.get("min_recharge_margin_s") is not None:
+        # (a plan that cycles its air brake: E* holds that descent with the air brake at will)
+        rows.append(("E*", "relaxes the air brake to a continuous force (no cycle): a lower bound"))
     rows += coupler_rows(summary)
+    rows += air_brake_rows(summary)
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
 
@@ -265,6 +269,15 @@ def coupler_rows(summary: dict) -> list[tuple[str, str]]:
             f"{one(com, summary.get('max_coupler_compression_at_m'), 'compression')}"
             + (f"; limit {lim:,.0f} kN" if lim else ""))
     return [("coupler forces", text)]
+
+
+def air_brake_rows(summary: dict) -> list[tuple[str, str]]:
+    """The air brake's cycle of a run that cycles it (an application after a release): its applications and
+    the shortest recharge margin (none for a run that only brakes to limits and the stop)."""
+    n, margin = summary.get("air_applications"), summary.get("min_recharge_margin_s")
+    if n is None or margin is None:
+        return []
+    return [("air brake", f"{n} applications; shortest recharge margin {margin:+.1f} s (recharge {summary['recharge_s']:g} s)")]
 
 
 def sequence_table(runs: list[dict], width: int = 80) -> list:

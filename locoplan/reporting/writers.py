@@ -122,6 +122,9 @@ PROFILE_COLUMNS = ("s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "con
 COUPLER_COLUMNS = ("coupler_tension_kn", "coupler_compression_kn")
 """The largest tensile and the largest compressive force in any coupler of the train in the cell that starts
 at the node [kN] (``physics.couplers``; both >= 0); written for a train of more than one vehicle."""
+AIR_COLUMNS = ("air_brake", "air_event")
+"""The wagons' air brake in the cell that starts at the node (with its cycle): ``applied`` or ``released``, and
+``apply`` where an application begins in that cell, ``release`` where it is released at the node."""
 FILE_COLUMNS = ("limit_file_kmh", "gradient_file_permille")
 """The route file's own limit and gradient at each node, beside ``limit_kmh`` / ``gradient_permille``,
 which are what the train meets: the lowest of the limits under its length (held until the tail clears
@@ -142,7 +145,7 @@ def profile_columns(profile: Profile, route=None) -> tuple[str, ...]:
     """The columns of a profile's CSV: :data:`PROFILE_COLUMNS`, the coupler forces where the profile has them,
     the route file's own values where the route is known."""
     return (PROFILE_COLUMNS + (COUPLER_COLUMNS if profile.coupler_tension_kn is not None else ())
-            + (FILE_COLUMNS if route is not None else ()))
+            + (AIR_COLUMNS if profile.air is not None else ()) + (FILE_COLUMNS if route is not None else ()))
 
 
 def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
@@ -172,17 +175,28 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
             **({} if profile.coupler_tension_kn is None else {
                 "coupler_tension_kn": 0.0 if last else round(float(profile.coupler_tension_kn[plan, c]), 1),
                 "coupler_compression_kn": 0.0 if last else round(float(profile.coupler_compression_kn[plan, c]), 1)}),
+            **({} if profile.air is None else _air_cells(profile.air[plan, c], last)),
             **({} if route is None else {"limit_file_kmh": float(file_limit[k]),
                                          "gradient_file_permille": round(float(file_grade[k]), 4)}),
         })
     return rows
 
 
+def _air_cells(code: int, last: bool) -> dict:
+    """The :data:`AIR_COLUMNS` of a cell from its ``Profile.air`` code."""
+    from ..sim.result import AIR_APPLIED, AIR_ON, AIR_RELEASED
+
+    if last:
+        return {"air_brake": "", "air_event": ""}
+    return {"air_brake": "applied" if code in (AIR_ON, AIR_APPLIED) else "released",
+            "air_event": {AIR_APPLIED: "apply", AIR_RELEASED: "release"}.get(int(code), "")}
+
+
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
                "reason", "running_time_s", "traction_energy_kwh", "recovered_energy_kwh", "net_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
                "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
                "switches", "coasts", "energy_reduction_percent", "max_coupler_tension_kn", "max_coupler_compression_kn",
-               "objective", "n_evaluations", "solve_time_s", "plan")
+               "air_applications", "min_recharge_margin_s", "objective", "n_evaluations", "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per
 run, the ``--json`` summary's fields of the same names (weights split into w_time, w_energy; empty when
 a run has no value, e.g. no running time for a plan that stalls)."""

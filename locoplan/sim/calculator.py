@@ -43,11 +43,12 @@ from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
-from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
+from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL, E_FLOOR,
+                        RELEASE_FLOOR)
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
-from .result import (CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK, STALLED,
-                     STOPPED_SHORT, BatchResult, Profile)
+from .result import (AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
+                     STALLED, STOPPED_SHORT, BatchResult, Profile)
 
 DEFAULT_STEP_M = 50.0
 """Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
@@ -78,6 +79,9 @@ class ModelOptions:
     strict_limits: a plan that coasts (or cruises) up to a limit is infeasible, instead of being held
     at the limit by braking as a driver or speed supervision would (the default). Either way a plan is
     infeasible where even full braking cannot hold the limit.
+    air_cycle: with the air brake, brake with it as the wagons' direct-release valves do (applied, held,
+    released in full, recharged: ``Train.air_cycle``; docs/model.md); False = the air brake as a force the
+    plan may modulate at will (the relaxation E* is computed with).
     """
 
     step_m: float = DEFAULT_STEP_M
@@ -85,6 +89,7 @@ class ModelOptions:
     air_brake: bool = True
     rotating_mass: float | None = None
     strict_limits: bool = False
+    air_cycle: bool = True
 
     @property
     def strip(self) -> bool:
@@ -180,6 +185,10 @@ class TractionCalculator:
         self.electric_brake_speed_kmh, self.electric_brake_kn = train.brake_curve(air=False)
         self.air_brake_speed_kmh, self.air_brake_kn = ((train.air_brake_speed_kmh, train.air_brake_kn)
                                                        if self.options.air_brake else (np.array([0.0, 1.0]), np.zeros(2)))
+        self.air_cycle = (train.air_cycle if self.options.air_brake and self.options.air_cycle
+                          and float(np.max(train.air_brake_kn, initial=0.0)) > 0 else None)
+        """The air brake's cycle the plans are run with (``Train.air_cycle``), None: none (the electric brake
+        alone, or the air brake as a continuous force)."""
         gamma = self.options.rotating_mass
         self.m_eff_t = train.inertial_mass_t if gamma is None else train.mass_t * (1.0 + gamma)
         self.forces = contiguous(Forces(self.m_eff_t, train.traction_speed_kmh, train.traction_kn,
@@ -204,10 +213,21 @@ class TractionCalculator:
         self.gradient_permille = equivalent_gradient_permille(route, mid, train.length_m, self.options.strip)
         self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
         self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
+        # the air brake's build-up time of an application made in each cell [s]
+        self.t_build_s = (self.air_cycle.build_up_s(self.gradient_permille) if self.air_cycle is not None
+                          else np.zeros(len(mid)))
         # 1.0 where traction is allowed, 0.0 in neutral sections and their coasting margins
         self.traction_allowed = np.ones(len(mid))
         for a, b in neutral_spans_m(route, train.length_m if self.options.strip else 0.0):
             self.traction_allowed[(mid > a) & (mid < b)] = 0.0
+        # the first cell from each on whose grade the electric brake alone cannot hold the limit (-1: none): an
+        # application is not released ahead of one the train would reach within the recharge time
+        lim = self.limit_kmh
+        short = (max_force_kn(lim, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
+                 + train_resistance_kn(lim, train.resistance_kn) + self.gravity_kn) < 0.0
+        idx = np.where(short, np.arange(len(mid)), len(mid))
+        nxt = np.minimum.accumulate(idx[::-1])[::-1]
+        self.next_short = np.where(nxt < len(mid), nxt, -1).astype(np.int64)
         e_cell = kinetic_e(self.limit_kmh)
         self.e_limit_cell = e_cell
         self.e_limit_node = np.minimum(np.concatenate([[e_cell[0]], e_cell]), np.concatenate([e_cell, [e_cell[-1]]]))
@@ -227,7 +247,7 @@ class TractionCalculator:
 
     def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray) -> Cells:
         return contiguous(Cells(self.s_m, self.h_m, e_env, self.e_limit_node, self.e_limit_cell, self.traction_allowed,
-                                self.gravity_kn, holds_limit, self.brake_holds_limit))
+                                self.gravity_kn, holds_limit, self.brake_holds_limit, self.t_build_s, self.next_short))
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -458,7 +478,7 @@ class TractionCalculator:
         return frac
 
     def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
-                 recovered: bool = False) -> BatchResult:
+                 recovered: bool = False, release_drop_kmh=None) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
@@ -466,6 +486,8 @@ class TractionCalculator:
         cruise_kmh: optional (n_plans,) cruise speed [km/h] (seed 002's four-stage): traction stops at it
         and cruise holds it, braking if need be (below the limits); coasting is not held to it.
         recovered: compute the energy the electric brake recovers (and so the net energy) without the profile.
+        release_drop_kmh: optional (n_plans,) drop from the air brake's apply speed to its release speed in a
+        cycle [km/h] (with ``air_cycle``); None or <= 0: the rule of ``kernel.cycle_speeds``.
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
         and on request the per-cell profile. A consist with a coupler or force-rate limit has every plan
         checked against it (on the profile, computed for that even when not returned).
@@ -481,10 +503,13 @@ class TractionCalculator:
         if cruise_kmh is not None:
             cap = np.ascontiguousarray(kinetic_e(np.broadcast_to(np.asarray(cruise_kmh, dtype=float), (sw.shape[0],))))
         want = profile or recovered or self.checks_forces
+        drop = np.zeros(sw.shape[0])
+        if release_drop_kmh is not None:
+            drop = np.ascontiguousarray(np.broadcast_to(np.asarray(release_drop_kmh, dtype=float), (sw.shape[0],)))
         if self.backend == "numba":
-            res = self._run_kernel(conditions, sw, want, cap)
+            res = self._run_kernel(conditions, sw, want, cap, drop)
         else:
-            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap)
+            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap, drop)
         if not profile:
             return replace(res, profile=None) if want else res
         if self.vehicle_line is not None:  # the coupler forces of every cell, for the report
@@ -493,7 +518,8 @@ class TractionCalculator:
             res = replace(res, profile=replace(p, coupler_tension_kn=tension, coupler_compression_kn=compression))
         return res
 
-    def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None) -> BatchResult:
+    def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None,
+                    drop: np.ndarray) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
         n, n_cells = sw.shape[0], len(self.h_m)
         starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
@@ -509,16 +535,45 @@ class TractionCalculator:
         t_nodes, v_nodes = np.zeros(shape_nodes), np.zeros(shape_nodes)
         cond = np.zeros(shape_cells, dtype=np.int8)
         trac, brk, event = np.zeros(shape_cells), np.zeros(shape_cells), np.zeros(shape_cells)
+        cyc = self.air_cycle
         plans = Plans(codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n), cruise_e is not None,
-                      bool(self.options.strict_limits), bool(want_profile))
+                      bool(self.options.strict_limits), bool(want_profile), cyc is not None,
+                      float(cyc.recharge_s) if cyc else 0.0, self._min_hold_s, drop)
+        air_at, air_apps = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        air_wait, air_margin = np.empty(n), np.empty(n)
+        air = np.zeros(shape_cells, dtype=np.int8)
         kernels().run_plans(self.cells, self.forces, plans,
-                            Outputs(t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event))
+                            Outputs(t, work, over_at, stop_at, hold_at, fb_at, t_nodes, v_nodes, cond, trac, brk, event,
+                                    air_at, air_wait, air_apps, air_margin, air))
         never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
         prof = (t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None
-        return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw)
+        airs = (never(air_at), air_wait, air_apps, air_margin, air if want_profile else None) if cyc else None
+        return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw, airs)
+
+    @property
+    def _min_hold_s(self) -> float:
+        """The air brake's least hold time [s] as the loops take it (< 0: each application's build-up time)."""
+        cyc = self.air_cycle
+        return -1.0 if cyc is None or cyc.min_hold_s is None else float(cyc.min_hold_s)
+
+    def _cycle_speeds(self, e_hold, k: int, drop: np.ndarray):
+        """``kernel.cycle_speeds`` for every plan at once (the same arithmetic): (e to apply at, e to release at)."""
+        m, fo = self.m_eff_t, self.forces
+        v_h = kmh_from_e(e_hold)
+        a_up = -(running_load_kn(v_h, fo.ra, fo.rb, fo.rc, self.gravity_kn[k])
+                 + _interp(v_h, fo.ev, fo.ef) * self.traction_allowed[k]) / m
+        a_air = _interp(v_h, fo.av, fo.af) / m
+        t_b, t_rec = self.t_build_s[k], self.air_cycle.recharge_s
+        with np.errstate(divide="ignore", invalid="ignore"):
+            over = np.where(a_air > a_up, a_up * a_up * t_b / (2.0 * a_air), a_up * t_b)
+        v_app = np.maximum(v_h - np.maximum(APPLY_MIN_KMH, CYCLE_MARGIN * 3.6 * over), 0.0)
+        d = np.where(drop > 0.0, drop, CYCLE_MARGIN * 3.6 * a_up * t_rec)
+        v_rel = np.maximum(v_app - d, RELEASE_FLOOR * v_app)
+        up = a_up > 0.0
+        return np.where(up, kinetic_e(v_app), np.inf), np.where(up, kinetic_e(v_rel), e_hold)
 
     def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
-                   cruise_e: np.ndarray | None = None) -> BatchResult:
+                   cruise_e: np.ndarray | None = None, drop: np.ndarray | None = None) -> BatchResult:
         n, n_cells = frac.shape[1:]
         m = self.m_eff_t
         # per-cell rows, contiguous, so that each step reads plain vectors
@@ -537,16 +592,17 @@ class TractionCalculator:
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
-            t, work, prof = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap,
-                                       want_profile)
+            t, work, prof, airs = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e,
+                                             cruise_cap, want_profile, np.zeros(n) if drop is None else drop)
         def first_of(flags):
             return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
 
         first_stop = first_of(stop)
         braking_at_stop = fB[np.minimum(first_stop, n_cells - 1), np.arange(n)] > 0
-        return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m)
+        return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
+                             airs)
 
-    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile):
+    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, drop):
         """The distance loop: one pass over the cells, every plan advanced at once."""
         n_cells, n = fT.shape
         h, m, e_env = self.h_m, self.m_eff_t, self.e_envelope
@@ -574,6 +630,32 @@ class TractionCalculator:
         # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
         e_hold_max = e_env * (1 + 1e-9) + 1e-9
         at_rest = np.zeros(n, dtype=bool)  # plans that have come to rest (stalled): verdict made
+        cyc = self.air_cycle
+        if cyc is not None:  # the air brake's cycle (kernel.run_plans): per plan its state
+            t_rec, min_hold = cyc.recharge_s, self._min_hold_s
+            air_on, released, curve_prev, curve_kind = (np.zeros(n, dtype=bool) for _ in range(4))
+            t_app, t_rel, tb_app, hold_app = (np.zeros(n) for _ in range(4))
+            air_at = np.full(n, n_cells, dtype=np.int64)
+            air_wait = np.full(n, np.nan)
+            air_apps = np.zeros(n, dtype=np.int64)
+            air_margin = np.full(n, np.inf)
+            air_prof = np.zeros((n, n_cells), dtype=np.int8) if want_profile else None
+
+            def apply(mask, t_at, state):
+                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge."""
+                wait = t_at - t_rel
+                again = mask & released
+                np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
+                early = again & (wait < t_rec - 1e-9) & (air_at == n_cells)
+                air_at[early] = k
+                air_wait[early] = wait[early]
+                air_apps[mask] += 1
+                air_on[mask] = True
+                curve_kind[mask] = False
+                t_app[mask] = t_at[mask]
+                tb_app[mask] = self.t_build_s[k]
+                hold_app[mask] = min_hold if min_hold >= 0.0 else self.t_build_s[k]
+                state[mask] = AIR_APPLIED
         for k in range(n_cells):
             hk = h[k]
             c0, c1 = e_env[k], e_env[k + 1]
@@ -585,24 +667,71 @@ class TractionCalculator:
                 c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
             v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = full_brake_kn(_interp(v_kmh, ev, ef), _interp(v_kmh, av, af), allowed[k])
+            el_k, air_k = _interp(v_kmh, ev, ef), _interp(v_kmh, av, af)
+            b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
-            hold = np.minimum(np.maximum(load, -b_max), f_max)  # cruise: the force that keeps the speed
-            fk = fK[k]
-            full = fT[k] * f_max
+            fT_k, fk, fB_k, b_use, may_ex = fT[k], fK[k], fB[k], b_max, may_exceed[k]
+            ov = band = None
+            if cyc is not None:
+                b_el = el_k * allowed[k]
+                short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
+                state = np.zeros(n, dtype=np.int8)
+                e_hold = self.e_limit_cell[k] if cruise_e is None else np.minimum(self.e_limit_cell[k], cruise_cap[k])
+                e_hold = np.broadcast_to(e_hold, (n,))
+                e_app, e_r = np.full(n, np.inf), np.zeros(n)
+                if short.any():
+                    e_app, e_r = self._cycle_speeds(e_hold, k, drop)
+                    e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
+                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9)
+                j = self.next_short[k]
+                if rel.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
+                    e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
+                    ahead = ~short & (self.s_m[j] - self.s_m[k] < v * t_rec)
+                    e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, drop)[1]
+                    rel &= np.where(short, e <= e_r, ~ahead | (e <= e_r_j))
+                else:
+                    rel &= ~short | (e <= e_r)
+                if rel.any():
+                    air_on &= ~rel
+                    released |= rel
+                    t_rel = np.where(rel, t, t_rel)
+                    state[rel] = AIR_RELEASED
+                curve_kind &= ~(air_on & ~curve_prev)  # past its curve and still needed: a cycle's now
+                app = ~air_on & ((fB_k > 0.0) | (e >= e_app))
+                applied_b = app & (fB_k > 0.0)
+                if app.any():
+                    apply(app, t, state)
+                state[air_on & (state != AIR_APPLIED)] = AIR_ON
+                t_mid = t + hk / (v + ms_from_e(np.maximum(e_mid, 0.0)) + 1e-12)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
+                lvl = np.where(air_on, ramp, 0.0)
+                ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition
+                # in the cycle's band, or recharging on a descent: held by the electric brake alone (at full
+                # where it cannot hold), whatever the plan's condition
+                band = ~air_on & ((short & (e >= e_r)) | (released & (t - t_rel < t_rec) & (load < 0.0)))
+                both = ov | band
+                fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(band, 1.0, np.where(ov, 0.0, fk)), np.where(ov, 1.0, fB_k)
+                may_ex = may_ex & ~both
+                b_use = b_el + lvl * air_k
+            hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
+            full = fT_k * f_max
             tr = full + fk * np.maximum(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB[k] * b_max + fk * hold - load)
+            e_pred = e + (hk / m) * (full - fB_k * b_use + fk * hold - load)
             if strict:  # by default the train is held at the limit by braking instead
-                over[k] = (e_pred > e_over[k]) & may_exceed[k]
+                over[k] = (e_pred > e_over[k]) & may_ex
             capped = e_pred > c1
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
-                crawl = ~capped & (fB[k] == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
+                crawl = ~capped & (fB_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
+                if band is not None:
+                    crawl &= ~band
             if crawl.any():
-                e_c, t_c, w_c = self._crawl(k, e[crawl], fT[k][crawl], fK[k][crawl], k == last)
+                e_c, t_c, w_c = self._crawl(k, e[crawl], np.broadcast_to(fT_k, (n,))[crawl],
+                                            np.broadcast_to(fk, (n,))[crawl], k == last)
                 e_pred = e_pred.copy()
                 e_pred[crawl] = e_c
             if capped.any():
@@ -637,6 +766,7 @@ class TractionCalculator:
             else:  # at rest before the end of the last cell (coasting up to the stop): short of it
                 stop[k] = crawl & (e_new == E_FLOOR)
                 v_new = ms_from_e(np.maximum(e_new, 0.0))
+            t_start = t.copy()
             if capped.any():
                 # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
                 # depend on the others in its batch)
@@ -655,14 +785,36 @@ class TractionCalculator:
                 w_tr = np.broadcast_to(w_tr, (n,)).copy()
                 w_tr[crawl] = w_c
             work += w_tr
+            if cyc is not None:
+                # following a limit or a braking curve with more than the electric brake: an application too
+                on_cap = np.zeros(n, dtype=bool)
+                if capped.any():
+                    part = capped & (np.asarray(phi) < 1.0)
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        need = np.where(part, -cap_work / (hk * (1.0 - phi)), -np.inf)
+                    on_cap = part & (need > b_el * (1.0 + 1e-9) + 1e-6)
+                new_cap = on_cap & ~air_on
+                if new_cap.any():  # (the braking curves assume a charged brake: not judged by the recharge)
+                    air_apps[new_cap] += 1
+                    air_on[new_cap] = True
+                    curve_kind[new_cap] = True
+                    t_app[new_cap] = t_start[new_cap]
+                    tb_app[new_cap] = self.t_build_s[k]
+                    hold_app[new_cap] = 0.0  # its force follows the curve; released where the curve ends
+                    state[new_cap] = AIR_APPLIED
+                curve_prev = on_cap
+                if want_profile:
+                    air_prof[:, k] = state
             if want_profile:
                 t_nodes[:, k + 1] = t
                 v_nodes[:, k + 1] = kmh(v_new)
                 trac[:, k] = w_tr / hk
-                brk[:, k] = (fB[k] * b_max - fK[k] * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
+                brk[:, k] = (fB_k * b_use - fk * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
                 dominant = np.argmax(frac[:, :, k], axis=0)
                 if not allowed[k]:  # no traction in a neutral section: what was T is coasting
                     dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)
+                if ov is not None:  # the air brake applied: braking; in a cycle's band held by the electric brake
+                    dominant = np.where(ov, CODE["B"], np.where(band & (allowed[k] > 0.0), CODE["K"], dominant))
                 on_cap = capped & (np.asarray(phi) < 0.5)
                 # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
                 falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node
@@ -671,7 +823,8 @@ class TractionCalculator:
                 event[:, k] = np.where(capped & (np.asarray(phi) > 0) & (np.asarray(phi) < 1), self.s_m[k] + phi * hk, np.nan)
             slope = (e_new - e) / hk
             e, v = e_new, v_new
-        return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None)
+        airs = None if cyc is None else (air_at, air_wait, air_apps, air_margin, air_prof)
+        return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None), airs
 
     def _crawl(self, k: int, e: np.ndarray, fT: np.ndarray, fK: np.ndarray, last: bool):
         """Cell ``k`` again for crawling plans, in sub-steps of at most ``CRAWL_STEP_M`` (midpoint rule in
@@ -707,11 +860,15 @@ class TractionCalculator:
             alive &= ~stalled
         return e, t, w
 
-    def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m) -> BatchResult:
+    def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m,
+                 airs=None) -> BatchResult:
         """Each plan's first failure decides its verdict; assemble the typed result.
 
         first_*: (n,) the first cell where the plan broke a limit (strict mode), came to rest, or could not
-        be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest."""
+        be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest.
+        airs: the air brake's cycle (None without): the first cell where it was applied before its recharge
+        was over (n_cells = never), the time since the release there, the applications, the least recharge
+        margin and the per-cell state (or None). Refused so before any other failure, a plan keeps its run."""
         n_cells = len(self.h_m)
         last = n_cells - 1
         e_env = self.e_envelope
@@ -730,6 +887,12 @@ class TractionCalculator:
         reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
                           np.where(first_over == first, LIMIT_EXCEEDED,
                                    np.where(braking_at_stop | short, STOPPED_SHORT, STALLED)))).astype(np.int8)
+        air_refused = np.zeros(len(first), dtype=bool)
+        if airs is not None:
+            air_refused = (airs[0] < first) & (self.impossible is None)
+            never = np.isin(reason, NEVER_ARRIVED) & failed
+            reason = np.where(air_refused, AIR_RECHARGE, reason).astype(np.int8)
+            cell = np.where(air_refused, airs[0], cell)
         if self.impossible is not None:  # no plan keeps the limits: every one fails where the route does
             first = np.minimum(first, self._impossible_cell)
             failed = np.ones_like(failed)
@@ -739,7 +902,10 @@ class TractionCalculator:
             unholdable = np.zeros_like(unholdable)
             short = np.zeros_like(short)
         at_node = np.where((cannot_hold & ~unholdable) | short, cell, cell + 1)
-        fail_at = np.where(failed, self.s_m[at_node], np.nan)
+        at_node = np.where(air_refused, cell, at_node)  # (the application was made at the cell's start)
+        failed_run = failed.copy()  # failed in the run itself (its profile ends there)
+        failed = failed | air_refused
+        fail_at = np.where(failed, self.s_m[np.minimum(at_node, n_cells)], np.nan)
         profile = recovered = force = None
         if want_profile:
             for j in range(switches_m.shape[1]):  # a plan's own switch is an event of its cell
@@ -753,7 +919,10 @@ class TractionCalculator:
             # before the cell where it broke or could not hold a limit): what follows is not a run
             stopped = (reason == STALLED) | (reason == STOPPED_SHORT) | (reason == IMPOSSIBLE)
             end = np.where(failed, np.where(stopped, cell + 1, np.minimum(first, at_node)), n_cells)
-            for i in np.flatnonzero(failed):
+            if airs is not None:  # refused for its recharge: the run up to its own failure, if any
+                stopped_run = (first_stop == first) & failed_run
+                end = np.where(air_refused, np.where(failed_run, np.where(stopped_run, first + 1, first), n_cells), end)
+            for i in np.flatnonzero(failed & (end < n_cells)):
                 t_nodes[i, end[i] + 1:] = np.nan
                 v_nodes[i, end[i] + 1:] = np.nan
                 trac[i, end[i]:] = np.nan
@@ -767,9 +936,16 @@ class TractionCalculator:
                 cell = np.where(refused, np.minimum(k, last), cell)
                 fail_at = np.where(refused, 0.5 * (self.s_m[cell] + self.s_m[cell + 1]), fail_at)
                 force = value
-            profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event)
+            air_prof = None if airs is None else airs[4]
+            if air_prof is not None:
+                for i in np.flatnonzero(failed & (end < n_cells)):
+                    air_prof[i, end[i]:] = -1
+            profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event,
+                              air=air_prof)
             recovered = self.recovered_energy_kwh(v_nodes, brk)
         t = np.where(np.isin(reason, NEVER_ARRIVED), np.nan, t)  # never arrived
+        if airs is not None:
+            t = np.where(never, np.nan, t)
         lim = self.limit_kmh[cell]
         return BatchResult(running_time_s=t, traction_energy_kwh=kwh(work), feasible=reason == OK,
                            reason_code=reason, failure_m=fail_at, profile=profile,
@@ -777,4 +953,7 @@ class TractionCalculator:
                            failure_gradient_permille=np.where(failed, self.gradient_permille[cell], np.nan),
                            failure_brake_kn=np.where(failed, self.brake_kn_at(lim, cell), np.nan),
                            impossible=self.impossible, recovered_energy_kwh=recovered, failure_force=force,
-                           force_limits=(self.train.coupler_limit_kn, self.train.force_rate_limit_kn_per_s))
+                           force_limits=(self.train.coupler_limit_kn, self.train.force_rate_limit_kn_per_s),
+                           **({} if airs is None else dict(
+                               air_applications=airs[2], air_margin_s=airs[3],
+                               air_wait_s=np.where(air_refused, airs[1], np.nan), recharge_s=self.air_cycle.recharge_s)))

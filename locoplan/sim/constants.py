@@ -14,3 +14,17 @@ stalls (a plan passed on 50 m cells and stalled on 25 m ones); the sub-steps set
 CRAWL_STEP_M = 5.0
 E_CRAWL = kinetic_e(CRAWL_KMH)
 """``CRAWL_KMH`` as e = v^2/2 [m^2/s^2]."""
+
+# The air brake's cycle on a long descent (``kernel.run_plans``, ``calculator._loop``; docs/model.md).
+CYCLE_MARGIN = 1.25
+"""Safety factor of the cycle's rules: the release speed lies this many times the recharge time's speed gain
+(full electric brake, the grade of the application) below the apply speed, and the apply speed this many
+times the build-up's overshoot below the limit."""
+APPLY_MIN_KMH = 1.0
+"""The apply speed lies at least this far below the limit (or the cruise speed) it keeps [km/h]."""
+RELEASE_FLOOR = 0.5
+"""The release speed is at least this share of the apply speed (a deeper cycle is not driven: where the
+recharge needs more, the next application comes too early and the plan is refused)."""
+AIR_OFF, AIR_ON, AIR_APPLIED, AIR_RELEASED = 0, 1, 2, 3
+"""The air brake's state in a cell of a profile: released, applied, applied in this cell (an application
+begins here), released at this cell's start (a release)."""

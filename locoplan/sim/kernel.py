@@ -20,7 +20,8 @@ from numba import njit
 from ..model.conditions import B, C, K, T
 from ..physics import braking, resistance, units
 from ..physics.units import KMH2_PER_E
-from .constants import CRAWL_STEP_M, E_CRAWL, E_FLOOR
+from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL,
+                        E_FLOOR, RELEASE_FLOOR)
 
 # the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
 full_brake_kn = njit(cache=True)(braking.full_brake_kn)
@@ -30,6 +31,7 @@ kmh_from_e = njit(cache=True)(units.kmh_from_e)
 ms_from_e = njit(cache=True)(units.ms_from_e)
 e_from_ms = njit(cache=True)(units.e_from_ms)
 kmh = njit(cache=True)(units.kmh)
+kinetic_e = njit(cache=True)(units.kinetic_e)
 
 
 @njit(cache=True, _nrt=False)
@@ -81,6 +83,28 @@ def _crawl_accel(e, fT, fK, g_k, allowed_k, fo):
     load = load_kn(v_kmh, g_k, fo)
     hold = min(max(load, -b_max), f_max)
     return (fT * f_max + fK * hold - load) / fo.m, fT * f_max + fK * max(hold, 0.0)
+
+
+@njit(cache=True, _nrt=False)
+def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, drop_kmh, fo):
+    """The air brake's cycle under a speed ``e_hold`` (a limit, a cruise speed) in a cell of gravity force
+    ``g_k``: (e at which to apply, e at which to release). With a_up the train's acceleration at that speed
+    under the full electric brake and a_air the air brake's deceleration, the apply speed lies below it by
+    the build-up's overshoot a_up^2 t_b / (2 a_air) (a_up t_b if the air cannot stop the rise) times
+    ``CYCLE_MARGIN``, at least ``APPLY_MIN_KMH``; the release speed lies ``drop_kmh`` below the apply speed, or
+    by the rule (``drop_kmh`` <= 0) ``CYCLE_MARGIN`` x a_up x ``t_rec`` (the train regains the apply speed no
+    sooner than the recharge is over), at least ``RELEASE_FLOOR`` x the apply speed. Where the electric brake
+    holds that speed (a_up <= 0) nothing needs applying: (inf, e_hold)."""
+    v_h = kmh_from_e(e_hold)
+    a_up = -(load_kn(v_h, g_k, fo) + _interp(v_h, fo.ev, fo.ef) * allowed_k) / fo.m
+    if a_up <= 0.0:
+        return np.inf, e_hold
+    a_air = _interp(v_h, fo.av, fo.af) / fo.m
+    over = a_up * a_up * t_b / (2.0 * a_air) if a_air > a_up else a_up * t_b
+    v_app = max(v_h - max(APPLY_MIN_KMH, CYCLE_MARGIN * 3.6 * over), 0.0)
+    drop = drop_kmh if drop_kmh > 0.0 else CYCLE_MARGIN * 3.6 * a_up * t_rec
+    v_rel = max(v_app - drop, RELEASE_FLOOR * v_app)
+    return kinetic_e(v_app), kinetic_e(v_rel)
 
 
 @njit(cache=True, _nrt=False)
@@ -148,6 +172,20 @@ def run_plans(ce_, fo, pl, out):
     and held there by braking if need be. The electric brake is cut with traction where ``allowed`` is 0
     (a neutral section's span). ``brake_holds`` (per cell): full braking holds the limit there (else the
     envelope, which the train follows under full braking, lies below it).
+
+    With ``pl.cycle`` the wagons' air brake is an application of its own (docs/model.md, 'the air brake's
+    cycle'): made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric
+    brake alone cannot hold (``cycle_speeds``), or where following a limit or a braking curve takes more than
+    the electric brake; its force builds up linearly over the cell's ``t_build``; while it is on the train
+    brakes with it and the full electric brake, whatever the plan's condition (and between its release and the
+    apply speed on such a grade, or while it recharges on a descent, with the electric brake alone, holding
+    the speed where that suffices); it is released in full (at a
+    cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed, or where
+    the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the distance the
+    train covers in the recharge time (else at that grade's release speed); applied again (in a cycle, or to brake) before ``recharge_s`` has passed
+    since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
+    bounded by full braking as without the cycle; such an application is counted and released where the curve
+    ends, not held, and not judged by the recharge (the braking envelope assumes a charged brake).
     """
     s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
     holds_limit, brake_holds = ce_.holds_limit, ce_.brake_holds
@@ -156,6 +194,9 @@ def run_plans(ce_, fo, pl, out):
     has_cruise, strict, want_profile = pl.has_cruise, pl.strict, pl.want_profile
     t_out, work_out, over_at, stop_at, hold_at, fb_at = out.t, out.work, out.over_at, out.stop_at, out.hold_at, out.fb_at
     t_nodes, v_nodes, cond, trac, brk, event = out.t_nodes, out.v_nodes, out.cond, out.trac, out.brk, out.event
+    cycle, t_rec, min_hold, drop, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, pl.release_drop_kmh, ce_.t_build
+    next_short = ce_.next_short
+    air_at, air_wait, air_apps, air_margin, air_state = out.air_at, out.air_wait, out.air_apps, out.air_margin, out.air
     n = starts.shape[0]
     n_cells = h.shape[0]
     last = n_cells - 1
@@ -171,6 +212,20 @@ def run_plans(ce_, fo, pl, out):
         hold_at[i] = -1
         fb_at[i] = 0
         slope = 0.0
+        air_at[i] = -1
+        air_wait[i] = np.nan
+        air_apps[i] = 0
+        air_margin[i] = np.inf
+        air_on = False
+        released = False
+        t_app = 0.0
+        t_rel = 0.0
+        tb_app = 0.0
+        hold_app = 0.0
+        curve_prev = False
+        curve_kind = False
+        b_el = 0.0
+        e_r = 0.0
         for k in range(n_cells):
             j0 = _shares(s[k], s[k + 1], codes, starts[i], ends[i], j0, shares)
             fT, fK, fC, fB = shares[T], shares[K], shares[C], shares[B]
@@ -195,21 +250,85 @@ def run_plans(ce_, fo, pl, out):
                 c1 = ce
             v_kmh = math.sqrt(max(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            b_max = brake_kn(v_kmh, allowed[k], fo)
+            el_k = _interp(v_kmh, fo.ev, fo.ef)
+            air_k = _interp(v_kmh, fo.av, fo.af)
+            b_max = full_brake_kn(el_k, air_k, allowed[k])  # (brake_kn, its two curves kept for the cycle)
             load = load_kn(v_kmh, grav[k], fo)
-            hold = min(max(load, -b_max), f_max)
+            b_use = b_max  # what braking and holding may use
+            state = AIR_OFF
+            ov = False
+            band = False
+            if cycle:
+                b_el = el_k * allowed[k]
+                short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
+                e_hold = e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
+                if has_cruise and fC == 0.0 and cruise_e[i] < e_hold:
+                    e_hold = cruise_e[i]
+                e_app = np.inf
+                e_r = 0.0
+                if short:
+                    e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)
+                e_rel_now = e_r if short else np.inf
+                j = next_short[k]
+                if not short and air_on and j >= 0 and s[j] - s[k] < v * t_rec:
+                    # a grade it cannot hold within the recharge: kept on until its release speed there
+                    e_hold_j = e_limit_cell[j]
+                    if has_cruise and fC == 0.0 and cruise_e[i] < e_hold_j:
+                        e_hold_j = cruise_e[i]
+                    e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, drop[i], fo)[1]
+                if (air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9
+                        and e <= e_rel_now):
+                    air_on = False
+                    released = True
+                    t_rel = t
+                    state = AIR_RELEASED
+                elif air_on and curve_kind and not curve_prev:  # past its curve and still needed: a cycle's now
+                    curve_kind = False
+                applied_b = False
+                if not air_on and (fB > 0.0 or e >= e_app):
+                    if released:
+                        wait = t - t_rel
+                        if wait - t_rec < air_margin[i]:
+                            air_margin[i] = wait - t_rec
+                        if wait < t_rec - 1e-9 and air_at[i] < 0:
+                            air_at[i] = k
+                            air_wait[i] = wait
+                    air_apps[i] += 1
+                    air_on = True
+                    curve_kind = False
+                    applied_b = fB > 0.0
+                    t_app = t
+                    tb_app = t_build[k]
+                    hold_app = min_hold if min_hold >= 0.0 else tb_app
+                    state = AIR_APPLIED
+                lvl = 0.0
+                if air_on:
+                    if state != AIR_APPLIED:
+                        state = AIR_ON
+                    t_mid = t + hk / (v + ms_from_e(max(e_mid, 0.0)) + 1e-12)
+                    lvl = 1.0 if tb_app <= 0.0 else min(max((t_mid - t_app) / tb_app, 0.0), 1.0)
+                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition
+                        fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                        ov = True
+                elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
+                    # in the cycle's band, or recharging on a descent: held by the electric brake alone (at
+                    # full where it cannot hold), whatever the plan's condition
+                    fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0
+                    band = True
+                b_use = b_el + lvl * air_k
+            hold = min(max(load, -b_use), f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB * b_max + fK * hold - load)
+            e_pred = e + (hk / m) * (full - fB * b_use + fK * hold - load)
             if strict and over_at[i] < 0:
-                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0:
+                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
                     over_at[i] = k
             capped = e_pred > c1
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = ((not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
-                     and stop_at[i] < 0)
+                     and stop_at[i] < 0 and not band)
             t_crawl = 0.0
             w_crawl = 0.0
             if crawl:
@@ -241,6 +360,7 @@ def run_plans(ce_, fo, pl, out):
                 v_new = ms_from_e(e_new)
             else:
                 v_new = ms_from_e(max(e_new, 0.0))
+            t_start = t
             if capped:
                 om = 1.0 - phi
                 v_phi = ms_from_e(max(e_phi, 0.0))
@@ -256,11 +376,28 @@ def run_plans(ce_, fo, pl, out):
                 t += (2.0 * hk) / (v + v_new + 1e-12)
                 w_tr = tr * hk
             work += w_tr
+            if cycle:
+                # following a limit or a braking curve with more than the electric brake: an application too
+                on_cap = False
+                if capped and phi < 1.0:
+                    need = -cap_work / (hk * (1.0 - phi))
+                    on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
+                if on_cap and not air_on:  # (the braking curves assume a charged brake: not judged by the recharge)
+                    air_apps[i] += 1
+                    air_on = True
+                    curve_kind = True
+                    t_app = t_start
+                    tb_app = t_build[k]
+                    hold_app = 0.0  # its force follows the curve; released where the curve ends
+                    state = AIR_APPLIED
+                curve_prev = on_cap
+                if want_profile:
+                    air_state[i, k] = state
             if want_profile:
                 t_nodes[i, k + 1] = t
                 v_nodes[i, k + 1] = kmh(v_new)
                 trac[i, k] = w_tr / hk
-                brk[i, k] = (fB * b_max - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
+                brk[i, k] = (fB * b_use - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
                 dom = 0
                 best = shares[0]
                 for c in range(1, 4):
@@ -269,6 +406,10 @@ def run_plans(ce_, fo, pl, out):
                         dom = c
                 if allowed[k] == 0.0 and dom == T:  # no traction in a neutral section: coasting
                     dom = C
+                if ov:  # the air brake applied: braking
+                    dom = B
+                elif band and allowed[k] > 0.0:  # in a cycle's band, held by the electric brake: cruise
+                    dom = K
                 if capped and phi < 0.5:
                     # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
                     # (B); on a level cap it holds the limit (K)

@@ -33,8 +33,10 @@ class Cells(NamedTuple):
     """The calculator's grid: node positions ``s`` [m], cell lengths ``h``, the braking envelope ``e_env``
     and the limits (``e_limit_node``, ``e_limit_cell``) as e = v^2/2 [m^2/s^2], ``allowed`` (1 where the
     catenary feeds traction and the electric brake), ``grav`` the cell's gravity force [kN],
-    ``holds_limit`` (the cell's cap is its limit, to be held) and ``brake_holds`` (full braking holds the
-    limit there)."""
+    ``holds_limit`` (the cell's cap is its limit, to be held), ``brake_holds`` (full braking holds the
+    limit there), ``t_build`` the air brake's build-up time [s] of an application made in the cell and
+    ``next_short`` the first cell from this one on whose grade the electric brake alone cannot hold the limit
+    (-1: none)."""
 
     s: np.ndarray
     h: np.ndarray
@@ -45,12 +47,17 @@ class Cells(NamedTuple):
     grav: np.ndarray
     holds_limit: np.ndarray
     brake_holds: np.ndarray
+    t_build: np.ndarray
+    next_short: np.ndarray
 
 
 class Plans(NamedTuple):
     """A batch of plans sharing one condition sequence: ``codes`` (n_runs,), where each run starts and
     ends (n, n_runs) [m, inf = never], the cruise speed's e per plan (with ``has_cruise``), whether a plan
-    coasting up to a limit is infeasible (``strict``), and whether to write the profile."""
+    coasting up to a limit is infeasible (``strict``), and whether to write the profile. ``cycle``: the wagons'
+    air brake is direct-release (applied, held, released in full, recharged: ``recharge_s`` after a release
+    before the next application, held at least ``min_hold_s``, < 0 = its build-up time); per plan the drop
+    from the apply speed to the release speed [km/h] (<= 0: the calculator's rule)."""
 
     codes: np.ndarray
     starts: np.ndarray
@@ -59,12 +66,20 @@ class Plans(NamedTuple):
     has_cruise: bool
     strict: bool
     want_profile: bool
+    cycle: bool
+    recharge_s: float
+    min_hold_s: float
+    release_drop_kmh: np.ndarray
 
 
 class Outputs(NamedTuple):
     """What ``run_plans`` writes per plan: time [s], traction work [kJ], the first cell of each failure
     (-1 = never) and whether it was braking where it came to rest; per plan and node / cell (written only
-    with ``want_profile``, else (1, 1) placeholders) the time, speed, condition, forces and events."""
+    with ``want_profile``, else (1, 1) placeholders) the time, speed, condition, forces and events. The air
+    brake's cycle per plan: the first cell where it is applied before its recharge is over (-1 = never) and
+    the time since its release there [s], its applications and the least recharge margin [s] (time between a
+    release and the next application less the recharge time; inf without a re-application); per cell
+    (profile) its state (``AIR_*`` codes of ``sim.result``)."""
 
     t: np.ndarray
     work: np.ndarray
@@ -78,6 +93,11 @@ class Outputs(NamedTuple):
     trac: np.ndarray
     brk: np.ndarray
     event: np.ndarray
+    air_at: np.ndarray
+    air_wait: np.ndarray
+    air_apps: np.ndarray
+    air_margin: np.ndarray
+    air: np.ndarray
 
 
 class DPCells(NamedTuple):
@@ -148,9 +168,10 @@ class IPMLayout(NamedTuple):
 _F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
 FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
-    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]"),
-    Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B),
-    Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2),
+    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1, "i8[:]"),
+    Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B, _B, _F, _F, _A1),
+    Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
+              "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),

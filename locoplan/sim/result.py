@@ -8,15 +8,18 @@ import numpy as np
 
 from ..model.conditions import CODE, CONDITIONS  # noqa: F401  (the codes of ``Profile.condition``)
 
-OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, COUPLER_LIMIT, FORCE_RATE = 0, 1, 2, 3, 4, 5, 6, 7
+from .constants import AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED  # noqa: F401  (the codes of ``Profile.air``)
+
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, COUPLER_LIMIT, FORCE_RATE, AIR_RECHARGE = range(9)
 REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",
            CANNOT_HOLD: "full braking cannot hold the limit",
            IMPOSSIBLE: "no entry speed keeps the limit under full braking",
            COUPLER_LIMIT: "coupler force over the consist's limit",
-           FORCE_RATE: "force changes faster than the consist's limit"}
+           FORCE_RATE: "force changes faster than the consist's limit",
+           AIR_RECHARGE: "air brake applied again before its recharge is over"}
 NEVER_ARRIVED = (STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE)
 """Failures after which the train does not reach the stop (no running time); a plan refused for its coupler
-forces or its force rate runs to the end and keeps its time and energy."""
+forces, its force rate or its air brake's recharge runs to the end and keeps its time and energy."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,10 @@ class Profile:
     coupler_compression_kn: np.ndarray | None = None
     """(n_plans, n_cells): the largest tensile and the largest compressive force [kN] (both >= 0) in any
     coupler of the train in each cell (``physics.couplers``); None for a train of one vehicle."""
+    air: np.ndarray | None = None
+    """(n_plans, n_cells) int8: the wagons' air brake in each cell (``AIR_OFF``, ``AIR_ON``, ``AIR_APPLIED`` =
+    an application begins in the cell, ``AIR_RELEASED`` = released at the cell's start); None without the
+    air brake's cycle (the electric brake alone, or the air brake as a continuous force)."""
 
     def plan(self, i: int) -> "Profile":
         """The profile of plan ``i`` alone (rows kept 2-D)."""
@@ -55,7 +62,7 @@ class Profile:
 
         return Profile(self.s_m, self.t_s[sl], self.v_kmh[sl], self.condition[sl], self.traction_kn[sl],
                        self.brake_kn[sl], self.limit_kmh, self.gradient_permille, rows(self.event_m),
-                       rows(self.coupler_tension_kn), rows(self.coupler_compression_kn))
+                       rows(self.coupler_tension_kn), rows(self.coupler_compression_kn), rows(self.air))
 
 
 @dataclass(frozen=True)
@@ -82,6 +89,15 @@ class BatchResult:
     (``COUPLER_LIMIT``, ``FORCE_RATE``), NaN for the others."""
     force_limits: tuple[float | None, float | None] = (None, None)
     """The consist's coupler limit [kN] and force-rate limit [kN/s] the plans were checked against."""
+    air_applications: np.ndarray | None = None
+    """Applications of the air brake per plan (with its cycle; None without)."""
+    air_margin_s: np.ndarray | None = None
+    """The least recharge margin per plan [s]: the shortest time between a release and the next application
+    less the recharge time (< 0: refused, ``AIR_RECHARGE``; inf: no application follows a release)."""
+    air_wait_s: np.ndarray | None = None
+    """Time from the release to the application that refused a plan [s] (``AIR_RECHARGE``; NaN otherwise)."""
+    recharge_s: float | None = None
+    """The recharge time the plans were held to [s] (with the air brake's cycle)."""
 
     @property
     def net_energy_kwh(self) -> np.ndarray | None:
@@ -137,6 +153,10 @@ class BatchResult:
         if code == FORCE_RATE:
             return (f"traction less braking changes at {float(self.failure_force[i]):,.0f} kN/s, over the consist's "
                     f"limit {self.force_limits[1]:,.0f} kN/s, at {where:,.0f} m")
+        if code == AIR_RECHARGE:
+            wait = float(self.air_wait_s[i])
+            return (f"air brake applied again {wait:.0f} s after its release, before its recharge of {self.recharge_s:.0f} s "
+                    f"was over, at {where:,.0f} m{on}: the cycle cannot hold the speed there")
         if code == STALLED:
             return f"stalled at {where:,.0f} m{on}"
         return f"did not stop at the end: came to rest at {where:,.0f} m"
