@@ -1106,6 +1106,12 @@ def _partial_folder_cases(cases: list[Case], good_route: str, tmp: Path) -> None
                       forbid=(live.name, unmarked.name)))
 
 
+MID_RUN_TIMES = list(range(200, 305, 5))
+"""The planned times of the mid-run store cases' batch (x 2 strategies): enough runs that the batch is still
+writing well after its first commit, when the watching thread acts (6 runs had all been written within the
+thread's 50 ms poll once the calculator got faster)."""
+
+
 def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     """The store while a batch writes to it (a thread acts once the first run is committed): made read-only (the
     open file stays writable, so the batch completes and keeps every run), removed, or replaced by another store
@@ -1118,7 +1124,9 @@ def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -
     from locoplan.runs.store import Store
 
     study = write("store_mid_run_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
-                                              "times: [200, 210, 220]\nstrategies: [time-saving, four-stage]\n")
+                                              f"times: [{', '.join(str(t) for t in MID_RUN_TIMES)}]\n"
+                                              "strategies: [time-saving, four-stage]\n")
+    n_runs = 2 * len(MID_RUN_TIMES)
     folder = tmp / "stores" / "mid_run"
     if folder.exists():
         folder.chmod(0o755)
@@ -1136,7 +1144,7 @@ def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -
         def during():
             deadline = time.monotonic() + TIME_LIMIT_S
             while committed(path) < 1 and time.monotonic() < deadline:
-                time.sleep(0.05)
+                time.sleep(0.01)
             act()
         return during
 
@@ -1149,9 +1157,9 @@ def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -
     def all_kept():
         folder.chmod(0o755)
         n = committed(ro)
-        return None if n == 6 else f"{n} runs in the store, expected 6"
+        return None if n == n_runs else f"{n} runs in the store, expected {n_runs}"
     cases.append(Case("batch_store_made_read_only_mid_run", "store", ["batch", study, "--store", str(ro), "--workers", "1",
-                                                                       "--quiet", "--json"], 0, (), expect_out=('"runs": 6',),
+                                                                       "--quiet", "--json"], 0, (), expect_out=(f'"runs": {n_runs}',),
                       during=once_committed(ro, make_read_only), after=all_kept, permissions=True,
                       note="permissions are checked when a file is opened: the batch goes on and keeps every run"))
     for how in ("removed", "replaced"):

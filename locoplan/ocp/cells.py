@@ -520,7 +520,7 @@ def solve_cells(calc: TractionCalculator, time_s: float, start: np.ndarray | Non
         x0 = prob.start_from_profile(initial_speeds(calc, time_s) if start is None else start)
     if settings is None:  # near an optimum (a start from a solution): the adaptive barrier rule
         near = start is not None or point is not None
-        settings = IPMSettings(mu_strategy="adaptive" if near else "monotone", max_iter=MAX_ITER)
+        settings = IPMSettings(mu_strategy="adaptive" if near else "monotone", max_iter=WARM_MAX_ITER if near else MAX_ITER)
     res = CellIPM(prob, settings).solve(x0, mu_init=mu_init)
     if not res.converged:
         raise InfeasibleError(f"the minimum-energy problem on {len(prob.h)} cells did not converge "
@@ -587,6 +587,11 @@ def warm_point(prob: CellEnergyProblem, sol: CellSolution) -> tuple[np.ndarray, 
 MAX_ITER = 150
 """A solve that has not converged in this many iterations is given up (they converge in 25-80; one that
 ran on to 300 was a warm start that had lost its way, and a cold start then took 40)."""
+WARM_MAX_ITER = 90
+"""A solve started from a neighbouring solution (a coarser grid, another time) that has not converged in
+this many iterations has lost its way: the caller starts it cold (on the 300 km line at 16,252 s the start
+from the 30 m grid reached 150 iterations at an error of 4e-2, 5 s, and the cold start took 71 iterations,
+1.3 s; warm starts that converge take 20-70, one of the journeys' legs 133)."""
 COARSE_STEP_M = 40.0
 """The first grid's longest cell length [m]; the second has half of it."""
 COARSE_MIN_CELLS = 400
@@ -658,11 +663,11 @@ def solve_estar(route, train, options: ModelOptions, time_s: float, *, tol: floa
             calc = cell_calculator(route, train, options, step, coarser=calc)
         calcs.append(calc)
         point = None
-        if prev is not None:  # the coarser grid's (or the neighbouring time's) speeds and forces
+        if prev is not None and prev.result.error <= 1e-6:  # the coarser grid's (or the neighbouring time's) speeds and forces
             point = warm_point(cell_problem(calc, time_s, regen), prev)[0]
         try:
             try:
-                sol = solve_cells(calc, time_s, mu_init=None if prev is None else WARM_MU, point=point, regen=regen)
+                sol = solve_cells(calc, time_s, mu_init=None if point is None else WARM_MU, point=point, regen=regen)
             except InfeasibleError:
                 if point is None:
                     raise
