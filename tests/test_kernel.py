@@ -49,15 +49,20 @@ def test_backends_agree(freight, name, options, hilly):
         b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise)
         if name == "default" and len(seq) > 4:
             assert 0 < b.feasible.sum() < n  # the sample mixes verdicts
-        np.testing.assert_array_equal(a.reason_code, b.reason_code)
         np.testing.assert_allclose(a.failure_m, b.failure_m, equal_nan=True)
-        np.testing.assert_allclose(a.running_time_s, b.running_time_s, rtol=RTOL, equal_nan=True)
-        np.testing.assert_allclose(a.traction_energy_kwh, b.traction_energy_kwh, rtol=RTOL)
-        for field in ("t_s", "v_kmh", "traction_kn", "brake_kn", "event_m"):
-            np.testing.assert_allclose(getattr(a.profile, field), getattr(b.profile, field), rtol=RTOL, atol=1e-9,
-                                       equal_nan=True, err_msg=field)
-        np.testing.assert_array_equal(a.profile.condition, b.profile.condition)
-        _same_cycles(a, b)
+        _same_runs(a, b)
+
+
+def _same_runs(a, b):
+    """Two backends' results of one batch alike: verdicts, times, energies, the profiles and the air brake's cycle."""
+    np.testing.assert_array_equal(a.reason_code, b.reason_code)
+    np.testing.assert_allclose(a.running_time_s, b.running_time_s, rtol=RTOL, equal_nan=True)
+    np.testing.assert_allclose(a.traction_energy_kwh, b.traction_energy_kwh, rtol=RTOL)
+    for field in ("t_s", "v_kmh", "traction_kn", "brake_kn", "event_m"):
+        np.testing.assert_allclose(getattr(a.profile, field), getattr(b.profile, field), rtol=RTOL, atol=1e-9,
+                                   equal_nan=True, err_msg=field)
+    np.testing.assert_array_equal(a.profile.condition, b.profile.condition)
+    _same_cycles(a, b)
 
 
 def _same_cycles(a, b):
@@ -85,14 +90,7 @@ def test_backends_agree_on_air_brake_cycles(heavy_haul):
         X = np.sort(rng.uniform(0, route.length_m, (n, n_sw)), axis=1)
         a = ref.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_drop_kmh=drop)
         b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_drop_kmh=drop)
-        np.testing.assert_array_equal(a.reason_code, b.reason_code)
-        np.testing.assert_allclose(a.running_time_s, b.running_time_s, rtol=RTOL, equal_nan=True)
-        np.testing.assert_allclose(a.traction_energy_kwh, b.traction_energy_kwh, rtol=RTOL)
-        for field in ("t_s", "v_kmh", "traction_kn", "brake_kn", "event_m"):
-            np.testing.assert_allclose(getattr(a.profile, field), getattr(b.profile, field), rtol=RTOL, atol=1e-9,
-                                       equal_nan=True, err_msg=field)
-        np.testing.assert_array_equal(a.profile.condition, b.profile.condition)
-        _same_cycles(a, b)
+        _same_runs(a, b)
         assert (b.air_applications >= 2).sum() > n // 4  # cycles, not single applications
 
 

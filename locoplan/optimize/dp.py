@@ -163,6 +163,22 @@ class PricedDriveSolver:
                 slower_seen = True
             return d
 
+        def bisect(lo, hi, steps, width) -> bool:
+            """Geometric bisection on the price between log prices ``lo`` (too slow) and ``hi`` (too fast), for
+            ``steps`` steps or until the bracket is ``width`` wide; True when a drive came within ``close_s``."""
+            k = 0
+            while k < steps and hi - lo > width:
+                k += 1
+                mid = 0.5 * (lo + hi)
+                d = consider(self.solve(math.exp(mid)))
+                if d is not None and abs(d.time_s - t0_s) <= close_s:
+                    return True
+                if d is None or d.time_s > t0_s:
+                    lo = mid
+                else:
+                    hi = mid
+            return False
+
         if price_hint is not None and price_range[0] < price_hint < price_range[1]:
             # from the hint, steps away from it (doubling) until the time crosses t0_s, then bisection
             bottom, top = math.log(price_range[0]), math.log(price_range[1])
@@ -182,26 +198,10 @@ class PricedDriveSolver:
                 if x in (bottom, top):
                     break
             if lo is not None and hi is not None:
-                while hi - lo > math.log(HINT_CLOSE):
-                    mid = 0.5 * (lo + hi)
-                    d = consider(self.solve(math.exp(mid)))
-                    if d is not None and abs(d.time_s - t0_s) <= close_s:
-                        return best
-                    if d is None or d.time_s > t0_s:
-                        lo = mid
-                    else:
-                        hi = mid
+                bisect(lo, hi, math.inf, math.log(HINT_CLOSE))
                 return best
-        lo, hi = (math.log(p) for p in price_range)
-        for _ in range(n_bisect):
-            mid = 0.5 * (lo + hi)
-            d = consider(self.solve(math.exp(mid)))
-            if d is not None and abs(d.time_s - t0_s) <= close_s:
-                return best
-            if d is None or d.time_s > t0_s:
-                lo = mid
-            else:
-                hi = mid
+        if bisect(*(math.log(p) for p in price_range), n_bisect, 0.0):
+            return best
         # even the lowest price drives too fast? (the bisection never reaches its lower end exactly)
         slowest = (consider(self.solve(price_range[0])) if best is not None and best.time_s < t0_s - 1e-6
                    and not slower_seen else None)
