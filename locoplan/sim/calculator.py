@@ -922,12 +922,15 @@ class TractionCalculator:
             if airs is not None:  # refused for its recharge: the run up to its own failure, if any
                 stopped_run = (first_stop == first) & failed_run
                 end = np.where(air_refused, np.where(failed_run, np.where(stopped_run, first + 1, first), n_cells), end)
+            air_prof = None if airs is None else airs[4]
             for i in np.flatnonzero(failed & (end < n_cells)):
                 t_nodes[i, end[i] + 1:] = np.nan
                 v_nodes[i, end[i] + 1:] = np.nan
                 trac[i, end[i]:] = np.nan
                 brk[i, end[i]:] = np.nan
                 cond[i, end[i]:] = -1
+                if air_prof is not None:
+                    air_prof[i, end[i]:] = -1
             if self.checks_forces:  # refused by the consist's limits, the run itself kept whole
                 code, k, value = self._force_failures(t_nodes, v_nodes, trac, brk, ~failed)
                 refused = code != OK
@@ -936,10 +939,6 @@ class TractionCalculator:
                 cell = np.where(refused, np.minimum(k, last), cell)
                 fail_at = np.where(refused, 0.5 * (self.s_m[cell] + self.s_m[cell + 1]), fail_at)
                 force = value
-            air_prof = None if airs is None else airs[4]
-            if air_prof is not None:
-                for i in np.flatnonzero(failed & (end < n_cells)):
-                    air_prof[i, end[i]:] = -1
             profile = Profile(self.s_m, t_nodes, v_nodes, cond, trac, brk, self.limit_kmh, self.gradient_permille, event,
                               air=air_prof)
             recovered = self.recovered_energy_kwh(v_nodes, brk)
