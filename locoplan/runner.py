@@ -218,6 +218,8 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "sequence": runs_from_profile(prof.s_m, prof.condition[0], 1.0, None if prof.event_m is None else prof.event_m[0]),
         **coupler_summary(train, prof),
         **air_brake_summary(res),
+        "release_margins": [{"from_m": round(a, 1), "to_m": round(b, 1), "margin": round(m, 3)}
+                            for a, b, m in outcome.plan.release_margins] or None,
         **(outcome.extra or {}),
     }
 

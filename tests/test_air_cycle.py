@@ -45,6 +45,12 @@ def a_up(v):
     return (GRAVITY_KN - resistance_kn(v) - 461.0) / 5200
 
 
+def drop_margin(drop_kmh, recharge_s):
+    """The release margin that puts the release ``drop_kmh`` below the apply speed under the 60 km/h limit: the
+    drop is margin x 3.6 a_up(60) x recharge (``kernel.cycle_speeds``); 2 km/h in 60 s: 0.2213."""
+    return drop_kmh / (3.6 * a_up(60) * recharge_s)
+
+
 def descent_line():
     return hand_made_route([(10000, 60.0)], [(2000, 0.0), (9000, -15.0), (10000, 0.0)], 10000)
 
@@ -155,14 +161,14 @@ def test_cycles_on_a_constant_descent(c80x50):
 
 
 def test_applying_again_before_the_recharge_is_refused(c80x50):
-    """The same run with a release only 2 km/h below the apply speed: the application (59.0 km/h) is held its
+    """The same run with a release only 2 km/h below the apply speed (release margin 0.2213): the application (59.0 km/h) is held its
     least 11.97 s, by then the train is at about 59.0 + 3.6 x (a_up t_k - a_air t_k / 2) = 59.0 - 3.3 km/h and
     released (below 57.0 km/h); under the full electric brake it regains 59.0 km/h after
     integral dv / a_up(v) (about 3.6 km/h / 3.6 / 0.0425 m/s^2 = 24 s) < the recharge of 60 s: refused, with
     the time from the release to the application (the hand integral within 3 %) in its reason. The same run
     with the 10 s recharge of a consist that gives one passes; so does the release by the rule."""
     calc = TractionCalculator(descent_line(), c80x50)
-    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_drop_kmh=2.0)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_margin=drop_margin(2.0, RECHARGE_S))
     assert res.reason_code[0] == AIR_RECHARGE and not res.feasible[0]
     assert np.isfinite(res.running_time_s[0])  # refused, its run kept whole
     p = res.profile
@@ -198,7 +204,7 @@ def test_the_cycle_is_set_in_the_consist(tmp_path):
     assert cyc.recharge_s == 10.0 and cyc.min_hold_s == 20.0
     assert cyc.build_up_s([0.0, -15.0]) == pytest.approx([5.0, 5.0])
     calc = TractionCalculator(descent_line(), train)
-    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_drop_kmh=2.0)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_margin=drop_margin(2.0, 10.0))
     assert res.feasible[0], res.reason(0)
     p = res.profile
     apply = np.flatnonzero(p.air[0] == AIR_APPLIED)
@@ -253,6 +259,58 @@ def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):
     for t in t_app:
         before = t_rel[t_rel < t]
         assert not before.size or t - before[-1] >= 90.0 - 1e-6 or math.isclose(t, before[-1])
+    # the optimiser searched both descents' release margins (the -12 and the -11 per mille one) in a second search
+    # from the first one's plans, and kept the better plan: one that carries its margins, or none (the rule's)
+    regions = ctx.calc.cycle_regions_m
+    assert len(regions) == 2
+    placed = s["release_margins"]
+    assert placed is None or ([r["from_m"] for r in placed] == pytest.approx(regions[:, 0])
+                              and all(0.25 <= r["margin"] <= 4.0 for r in placed))
+    plan = out.outcome.plan
+    again = ctx.calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
+    assert again.running_time_s[0] == pytest.approx(s["running_time_s"], abs=0.01)
+    # the rule's margin 1.25 given as a plan's reproduces the rule exactly (the second search starts there); a
+    # margin of 3 (cycles 2.4 times deeper than the rule's) loses time on the descents
+    rule = ctx.calc.evaluate(plan.conditions, plan.switches_m)
+    same = ctx.calc.evaluate(plan.conditions, plan.switches_m, release_margin=[[1.25, 1.25]], margin_regions_m=regions)
+    deep = ctx.calc.evaluate(plan.conditions, plan.switches_m, release_margin=[[3.0, 3.0]], margin_regions_m=regions)
+    assert same.running_time_s[0] == rule.running_time_s[0]
+    assert same.traction_energy_kwh[0] == rule.traction_energy_kwh[0]
+    assert deep.feasible[0] and deep.running_time_s[0] > rule.running_time_s[0] + 10.0
+
+
+def two_descents():
+    """Two 7 km descents at -15 per mille under 60 km/h, 9 km of level between them (more than the 1 km the train
+    covers at 60 km/h in the 60 s recharge): two cycle regions."""
+    return hand_made_route([(27000, 60.0)], [(2000, 0.0), (9000, -15.0), (18000, 0.0), (25000, -15.0), (27000, 0.0)],
+                           27000)
+
+
+def test_each_descent_releases_where_its_margin_says(c80x50):
+    """The release margin of one descent moves that descent's releases only. Margin 3 on the second descent: the
+    release speed lies 3 x 3.6 x a_up(60) x 60 s = 27.1 km/h below the apply speed (59.0 km/h): about 31.9 km/h
+    (below it, as releases are made at a cell's start); the first descent keeps the rule's 1.25 (release above
+    45 km/h), exactly as with no margins given. Both backends alike."""
+    for backend in ("numba", "numpy"):
+        calc = TractionCalculator(two_descents(), c80x50, backend=backend)
+        regions = calc.cycle_regions_m
+        assert len(regions) == 2
+        assert 2000 <= regions[0, 0] < 3000 and 9000 <= regions[0, 1] < 9700  # (the train's 635 m on the grade)
+        assert 18000 <= regions[1, 0] < 19000 and 25000 <= regions[1, 1] < 25700
+        rule = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
+        res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_margin=[[0.0, 3.0]],
+                            margin_regions_m=regions)
+        assert res.feasible[0] and rule.feasible[0], res.reason(0)
+        p, q = res.profile, rule.profile
+        first = p.s_m[:-1] < 12000
+        np.testing.assert_array_equal(p.air[0, first], q.air[0, first])
+        np.testing.assert_allclose(p.v_kmh[0, :-1][first], q.v_kmh[0, :-1][first], rtol=1e-12)
+        rel = np.flatnonzero(p.air[0] == AIR_RELEASED)
+        v_first, v_second = p.v_kmh[0, rel[p.s_m[rel] < 12000]], p.v_kmh[0, rel[(p.s_m[rel] > 18000) & (p.s_m[rel] < 25000)]]
+        drop = 3.0 * 3.6 * a_up(60) * RECHARGE_S
+        assert drop == pytest.approx(27.11, abs=0.01)
+        assert v_first.size >= 2 and (v_first > 45.0).all()
+        assert v_second.size >= 1 and (v_second <= 59.0 - drop + 0.05).all() and (v_second > 59.0 - drop - 3.0).all()
 
 
 @pytest.mark.parametrize("strategy", ["time-saving", "energy-saving", "four-stage", "proposed"])

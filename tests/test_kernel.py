@@ -77,7 +77,7 @@ def _same_cycles(a, b):
 
 def test_backends_agree_on_air_brake_cycles(heavy_haul):
     """The heavy-haul line's 30.5 km at -12 per mille, which the two HXD1s' electric brake cannot hold: random
-    plans (some with a cruise speed, some with their own release drop) cycle the air brake, some are refused
+    plans (some with a cruise speed, some with their own release margin) cycle the air brake, some are refused
     for applying it again before its recharge is over, in both backends alike."""
     route, train = heavy_haul
     ref = TractionCalculator(route, train, backend="numpy")
@@ -85,11 +85,11 @@ def test_backends_agree_on_air_brake_cycles(heavy_haul):
     rng = np.random.default_rng(5)
     n = 40
     for seq, n_sw, cruise, drop in ((("T", "K", "C", "B"), 3, None, None), (("T", "C", "K", "B"), 3, None,
-                                                                            rng.uniform(-2, 12, n)),
+                                                                            rng.uniform(-0.3, 2.5, n)),
                                     (("T", "K", "B"), 2, rng.uniform(50, 80, n), None)):
         X = np.sort(rng.uniform(0, route.length_m, (n, n_sw)), axis=1)
-        a = ref.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_drop_kmh=drop)
-        b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_drop_kmh=drop)
+        a = ref.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_margin=drop)
+        b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_margin=drop)
         _same_runs(a, b)
         assert (b.air_applications >= 2).sum() > n // 4  # cycles, not single applications
 

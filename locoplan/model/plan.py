@@ -18,11 +18,22 @@ class Plan:
 
     conditions: tuple[str, ...]
     starts_m: tuple[float, ...]
+    release_margins: tuple[tuple[float, float, float], ...] = ()
+    """Where the air brake's cycles release, as the optimiser placed them: per descent
+    (``TractionCalculator.cycle_regions_m``) (from_m, to_m, margin), the train regaining the apply speed after a
+    release in ``margin`` recharge times (``sim.kernel.cycle_speeds``); empty: the calculator's rule."""
 
     @property
     def switches_m(self) -> np.ndarray:
         """(1, n_conditions - 1) switching positions, the calculator's batch layout for one plan."""
         return np.array([self.starts_m[1:]], dtype=float)
+
+    def cycle_kwargs(self) -> dict:
+        """The release margins as ``TractionCalculator.evaluate`` takes them ({} for the rule)."""
+        if not self.release_margins:
+            return {}
+        d = np.array(self.release_margins, dtype=float)
+        return {"release_margin": d[None, :, 2], "margin_regions_m": d[:, :2]}
 
     def text(self) -> str:
         return ",".join(c if math.isnan(s) else f"{c}:{round(s, 1):g}" for c, s in zip(self.conditions, self.starts_m))

@@ -1,7 +1,9 @@
 """Seed 002's optimisation problem: switching points of a fixed condition sequence (section 3.2).
 
 Decision vector: the positions [m] where conditions 2.. of the sequence begin (Fig. 8), the final
-braking point excluded (it comes from the stop's braking curve, as in the seed). Fitness (eq. 10-11):
+braking point excluded (it comes from the stop's braking curve, as in the seed); on a line where the air
+brake cycles, then one release margin per descent (where its cycles release: ``regions_m``). Fitness
+(eq. 10-11):
 
     F = w1 |T - T0| / T0 + w2 |E - E_min| / E_min
 
@@ -23,9 +25,17 @@ import numpy as np
 
 from ..errors import InputError, Problem
 from ..sim.calculator import TractionCalculator
+from ..sim.constants import CYCLE_MARGIN
 from ..sim.result import BatchResult
 from .base import Evaluation
 
+
+MARGIN_MIN = 0.25
+MARGIN_MAX = 4.0
+"""The window of a descent's release margin: from a release so high that the train is back at the apply speed
+in a quarter of the recharge time (refused unless the least hold takes it lower) to one four recharges deep."""
+MARGIN_SPREAD = 0.3
+"""The spread of random candidates' release margins around the rule's ``CYCLE_MARGIN``."""
 
 OUTSIDE_WINDOW = 10.0
 """Fitness offset of a plan outside the punctuality window: above any on-time plan's eq. 10 value."""
@@ -61,13 +71,27 @@ class SwitchingProblem:
     around it (normal, a tenth of the distance to the nearer neighbouring switching point) instead of
     uniformly, which keeps most of them feasible on long lines where a uniform draw of 20+ switching
     points almost never is."""
+    regions_m: np.ndarray | None = None
+    """The descents where the air brake cycles ((n_regions, 2) [m], ``TractionCalculator.cycle_regions_m``): each
+    adds a variable after the switching points, the release margin of its cycles (``kernel.cycle_speeds``: the
+    release speed lies so far below the apply speed that the train regains it in this many recharge times), in
+    [``MARGIN_MIN``, ``MARGIN_MAX``]; random candidates draw it around the rule's ``CYCLE_MARGIN`` (normal,
+    ``MARGIN_SPREAD``)."""
     last: BatchResult | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        self.n_switches = len(self.conditions) - 2
+        self.regions_m = np.zeros((0, 2)) if self.regions_m is None else np.asarray(self.regions_m, dtype=float).reshape(-1, 2)
+        self.n_regions = len(self.regions_m)
         self.lower = np.asarray(self.lower, dtype=float)
         self.upper = np.asarray(self.upper, dtype=float)
+        if self.n_regions and len(self.lower) == self.n_switches:  # (a replace() passes them extended already)
+            self.lower = np.concatenate([self.lower, np.full(self.n_regions, MARGIN_MIN)])
+            self.upper = np.concatenate([self.upper, np.full(self.n_regions, MARGIN_MAX)])
+            if self.center is not None:
+                self.center = np.concatenate([np.asarray(self.center, dtype=float), np.full(self.n_regions, CYCLE_MARGIN)])
         self.n_var = len(self.lower)
-        if self.conditions[-1] != "B" or len(self.conditions) - 2 != self.n_var:
+        if self.conditions[-1] != "B" or self.n_var != self.n_switches + self.n_regions:
             raise InputError(Problem("", "sequence", "the sequence must end with B and have one switching point per condition after the first, the final braking point excluded"))
         if np.any(self.upper < self.lower):
             raise InputError(Problem("", "bounds", "a switching point's window is empty (upper < lower)"))
@@ -80,12 +104,19 @@ class SwitchingProblem:
 
     def switches(self, X: np.ndarray) -> np.ndarray:
         """Every switching point of candidates X (n, n_var), the final braking point appended as 'auto' (NaN)."""
-        X = np.atleast_2d(X)
+        X = np.atleast_2d(X)[:, :self.n_switches]
         return np.column_stack([X, np.full(len(X), np.nan)])
+
+    def margins(self, X: np.ndarray) -> dict:
+        """The release margins of candidates X as ``TractionCalculator.evaluate`` takes them ({}: no cycles)."""
+        if not self.n_regions:
+            return {}
+        return {"release_margin": np.atleast_2d(X)[:, self.n_switches:], "margin_regions_m": self.regions_m}
 
     def simulate(self, X: np.ndarray, profile: bool = False) -> BatchResult:
         """Traction calculation of candidates X (n, n_var)."""
-        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile, recovered=self.energy == "net")
+        return self.calc.evaluate(self.conditions, self.switches(X), profile=profile, recovered=self.energy == "net",
+                                  **self.margins(X))
 
     def fitness(self, res: BatchResult) -> np.ndarray:
         e = res.energy_kwh(self.energy)
@@ -113,20 +144,26 @@ class SwitchingProblem:
     def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """Uniform inside each switching point's window (or around ``center``), then repaired (sorted, spaced)."""
         if self.center is not None:
-            c = np.asarray(self.center, dtype=float)
-            edges = np.concatenate([[self.lower[0]], c, [self.upper[-1]]])
-            spread = 0.1 * np.minimum(c - edges[:-2], edges[2:] - c) + 1.0
-            return self.repair(rng.normal(c, spread, size=(n, self.n_var)))
+            n_sw = self.n_switches
+            c = np.asarray(self.center, dtype=float)[:n_sw]
+            edges = np.concatenate([[self.lower[0] if n_sw else 0.0], c, [self.upper[n_sw - 1] if n_sw else 0.0]])
+            spread = np.concatenate([0.1 * np.minimum(c - edges[:-2], edges[2:] - c) + 1.0,
+                                     np.full(self.n_regions, MARGIN_SPREAD)])
+            return self.repair(rng.normal(self.center, spread, size=(n, self.n_var)))
         return self.repair(rng.uniform(self.lower, self.upper, size=(n, self.n_var)))
 
     def repair(self, X: np.ndarray) -> np.ndarray:
-        """Clip to the windows, sort each row, and push points apart to the minimum spacing."""
+        """Clip to the windows, sort each row's switching points, and push them apart to the minimum spacing
+        (the release margins, after them, are only clipped)."""
         X = np.clip(np.atleast_2d(X).astype(float), self.lower, self.upper)
-        X = np.sort(X, axis=1)
+        n_sw = self.n_switches
+        if not n_sw:
+            return X
+        X[:, :n_sw] = np.sort(X[:, :n_sw], axis=1)
         gap = self.min_gap_m
-        for j in range(1, self.n_var):  # forward pass, then a backward pass against the upper bounds
+        for j in range(1, n_sw):  # forward pass, then a backward pass against the upper bounds
             X[:, j] = np.maximum(X[:, j], X[:, j - 1] + gap)
-        X[:, -1] = np.minimum(X[:, -1], self.upper[-1])
-        for j in range(self.n_var - 2, -1, -1):
+        X[:, n_sw - 1] = np.minimum(X[:, n_sw - 1], self.upper[n_sw - 1])
+        for j in range(n_sw - 2, -1, -1):
             X[:, j] = np.minimum(X[:, j], X[:, j + 1] - gap)
         return np.clip(X, self.lower, self.upper)

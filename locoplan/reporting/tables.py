@@ -277,7 +277,14 @@ def air_brake_rows(summary: dict) -> list[tuple[str, str]]:
     n, margin = summary.get("air_applications"), summary.get("min_recharge_margin_s")
     if n is None or margin is None:
         return []
-    return [("air brake", f"{n} applications; shortest recharge margin {margin:+.1f} s (recharge {summary['recharge_s']:g} s)")]
+    rows = [("air brake", f"{n} applications; shortest recharge margin {margin:+.1f} s (recharge {summary['recharge_s']:g} s)")]
+    placed = summary.get("release_margins")
+    if placed:
+        rows.append(("releases", "placed by the optimiser: margin "
+                     + ", ".join(f"{r['margin']:.2f} on {r['from_m']:,.0f} .. {r['to_m']:,.0f} m" for r in placed)
+                     + " (the release speed lies the margin x what the train regains in a recharge time below the"
+                       " apply speed, lower where the least hold takes it)"))
+    return rows
 
 
 def sequence_table(runs: list[dict], width: int = 80) -> list:

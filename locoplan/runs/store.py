@@ -100,7 +100,7 @@ _SUMMARY_TYPES = {
                      "fastest_running_time_s"), _NUMBER),
     **dict.fromkeys(("seed", "n_evaluations", "legs", "stops", "timing_points", "windows"), (int,)),
     **dict.fromkeys(("window_s", "weights", "switching_points_m", "sequence", "windows_missed", "failures", "legs_table",
-                     "stations", "allocations"), (list,)),
+                     "stations", "allocations", "release_margins"), (list,)),
 }
 """The JSON type of each summary field locoplan writes (each may also be null); a stored value of another
 type (text for an energy, a number for a route, ``NaN``) makes the record damaged, so no summary, sort or

@@ -478,7 +478,7 @@ class TractionCalculator:
         return frac
 
     def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
-                 recovered: bool = False, release_drop_kmh=None) -> BatchResult:
+                 recovered: bool = False, release_margin=None, margin_regions_m=None) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
@@ -486,8 +486,12 @@ class TractionCalculator:
         cruise_kmh: optional (n_plans,) cruise speed [km/h] (seed 002's four-stage): traction stops at it
         and cruise holds it, braking if need be (below the limits); coasting is not held to it.
         recovered: compute the energy the electric brake recovers (and so the net energy) without the profile.
-        release_drop_kmh: optional (n_plans,) drop from the air brake's apply speed to its release speed in a
-        cycle [km/h] (with ``air_cycle``); None or <= 0: the rule of ``kernel.cycle_speeds``.
+        release_margin: optional, where the air brake's cycles release (with ``air_cycle``): the release speed lies
+        so far below the apply speed that the train, under the full electric brake, regains the apply speed in
+        this many recharge times (``kernel.cycle_speeds``); (n_plans,) for every cycle, or (n_plans, n_regions)
+        with ``margin_regions_m`` ((n_regions, 2) spans [from, to) [m], e.g. ``cycle_regions_m``: a cell's cycles
+        take the margin of the span holding its midpoint, the rule outside them); None or <= 0: the rule's
+        ``CYCLE_MARGIN``.
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
         and on request the per-cell profile. A consist with a coupler or force-rate limit has every plan
         checked against it (on the profile, computed for that even when not returned).
@@ -503,13 +507,11 @@ class TractionCalculator:
         if cruise_kmh is not None:
             cap = np.ascontiguousarray(kinetic_e(np.broadcast_to(np.asarray(cruise_kmh, dtype=float), (sw.shape[0],))))
         want = profile or recovered or self.checks_forces
-        drop = np.zeros(sw.shape[0])
-        if release_drop_kmh is not None:
-            drop = np.ascontiguousarray(np.broadcast_to(np.asarray(release_drop_kmh, dtype=float), (sw.shape[0],)))
+        margin, region = self._margins(sw.shape[0], release_margin, margin_regions_m)
         if self.backend == "numba":
-            res = self._run_kernel(conditions, sw, want, cap, drop)
+            res = self._run_kernel(conditions, sw, want, cap, margin, region)
         else:
-            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap, drop)
+            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap, margin, region)
         if not profile:
             return replace(res, profile=None) if want else res
         if self.vehicle_line is not None:  # the coupler forces of every cell, for the report
@@ -518,8 +520,46 @@ class TractionCalculator:
             res = replace(res, profile=replace(p, coupler_tension_kn=tension, coupler_compression_kn=compression))
         return res
 
+    def _margins(self, n: int, release_margin, regions_m) -> tuple[np.ndarray, np.ndarray]:
+        """The release margins as the loops take them: (n, n_regions + 1), column 0 the rule's (0), and each
+        cell's column (0 outside every region)."""
+        region = np.zeros(len(self.h_m), dtype=np.int64)
+        if release_margin is None:
+            return np.zeros((n, 1)), region
+        given = np.asarray(release_margin, dtype=float)
+        if regions_m is None:
+            return np.ascontiguousarray(np.column_stack([np.zeros(n), np.broadcast_to(given.reshape(-1), (n,))])), region + 1
+        spans = np.asarray(regions_m, dtype=float).reshape(-1, 2)
+        mid = 0.5 * (self.s_m[1:] + self.s_m[:-1])
+        for r, (a, b) in enumerate(spans):
+            region[(mid >= a) & (mid < b)] = r + 1
+        given = np.broadcast_to(given.reshape(given.shape[0] if given.ndim == 2 else 1, -1), (n, len(spans)))
+        return np.ascontiguousarray(np.column_stack([np.zeros(n), given])), region
+
+    @cached_property
+    def cycle_regions_m(self) -> np.ndarray:
+        """Where the air brake cycles (with ``air_cycle``): (n_regions, 2) spans [from, to) [m] of the descents
+        whose grade the electric brake alone cannot hold at the limit, one span per descent (two such grades
+        less than the recharge time apart at the limit are one descent). An optimiser places each span's release
+        speeds (``evaluate(release_margin=, margin_regions_m=)``)."""
+        if self.air_cycle is None:
+            return np.zeros((0, 2))
+        short = self.next_short == np.arange(len(self.h_m))
+        if not short.any():
+            return np.zeros((0, 2))
+        s = self.s_m
+        idx = np.flatnonzero(short)
+        gap_m = kmh_from_e(self.e_limit_cell[idx]) / 3.6 * self.air_cycle.recharge_s
+        spans = [[s[idx[0]], s[idx[0] + 1]]]
+        for k, g in zip(idx[1:], gap_m[1:]):
+            if s[k] - spans[-1][1] <= g:
+                spans[-1][1] = s[k + 1]
+            else:
+                spans.append([s[k], s[k + 1]])
+        return np.array(spans)
+
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None,
-                    drop: np.ndarray) -> BatchResult:
+                    margin: np.ndarray, region: np.ndarray) -> BatchResult:
         """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
         n, n_cells = sw.shape[0], len(self.h_m)
         starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
@@ -538,7 +578,7 @@ class TractionCalculator:
         cyc = self.air_cycle
         plans = Plans(codes, starts, ends, cruise_e if cruise_e is not None else np.zeros(n), cruise_e is not None,
                       bool(self.options.strict_limits), bool(want_profile), cyc is not None,
-                      float(cyc.recharge_s) if cyc else 0.0, self._min_hold_s, drop)
+                      float(cyc.recharge_s) if cyc else 0.0, self._min_hold_s, margin, region)
         air_at, air_apps = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
         air_wait, air_margin = np.empty(n), np.empty(n)
         air = np.zeros(shape_cells, dtype=np.int8)
@@ -556,7 +596,7 @@ class TractionCalculator:
         cyc = self.air_cycle
         return -1.0 if cyc is None or cyc.min_hold_s is None else float(cyc.min_hold_s)
 
-    def _cycle_speeds(self, e_hold, k: int, drop: np.ndarray):
+    def _cycle_speeds(self, e_hold, k: int, margin: np.ndarray):
         """``kernel.cycle_speeds`` for every plan at once (the same arithmetic): (e to apply at, e to release at)."""
         m, fo = self.m_eff_t, self.forces
         v_h = kmh_from_e(e_hold)
@@ -567,13 +607,14 @@ class TractionCalculator:
         with np.errstate(divide="ignore", invalid="ignore"):
             over = np.where(a_air > a_up, a_up * a_up * t_b / (2.0 * a_air), a_up * t_b)
         v_app = np.maximum(v_h - np.maximum(APPLY_MIN_KMH, CYCLE_MARGIN * 3.6 * over), 0.0)
-        d = np.where(drop > 0.0, drop, CYCLE_MARGIN * 3.6 * a_up * t_rec)
+        d = np.where(margin > 0.0, margin, CYCLE_MARGIN) * 3.6 * a_up * t_rec
         v_rel = np.maximum(v_app - d, RELEASE_FLOOR * v_app)
         up = a_up > 0.0
         return np.where(up, kinetic_e(v_app), np.inf), np.where(up, kinetic_e(v_rel), e_hold)
 
     def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
-                   cruise_e: np.ndarray | None = None, drop: np.ndarray | None = None) -> BatchResult:
+                   cruise_e: np.ndarray | None = None, margin: np.ndarray | None = None,
+                   region: np.ndarray | None = None) -> BatchResult:
         n, n_cells = frac.shape[1:]
         m = self.m_eff_t
         # per-cell rows, contiguous, so that each step reads plain vectors
@@ -593,7 +634,8 @@ class TractionCalculator:
         slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
             t, work, prof, airs = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e,
-                                             cruise_cap, want_profile, np.zeros(n) if drop is None else drop)
+                                             cruise_cap, want_profile, np.zeros((n, 1)) if margin is None else margin,
+                                             np.zeros(n_cells, dtype=np.int64) if region is None else region)
         def first_of(flags):
             return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
 
@@ -602,7 +644,8 @@ class TractionCalculator:
         return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
                              airs)
 
-    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, drop):
+    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, margin,
+              region):
         """The distance loop: one pass over the cells, every plan advanced at once."""
         n_cells, n = fT.shape
         h, m, e_env = self.h_m, self.m_eff_t, self.e_envelope
@@ -680,14 +723,14 @@ class TractionCalculator:
                 e_hold = np.broadcast_to(e_hold, (n,))
                 e_app, e_r = np.full(n, np.inf), np.zeros(n)
                 if short.any():
-                    e_app, e_r = self._cycle_speeds(e_hold, k, drop)
+                    e_app, e_r = self._cycle_speeds(e_hold, k, margin[:, region[k]])
                     e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
                 rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9)
                 j = self.next_short[k]
                 if rel.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
                     e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
                     ahead = ~short & (self.s_m[j] - self.s_m[k] < v * t_rec)
-                    e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, drop)[1]
+                    e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, margin[:, region[j]])[1]
                     rel &= np.where(short, e <= e_r, ~ahead | (e <= e_r_j))
                 else:
                     rel &= ~short | (e <= e_r)

@@ -86,15 +86,15 @@ def _crawl_accel(e, fT, fK, g_k, allowed_k, fo):
 
 
 @njit(cache=True, _nrt=False)
-def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, drop_kmh, fo):
+def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, margin, fo):
     """The air brake's cycle under a speed ``e_hold`` (a limit, a cruise speed) in a cell of gravity force
     ``g_k``: (e at which to apply, e at which to release). With a_up the train's acceleration at that speed
     under the full electric brake and a_air the air brake's deceleration, the apply speed lies below it by
     the build-up's overshoot a_up^2 t_b / (2 a_air) (a_up t_b if the air cannot stop the rise) times
-    ``CYCLE_MARGIN``, at least ``APPLY_MIN_KMH``; the release speed lies ``drop_kmh`` below the apply speed, or
-    by the rule (``drop_kmh`` <= 0) ``CYCLE_MARGIN`` x a_up x ``t_rec`` (the train regains the apply speed no
-    sooner than the recharge is over), at least ``RELEASE_FLOOR`` x the apply speed. Where the electric brake
-    holds that speed (a_up <= 0) nothing needs applying: (inf, e_hold)."""
+    ``CYCLE_MARGIN``, at least ``APPLY_MIN_KMH``; the release speed lies ``margin`` x a_up x ``t_rec`` below the
+    apply speed (the train regains the apply speed in ``margin`` recharge times; the rule, ``margin`` <= 0:
+    ``CYCLE_MARGIN``), at least ``RELEASE_FLOOR`` x the apply speed. Where the electric brake holds that speed
+    (a_up <= 0) nothing needs applying: (inf, e_hold)."""
     v_h = kmh_from_e(e_hold)
     a_up = -(load_kn(v_h, g_k, fo) + _interp(v_h, fo.ev, fo.ef) * allowed_k) / fo.m
     if a_up <= 0.0:
@@ -102,7 +102,7 @@ def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, drop_kmh, fo):
     a_air = _interp(v_h, fo.av, fo.af) / fo.m
     over = a_up * a_up * t_b / (2.0 * a_air) if a_air > a_up else a_up * t_b
     v_app = max(v_h - max(APPLY_MIN_KMH, CYCLE_MARGIN * 3.6 * over), 0.0)
-    drop = drop_kmh if drop_kmh > 0.0 else CYCLE_MARGIN * 3.6 * a_up * t_rec
+    drop = (margin if margin > 0.0 else CYCLE_MARGIN) * 3.6 * a_up * t_rec
     v_rel = max(v_app - drop, RELEASE_FLOOR * v_app)
     return kinetic_e(v_app), kinetic_e(v_rel)
 
@@ -194,7 +194,8 @@ def run_plans(ce_, fo, pl, out):
     has_cruise, strict, want_profile = pl.has_cruise, pl.strict, pl.want_profile
     t_out, work_out, over_at, stop_at, hold_at, fb_at = out.t, out.work, out.over_at, out.stop_at, out.hold_at, out.fb_at
     t_nodes, v_nodes, cond, trac, brk, event = out.t_nodes, out.v_nodes, out.cond, out.trac, out.brk, out.event
-    cycle, t_rec, min_hold, drop, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, pl.release_drop_kmh, ce_.t_build
+    cycle, t_rec, min_hold, margin, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, pl.release_margin, ce_.t_build
+    mreg = pl.margin_region
     next_short = ce_.next_short
     air_at, air_wait, air_apps, air_margin, air_state = out.air_at, out.air_wait, out.air_apps, out.air_margin, out.air
     n = starts.shape[0]
@@ -267,7 +268,7 @@ def run_plans(ce_, fo, pl, out):
                 e_app = np.inf
                 e_r = 0.0
                 if short:
-                    e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, drop[i], fo)
+                    e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, margin[i, mreg[k]], fo)
                 e_rel_now = e_r if short else np.inf
                 j = next_short[k]
                 if not short and air_on and j >= 0 and s[j] - s[k] < v * t_rec:
@@ -275,7 +276,7 @@ def run_plans(ce_, fo, pl, out):
                     e_hold_j = e_limit_cell[j]
                     if has_cruise and fC == 0.0 and cruise_e[i] < e_hold_j:
                         e_hold_j = cruise_e[i]
-                    e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, drop[i], fo)[1]
+                    e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, margin[i, mreg[j]], fo)[1]
                 if (air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9
                         and e <= e_rel_now):
                     air_on = False

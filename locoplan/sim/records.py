@@ -56,8 +56,9 @@ class Plans(NamedTuple):
     ends (n, n_runs) [m, inf = never], the cruise speed's e per plan (with ``has_cruise``), whether a plan
     coasting up to a limit is infeasible (``strict``), and whether to write the profile. ``cycle``: the wagons'
     air brake is direct-release (applied, held, released in full, recharged: ``recharge_s`` after a release
-    before the next application, held at least ``min_hold_s``, < 0 = its build-up time); per plan the drop
-    from the apply speed to the release speed [km/h] (<= 0: the calculator's rule)."""
+    before the next application, held at least ``min_hold_s``, < 0 = its build-up time); per plan and cycle
+    region the release margin (n, n_regions + 1; ``kernel.cycle_speeds``; <= 0: the rule's; column 0 is the
+    rule's, for cells outside every region), and each cell's region (``margin_region``, (n_cells,), 0 = none)."""
 
     codes: np.ndarray
     starts: np.ndarray
@@ -69,7 +70,8 @@ class Plans(NamedTuple):
     cycle: bool
     recharge_s: float
     min_hold_s: float
-    release_drop_kmh: np.ndarray
+    release_margin: np.ndarray
+    margin_region: np.ndarray
 
 
 class Outputs(NamedTuple):
@@ -169,7 +171,7 @@ _F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
 FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
     Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1, "i8[:]"),
-    Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B, _B, _F, _F, _A1),
+    Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B, _B, _F, _F, _A2, "i8[:]"),
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),

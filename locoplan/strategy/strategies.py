@@ -38,6 +38,7 @@ from ..optimize.base import NoFeasibleCandidateError, OptimizerParams
 from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
+from ..sim.constants import CYCLE_MARGIN
 from ..sim.result import BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
 from .general_builder import sequence_from_drive, with_holds
@@ -128,11 +129,24 @@ def evaluate_outcome(calc: TractionCalculator, outcome: StrategyOutcome, profile
     plan = outcome.plan
     cruise = None if outcome.cruise_kmh is None else [outcome.cruise_kmh]
     return (outcome.calc or calc).evaluate(plan.conditions, plan.switches_m, profile=profile, cruise_kmh=cruise,
-                                           recovered=recovered)
+                                           recovered=recovered, **plan.cycle_kwargs())
 
 
-def _plan(conditions, switches) -> Plan:
-    return Plan(tuple(conditions), (0.0, *[float(x) for x in switches], float("nan")))
+def _plan(conditions, switches, problem: SwitchingProblem | None = None) -> Plan:
+    """A plan from an optimiser's vector: its switching points, and with ``problem`` its release margins too."""
+    x = np.asarray(switches, dtype=float).reshape(-1)
+    margins = ()
+    if problem is not None and problem.n_regions:
+        x, d = x[:problem.n_switches], x[problem.n_switches:]
+        margins = tuple((float(a), float(b), float(v)) for (a, b), v in zip(problem.regions_m, d))
+    return Plan(tuple(conditions), (0.0, *[float(v) for v in x], float("nan")), margins)
+
+
+def _cycles(ctx: StrategyContext) -> dict:
+    """A switching problem's air-brake cycles: the descents where the air brake cycles on the reporting grid, the
+    release margin of each a variable of the search."""
+    regions = ctx.calc.cycle_regions_m
+    return {"regions_m": regions} if len(regions) else {}
 
 
 ENERGY_SAVING_ALGORITHM = "issa"
@@ -323,14 +337,11 @@ def _search_grid_for(ctx: StrategyContext, seq) -> TractionCalculator:
     return ctx.search if close else ctx.calc
 
 
-def _punctual(ctx: StrategyContext, conditions, x) -> bool:
-    """Whether plan ``x`` runs within the window on the reporting grid (no window: True)."""
+def _punctual(ctx: StrategyContext, problem: SwitchingProblem, x) -> bool:
+    """Whether ``problem``'s candidate ``x`` runs within the window on the reporting grid (no window: True)."""
     if not ctx.tolerance_s or math.isnan(ctx.t0_s):
         return True
-    x = np.asarray(x, dtype=float)
-    if len(x) == len(conditions) - 2:  # the final brake where the stop's braking curve begins
-        x = np.append(x, np.nan)
-    res = ctx.calc.evaluate(conditions, np.atleast_2d(x))
+    res = replace(problem, calc=ctx.calc).simulate(np.atleast_2d(np.asarray(x, dtype=float)))
     return bool(res.feasible[0]) and abs(float(res.running_time_s[0]) - ctx.t0_s) <= ctx.tolerance_s
 
 
@@ -344,7 +355,8 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         seq = build_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, seq.conditions, seq.lower_m, seq.upper_m, **common)
         result = _optimise(ctx, problem, salt=1)
-        return StrategyOutcome(_plan(seq.conditions, result.best_x), algorithm=ctx.algorithm, history=result.history,
+        problem, result, x = _place_releases(ctx, problem, result, result.best_x)
+        return StrategyOutcome(_plan(seq.conditions, x, problem), algorithm=ctx.algorithm, history=result.history,
                                n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                                e_min_kwh=e_min, time_range_s=problem.time_range_s)
     # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
@@ -380,14 +392,49 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     x0 = np.vstack([seq.nominal_m, seq.nominal_m + jitter])
     result = _optimise(ctx, problem, salt=1, x0=x0)
     x = _confirmed(ctx, problem, result)
-    if search is not ctx.calc and not _punctual(ctx, seq.conditions, x):
+    if search is not ctx.calc and not _punctual(ctx, problem, x):
         # the coarser grid misjudged the time (slow coasting on a long falling line): search again on the
         # reporting grid, from where the first search ended
         problem = replace(problem, calc=ctx.calc)
         again = _optimise(ctx, problem, salt=2, x0=np.vstack([np.atleast_2d(result.best_x), result.population]))
         result = replace(again, n_evaluations=result.n_evaluations + again.n_evaluations)
         x = _confirmed(ctx, problem, result)
-    return StrategyOutcome(_plan(seq.conditions, x), algorithm=ctx.algorithm, history=result.history,
+    problem, result, x = _place_releases(ctx, problem, result, x)
+    return StrategyOutcome(_plan(seq.conditions, x, problem), algorithm=ctx.algorithm, history=result.history,
                            n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
                            e_min_kwh=e_min, time_range_s=problem.time_range_s)
+
+
+def _place_releases(ctx: StrategyContext, problem: SwitchingProblem, result, x):
+    """Where the air brake cycles (``_cycles``): a second search, of the switching points and each descent's
+    release margin together, from the first search's population with the rule's margins (which reproduce its
+    plans exactly); the better of the two plans on the reporting grid is kept. A second search rather than one
+    of them all at once: on a budget the extra variables cost the switching points' search more than they win
+    (measured on the real lines), while this one starts where that search ended. Returns (problem, result, x)
+    of the plan kept; unchanged where the air brake does not cycle."""
+    cycles = _cycles(ctx)
+    if not cycles:
+        return problem, result, x
+    wide = replace(problem, lower=problem.lower[:problem.n_switches], upper=problem.upper[:problem.n_switches],
+                   center=None if problem.center is None else problem.center[:problem.n_switches], **cycles)
+    rule = np.full(wide.n_regions, CYCLE_MARGIN)
+    pop = np.vstack([np.atleast_2d(x), np.atleast_2d(result.best_x)]
+                    + ([result.population] if result.population is not None else []))
+    seeds = np.column_stack([pop, np.broadcast_to(rule, (len(pop), wide.n_regions))])
+    again = _optimise(ctx, wide, salt=4, x0=seeds)
+    x2 = _confirmed(ctx, wide, again)
+    check = replace(wide, calc=ctx.calc)
+    f_rule, f_placed = check.fitness(check.simulate(np.vstack([seeds[0], x2])))
+    merged = replace(again, n_evaluations=result.n_evaluations + again.n_evaluations)
+    if not f_placed < f_rule:
+        return problem, merged, x  # (the rule's margins: the plan carries none)
+    wide.time_range_s = _union(problem.time_range_s, wide.time_range_s)
+    return wide, merged, x2
+
+
+def _union(a, b):
+    """The span of two (lo, hi) time ranges (either may be None)."""
+    if a is None or b is None:
+        return a or b
+    return (min(a[0], b[0]), max(a[1], b[1]))
 
