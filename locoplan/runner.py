@@ -232,7 +232,7 @@ def air_brake_summary(res: BatchResult) -> dict:
         return {"air_applications": None, "min_recharge_margin_s": None, "recharge_s": None}
     margin = float(res.air_margin_s[0])
     return {"air_applications": int(res.air_applications[0]),
-            "min_recharge_margin_s": round(margin, 1) if math.isfinite(margin) else None,
+            "min_recharge_margin_s": round(margin, 1) + 0.0 if math.isfinite(margin) else None,  # (no -0.0)
             "recharge_s": round(float(res.recharge_s), 1)}
 
 

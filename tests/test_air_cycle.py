@@ -181,7 +181,7 @@ def test_applying_again_before_the_recharge_is_refused(c80x50):
         climb += dt
     assert 15.0 < climb < 35.0
     assert res.air_wait_s[0] == pytest.approx(climb, rel=0.03)
-    assert res.air_margin_s[0] == pytest.approx(climb - RECHARGE_S, abs=1.0)
+    assert res.air_margin_s[0] <= climb - RECHARGE_S + 1.0  # (the least margin: this one's, or a later one's)
     why = res.reason(0)
     assert f"air brake applied again {res.air_wait_s[0]:.0f} s after its release" in why
     assert "before its recharge of 60 s was over" in why and "-15.0 per mille" in why
@@ -233,9 +233,76 @@ def test_models_without_the_cycle_are_unchanged(c80x50):
     f20 = load_route("routes/freight-20km.yaml")
     a = TractionCalculator(f20, c80x50).evaluate(("T",), np.zeros((1, 0)), profile=True)
     b = TractionCalculator(f20, c80x50, ModelOptions(air_cycle=False)).evaluate(("T",), np.zeros((1, 0)), profile=True)
-    assert a.running_time_s[0] == pytest.approx(b.running_time_s[0], rel=1e-12)
-    assert a.traction_energy_kwh[0] == pytest.approx(b.traction_energy_kwh[0], rel=1e-12)
-    assert a.air_applications[0] >= 4 and not np.isfinite(a.air_margin_s[0])  # braking curves only
+    # (the same run up to the last release, 19,050 m: see the next test)
+    same = a.profile.s_m <= 19050.0
+    np.testing.assert_allclose(a.profile.v_kmh[0, same], b.profile.v_kmh[0, same], rtol=1e-12)
+    assert a.air_applications[0] >= 4 and a.air_margin_s[0] >= 0.0  # braking curves only, each on a recharged brake
+
+
+def test_a_braking_curve_within_the_recharge_waits_for_it(c80x50):
+    """Level, 60 km/h to 9,060 m, 45 km/h to the stop at 10 km. The fastest run releases the air brake at 9,060 m,
+    where its braking curve reaches 45 km/h; the stop's braking curve needs the air brake from 9,784 m, 724 m on,
+    less than the 45 / 3.6 x 60 s = 750 m the train covers at the limit in the 60 s recharge. The electric brake
+    can slow it enough to arrive later (at 0.9 x 461 kN + R(45) = 0.09 m/s^2 it would cover the 724 m in more than
+    60.5 s): so it is released there, and until the recharge is over the train is capped by the speed that
+    reaches 9,784 m 0.5 s after the recharge is over, slowed to it by 90 % of the electric brake: never faster
+    than (0.9 x 461 + R(v)) / m_eff decelerates, held below 724 m / 60.5 s = 43.08 km/h, and the stop's
+    application comes at least 60 s after the release. With the air brake as a continuous force the train holds
+    45 km/h and applies it 57.9 s after: 2 to 3.5 s faster."""
+    route = hand_made_route([(9060, 60.0), (10000, 45.0)], [(10000, 0.0)], 10000)
+    calc = TractionCalculator(route, c80x50)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
+    assert res.feasible[0], res.reason(0)
+    p = res.profile
+    k_rel = np.flatnonzero(p.air[0] == AIR_RELEASED)[-1]
+    assert p.s_m[k_rel] == pytest.approx(9060.0) and p.v_kmh[0, k_rel] == pytest.approx(45.0, abs=0.01)
+    s_air = p.s_m[calc.next_air_curve[k_rel]]
+    assert s_air == pytest.approx(9784.07, abs=0.01) and s_air - 9060.0 < 45.0 / 3.6 * RECHARGE_S
+    v_wait = (s_air - 9060.0) / (RECHARGE_S + 0.5) * 3.6
+    assert v_wait == pytest.approx(43.08, abs=0.01)
+    e = p.v_kmh[0] ** 2 / 2 / 3.6 ** 2
+    on = np.flatnonzero((p.s_m[:-1] >= 9060.0) & (p.s_m[1:] <= s_air))
+    for k in on:
+        v_mid = 0.5 * (p.v_kmh[0, k] + p.v_kmh[0, k + 1])
+        slope = (e[k + 1] - e[k]) / (p.s_m[k + 1] - p.s_m[k])
+        assert slope >= -(0.9 * 461.0 + resistance_kn(v_mid)) / calc.m_eff_t * 1.01
+    held = (p.s_m >= s_air - 400.0) & (p.s_m < s_air)
+    assert np.ptp(p.v_kmh[0, held]) < 0.01 and 42.0 < p.v_kmh[0, held][0] < v_wait
+    k_app = np.flatnonzero(p.air[0] == AIR_APPLIED)[-1]
+    assert p.t_s[0, k_app] - p.t_s[0, k_rel] >= RECHARGE_S and res.air_margin_s[0] >= 0.0
+    cont = TractionCalculator(route, c80x50, ModelOptions(air_cycle=False)).evaluate(("T",), np.zeros((1, 0)))
+    assert 2.0 < res.running_time_s[0] - cont.running_time_s[0] < 3.5
+
+
+def test_an_application_is_kept_on_where_the_electric_brake_cannot_wait(tmp_path):
+    """The MPOC test line's fastest run, HXD1 + 30 x C80 (48 s recharge): its braking curve from 70 to 50 km/h
+    (applied at 3,249 m) ends at 3,500 m, and the stop's curve needs the air brake from 3,895 m, 395 m on: at
+    50 km/h the electric brake alone (about 0.1 m/s^2) covers that in about 33 s, less than the recharge. So
+    the application is not released at 3,500 m; it is kept on, braking, until the train is under the electric
+    brake's own braking curve to the stop, released there, and the stop is made on the electric brake's curve
+    and a recharged brake: every application at least 48 s after the release before it."""
+    from locoplan.io.load import load_route
+
+    train = load_train("HXD1-C80x30")
+    calc = TractionCalculator(load_route("tests/data/routes/mpoc-small.yaml"), train)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
+    assert res.feasible[0], res.reason(0)
+    p = res.profile
+    rec = train.air_cycle.recharge_s
+    assert rec == pytest.approx(48.0)
+    on = p.air[0] != 0  # applied, on or released in the cell (AIR_OFF = 0)
+    assert on[(p.s_m[:-1] >= 3500.0) & (p.s_m[:-1] < 3600.0)].all()  # kept on past its curve
+    k_rel = np.flatnonzero(p.air[0] == AIR_RELEASED)[-1]
+    assert p.s_m[k_rel] > 3600.0
+    from locoplan.physics.units import kmh_from_e
+
+    assert p.v_kmh[0, k_rel] <= kmh_from_e(calc.e_envelope_el[k_rel]) + 1e-6
+    t_app = p.t_s[0, :-1][p.air[0] == AIR_APPLIED]
+    t_rel = p.t_s[0, :-1][p.air[0] == AIR_RELEASED]
+    for t in t_app:
+        before = t_rel[t_rel < t]
+        assert not before.size or t - before[-1] >= rec - 1e-9
+    assert res.air_margin_s[0] >= 0.0 or not np.isfinite(res.air_margin_s[0])
 
 
 def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):

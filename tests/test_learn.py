@@ -472,7 +472,12 @@ def test_learning_gives_a_known_pattern_back(tmp_path, base):
     assert {r.driver_id for r, g in zip(runs, good) if g} == {"G1", "G2", "G3"}  # claim 3
     out = learn(runs, LearnSettings(**SMALL), ModelOptions())
     pat = out.patterns
-    assert pat.report["lower"]["order"] == 1  # the recurrence is linear
+    # the recurrence is linear: order 1 explains the held-out speeds to the logs' own precision (speeds rounded to
+    # 0.001 km/h: an rmse of 0.001 / sqrt(12) = 0.00029 km/h), so a higher order cannot be told apart from it by
+    # more than that rounding (the chosen order may be either)
+    cv = {r["order"]: r["cv_rmse"] for r in pat.report["lower"]["cv"]}
+    floor = 0.001 / math.sqrt(12)
+    assert cv[1] < 1.5 * floor and cv[1] - min(cv.values()) < 0.25 * floor
     route = load_route(LINE)
     for mass in (3200, 4200):
         line = line_model(route, train_of(base, mass), ModelOptions(), pat.settings)

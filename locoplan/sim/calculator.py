@@ -44,7 +44,7 @@ from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL, E_FLOOR,
-                        RELEASE_FLOOR)
+                        ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, RELEASE_FLOOR)
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import (AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
@@ -100,6 +100,16 @@ class ModelOptions:
     def seeds(cls, **kw) -> "ModelOptions":
         """The seeds' train model: point mass, electric brake alone."""
         return cls(point_mass=True, air_brake=False, **kw)
+
+
+def late_enough(v, d: float, a, t_need: float) -> np.ndarray:
+    """``kernel.late_enough`` for arrays of speeds ``v`` [m/s] and decelerations ``a`` [m/s^2] (the same
+    arithmetic): whether the electric brake can slow the train enough to cover ``d`` [m] in no less than
+    ``t_need`` [s]."""
+    v, a = np.broadcast_arrays(np.asarray(v, dtype=float), np.asarray(a, dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slowest = (v - np.sqrt(np.maximum(v * v - 2.0 * a * d, 0.0))) / a
+    return np.where(a <= 0.0, d >= v * t_need - 0.5 * a * t_need * t_need, (v * v <= 2.0 * a * d) | (slowest >= t_need))
 
 
 def neutral_spans_m(route: Route, train_length_m: float = 0.0) -> list[tuple[float, float]]:
@@ -225,6 +235,7 @@ class TractionCalculator:
         lim = self.limit_kmh
         short = (max_force_kn(lim, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
                  + train_resistance_kn(lim, train.resistance_kn) + self.gravity_kn) < 0.0
+        self._short_at_limit = short
         idx = np.where(short, np.arange(len(mid)), len(mid))
         nxt = np.minimum.accumulate(idx[::-1])[::-1]
         self.next_short = np.where(nxt < len(mid), nxt, -1).astype(np.int64)
@@ -239,15 +250,39 @@ class TractionCalculator:
         self.brake_holds_limit = (self.brake_kn_at(lim_kmh, cells) + train_resistance_kn(lim_kmh, train.resistance_kn)
                                   + self.gravity_kn) >= 0.0
         self.e_envelope, self._entry_m = self._braking_envelope()
+        # the electric brake's own braking curves: what a train whose air brake recharges may follow
+        self.e_envelope_el = (self._braking_envelope(electric_only=True)[0] if self.air_cycle is not None
+                              else np.full(len(s), np.inf))
+        self.next_air_curve = self._next_air_curve()
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
         self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
         self.impossible = self._impossible_descent()
         self.cells = self._cells(self.e_envelope, self.holds_limit)
         """The grid as the compiled loops take it."""
 
-    def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray) -> Cells:
+    def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray, brake_holds: np.ndarray | None = None) -> Cells:
+        e_el, nxt = getattr(self, "e_envelope_el", None), getattr(self, "next_air_curve", None)
         return contiguous(Cells(self.s_m, self.h_m, e_env, self.e_limit_node, self.e_limit_cell, self.traction_allowed,
-                                self.gravity_kn, holds_limit, self.brake_holds_limit, self.t_build_s, self.next_short))
+                                self.gravity_kn, holds_limit, self.brake_holds_limit if brake_holds is None else brake_holds,
+                                self.t_build_s, self.next_short, np.full(len(self.s_m), np.inf) if e_el is None else e_el,
+                                np.full(len(self.h_m), -1, dtype=np.int64) if nxt is None else nxt))
+
+    def _next_air_curve(self) -> np.ndarray:
+        """Per cell, the first cell from it on (-1: none) where a braking curve of the envelope falls faster than
+        ``ELECTRIC_CURVE_SHARE`` of the electric brake follows (with the air brake's cycle; else all -1): a train
+        whose air brake recharges and that would reach it before the recharge is over follows the electric
+        brake's own curves instead (``kernel.run_plans``)."""
+        n = len(self.h_m)
+        if self.air_cycle is None:
+            return np.full(n, -1, dtype=np.int64)
+        e0, e1 = self.e_envelope[:-1], self.e_envelope[1:]
+        v_mid = kmh_from_e(0.5 * (e0 + e1))
+        need = self.m_eff_t * (e0 - e1) / self.h_m - (train_resistance_kn(v_mid, self.train.resistance_kn) + self.gravity_kn)
+        b_el = max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
+        air = (e1 < e0 * (1 - 1e-9)) & (need > ELECTRIC_CURVE_SHARE * b_el)
+        idx = np.where(air, np.arange(n), n)
+        nxt = np.minimum.accumulate(idx[::-1])[::-1]
+        return np.where(nxt < n, nxt, -1).astype(np.int64)
 
     # ----------------------------------------------------------------- route precomputation
     def _limit_at(self, s_m: np.ndarray) -> np.ndarray:
@@ -354,28 +389,50 @@ class TractionCalculator:
                     code[i], cell[i], value[i] = FORCE_RATE, k, rate[k - 1]
         return code, cell, value
 
-    def _braking_envelope(self) -> tuple[np.ndarray, np.ndarray]:
+    def _braking_envelope(self, electric_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Highest e at each node from which max braking still respects every later limit and stops at
         the end: backward integration (RK2, fine sub-steps) from each limit drop and from the stop.
 
         Also returns the positions where a braking curve rises through its cell's limit inside a cell
         (the braking-curve entry points), so that they can be made grid nodes.
+
+        ``electric_only``: the electric brake's own envelope, the braking curves it follows alone (where
+        traction is allowed); inf on the grades it cannot hold at the limit and at their start nodes (there
+        the air brake cycles, ``kernel.run_plans``), no curve traced back through them; built on
+        ``ELECTRIC_CURVE_SHARE`` of the electric brake's force.
         """
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
+        forces, holds_all = self.forces, self.brake_holds_limit
+        reset = np.zeros(len(self.h_m), dtype=np.int64)
+        if electric_only:
+            forces = forces._replace(af=np.zeros_like(forces.af), ef=ELECTRIC_CURVE_SHARE * forces.ef)
+            holds_all = ~self._short_at_limit
+            reset = self._short_at_limit.astype(np.int64)
         if self.backend == "numba":  # the same loop compiled (kernel.braking_envelope)
             e_env = np.empty_like(self.e_limit_node)
             found = np.empty(len(self.h_m))
-            cells = self._cells(self.e_limit_node, self.brake_holds_limit)  # (neither read by the envelope)
-            count = kernels().braking_envelope(cells, self.forces, n_sub, e_env, found)
+            cells = self._cells(self.e_limit_node, holds_all, holds_all)  # (e_env and holds_limit not read)
+            count = kernels().braking_envelope(cells, forces, n_sub, e_env, found, reset)
             return e_env, found[:count].copy()
         e_env = self.e_limit_node.copy()
         entries = []
         for k in range(len(self.h_m) - 1, -1, -1):
+            if reset[k]:
+                e_env[k] = np.inf
+                continue
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]
-            decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
-            holds = bool(self.brake_holds_limit[k])
+            if electric_only:
+                def decel(e_):  # -de/ds [m/s^2] under the electric brake alone
+                    v_kmh = kmh(ms_from_e(max(e_, 0.0)))
+                    return float(ELECTRIC_CURVE_SHARE * max_force_kn(v_kmh, self.electric_brake_speed_kmh,
+                                                                     self.electric_brake_kn)
+                                 * self.traction_allowed[k] + train_resistance_kn(v_kmh, self.train.resistance_kn)
+                                 + self.gravity_kn[k]) / m
+            else:
+                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+            holds = bool(holds_all[k])
             if e >= cap:
                 if holds:  # no braking curve runs through this cell: the limit itself bounds it
                     continue
@@ -676,8 +733,8 @@ class TractionCalculator:
         cyc = self.air_cycle
         if cyc is not None:  # the air brake's cycle (kernel.run_plans): per plan its state
             t_rec, min_hold = cyc.recharge_s, self._min_hold_s
-            air_on, released, curve_prev, curve_kind = (np.zeros(n, dtype=bool) for _ in range(4))
-            t_app, t_rel, tb_app, hold_app = (np.zeros(n) for _ in range(4))
+            air_on, released, curve_prev, curve_kind, el_cap = (np.zeros(n, dtype=bool) for _ in range(5))
+            t_app, t_rel, tb_app, hold_app, s_air = (np.zeros(n) for _ in range(5))
             air_at = np.full(n, n_cells, dtype=np.int64)
             air_wait = np.full(n, np.nan)
             air_apps = np.zeros(n, dtype=np.int64)
@@ -725,7 +782,15 @@ class TractionCalculator:
                 if short.any():
                     e_app, e_r = self._cycle_speeds(e_hold, k, margin[:, region[k]])
                     e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
-                rel = air_on & (fB_k == 0.0) & ~curve_prev & (t - t_app >= hold_app - 1e-9)
+                # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
+                rel = air_on & (fB_k == 0.0) & (~curve_prev | (self.next_air_curve[k] != k)) & (t - t_app >= hold_app - 1e-9)
+                ja = self.next_air_curve[k]
+                near = ja >= 0 and self.s_m[ja] - self.s_m[k] < ms_from_e(self.e_limit_cell[k]) * t_rec
+                a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
+                if near:  # a braking curve that needs the air brake within the recharge: not released above
+                    # the electric brake's own curves, unless it can slow the train to reach it recharged
+                    rel &= (((e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1]))
+                            | late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S))
                 j = self.next_short[k]
                 if rel.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
                     e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
@@ -737,6 +802,9 @@ class TractionCalculator:
                 if rel.any():
                     air_on &= ~rel
                     released |= rel
+                    el_cap[rel] = near
+                    if near:
+                        s_air[rel] = self.s_m[ja]
                     t_rel = np.where(rel, t, t_rel)
                     state[rel] = AIR_RELEASED
                 curve_kind &= ~(air_on & ~curve_prev)  # past its curve and still needed: a cycle's now
@@ -757,6 +825,15 @@ class TractionCalculator:
                 fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(band, 1.0, np.where(ov, 0.0, fk)), np.where(ov, 1.0, fB_k)
                 may_ex = may_ex & ~both
                 b_use = b_el + lvl * air_k
+                rech = el_cap & released & ~air_on & (t - t_rel < t_rec)
+                if rech.any():  # recharging, a curve that needs the air was near at the release: the electric
+                    # brake's own curves, or the speed that reaches it recharged (kernel.run_plans)
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        e_time = np.where(s_air > self.s_m[k],
+                                          0.5 * ((s_air - self.s_m[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2, 0.0)
+                    c0 = np.where(rech, np.minimum(c0, np.maximum(self.e_envelope_el[k], np.maximum(e_time, e))), c0)
+                    c1 = np.where(rech, np.minimum(c1, np.maximum(self.e_envelope_el[k + 1],
+                                                                  np.maximum(e_time, e - hk * a_el))), c1)
             hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
             full = fT_k * f_max
             tr = full + fk * np.maximum(hold, 0.0)
@@ -837,7 +914,13 @@ class TractionCalculator:
                         need = np.where(part, -cap_work / (hk * (1.0 - phi)), -np.inf)
                     on_cap = part & (need > b_el * (1.0 + 1e-9) + 1e-6)
                 new_cap = on_cap & ~air_on
-                if new_cap.any():  # (the braking curves assume a charged brake: not judged by the recharge)
+                if new_cap.any():  # judged by the recharge like any application
+                    wait = t_start - t_rel
+                    again = new_cap & released
+                    np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
+                    early = again & (wait < t_rec - 1e-9) & (air_at == n_cells)
+                    air_at[early] = k
+                    air_wait[early] = wait[early]
                     air_apps[new_cap] += 1
                     air_on[new_cap] = True
                     curve_kind[new_cap] = True

@@ -25,6 +25,13 @@ APPLY_MIN_KMH = 1.0
 RELEASE_FLOOR = 0.5
 """The release speed is at least this share of the apply speed (a deeper cycle is not driven: where the
 recharge needs more, the next application comes too early and the plan is refused)."""
+ELECTRIC_CURVE_SHARE = 0.9
+"""The electric brake's own braking curves (what a train whose air brake recharges may follow) are built on
+this share of its force: following one keeps a reserve, so that the calculator, which checks the force at
+the train's mid-cell speed rather than the curve's, never finds it short by a rounding."""
+ARRIVE_AFTER_S = 0.5
+"""A train whose air brake recharges, slowed so as to reach the next braking curve that needs it no sooner
+than the recharge is over, aims to reach it this long after [s] (not on the very instant)."""
 AIR_OFF, AIR_ON, AIR_APPLIED, AIR_RELEASED = 0, 1, 2, 3
 """The air brake's state in a cell of a profile: released, applied, applied in this cell (an application
 begins here), released at this cell's start (a release)."""

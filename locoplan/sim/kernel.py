@@ -20,8 +20,8 @@ from numba import njit
 from ..model.conditions import B, C, K, T
 from ..physics import braking, resistance, units
 from ..physics.units import KMH2_PER_E
-from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL,
-                        E_FLOOR, RELEASE_FLOOR)
+from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, ARRIVE_AFTER_S, CRAWL_STEP_M,
+                        CYCLE_MARGIN, E_CRAWL, E_FLOOR, ELECTRIC_CURVE_SHARE, RELEASE_FLOOR)
 
 # the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
 full_brake_kn = njit(cache=True)(braking.full_brake_kn)
@@ -108,6 +108,19 @@ def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, margin, fo):
 
 
 @njit(cache=True, _nrt=False)
+def late_enough(v, d, a, t_need):
+    """Whether a train at ``v`` [m/s], slowing at up to ``a`` [m/s^2] (the electric brake), can cover ``d`` [m]
+    in no less than ``t_need`` [s]: where it can stop within ``d``, always; else the slowest way,
+    (v - sqrt(v^2 - 2 a d)) / a; where it cannot slow (a <= 0: it gains -a even so), if v t + (-a) t^2 / 2
+    reaches no further than ``d`` in ``t_need``."""
+    if a <= 0.0:
+        return d >= v * t_need - 0.5 * a * t_need * t_need
+    if v * v <= 2.0 * a * d:
+        return True
+    return (v - math.sqrt(v * v - 2.0 * a * d)) / a >= t_need
+
+
+@njit(cache=True, _nrt=False)
 def locate(x, xs):
     """Where x lies in the rising knots xs, by bisection: (lo, hi, w) with x = xs[lo] + w (xs[hi] - xs[lo]);
     beyond the ends the end knot itself (lo = hi, w = 0: flat, as np.interp)."""
@@ -184,11 +197,15 @@ def run_plans(ce_, fo, pl, out):
     the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the distance the
     train covers in the recharge time (else at that grade's release speed); applied again (in a cycle, or to brake) before ``recharge_s`` has passed
     since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
-    bounded by full braking as without the cycle; such an application is counted and released where the curve
-    ends, not held, and not judged by the recharge (the braking envelope assumes a charged brake).
+    bounded by full braking as without the cycle; such an application is counted, judged by the recharge like
+    any other, and released where the curve ends, not held. Where a braking curve that needs the air brake
+    (``next_air``) lies within the distance covered at the limit in the recharge time, an application is released
+    only under the electric brake's own braking curves (``e_env_el``), or where the electric brake can slow the
+    train enough to reach that curve no sooner than the recharge is over (``late_enough``; it is kept on until
+    then), and until the recharge is over the train is capped by the higher of the two.
     """
     s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
-    holds_limit, brake_holds = ce_.holds_limit, ce_.brake_holds
+    holds_limit, brake_holds, e_env_el, next_air = ce_.holds_limit, ce_.brake_holds, ce_.e_env_el, ce_.next_air
     m, tv, tf = fo.m, fo.tv, fo.tf
     codes, starts, ends, cruise_e = pl.codes, pl.starts, pl.ends, pl.cruise_e
     has_cruise, strict, want_profile = pl.has_cruise, pl.strict, pl.want_profile
@@ -219,6 +236,8 @@ def run_plans(ce_, fo, pl, out):
         air_margin[i] = np.inf
         air_on = False
         released = False
+        el_cap = False
+        s_air = 0.0
         t_app = 0.0
         t_rel = 0.0
         tb_app = 0.0
@@ -277,11 +296,21 @@ def run_plans(ce_, fo, pl, out):
                     if has_cruise and fC == 0.0 and cruise_e[i] < e_hold_j:
                         e_hold_j = cruise_e[i]
                     e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, margin[i, mreg[j]], fo)[1]
-                if (air_on and fB == 0.0 and not curve_prev and t - t_app >= hold_app - 1e-9
-                        and e <= e_rel_now):
+                # a braking curve that needs the air brake within reach of the recharge (at the limit's speed):
+                # released only under the electric brake's own curves, which the train then follows
+                ja = next_air[k]
+                near = ja >= 0 and s[ja] - s[k] < ms_from_e(e_limit_cell[k]) * t_rec
+                a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
+                late = near and late_enough(v, s[ja] - s[k], a_el, t_rec + ARRIVE_AFTER_S)
+                # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
+                if (air_on and fB == 0.0 and (not curve_prev or next_air[k] != k) and t - t_app >= hold_app - 1e-9
+                        and e <= e_rel_now
+                        and (not near or (e <= e_env_el[k] and e <= e_env_el[k + 1]) or late)):
                     air_on = False
                     released = True
                     t_rel = t
+                    el_cap = near
+                    s_air = s[ja] if near else 0.0
                     state = AIR_RELEASED
                 elif air_on and curve_kind and not curve_prev:  # past its curve and still needed: a cycle's now
                     curve_kind = False
@@ -317,6 +346,20 @@ def run_plans(ce_, fo, pl, out):
                     fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0
                     band = True
                 b_use = b_el + lvl * air_k
+                if el_cap and released and not air_on and t - t_rel < t_rec:
+                    # recharging, and a braking curve that needs the air brake was near at the release: capped by
+                    # the electric brake's own braking curves, or by the speed that reaches that curve no sooner
+                    # than the recharge is over, slowed to it by the electric brake (whichever is higher)
+                    e_time = 0.0
+                    if s_air > s[k]:
+                        e_time = 0.5 * ((s_air - s[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2
+                    a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m
+                    cap0 = max(e_env_el[k], max(e_time, e))
+                    cap1 = max(e_env_el[k + 1], max(e_time, e - hk * a_el))
+                    if cap0 < c0:
+                        c0 = cap0
+                    if cap1 < c1:
+                        c1 = cap1
             hold = min(max(load, -b_use), f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
@@ -383,7 +426,14 @@ def run_plans(ce_, fo, pl, out):
                 if capped and phi < 1.0:
                     need = -cap_work / (hk * (1.0 - phi))
                     on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
-                if on_cap and not air_on:  # (the braking curves assume a charged brake: not judged by the recharge)
+                if on_cap and not air_on:  # judged by the recharge like any application
+                    if released:
+                        wait = t_start - t_rel
+                        if wait - t_rec < air_margin[i]:
+                            air_margin[i] = wait - t_rec
+                        if wait < t_rec - 1e-9 and air_at[i] < 0:
+                            air_at[i] = k
+                            air_wait[i] = wait
                     air_apps[i] += 1
                     air_on = True
                     curve_kind = True
@@ -430,17 +480,22 @@ def run_plans(ce_, fo, pl, out):
 
 
 @njit(cache=True)
-def braking_envelope(ce_, fo, n_sub, e_env, entries):
+def braking_envelope(ce_, fo, n_sub, e_env, entries, reset):
     """The calculator's braking envelope (``TractionCalculator._braking_envelope``, the same arithmetic):
     from the stop and every limit drop backwards, full braking (the electric brake where traction is
     allowed, the air brake everywhere) in ``n_sub`` RK2 sub-steps per cell. Writes ``e_env`` (starting
     from ``e_limit_node``) and the entry points where a braking curve rises through its cell's limit
-    into ``entries``; returns their count. (``ce_.e_env`` is not read: ``e_env`` is the output.)"""
+    into ``entries``; returns their count. (``ce_.e_env`` is not read: ``e_env`` is the output.) A cell
+    with ``reset`` (!= 0) bounds nothing: its start node is inf, and no curve runs back through it (the
+    electric brake's own envelope, with ``fo`` the electric brake alone, on the grades it cannot hold)."""
     s, h, e_limit_node, e_limit_cell, brake_holds = ce_.s, ce_.h, ce_.e_limit_node, ce_.e_limit_cell, ce_.brake_holds
     n_entries = 0
     for j in range(e_env.shape[0]):
         e_env[j] = e_limit_node[j]
     for k in range(h.shape[0] - 1, -1, -1):
+        if reset[k] != 0:
+            e_env[k] = np.inf
+            continue
         e = e_env[k + 1]
         cap = e_limit_cell[k]
         holds = brake_holds[k]  # full braking holds the limit in this cell (the calculator's brake_holds_limit)

@@ -45,7 +45,7 @@ _F, _I, _A1, _A2, _A3, _A4 = "f8", "i8", "f8[:]", "f8[:, :]", "f8[:, :, :]", "f8
 ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     # name: (module, function, return type, argument types: a type string or a record class)
     "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (Cells, Forces, Plans, Outputs)),
-    "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (Cells, Forces, _I, _A1, _A1)),
+    "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (Cells, Forces, _I, _A1, _A1, "i8[:]")),
     "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (DPCells, Forces, _A1)),
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",

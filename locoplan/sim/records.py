@@ -36,6 +36,9 @@ class Cells(NamedTuple):
     ``holds_limit`` (the cell's cap is its limit, to be held), ``brake_holds`` (full braking holds the
     limit there), ``t_build`` the air brake's build-up time [s] of an application made in the cell and
     ``next_short`` the first cell from this one on whose grade the electric brake alone cannot hold the limit
+    (-1: none); ``e_env_el`` the electric brake's own envelope (the braking curves it alone follows, inf on
+    and just before those grades: there the air brake cycles), which caps a train whose air brake recharges,
+    and ``next_air`` the first cell from this one on where a braking curve of ``e_env`` needs the air brake
     (-1: none)."""
 
     s: np.ndarray
@@ -49,6 +52,8 @@ class Cells(NamedTuple):
     brake_holds: np.ndarray
     t_build: np.ndarray
     next_short: np.ndarray
+    e_env_el: np.ndarray
+    next_air: np.ndarray
 
 
 class Plans(NamedTuple):
@@ -170,7 +175,7 @@ class IPMLayout(NamedTuple):
 _F, _B, _A1, _A2 = "f8", "b1", "f8[:]", "f8[:, :]"
 FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Forces: ("f8", _A1, _A1, _A1, _A1, _A1, _A1, _F, _F, _F),
-    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1, "i8[:]"),
+    Cells: (_A1, _A1, _A1, _A1, _A1, _A1, _A1, "b1[:]", "b1[:]", _A1, "i8[:]", _A1, "i8[:]"),
     Plans: ("i8[:]", _A2, _A2, _A1, _B, _B, _B, _B, _F, _F, _A2, "i8[:]"),
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
