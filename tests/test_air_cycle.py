@@ -326,12 +326,13 @@ def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):
     for t in t_app:
         before = t_rel[t_rel < t]
         assert not before.size or t - before[-1] >= 90.0 - 1e-6 or math.isclose(t, before[-1])
-    # the optimiser searched both descents' release margins (the -12 and the -11 per mille one) in a second search
-    # from the first one's plans, and kept the better plan: one that carries its margins, or none (the rule's)
+    # the optimiser searched the release margins of the descents where the first search's plan cycles (of the -12
+    # and the -11 per mille one) in a second search from the first one's plans, and kept the better plan: one that
+    # carries its margins, or none (the rule's)
     regions = ctx.calc.cycle_regions_m
     assert len(regions) == 2
     placed = s["release_margins"]
-    assert placed is None or ([r["from_m"] for r in placed] == pytest.approx(regions[:, 0])
+    assert placed is None or (set(r["from_m"] for r in placed) <= set(regions[:, 0].round(1).tolist())
                               and all(0.25 <= r["margin"] <= 4.0 for r in placed))
     plan = out.outcome.plan
     again = ctx.calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())

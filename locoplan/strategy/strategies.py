@@ -39,7 +39,7 @@ from ..optimize.problem import SwitchingProblem
 from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
-from ..sim.result import BatchResult
+from ..sim.result import AIR_APPLIED, BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
 from .general_builder import sequence_from_drive, with_holds
 
@@ -411,8 +411,15 @@ def _place_releases(ctx: StrategyContext, problem: SwitchingProblem, result, x):
     plans exactly); the better of the two plans on the reporting grid is kept. A second search rather than one
     of them all at once: on a budget the extra variables cost the switching points' search more than they win
     (measured on the real lines), while this one starts where that search ended. Returns (problem, result, x)
-    of the plan kept; unchanged where the air brake does not cycle."""
+    of the plan kept; unchanged where the first plan applies the air brake on no such descent."""
     cycles = _cycles(ctx)
+    if cycles:  # only the descents where the first search's plan applies the air brake: elsewhere no margin acts
+        air = replace(problem, calc=ctx.calc).simulate(np.atleast_2d(x), profile=True).profile.air
+        if air is not None:
+            s_mid = 0.5 * (ctx.calc.s_m[1:] + ctx.calc.s_m[:-1])
+            applied = s_mid[air[0] == AIR_APPLIED]
+            used = [((applied >= a) & (applied < b)).any() for a, b in cycles["regions_m"]]
+            cycles = {"regions_m": cycles["regions_m"][used]} if any(used) else {}
     if not cycles:
         return problem, result, x
     wide = replace(problem, lower=problem.lower[:problem.n_switches], upper=problem.upper[:problem.n_switches],
