@@ -254,6 +254,8 @@ class TractionCalculator:
         self.e_envelope_el = (self._braking_envelope(electric_only=True)[0] if self.air_cycle is not None
                               else np.full(len(s), np.inf))
         self.next_air_curve = self._next_air_curve()
+        if self._electric_first():
+            self.next_air_curve = self._next_air_curve()
         # cells whose cap is the limit itself (a speed to hold), not a braking curve falling to a drop
         self.holds_limit = (self.e_envelope[1:] >= e_cell * (1 - 1e-9)) & self.brake_holds_limit
         self.impossible = self._impossible_descent()
@@ -266,6 +268,45 @@ class TractionCalculator:
                                 self.gravity_kn, holds_limit, self.brake_holds_limit if brake_holds is None else brake_holds,
                                 self.t_build_s, self.next_short, np.full(len(self.s_m), np.inf) if e_el is None else e_el,
                                 np.full(len(self.h_m), -1, dtype=np.int64) if nxt is None else nxt))
+
+    def _electric_first(self) -> bool:
+        """Where a braking curve that needs the air brake (to a lower limit) ends so near the next one (another
+        drop, the stop) that the brake could not recharge in between -- the next begins within the distance
+        covered at the lower limit in the recharge time, and 90 % of the electric brake cannot slow the train
+        enough to reach it after the recharge (``late_enough``) -- the first drop is braked on the electric
+        brake's own curve instead: the envelope there becomes the lower of the two, from where that curve leaves
+        it, so that no release comes just before the next curve. Returns whether the envelope changed."""
+        if self.air_cycle is None:
+            return False
+        n = len(self.h_m)
+        on = self.next_air_curve == np.arange(n)  # cells on a curve that needs the air brake
+        if not on.any():
+            return False
+        s, env, el = self.s_m, self.e_envelope, self.e_envelope_el
+        t_rec = self.air_cycle.recharge_s
+        ends = np.flatnonzero(on[:-1] & ~on[1:]) + 1  # the first cell after each run of such cells
+        changed = False
+        for b in ends:
+            j = int(self.next_air_curve[b])
+            if j < 0:
+                continue
+            v = float(ms_from_e(self.e_limit_cell[b]))
+            d = float(s[j] - s[b])
+            if d >= v * t_rec:
+                continue
+            v_kmh = kmh(v)
+            a_el = float(ELECTRIC_CURVE_SHARE * max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn)
+                         * self.traction_allowed[b] + train_resistance_kn(v_kmh, self.train.resistance_kn)
+                         + self.gravity_kn[b]) / self.m_eff_t
+            if late_enough(v, d, a_el, t_rec + ARRIVE_AFTER_S):
+                continue
+            z = b
+            while z > 0 and el[z - 1] < env[z - 1] * (1 - 1e-9):
+                z -= 1
+            if z < b:
+                env[z:b + 1] = np.minimum(env[z:b + 1], el[z:b + 1])
+                changed = True
+        return changed
 
     def _next_air_curve(self) -> np.ndarray:
         """Per cell, the first cell from it on (-1: none) where a braking curve of the envelope falls faster than
