@@ -163,17 +163,18 @@ class PricedDriveSolver:
                 slower_seen = True
             return d
 
-        def bisect(lo, hi, steps, width) -> bool:
-            """Geometric bisection on the price between log prices ``lo`` (too slow) and ``hi`` (too fast), for
-            ``steps`` steps or until the bracket is ``width`` wide; True when a drive came within ``close_s``."""
+        def bisect(lo, hi, steps, width, sign=1.0) -> bool:
+            """Geometric bisection on the price ``sign`` x exp(x) between log prices ``lo`` and ``hi`` (a higher
+            price drives faster; with ``sign`` -1, a reward for time, a larger one drives slower), for ``steps``
+            steps or until the bracket is ``width`` wide; True when a drive came within ``close_s``."""
             k = 0
             while k < steps and hi - lo > width:
                 k += 1
                 mid = 0.5 * (lo + hi)
-                d = consider(self.solve(math.exp(mid)))
+                d = consider(self.solve(sign * math.exp(mid)))
                 if d is not None and abs(d.time_s - t0_s) <= close_s:
                     return True
-                if d is None or d.time_s > t0_s:
+                if (d is None or d.time_s > t0_s) == (sign > 0):
                     lo = mid
                 else:
                     hi = mid
@@ -208,14 +209,5 @@ class PricedDriveSolver:
         if slowest is not None and slowest.time_s < t0_s - 1e-6:
             # reward time (a negative price): slower drives, holding lower speeds by braking. The running
             # time changes fastest just below zero, so bisect on log |price| (from -1e-8 to -0.1 kWh/s)
-            lo_l, hi_l = math.log(price_range[0] * 1e-4), math.log(price_range[0] * 1e3)
-            for _ in range(2 * n_bisect):
-                mid = 0.5 * (lo_l + hi_l)
-                d = consider(self.solve(-math.exp(mid)))
-                if d is not None and abs(d.time_s - t0_s) <= close_s:
-                    return best
-                if d is None or d.time_s > t0_s:
-                    hi_l = mid
-                else:
-                    lo_l = mid
+            bisect(math.log(price_range[0] * 1e-4), math.log(price_range[0] * 1e3), 2 * n_bisect, 0.0, sign=-1.0)
         return best

@@ -294,11 +294,7 @@ class TractionCalculator:
             d = float(s[j] - s[b])
             if d >= v * t_rec:
                 continue
-            v_kmh = kmh(v)
-            a_el = float(ELECTRIC_CURVE_SHARE * max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn)
-                         * self.traction_allowed[b] + train_resistance_kn(v_kmh, self.train.resistance_kn)
-                         + self.gravity_kn[b]) / self.m_eff_t
-            if late_enough(v, d, a_el, t_rec + ARRIVE_AFTER_S):
+            if late_enough(v, d, float(self.electric_decel(kmh(v), b)), t_rec + ARRIVE_AFTER_S):
                 continue
             z = b
             while z > 0 and el[z - 1] < env[z - 1] * (1 - 1e-9):
@@ -307,6 +303,14 @@ class TractionCalculator:
                 env[z:b + 1] = np.minimum(env[z:b + 1], el[z:b + 1])
                 changed = True
         return changed
+
+    def electric_decel(self, v_kmh, k):
+        """-de/ds [m/s^2] at ``v_kmh`` in cell(s) ``k`` under ``ELECTRIC_CURVE_SHARE`` of the electric brake (cut
+        in a neutral section's span), with resistance and gravity: how the electric brake's own braking curves
+        fall (the compiled loops: (ELECTRIC_CURVE_SHARE x b_el + load) / m)."""
+        return (ELECTRIC_CURVE_SHARE * max_force_kn(v_kmh, self.electric_brake_speed_kmh, self.electric_brake_kn)
+                * self.traction_allowed[k] + train_resistance_kn(v_kmh, self.train.resistance_kn)
+                + self.gravity_kn[k]) / self.m_eff_t
 
     def _next_air_curve(self) -> np.ndarray:
         """Per cell, the first cell from it on (-1: none) where a braking curve of the envelope falls faster than
@@ -317,10 +321,8 @@ class TractionCalculator:
         if self.air_cycle is None:
             return np.full(n, -1, dtype=np.int64)
         e0, e1 = self.e_envelope[:-1], self.e_envelope[1:]
-        v_mid = kmh_from_e(0.5 * (e0 + e1))
-        need = self.m_eff_t * (e0 - e1) / self.h_m - (train_resistance_kn(v_mid, self.train.resistance_kn) + self.gravity_kn)
-        b_el = max_force_kn(v_mid, self.electric_brake_speed_kmh, self.electric_brake_kn) * self.traction_allowed
-        air = (e1 < e0 * (1 - 1e-9)) & (need > ELECTRIC_CURVE_SHARE * b_el)
+        falls = (e0 - e1) / self.h_m  # -de/ds along the envelope [m/s^2]
+        air = (e1 < e0 * (1 - 1e-9)) & (falls > self.electric_decel(kmh_from_e(0.5 * (e0 + e1)), np.arange(n)))
         idx = np.where(air, np.arange(n), n)
         nxt = np.minimum.accumulate(idx[::-1])[::-1]
         return np.where(nxt < n, nxt, -1).astype(np.int64)
@@ -465,12 +467,7 @@ class TractionCalculator:
             e = e_env[k + 1]
             cap = self.e_limit_cell[k]
             if electric_only:
-                def decel(e_):  # -de/ds [m/s^2] under the electric brake alone
-                    v_kmh = kmh(ms_from_e(max(e_, 0.0)))
-                    return float(ELECTRIC_CURVE_SHARE * max_force_kn(v_kmh, self.electric_brake_speed_kmh,
-                                                                     self.electric_brake_kn)
-                                 * self.traction_allowed[k] + train_resistance_kn(v_kmh, self.train.resistance_kn)
-                                 + self.gravity_kn[k]) / m
+                decel = lambda e_: float(self.electric_decel(kmh_from_e(max(e_, 0.0)), k))  # noqa: E731
             else:
                 decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
             holds = bool(holds_all[k])
@@ -782,8 +779,9 @@ class TractionCalculator:
             air_margin = np.full(n, np.inf)
             air_prof = np.zeros((n, n_cells), dtype=np.int8) if want_profile else None
 
-            def apply(mask, t_at, state):
-                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge."""
+            def apply(mask, t_at, state, curve=False):
+                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge. A
+                ``curve`` application follows a braking curve (no least hold: released where the curve ends)."""
                 wait = t_at - t_rel
                 again = mask & released
                 np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
@@ -792,10 +790,10 @@ class TractionCalculator:
                 air_wait[early] = wait[early]
                 air_apps[mask] += 1
                 air_on[mask] = True
-                curve_kind[mask] = False
+                curve_kind[mask] = curve
                 t_app[mask] = t_at[mask]
                 tb_app[mask] = self.t_build_s[k]
-                hold_app[mask] = min_hold if min_hold >= 0.0 else self.t_build_s[k]
+                hold_app[mask] = 0.0 if curve else (min_hold if min_hold >= 0.0 else self.t_build_s[k])
                 state[mask] = AIR_APPLIED
         for k in range(n_cells):
             hk = h[k]
@@ -956,19 +954,7 @@ class TractionCalculator:
                     on_cap = part & (need > b_el * (1.0 + 1e-9) + 1e-6)
                 new_cap = on_cap & ~air_on
                 if new_cap.any():  # judged by the recharge like any application
-                    wait = t_start - t_rel
-                    again = new_cap & released
-                    np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
-                    early = again & (wait < t_rec - 1e-9) & (air_at == n_cells)
-                    air_at[early] = k
-                    air_wait[early] = wait[early]
-                    air_apps[new_cap] += 1
-                    air_on[new_cap] = True
-                    curve_kind[new_cap] = True
-                    t_app[new_cap] = t_start[new_cap]
-                    tb_app[new_cap] = self.t_build_s[k]
-                    hold_app[new_cap] = 0.0  # its force follows the curve; released where the curve ends
-                    state[new_cap] = AIR_APPLIED
+                    apply(new_cap, t_start, state, curve=True)
                 curve_prev = on_cap
                 if want_profile:
                     air_prof[:, k] = state

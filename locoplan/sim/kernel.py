@@ -108,6 +108,17 @@ def cycle_speeds(e_hold, g_k, allowed_k, t_b, t_rec, margin, fo):
 
 
 @njit(cache=True, _nrt=False)
+def _judge_recharge(wait, t_rec, i, k, air_margin, air_at, air_wait):
+    """An application by plan ``i`` in cell ``k``, ``wait`` [s] after its last release: its recharge margin
+    into the plan's least, and the plan refused (``air_at``, ``air_wait``) the first time it comes too early."""
+    if wait - t_rec < air_margin[i]:
+        air_margin[i] = wait - t_rec
+    if wait < t_rec - 1e-9 and air_at[i] < 0:
+        air_at[i] = k
+        air_wait[i] = wait
+
+
+@njit(cache=True, _nrt=False)
 def late_enough(v, d, a, t_need):
     """Whether a train at ``v`` [m/s], slowing at up to ``a`` [m/s^2] (the electric brake), can cover ``d`` [m]
     in no less than ``t_need`` [s]: where it can stop within ``d``, always; else the slowest way,
@@ -317,12 +328,7 @@ def run_plans(ce_, fo, pl, out):
                 applied_b = False
                 if not air_on and (fB > 0.0 or e >= e_app):
                     if released:
-                        wait = t - t_rel
-                        if wait - t_rec < air_margin[i]:
-                            air_margin[i] = wait - t_rec
-                        if wait < t_rec - 1e-9 and air_at[i] < 0:
-                            air_at[i] = k
-                            air_wait[i] = wait
+                        _judge_recharge(t - t_rel, t_rec, i, k, air_margin, air_at, air_wait)
                     air_apps[i] += 1
                     air_on = True
                     curve_kind = False
@@ -353,7 +359,6 @@ def run_plans(ce_, fo, pl, out):
                     e_time = 0.0
                     if s_air > s[k]:
                         e_time = 0.5 * ((s_air - s[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2
-                    a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m
                     cap0 = max(e_env_el[k], max(e_time, e))
                     cap1 = max(e_env_el[k + 1], max(e_time, e - hk * a_el))
                     if cap0 < c0:
@@ -428,12 +433,7 @@ def run_plans(ce_, fo, pl, out):
                     on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
                 if on_cap and not air_on:  # judged by the recharge like any application
                     if released:
-                        wait = t_start - t_rel
-                        if wait - t_rec < air_margin[i]:
-                            air_margin[i] = wait - t_rec
-                        if wait < t_rec - 1e-9 and air_at[i] < 0:
-                            air_at[i] = k
-                            air_wait[i] = wait
+                        _judge_recharge(t_start - t_rel, t_rec, i, k, air_margin, air_at, air_wait)
                     air_apps[i] += 1
                     air_on = True
                     curve_kind = True
