@@ -181,9 +181,9 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
              else float(res.energy_kwh(ctx.objective)[0]))
     t0 = ctx.t0_s
     prof = res.profile
-    e_min = outcome.e_min_kwh or ctx.e_min_kwh or ctx._e_min_cache.get("e")
+    e_min = next((e for e in (outcome.e_min_kwh, ctx.e_min_kwh, ctx._e_min_cache.get("e")) if e is not None), None)
     fit = None
-    if with_fitness and e_min and res.feasible[0] and not math.isnan(t0) and not math.isnan(e_obj):
+    if with_fitness and e_min is not None and res.feasible[0] and not math.isnan(t0) and not math.isnan(e_obj):
         fit = round(float(fitness_eq10(t, e_obj, t0, e_min, *ctx.weights)), 5)
     tol = ctx.tolerance_s
     gap = gap_to_optimum(ctx, res)
@@ -209,7 +209,9 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "optimum_kwh": None if gap is None else gap.optimum_kwh,
         "optimum_accuracy_percent": None if gap is None else gap.accuracy_percent,
         "weights": list(ctx.weights) if fit is not None else None,
-        "e_min_kwh": None if not e_min else round(float(e_min), 2),
+        "e_min_kwh": None if e_min is None else round(float(e_min), 2),
+        "e_min_source": None if e_min is None else ctx.e_min_source,
+        "e_min_time_s": None if e_min is None or ctx.e_min_time_s is None else round(ctx.e_min_time_s, 2),
         "cruise_kmh": outcome.cruise_kmh,
         "solve_time_s": round(outcome.solve_time_s, 3),
         "n_evaluations": outcome.n_evaluations,

@@ -201,6 +201,50 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     return _remember(base, time_s, E_STAR_TOL, METHOD, b)
 
 
+STRUCTURE_STEP_M = (10.0, 40.0)
+STRUCTURE_CELLS = 1500
+"""E*'s solution for its structure (``optimum_solution``): one grid of about ``STRUCTURE_CELLS`` cells, their
+length kept within ``STRUCTURE_STEP_M`` [m]: fine enough to place each switch within a cell or two, a few
+times cheaper than E* to its tolerance."""
+
+_SOLUTIONS: dict[tuple, object] = {}
+
+
+def optimum_solution(route: Route, train: Train, options: ModelOptions | None, time_s: float, *,
+                     objective: str = "traction", step_m: float | None = None):
+    """E*'s optimum at ``time_s`` on one grid (``ocp.cells.CellSolution``: node speeds, each cell's traction and
+    braking), for where the optimum drives, holds a speed, coasts and brakes: the condition structure of a plan
+    near it. The grid's cells are ``step_m`` long (default: about ``STRUCTURE_CELLS`` of them within
+    ``STRUCTURE_STEP_M``), graded towards the rest points as E*'s; started from the last E* solved for this
+    route and train where there is one. Kept in this process. Raises ``InfeasibleError`` as ``energy_bound``."""
+    from .cells import WARM_MU, cell_calculator, cell_problem, solve_cells, warm_point
+    from .train_energy import check_runnable
+
+    options = relaxed(options)
+    regen = net_regen(train, objective)
+    base = _problem_key(route, train, options, regen)
+    if step_m is None:
+        step_m = float(np.clip(route.length_m / STRUCTURE_CELLS, *STRUCTURE_STEP_M))
+    key = (base, round(float(time_s), 2), float(step_m))
+    if key not in _SOLUTIONS:
+        calc = cell_calculator(route, train, options, step_m)
+        check_runnable(calc, time_s)
+        warm = _WARM.get(base)
+        sol = None
+        if warm is not None:
+            try:
+                sol = solve_cells(calc, time_s, mu_init=WARM_MU, point=warm_point(cell_problem(calc, time_s, regen), warm)[0],
+                                  regen=regen)
+            except InfeasibleError:
+                sol = None
+        if sol is None:
+            sol = solve_cells(calc, time_s, regen=regen)
+        if len(_SOLUTIONS) > 32:
+            _SOLUTIONS.pop(next(iter(_SOLUTIONS)))
+        _SOLUTIONS[key] = (calc, sol)
+    return _SOLUTIONS[key]
+
+
 CURVE_TOL = 1e-4
 """The tolerance of an energy-time curve (``energy_bounds``): E* at each time known to 0.01 %. A single E*
 (``energy_bound``) is held to ``E_STAR_TOL``, the finer digit a plan's gap needs."""

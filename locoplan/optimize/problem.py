@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..physics.units import KJ_PER_KWH
 from ..sim.calculator import TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
 from ..sim.result import BatchResult
@@ -38,12 +39,26 @@ MARGIN_SPREAD = 0.3
 """The spread of random candidates' release margins around the rule's ``CYCLE_MARGIN``."""
 
 OUTSIDE_WINDOW = 10.0
-"""Fitness offset of a plan outside the punctuality window: above any on-time plan's eq. 10 value."""
+"""Fitness offset of a plan outside the punctuality window, beyond the largest eq. 10 value an on-time plan
+can have (``SwitchingProblem.outside_offset``)."""
+
+E_SCALE_FLOOR_KWH = 0.01
+"""Eq. 10's energy term divides by E_min; an E_min that is the least energy of any punctual plan (E*, the
+general builder's) is nearly 0 on a line the train can coast from end to end, and may be negative for the net
+energy: the term then divides by this much [kWh] instead (it still measures |E - E_min|, and every plan's
+E >= E_min, so it still orders plans as their energy does)."""
+
+
+def energy_scale_kwh(e_min_kwh: float) -> float:
+    """The divisor of eq. 10's energy term: |E_min|, at least ``E_SCALE_FLOOR_KWH``."""
+    return max(abs(float(e_min_kwh)), E_SCALE_FLOOR_KWH)
 
 
 def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: float, w_energy: float):
-    """Seed 002 eq. 10-11: w1 |T - T0| / T0 + w2 |E - E_min| / E_min (dimensionless; arrays welcome)."""
-    return w_time * np.abs(time_s - t0_s) / t0_s + w_energy * np.abs(energy_kwh - e_min_kwh) / e_min_kwh
+    """Seed 002 eq. 10-11: w1 |T - T0| / T0 + w2 |E - E_min| / E_min (dimensionless; arrays welcome); the
+    divisor is |E_min|, at least ``E_SCALE_FLOOR_KWH`` (:func:`energy_scale_kwh`)."""
+    return (w_time * np.abs(time_s - t0_s) / t0_s
+            + w_energy * np.abs(energy_kwh - e_min_kwh) / energy_scale_kwh(e_min_kwh))
 
 
 @dataclass
@@ -97,8 +112,13 @@ class SwitchingProblem:
             raise InputError(Problem("", "bounds", "a switching point's window is empty (upper < lower)"))
         if self.min_gap_m is None:
             self.min_gap_m = self.calc.train.length_m / 2
-        if self.e_min_kwh <= 0:
-            raise InputError(Problem("", "e_min_kwh", f"must be > 0 kWh (got {self.e_min_kwh:g})"))
+        if not np.isfinite(self.e_min_kwh):
+            raise InputError(Problem("", "e_min_kwh", f"must be a finite number of kWh (got {self.e_min_kwh:g})"))
+        # an on-time plan's eq. 10 is at most w1 (|T - T0| < T0) + w2 (E_max + |E_min|) / scale, with E_max the
+        # traction work of the largest effort all the way (no plan draws more): a plan outside the window ranks above
+        top_kwh = float(np.max(self.calc.train.traction_kn)) * self.calc.route.length_m / KJ_PER_KWH
+        self.outside_offset = OUTSIDE_WINDOW + self.weights[0] + self.weights[1] * (
+            (top_kwh + abs(self.e_min_kwh)) / energy_scale_kwh(self.e_min_kwh))
         self.n_evaluated = 0
         self.time_range_s: tuple[float, float] | None = None  # shortest / longest feasible time seen [s]
 
@@ -126,7 +146,7 @@ class SwitchingProblem:
             f = fitness_eq10(res.running_time_s, e, self.t0_s, self.e_min_kwh, *self.weights)
             if self.tolerance_s is not None:
                 excess = np.abs(res.running_time_s - self.t0_s) - self.tolerance_s
-                f = np.where(excess > 0, OUTSIDE_WINDOW + excess / self.t0_s, f)
+                f = np.where(excess > 0, self.outside_offset + excess / self.t0_s, f)
         return np.where(res.feasible, f, np.inf)
 
     def evaluate(self, X: np.ndarray) -> Evaluation:

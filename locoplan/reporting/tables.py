@@ -207,6 +207,19 @@ def _punctuality(summary: dict) -> str:
     return f"{text} {planned}"
 
 
+def e_min_origin(summary: dict) -> str:
+    """What eq. 11's E_min is, for the fitness row: E* at the punctuality window's end, seed 002's energy-saving
+    run, or the user's value."""
+    src = summary.get("e_min_source")
+    if src == "optimum" and summary.get("e_min_time_s") is not None:
+        return f" = E* at {summary['e_min_time_s']:,.1f} s, the window's end"
+    if src == "energy-saving":
+        return ", the energy-saving run's"
+    if src == "given":
+        return ", given"
+    return ""
+
+
 def summary_table(summary: dict, width: int = 80) -> list:
     """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
     long for the table's value column follows the table on a line of its own, whole)."""
@@ -220,7 +233,8 @@ def summary_table(summary: dict, width: int = 80) -> list:
     if summary.get("planned_time_s") is not None:
         rows.append(("punctuality error", _punctuality(summary)))
     if summary.get("fitness") is not None:
-        rows.append(("fitness", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, E_min {summary['e_min_kwh']:.1f} kWh)"))
+        rows.append(("fitness", f"{summary['fitness']:.5f} (weights {summary['weights'][0]:g}/{summary['weights'][1]:g}, "
+                     f"E_min {summary['e_min_kwh']:.1f} kWh{e_min_origin(summary)})"))
     if summary.get("cruise_kmh"):
         rows.append(("cruise speed", f"{summary['cruise_kmh']:g} km/h"))
     acc = summary.get("optimum_accuracy_percent")

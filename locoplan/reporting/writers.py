@@ -194,7 +194,7 @@ def _air_cells(code: int, last: bool) -> dict:
 
 RUN_COLUMNS = ("route", "consist", "strategy", "algorithm", "seed", "planned_time_s", "w_time", "w_energy", "feasible",
                "reason", "running_time_s", "traction_energy_kwh", "recovered_energy_kwh", "net_energy_kwh", "energy_at_t0_kwh", "punctuality_error_s", "punctual", "fitness",
-               "e_min_kwh", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
+               "e_min_kwh", "e_min_source", "optimum_kwh", "gap_to_optimum_kwh", "gap_to_optimum_percent", "optimum_accuracy_percent", "cruise_kmh",
                "switches", "coasts", "energy_reduction_percent", "max_coupler_tension_kn", "max_coupler_compression_kn",
                "air_applications", "min_recharge_margin_s", "objective", "n_evaluations", "solve_time_s", "plan")
 """Columns of ``--out FILE.csv`` of the commands with several runs (compare, sweep, study): one row per

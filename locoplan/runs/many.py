@@ -55,10 +55,13 @@ class Batch:
 
 
 def needs_e_min(spec: RunSpec) -> bool:
-    """The run needs its group's E_min: a strategy ranked by eq. 10-11 is built on it
-    (``StrategyEntry.needs_e_min``), and any fitness reports it. A journey run's legs find their own."""
+    """The run needs its group's E_min, computed once for the group before the runs: a strategy ranked by eq.
+    10-11 is built on it (``StrategyEntry.needs_e_min``), and any fitness reports it. Only seed 002's builder
+    shares one (its energy-saving run's, whatever the time); with the general builder E_min is E* at the run's
+    own window's end, which each run finds (from E*'s cache); a journey run's legs find their own."""
     entry = registry.lookup(spec.strategy)
-    return spec.journey is None and spec.e_min_kwh is None and (spec.fitness or (entry is not None and entry.needs_e_min))
+    return (spec.journey is None and spec.e_min_kwh is None and spec.resolved_builder == "seed002"
+            and (spec.fitness or (entry is not None and entry.needs_e_min)))
 
 
 def run_many(specs: Iterable[RunSpec], executor: Executor | None = None, *, store=None,

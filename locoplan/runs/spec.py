@@ -305,7 +305,8 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
         d.pop("objective")
     d.update(route=inputs.route_hash(spec), train=inputs.train_hash(spec),
              params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
-             e_min_group=None if spec.e_min_kwh is not None else group_key(spec, inputs), format=RESULTS_FORMAT)
+             e_min_group=None if spec.e_min_kwh is not None or spec.resolved_builder != "seed002"
+             else group_key(spec, inputs), format=RESULTS_FORMAT)
     if spec.journey is not None:
         # the journey's content, not its file; its legs find their own E_min (with these parameters), and its
         # E* and gaps are always computed (``yardstick`` changes nothing)
@@ -501,6 +502,7 @@ def infeasible_summary(ctx, spec: RunSpec, reason: str) -> dict:
             "objective": spec.objective, "planned_time_s": None if math.isnan(t0) else t0, "punctuality_error_s": None, "punctual": None,
             "window_s": None, "fitness": None, "weights": None,
             "e_min_kwh": None if ctx.e_min_kwh is None else round(float(ctx.e_min_kwh), 2),
+            "e_min_source": ctx.e_min_source,
             "solve_time_s": None, "n_evaluations": 0, "plan": None, "switching_points_m": [], "sequence": []}
 
 

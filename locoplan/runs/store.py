@@ -92,12 +92,13 @@ def _why(exc: sqlite3.Error, writing: bool, store: str = "STORE") -> str:
 
 _NUMBER = (int, float)
 _SUMMARY_TYPES = {
-    **dict.fromkeys(("route", "consist", "strategy", "algorithm", "reason", "plan", "kind", "journey"), (str,)),
+    **dict.fromkeys(("route", "consist", "strategy", "algorithm", "reason", "plan", "kind", "journey", "e_min_source"),
+                   (str,)),
     **dict.fromkeys(("feasible", "punctual"), (bool,)),
     **dict.fromkeys(("running_time_s", "traction_energy_kwh", "planned_time_s", "punctuality_error_s", "fitness",
                      "gap_to_optimum_percent", "gap_to_optimum_kwh", "optimum_kwh", "optimum_accuracy_percent",
                      "e_min_kwh", "cruise_kmh", "solve_time_s", "equal_supplements_kwh", "dwell_s",
-                     "fastest_running_time_s"), _NUMBER),
+                     "fastest_running_time_s", "e_min_time_s"), _NUMBER),
     **dict.fromkeys(("seed", "n_evaluations", "legs", "stops", "timing_points", "windows"), (int,)),
     **dict.fromkeys(("window_s", "weights", "switching_points_m", "sequence", "windows_missed", "failures", "legs_table",
                      "stations", "allocations", "release_margins"), (list,)),

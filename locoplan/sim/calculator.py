@@ -150,11 +150,28 @@ def limit_kmh_at(route: Route, s_m, train_length_m: float | None = None) -> np.n
     return lim
 
 
+DEPARTURE_GRADING_M = 200.0
+DEPARTURE_NODES = 14
+"""The grid's cells shrink quadratically towards the departure: nodes at (j / n)^2 x ``DEPARTURE_GRADING_M``
+(at most a quarter of the line), j = 1 .. ``DEPARTURE_NODES``, the first cell about 1 m. A cell integrates a
+plan's conditions as one blend of their forces (``kernel.run_plans``), which is second order in the cell's
+length at speed; but from rest the train covers a cell's first metres slowly, and a departure that powers
+for a few metres and coasts (a start on a falling line) was timed tens of seconds slow on a 40 m cell (8 m of
+traction blended over 40 m: 51 s to 40 m, 31 s when the traction comes first). Near rest the cells are now
+as short as the switches there need."""
+
+
+def departure_nodes_m(length_m: float) -> np.ndarray:
+    """The departure's graded nodes [m] (``DEPARTURE_GRADING_M``)."""
+    span = min(DEPARTURE_GRADING_M, 0.25 * length_m)
+    return (np.arange(1, DEPARTURE_NODES + 1) / DEPARTURE_NODES) ** 2 * span
+
+
 def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None) -> np.ndarray:
-    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), and
-    ``extra_nodes_m`` if given."""
+    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), the
+    departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given."""
     L = route.length_m
-    points = [0.0, L]
+    points = [0.0, L, *departure_nodes_m(L)]
     for sections in (route.speed_limits, route.gradients, route.curves, route.tunnels):
         for sec in sections:
             points += [sec.from_m, sec.to_m]
@@ -685,6 +702,44 @@ class TractionCalculator:
         airs = (never(air_at), air_wait, air_apps, air_margin, air if want_profile else None) if cyc else None
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw, airs)
 
+    def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_wait: float) -> bool:
+        """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (4, cells),
+        ``cruise`` its cruise speed's e (inf: none), ``s_wait`` [m] where its look-ahead ends (inf: none)."""
+        h, env, nxt = self.h_m, self.e_envelope, self.next_air_curve
+        fo, t_rec = self.forces, self.air_cycle.recharge_s
+        T_, K_, C_, B_ = CODE["T"], CODE["K"], CODE["C"], CODE["B"]
+        t, j, n = 0.0, k, len(h)
+        while j < n and t < t_rec and self.s_m[j] < s_wait:
+            if frac_i[B_, j] > 0.0:
+                return False
+            v_kmh = float(kmh_from_e(e))
+            b_el = float(_interp(v_kmh, fo.ev, fo.ef)) * self.traction_allowed[j]
+            load = float(running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, self.gravity_kn[j]))
+            if load < 0.0:
+                gain = max(-(b_el + load), 0.0)
+            else:
+                f_max = float(_interp(v_kmh, fo.tv, fo.tf)) * self.traction_allowed[j]
+                gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - load
+            e1 = e + (h[j] / fo.m) * gain
+            if e1 <= E_FLOOR:
+                return True
+            if frac_i[T_, j] + frac_i[K_, j] > 0.0 and e1 > cruise:
+                e1 = max(cruise, min(e, e1))
+            if b_el + load < 0.0:
+                e_hold = self.e_limit_cell[j]
+                if frac_i[C_, j] == 0.0 and cruise < e_hold:
+                    e_hold = cruise
+                if e1 >= float(self._cycle_speeds(np.array([e_hold]), j, np.zeros(1))[0][0]):
+                    return False
+            if e1 > env[j + 1] * (1.0 + 1e-9) + 1e-9:
+                if nxt[j] == j or b_el + load < 0.0:
+                    return False
+                e1 = env[j + 1]
+            t += 2.0 * h[j] / (float(ms_from_e(e)) + float(ms_from_e(e1)) + 1e-12)
+            e = e1
+            j += 1
+        return True
+
     @property
     def _min_hold_s(self) -> float:
         """The air brake's least hold time [s] as the loops take it (< 0: each application's build-up time)."""
@@ -780,8 +835,9 @@ class TractionCalculator:
             air_prof = np.zeros((n, n_cells), dtype=np.int8) if want_profile else None
 
             def apply(mask, t_at, state, curve=False):
-                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge. A
-                ``curve`` application follows a braking curve (no least hold: released where the curve ends)."""
+                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge and held
+                at least the least hold. A ``curve`` application follows a braking curve (released where the curve
+                ends, once held that long)."""
                 wait = t_at - t_rel
                 again = mask & released
                 np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
@@ -793,7 +849,7 @@ class TractionCalculator:
                 curve_kind[mask] = curve
                 t_app[mask] = t_at[mask]
                 tb_app[mask] = self.t_build_s[k]
-                hold_app[mask] = 0.0 if curve else (min_hold if min_hold >= 0.0 else self.t_build_s[k])
+                hold_app[mask] = min_hold if min_hold >= 0.0 else self.t_build_s[k]
                 state[mask] = AIR_APPLIED
         for k in range(n_cells):
             hk = h[k]
@@ -810,7 +866,7 @@ class TractionCalculator:
             b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
             fT_k, fk, fB_k, b_use, may_ex = fT[k], fK[k], fB[k], b_max, may_exceed[k]
-            ov = band = None
+            ov = band = hold_cap = None
             if cyc is not None:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
@@ -826,18 +882,25 @@ class TractionCalculator:
                 ja = self.next_air_curve[k]
                 near = ja >= 0 and self.s_m[ja] - self.s_m[k] < ms_from_e(self.e_limit_cell[k]) * t_rec
                 a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
+                s_wait = np.full(n, np.inf)
                 if near:  # a braking curve that needs the air brake within the recharge: not released above
                     # the electric brake's own curves, unless it can slow the train to reach it recharged
-                    rel &= (((e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1]))
-                            | late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S))
+                    under_el = (e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1])
+                    late = late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S)
+                    rel &= under_el | late
+                    finite = np.isfinite(self.e_envelope_el[k]) and np.isfinite(self.e_envelope_el[k + 1])
+                    s_wait = np.where(late | (under_el & finite), self.s_m[ja], np.inf)  # (kernel.run_plans)
                 j = self.next_short[k]
-                if rel.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
+                e_rel_now = np.where(short, e_r, np.inf)
+                if air_on.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
                     e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
                     ahead = ~short & (self.s_m[j] - self.s_m[k] < v * t_rec)
                     e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, margin[:, region[j]])[1]
-                    rel &= np.where(short, e <= e_r, ~ahead | (e <= e_r_j))
-                else:
-                    rel &= ~short | (e <= e_r)
+                    e_rel_now = np.where(ahead, e_r_j, e_rel_now)
+                rel &= e <= e_rel_now
+                for i in np.flatnonzero(rel):  # and only where it can recharge before it is needed again
+                    rel[i] = self._release_safe(k, float(e[i]), frac[:, i, :],
+                                                np.inf if cruise_e is None else float(cruise_e[i]), float(s_wait[i]))
                 if rel.any():
                     air_on &= ~rel
                     released |= rel
@@ -856,14 +919,21 @@ class TractionCalculator:
                 with np.errstate(divide="ignore", invalid="ignore"):
                     ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
                 lvl = np.where(air_on, ramp, 0.0)
-                ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition
+                ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition:
+                # down to a cycle's release speed at full; below it kept on (its least hold, or no safe release
+                # yet), the speed held, the electric brake eased down to the air brake alone
+                kept = ov & (e <= e_rel_now) & (fB_k == 0.0)
                 # in the cycle's band, or recharging on a descent: held by the electric brake alone (at full
                 # where it cannot hold), whatever the plan's condition
                 band = ~air_on & ((short & (e >= e_r)) | (released & (t - t_rel < t_rec) & (load < 0.0)))
                 both = ov | band
-                fT_k, fk, fB_k = np.where(both, 0.0, fT_k), np.where(band, 1.0, np.where(ov, 0.0, fk)), np.where(ov, 1.0, fB_k)
+                hold_k = band | kept
+                fT_k = np.where(both, 0.0, fT_k)
+                fk = np.where(hold_k, 1.0, np.where(ov, 0.0, fk))
+                fB_k = np.where(ov & ~kept, 1.0, np.where(kept, 0.0, fB_k))
                 may_ex = may_ex & ~both
                 b_use = b_el + lvl * air_k
+                hold_cap = np.where(kept, -lvl * air_k, f_max)
                 rech = el_cap & released & ~air_on & (t - t_rel < t_rec)
                 if rech.any():  # recharging, a curve that needs the air was near at the release: the electric
                     # brake's own curves, or the speed that reaches it recharged (kernel.run_plans)
@@ -873,7 +943,7 @@ class TractionCalculator:
                     c0 = np.where(rech, np.minimum(c0, np.maximum(self.e_envelope_el[k], np.maximum(e_time, e))), c0)
                     c1 = np.where(rech, np.minimum(c1, np.maximum(self.e_envelope_el[k + 1],
                                                                   np.maximum(e_time, e - hk * a_el))), c1)
-            hold = np.minimum(np.maximum(load, -b_use), f_max)  # cruise: the force that keeps the speed
+            hold = np.minimum(np.maximum(load, -b_use), f_max if hold_cap is None else hold_cap)  # cruise: the force that keeps the speed
             full = fT_k * f_max
             tr = full + fk * np.maximum(hold, 0.0)
             e_pred = e + (hk / m) * (full - fB_k * b_use + fk * hold - load)

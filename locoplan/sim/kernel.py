@@ -119,6 +119,56 @@ def _judge_recharge(wait, t_rec, i, k, air_margin, air_at, air_wait):
 
 
 @njit(cache=True, _nrt=False)
+def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_wait):
+    """Whether the air brake may be released at cell ``k``'s start at e = v^2/2 [m^2/s^2] and recharge before it
+    is needed again, by looking ``t_rec`` seconds ahead along the plan (its runs ``codes``, ``starts``,
+    ``ends`` from run ``j0``; its cruise speed's e, inf: none; ``sh`` a scratch array of 4): on a descent the
+    train is held by the electric brake alone (``run_plans``: whatever the plan's condition while the brake
+    recharges), holding the speed where it can, at full where it cannot; elsewhere it drives the plan's own
+    condition. Unsafe: the plan brakes (B, an application), the train reaches the apply speed of a grade the
+    electric brake cannot hold (``cycle_speeds``), or a braking curve it cannot follow on the electric brake
+    (``ce_.next_air``, or on such a grade). Safe once it reaches ``s_wait`` [m] (inf: none), a braking curve for
+    which the train, recharging, waits on the electric brake (``run_plans``' cap)."""
+    h, s, env, next_air, allowed, grav = ce_.h, ce_.s, ce_.e_env, ce_.next_air, ce_.allowed, ce_.grav
+    n = h.shape[0]
+    t = 0.0
+    j = k
+    while j < n and t < t_rec and s[j] < s_wait:
+        j0 = _shares(s[j], s[j + 1], codes, starts, ends, j0, sh)
+        if sh[B] > 0.0:
+            return False
+        v_kmh = kmh_from_e(e)
+        b_el = _interp(v_kmh, fo.ev, fo.ef) * allowed[j]
+        load = load_kn(v_kmh, grav[j], fo)
+        if load < 0.0:  # a descent: the electric brake alone
+            gain = -(b_el + load)
+            if gain < 0.0:
+                gain = 0.0
+        else:
+            f_max = _interp(v_kmh, fo.tv, fo.tf) * allowed[j]
+            gain = sh[T] * f_max + sh[K] * min(max(load, -b_el), f_max) - load
+        e1 = e + (h[j] / fo.m) * gain
+        if e1 <= E_FLOOR:  # at rest: no application ahead (the plan fails on its own)
+            return True
+        if sh[T] + sh[K] > 0.0 and e1 > cruise_e:
+            e1 = max(cruise_e, min(e, e1))
+        if b_el + load < 0.0:  # a grade the electric brake cannot hold: below its apply speed
+            e_hold = ce_.e_limit_cell[j]
+            if sh[C] == 0.0 and cruise_e < e_hold:
+                e_hold = cruise_e
+            if e1 >= cycle_speeds(e_hold, grav[j], allowed[j], ce_.t_build[j], t_rec, 0.0, fo)[0]:
+                return False
+        if e1 > env[j + 1] * (1.0 + 1e-9) + 1e-9:
+            if next_air[j] == j or b_el + load < 0.0:
+                return False
+            e1 = env[j + 1]  # a braking curve the electric brake follows
+        t += 2.0 * h[j] / (ms_from_e(e) + ms_from_e(e1) + 1e-12)
+        e = e1
+        j += 1
+    return True
+
+
+@njit(cache=True, _nrt=False)
 def late_enough(v, d, a, t_need):
     """Whether a train at ``v`` [m/s], slowing at up to ``a`` [m/s^2] (the electric brake), can cover ``d`` [m]
     in no less than ``t_need`` [s]: where it can stop within ``d``, always; else the slowest way,
@@ -230,6 +280,7 @@ def run_plans(ce_, fo, pl, out):
     n_cells = h.shape[0]
     last = n_cells - 1
     shares = np.zeros(4)
+    ahead = np.zeros(4)
     for i in range(n):
         e = 0.0
         v = 0.0
@@ -258,6 +309,7 @@ def run_plans(ce_, fo, pl, out):
         b_el = 0.0
         e_r = 0.0
         for k in range(n_cells):
+            j0_cell = j0
             j0 = _shares(s[k], s[k + 1], codes, starts[i], ends[i], j0, shares)
             fT, fK, fC, fB = shares[T], shares[K], shares[C], shares[B]
             hk = h[k]
@@ -289,6 +341,7 @@ def run_plans(ce_, fo, pl, out):
             state = AIR_OFF
             ov = False
             band = False
+            kept = False
             if cycle:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
@@ -314,9 +367,16 @@ def run_plans(ce_, fo, pl, out):
                 a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
                 late = near and late_enough(v, s[ja] - s[k], a_el, t_rec + ARRIVE_AFTER_S)
                 # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
+                under_el = e <= e_env_el[k] and e <= e_env_el[k + 1]
+                # that curve, reached while recharging, is waited for on the electric brake (the cap below): the
+                # look-ahead ends there (where the electric brake's curves are none, a grade it cannot hold, it
+                # cannot make the train wait, unless the train is that late anyway)
+                s_wait = s[ja] if near and (late or (under_el and e_env_el[k] < np.inf and e_env_el[k + 1] < np.inf)) else np.inf
                 if (air_on and fB == 0.0 and (not curve_prev or next_air[k] != k) and t - t_app >= hold_app - 1e-9
                         and e <= e_rel_now
-                        and (not near or (e <= e_env_el[k] and e <= e_env_el[k + 1]) or late)):
+                        and (not near or under_el or late)
+                        and release_safe(k, e, t_rec, ce_, fo, codes, starts[i], ends[i], j0_cell,
+                                         cruise_e[i] if has_cruise else np.inf, ahead, s_wait)):
                     air_on = False
                     released = True
                     t_rel = t
@@ -343,8 +403,13 @@ def run_plans(ce_, fo, pl, out):
                         state = AIR_ON
                     t_mid = t + hk / (v + ms_from_e(max(e_mid, 0.0)) + 1e-12)
                     lvl = 1.0 if tb_app <= 0.0 else min(max((t_mid - t_app) / tb_app, 0.0), 1.0)
-                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition
-                        fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition:
+                        if e > e_rel_now or fB > 0.0:  # a cycle's application, down to its release speed, or
+                            # the plan's braking: at full
+                            fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                        else:  # kept on (its least hold, or no safe release yet): the speed held, the electric
+                            fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0  # brake eased down to the air brake alone
+                            kept = True
                         ov = True
                 elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
                     # in the cycle's band, or recharging on a descent: held by the electric brake alone (at
@@ -365,7 +430,7 @@ def run_plans(ce_, fo, pl, out):
                         c0 = cap0
                     if cap1 < c1:
                         c1 = cap1
-            hold = min(max(load, -b_use), f_max)
+            hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
             e_pred = e + (hk / m) * (full - fB * b_use + fK * hold - load)
@@ -439,7 +504,7 @@ def run_plans(ce_, fo, pl, out):
                     curve_kind = True
                     t_app = t_start
                     tb_app = t_build[k]
-                    hold_app = 0.0  # its force follows the curve; released where the curve ends
+                    hold_app = min_hold if min_hold >= 0.0 else tb_app  # held at least as any application
                     state = AIR_APPLIED
                 curve_prev = on_cap
                 if want_profile:

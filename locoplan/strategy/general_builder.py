@@ -25,7 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.conditions import CONDITIONS
+from ..model.conditions import CODE, CONDITIONS
+from ..physics.braking import full_brake_kn
+from ..physics.traction import max_force_kn
+from ..physics.units import kmh, kmh_from_e
 from ..sim.calculator import TractionCalculator
 
 
@@ -64,10 +67,8 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
         else:
             runs.append([float(s[k]), float(s[k + 1]), c])
     merged: list[list] = []
-    for r in runs:  # (the DP keeps every run but the departure one at least half a train long)
-        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]) and len(merged) > 1:
-            merged[-1][1] = r[1]
-        elif merged and merged[-1][2] == r[2]:
+    for r in runs:  # (the departure run may be short; every later run joins its predecessor if it is)
+        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]):
             merged[-1][1] = r[1]
         else:
             merged.append(r)
@@ -121,3 +122,75 @@ def with_holds(calc: TractionCalculator, seq: DriveSequence) -> DriveSequence:
     upper = np.minimum(edges[2:] - gap, L - gap)
     return DriveSequence(tuple(conditions) + ("B",), nominal_m, lower, np.maximum(upper, lower), seq.drive_time_s,
                          seq.drive_energy_kwh, seq.price_kwh_per_s)
+
+
+FULL_SHARE = 0.97
+"""A cell of the optimum whose traction (braking) is at least this share of the most the consist has at its
+speed is full traction, T (full braking, B)."""
+FORCE_SHARE = 0.02
+"""A force under this share of the consist's largest effort is none: the cell coasts (C)."""
+CAP_KMH = 0.3
+"""A cell whose two nodes are within this of the braking envelope [km/h] is held at a limit or follows a
+braking curve: whatever the plan's condition there, the calculator holds the train on the envelope."""
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """A drive in the form ``sequence_from_drive`` reads: nodes [m], per-cell control codes, time, energy."""
+
+    s_m: np.ndarray
+    controls: np.ndarray
+    time_s: float
+    energy_kwh: float
+    price_kwh_per_s: float
+
+
+
+
+def optimum_controls(grid: TractionCalculator, sol) -> np.ndarray:
+    """Each cell's condition code in E*'s solution ``sol`` (``ocp.cells.CellSolution`` on ``grid``'s cells):
+    full traction T, no force C, full braking below the envelope B, a partial force (traction, or braking below
+    the envelope) that holds the speed K. A cell on the braking envelope (a limit held, a braking curve
+    followed: every condition is held there the same way), and a cell with a partial force whose speed changes
+    (a switch inside the cell), take the condition of the cells before them (at the start, after them; T if
+    none)."""
+    tr = grid.train
+    v_kmh = kmh(np.asarray(sol.v_ms, dtype=float))
+    vm = np.sqrt(0.5 * (v_kmh[:-1] ** 2 + v_kmh[1:] ** 2))
+    allowed = np.asarray(grid.traction_allowed, dtype=float)
+    f_max = max_force_kn(vm, tr.traction_speed_kmh, tr.traction_kn) * allowed
+    b_max = full_brake_kn(max_force_kn(vm, grid.electric_brake_speed_kmh, grid.electric_brake_kn),
+                          max_force_kn(vm, grid.air_brake_speed_kmh, grid.air_brake_kn), allowed)
+    small = FORCE_SHARE * float(np.max(tr.traction_kn))
+    cap = kmh_from_e(np.maximum(grid.e_envelope, 0.0))
+    near = v_kmh >= cap - CAP_KMH
+    on_cap = near[:-1] & near[1:]
+    e = 0.5 * np.asarray(sol.v_ms, dtype=float) ** 2
+    held = np.abs(grid.m_eff_t * np.diff(e) / grid.h_m) < small  # the net force [kN]: ~0 where a speed is held
+    F, B = np.asarray(sol.traction_kn, dtype=float), np.asarray(sol.brake_kn, dtype=float)
+    full_t = (f_max > small) & ((F >= FULL_SHARE * f_max) | (on_cap & (F > small)))
+    full_b = (B > small) & (B >= FULL_SHARE * b_max)
+    partial = (F > small) | (B > small)
+    code = np.full(len(F), CODE["C"], dtype=np.int64)
+    code[partial] = CODE["K"]
+    code[full_b] = CODE["B"]
+    code[full_t] = CODE["T"]
+    inherit = ~full_t & (on_cap | (partial & ~full_b & ~held))
+    code[inherit] = -1
+    known = np.flatnonzero(code >= 0)
+    if not known.size:
+        return np.full(len(F), CODE["T"], dtype=np.int64)
+    # each inheriting cell: the last known condition before it, else the first one after it
+    last = np.maximum.accumulate(np.where(code >= 0, np.arange(len(code)), -1))
+    return np.where(code >= 0, code, code[np.where(last >= 0, last, known[0])])
+
+
+def sequence_from_optimum(calc: TractionCalculator, grid: TractionCalculator, sol, min_run_m: float | None = None
+                          ) -> DriveSequence:
+    """The condition sequence of E*'s own solution ``sol`` on ``grid`` (``optimum_controls``), its runs and
+    nominal switching points as ``sequence_from_drive`` makes them for a plan on ``calc``: where the optimum
+    alternates coasting and holding a speed on a falling line, or holds a speed by braking on a descent, the
+    sequence does too."""
+    drive = _Drive(np.asarray(grid.s_m, dtype=float), optimum_controls(grid, sol), float(np.sum(2.0 * grid.h_m / np.maximum(
+        sol.v_ms[:-1] + sol.v_ms[1:], 1e-9))), float(sol.energy_kwh), -float(sol.slope_kwh_per_s))
+    return sequence_from_drive(calc, drive, min_run_m)

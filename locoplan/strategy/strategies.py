@@ -41,7 +41,7 @@ from ..sim.calculator import TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
 from ..sim.result import AIR_APPLIED, BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
-from .general_builder import sequence_from_drive, with_holds
+from .general_builder import sequence_from_drive, sequence_from_optimum, with_holds
 
 
 @dataclass
@@ -87,20 +87,64 @@ class StrategyContext:
         return np.random.default_rng([self.seed if seed is None else seed, salt])
 
     def e_min(self) -> float:
-        """E_min of eq. 11: the user's value, else the energy-saving strategy's energy (traction, or net with
-        the ``net`` objective)."""
+        """E_min of eq. 11 [kWh]: the user's value; else, with the general builder and a planned time, the least
+        energy of any punctual plan, E*(T0 + tolerance) (E* falls with the running time, so every plan on time
+        has E >= E_min and eq. 10's |E - E_min| is its excess over the optimum); else (seed 002's builder, no
+        planned time, or no E* there) the energy-saving strategy's energy, seed 002's own E_min (traction, or
+        net with the ``net`` objective). ``e_min_source`` says which."""
         if self.e_min_kwh is not None:
             return self.e_min_kwh
         if "e" not in self._e_min_cache:
-            out = energy_saving(self)
-            res = evaluate_outcome(self.calc, out, recovered=self.objective == "net")
-            e = float(res.energy_kwh(self.objective)[0])
-            # a falling line may be coasted from end to end: eq. 11 divides by E_min, so it is floored
-            # at 1 % of the fastest run's energy
-            fastest = float(self.calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0])
-            self._e_min_cache["e"] = max(e, E_MIN_FLOOR_SHARE * fastest, 1e-3)
-            self._e_min_cache["outcome"] = out
+            e = self._e_min_optimum() if self.builder != "seed002" else None
+            if e is not None:
+                self._e_min_cache["e"], self._e_min_cache["source"] = e, "optimum"
+            else:
+                self._e_min_cache["e"], self._e_min_cache["source"] = self._e_min_energy_saving(), "energy-saving"
         return self._e_min_cache["e"]
+
+    @property
+    def e_min_source(self) -> str | None:
+        """Where E_min came from: ``given`` (--e-min), ``optimum`` (E* at the window's end) or ``energy-saving``
+        (seed 002's); None before it is known."""
+        if self.e_min_kwh is not None:
+            return "given"
+        return self._e_min_cache.get("source")
+
+    @property
+    def e_min_time_s(self) -> float | None:
+        """The running time [s] E_min is E* at (the window's slow end), where it is the optimum's."""
+        return self._e_min_cache.get("time_s") if self.e_min_source == "optimum" else None
+
+    def _e_min_optimum(self) -> float | None:
+        """E*(T0 + tolerance) [kWh] (``ocp.bound.energy_bound``, cached with the yardstick's), or None without a
+        planned time or where E* has no optimum there."""
+        from ..errors import LocoplanError
+        from ..ocp.bound import energy_bound  # the optimum: imported when a planned run needs it
+
+        if math.isnan(self.t0_s):
+            return None
+        t = self.t0_s + (self.tolerance_s or 0.0)
+        c = self.calc
+        try:
+            b = energy_bound(c.route, c.train, c.options, t, calc=c, objective=self.objective)
+        except LocoplanError:
+            return None
+        if not math.isfinite(b.energy_kwh):
+            return None
+        self._e_min_cache["time_s"] = t
+        self._e_min_cache["bound"] = b
+        # traction work is never negative (below 0 is the solver's tolerance); a net energy may be
+        return b.energy_kwh if self.objective != "traction" else max(b.energy_kwh, 0.0)
+
+    def _e_min_energy_saving(self) -> float:
+        """Seed 002's E_min: the energy-saving strategy's energy, floored at ``E_MIN_FLOOR_SHARE`` of the fastest
+        run's (a falling line may be coasted from end to end, and eq. 11 divides by E_min)."""
+        out = energy_saving(self)
+        res = evaluate_outcome(self.calc, out, recovered=self.objective == "net")
+        e = float(res.energy_kwh(self.objective)[0])
+        fastest = float(self.calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0])
+        self._e_min_cache["outcome"] = out
+        return max(e, E_MIN_FLOOR_SHARE * fastest, 1e-3)
 
 
 @dataclass(frozen=True)
@@ -362,6 +406,93 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     # the optimiser's window is a little narrower than the reported one: the reporting grid re-simulates
     if ctx.ranking_tolerance_s is not None:
         common["tolerance_s"] = RANKING_MARGIN * ctx.ranking_tolerance_s
+    best, evaluations, failure = None, 0, None
+    for start in (_optimum_start, _drive_start):
+        if best is not None and _close_enough(ctx, best):
+            break
+        seq = start(ctx)
+        if seq is None:
+            continue
+        try:
+            found = _search(ctx, seq, common)
+        except InfeasibleError as exc:  # no plan of this sequence drives: the other start's, if it finds one
+            failure = exc
+            continue
+        evaluations += found[2].n_evaluations if found[2] is not None else 0
+        if best is None or found[4] < best[4]:
+            best = found
+    if best is None:
+        if failure is not None:
+            raise failure
+        raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
+    seq, problem, result, x, _ = best
+    if problem is None:  # one condition, then the stop: nothing to search
+        return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
+                               e_min_kwh=e_min)
+    result = replace(result, n_evaluations=evaluations)
+    problem, result, x = _place_releases(ctx, problem, result, x)
+    return StrategyOutcome(_plan(seq.conditions, x, problem), algorithm=ctx.algorithm, history=result.history,
+                           n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
+                           e_min_kwh=e_min, time_range_s=problem.time_range_s)
+
+
+CLOSE_SHARE = 0.005
+CLOSE_KWH = 0.15
+"""The optimum's start is searched first; the DP drive's too only where the plan found from it is not on time
+on the reporting grid, or exceeds E* at its own running time by more than ``CLOSE_SHARE`` of it (or
+``CLOSE_KWH`` where that is more): the better of the two plans is kept."""
+
+
+def _close_enough(ctx: StrategyContext, found) -> bool:
+    """Whether the plan ``_search`` found (seq, problem, result, x, fitness) is on time on the reporting grid and
+    within ``CLOSE_SHARE`` of E* at its own running time (``ocp.bound.energy_bound``, as its gap will be)."""
+    from ..errors import LocoplanError
+    from ..ocp.bound import energy_bound
+
+    seq, problem, _, x, f = found
+    if not math.isfinite(f) or ctx.e_min_source != "optimum":
+        return False
+    if problem is not None:
+        res = replace(problem, calc=ctx.calc).simulate(np.atleast_2d(x))
+    else:
+        res = ctx.calc.evaluate(seq.conditions, np.full((1, len(seq.conditions) - 1), np.nan), recovered=ctx.objective == "net")
+    t = float(res.running_time_s[0])
+    if not res.feasible[0] or (ctx.tolerance_s and abs(t - ctx.t0_s) > ctx.tolerance_s):
+        return False
+    c = ctx.calc
+    try:
+        e_star = energy_bound(c.route, c.train, c.options, t, calc=c, objective=ctx.objective).energy_kwh
+    except LocoplanError:
+        return False
+    return float(res.energy_kwh(ctx.objective)[0]) - e_star <= max(CLOSE_SHARE * abs(e_star), CLOSE_KWH)
+
+
+def _optimum_start(ctx: StrategyContext):
+    """The condition sequence and switching points of E*'s own solution at the planned time
+    (``general_builder.sequence_from_optimum``), or None where E* has none."""
+    from ..errors import LocoplanError
+    from ..ocp.bound import optimum_solution
+
+    if math.isnan(ctx.t0_s):
+        return None
+    c = ctx.calc
+    try:
+        grid, sol = optimum_solution(c.route, c.train, c.options, ctx.t0_s + OPTIMUM_START_SHARE * (ctx.tolerance_s or 0.0),
+                                     objective=ctx.objective)
+    except LocoplanError:
+        return None
+    return sequence_from_optimum(ctx.search, grid, sol)
+
+
+OPTIMUM_START_SHARE = 0.5
+"""E*'s solution the optimum's sequence is read off is E* at T0 + this share of the punctuality window: the
+optimiser's plans gather towards the window's slow end, where eq. 10 is least."""
+
+
+def _drive_start(ctx: StrategyContext):
+    """The sequence of the priced-optimal DP drive whose plan runs closest to the planned time
+    (``optimize.dp``), with speed holds where even the least energy runs too fast; None where no drive
+    reaches the stop."""
     solver = drive_solver(ctx)
 
     def plan_time(d):  # the drive's plan on the search grid, as ISSA will see it
@@ -372,7 +503,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     drive = solver.for_time(ctx.t0_s, timer=plan_time, close_s=0.25 * (ctx.tolerance_s or 0.0),
                             price_hint=ctx.price_hint_kwh_per_s)
     if drive is None:
-        raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
+        return None
     seq = sequence_from_drive(solver.calc, drive)
     tol = ctx.tolerance_s or 0.0
     if drive.time_s < ctx.t0_s - tol and "C" in seq.conditions:
@@ -383,9 +514,16 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         # traction to the stop (a climb) and still too fast: no drive's sequence came nearer, so hold a
         # lower speed inside the traction run (partial traction), where ISSA places it
         seq = with_holds(ctx.search, seq)
-    if not len(seq.nominal_m):  # one condition, then the stop: nothing to search
-        return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
-                               e_min_kwh=e_min)
+    return seq
+
+
+def _search(ctx: StrategyContext, seq, common: dict):
+    """ISSA (the context's optimiser) over the switching points of ``seq`` from its nominal ones: (seq, problem,
+    result, x, fitness of x on the reporting grid); problem and result None for a sequence with nothing to place."""
+    if not len(seq.nominal_m):
+        res = ctx.calc.evaluate(seq.conditions, np.zeros((1, len(seq.conditions) - 1)) + np.nan)
+        f = SwitchingProblem(ctx.calc, seq.conditions, np.zeros(0), np.zeros(0), **common).fitness(res)[0]
+        return seq, None, None, np.zeros(0), float(f)
     search = _search_grid_for(ctx, seq)
     problem = SwitchingProblem(search, seq.conditions, seq.lower_m, seq.upper_m, center=seq.nominal_m, **common)
     jitter = ctx.rng(3).normal(0.0, 0.1, (10, problem.n_var)) * (seq.upper_m - seq.lower_m)
@@ -399,10 +537,8 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         again = _optimise(ctx, problem, salt=2, x0=np.vstack([np.atleast_2d(result.best_x), result.population]))
         result = replace(again, n_evaluations=result.n_evaluations + again.n_evaluations)
         x = _confirmed(ctx, problem, result)
-    problem, result, x = _place_releases(ctx, problem, result, x)
-    return StrategyOutcome(_plan(seq.conditions, x, problem), algorithm=ctx.algorithm, history=result.history,
-                           n_evaluations=result.n_evaluations, solve_time_s=time.perf_counter() - t,
-                           e_min_kwh=e_min, time_range_s=problem.time_range_s)
+    check = replace(problem, calc=ctx.calc)
+    return seq, problem, result, x, float(check.fitness(check.simulate(np.atleast_2d(x)))[0])
 
 
 def _place_releases(ctx: StrategyContext, problem: SwitchingProblem, result, x):
