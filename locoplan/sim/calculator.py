@@ -44,7 +44,7 @@ from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL, E_FLOOR,
-                        ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, RELEASE_FLOOR)
+                        ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import (AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
@@ -702,34 +702,41 @@ class TractionCalculator:
         airs = (never(air_at), air_wait, air_apps, air_margin, air if want_profile else None) if cyc else None
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw, airs)
 
-    def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_wait: float) -> bool:
+    def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_air: float) -> bool:
         """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (4, cells),
-        ``cruise`` its cruise speed's e (inf: none), ``s_wait`` [m] where its look-ahead ends (inf: none)."""
+        ``cruise`` its cruise speed's e (inf: none), ``s_air`` [m] the curve it waits for (inf: none)."""
         h, env, nxt = self.h_m, self.e_envelope, self.next_air_curve
         fo, t_rec = self.forces, self.air_cycle.recharge_s
         T_, K_, C_, B_ = CODE["T"], CODE["K"], CODE["C"], CODE["B"]
         t, j, n = 0.0, k, len(h)
-        while j < n and t < t_rec and self.s_m[j] < s_wait:
+        while j < n and t < t_rec:
             if frac_i[B_, j] > 0.0:
                 return False
-            v_kmh = float(kmh_from_e(e))
-            b_el = float(_interp(v_kmh, fo.ev, fo.ef)) * self.traction_allowed[j]
-            load = float(running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, self.gravity_kn[j]))
-            if load < 0.0:
-                gain = max(-(b_el + load), 0.0)
-            else:
-                f_max = float(_interp(v_kmh, fo.tv, fo.tf)) * self.traction_allowed[j]
-                gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - load
-            e1 = e + (h[j] / fo.m) * gain
+            e1, b_el, load = e, 0.0, 0.0
+            for _ in range(2):
+                v_kmh = float(kmh_from_e(max(0.5 * (e + e1), 0.0)))
+                b_el = float(_interp(v_kmh, fo.ev, fo.ef)) * self.traction_allowed[j]
+                load = float(running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, self.gravity_kn[j]))
+                if load < 0.0:
+                    gain = max(-(b_el + load), 0.0)
+                else:
+                    f_max = float(_interp(v_kmh, fo.tv, fo.tf)) * self.traction_allowed[j]
+                    gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - load
+                e1 = e + (h[j] / fo.m) * gain
             if e1 <= E_FLOOR:
                 return True
             if frac_i[T_, j] + frac_i[K_, j] > 0.0 and e1 > cruise:
                 e1 = max(cruise, min(e, e1))
+            if s_air < np.inf:
+                e_time = 0.5 * ((s_air - self.s_m[j]) / (t_rec + ARRIVE_AFTER_S - t)) ** 2 if s_air > self.s_m[j] else 0.0
+                a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / fo.m
+                e1 = min(e1, max(self.e_envelope_el[j + 1], max(e_time, e - h[j] * a_el)))
             if b_el + load < 0.0:
                 e_hold = self.e_limit_cell[j]
                 if frac_i[C_, j] == 0.0 and cruise < e_hold:
                     e_hold = cruise
-                if e1 >= float(self._cycle_speeds(np.array([e_hold]), j, np.zeros(1))[0][0]):
+                e_app = float(self._cycle_speeds(np.array([e_hold]), j, np.zeros(1))[0][0])
+                if float(kmh_from_e(e1)) >= float(kmh_from_e(e_app)) - LOOKAHEAD_MARGIN_KMH:
                     return False
             if e1 > env[j + 1] * (1.0 + 1e-9) + 1e-9:
                 if nxt[j] == j or b_el + load < 0.0:
@@ -882,14 +889,10 @@ class TractionCalculator:
                 ja = self.next_air_curve[k]
                 near = ja >= 0 and self.s_m[ja] - self.s_m[k] < ms_from_e(self.e_limit_cell[k]) * t_rec
                 a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
-                s_wait = np.full(n, np.inf)
                 if near:  # a braking curve that needs the air brake within the recharge: not released above
                     # the electric brake's own curves, unless it can slow the train to reach it recharged
-                    under_el = (e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1])
-                    late = late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S)
-                    rel &= under_el | late
-                    finite = np.isfinite(self.e_envelope_el[k]) and np.isfinite(self.e_envelope_el[k + 1])
-                    s_wait = np.where(late | (under_el & finite), self.s_m[ja], np.inf)  # (kernel.run_plans)
+                    rel &= (((e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1]))
+                            | late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S))
                 j = self.next_short[k]
                 e_rel_now = np.where(short, e_r, np.inf)
                 if air_on.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
@@ -900,7 +903,8 @@ class TractionCalculator:
                 rel &= e <= e_rel_now
                 for i in np.flatnonzero(rel):  # and only where it can recharge before it is needed again
                     rel[i] = self._release_safe(k, float(e[i]), frac[:, i, :],
-                                                np.inf if cruise_e is None else float(cruise_e[i]), float(s_wait[i]))
+                                                np.inf if cruise_e is None else float(cruise_e[i]),
+                                                float(self.s_m[ja]) if near else np.inf)
                 if rel.any():
                     air_on &= ~rel
                     released |= rel

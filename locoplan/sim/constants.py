@@ -29,6 +29,10 @@ ELECTRIC_CURVE_SHARE = 0.9
 """The electric brake's own braking curves (what a train whose air brake recharges may follow) are built on
 this share of its force: following one keeps a reserve, so that the calculator, which checks the force at
 the train's mid-cell speed rather than the curve's, never finds it short by a rounding."""
+LOOKAHEAD_MARGIN_KMH = 0.5
+"""A release's look-ahead (``kernel.release_safe``) finds it unsafe where the train would come within this of an
+apply speed [km/h] before the recharge is over: its one step per cell may misjudge the speed by a few hundredths
+of a km/h over a kilometre, and a release judged safe by a hair was found applying again a few seconds early."""
 ARRIVE_AFTER_S = 0.5
 """A train whose air brake recharges, slowed so as to reach the next braking curve that needs it no sooner
 than the recharge is over, aims to reach it this long after [s] (not on the very instant)."""

@@ -21,7 +21,7 @@ from ..model.conditions import B, C, K, T
 from ..physics import braking, resistance, units
 from ..physics.units import KMH2_PER_E
 from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, ARRIVE_AFTER_S, CRAWL_STEP_M,
-                        CYCLE_MARGIN, E_CRAWL, E_FLOOR, ELECTRIC_CURVE_SHARE, RELEASE_FLOOR)
+                        CYCLE_MARGIN, E_CRAWL, E_FLOOR, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
 
 # the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
 full_brake_kn = njit(cache=True)(braking.full_brake_kn)
@@ -119,7 +119,7 @@ def _judge_recharge(wait, t_rec, i, k, air_margin, air_at, air_wait):
 
 
 @njit(cache=True, _nrt=False)
-def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_wait):
+def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_air):
     """Whether the air brake may be released at cell ``k``'s start at e = v^2/2 [m^2/s^2] and recharge before it
     is needed again, by looking ``t_rec`` seconds ahead along the plan (its runs ``codes``, ``starts``,
     ``ends`` from run ``j0``; its cruise speed's e, inf: none; ``sh`` a scratch array of 4): on a descent the
@@ -127,36 +127,50 @@ def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_
     recharges), holding the speed where it can, at full where it cannot; elsewhere it drives the plan's own
     condition. Unsafe: the plan brakes (B, an application), the train reaches the apply speed of a grade the
     electric brake cannot hold (``cycle_speeds``), or a braking curve it cannot follow on the electric brake
-    (``ce_.next_air``, or on such a grade). Safe once it reaches ``s_wait`` [m] (inf: none), a braking curve for
-    which the train, recharging, waits on the electric brake (``run_plans``' cap)."""
+    (``ce_.next_air``, or on such a grade). ``s_air`` [m] (inf: none): a braking curve that needs the air brake
+    near enough at the release that, recharging, the train is capped as ``run_plans`` caps it (by the electric
+    brake's own curves, or the speed that reaches ``s_air`` after the recharge, slowed to it by the electric
+    brake)."""
     h, s, env, next_air, allowed, grav = ce_.h, ce_.s, ce_.e_env, ce_.next_air, ce_.allowed, ce_.grav
     n = h.shape[0]
     t = 0.0
     j = k
-    while j < n and t < t_rec and s[j] < s_wait:
+    while j < n and t < t_rec:
         j0 = _shares(s[j], s[j + 1], codes, starts, ends, j0, sh)
         if sh[B] > 0.0:
             return False
-        v_kmh = kmh_from_e(e)
-        b_el = _interp(v_kmh, fo.ev, fo.ef) * allowed[j]
-        load = load_kn(v_kmh, grav[j], fo)
-        if load < 0.0:  # a descent: the electric brake alone
-            gain = -(b_el + load)
-            if gain < 0.0:
-                gain = 0.0
-        else:
-            f_max = _interp(v_kmh, fo.tv, fo.tf) * allowed[j]
-            gain = sh[T] * f_max + sh[K] * min(max(load, -b_el), f_max) - load
-        e1 = e + (h[j] / fo.m) * gain
+        e1 = e
+        b_el, load = 0.0, 0.0
+        for _ in range(2):  # the forces at the cell's start, then at its middle (the calculator's second-order step)
+            v_kmh = kmh_from_e(max(0.5 * (e + e1), 0.0))
+            b_el = _interp(v_kmh, fo.ev, fo.ef) * allowed[j]
+            load = load_kn(v_kmh, grav[j], fo)
+            if load < 0.0:  # a descent: the electric brake alone
+                gain = -(b_el + load)
+                if gain < 0.0:
+                    gain = 0.0
+            else:
+                f_max = _interp(v_kmh, fo.tv, fo.tf) * allowed[j]
+                gain = sh[T] * f_max + sh[K] * min(max(load, -b_el), f_max) - load
+            e1 = e + (h[j] / fo.m) * gain
         if e1 <= E_FLOOR:  # at rest: no application ahead (the plan fails on its own)
             return True
         if sh[T] + sh[K] > 0.0 and e1 > cruise_e:
             e1 = max(cruise_e, min(e, e1))
-        if b_el + load < 0.0:  # a grade the electric brake cannot hold: below its apply speed
+        if s_air < np.inf:  # waiting for the curve ahead on the electric brake (run_plans' cap while recharging)
+            e_time = 0.0
+            if s_air > s[j]:
+                e_time = 0.5 * ((s_air - s[j]) / (t_rec + ARRIVE_AFTER_S - t)) ** 2
+            a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / fo.m
+            cap1 = max(ce_.e_env_el[j + 1], max(e_time, e - h[j] * a_el))
+            if e1 > cap1:
+                e1 = cap1
+        if b_el + load < 0.0:  # a grade the electric brake cannot hold: below its apply speed, with a margin
             e_hold = ce_.e_limit_cell[j]
             if sh[C] == 0.0 and cruise_e < e_hold:
                 e_hold = cruise_e
-            if e1 >= cycle_speeds(e_hold, grav[j], allowed[j], ce_.t_build[j], t_rec, 0.0, fo)[0]:
+            e_app = cycle_speeds(e_hold, grav[j], allowed[j], ce_.t_build[j], t_rec, 0.0, fo)[0]
+            if kmh_from_e(e1) >= kmh_from_e(e_app) - LOOKAHEAD_MARGIN_KMH:
                 return False
         if e1 > env[j + 1] * (1.0 + 1e-9) + 1e-9:
             if next_air[j] == j or b_el + load < 0.0:
@@ -367,16 +381,11 @@ def run_plans(ce_, fo, pl, out):
                 a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
                 late = near and late_enough(v, s[ja] - s[k], a_el, t_rec + ARRIVE_AFTER_S)
                 # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
-                under_el = e <= e_env_el[k] and e <= e_env_el[k + 1]
-                # that curve, reached while recharging, is waited for on the electric brake (the cap below): the
-                # look-ahead ends there (where the electric brake's curves are none, a grade it cannot hold, it
-                # cannot make the train wait, unless the train is that late anyway)
-                s_wait = s[ja] if near and (late or (under_el and e_env_el[k] < np.inf and e_env_el[k + 1] < np.inf)) else np.inf
                 if (air_on and fB == 0.0 and (not curve_prev or next_air[k] != k) and t - t_app >= hold_app - 1e-9
                         and e <= e_rel_now
-                        and (not near or under_el or late)
+                        and (not near or (e <= e_env_el[k] and e <= e_env_el[k + 1]) or late)
                         and release_safe(k, e, t_rec, ce_, fo, codes, starts[i], ends[i], j0_cell,
-                                         cruise_e[i] if has_cruise else np.inf, ahead, s_wait)):
+                                         cruise_e[i] if has_cruise else np.inf, ahead, s[ja] if near else np.inf)):
                     air_on = False
                     released = True
                     t_rel = t
