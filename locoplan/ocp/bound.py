@@ -212,11 +212,12 @@ _SOLUTIONS: dict[tuple, object] = {}
 
 def optimum_solution(route: Route, train: Train, options: ModelOptions | None, time_s: float, *,
                      objective: str = "traction", step_m: float | None = None):
-    """E*'s optimum at ``time_s`` on one grid (``ocp.cells.CellSolution``: node speeds, each cell's traction and
-    braking), for where the optimum drives, holds a speed, coasts and brakes: the condition structure of a plan
-    near it. The grid's cells are ``step_m`` long (default: about ``STRUCTURE_CELLS`` of them within
+    """E*'s optimum at ``time_s`` on one grid, (its calculator, its solution: node speeds, each cell's traction and
+    braking, ``ocp.cells.CellSolution`` or from the disk cache ``StructureSolution``), for where the optimum
+    drives, holds a speed, coasts and brakes: the condition structure of a plan near it. The grid's cells are ``step_m`` long (default: about ``STRUCTURE_CELLS`` of them within
     ``STRUCTURE_STEP_M``), graded towards the rest points as E*'s; started from the last E* solved for this
-    route and train where there is one. Kept in this process. Raises ``InfeasibleError`` as ``energy_bound``."""
+    route and train where there is one. Kept in this process and on disk (as E*, ``LOCOPLAN_CACHE_DIR``). Raises
+    ``InfeasibleError`` as ``energy_bound``."""
     from .cells import WARM_MU, cell_calculator, cell_problem, solve_cells, warm_point
     from .train_energy import check_runnable
 
@@ -229,20 +230,70 @@ def optimum_solution(route: Route, train: Train, options: ModelOptions | None, t
     if key not in _SOLUTIONS:
         calc = cell_calculator(route, train, options, step_m)
         check_runnable(calc, time_s)
-        warm = _WARM.get(base)
-        sol = None
-        if warm is not None:
-            try:
-                sol = solve_cells(calc, time_s, mu_init=WARM_MU, point=warm_point(cell_problem(calc, time_s, regen), warm)[0],
-                                  regen=regen)
-            except InfeasibleError:
-                sol = None
+        sol = _structure_read(key, len(calc.h_m))
         if sol is None:
-            sol = solve_cells(calc, time_s, regen=regen)
+            warm = _WARM.get(base)
+            if warm is not None:
+                try:
+                    sol = solve_cells(calc, time_s, mu_init=WARM_MU,
+                                      point=warm_point(cell_problem(calc, time_s, regen), warm)[0], regen=regen)
+                except InfeasibleError:
+                    sol = None
+            if sol is None:
+                sol = solve_cells(calc, time_s, regen=regen)
+            _structure_write(key, sol)
         if len(_SOLUTIONS) > 32:
             _SOLUTIONS.pop(next(iter(_SOLUTIONS)))
         _SOLUTIONS[key] = (calc, sol)
     return _SOLUTIONS[key]
+
+
+@dataclass(frozen=True)
+class StructureSolution:
+    """E*'s solution as ``optimum_solution`` keeps it on disk: what reading its structure needs (node speeds
+    [m/s], each cell's traction and braking [kN], the optimum [kWh] and dE*/dT [kWh/s])."""
+
+    v_ms: np.ndarray
+    traction_kn: np.ndarray
+    brake_kn: np.ndarray
+    energy_kwh: float
+    slope_kwh_per_s: float
+
+
+def _structure_read(key: tuple, n_cells: int) -> "StructureSolution | None":
+    """A solution ``optimum_solution`` kept on disk, or None (none, unreadable, or not of this grid's shape and
+    finite: a damaged or foreign file is ignored and solved again)."""
+    f = _cache_file(key)
+    if f is None:
+        return None
+    f = f.with_suffix(".npz")
+    try:
+        with np.load(f, allow_pickle=False) as z:
+            v, tr, br, meta = (np.array(z[k], dtype=float) for k in ("v_ms", "traction_kn", "brake_kn", "meta"))
+    except (OSError, ValueError, KeyError, TypeError, EOFError):
+        return None
+    ok = (v.shape == (n_cells + 1,) and tr.shape == br.shape == (n_cells,) and meta.shape == (2,)
+          and all(np.all(np.isfinite(a)) for a in (v, tr, br, meta)) and v.min() >= 0 and tr.min() >= 0 and br.min() >= 0)
+    return StructureSolution(v, tr, br, float(meta[0]), float(meta[1])) if ok else None
+
+
+def _structure_write(key: tuple, sol) -> None:
+    f = _cache_file(key)
+    if f is None:
+        return
+    f = f.with_suffix(".npz")
+    tmp = None
+    try:  # atomic, as the bounds' JSON files
+        f.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp.npz")
+        with os.fdopen(fd, "wb") as out:
+            np.savez(out, v_ms=sol.v_ms, traction_kn=sol.traction_kn, brake_kn=sol.brake_kn,
+                     meta=np.array([sol.energy_kwh, sol.slope_kwh_per_s]))
+        os.replace(tmp, f)
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 CURVE_TOL = 1e-4

@@ -45,12 +45,16 @@ class DriveSequence:
     price_kwh_per_s: float
 
 
-def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None = None) -> DriveSequence:
+def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None = None,
+                        keep_force: bool = False) -> DriveSequence:
     """Runs of the drive's per-cell controls as a seed 002 condition sequence: holding the speed is K
     (the calculator's K holds the speed at which it starts); runs shorter than half the train (seed 002
     eq. 3) join their predecessor; the last run of braking is the stop's (a bare B).
     Each switching point may move as far as its neighbours' nominal positions (less half a train): the
-    drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between."""
+    drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between.
+    ``keep_force``: a short run of traction, cruise or braking is kept and widened to half a train instead
+    (the switching points pushed apart as the optimiser's repair does: an optimum's short burst of traction up
+    a climb is what gets a heavy train over it); only short coasting runs join their predecessor."""
 
     s, L = drive.s_m, calc.route.length_m
     gap = calc.train.length_m / 2 if min_run_m is None else min_run_m
@@ -68,7 +72,8 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
             runs.append([float(s[k]), float(s[k + 1]), c])
     merged: list[list] = []
     for r in runs:  # (the departure run may be short; every later run joins its predecessor if it is)
-        if merged and (r[1] - r[0] < gap or merged[-1][2] == r[2]):
+        short = r[1] - r[0] < gap and (not keep_force or r[2] == "C")
+        if merged and (short or merged[-1][2] == r[2]):
             merged[-1][1] = r[1]
         else:
             merged.append(r)
@@ -77,6 +82,13 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
         merged.pop()
     conditions = tuple(r[2] for r in merged) + ("B",)
     nominal = np.array([r[0] for r in merged[1:]], dtype=float)
+    if keep_force and len(nominal):  # the runs at least half a train long (the first may be shorter)
+        for j in range(1, len(nominal)):
+            nominal[j] = max(nominal[j], nominal[j - 1] + gap)
+        nominal[-1] = min(nominal[-1], L - gap)
+        for j in range(len(nominal) - 2, -1, -1):
+            nominal[j] = min(nominal[j], nominal[j + 1] - gap)
+        nominal = np.maximum(nominal, 0.0)
     edges = np.concatenate([[0.0], nominal, [L]])
     lower = edges[:-2] + gap
     if len(nominal):
@@ -193,4 +205,4 @@ def sequence_from_optimum(calc: TractionCalculator, grid: TractionCalculator, so
     sequence does too."""
     drive = _Drive(np.asarray(grid.s_m, dtype=float), optimum_controls(grid, sol), float(np.sum(2.0 * grid.h_m / np.maximum(
         sol.v_ms[:-1] + sol.v_ms[1:], 1e-9))), float(sol.energy_kwh), -float(sol.slope_kwh_per_s))
-    return sequence_from_drive(calc, drive, min_run_m)
+    return sequence_from_drive(calc, drive, min_run_m, keep_force=True)
