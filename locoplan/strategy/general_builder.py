@@ -82,7 +82,15 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
         merged.pop()
     conditions = tuple(r[2] for r in merged) + ("B",)
     nominal = np.array([r[0] for r in merged[1:]], dtype=float)
-    if keep_force and len(nominal):  # the runs at least half a train long (the first may be shorter)
+    return _with_windows(conditions, nominal, gap, L, keep_force, drive)
+
+
+def _with_windows(conditions, nominal: np.ndarray, gap: float, L: float, spread: bool, drive) -> DriveSequence:
+    """The sequence with its nominal switching points (``spread``: pushed apart to ``gap``, as the optimiser's
+    repair does) and each one's window: as far as its neighbours, less ``gap`` (the departure run may be
+    shorter)."""
+    nominal = np.asarray(nominal, dtype=float).copy()
+    if spread and len(nominal):  # the runs at least ``gap`` long (the first may be shorter)
         for j in range(1, len(nominal)):
             nominal[j] = max(nominal[j], nominal[j - 1] + gap)
         nominal[-1] = min(nominal[-1], L - gap)
@@ -94,7 +102,7 @@ def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None
     if len(nominal):
         lower[0] = min(gap, 0.5 * nominal[0])  # the departure run may be short
     upper = np.minimum(edges[2:] - gap, L - gap)
-    return DriveSequence(conditions, nominal, lower, np.maximum(upper, lower), drive.time_s, drive.energy_kwh,
+    return DriveSequence(tuple(conditions), nominal, lower, np.maximum(upper, lower), drive.time_s, drive.energy_kwh,
                          drive.price_kwh_per_s)
 
 
@@ -142,6 +150,9 @@ speed is full traction, T (full braking, B)."""
 FORCE_SHARE = 0.02
 """A force under this share of the consist's largest effort is none: the cell coasts (C)."""
 CAP_KMH = 0.3
+HELD_SHARE = 0.1
+"""A cell of the optimum with a partial force holds a speed where its net force is under this share of that
+force (or ``FORCE_SHARE`` of the largest effort): the grid's optimum holds a speed to within a few kN."""
 """A cell whose two nodes are within this of the braking envelope [km/h] is held at a limit or follows a
 braking curve: whatever the plan's condition there, the calculator holds the train on the envelope."""
 
@@ -178,8 +189,9 @@ def optimum_controls(grid: TractionCalculator, sol) -> np.ndarray:
     near = v_kmh >= cap - CAP_KMH
     on_cap = near[:-1] & near[1:]
     e = 0.5 * np.asarray(sol.v_ms, dtype=float) ** 2
-    held = np.abs(grid.m_eff_t * np.diff(e) / grid.h_m) < small  # the net force [kN]: ~0 where a speed is held
     F, B = np.asarray(sol.traction_kn, dtype=float), np.asarray(sol.brake_kn, dtype=float)
+    # the net force [kN]: ~0 where a speed is held (against the force applied: a transition nets a good part of it)
+    held = np.abs(grid.m_eff_t * np.diff(e) / grid.h_m) < np.maximum(small, HELD_SHARE * np.maximum(F, B))
     full_t = (f_max > small) & ((F >= FULL_SHARE * f_max) | (on_cap & (F > small)))
     full_b = (B > small) & (B >= FULL_SHARE * b_max)
     partial = (F > small) | (B > small)
@@ -194,7 +206,16 @@ def optimum_controls(grid: TractionCalculator, sol) -> np.ndarray:
         return np.full(len(F), CODE["T"], dtype=np.int64)
     # each inheriting cell: the last known condition before it, else the first one after it
     last = np.maximum.accumulate(np.where(code >= 0, np.arange(len(code)), -1))
-    return np.where(code >= 0, code, code[np.where(last >= 0, last, known[0])])
+    out = np.where(code >= 0, code, code[np.where(last >= 0, last, known[0])])
+    # traction inside a cell between coasting (or braking) on both sides is a burst of traction: up a short pitch
+    # (a heavy train crawling over a crest) it is what gets the train over, and would be lost to the coasting
+    n = len(code)
+    nxt = np.minimum.accumulate(np.where(code >= 0, np.arange(n), n)[::-1])[::-1]
+    after = code[np.minimum(nxt, known[-1])]
+    idle = (CODE["C"], CODE["B"])
+    burst = inherit & ~on_cap & (F > small) & np.isin(out, idle) & np.isin(after, idle)
+    out[burst] = CODE["T"]
+    return out
 
 
 def sequence_from_optimum(calc: TractionCalculator, grid: TractionCalculator, sol, min_run_m: float | None = None
@@ -205,4 +226,30 @@ def sequence_from_optimum(calc: TractionCalculator, grid: TractionCalculator, so
     sequence does too."""
     drive = _Drive(np.asarray(grid.s_m, dtype=float), optimum_controls(grid, sol), float(np.sum(2.0 * grid.h_m / np.maximum(
         sol.v_ms[:-1] + sol.v_ms[1:], 1e-9))), float(sol.energy_kwh), -float(sol.slope_kwh_per_s))
-    return sequence_from_drive(calc, drive, min_run_m, keep_force=True)
+    seq = sequence_from_drive(calc, drive, min_run_m, keep_force=True)
+    # a hold (K) keeps the speed at which it begins: it begins where the optimum's speed reaches the speed it
+    # holds (a cell earlier or later than the cells labelled K: the switch is inside a transition cell)
+    s, v = drive.s_m, kmh(np.asarray(sol.v_ms, dtype=float))
+    L = calc.route.length_m
+    nominal = seq.nominal_m.copy()
+    for j, c in enumerate(seq.conditions[1:-1]):
+        if c != "K":
+            continue
+        a, b = nominal[j], (nominal[j + 1] if j + 1 < len(nominal) else L)
+        v_hold = float(np.interp(0.5 * (a + b), s, v))
+        k = int(np.searchsorted(s, a))
+        lo = max(nominal[j - 1] if j else 0.0, s[max(k - HOLD_SEARCH_CELLS, 0)])
+        hi = min(b, s[min(k + HOLD_SEARCH_CELLS, len(s) - 1)])
+        idx = np.flatnonzero((s >= lo) & (s <= hi))
+        d = v[idx] - v_hold
+        cross = np.flatnonzero(d[:-1] * d[1:] <= 0.0)
+        if cross.size:  # the first crossing (into the hold: within it the speed wavers about it), interpolated
+            i = cross[0]
+            s0, s1, d0, d1 = s[idx[i]], s[idx[i + 1]], d[i], d[i + 1]
+            nominal[j] = s0 if d0 == d1 else s0 + (s1 - s0) * d0 / (d0 - d1)
+    gap = calc.train.length_m / 2 if min_run_m is None else min_run_m
+    return _with_windows(seq.conditions, nominal, gap, L, True, drive)
+
+
+HOLD_SEARCH_CELLS = 3
+"""Where a hold of the optimum begins is looked for within this many of its cells of where its K cells begin."""
