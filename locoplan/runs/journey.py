@@ -9,8 +9,13 @@ planned at its share, and the allocation compared with the usual ones.
    window; each leg's time is read off it.
 3. Each leg's E* at its time, solved on its own to E*'s tolerance (``ocp.bound.energy_bound``, or with the
    windows of its timing points); the journey's E* is their sum, its accuracy the sum of theirs.
-4. Each leg planned by the strategies asked for (``proposed`` by default) at its time, every plan's gap
-   to its leg's E*.
+4. Each strategy asked for (``proposed`` by default) plans the legs one after the other: a leg's plan is
+   asked for a window inside the bounds that keep every station window ahead and the total
+   (``arrival_bounds``), centred as near as they allow on the allocation's clock at the leg's end from where
+   the plans so far have brought the train (``leg_window``), so that what one leg runs late the next makes
+   up; a plan of a strategy that keeps time that still misses its bounds is planned again with a narrower
+   window. Every station's clock in the plans is checked against its window, the legs' total against the
+   journey's running time +- its tolerance (``total_tolerance``); every plan's gap to its leg's E*.
 5. The same legs' E* at the equal-percentage allocation (every leg's fastest run times the same factor)
    and at the timetable's own leg times where it gives them: what the optimal allocation saves.
 """
