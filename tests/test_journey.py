@@ -316,3 +316,38 @@ def test_a_missed_stop_window_fails_the_strategies_that_keep_time(root, train):
     assert record["punctual"] is False and record["failures"] == res.failures
     assert record["windows_missed"] == [f"B at {arrives:.1f} s"]
     assert record["stations"][1]["in_window"] is False and record["stations"][1]["plan_s"] == pytest.approx(arrives, abs=0.05)
+
+
+def test_a_leg_plan_that_ends_outside_its_bounds_is_made_again_with_the_time_moved(root, train, monkeypatch):
+    """A timetabled strategy that always runs 8 s past what it is asked (four-stage asked for T0 + 8 s): the twin
+    journey's first leg, held by B's window (+-2 s around the allocation's arrival), is planned again asked for
+    a time moved down by the miss, and keeps the window; the second leg makes up the rest of the total."""
+    import dataclasses
+
+    from locoplan.runner import make_context
+    from locoplan.strategy import registry
+    from locoplan.strategy.strategies import evaluate_outcome, four_stage
+
+    def late(ctx):
+        return four_stage(dataclasses.replace(ctx, t0_s=ctx.t0_s + 8.0))
+
+    monkeypatch.setitem(registry.STRATEGIES, "late", registry.StrategyEntry("late", late, timetabled=True))
+    j, route = load_journey(root / DATA / "twin-journey.yaml")
+    legs = legs_of(j, route, train, ModelOptions())
+    total = round(1.2 * sum(leg.fastest_s for leg in legs), 1)
+    j = _journey_with_windows(j, legs, total, 2.0 / total, 60.0)
+    b = j.stations[1]
+    allocated = total / 2  # two identical legs
+    # asked for the allocation's time, it would end past B's window
+    first = late(make_context(legs[0].route, train, ModelOptions(), time_s=allocated, tolerance_s=1.0))
+    assert float(evaluate_outcome(make_context(legs[0].route, train, ModelOptions(), time_s=allocated).calc,
+                                  first).running_time_s[0]) > b.latest_s + 1.0
+    res = plan_journey(j, route, train, ModelOptions(), time_s=total, strategies=("late",))
+    s = res.summary
+    leg1 = s["legs_table"][0]["plans"]["late"]
+    assert leg1["replans"] >= 1 and leg1["planned_time_s"] < allocated - 4.0
+    arrives = float(res.runs[0]["run"].result.profile.t_s[0, -1])
+    assert b.earliest_s - 0.05 <= arrives <= b.latest_s + 0.05
+    ran = arrives + float(res.runs[1]["run"].result.profile.t_s[0, -1])
+    assert abs(ran - total) <= s["tolerance_s"] + 0.05
+    assert res.failures == [] and s["plans"]["late"]["punctual"] is True

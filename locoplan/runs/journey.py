@@ -256,8 +256,8 @@ MIN_LEG_TOLERANCE_S = 0.5
 departure and a station's latest time gets this around the middle of what is left)."""
 MAX_REPLANS = 2
 """A timetabled strategy's leg plan that ends outside its leg's bounds (or passes a timing point inside it out
-of its window) is planned again, at most this many times, each with the window narrowed by the miss and
-halved; the plan that misses least is kept."""
+of its window) is planned again, at most this many times, each time asked for a time moved by the miss (and
+half its new window inside), the window halved; the plan that misses least is kept."""
 
 
 def total_tolerance(total_s: float, n_legs: int, tolerance_s: float | None = None) -> float:
@@ -315,16 +315,20 @@ def leg_window(lo_s: float, hi_s: float, target_s: float, fastest_s: float, half
     return LegWindow(lo_s, hi_s, target_s, max(t0, fastest_s), tol)
 
 
-def _leg_misses(leg: Leg, run, w: LegWindow, depart_run_s: float, wins: dict) -> tuple[float, float, float]:
-    """How far a leg's plan misses [s] (its end outside the bounds ``w``, a timing point inside the leg outside its
-    window; inf: no feasible plan), and the bounds narrowed by the misses, for a plan made again."""
+def _leg_misses(leg: Leg, run, w: LegWindow, depart_run_s: float, wins: dict,
+                margin_s: float) -> tuple[float, float | None]:
+    """How far a leg's plan misses [s] (its end outside the bounds of ``w``, a timing point inside the leg outside
+    its window; inf: no feasible plan), and by how much to move the time asked of the plan made again [s]: the
+    least shift that would bring each miss ``margin_s`` inside (with the plan's own offset from what it was asked
+    unchanged) and keep its end inside the bounds; None where no shift does (nothing to plan again)."""
     s = run.summary
     if not s.get("feasible"):
-        return math.inf, w.lo_s, w.hi_s
+        return math.inf, None
     p = float(run.result.running_time_s[0])
     miss = max(0.0, p - w.hi_s) + max(0.0, w.lo_s - p)
-    lo = w.lo_s + 2 * max(0.0, w.lo_s - p)
-    hi = w.hi_s - 2 * max(0.0, p - w.hi_s)
+    room = 0.5 * (w.hi_s - w.lo_s)
+    m = min(margin_s, room) if room >= 0 else 0.0
+    lo, hi = w.lo_s + m - p, w.hi_s - m - p  # shifts that keep the end inside, ``m`` from its bounds
     prof = run.result.profile
     for i, at in leg.points:
         if i not in wins or prof is None:
@@ -333,11 +337,13 @@ def _leg_misses(leg: Leg, run, w: LegWindow, depart_run_s: float, wins: dict) ->
         passes = depart_run_s + float(np.interp(at, prof.s_m, prof.t_s[0]))
         late = 0.0 if w_hi is None else passes - w_hi
         early = 0.0 if w_lo is None else w_lo - passes
-        if late > 0:  # the whole leg a little faster: it passes earlier too
-            miss, hi = miss + late, min(hi, p - 2 * late)
+        if late > 0:  # the whole leg a little faster passes the point earlier too
+            miss, hi = miss + late, min(hi, -late - margin_s)
         if early > 0:
-            miss, lo = miss + early, max(lo, p + 2 * early)
-    return miss, lo, hi
+            miss, lo = miss + early, max(lo, early + margin_s)
+    if miss <= 0 or hi < lo:
+        return miss, None
+    return miss, min(max(0.0, lo), hi)
 
 
 @dataclass
@@ -427,9 +433,7 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
         target = float(alloc_end[k]) - run_clock
         half = given if given is not None else max(1.0, DEFAULT_TOLERANCE_SHARE * target)
         first = leg_window(lo - run_clock, hi - run_clock, target, leg.fastest_s, half)
-        w, cur_lo, cur_hi = first, first.lo_s, first.hi_s
-        best = None
-        calcs, dp = None, None
+        w, best, calcs, dp = first, None, None, None
         for attempt in range(1 + (MAX_REPLANS if steer else 0)):
             ctx = make_context(leg.route, train, options, time_s=w.t0_s, tolerance_s=w.tolerance_s, seed=settings["seed"],
                                algorithm=settings["algorithm"], params=settings["params"], weights=settings["weights"],
@@ -442,15 +446,13 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
                 ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
             run = run_strategy(ctx, name, with_fitness=settings["with_fitness"])
             dp = ctx._e_min_cache.get("dp", dp)
-            miss, n_lo, n_hi = _leg_misses(leg, run, first, run_clock, wins)
+            tol = max(MIN_LEG_TOLERANCE_S, w.tolerance_s / 2)  # the window of a plan made again
+            miss, shift = _leg_misses(leg, run, first, run_clock, wins, margin_s=tol)
             if best is None or miss < best[0]:
                 best = (miss, run, ctx, w, attempt)
-            if miss <= 1e-6 or not steer or not run.summary.get("feasible"):
+            if miss <= 0 or not steer or shift is None:
                 break
-            cur_lo, cur_hi = max(cur_lo, n_lo), min(cur_hi, n_hi)
-            if cur_hi < cur_lo:  # what keeps the end spoils a timing point, or the reverse: keep the least miss
-                break
-            w = leg_window(cur_lo, cur_hi, target, leg.fastest_s, w.tolerance_s / 2)
+            w = replace(w, t0_s=max(w.t0_s + shift, leg.fastest_s), tolerance_s=tol)
         miss, run, ctx, w, attempt = best
         ctx.yardstick = True  # the gap to E* of the plan kept only (each is an E* at the plan's own time)
         run = replace(run, summary=summarize(ctx, name, run.outcome, run.result, settings["with_fitness"]))
