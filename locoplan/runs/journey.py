@@ -409,12 +409,14 @@ class StrategyPlans:
 
 def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOptions, name: str, times, bounds,
                fastest: dict[int, float], total_s: float, total_tol_s: float, step, settings: dict,
-               strict: bool | None) -> StrategyPlans:
+               strict: bool | None, shared: dict) -> StrategyPlans:
     """Plan every leg with strategy ``name``, one after the other. Each leg's plan is asked for a window inside
     the bounds that keep every station window ahead and the total (:func:`arrival_bounds`), aimed at the
     allocation's clock at the leg's end from where the plans so far have brought the train: what an earlier leg
     ran late or early, the next one makes up, and the windows' slack left is what the next legs' bounds see.
-    A timetabled strategy's plan that misses its bounds is made again (``MAX_REPLANS``)."""
+    A timetabled strategy's plan that misses its bounds is made again (``MAX_REPLANS``). ``shared``: leg index ->
+    (calculators, priced-drive DP) of the strategies planned before, reused (a DP solve rewrites its work arrays,
+    so reuse cannot change a result)."""
     from ..runner import DEFAULT_TOLERANCE_SHARE, make_context, run_strategy, summarize
     from ..strategy import registry
 
@@ -433,7 +435,8 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
         target = float(alloc_end[k]) - run_clock
         half = given if given is not None else max(1.0, DEFAULT_TOLERANCE_SHARE * target)
         first = leg_window(lo - run_clock, hi - run_clock, target, leg.fastest_s, half)
-        w, best, calcs, dp = first, None, None, None
+        calcs, dp = shared.get(k, (None, None))  # the leg's calculators and DP, as another strategy left them
+        w, best = first, None
         for attempt in range(1 + (MAX_REPLANS if steer else 0)):
             ctx = make_context(leg.route, train, options, time_s=w.t0_s, tolerance_s=w.tolerance_s, seed=settings["seed"],
                                algorithm=settings["algorithm"], params=settings["params"], weights=settings["weights"],
@@ -453,6 +456,7 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
             if miss <= 0 or not steer or shift is None:
                 break
             w = replace(w, t0_s=max(w.t0_s + shift, leg.fastest_s), tolerance_s=tol)
+        shared[k] = (calcs, dp)
         miss, run, ctx, w, attempt = best
         ctx.yardstick = True  # the gap to E* of the plan kept only (each is an E* at the plan's own time)
         run = replace(run, summary=summarize(ctx, name, run.outcome, run.result, settings["with_fitness"]))
@@ -540,10 +544,11 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
         comparisons.append(("timetable's leg times" if abs(scale - 1) < 1e-9 else "timetable's shares of the time", tts, e_tt))
     result = JourneyResult({}, legs, [journey.stations[leg.last].dwell_s for leg in legs])
     total_tol = total_tolerance(total, len(legs), tolerance_s)
+    shared: dict = {}
     plans = {name: _plan_legs(journey, legs, train, options, name, times, bounds, fastest, total, total_tol, step,
                               dict(seed=seed, algorithm=algorithm, params=params, weights=weights,
                                    tolerance_s=tolerance_s, window=window, builder=builder, inputs=inputs,
-                                   with_fitness=with_fitness), strict)
+                                   with_fitness=with_fitness), strict, shared)
              for name in strategies}
     leg_rows = []
     for leg, t, b in zip(legs, times, bounds):
