@@ -13,8 +13,8 @@ planned at its share, and the allocation compared with the usual ones.
    asked for a window inside the bounds that keep every station window ahead and the total
    (``arrival_bounds``), centred as near as they allow on the allocation's clock at the leg's end from where
    the plans so far have brought the train (``leg_window``), so that what one leg runs late the next makes
-   up; a plan of a strategy that keeps time that still misses its bounds is planned again with a narrower
-   window. Every station's clock in the plans is checked against its window, the legs' total against the
+   up; a plan of a strategy that keeps time that still misses its bounds is planned again, asked for a time
+   moved by its miss. Every station's clock in the plans is checked against its window, the legs' total against the
    journey's running time +- its tolerance (``total_tolerance``); every plan's gap to its leg's E*.
 5. The same legs' E* at the equal-percentage allocation (every leg's fastest run times the same factor)
    and at the timetable's own leg times where it gives them: what the optimal allocation saves.
