@@ -72,17 +72,17 @@ def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A 
             if out_file.suffix.lower() == ".json":
                 write_json(out_file, with_provenance(s))
             else:
-                write_journey_csv(out_file, result, names[0])
+                write_journey_csv(out_file, result, names[0], j)
         if plot is not None:
             plot_journey(plot, result, j, route, names[0])
     if as_json:
         json_out(s)
     else:
-        tables = [journey_summary_table(s), journey_legs_table(s), journey_allocations_table(s)]
-        if any(st["window_s"] != [None, None] or not st["stop"] for st in s["stations"]):
-            tables.append(journey_stations_table(s))
+        tables = [journey_summary_table(s), journey_legs_table(s), journey_allocations_table(s),
+                  journey_stations_table(s)]
+        drops = {1: (2,), 3: (5, 8, 9, 7, 6)}
         show(out, [block for k, t in enumerate(tables)
-                   for block in fit(t, out.width, drop=(5, 2) if k == 1 else (), wrap=(1,) if k == 0 else ())])
+                   for block in fit(t, out.width, drop=drops.get(k, ()), wrap=(1,) if k == 0 else ())])
     fail_on(api.verdict(result.failures))
 
 

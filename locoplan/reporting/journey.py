@@ -49,17 +49,25 @@ def journey_summary_table(s: dict) -> Table:
         gap = ("-" if p["gap_to_optimum_kwh"] is None else f"{pct:+.2f} %" if pct is not None
                else f"{p['gap_to_optimum_kwh']:+.2f} kWh")
         rec = p.get("recovered_energy_kwh")
-        t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s; {gap} over E* (each leg "
-                  "at its plan's own time)" + ("" if rec is None else f"; recovered by the electric brake {rec:.2f} kWh, "
-                                               f"net {p['net_energy_kwh']:.2f} kWh"))
+        lo, hi = p["window_s"]
+        on_time = "inside" if lo - 0.05 <= p["running_time_s"] <= hi + 0.05 else "OUTSIDE"
+        kept = [st["plans"][name]["in_window"] for st in s["stations"] if st["plans"][name]["in_window"] is not None]
+        windows = (f"; windows kept {sum(kept)} of {len(kept)}" if all(kept) else
+                   f"; windows MISSED: {', '.join(p['windows_missed'])}") if kept else ""
+        t.add_row(name, f"{p['traction_energy_kwh']:.2f} kWh in {p['running_time_s']:.1f} s ({on_time} "
+                  f"{s['running_time_s']:.1f} +- {s['tolerance_s']:g} s){windows}; {gap} over E* (each leg at its "
+                  "plan's own time)" + ("" if rec is None else f"; recovered by the electric brake {rec:.2f} kWh, "
+                                        f"net {p['net_energy_kwh']:.2f} kWh"))
     return t
 
 
 def journey_legs_table(s: dict) -> Table:
+    """Per leg: its fastest run, the allocation's time, the first strategy's plan's time, E* and the plan's energy
+    and gap (the plan's station times are in :func:`journey_stations_table`)."""
     strategies = list(s["plans"])
     main = strategies[0] if strategies else None
     t = Table(title="legs: the optimal allocation of the running time", title_justify="left")
-    for col in ("leg", "from - to", "fastest [s]", "time [s]", "arrives [s]", "window [s]", "E* [kWh]",
+    for col in ("leg", "from - to", "fastest [s]", "time [s]", f"{main} [s]" if main else "plan [s]", "E* [kWh]",
                 f"{main} [kWh]" if main else "plan [kWh]", "gap"):
         t.add_column(escape(col), justify="left" if col == "from - to" else "right")
     for r in s["legs_table"]:
@@ -68,7 +76,7 @@ def journey_legs_table(s: dict) -> Table:
         pct = p.get("gap_to_optimum_percent")
         gap = "-" if e is None else (f"{pct:+.2f} %" if pct is not None else f"{p.get('gap_to_optimum_kwh', 0):+.2f} kWh")
         t.add_row(str(r["leg"]), escape(f"{r['from']} - {r['to']}"), f"{r['fastest_s']:.1f}", f"{r['allocated_time_s']:.1f}",
-                  f"{r['arrival_s']:.1f}", _win(r["window_s"]), f"{r['optimum_kwh']:.2f}",
+                  "-" if e is None else f"{p['running_time_s']:.1f}", f"{r['optimum_kwh']:.2f}",
                   "-" if e is None else f"{e:.2f}", gap)
     return t
 
@@ -87,48 +95,79 @@ def journey_allocations_table(s: dict) -> Table:
 
 
 def journey_stations_table(s: dict) -> Table:
+    """Per station, on the clock since the departure (dwells included): its window, the optimum's time, the first
+    strategy's plan's (arrival at a stop, passing at a timing point) and whether it keeps the window; then its
+    position, kind, dwell, the timetable's and the fastest run's time (left out first on a narrow terminal)."""
+    main = next(iter(s["plans"]), None)
     t = Table(title="stations (clock since the departure, dwells included)", title_justify="left")
-    for col in ("station", "at [m]", "kind", "dwell [s]", "scheduled [s]", "window [s]", "optimum [s]", "fastest [s]"):
-        t.add_column(escape(col), justify="left" if col in ("station", "kind") else "right")
+    for col in ("station", "window [s]", "optimum [s]", f"{main} [s]" if main else "plan [s]", "kept",
+                "at [m]", "kind", "dwell [s]", "scheduled [s]", "fastest [s]"):
+        t.add_column(escape(col), justify="left" if col in ("station", "kind", "kept") else "right")
     for r in s["stations"]:
-        t.add_row(escape(r["station"]), f"{r['at_m']:g}", "stop" if r["stop"] else "passes", f"{r['dwell_s']:g}",
-                  "-" if r["scheduled_s"] is None else f"{r['scheduled_s']:g}", _win(r["window_s"]),
-                  f"{r['optimum_s']:.1f}", "-" if r["fastest_s"] is None else f"{r['fastest_s']:.1f}")
+        p = r["plans"].get(main, {}) if main else {}
+        inside = p.get("in_window")
+        t.add_row(escape(r["station"]), _win(r["window_s"]), f"{r['optimum_s']:.1f}",
+                  "-" if p.get("clock_s") is None else f"{p['clock_s']:.1f}",
+                  "-" if inside is None else "yes" if inside else "NO",
+                  f"{r['at_m']:g}", "stop" if r["stop"] else "passes", f"{r['dwell_s']:g}",
+                  "-" if r["scheduled_s"] is None else f"{r['scheduled_s']:g}",
+                  "-" if r["fastest_s"] is None else f"{r['fastest_s']:.1f}")
     return t
 
 
-def whole_run(result, strategy: str):
-    """The plans of one strategy end to end: arrays along the line [m] and on the clock [s] (dwells
-    included), per node; conditions, forces per cell; None where a leg has no feasible plan."""
-    journey_legs = result.legs
+def whole_run(result, strategy: str, journey=None):
+    """The plans of one strategy end to end: (leg, position along the line [m], clock [s] (dwells included), speed
+    [km/h], condition, traction [kN], brake [kN], station index or None) per node of each leg's profile; with
+    ``journey``, a row at each timing point inside a leg too (interpolated between the nodes around it, the
+    condition and forces of its cell), and every row at a station names it (at a stop, its arrival and its
+    departure). None where a leg has no feasible plan."""
     runs = {r["leg"]: r["run"] for r in result.runs if r["strategy"] == strategy}
     rows, clock = [], 0.0
-    for leg in journey_legs:
+    for leg in result.legs:
         run = runs.get(leg.index)
         if run is None or not run.summary.get("feasible"):
             return None
         prof = run.result.profile
         n = len(prof.s_m)
+        at_node = {0: leg.first, n - 1: leg.last} if journey is not None else {}
+        before: dict[int, list] = {}  # node -> the timing points' rows just before it
+        for i, at in leg.points if journey is not None else ():
+            k = int(np.searchsorted(prof.s_m, at))  # the first node at or beyond the point
+            if k < n and abs(prof.s_m[k] - at) < 1e-6:
+                at_node[k] = i
+                continue
+            u = (at - prof.s_m[k - 1]) / (prof.s_m[k] - prof.s_m[k - 1])
+            before.setdefault(k, []).append((
+                leg.index + 1, leg.from_m + at, clock + (1 - u) * prof.t_s[0, k - 1] + u * prof.t_s[0, k],
+                (1 - u) * prof.v_kmh[0, k - 1] + u * prof.v_kmh[0, k], CONDITIONS[int(prof.condition[0, k - 1])],
+                prof.traction_kn[0, k - 1], prof.brake_kn[0, k - 1], i))
         for k in range(n):
             cell = min(k, n - 2)
+            rows.extend(before.get(k, ()))
             rows.append((leg.index + 1, leg.from_m + prof.s_m[k], clock + prof.t_s[0, k], prof.v_kmh[0, k],
-                         CONDITIONS[int(prof.condition[0, cell])], prof.traction_kn[0, cell], prof.brake_kn[0, cell]))
+                         CONDITIONS[int(prof.condition[0, cell])], prof.traction_kn[0, cell], prof.brake_kn[0, cell],
+                         at_node.get(k)))
         clock += float(prof.t_s[0, -1]) + result.dwells[leg.index]
     return rows
 
 
-def journey_profile_csv(result, strategy: str) -> str:
-    rows = whole_run(result, strategy)
+def journey_profile_csv(result, strategy: str, journey) -> str:
+    """The whole run's profile (:func:`whole_run`) as CSV; the rows at a station give its name and window."""
+    rows = whole_run(result, strategy, journey)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["leg", "s_m", "clock_s", "v_kmh", "condition", "traction_kn", "brake_kn"])
+    w.writerow(["leg", "s_m", "clock_s", "v_kmh", "condition", "traction_kn", "brake_kn", "station", "earliest_s",
+                "latest_s"])
     for r in rows or []:
-        w.writerow([r[0], f"{r[1]:.3f}", f"{r[2]:.3f}", f"{r[3]:.4f}", r[4], f"{r[5]:.3f}", f"{r[6]:.3f}"])
+        st = None if r[7] is None else journey.stations[r[7]]
+        w.writerow([r[0], f"{r[1]:.3f}", f"{r[2]:.3f}", f"{r[3]:.4f}", r[4], f"{r[5]:.3f}", f"{r[6]:.3f}",
+                    "" if st is None else st.name, "" if st is None or st.earliest_s is None else f"{st.earliest_s:g}",
+                    "" if st is None or st.latest_s is None else f"{st.latest_s:g}"])
     return buf.getvalue()
 
 
-def write_journey_csv(path: str | Path, result, strategy: str) -> None:
-    atomic_write_text(Path(path), journey_profile_csv(result, strategy))
+def write_journey_csv(path: str | Path, result, strategy: str, journey) -> None:
+    atomic_write_text(Path(path), journey_profile_csv(result, strategy, journey))
 
 
 def plot_journey(path: str | Path, result, journey, route, strategy: str) -> None:

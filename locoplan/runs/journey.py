@@ -9,8 +9,13 @@ planned at its share, and the allocation compared with the usual ones.
    window; each leg's time is read off it.
 3. Each leg's E* at its time, solved on its own to E*'s tolerance (``ocp.bound.energy_bound``, or with the
    windows of its timing points); the journey's E* is their sum, its accuracy the sum of theirs.
-4. Each leg planned by the strategies asked for (``proposed`` by default) at its time, every plan's gap
-   to its leg's E*.
+4. Each strategy asked for (``proposed`` by default) plans the legs one after the other: a leg's plan is
+   asked for a window inside the bounds that keep every station window ahead and the total
+   (``arrival_bounds``), centred as near as they allow on the allocation's clock at the leg's end from where
+   the plans so far have brought the train (``leg_window``), so that what one leg runs late the next makes
+   up; a plan of a strategy that keeps time that still misses its bounds is planned again, asked for a time
+   moved by its miss. Every station's clock in the plans is checked against its window, the legs' total against the
+   journey's running time +- its tolerance (``total_tolerance``); every plan's gap to its leg's E*.
 5. The same legs' E* at the equal-percentage allocation (every leg's fastest run times the same factor)
    and at the timetable's own leg times where it gives them: what the optimal allocation saves.
 """
@@ -19,7 +24,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -195,8 +200,9 @@ def allocation_energy(journey, legs, train, options, times) -> tuple[float, list
     return float(sum(b.energy_kwh for b in bounds)), bounds
 
 
-WINDOW_SLACK_S = 0.5
-"""A clock within this of a window's bound keeps the window (the reported times are rounded to 0.1 s)."""
+WINDOW_SLACK_S = 0.05
+"""A clock within this of a window's bound keeps the window: half the 0.1 s the times are reported to, so that a
+clock shown inside its window is inside it."""
 
 
 def outside_window(station, clock_s: float) -> bool:
@@ -241,6 +247,259 @@ def timing_passes(leg: Leg, run, journey: Journey, clock_at_departure: float) ->
     return [(i, clock_at_departure + float(np.interp(at, prof.s_m, prof.t_s[0]))) for i, at in leg.points]
 
 
+JOURNEY_TOLERANCE_SHARE = 0.01
+"""Without a tolerance given, the legs' plans add up to the journey's running time within +- this share of its
+mean leg's time (at least 1 s): the window one leg of average length gets on its own, so that the legs' errors
+cannot add up over the journey."""
+MIN_LEG_TOLERANCE_S = 0.5
+"""The narrowest punctuality window a leg's plan is asked to keep, +- [s] (a leg squeezed between a late
+departure and a station's latest time gets this around the middle of what is left)."""
+MAX_REPLANS = 2
+"""A timetabled strategy's leg plan that ends outside its leg's bounds (or passes a timing point inside it out
+of its window) is planned again, at most this many times, each time asked for a time moved by the miss (and
+half its new window inside), the window halved; the plan that misses least is kept."""
+
+
+def total_tolerance(total_s: float, n_legs: int, tolerance_s: float | None = None) -> float:
+    """The journey's punctuality window on its total running time, +- [s]: ``tolerance_s`` where given, else
+    ``JOURNEY_TOLERANCE_SHARE`` of its mean leg's running time, at least 1 s."""
+    if tolerance_s is not None:
+        return float(tolerance_s)
+    return max(1.0, JOURNEY_TOLERANCE_SHARE * total_s / max(n_legs, 1))
+
+
+def arrival_bounds(journey: Journey, legs: list[Leg], k: int, fastest: dict[int, float], total_s: float,
+                   total_tol_s: float) -> tuple[float, float]:
+    """Where leg ``k`` may end on the running clock (running time since the departure, dwells excluded) [s]:
+    inside its stop's window; early enough that the fastest run from there still keeps every later station's
+    latest time and the total's tolerance; late enough for the earliest time of a timing point inside it with
+    the fastest run from there; the last leg within the total's tolerance. ``fastest``: :func:`fastest_clock`."""
+    leg = legs[k]
+    lo, hi = -math.inf, math.inf
+    for i, w_lo, w_hi in running_windows(journey):
+        if i == leg.last:
+            lo = lo if w_lo is None else max(lo, w_lo)
+            hi = hi if w_hi is None else min(hi, w_hi)
+        elif i > leg.last and w_hi is not None:
+            hi = min(hi, w_hi - (fastest[i] - fastest[leg.last]))
+        elif leg.first < i < leg.last and w_lo is not None:
+            lo = max(lo, w_lo + (fastest[leg.last] - fastest[i]))
+    hi = min(hi, total_s + total_tol_s - sum(x.fastest_s for x in legs[k + 1:]))
+    if k == len(legs) - 1:
+        lo = max(lo, total_s - total_tol_s)
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class LegWindow:
+    """What a leg's plan is asked for, in the leg's own running time [s]: ``t0_s`` +- ``tolerance_s``, inside the
+    bounds ``lo_s`` .. ``hi_s`` (:func:`arrival_bounds` less the departure) and as near as they allow to
+    ``target_s``, the time that brings the clock back to the allocation's at the leg's end."""
+
+    lo_s: float
+    hi_s: float
+    target_s: float
+    t0_s: float
+    tolerance_s: float
+
+
+def leg_window(lo_s: float, hi_s: float, target_s: float, fastest_s: float, half_s: float) -> LegWindow:
+    """The window ``t0_s`` +- ``tolerance_s`` (at most ``half_s``, at least ``MIN_LEG_TOLERANCE_S``) inside
+    ``lo_s`` .. ``hi_s``, centred as near ``target_s`` as it fits, never below the fastest run ``fastest_s``. Where
+    the bounds leave no room (an earlier leg ran late), the window sits at the latest end that keeps the stations
+    ahead, or at the fastest run."""
+    b = max(hi_s, fastest_s)
+    a = min(max(lo_s, fastest_s), b)
+    tol = max(MIN_LEG_TOLERANCE_S, min(half_s, (b - a) / 2))
+    t0 = min(max(target_s, a + tol), b - tol) if b - a >= 2 * tol else (a + b) / 2
+    return LegWindow(lo_s, hi_s, target_s, max(t0, fastest_s), tol)
+
+
+def _leg_misses(leg: Leg, run, w: LegWindow, depart_run_s: float, wins: dict,
+                margin_s: float) -> tuple[float, float | None]:
+    """How far a leg's plan misses [s] (its end outside the bounds of ``w``, a timing point inside the leg outside
+    its window; inf: no feasible plan), and by how much to move the time asked of the plan made again [s]: the
+    least shift that would bring each miss ``margin_s`` inside (with the plan's own offset from what it was asked
+    unchanged) and keep its end inside the bounds; None where no shift does (nothing to plan again)."""
+    s = run.summary
+    if not s.get("feasible"):
+        return math.inf, None
+    p = float(run.result.running_time_s[0])
+    miss = max(0.0, p - w.hi_s) + max(0.0, w.lo_s - p)
+    room = 0.5 * (w.hi_s - w.lo_s)
+    m = min(margin_s, room) if room >= 0 else 0.0
+    lo, hi = w.lo_s + m - p, w.hi_s - m - p  # shifts that keep the end inside, ``m`` from its bounds
+    prof = run.result.profile
+    for i, at in leg.points:
+        if i not in wins or prof is None:
+            continue
+        w_lo, w_hi = wins[i]
+        passes = depart_run_s + float(np.interp(at, prof.s_m, prof.t_s[0]))
+        late = 0.0 if w_hi is None else passes - w_hi
+        early = 0.0 if w_lo is None else w_lo - passes
+        if late > 0:  # the whole leg a little faster passes the point earlier too
+            miss, hi = miss + late, min(hi, -late - margin_s)
+        if early > 0:
+            miss, lo = miss + early, max(lo, early + margin_s)
+    if miss <= 0 or hi < lo:
+        return miss, None
+    return miss, min(max(0.0, lo), hi)
+
+
+@dataclass
+class LegPlan:
+    """One strategy's plan of one leg: the run (``runner.RunResult``), the window it was asked to keep, how many
+    times it was planned again, its departure clock [s, dwells included] (None after a leg without a feasible
+    plan) and the JSON row."""
+
+    run: object
+    window: LegWindow
+    replans: int
+    departs_s: float | None
+    row: dict
+
+
+@dataclass
+class StrategyPlans:
+    """One strategy's plans of every leg, each station's clock in them (arrival at a stop, passing at a timing
+    point; None where unknown) and what fails the journey's job."""
+
+    name: str
+    must_keep_time: bool
+    legs: list[LegPlan] = field(default_factory=list)
+    clock: dict[int, float | None] = field(default_factory=dict)
+    missed: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def feasible(self) -> bool:
+        return all(lp.run.summary.get("feasible") for lp in self.legs)
+
+    def station(self, journey: Journey, i: int) -> dict:
+        """Station ``i``'s clock in the plans [s] and whether it keeps the station's window (None: no window)."""
+        t = self.clock.get(i)
+        st = journey.stations[i]
+        held = st.earliest_s is not None or st.latest_s is not None
+        return {"clock_s": None if t is None else round(t, 1),
+                "in_window": None if t is None or not held else not outside_window(st, t)}
+
+    def summary(self, total_s: float, total_tol_s: float, pct) -> dict:
+        """The plans' totals: energies, running time against the journey's (``punctuality_error_s``), the gap to
+        the legs' E* at the plans' own times, ``punctual`` (the total within its tolerance and every window kept),
+        the windows missed."""
+        ok = self.feasible
+        s = [lp.run.summary for lp in self.legs]
+        e = sum(float(x["traction_energy_kwh"]) for x in s) if ok else math.nan
+        rec = [x.get("recovered_energy_kwh") for x in s]
+        rec_sum = math.nan if not ok or any(r is None for r in rec) else float(sum(rec))
+        gaps = [x.get("gap_to_optimum_kwh") for x in s]
+        gap = math.nan if not ok or any(g is None for g in gaps) else float(sum(gaps))
+        t = sum(float(x["running_time_s"]) for x in s) if ok else math.nan
+        return {"traction_energy_kwh": None if math.isnan(e) else round(e, 3),
+                "recovered_energy_kwh": None if math.isnan(rec_sum) else round(rec_sum, 3),
+                "net_energy_kwh": None if math.isnan(rec_sum) else round(e - rec_sum, 3),
+                "running_time_s": None if math.isnan(t) else round(t, 1),
+                "punctuality_error_s": None if math.isnan(t) else round(t - total_s, 1),
+                "window_s": [round(total_s - total_tol_s, 1), round(total_s + total_tol_s, 1)],
+                "punctual": None if not ok else bool(abs(t - total_s) <= total_tol_s + 1e-6 and not self.missed),
+                "windows_missed": list(self.missed),
+                "gap_to_optimum_kwh": None if math.isnan(gap) else round(gap, 3),
+                "gap_to_optimum_percent": None if math.isnan(gap) else pct(e, e - gap)}
+
+
+def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOptions, name: str, times, bounds,
+               fastest: dict[int, float], total_s: float, total_tol_s: float, step, settings: dict,
+               strict: bool | None, shared: dict) -> StrategyPlans:
+    """Plan every leg with strategy ``name``, one after the other. Each leg's plan is asked for a window inside
+    the bounds that keep every station window ahead and the total (:func:`arrival_bounds`), aimed at the
+    allocation's clock at the leg's end from where the plans so far have brought the train: what an earlier leg
+    ran late or early, the next one makes up, and the windows' slack left is what the next legs' bounds see.
+    A timetabled strategy's plan that misses its bounds is made again (``MAX_REPLANS``). ``shared``: leg index ->
+    (calculators, priced-drive DP) of the strategies planned before, reused (a DP solve rewrites its work arrays,
+    so reuse cannot change a result)."""
+    from ..runner import DEFAULT_TOLERANCE_SHARE, make_context, run_strategy, summarize
+    from ..strategy import registry
+
+    steer = registry.is_timetabled(name)
+    out = StrategyPlans(name, (steer and settings["window"]) if strict is None else bool(strict))
+    wins = {i: (lo, hi) for i, lo, hi in running_windows(journey)}
+    alloc_end = np.cumsum(np.asarray(times, dtype=float))
+    run_clock, known = 0.0, True  # the running time at the leg's departure; False after a leg without a plan
+    out.clock[0] = 0.0
+    given = settings["tolerance_s"]
+    for leg, b in zip(legs, bounds):
+        k = leg.index
+        sa, sb = journey.stations[leg.first], journey.stations[leg.last]
+        step(f"leg {k + 1}: {name}")
+        lo, hi = arrival_bounds(journey, legs, k, fastest, total_s, total_tol_s)
+        target = float(alloc_end[k]) - run_clock
+        half = given if given is not None else max(1.0, DEFAULT_TOLERANCE_SHARE * target)
+        first = leg_window(lo - run_clock, hi - run_clock, target, leg.fastest_s, half)
+        calcs, dp = shared.get(k, (None, None))  # the leg's calculators and DP, as another strategy left them
+        w, best = first, None
+        for attempt in range(1 + (MAX_REPLANS if steer else 0)):
+            ctx = make_context(leg.route, train, options, time_s=w.t0_s, tolerance_s=w.tolerance_s, seed=settings["seed"],
+                               algorithm=settings["algorithm"], params=settings["params"], weights=settings["weights"],
+                               window=settings["window"], builder=settings["builder"], yardstick=False, calculators=calcs)
+            calcs = (ctx.calc, ctx.search)
+            if dp is not None:
+                ctx._e_min_cache["dp"] = dp
+            ctx.inputs.update(dict(settings["inputs"]))
+            if b.slope_kwh_per_s is not None and b.slope_kwh_per_s < 0:  # the leg's price of time: where its drive is
+                ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
+            run = run_strategy(ctx, name, with_fitness=settings["with_fitness"])
+            dp = ctx._e_min_cache.get("dp", dp)
+            tol = max(MIN_LEG_TOLERANCE_S, w.tolerance_s / 2)  # the window of a plan made again
+            miss, shift = _leg_misses(leg, run, first, run_clock, wins, margin_s=tol)
+            if best is None or miss < best[0]:
+                best = (miss, run, ctx, w, attempt)
+            if miss <= 0 or not steer or shift is None:
+                break
+            w = replace(w, t0_s=max(w.t0_s + shift, leg.fastest_s), tolerance_s=tol)
+        shared[k] = (calcs, dp)
+        miss, run, ctx, w, attempt = best
+        ctx.yardstick = True  # the gap to E* of the plan kept only (each is an E* at the plan's own time)
+        run = replace(run, summary=summarize(ctx, name, run.outcome, run.result, settings["with_fitness"]))
+        s = run.summary
+        departs = run_clock + dwell_before(journey, leg.first) + (sa.dwell_s if leg.first else 0.0) if known else None
+        row = {key: s.get(key) for key in ("feasible", "running_time_s", "traction_energy_kwh", "gap_to_optimum_kwh",
+                                           "gap_to_optimum_percent", "reason", "recovered_energy_kwh", "net_energy_kwh")
+               if key in s}
+        row.update(planned_time_s=round(w.t0_s, 1), tolerance_s=round(w.tolerance_s, 2), replans=attempt,
+                   departs_s=None if departs is None else round(departs, 1))
+        if not s.get("feasible"):
+            out.failures.append(f"leg {k + 1} ({sa.name} - {sb.name}): {name}: no feasible plan ({s.get('reason')})")
+            known = False
+            run_clock = float(alloc_end[k])  # the legs after it are planned from the allocation's clock
+        else:
+            if known:
+                for i, t in timing_passes(leg, run, journey, clock_at_departure=departs):
+                    out.clock[i] = t
+                    row.setdefault("passes_s", {})[journey.stations[i].name] = round(t, 1)
+            run_clock += float(run.result.running_time_s[0])
+            if known:
+                out.clock[leg.last] = run_clock + dwell_before(journey, leg.last)
+                row["arrives_s"] = round(out.clock[leg.last], 1)
+        out.legs.append(LegPlan(run, w, attempt, departs, row))
+    for i, st in enumerate(journey.stations):
+        t = out.clock.get(i)
+        if t is None or not outside_window(st, t):
+            continue
+        out.missed.append(f"{st.name} at {t:.1f} s")
+        if out.must_keep_time:
+            k = next(leg.index for leg in legs if leg.first < i <= leg.last)
+            a, b = journey.stations[legs[k].first].name, journey.stations[legs[k].last].name
+            out.failures.append(f"leg {k + 1} ({a} - {b}): {name} {'arrives at' if st.stop else 'passes'} {st.name} at "
+                                f"{t:.1f} s, outside its window {_window_text(st)} (clock since the departure, dwells "
+                                "included)")
+    if out.must_keep_time and out.feasible:
+        t = sum(float(lp.run.summary["running_time_s"]) for lp in out.legs)
+        if abs(t - total_s) > total_tol_s + 1e-6:
+            out.failures.append(f"{name}: the legs' plans run {t:.1f} s in all, outside the journey's running time "
+                                f"{total_s:g} +- {total_tol_s:.1f} s (dwells excluded)")
+    return out
+
+
 def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOptions, *, time_s: float | None = None,
                  strategies: tuple[str, ...] = ("proposed",), seed: int = 1, algorithm: str = "issa",
                  params=None, weights: tuple[float, float] = (0.5, 0.5), tolerance_s: float | None = None,
@@ -248,10 +507,12 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
                  with_fitness: bool = True, source: str = "", step=lambda text: None) -> JourneyResult:
     """Plan ``journey`` (see the module docstring); ``time_s``: the total running time (dwells excluded),
     default the journey's; ``step(text)`` is told what is being done. The leg plans' settings (``params``,
-    ``weights``, ``tolerance_s``, ``window``, ``builder``, ``strict``, ``inputs``, ``with_fitness``) are a
-    single run's (``runner.make_context``, ``runner.schedule_verdict``), applied to every leg."""
+    ``weights``, ``window``, ``builder``, ``inputs``, ``with_fitness``) are a single run's
+    (``runner.make_context``), applied to every leg; ``tolerance_s`` is the total's punctuality window +-
+    (default :func:`total_tolerance`) and the widest a leg's plan is asked to keep; ``strict`` as
+    ``runner.schedule_verdict``'s: whether a missed window or total fails every strategy (True), none (False), or
+    the timetabled ones (None)."""
     from ..ocp.bound import percent_digits, percent_floor_kwh
-    from ..runner import make_context, run_strategy, schedule_verdict
 
     t_start = _time.perf_counter()
     legs = legs_of(journey, route, train, options)
@@ -282,63 +543,37 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
         e_tt, _ = allocation_energy(journey, legs, train, options, tts)
         comparisons.append(("timetable's leg times" if abs(scale - 1) < 1e-9 else "timetable's shares of the time", tts, e_tt))
     result = JourneyResult({}, legs, [journey.stations[leg.last].dwell_s for leg in legs])
-    # plans
+    total_tol = total_tolerance(total, len(legs), tolerance_s)
+    shared: dict = {}
+    plans = {name: _plan_legs(journey, legs, train, options, name, times, bounds, fastest, total, total_tol, step,
+                              dict(seed=seed, algorithm=algorithm, params=params, weights=weights,
+                                   tolerance_s=tolerance_s, window=window, builder=builder, inputs=inputs,
+                                   with_fitness=with_fitness), strict, shared)
+             for name in strategies}
     leg_rows = []
-    plan_clock = {s: 0.0 for s in strategies}  # each strategy's clock at the leg's departure (its own times)
-    plan_total = {s: 0.0 for s in strategies}
-    plan_recovered = {s: 0.0 for s in strategies}
-    plan_time = {s: 0.0 for s in strategies}
-    plan_gap = {s: 0.0 for s in strategies}  # each leg's plan against its leg's E* at the plan's own time
     for leg, t, b in zip(legs, times, bounds):
         sa, sb = journey.stations[leg.first], journey.stations[leg.last]
-        row = {"leg": leg.index + 1, "from": sa.name, "to": sb.name, "length_m": round(leg.route.length_m, 1),
-               "fastest_s": round(leg.fastest_s, 1), "allocated_time_s": round(float(t), 1),
-               "optimum_kwh": round(b.energy_kwh, 3),
-               "optimum_accuracy_percent": None if b.accuracy is None else float(f"{100 * b.accuracy:.2g}"),
-               "marginal_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 4),
-               "arrival_s": round(at[leg.last] + dwell_before(journey, leg.last), 1),
-               "window_s": [sb.earliest_s, sb.latest_s], "plans": {}}
-        ctx = None
+        leg_rows.append({"leg": leg.index + 1, "from": sa.name, "to": sb.name, "length_m": round(leg.route.length_m, 1),
+                         "fastest_s": round(leg.fastest_s, 1), "allocated_time_s": round(float(t), 1),
+                         "optimum_kwh": round(b.energy_kwh, 3),
+                         "optimum_accuracy_percent": None if b.accuracy is None else float(f"{100 * b.accuracy:.2g}"),
+                         "marginal_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 4),
+                         "arrival_s": round(at[leg.last] + dwell_before(journey, leg.last), 1),
+                         "window_s": [sb.earliest_s, sb.latest_s],
+                         "plans": {name: plans[name].legs[leg.index].row for name in strategies}})
+    for leg in legs:  # the runs in the order the legs are driven, each strategy's in turn
         for name in strategies:
-            step(f"leg {leg.index + 1}: {name}")
-            ctx = make_context(leg.route, train, options, time_s=float(t), seed=seed, algorithm=algorithm, yardstick=True,
-                               params=params, weights=weights, tolerance_s=tolerance_s, window=window, builder=builder,
-                               calculators=None if ctx is None else (ctx.calc, ctx.search))
-            ctx.inputs.update(dict(inputs))
-            if b.slope_kwh_per_s is not None and b.slope_kwh_per_s < 0:  # the leg's price of time: where its drive is
-                ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
-            run = run_strategy(ctx, name, with_fitness=with_fitness)
-            s = run.summary
-            verdict = schedule_verdict(ctx, run, strict=strict)
-            if verdict:
-                result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {verdict}")
-            row["plans"][name] = {k: s.get(k) for k in ("feasible", "running_time_s", "traction_energy_kwh",
-                                                         "gap_to_optimum_kwh", "gap_to_optimum_percent", "reason",
-                                                         "recovered_energy_kwh", "net_energy_kwh") if k in s}
-            result.runs.append({"leg": leg.index, "strategy": name, "run": run, "clock_s": plan_clock[name]})
-            for i, pass_s in timing_passes(leg, run, journey, clock_at_departure=plan_clock[name]):
-                st = journey.stations[i]
-                row["plans"][name].setdefault("passes_s", {})[st.name] = round(pass_s, 1)
-                if outside_window(st, pass_s):
-                    result.failures.append(f"leg {leg.index + 1} ({sa.name} - {sb.name}): {name} passes {st.name} at "
-                                           f"{pass_s:.1f} s, outside its window {_window_text(st)} (the leg's plan "
-                                           "keeps the leg's time, not the timing point's window)")
-            if s.get("feasible"):
-                plan_total[name] += float(s["traction_energy_kwh"])
-                plan_recovered[name] += math.nan if s.get("recovered_energy_kwh") is None else s["recovered_energy_kwh"]
-                plan_time[name] += float(s["running_time_s"])
-                g = s.get("gap_to_optimum_kwh")
-                plan_gap[name] += math.nan if g is None else float(g)
-                plan_clock[name] += float(s["running_time_s"]) + sb.dwell_s
-            else:
-                plan_total[name] = math.nan
-        leg_rows.append(row)
+            lp = plans[name].legs[leg.index]
+            result.runs.append({"leg": leg.index, "strategy": name, "run": lp.run, "clock_s": lp.departs_s})
+    for name in strategies:
+        result.failures.extend(plans[name].failures)
     stations = []
     for i, st in enumerate(journey.stations):
         stations.append({"station": st.name, "at_m": st.at_m, "stop": st.stop, "dwell_s": st.dwell_s,
                          "scheduled_s": st.time_s, "window_s": [st.earliest_s, st.latest_s],
                          "optimum_s": round(at[i] + dwell_before(journey, i), 1),
-                         "fastest_s": round(fastest[i] + dwell_before(journey, i), 1) if i in fastest else None})
+                         "fastest_s": round(fastest[i] + dwell_before(journey, i), 1) if i in fastest else None,
+                         "plans": {name: plans[name].station(journey, i) for name in strategies}})
     digits = percent_digits(100 * accuracy)
 
     def pct(e: float, base: float | None = None) -> float | None:
@@ -362,16 +597,8 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
             "vs_optimal_kwh": round(e - e_opt, 3),
             "vs_optimal_percent": pct(e),
             "missed_windows": window_misses(journey, legs, ts)} for name, ts, e in comparisons],
-        "plans": {name: {"traction_energy_kwh": None if math.isnan(plan_total[name]) else round(plan_total[name], 3),
-                         "recovered_energy_kwh": None if math.isnan(plan_total[name] + plan_recovered[name])
-                         else round(plan_recovered[name], 3),
-                         "net_energy_kwh": None if math.isnan(plan_total[name] + plan_recovered[name])
-                         else round(plan_total[name] - plan_recovered[name], 3),
-                         "running_time_s": round(plan_time[name], 1),
-                         "gap_to_optimum_kwh": None if math.isnan(plan_gap[name]) else round(plan_gap[name], 3),
-                         "gap_to_optimum_percent": None if math.isnan(plan_gap[name]) else pct(
-                             plan_total[name], plan_total[name] - plan_gap[name])}
-                  for name in strategies},
+        "tolerance_s": round(total_tol, 2),
+        "plans": {name: plans[name].summary(total, total_tol, pct) for name in strategies},
         "solve_time_s": round(_time.perf_counter() - t_start, 2),
     }
     result.summary = summary
@@ -402,7 +629,8 @@ def journey_optimum(journey: Journey, route: Route, train: Train, options: Model
 def journey_run_summary(result: JourneyResult, journey: Journey, strategy: str) -> dict:
     """A batch's record of one strategy's journey run: the fields every run's record has (``route``,
     ``strategy``, ``planned_time_s`` the total running time asked, ``running_time_s`` and
-    ``traction_energy_kwh`` the plan's totals, ``punctual`` every leg on time, ``gap_to_optimum_percent``
+    ``traction_energy_kwh`` the plan's totals, ``punctual`` the total within its tolerance (``tolerance_s``) and
+    every station's window kept, ``gap_to_optimum_percent``
     against the legs' E* at the plan's own leg times), then the journey's: ``optimum_kwh`` (its E*), the legs
     with their allocated times and this strategy's plans, every station's clock in the plan against its
     window (``windows_missed``), the allocations compared and the failures ``locoplan journey`` names."""
@@ -411,24 +639,15 @@ def journey_run_summary(result: JourneyResult, journey: Journey, strategy: str) 
     legs = [r["run"].summary for r in runs]
     feasible = all(x.get("feasible") for x in legs)
     totals = s["plans"][strategy]
-    clock: dict[int, float] = {0: 0.0}
-    leg_rows = []
-    for leg, r, row in zip(result.legs, runs, s["legs_table"]):
-        plan = {**row["plans"][strategy], "plan": r["run"].summary.get("plan")}
-        if plan.get("feasible"):
-            clock[leg.last] = r["clock_s"] + float(plan["running_time_s"])
-            names = {journey.stations[i].name: i for i, _ in leg.points}
-            clock.update({names[n]: t for n, t in plan.get("passes_s", {}).items()})
-        leg_rows.append({**{k: v for k, v in row.items() if k != "plans"}, "plan": plan})
-    stations, missed, windows = [], [], 0
-    for i, (st, row) in enumerate(zip(journey.stations, s["stations"])):
-        held = st.earliest_s is not None or st.latest_s is not None
-        windows += held
-        t = clock.get(i)
-        inside = None if t is None or not held else not outside_window(st, t)
-        if inside is False:
-            missed.append(f"{st.name} at {t:.1f} s")
-        stations.append({**row, "plan_s": None if t is None else round(t, 1), "in_window": inside})
+    leg_rows = [{**{k: v for k, v in row.items() if k != "plans"},
+                 "plan": {**row["plans"][strategy], "plan": r["run"].summary.get("plan")}}
+                for r, row in zip(runs, s["legs_table"])]
+    stations = []
+    for row in s["stations"]:
+        p = row["plans"][strategy]
+        stations.append({**{k: v for k, v in row.items() if k != "plans"}, "plan_s": p["clock_s"],
+                         "in_window": p["in_window"]})
+    windows = sum(1 for st in journey.stations if st.earliest_s is not None or st.latest_s is not None)
     equal = next((a for a in s["allocations"] if a["allocation"] == "equal supplements"), None)
     first = legs[0] if legs else {}
     return {
@@ -437,16 +656,17 @@ def journey_run_summary(result: JourneyResult, journey: Journey, strategy: str) 
         "feasible": feasible,
         "reason": None if feasible else next(f"leg {k + 1}: {x.get('reason')}" for k, x in enumerate(legs)
                                              if not x.get("feasible")),
-        "planned_time_s": s["running_time_s"],
+        "planned_time_s": s["running_time_s"], "tolerance_s": s["tolerance_s"],
         "running_time_s": totals["running_time_s"] if feasible else None,
+        "punctuality_error_s": totals["punctuality_error_s"],
         "traction_energy_kwh": totals["traction_energy_kwh"],
-        "punctual": all(x.get("punctual") for x in legs) if feasible else None,
+        "punctual": totals["punctual"],
         "optimum_kwh": s["optimum_kwh"], "optimum_accuracy_percent": s["optimum_accuracy_percent"],
         "gap_to_optimum_kwh": totals["gap_to_optimum_kwh"], "gap_to_optimum_percent": totals["gap_to_optimum_percent"],
         "equal_supplements_kwh": None if equal is None else equal["optimum_kwh"],
         "legs": s["legs"], "stops": s["stops"], "timing_points": s["timing_points"], "dwell_s": s["dwell_s"],
         "fastest_running_time_s": s["fastest_running_time_s"], "marginal_kwh_per_s": s["marginal_kwh_per_s"],
-        "windows": windows, "windows_missed": missed, "failures": list(result.failures),
+        "windows": windows, "windows_missed": totals["windows_missed"], "failures": list(result.failures),
         "plan": " | ".join(str(x.get("plan") or "-") for x in legs),
         "legs_table": leg_rows, "stations": stations, "allocations": s["allocations"],
         "solve_time_s": s["solve_time_s"],

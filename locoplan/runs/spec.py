@@ -239,7 +239,8 @@ def _journey_identity(journey) -> dict:
 
 def _check_journey(spec: RunSpec, journey, route, train) -> None:
     """What a journey run would otherwise find only when it runs, said before the batch starts: a total running
-    time to plan for, a leg no longer than the train, a punctuality window +- as long as a leg's fastest run,
+    time to plan for, a leg no longer than the train, a punctuality window +- (the total's, and the widest a leg's
+    plan is asked to keep) as long as a leg's fastest run,
     an E_min given (each leg has its own), an objective other than traction energy."""
     from .journey import legs_of, total_running_time
 
@@ -258,7 +259,7 @@ def _check_journey(spec: RunSpec, journey, route, train) -> None:
     if spec.tolerance_s is not None and spec.tolerance_s >= shortest.fastest_s:
         raise InputError(Problem(spec.journey, "tolerance_s", f"a punctuality window of +-{spec.tolerance_s:g} s is not "
                                  f"below the fastest run of the leg {shortest.route.name!r} ({shortest.fastest_s:.1f} s): "
-                                 "every leg is held to it, and its window would open at or before departure"))
+                                 "a leg's plan may be asked to keep it, and its window would open at or before departure"))
 
 
 def _train_identity(train) -> dict:
