@@ -144,8 +144,8 @@ def random_train(rng: np.random.Generator, folder: Path, i: int, braked: bool = 
     draws, so the lines stay the same in every model)."""
     kind = int(rng.integers(0, 3))
     if kind == 2 and not braked:
-        n, load = int(rng.integers(15, 61)), int(rng.integers(50, 81))
-        rng.integers(5, 16)
+        m = int(rng.integers(5, 16))  # the V 90 train's draw, turned into an HXD1 + C80 train
+        n, load = 15 + 3 * m, 50 + 2 * m
         name, vehicles = f"HXD1 + {n} x C80 ({load} t)", [{"type": "HXD1", "count": 1}, {"type": "C80", "count": n, "load_t": load}]
         kind = 0
     elif kind == 0:

@@ -469,20 +469,50 @@ def _close_enough(ctx: StrategyContext, found) -> bool:
 
 
 def _optimum_start(ctx: StrategyContext):
-    """The condition sequence and switching points of E*'s own solution at the planned time
-    (``general_builder.sequence_from_optimum``), or None where E* has none."""
+    """The condition sequence and switching points of E*'s own solution near the planned time
+    (``general_builder.sequence_from_optimum``), or None where E* has none. E* is a relaxation of the plan's model
+    (forces modulated at will, its own grid): where the sequence read off E* at T runs outside the window on the
+    calculator (a heavy train crawling over crests holds a speed a little off E*'s, and a crawl's time is
+    sensitive to it), it is read off E* at the time that brings it back, by secant steps on that time (at most
+    ``CALIBRATION_STEPS``)."""
     from ..errors import LocoplanError
     from ..ocp.bound import optimum_solution
 
     if math.isnan(ctx.t0_s):
         return None
     c = ctx.calc
-    try:
-        grid, sol = optimum_solution(c.route, c.train, c.options, ctx.t0_s + OPTIMUM_START_SHARE * (ctx.tolerance_s or 0.0),
-                                     objective=ctx.objective)
-    except LocoplanError:
-        return None
-    return sequence_from_optimum(ctx.search, grid, sol, min_run_m(ctx.calc.train))
+    tol = ctx.tolerance_s or 0.0
+    target = ctx.t0_s + OPTIMUM_START_SHARE * tol
+    fastest = c.fastest_time_s
+    t_opt, seen = target, []
+    best = None
+    for _ in range(CALIBRATION_STEPS + 1):
+        try:
+            grid, sol = optimum_solution(c.route, c.train, c.options, t_opt, objective=ctx.objective)
+        except LocoplanError:
+            break
+        seq = sequence_from_optimum(ctx.search, grid, sol, min_run_m(ctx.calc.train))
+        res = ctx.search.evaluate(seq.conditions, np.array([[*seq.nominal_m, np.nan]]))
+        t_plan = float(res.running_time_s[0]) if res.feasible[0] else math.nan
+        miss = abs(t_plan - target) if math.isfinite(t_plan) else math.inf
+        if best is None or miss < best[0]:
+            best = (miss, seq)
+        if not tol or miss <= CALIBRATION_SHARE * tol or not math.isfinite(t_plan):
+            break
+        seen.append((t_opt, t_plan))
+        if len(seen) == 1:
+            t_next = t_opt + (target - t_plan)
+        else:
+            (a, ta), (b, tb) = seen[-2], seen[-1]
+            t_next = b + (target - tb) * (b - a) / (tb - ta) if tb != ta else b + (target - tb)
+        t_opt = max(t_next, fastest * (1 + 1e-3))
+    return None if best is None else best[1]
+
+
+CALIBRATION_STEPS = 3
+CALIBRATION_SHARE = 0.5
+"""``_optimum_start`` reads the sequence off E* at another time while its plan misses the middle of the window by
+more than this share of the window, at most ``CALIBRATION_STEPS`` times."""
 
 
 MIN_RUN_M = 100.0
