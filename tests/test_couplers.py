@@ -139,7 +139,8 @@ def test_calculator_refuses_a_plan_over_the_coupler_limit(tmp_path):
     assert not res.feasible[0] and res.reason_code[0] == COUPLER_LIMIT
     assert res.profile is None and np.isfinite(res.running_time_s[0])  # it runs to the end, and is refused
     assert res.failure_force[0] == pytest.approx(149.5095, abs=1e-9)  # at the start (v = 0: a = 2 N/kN, flat)
-    assert "coupler force 150 kN in tension over the consist's limit 120 kN at 20 m" in res.reason(0)
+    # (at the end of the first cell: the departure's cells are short, the first 1 m long)
+    assert "coupler force 150 kN in tension over the consist's limit 120 kN at 1 m" in res.reason(0)
     ok = TractionCalculator(route, _train(tmp_path, "coupler_limit_kn: 160\n")).evaluate(*plan, profile=True)
     assert ok.feasible[0]
     prof = ok.profile
@@ -149,18 +150,23 @@ def test_calculator_refuses_a_plan_over_the_coupler_limit(tmp_path):
 
 
 def test_calculator_refuses_a_jump_faster_than_the_rate_limit(tmp_path):
-    """The fastest run accelerates at 300 kN and then holds 60 km/h with 2.943 kN (its resistance): a drop
-    of 297 kN between two cells of 50 m at up to 16.7 m/s, 3 to 4 s apart: 74 to 99 kN/s."""
+    """The fastest run accelerates at 300 kN (a = 1.485 m/s^2) and then holds 60 km/h with 2.943 kN (its
+    resistance), from 16.67^2 / (2 x 1.485) = 93.5 m on: the force falls by 297 kN across the cells around
+    there (one of them blends the two), in less than the limit's 297 / 50 = 5.9 s. The rate reported is the
+    largest change of the cells' forces over the time between their middles, worked here from the profile."""
     route = hand_made_route([(3000.0, 60.0)], [(3000.0, 0.0)])
     calc = TractionCalculator(route, _train(tmp_path, "force_rate_limit_kn_per_s: 50\n"))
     res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
     assert res.reason_code[0] == FORCE_RATE
     assert "kN/s, over the consist's limit 50 kN/s" in res.reason(0)
     prof = res.profile
-    rate = force_rate_kn_per_s(prof.t_s[0], prof.traction_kn[0] - prof.brake_kn[0])
-    k = int(np.argmax(rate > 50.0))
-    assert res.failure_force[0] == pytest.approx(rate[k])
-    assert 297.0 / 4 < res.failure_force[0] < 297.0 / 3
+    f = prof.traction_kn[0] - prof.brake_kn[0]
+    mid_t = 0.5 * (prof.t_s[0, 1:] + prof.t_s[0, :-1])
+    rates = [abs(f[k + 1] - f[k]) / (mid_t[k + 1] - mid_t[k]) for k in range(len(f) - 1)]
+    k = next(i for i, r in enumerate(rates) if r > 50.0)
+    assert res.failure_force[0] == pytest.approx(rates[k])
+    assert prof.s_m[k] < 93.5 < prof.s_m[k + 2] and f[k] == pytest.approx(300.0) and f[k + 2] == pytest.approx(2.943)
+    assert force_rate_kn_per_s(prof.t_s[0], f)[k] == pytest.approx(rates[k])
 
 
 def test_limits_are_validated_with_their_line(tmp_path):

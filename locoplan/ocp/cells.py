@@ -488,7 +488,8 @@ def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser:
         s = coarser.s_m
         nodes = np.concatenate([s, 0.5 * (s[1:] + s[:-1])])
         opts = replace(opts, step_m=2 * step_m)  # its uniform nodes are among the coarser grid's
-    return TractionCalculator(route, train, opts, extra_nodes_m=nodes)
+    # (E*'s own grading towards both rest points, END_GRADING_M, instead of the plans' departure grading)
+    return TractionCalculator(route, train, opts, extra_nodes_m=nodes, graded_departure=False)
 
 
 def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:

@@ -167,11 +167,11 @@ def departure_nodes_m(length_m: float) -> np.ndarray:
     return (np.arange(1, DEPARTURE_NODES + 1) / DEPARTURE_NODES) ** 2 * span
 
 
-def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None) -> np.ndarray:
-    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), the
-    departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given."""
+def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None, graded: bool = True) -> np.ndarray:
+    """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), with ``graded``
+    the departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given."""
     L = route.length_m
-    points = [0.0, L, *departure_nodes_m(L)]
+    points = [0.0, L, *(departure_nodes_m(L) if graded else ())]
     for sections in (route.speed_limits, route.gradients, route.curves, route.tunnels):
         for sec in sections:
             points += [sec.from_m, sec.to_m]
@@ -198,7 +198,7 @@ class TractionCalculator:
     """
 
     def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, backend: str = "numba",
-                 extra_nodes_m: np.ndarray | None = None):
+                 extra_nodes_m: np.ndarray | None = None, graded_departure: bool = True):
         if backend not in ("numba", "numpy"):
             raise ValueError(f"backend must be 'numba' or 'numpy', not {backend!r}")
         self.backend = backend
@@ -222,7 +222,7 @@ class TractionCalculator:
                                         self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
                                         self.air_brake_kn, *train.resistance_kn))
         """The train's force model as the compiled loops take it (``records.Forces``)."""
-        s = _grid(route, train, self.options, extra_nodes_m)
+        s = _grid(route, train, self.options, extra_nodes_m, graded_departure)
         self._build(s)
         kinks = self._braking_curve_entries()
         if kinks.size:  # make every braking-curve entry a node, then rebuild on the finer grid
