@@ -294,10 +294,10 @@ def air_brake_rows(summary: dict) -> list[tuple[str, str]]:
     rows = [("air brake", f"{n} applications; shortest recharge margin {margin:+.1f} s (recharge {summary['recharge_s']:g} s)")]
     placed = summary.get("release_margins")
     if placed:
-        rows.append(("releases", "placed by the optimiser: margin "
+        rows.append(("releases", "as soon as the brake can recharge before it is needed again: margin "
                      + ", ".join(f"{r['margin']:.2f} on {r['from_m']:,.0f} .. {r['to_m']:,.0f} m" for r in placed)
-                     + " (the release speed lies the margin x what the train regains in a recharge time below the"
-                       " apply speed, lower where the least hold takes it)"))
+                     + " (the release speed at most the margin x what the train regains in a recharge time below"
+                       " the apply speed, lower where the least hold or the recharge takes it)"))
     return rows
 
 
