@@ -118,6 +118,30 @@ class DPCells(NamedTuple):
     v_grid: np.ndarray
 
 
+class CycleCells(NamedTuple):
+    """The cycle DP's grid (``optimize/cycle_dp.py``, ``optimize/cycle_kernel.py``): the priced DP's cells
+    (lengths ``h`` [m], mean gravity ``grav`` [kN], ``allowed`` catenary 1/0, the cap at each node ``e_cap`` as
+    e = v^2/2, the shared speed grid ``v_grid`` [m/s]) and the air brake's: per node whether its state is tracked
+    there (``zone`` 1/0; 0 = no air brake), per cell whether a cap there is a braking curve an application may
+    follow (``curve_ok``) and the build-up time of an application made in it (``t_build`` [s]); each node's
+    lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge ``t_rec``
+    and least hold ``t_hold`` [s] (< 0: the build-up time), and ``relaxed``: the air brake as a continuous
+    force everywhere (no state: the relaxation's DP)."""
+
+    h: np.ndarray
+    grav: np.ndarray
+    allowed: np.ndarray
+    e_cap: np.ndarray
+    v_grid: np.ndarray
+    zone: np.ndarray
+    curve_ok: np.ndarray
+    t_build: np.ndarray
+    e_low: np.ndarray
+    t_rec: float
+    t_hold: float
+    relaxed: bool
+
+
 class CellModel(NamedTuple):
     """E*'s cell problem (``ocp/cells.py``) for its compiled evaluation (``ocp/cell_kernel.py``): ``nf``
     forces per cell (variables ``[v_0, f_0.., v_1, ...]`` scaled by ``v_ref`` and ``f_ref``), the cells'
@@ -180,6 +204,7 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
+    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _F, _F, _B),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),
     IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),

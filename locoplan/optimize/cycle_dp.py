@@ -1,0 +1,342 @@
+"""The least energy of a drive that keeps the air brake's cycle: a DP over position, speed and the brake's state.
+
+E* (``ocp/bound.py``) relaxes the wagons' air brake to a continuous force a run may modulate at will, so on a
+descent the electric brake cannot hold it holds the limit exactly, and a plan's gap to it mixes what the planner
+loses with what the cycle must cost: an application builds up over its build-up time, is held at least its
+least hold, is released in full, and may not be made again before the recharge time has passed, and while it is
+on the train brakes with it and the full electric brake (docs/model.md, "the air brake's cycle"). This module
+finds the least traction energy of a drive that keeps those rules, on the calculator's train model, by dynamic
+programming at a price of time (as ``dp.py``), bisected to the running time.
+
+The state is (node, speed, air state), the air state one of
+- CH: released and charged: may apply;
+- AF: applied at full, its least hold over: brakes with the air brake and the full electric brake; may release;
+- NA: released, and no application before the zone (below) ends; outside every zone the only state.
+Controls at a node: a cell of full traction (T), speed holding (H: traction or, where it cannot hold, the
+full electric brake; the air brake only in AF), coasting (C) or the full electric brake (E); in AF the air
+brake stays applied (B) or is released (then a cell of T, H, C or E in NA, or a recharge path); in CH an
+application. The parts of the cycle that need time are *paths*, run cell by cell with exact times:
+- an application from (node, speed): braking with the air brake building up linearly from the application
+  (the calculator's build-up over its build-up time, at each cell's middle time) and the full electric brake,
+  until both its least hold and its build-up are over, at the first node after: state AF there;
+- a release's recharge: from (node, speed), a cell after cell under one control (H, C or E; a cap met on
+  the way followed by the electric brake alone) until the recharge time has passed at a node: charged (CH)
+  there; or until the zone ends (NA) or the stop.
+So the drive never applies again before its recharge is over nor releases before its least hold: every drive
+the DP finds keeps the cycle exactly, with no rounding of times to buckets (an elapsed-time state advanced by
+whole buckets per cell, rounded down to stay on the safe side, loses up to a bucket every cell: 5-10 s of a
+90 s recharge on 50 m cells). The price: while a released brake recharges, the drive keeps one control. On a
+descent the electric brake cannot hold that costs nothing: the least rise in speed during the recharge (the
+full electric brake) lets the release come at the highest speed, and coasting first and braking after gains
+less distance than it costs in a lower release speed (with a_C > a_E the accelerations, the distance covered in
+the recharge t_r from a release speed that reaches the same speed at its end falls by (a_C - a_E) t_C^2 / 2
+for t_C of coasting).
+
+A braking curve (to a lower limit, to the stop, along a descent full braking cannot hold) is followed as the
+calculator follows it: with up to full braking. Where that needs the air brake it is an application of its own,
+made by a charged brake (CH, or one applied already) and released where the curve ends (no least hold: the
+calculator's curve applications); the limit itself is never followed with the air brake (on a descent the
+electric brake cannot hold, an application must come first, as in the calculator, where the cycle applies
+below the limit).
+
+**Where the state matters** (``air_zones``): around the cells where the air brake may be needed -- the
+descents whose grade the electric brake cannot hold at the limit (``cycle_regions_m``), the braking curves that
+need the air brake (``next_air_curve``), the descents full braking cannot hold -- extended by the distance
+covered at the top speed in the recharge and twice the application (before) and twice the application (after),
+joined where less than the recharge time at the top speed lies between them. Outside the zones there is no
+state and no air brake: the drive brakes electrically there, and arrives charged at the next zone (a gap of at
+least the recharge time at the top speed lies between). Restricting the drives keeps the answer a drive's.
+
+**Where the cycle cannot bind** (``cycle_binds``): without the cycle (``--no-air-brake``, ``--point-mass``),
+or where no descent needs the cycle and no two places that need the air brake lie within the recharge time of
+each other, every application is a braking curve followed with full braking, as in the relaxation: the cycle
+optimum is the relaxed E* itself, and nothing is solved.
+
+**What the number is**: the energy of drives that keep the cycle on the DP's grid, at the running time T
+interpolated linearly between the two drives whose times bracket T (a chord of the energy-time curve, above it
+where the curve is convex). So it approximates the cycle optimum from above on its grid, with the DP's own
+discretisation: one control per cell of about ``cell_m``, speeds interpolated between the grid's, applications
+and releases at nodes. Its accuracy is estimated as E*'s is: the same problem on a second grid with the cells
+and the speed step halved, the difference of the two the stated accuracy, the finer one the answer. It is not a
+bound: a drive on a finer grid, or switching inside cells, may use less; nor is the DP's cell model the
+calculator's (one step per DP cell of merged calculator cells): a plan read off the drive, run on the
+calculator, lands within the accuracy measured in ``benchmarks/bench_cycle_optimum.py``. The same DP with the air
+brake relaxed (``relaxed=True``: no state, full braking at will) measures the grid's own excess over E* on the
+same line.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InfeasibleError
+from ..physics.units import kmh_from_e, kwh
+from ..sim.calculator import TractionCalculator
+from ..sim.native import kernels
+from ..sim.records import CycleCells, contiguous
+from .dp import dp_cells, dp_nodes
+
+CELL_M = 100.0
+"""Target length of the coarser grid's cells [m] (the finer grid: half)."""
+MIN_CELLS = 300
+CELL_MIN_M = 10.0
+"""On a short line the coarser grid has at least ``MIN_CELLS`` cells, of at least ``CELL_MIN_M``."""
+SPEED_STEP_KMH = 0.5
+"""The coarser grid's speed step [km/h] (the finer grid: half)."""
+PRICE_CLOSE = 1.002
+"""The price of time is bisected until the two prices whose drives bracket T are within this ratio."""
+PRICE_RANGE = (1e-5, 50.0)
+"""Prices of time searched [kWh/s] (geometric bisection), beyond a hint's walk."""
+MAX_SOLVES = 40
+HINT_STEP = 0.05
+"""From a price hint the search steps 5 % of the price away, doubling, until the time crosses T."""
+
+
+@dataclass(frozen=True)
+class CycleDrive:
+    """A drive of the cycle DP at one price: its nodes [m], per cell the control (``cycle_kernel.U_*``: T, H, C,
+    B, E) and the air brake's state (``cycle_kernel.AIR_*``), per node the speed [km/h] and time [s]; its running
+    time [s] and traction energy [kWh]."""
+
+    price_kwh_per_s: float
+    s_m: np.ndarray
+    controls: np.ndarray
+    air: np.ndarray
+    speed_kmh: np.ndarray
+    t_s: np.ndarray
+    time_s: float
+    energy_kwh: float
+
+
+def air_zones(calc: TractionCalculator, idx: np.ndarray, e_cap: np.ndarray) -> np.ndarray:
+    """Per DP cell (between calculator nodes ``idx``): whether the air brake's state is tracked there (see the
+    module docstring). ``e_cap``: the DP's caps at its nodes (e = v^2/2)."""
+    cyc = calc.air_cycle
+    n = len(idx) - 1
+    if cyc is None:
+        return np.zeros(n, dtype=bool)
+    own = np.arange(len(calc.h_m))
+    need = (calc.next_short == own) | (calc.next_air_curve == own) | ~calc.brake_holds_limit
+    cell = np.add.reduceat(need.astype(np.int64), idx[:-1]) > 0
+    if not cell.any():
+        return cell
+    s = calc.s_m[idx]
+    v_top = float(np.sqrt(2.0 * max(float(np.max(e_cap)), 0.0)))
+    t_app = max(float(np.max(calc.t_build_s)), cyc.min_hold_s or 0.0)
+    before = v_top * (cyc.recharge_s + 2.0 * t_app)
+    after = v_top * 2.0 * t_app
+    join = v_top * cyc.recharge_s
+    spans: list[list[float]] = []
+    on = np.flatnonzero(cell)
+    for k in on:
+        a, b = s[k] - before, s[k + 1] + after
+        if spans and a <= spans[-1][1] + join:
+            spans[-1][1] = max(spans[-1][1], b)
+        else:
+            spans.append([a, b])
+    zone = np.zeros(n, dtype=bool)
+    for a, b in spans:
+        zone |= (s[1:] > a) & (s[:-1] < b)
+    _join_short_gaps(zone, s, e_cap, cyc.recharge_s)
+    return zone
+
+
+def _join_short_gaps(zone: np.ndarray, s: np.ndarray, e_cap: np.ndarray, t_rec: float) -> None:
+    """Fill (in place) every gap between two zones that a train at its top speed there crosses in less than the
+    recharge time: leaving a zone in any state, the brake must be charged at the next."""
+    n = len(zone)
+    k = 0
+    while k < n:
+        if zone[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and not zone[j]:
+            j += 1
+        if 0 < k and j < n:  # a gap between two zones: cells k .. j-1
+            v = float(np.sqrt(2.0 * max(float(np.max(e_cap[k:j + 1])), 0.0)))
+            if s[j] - s[k] < v * t_rec * (1.0 + 1e-9):
+                zone[k:j] = True
+        k = j
+
+
+def cycle_binds(calc: TractionCalculator) -> bool:
+    """Whether the air brake's cycle can make a drive dearer than the relaxation on this line (module
+    docstring): a model with the cycle, and a descent the electric brake cannot hold at the limit, or two
+    places that need the air brake (braking curves, descents full braking cannot hold) less than the recharge
+    time at the top speed apart."""
+    if calc.air_cycle is None:
+        return False
+    if len(calc.cycle_regions_m):
+        return True
+    own = np.arange(len(calc.h_m))
+    need = (calc.next_air_curve == own) | ~calc.brake_holds_limit
+    if not need.any():
+        return False
+    runs = np.flatnonzero(np.diff(np.concatenate([[0], need.astype(np.int8), [0]])) != 0)
+    starts, ends = runs[::2], runs[1::2]  # cells [starts, ends)
+    v_top = float(np.sqrt(2.0 * max(float(np.max(calc.e_envelope)), 0.0)))
+    gaps = calc.s_m[starts[1:]] - calc.s_m[ends[:-1]]
+    return bool(np.any(gaps < v_top * calc.air_cycle.recharge_s))
+
+
+class CycleDPSolver:
+    """The cycle DP over one calculator's route on cells of about ``cell_m`` [m] and a speed grid of
+    ``speed_step_kmh``; ``solve(price)`` gives the priced optimum. ``relaxed``: the same DP with the air brake a
+    continuous force (no state), the relaxation's grid optimum."""
+
+    def __init__(self, calc: TractionCalculator, cell_m: float = CELL_M, speed_step_kmh: float = SPEED_STEP_KMH,
+                 relaxed: bool = False):
+        cyc = calc.air_cycle
+        if cyc is None and not relaxed:
+            raise InfeasibleError("the cycle DP needs a model with the air brake's cycle (the air brake, its cycle on)")
+        self.calc, self.relaxed = calc, relaxed
+        self.cell_m, self.speed_step_kmh = float(cell_m), float(speed_step_kmh)
+        idx = dp_nodes(calc, cell_m)
+        base = contiguous(dp_cells(calc, idx, speed_step_kmh))
+        n = len(idx) - 1
+        e_low = np.zeros(n + 1)
+        kernels().stall_boundary(base, calc.forces, e_low)
+        zone_cells = np.zeros(n, dtype=bool) if relaxed else air_zones(calc, idx, base.e_cap)
+        zone = np.concatenate([zone_cells, zone_cells[-1:]]).astype(np.int64)
+        e_lim = np.minimum.reduceat(calc.e_limit_cell, idx[:-1])
+        holds = np.minimum.reduceat(calc.brake_holds_limit.astype(np.int64), idx[:-1]) > 0
+        curve_ok = (base.e_cap[1:] < e_lim * (1.0 - 1e-6)) | ~holds
+        curve_ok[-1] = True  # the stop
+        t_build = calc.t_build_s[idx[:-1]] if cyc is not None else np.zeros(n)
+        self.s_m = calc.s_m[idx]
+        self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone, curve_ok,
+                                           t_build, e_low, float(cyc.recharge_s) if cyc else 0.0,
+                                           float(cyc.min_hold_s) if cyc and cyc.min_hold_s is not None else -1.0,
+                                           bool(relaxed)))
+        nv = len(base.v_grid)
+        self._V = np.empty((n + 1, 3, nv + 1))
+        shape = (n, nv + 1, 5)
+        self._steps = (np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape, dtype=np.int64))
+        shape = (n, nv + 1, 4) if zone.any() else (1, 1, 4)
+        self._paths = (np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.zeros(shape), np.zeros(shape))
+        kernels().cycle_prepare(self.cells, calc.forces, *self._steps, *self._paths)
+        self.n_solves = 0
+
+    @property
+    def zone_m(self) -> float:
+        """Length of the line where the air brake's state is tracked [m]."""
+        return float(np.sum(self.cells.h[self.cells.zone[:-1] != 0]))
+
+    def solve(self, price_kwh_per_s: float) -> CycleDrive | None:
+        """The drive that minimises traction energy + ``price_kwh_per_s`` x time, or None when none reaches the stop."""
+        n = len(self.s_m) - 1
+        k = kernels()
+        k.cycle_backward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, *self._steps, *self._paths)
+        controls = np.zeros(n, dtype=np.int64)
+        air = np.zeros(n, dtype=np.int64)
+        v = np.zeros(n + 1)
+        t_nodes = np.zeros(n + 1)
+        t, work = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, controls, air, v, t_nodes)
+        self.n_solves += 1
+        if not math.isfinite(t):
+            return None
+        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, float(t), kwh(float(work)))
+
+    def bracket(self, t0_s: float, price_hint: float | None = None) -> tuple[CycleDrive | None, CycleDrive | None]:
+        """The two drives whose running times bracket ``t0_s``: (the fastest found slower than it, the slowest found
+        no slower), their prices within ``PRICE_CLOSE`` of each other. The running time falls as the price rises;
+        from ``price_hint`` [kWh/s] (e.g. E*'s slope) the search walks out in doubling steps until the time
+        crosses ``t0_s``, then bisects geometrically. The first is None where even the lowest price drives no
+        slower than ``t0_s`` (the least energy comes within the time), the second where no price reaches it."""
+        slow: CycleDrive | None = None
+        fast: CycleDrive | None = None
+
+        def too_slow(x: float) -> bool:
+            nonlocal slow, fast
+            d = self.solve(math.exp(x))
+            if d is None or d.time_s > t0_s:  # (none: too cheap a price to reach the stop at all)
+                if d is not None and (slow is None or d.time_s < slow.time_s):
+                    slow = d
+                return True
+            if fast is None or d.time_s > fast.time_s:
+                fast = d
+            return False
+
+        bottom, top = (math.log(p) for p in PRICE_RANGE)
+        x_slow = x_fast = None
+        if price_hint is not None and PRICE_RANGE[0] < price_hint < PRICE_RANGE[1]:
+            x = math.log(price_hint)
+            up = too_slow(x)
+            x_slow, x_fast = (x, None) if up else (None, x)
+            step = HINT_STEP
+            while (x_slow is None or x_fast is None) and self.n_solves < MAX_SOLVES:
+                nx = min(top, x + step) if up else max(bottom, x - step)
+                if nx == x:
+                    break
+                x, step = nx, 2.0 * step
+                if too_slow(x):
+                    x_slow = x
+                else:
+                    x_fast = x
+        else:
+            x_slow = bottom if too_slow(bottom) else None
+            x_fast = None if too_slow(top) else top
+            if x_slow is None:
+                x_fast = bottom
+        if x_slow is None or x_fast is None:
+            return slow, fast
+        while x_fast - x_slow > math.log(PRICE_CLOSE) and self.n_solves < MAX_SOLVES:
+            mid = 0.5 * (x_slow + x_fast)
+            if too_slow(mid):
+                x_slow = mid
+            else:
+                x_fast = mid
+        return slow, fast
+
+
+def energy_at(slow: CycleDrive | None, fast: CycleDrive | None, t0_s: float) -> float:
+    """Traction energy in at most ``t0_s`` [kWh]: on the chord between two drives that bracket it; where even the
+    lowest price drives within ``t0_s`` (``slow`` None) that drive's energy (the least energy whatever the time)."""
+    if fast is None:
+        raise InfeasibleError(f"no drive keeping the air brake's cycle runs in {t0_s:.1f} s"
+                              + ("" if slow is None else f" (the fastest found takes {slow.time_s:.1f} s)"))
+    if slow is None or slow.time_s - fast.time_s <= 1e-9:
+        return fast.energy_kwh
+    w = (slow.time_s - t0_s) / (slow.time_s - fast.time_s)
+    return slow.energy_kwh + w * (fast.energy_kwh - slow.energy_kwh)
+
+
+@dataclass(frozen=True)
+class GridOptimum:
+    """The cycle DP on one grid: cell length [m], speed step [km/h], energy at T [kWh], the bracketing drives'
+    times [s] and prices [kWh/s], the solves it took and the wall time [s]."""
+
+    cell_m: float
+    speed_step_kmh: float
+    energy_kwh: float
+    times_s: tuple[float, float]
+    prices_kwh_per_s: tuple[float, float]
+    solves: int
+    wall_s: float
+
+
+def grid_optimum(calc: TractionCalculator, t0_s: float, cell_m: float, speed_step_kmh: float,
+                 price_hint: float | None = None, relaxed: bool = False) -> tuple[GridOptimum, CycleDrive]:
+    """The cycle DP's energy at ``t0_s`` on one grid, and the bracketing drive nearer ``t0_s``."""
+    t = time.perf_counter()
+    solver = CycleDPSolver(calc, cell_m, speed_step_kmh, relaxed=relaxed)
+    slow, fast = solver.bracket(t0_s, price_hint)
+    e = energy_at(slow, fast, t0_s)
+    ends = [d for d in (slow, fast) if d is not None]
+    near = min(ends, key=lambda d: abs(d.time_s - t0_s))
+    return (GridOptimum(cell_m, speed_step_kmh, e, tuple(d.time_s for d in ends),
+                        tuple(d.price_kwh_per_s for d in ends), solver.n_solves, time.perf_counter() - t), near)
+
+
+def coarse_cell_m(calc: TractionCalculator) -> float:
+    """The coarser grid's cell length [m]: ``CELL_M``, and on a short line at least ``MIN_CELLS`` cells."""
+    return max(CELL_MIN_M, min(CELL_M, calc.route.length_m / MIN_CELLS))
+
+
+def kmh_top(calc: TractionCalculator) -> float:
+    return float(kmh_from_e(max(float(np.max(calc.e_envelope)), 0.0)))
