@@ -78,6 +78,7 @@ from ..physics.units import kmh_from_e, kwh
 from ..sim.calculator import TractionCalculator
 from ..sim.native import kernels
 from ..sim.records import CycleCells, contiguous
+from .cycle_kernel import N_P, N_U
 from .dp import dp_cells, dp_nodes
 
 CELL_M = 100.0
@@ -98,9 +99,10 @@ HINT_STEP = 0.05
 
 @dataclass(frozen=True)
 class CycleDrive:
-    """A drive of the cycle DP at one price: its nodes [m], per cell the control (``cycle_kernel.U_*``: T, H, C,
-    B, E) and the air brake's state (``cycle_kernel.AIR_*``), per node the speed [km/h] and time [s]; its running
-    time [s] and traction energy [kWh]."""
+    """A drive of the cycle DP at one price: its nodes [m], per cell the control at its start
+    (``cycle_kernel.U_*``: T, H, C, B, E) and the air brake's state there (``cycle_kernel.AIR_*``), per node the
+    speed [km/h] and time [s]; the air brake's events: where [m], when [s] and what (``cycle_kernel.EV_*``:
+    applied, released, applied following a braking curve); its running time [s] and traction energy [kWh]."""
 
     price_kwh_per_s: float
     s_m: np.ndarray
@@ -108,6 +110,9 @@ class CycleDrive:
     air: np.ndarray
     speed_kmh: np.ndarray
     t_s: np.ndarray
+    event_m: np.ndarray
+    event_s: np.ndarray
+    event_kind: np.ndarray
     time_s: float
     energy_kwh: float
 
@@ -215,9 +220,9 @@ class CycleDPSolver:
                                            bool(relaxed)))
         nv = len(base.v_grid)
         self._V = np.empty((n + 1, 3, nv + 1))
-        shape = (n, nv + 1, 5)
+        shape = (n, nv + 1, N_U)
         self._steps = (np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape, dtype=np.int64))
-        shape = (n, nv + 1, 4) if zone.any() else (1, 1, 4)
+        shape = (n, nv + 1, N_P) if zone.any() and not relaxed else (1, 1, N_P)
         self._paths = (np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.zeros(shape), np.zeros(shape))
         kernels().cycle_prepare(self.cells, calc.forces, *self._steps, *self._paths)
         self.n_solves = 0
@@ -236,11 +241,21 @@ class CycleDPSolver:
         air = np.zeros(n, dtype=np.int64)
         v = np.zeros(n + 1)
         t_nodes = np.zeros(n + 1)
-        t, work = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, controls, air, v, t_nodes)
+        ev_at, ev_t, ev_k = np.zeros(4 * n + 16), np.zeros(4 * n + 16), np.zeros(4 * n + 16, dtype=np.int64)
+        t, work, n_ev = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, controls, air, v,
+                                        t_nodes, ev_at, ev_t, ev_k)
         self.n_solves += 1
         if not math.isfinite(t):
             return None
-        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, float(t), kwh(float(work)))
+        m = int(n_ev)
+        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, self._where(ev_at[:m]),
+                          ev_t[:m].copy(), ev_k[:m].copy(), float(t), kwh(float(work)))
+
+    def _where(self, at: np.ndarray) -> np.ndarray:
+        """Positions [m] of events given as node + the fraction of its cell."""
+        i = np.minimum(np.floor(at).astype(np.int64), len(self.s_m) - 1)
+        nxt = self.s_m[np.minimum(i + 1, len(self.s_m) - 1)]
+        return self.s_m[i] + (at - i) * (nxt - self.s_m[i])
 
     def bracket(self, t0_s: float, price_hint: float | None = None) -> tuple[CycleDrive | None, CycleDrive | None]:
         """The two drives whose running times bracket ``t0_s``: (the fastest found slower than it, the slowest found

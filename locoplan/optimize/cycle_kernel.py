@@ -1,5 +1,5 @@
 """The cycle DP's compiled loops (numba): a cell's step under a control, the air brake's applications and
-recharges as exact paths, the backward and the forward pass.
+recharges as paths with exact times, the backward and the forward pass.
 
 ``cycle_dp.py`` holds the method and its documentation; these are its inner loops, called through
 ``locoplan.sim.native`` (ahead-of-time compiled where possible, numba's JIT otherwise). The forces are
@@ -22,20 +22,29 @@ CH, NA, AF = 0, 1, 2
 """Air-brake states at a node: released and charged (may apply), released with no application before the zone
 ends (or outside every zone: no air brake there), applied at full with its least hold over (may release)."""
 U_T, U_H, U_C, U_B, U_E = 0, 1, 2, 3, 4
+N_U = 5
 """A cell's control: full traction, hold the speed (traction, or braking up to what the state allows, at full
 where that cannot hold it), coast, braking with the air brake applied (and the full electric brake), the full
 electric brake alone. The first four are the calculator's condition codes (T, K, C, B)."""
-M_APPLY, M_REC_H, M_REC_C, M_REC_E = 0, 1, 2, 3
-N_MACROS = 4
-"""Paths of several cells from one node: an application (braking, its force building up, until its least hold
-and its build-up are over), and a release's recharge under one control (hold, coast, the electric brake)."""
+P_A, P_AR_H, P_AR_C, P_AR_E, P_R_H, P_R_C, P_R_E, P_RA_H = 0, 1, 2, 3, 4, 5, 6, 7
+N_P = 8
+"""Paths of several cells from a node, made of phases whose ends come at exact times (inside a cell where they
+fall there), each continued to the next node under its last phase's control:
+- from a charged brake (CH): an application (``P_A``: the air brake builds up, held until both its least hold
+  and its build-up are over; then AF), or that application released the instant it may be, and its recharge
+  under H, C or E (``P_AR_*``; then CH);
+- from an applied one (AF): a release at the node and the recharge under H, C or E (``P_R_*``; then CH), or the
+  recharge under H and an application the instant it is over (``P_RA_H``; then AF)."""
 OK, AIR, NO = 0, 1, 2
 """A step's verdict: possible as it is (or held at the next node's cap by the electric brake alone), possible
-only with the air brake following that cap (a braking curve), not possible."""
+only with the air brake (applied, or following a braking curve), not possible."""
 AIR_OFF, AIR_CYCLE, AIR_RECHARGE, AIR_CURVE = 0, 1, 2, 3
-"""The drive's air brake per cell: released (charged, or no application ahead in the zone), applied (an
-application of its own, with its build-up and least hold), released and recharging, applied following a
+"""The drive's air brake at each cell's start: released (charged, or no application ahead in the zone), applied
+(an application of its own, with its build-up and least hold), released and recharging, applied following a
 braking curve (no least hold: released where the curve ends, as in the calculator)."""
+EV_APPLY, EV_RELEASE, EV_CURVE = 1, 2, 3
+"""The drive's events: an application, a release, an application following a braking curve."""
+PH_APPLY, PH_REC = 0, 1
 
 
 @njit(cache=True, _nrt=False)
@@ -48,17 +57,17 @@ def _brake_force(vm, lvl, k, cc, fo):
 
 
 @njit(cache=True, _nrt=False)
-def _free_step(e, u, t0, t_b, k, cc, fo):
-    """Cell k from e = v^2/2 under control u (not H), no cap: (e at its end, traction work [kJ]). With U_B the
-    air brake's level is its build-up at the cell's middle time, ``t0`` [s] after the application at the cell's
-    start (``t_b`` its build-up time; <= 0: full at once)."""
-    h = cc.h[k]
+def _free_part(e, u, t0, t_b, k, length, cc, fo):
+    """``length`` [m] of cell k from e = v^2/2 under control u (not H), no cap: (e at its end, traction work
+    [kJ]). With U_B the air brake's level is its linear build-up at the part's middle time, ``t0`` [s] after the
+    application at the part's start (``t_b`` its build-up time; <= 0: full at once)."""
     g_k = cc.grav[k]
     v0 = ms_from_e(max(e, 0.0))
     e1 = e
     f = 0.0
     for _ in range(2):
-        vm = kmh_from_e(max(0.5 * (e + e1), 0.0))
+        e_m = max(0.5 * (e + e1), 0.0)
+        vm = kmh_from_e(e_m)
         f = 0.0
         b = 0.0
         if u == U_T:
@@ -68,24 +77,23 @@ def _free_step(e, u, t0, t_b, k, cc, fo):
         elif u == U_B:
             lvl = 1.0
             if t_b > 0.0:
-                t_mid = t0 + h / (v0 + ms_from_e(max(0.5 * (e + e1), 0.0)) + 1e-12)  # the calculator's mid-cell time
+                t_mid = t0 + length / (v0 + ms_from_e(e_m) + 1e-12)  # the calculator's mid-cell time
                 lvl = min(max(t_mid / t_b, 0.0), 1.0)
             b = _brake_force(vm, lvl, k, cc, fo)
         load = davis_kn(vm, fo.ra, fo.rb, fo.rc) + g_k
-        e1 = e + h / fo.m * (f - b - load)
+        e1 = e + length / fo.m * (f - b - load)
     if u == U_T:
-        vm = kmh_from_e(max(0.5 * (e + e1), 0.0))
-        f = _interp1(vm, fo.tv, fo.tf) * cc.allowed[k]
-    return e1, f * h
+        f = _interp1(kmh_from_e(max(0.5 * (e + e1), 0.0)), fo.tv, fo.tf) * cc.allowed[k]
+    return e1, f * length
 
 
 @njit(cache=True, _nrt=False)
-def _step(e, u, t0, t_b, k, cc, fo, full_hold):
-    """Cell k under control u, uncapped: (e_end, work [kJ]); e_end < 0 = not possible (hold from rest). H holds
-    the speed with traction or braking (the electric brake, or with ``full_hold`` full braking) where it can,
-    else takes full traction (a climb) or that braking at full (a descent)."""
+def _part(e, u, t0, t_b, k, length, cc, fo, full_hold):
+    """As ``_free_part``, and H: the speed held with traction or braking (the electric brake, or with
+    ``full_hold`` full braking) where it can be, else full traction (a climb) or that braking at full (a
+    descent); from rest H is not possible (e_end -1)."""
     if u != U_H:
-        return _free_step(e, u, t0, t_b, k, cc, fo)
+        return _free_part(e, u, t0, t_b, k, length, cc, fo)
     if e <= 0.0:
         return -1.0, 0.0
     v_kmh = kmh_from_e(e)
@@ -93,46 +101,53 @@ def _step(e, u, t0, t_b, k, cc, fo, full_hold):
     f_max = _interp1(v_kmh, fo.tv, fo.tf) * cc.allowed[k]
     b_max = _brake_force(v_kmh, 1.0 if full_hold else 0.0, k, cc, fo)
     if load0 > f_max:
-        return _free_step(e, U_T, t0, t_b, k, cc, fo)
+        return _free_part(e, U_T, t0, t_b, k, length, cc, fo)
     if -load0 > b_max:
-        return _free_step(e, U_B if full_hold else U_E, 0.0, 0.0, k, cc, fo)
-    return e, max(load0, 0.0) * cc.h[k]
+        return _free_part(e, U_B if full_hold else U_E, 0.0, 0.0, k, length, cc, fo)
+    return e, max(load0, 0.0) * length
 
 
 @njit(cache=True, _nrt=False)
-def cell(e, u, t0, t_b, k, cc, fo, full_hold):
-    """Cell k under control u from e, held under the next node's cap the way the calculator holds a train
-    there: (e_end, work [kJ], verdict OK / AIR / NO). Where the step would end above the cap, the train follows
-    the cap if full braking from e keeps it there (the calculator's braking curves are full braking; a
-    tolerance for their finer steps): by the electric brake alone (OK) or only with the air brake (AIR). The
-    last cell ends at rest."""
+def _to_node(e, u, t0, t_b, k, length, cc, fo, full_hold):
+    """The last ``length`` [m] of cell k under control u from e, held under the next node's cap the way the
+    calculator holds a train there: (e_end, work [kJ], verdict OK / AIR / NO). Where the step would end above the
+    cap, the train follows the cap if full braking from e keeps it there (the calculator's braking curves are
+    full braking; a tolerance for their finer steps): by the electric brake alone (OK) or only with the air
+    brake (AIR). The last cell ends at rest. A step under U_B is AIR (the air brake is on)."""
     n = cc.h.shape[0]
-    e1, w = _step(e, u, t0, t_b, k, cc, fo, full_hold)
+    e1, w = _part(e, u, t0, t_b, k, length, cc, fo, full_hold)
     if e1 < 0.0 and u == U_H:
         return -1.0, 0.0, NO
+    air = AIR if u == U_B else OK
     cap = 0.0 if k == n - 1 else cc.e_cap[k + 1]
     if e1 > cap * (1.0 + 1e-9) + 1e-9:
-        tol = 0.02 * (e - cap if e > cap else 0.0) + 1e-3 * max(e, 1.0)
-        if u == U_E or (u == U_B and t_b <= 0.0):
-            e_el = e1
-        else:
-            e_el = _free_step(e, U_E, 0.0, 0.0, k, cc, fo)[0]
-        if e_el <= cap + tol:
-            return cap, w, OK if u != U_B else AIR
-        e_f = _free_step(e, U_B, 0.0, 0.0, k, cc, fo)[0]
+        fall = 0.02 * (e - cap if e > cap else 0.0)
+        tol = fall + 1e-3 * max(e, 1.0)
+        e_el = e1 if u == U_E else _free_part(e, U_E, 0.0, 0.0, k, length, cc, fo)[0]
+        # (the electric brake follows a falling curve within 2 % of its fall, and no more: a tolerance in e
+        # would let it hold, cell after cell, a limit it cannot hold on a descent)
+        if e_el <= cap + fall + 1e-9 * max(e, 1.0):
+            return cap, w, air
+        e_f = _free_part(e, U_B, 0.0, 0.0, k, length, cc, fo)[0]
         if e_f <= cap + tol:
             return cap, w, AIR
         return -1.0, 0.0, NO
     if e1 < 0.0:
-        return (0.0, w, OK if u != U_B else AIR) if k == n - 1 else (-1.0, 0.0, NO)
-    return e1, w, OK if u != U_B else AIR
+        return (0.0, w, air) if k == n - 1 else (-1.0, 0.0, NO)
+    return e1, w, air
 
 
 @njit(cache=True, _nrt=False)
-def _cell_time(e, e1, h):
-    """Time [s] of a cell from e to e1 (dt = 2 h / (v0 + v1)); inf when the train does not move."""
+def cell(e, u, k, cc, fo, full_hold):
+    """Cell k under control u from e (the air brake, with U_B, at full): ``_to_node`` over the whole cell."""
+    return _to_node(e, u, 1e9, 0.0, k, cc.h[k], cc, fo, full_hold)
+
+
+@njit(cache=True, _nrt=False)
+def _part_time(e, e1, length):
+    """Time [s] of ``length`` [m] from e to e1 (2 length / (v0 + v1)); inf when the train does not move."""
     s = ms_from_e(max(e, 0.0)) + ms_from_e(max(e1, 0.0))
-    return 2.0 * h / s if s > 0.0 else np.inf
+    return 2.0 * length / s if s > 0.0 else np.inf
 
 
 @njit(cache=True, _nrt=False)
@@ -142,75 +157,119 @@ def hold_s(k, cc):
 
 
 @njit(cache=True, _nrt=False)
-def apply_path(e, k, cc, fo, controls, air, v_nodes, t_nodes, t_start):
-    """An application made at node k at e: the air brake (and the full electric brake) until both its least hold
-    and its build-up are over, at the first node after (exact times, the calculator's linear build-up); a cap
-    met on the way is followed with full braking, as the calculator does. Returns (end node, e there, time [s]);
-    end node -1 = not possible (the train stops, or the zone ends first). With ``controls`` of the route's
-    length (the forward pass) each cell is recorded from ``t_start`` [s]."""
-    n = cc.h.shape[0]
-    t_b = cc.t_build[k]
-    need = max(hold_s(k, cc), t_b)
-    t = 0.0
-    j = k
-    rec = controls.shape[0] == n
-    while True:
-        e1, w, ok = cell(e, U_B, t, t_b, j, cc, fo, False)
-        if ok == NO:
-            return -1, 0.0, 0.0
-        dt = _cell_time(e, e1, cc.h[j])
-        if not math.isfinite(dt):
-            return -1, 0.0, 0.0
-        t += dt
-        if rec:
-            controls[j] = U_B
-            air[j] = AIR_CYCLE
-            v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
-            t_nodes[j + 1] = t_start + t
-        j += 1
-        e = e1
-        if j == n:
-            return j, e, t
-        if cc.zone[j] == 0:
-            return -1, 0.0, 0.0
-        if t >= need - 1e-9:
-            return j, e, t
+def _split(e, u, t0, t_b, k, rest, r, cc, fo):
+    """Where in the remaining ``rest`` [m] of cell k the train under control u reaches ``r`` [s] (less than the
+    time of the whole rest): (length [m], e there, work [kJ], its time, >= r by at most a rounding: a phase never
+    ends early). Constant acceleration first (x = v0 r + a r^2 / 2), then Newton on the part's own time."""
+    e1 = _part(e, u, t0, t_b, k, rest, cc, fo, False)[0]
+    v0 = ms_from_e(max(e, 0.0))
+    a = (e1 - e) / rest  # de/ds = dv/dt
+    x = v0 * r + 0.5 * a * r * r
+    x = min(max(x, 1e-9 * rest), rest * (1.0 - 1e-12))
+    ex = e
+    wx = 0.0
+    tx = 0.0
+    for _ in range(6):
+        ex, wx = _part(e, u, t0, t_b, k, x, cc, fo, False)
+        tx = _part_time(e, ex, x)
+        if tx >= r and tx - r < 1e-9:
+            break
+        x = min(max(x + (r - tx) * ms_from_e(max(ex, 0.0)) + (1e-10 if tx < r else 0.0), 1e-9 * rest),
+                rest * (1.0 - 1e-12))
+    return x, ex, wx, tx
 
 
 @njit(cache=True, _nrt=False)
-def recharge_path(e, k, u, cc, fo, controls, air, v_nodes, t_nodes, t_start):
-    """A release at node k at e, then control u (H, C or E) while the air brake recharges, a cap followed by the
-    electric brake alone (not charged: no air), until the recharge is over at a node (the brake is charged
-    there), or the zone ends (outside it no application is made, and the next zone lies further than the
-    recharge time covers), or the stop. Returns (end node, e there, time [s], traction work [kJ]); end node -1 =
-    not possible. Records as ``apply_path``."""
+def run_path(e, k, kind, cc, fo, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev):
+    """Path ``kind`` (``P_*``) from node k at e: its phases (an application: the air brake building up linearly
+    from its instant, with the full electric brake, for the longer of its least hold and its build-up; a
+    recharge: H, C or E for the recharge time) one after the other, each ending at its exact time, inside a cell
+    if it falls there; the last phase's control on to the next node. Returns (end node, e there, time [s],
+    traction work [kJ], events recorded); end node -1 = not possible: the train stops, a cap the phase cannot
+    follow (a recharging brake cannot), an application or the recharge before one not over where the zone ends.
+    A recharge that reaches the end of the zone ends there (the next zone lies further than a recharge). With
+    ``rec`` each cell's control and air state (at its start), node speeds and times (from ``t_start``) and the
+    events (position, time, kind) are recorded."""
     n = cc.h.shape[0]
+    # the phases: (kind, control) x 2
+    if kind == P_A:
+        n_ph, ph0, u0, ph1, u1 = 1, PH_APPLY, U_B, PH_APPLY, U_B
+    elif kind <= P_AR_E:
+        n_ph, ph0, u0, ph1 = 2, PH_APPLY, U_B, PH_REC
+        u1 = U_H if kind == P_AR_H else (U_C if kind == P_AR_C else U_E)
+    elif kind <= P_R_E:
+        n_ph, ph0, ph1, u1 = 1, PH_REC, PH_REC, U_B
+        u0 = U_H if kind == P_R_H else (U_C if kind == P_R_C else U_E)
+    else:
+        n_ph, ph0, u0, ph1, u1 = 2, PH_REC, U_H, PH_APPLY, U_B
+    ph = 0
+    t_ph = 0.0
+    t_b = cc.t_build[k]
+    dur = max(hold_s(k, cc), t_b) if ph0 == PH_APPLY else cc.t_rec
     t = 0.0
     w_sum = 0.0
     j = k
-    rec = controls.shape[0] == n
+    if rec:
+        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t_start, EV_APPLY if ph0 == PH_APPLY else EV_RELEASE
+        n_ev += 1
     while True:
-        e1, w, ok = cell(e, u, 0.0, 0.0, j, cc, fo, False)
-        if ok != OK:
-            return -1, 0.0, 0.0, 0.0
-        dt = _cell_time(e, e1, cc.h[j])
-        if not math.isfinite(dt):
-            return -1, 0.0, 0.0, 0.0
-        t += dt
-        w_sum += w
+        h = cc.h[j]
+        x = 0.0
         if rec:
-            controls[j] = u
-            air[j] = AIR_RECHARGE
-            v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
+            cur = ph0 if ph == 0 else ph1
+            controls[j] = u0 if ph == 0 else u1
+            air[j] = AIR_CYCLE if cur == PH_APPLY else AIR_RECHARGE
+        while True:
+            last = ph >= n_ph
+            p_cur = ph0 if (ph == 0) else ph1
+            u = u0 if ph == 0 else u1
+            if last:
+                p_cur = ph1 if n_ph == 2 else ph0
+                u = u1 if n_ph == 2 else u0
+            rest = h - x
+            e1, w, ok = _to_node(e, u, t_ph, t_b, j, rest, cc, fo, False)
+            if ok == NO or (p_cur == PH_REC and ok != OK):
+                return -1, 0.0, 0.0, 0.0, n_ev
+            dt = _part_time(e, e1, rest)
+            if not math.isfinite(dt):
+                return -1, 0.0, 0.0, 0.0, n_ev
+            r = dur - t_ph
+            if last or dt <= r:
+                e = e1
+                t += dt
+                t_ph += dt
+                w_sum += w
+                break
+            xs, es, ws, ts = _split(e, u, t_ph, t_b, j, rest, r, cc, fo)
+            e = es
+            t += ts
+            w_sum += ws
+            x += xs
+            ph += 1
+            t_ph = 0.0
+            if ph < n_ph:  # the next phase begins here, at its exact time
+                if ph1 == PH_APPLY:
+                    t_b = cc.t_build[j]
+                    dur = max(hold_s(j, cc), t_b)
+                else:
+                    dur = cc.t_rec
+                if rec:  # (where: node j and the fraction x / h of its cell)
+                    ev_s[n_ev], ev_t[n_ev] = float(j) + x / h, t_start + t
+                    ev_k[n_ev] = EV_APPLY if ph1 == PH_APPLY else EV_RELEASE
+                    n_ev += 1
+        if rec:
+            v_nodes[j + 1] = kmh_from_e(max(e, 0.0))
             t_nodes[j + 1] = t_start + t
         j += 1
-        e = e1
-        if j == n or cc.zone[j] == 0 or t >= cc.t_rec - 1e-9:
-            return j, e, t, w_sum
-
-
-N_U = 5
-"""Single-cell controls: U_T .. U_E."""
+        if j == n:
+            return j, e, t, w_sum, n_ev
+        if ph >= n_ph:
+            return j, e, t, w_sum, n_ev
+        if cc.zone[j] == 0:
+            cur = ph0 if ph == 0 else ph1
+            if cur == PH_REC and (n_ph == 1 or ph1 == PH_REC):
+                return j, e, t, w_sum, n_ev  # recharging as the zone ends: it ends in the gap
+            return -1, 0.0, 0.0, 0.0, n_ev
 
 
 @njit(cache=True, _nrt=False)
@@ -218,29 +277,29 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
     """Each single-cell control's step from e at node k (``cell``): e at the cell's end, traction work [kJ], time
     [s] and verdict, into ``se``, ``sw``, ``st``, ``sok`` (NO also where the train would not move)."""
     for u in range(N_U):
-        e1, w, ok = cell(e, u, 1e9, 0.0, k, cc, fo, cc.relaxed)
-        dt = _cell_time(e, e1, cc.h[k]) if ok != NO else np.inf
+        e1, w, ok = cell(e, u, k, cc, fo, cc.relaxed)
+        dt = _part_time(e, e1, cc.h[k]) if ok != NO else np.inf
         if not math.isfinite(dt):
             ok = NO
         se[u], sw[u], st[u], sok[u] = e1, w, dt, ok
 
 
 @njit(cache=True, _nrt=False)
-def _paths_at(e, k, cc, fo, mj, me, mt, mw, none_i, none_f):
-    """The paths from e at node k (``apply_path``, ``recharge_path`` under H, C and E) into ``mj`` (end node, -1:
-    none), ``me``, ``mt``, ``mw``."""
-    mj[M_APPLY], me[M_APPLY], mt[M_APPLY] = apply_path(e, k, cc, fo, none_i, none_i, none_f, none_f, 0.0)
-    mw[M_APPLY] = 0.0
-    for m in range(1, N_MACROS):
-        u = U_H if m == M_REC_H else (U_C if m == M_REC_C else U_E)
-        mj[m], me[m], mt[m], mw[m] = recharge_path(e, k, u, cc, fo, none_i, none_i, none_f, none_f, 0.0)
+def _paths_at(e, k, s, cc, fo, pj, pe, pt, pw, none_i, none_f):
+    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AR_E``; AF: ``P_R_H`` .. ``P_RA_H``; others -1)
+    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``."""
+    for m in range(N_P):
+        pj[m] = -1
+        if (s == CH and m <= P_AR_E) or (s == AF and m >= P_R_H):
+            pj[m], pe[m], pt[m], pw[m], _ = run_path(e, k, m, cc, fo, False, none_i, none_i, none_f, none_f, 0.0,
+                                                     none_f, none_f, none_i, 0)
 
 
 @njit(cache=True)
-def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_t, mac_w):
+def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, pa_j, pa_e, pa_t, pa_w):
     """What does not depend on the price of time, once per grid: every node's single-cell steps from every grid
-    speed (``st_*[k, j, u]``, ``_cells_at``) and, in the zones, its paths (``mac_*[k, j, m]``, ``_paths_at``; -1
-    elsewhere)."""
+    speed (``st_*[k, j, u]``, ``_cells_at``) and, in the zones, its paths from CH and from AF
+    (``pa_*[k, j, m]``, ``_paths_at``; -1 elsewhere)."""
     n = cc.h.shape[0]
     v_grid = cc.v_grid
     nv = v_grid.shape[0]
@@ -250,11 +309,11 @@ def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_t, mac_w):
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
     sok = np.zeros(N_U, dtype=np.int64)
-    mj = np.zeros(N_MACROS, dtype=np.int64)
-    me = np.zeros(N_MACROS)
-    mt = np.zeros(N_MACROS)
-    mw = np.zeros(N_MACROS)
-    paths = mac_j.shape[0] == n
+    pj = np.zeros(N_P, dtype=np.int64)
+    pe = np.zeros(N_P)
+    pt = np.zeros(N_P)
+    pw = np.zeros(N_P)
+    paths = pa_j.shape[0] == n
     for k in range(n):
         zone = cc.zone[k] != 0 and not cc.relaxed and paths
         for j in range(nv + 1):
@@ -262,20 +321,23 @@ def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_t, mac_w):
             if e > cc.e_cap[k] * (1.0 + 1e-9) + 1e-9:
                 for u in range(N_U):
                     st_ok[k, j, u] = NO
-                if zone:
-                    for m in range(N_MACROS):
-                        mac_j[k, j, m] = -1
+                if paths:
+                    for m in range(N_P):
+                        pa_j[k, j, m] = -1
                 continue
             _cells_at(e, k, cc, fo, se, sw, st, sok)
             for u in range(N_U):
                 st_e[k, j, u], st_w[k, j, u], st_t[k, j, u], st_ok[k, j, u] = se[u], sw[u], st[u], sok[u]
             if zone:
-                _paths_at(e, k, cc, fo, mj, me, mt, mw, none_i, none_f)
-                for m in range(N_MACROS):
-                    mac_j[k, j, m], mac_e[k, j, m], mac_t[k, j, m], mac_w[k, j, m] = mj[m], me[m], mt[m], mw[m]
+                _paths_at(e, k, CH, cc, fo, pj, pe, pt, pw, none_i, none_f)
+                for m in range(P_R_H):
+                    pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m] = pj[m], pe[m], pt[m], pw[m]
+                _paths_at(e, k, AF, cc, fo, pj, pe, pt, pw, none_i, none_f)
+                for m in range(P_R_H, N_P):
+                    pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m] = pj[m], pe[m], pt[m], pw[m]
             elif paths:
-                for m in range(N_MACROS):
-                    mac_j[k, j, m] = -1
+                for m in range(N_P):
+                    pa_j[k, j, m] = -1
 
 
 @njit(cache=True, _nrt=False)
@@ -315,11 +377,10 @@ def _arrive(k1, s, cc):
 
 
 @njit(cache=True, _nrt=False)
-def _options(k, s, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best):
+def _options(k, s, price, V, cc, se, sw, st, sok, pj, pe, pt, pw, best):
     """The best way on from node k in state s at ``price`` [kWh/s], given the single-cell steps (``se``..) and
-    the paths (``mj``..) from the train's speed: its cost [kWh]; ``best`` gets (option, state after it) with
-    options 0..4 a single cell under control U_T..U_E (U_B: staying applied), 5 + m the path m (an application,
-    a release and its recharge under H, C or E); option -1: none."""
+    the paths (``pj``..) from the train's speed: its cost [kWh]; ``best`` gets (option, state after it) with
+    options 0..4 a single cell under control U_T..U_E (U_B: staying applied), N_U + m the path m; -1: none."""
     relaxed = cc.relaxed
     c_best = np.inf
     best[0] = -1
@@ -361,23 +422,21 @@ def _options(k, s, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best):
             best[0] = u
             best[1] = s1
     if cc.zone[k] != 0 and not relaxed and s != NA:
-        first = M_APPLY if s == CH else M_REC_H
-        last = M_APPLY if s == CH else M_REC_E
-        for m in range(first, last + 1):
-            jn = mj[m]
+        for m in range(N_P):
+            jn = pj[m]
             if jn < 0:
                 continue
-            s1 = _arrive(jn, AF if m == M_APPLY else CH, cc)
-            c = mw[m] / KJ_PER_KWH + price * mt[m] + look(V, jn, s1, me[m], cc)
+            s1 = _arrive(jn, AF if (m == P_A or m == P_RA_H) else CH, cc)
+            c = pw[m] / KJ_PER_KWH + price * pt[m] + look(V, jn, s1, pe[m], cc)
             if c < c_best:
                 c_best = c
-                best[0] = 5 + m
+                best[0] = N_U + m
                 best[1] = s1
     return c_best
 
 
 @njit(cache=True)
-def cycle_backward(cc, fo, price, V, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_t, mac_w):
+def cycle_backward(cc, fo, price, V, st_e, st_w, st_t, st_ok, pa_j, pa_e, pa_t, pa_w):
     """V[k, s, j]: least traction energy + ``price`` x time [kWh] from node k in air state s at grid speed j
     (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables."""
     n = cc.h.shape[0]
@@ -391,21 +450,27 @@ def cycle_backward(cc, fo, price, V, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
     sok = np.zeros(N_U, dtype=np.int64)
-    mj = np.zeros(N_MACROS, dtype=np.int64)
-    me = np.zeros(N_MACROS)
-    mt = np.zeros(N_MACROS)
-    mw = np.zeros(N_MACROS)
+    pj = np.full(N_P, -1, dtype=np.int64)
+    pe = np.zeros(N_P)
+    pt = np.zeros(N_P)
+    pw = np.zeros(N_P)
+    nj = np.full(N_P, -1, dtype=np.int64)
     for k in range(n - 1, -1, -1):
         zone = cc.zone[k] != 0 and not cc.relaxed
         for j in range(nv + 1):
             for u in range(N_U):
                 se[u], sw[u], st[u], sok[u] = st_e[k, j, u], st_w[k, j, u], st_t[k, j, u], st_ok[k, j, u]
-            V[k, NA, j] = _options(k, NA, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best)
+            V[k, NA, j] = _options(k, NA, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
             if zone:
-                for m in range(N_MACROS):
-                    mj[m], me[m], mt[m], mw[m] = mac_j[k, j, m], mac_e[k, j, m], mac_t[k, j, m], mac_w[k, j, m]
-                V[k, CH, j] = _options(k, CH, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best)
-                V[k, AF, j] = _options(k, AF, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best)
+                for m in range(N_P):
+                    pj[m], pe[m], pt[m], pw[m] = pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m]
+                    nj[m] = pj[m] if m <= P_AR_E else -1
+                V[k, CH, j] = _options(k, CH, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
+                for m in range(N_P):
+                    nj[m] = pj[m] if m >= P_R_H else -1
+                V[k, AF, j] = _options(k, AF, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
+                for m in range(N_P):
+                    nj[m] = -1
             else:
                 V[k, CH, j] = V[k, NA, j]
                 V[k, AF, j] = V[k, NA, j]
@@ -415,10 +480,12 @@ def cycle_backward(cc, fo, price, V, st_e, st_w, st_t, st_ok, mac_j, mac_e, mac_
 
 
 @njit(cache=True)
-def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes):
+def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes, ev_s, ev_t, ev_k):
     """The drive from rest: at each node the best option at the train's actual speed and air state, its steps
-    and paths run from there (exact times: the drive keeps the rules); per cell its control and air state, per
-    node speed [km/h] and time [s]. Returns (time [s], traction work [kJ]); inf when no drive reaches the stop."""
+    and paths run from there (exact times: the drive keeps the rules); per cell its control and air state (at
+    its start), per node speed [km/h] and time [s], and the events (``ev_s``: where, as node + the fraction of
+    its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s], traction work [kJ], the number of
+    events); time inf when no drive reaches the stop."""
     n = cc.h.shape[0]
     best = np.zeros(2, dtype=np.int64)
     none_i = np.zeros(1, dtype=np.int64)
@@ -427,13 +494,14 @@ def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes):
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
     sok = np.zeros(N_U, dtype=np.int64)
-    mj = np.zeros(N_MACROS, dtype=np.int64)
-    me = np.zeros(N_MACROS)
-    mt = np.zeros(N_MACROS)
-    mw = np.zeros(N_MACROS)
+    pj = np.full(N_P, -1, dtype=np.int64)
+    pe = np.zeros(N_P)
+    pt = np.zeros(N_P)
+    pw = np.zeros(N_P)
     e = 0.0
     t = 0.0
     work = 0.0
+    n_ev = 0
     v_nodes[0] = 0.0
     t_nodes[0] = 0.0
     s = CH if cc.zone[0] != 0 and not cc.relaxed else NA
@@ -444,19 +512,27 @@ def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes):
         elif s == NA and _zone_start(k, cc):
             s = CH
         _cells_at(e, k, cc, fo, se, sw, st, sok)
-        for m in range(N_MACROS):
-            mj[m] = -1
+        for m in range(N_P):
+            pj[m] = -1
         if cc.zone[k] != 0 and not cc.relaxed and s != NA:
-            _paths_at(e, k, cc, fo, mj, me, mt, mw, none_i, none_f)
-        c = _options(k, s, price, V, cc, se, sw, st, sok, mj, me, mt, mw, best)
+            _paths_at(e, k, s, cc, fo, pj, pe, pt, pw, none_i, none_f)
+        c = _options(k, s, price, V, cc, se, sw, st, sok, pj, pe, pt, pw, best)
         o = best[0]
-        if o < 0 or not math.isfinite(c):
-            return np.inf, np.inf
+        if o < 0 or not math.isfinite(c) or n_ev > ev_s.shape[0] - 4:
+            return np.inf, np.inf, float(n_ev)
         if o < N_U:
             controls[k] = o
-            if cc.relaxed or not (o == U_B or (s == CH and sok[o] == AIR)):
+            curve = s == CH and sok[o] == AIR
+            if cc.relaxed or not (o == U_B or curve):
                 air[k] = AIR_OFF
-            elif s == CH or (k > 0 and air[k - 1] == AIR_CURVE):
+                if s == AF and not cc.relaxed:  # released at this node
+                    ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_RELEASE
+                    n_ev += 1
+            elif curve:
+                air[k] = AIR_CURVE
+                ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_CURVE
+                n_ev += 1
+            elif k > 0 and air[k - 1] == AIR_CURVE:
                 air[k] = AIR_CURVE
             else:
                 air[k] = AIR_CYCLE
@@ -466,17 +542,15 @@ def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes):
             k += 1
             v_nodes[k] = kmh_from_e(max(e, 0.0))
             t_nodes[k] = t
-        elif o == 5 + M_APPLY:
-            jn, e_new, dt = apply_path(e, k, cc, fo, controls, air, v_nodes, t_nodes, t)
-            t += dt
-            e = e_new
-            k = jn
         else:
-            u = U_H if o == 5 + M_REC_H else (U_C if o == 5 + M_REC_C else U_E)
-            jn, e_new, dt, w = recharge_path(e, k, u, cc, fo, controls, air, v_nodes, t_nodes, t)
+            jn, e_new, dt, w, n_ev = run_path(e, k, o - N_U, cc, fo, True, controls, air, v_nodes, t_nodes, t, ev_s,
+                                              ev_t, ev_k, n_ev)
             t += dt
             work += w
             e = e_new
             k = jn
         s = best[1]
-    return t, work
+    if s == AF and not cc.relaxed:  # (the stop's application, released at rest)
+        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(n), t, EV_RELEASE
+        n_ev += 1
+    return t, work, float(n_ev)
