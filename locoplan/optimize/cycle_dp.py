@@ -77,7 +77,7 @@ from ..errors import InfeasibleError
 from ..physics.units import kmh_from_e, kwh
 from ..sim.calculator import TractionCalculator
 from ..sim.native import kernels
-from ..sim.records import CycleCells, contiguous
+from ..sim.records import CycleCells, CycleTables, contiguous
 from .cycle_kernel import N_P, N_U
 from .dp import dp_cells, dp_nodes
 
@@ -220,11 +220,16 @@ class CycleDPSolver:
                                            bool(relaxed)))
         nv = len(base.v_grid)
         self._V = np.empty((n + 1, 3, nv + 1))
-        shape = (n, nv + 1, N_U)
-        self._steps = (np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape, dtype=np.int64))
-        shape = (n, nv + 1, N_P) if zone.any() and not relaxed else (1, 1, N_P)
-        self._paths = (np.full(shape, -1, dtype=np.int64), np.zeros(shape), np.zeros(shape), np.zeros(shape))
-        kernels().cycle_prepare(self.cells, calc.forces, *self._steps, *self._paths)
+        zmap = np.full(n + 1, -1, dtype=np.int64)
+        if not relaxed:
+            zmap[np.flatnonzero(zone[:-1])] = np.arange(int(np.count_nonzero(zone[:-1])))
+        nz = max(int(zmap.max()) + 1, 1)
+        s3, p3 = (n, nv + 1, N_U), (nz, nv + 1, N_P)
+        self.tables = CycleTables(np.zeros(s3), np.zeros(s3), np.zeros(s3), np.zeros(s3, dtype=np.int8),
+                                  np.zeros(s3, dtype=np.int32), np.zeros(s3), np.full(p3, -1, dtype=np.int32),
+                                  np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3, dtype=np.int32), np.zeros(p3),
+                                  np.zeros(n + 1, dtype=np.int64), zmap)
+        kernels().cycle_prepare(self.cells, calc.forces, self.tables)
         self.n_solves = 0
 
     @property
@@ -236,14 +241,14 @@ class CycleDPSolver:
         """The drive that minimises traction energy + ``price_kwh_per_s`` x time, or None when none reaches the stop."""
         n = len(self.s_m) - 1
         k = kernels()
-        k.cycle_backward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, *self._steps, *self._paths)
+        k.cycle_backward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, self.tables)
         controls = np.zeros(n, dtype=np.int64)
         air = np.zeros(n, dtype=np.int64)
         v = np.zeros(n + 1)
         t_nodes = np.zeros(n + 1)
         ev_at, ev_t, ev_k = np.zeros(4 * n + 16), np.zeros(4 * n + 16), np.zeros(4 * n + 16, dtype=np.int64)
-        t, work, n_ev = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, controls, air, v,
-                                        t_nodes, ev_at, ev_t, ev_k)
+        t, work, n_ev = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, self.tables,
+                                        controls, air, v, t_nodes, ev_at, ev_t, ev_k)
         self.n_solves += 1
         if not math.isfinite(t):
             return None

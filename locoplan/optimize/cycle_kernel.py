@@ -180,96 +180,237 @@ def _split(e, u, t0, t_b, k, rest, r, cc, fo):
 
 
 @njit(cache=True, _nrt=False)
-def run_path(e, k, kind, cc, fo, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev):
-    """Path ``kind`` (``P_*``) from node k at e: its phases (an application: the air brake building up linearly
-    from its instant, with the full electric brake, for the longer of its least hold and its build-up; a
-    recharge: H, C or E for the recharge time) one after the other, each ending at its exact time, inside a cell
-    if it falls there; the last phase's control on to the next node. Returns (end node, e there, time [s],
-    traction work [kJ], events recorded); end node -1 = not possible: the train stops, a cap the phase cannot
-    follow (a recharging brake cannot), an application or the recharge before one not over where the zone ends.
-    A recharge that reaches the end of the zone ends there (the next zone lies further than a recharge). With
-    ``rec`` each cell's control and air state (at its start), node speeds and times (from ``t_start``) and the
-    events (position, time, kind) are recorded."""
+def _tab_cell(e, j, u, cc, tb):
+    """Cell j under control u from e read off the one-cell tables (``cycle_prepare``), interpolated in speed
+    between the two grid speeds around e: (e at its end, work [kJ], time [s], verdict); verdict -1 where the
+    tables cannot say (no tables, above the grid, the two grid speeds' verdicts differ): step it exactly."""
+    v_grid = cc.v_grid
+    nv = v_grid.shape[0]
+    dv = v_grid[1] - v_grid[0]
+    v = ms_from_e(max(e, 0.0))
+    top = tb.top[j]
+    i0 = int(v / dv)
+    if i0 < top:
+        i1 = i0 + 1
+        w = (v - i0 * dv) / dv
+    else:  # between the last grid speed below the cap and the cap (the last column)
+        v_cap = ms_from_e(max(cc.e_cap[j], 0.0))
+        span = v_cap - top * dv
+        if v > v_cap * (1.0 + 1e-9) + 1e-9 or span <= 1e-12:
+            return 0.0, 0.0, 0.0, -1
+        i0, i1 = top, nv
+        w = min(max((v - top * dv) / span, 0.0), 1.0)
+    ok = tb.sok[j, i0, u]
+    if tb.sok[j, i1, u] != ok:
+        return 0.0, 0.0, 0.0, -1
+    if ok == NO:
+        return 0.0, 0.0, 0.0, NO
+    return (tb.se[j, i0, u] + w * (tb.se[j, i1, u] - tb.se[j, i0, u]),
+            tb.sw[j, i0, u] + w * (tb.sw[j, i1, u] - tb.sw[j, i0, u]),
+            tb.st[j, i0, u] + w * (tb.st[j, i1, u] - tb.st[j, i0, u]), ok)
+
+
+@njit(cache=True, _nrt=False)
+def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start):
+    """A phase of a path: control u from ``x`` [m] into cell j at e until it has lasted ``dur`` [s] (an
+    application: the air brake building up from the phase's start over ``t_b``; ``is_rec``: a recharge, whose
+    caps only the electric brake may follow). Returns (j, x, e, time [s], work [kJ], status) where it ends: status
+    0 = inside cell j, x metres in; 1 = the zone ended first, at node j (x = 0); 2 = the stop; -1 = not possible.
+    With ``use_tab`` whole cells are read off the one-cell tables where they can be (``_tab_cell``: a recharge, an
+    application whose build-up is over), else stepped; ``rec``: recorded from ``t_start`` [s]."""
     n = cc.h.shape[0]
-    # the phases: (kind, control) x 2
-    if kind == P_A:
-        n_ph, ph0, u0, ph1, u1 = 1, PH_APPLY, U_B, PH_APPLY, U_B
-    elif kind <= P_AR_E:
-        n_ph, ph0, u0, ph1 = 2, PH_APPLY, U_B, PH_REC
-        u1 = U_H if kind == P_AR_H else (U_C if kind == P_AR_C else U_E)
-    elif kind <= P_R_E:
-        n_ph, ph0, ph1, u1 = 1, PH_REC, PH_REC, U_B
-        u0 = U_H if kind == P_R_H else (U_C if kind == P_R_C else U_E)
-    else:
-        n_ph, ph0, u0, ph1, u1 = 2, PH_REC, U_H, PH_APPLY, U_B
-    ph = 0
-    t_ph = 0.0
-    t_b = cc.t_build[k]
-    dur = max(hold_s(k, cc), t_b) if ph0 == PH_APPLY else cc.t_rec
     t = 0.0
     w_sum = 0.0
-    j = k
-    if rec:
-        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t_start, EV_APPLY if ph0 == PH_APPLY else EV_RELEASE
-        n_ev += 1
     while True:
         h = cc.h[j]
-        x = 0.0
-        if rec:
-            cur = ph0 if ph == 0 else ph1
-            controls[j] = u0 if ph == 0 else u1
-            air[j] = AIR_CYCLE if cur == PH_APPLY else AIR_RECHARGE
-        while True:
-            last = ph >= n_ph
-            p_cur = ph0 if (ph == 0) else ph1
-            u = u0 if ph == 0 else u1
-            if last:
-                p_cur = ph1 if n_ph == 2 else ph0
-                u = u1 if n_ph == 2 else u0
-            rest = h - x
-            e1, w, ok = _to_node(e, u, t_ph, t_b, j, rest, cc, fo, False)
-            if ok == NO or (p_cur == PH_REC and ok != OK):
-                return -1, 0.0, 0.0, 0.0, n_ev
-            dt = _part_time(e, e1, rest)
-            if not math.isfinite(dt):
-                return -1, 0.0, 0.0, 0.0, n_ev
-            r = dur - t_ph
-            if last or dt <= r:
-                e = e1
-                t += dt
-                t_ph += dt
-                w_sum += w
-                break
-            xs, es, ws, ts = _split(e, u, t_ph, t_b, j, rest, r, cc, fo)
-            e = es
-            t += ts
-            w_sum += ws
-            x += xs
-            ph += 1
-            t_ph = 0.0
-            if ph < n_ph:  # the next phase begins here, at its exact time
-                if ph1 == PH_APPLY:
-                    t_b = cc.t_build[j]
-                    dur = max(hold_s(j, cc), t_b)
-                else:
-                    dur = cc.t_rec
-                if rec:  # (where: node j and the fraction x / h of its cell)
-                    ev_s[n_ev], ev_t[n_ev] = float(j) + x / h, t_start + t
-                    ev_k[n_ev] = EV_APPLY if ph1 == PH_APPLY else EV_RELEASE
-                    n_ev += 1
+        if rec and x == 0.0:
+            controls[j] = u
+            air[j] = AIR_RECHARGE if is_rec else AIR_CYCLE
+        rest = h - x
+        ok = -1
+        if use_tab and x == 0.0 and (is_rec or t >= t_b):
+            e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
+        if ok < 0:
+            e1, w, ok = _to_node(e, u, t, t_b, j, rest, cc, fo, False)
+            dt = _part_time(e, e1, rest) if ok != NO else np.inf
+        if ok == NO or (is_rec and ok != OK) or not math.isfinite(dt):
+            return j, x, e, t, w_sum, -1
+        r = dur - t
+        if dt > r:
+            xs, es, ws, ts = _split(e, u, t, t_b, j, rest, r, cc, fo)
+            return j, x + xs, es, t + ts, w_sum + ws, 0
+        e = e1
+        t += dt
+        w_sum += w
         if rec:
             v_nodes[j + 1] = kmh_from_e(max(e, 0.0))
             t_nodes[j + 1] = t_start + t
         j += 1
+        x = 0.0
         if j == n:
-            return j, e, t, w_sum, n_ev
-        if ph >= n_ph:
-            return j, e, t, w_sum, n_ev
+            return j, x, e, t, w_sum, 2
         if cc.zone[j] == 0:
-            cur = ph0 if ph == 0 else ph1
-            if cur == PH_REC and (n_ph == 1 or ph1 == PH_REC):
-                return j, e, t, w_sum, n_ev  # recharging as the zone ends: it ends in the gap
-            return -1, 0.0, 0.0, 0.0, n_ev
+            return j, x, e, t, w_sum, 1
+
+
+@njit(cache=True, _nrt=False)
+def _finish(e, j, x, u, t0, t_b, is_rec, cc, fo, tb, use_tab, rec, v_nodes, t_nodes, t_start):
+    """The rest of cell j from ``x`` [m] under control u (an application ``t0`` [s] old, or a recharge) to its
+    node: (e there, time [s], work [kJ], ok False where not possible)."""
+    rest = cc.h[j] - x
+    ok = -1
+    if use_tab and x == 0.0 and (is_rec or t0 >= t_b):
+        e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
+    if ok < 0:
+        e1, w, ok = _to_node(e, u, t0, t_b, j, rest, cc, fo, False)
+        dt = _part_time(e, e1, rest) if ok != NO else np.inf
+    if ok == NO or (is_rec and ok != OK) or not math.isfinite(dt):
+        return e, 0.0, 0.0, False
+    if rec:
+        v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
+        t_nodes[j + 1] = t_start + dt
+    return e1, dt, w, True
+
+
+@njit(cache=True, _nrt=False)
+def _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t, kind, cc):
+    if rec:
+        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(j) + (x / cc.h[j] if j < cc.h.shape[0] else 0.0), t, kind
+        return n_ev + 1
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def _rec_u(m):
+    """The control of path m's recharge."""
+    if m == P_AR_C or m == P_R_C:
+        return U_C
+    if m == P_AR_E or m == P_R_E:
+        return U_E
+    return U_H
+
+
+@njit(cache=True, _nrt=False)
+def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
+                ev_k, n_ev, pj, pe, pt, pw):
+    """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AR_E`` from a charged brake at node k at e, their
+    application stepped once: the air brake (and the full electric brake) from the node, its force building up
+    linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
+    over; then ``P_A`` brakes on to the next node (AF there), ``P_AR_*`` release at that instant and recharge
+    under H, C or E for the recharge time, on to the node after (CH there; NA where the zone ends first). Into
+    ``pj`` (end node, -1: none), ``pe``, ``pt`` [s], ``pw`` [kJ]; returns the events recorded (``rec``: one path)."""
+    n = cc.h.shape[0]
+    for m in range(first, last + 1):
+        pj[m] = -1
+    t_b = cc.t_build[k]
+    dur = max(hold_s(k, cc), t_b)
+    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_APPLY, cc)
+    j, x, ea, ta, wa, st = _phase(e, k, 0.0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
+                                  t_nodes, t_start)
+    if st < 0 or st == 1:
+        return n_ev
+    if st == 2:  # (the stop, braking)
+        for m in range(first, last + 1):
+            pj[m], pe[m], pt[m], pw[m] = n, ea, ta, wa
+        return n_ev
+    for m in range(first, last + 1):
+        if m == P_A:
+            e1, dt, w, ok = _finish(ea, j, x, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + ta)
+            if ok:
+                pj[m], pe[m], pt[m], pw[m] = j + 1, e1, ta + dt, wa + w
+            continue
+        u = _rec_u(m)
+        n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t_start + ta, EV_RELEASE, cc)
+        if rec:
+            controls[j] = u  # (the cell of the release: the recharge's control from there)
+        j2, x2, er, tr, wr, st2 = _phase(ea, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                         v_nodes, t_nodes, t_start + ta)
+        if st2 < 0:
+            continue
+        if st2 > 0:  # the zone, or the route, ended during the recharge
+            pj[m], pe[m], pt[m], pw[m] = j2, er, ta + tr, wa + wr
+            continue
+        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                t_start + ta + tr)
+        if ok:
+            pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, ta + tr + dt, wa + wr + w
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
+                  ev_k, n_ev, pj, pe, pt, pw):
+    """The paths ``first`` .. ``last`` of ``P_R_H`` .. ``P_RA_H`` from an applied brake at node k at e: released
+    at the node, then the recharge under H, C or E for the recharge time, on to the node after (CH there; NA where
+    the zone ends first), or (``P_RA_H``, its recharge under H shared with ``P_R_H``) an application the instant
+    the recharge is over, held until its least hold and build-up are over, on to the node after (AF there).
+    Into ``pj``.. as ``apply_paths``."""
+    n = cc.h.shape[0]
+    for m in range(first, last + 1):
+        pj[m] = -1
+    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
+    for m in range(first, min(last, P_R_E) + 1):
+        u = _rec_u(m)
+        j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                         v_nodes, t_nodes, t_start)
+        if st2 < 0:
+            continue
+        if st2 > 0:
+            pj[m], pe[m], pt[m], pw[m] = j2, er, tr, wr
+            if m == P_R_H and last == P_RA_H and first <= P_R_H:
+                pj[P_RA_H] = -1
+            continue
+        if m == P_R_H and last == P_RA_H:  # the recharge under H, then an application the instant it is over
+            t_b = cc.t_build[j2]
+            dur = max(hold_s(j2, cc), t_b)
+            j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, False, controls,
+                                             air, v_nodes, t_nodes, t_start + tr)
+            if st3 == 2:
+                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
+            elif st3 == 0:
+                e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, use_tab, False, v_nodes,
+                                        t_nodes, 0.0)
+                if ok:
+                    pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + ta + dt, wr + wa
+            if first == P_RA_H:
+                continue
+        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                t_start + tr)
+        if ok:
+            pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, tr + dt, wr + w
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev, pj, pe, pt, pw):
+    """Path m alone from node k at e, stepped exactly and recorded (the forward pass): its end in ``pj``.. [m];
+    returns the events recorded."""
+    if m <= P_AR_E:
+        return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
+                           ev_k, n_ev, pj, pe, pt, pw)
+    if m == P_RA_H:  # recorded: the recharge under H, the event, the application
+        n_ev = _event(True, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
+        pj[m] = -1
+        j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, False, True, controls, air,
+                                         v_nodes, t_nodes, t_start)
+        if st2 != 0:
+            return n_ev
+        n_ev = _event(True, ev_s, ev_t, ev_k, n_ev, j2, x2, t_start + tr, EV_APPLY, cc)
+        t_b = cc.t_build[j2]
+        dur = max(hold_s(j2, cc), t_b)
+        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, False, True, controls, air,
+                                         v_nodes, t_nodes, t_start + tr)
+        if st3 == 2:
+            pj[m], pe[m], pt[m], pw[m] = cc.h.shape[0], ea, tr + ta, wr + wa
+        elif st3 == 0:
+            e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, False, True, v_nodes, t_nodes,
+                                    t_start + tr + ta)
+            if ok:
+                pj[m], pe[m], pt[m], pw[m] = j3 + 1, e1, tr + ta + dt, wr + wa
+        return n_ev
+    return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
+                         ev_k, n_ev, pj, pe, pt, pw)
 
 
 @njit(cache=True, _nrt=False)
@@ -285,24 +426,54 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
 
 
 @njit(cache=True, _nrt=False)
-def _paths_at(e, k, s, cc, fo, pj, pe, pt, pw, none_i, none_f):
+def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, none_i, none_f):
     """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AR_E``; AF: ``P_R_H`` .. ``P_RA_H``; others -1)
-    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``."""
+    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``; ``use_tab``: whole cells off the tables ``tb``."""
     for m in range(N_P):
         pj[m] = -1
-        if (s == CH and m <= P_AR_E) or (s == AF and m >= P_R_H):
-            pj[m], pe[m], pt[m], pw[m], _ = run_path(e, k, m, cc, fo, False, none_i, none_i, none_f, none_f, 0.0,
-                                                     none_f, none_f, none_i, 0)
+    if s == CH:
+        apply_paths(e, k, P_A, P_AR_E, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f, none_f,
+                    none_i, 0, pj, pe, pt, pw)
+    elif s == AF:
+        release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f,
+                      none_f, none_i, 0, pj, pe, pt, pw)
 
 
-@njit(cache=True)
-def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, pa_j, pa_e, pa_t, pa_w):
-    """What does not depend on the price of time, once per grid: every node's single-cell steps from every grid
-    speed (``st_*[k, j, u]``, ``_cells_at``) and, in the zones, its paths from CH and from AF
-    (``pa_*[k, j, m]``, ``_paths_at``; -1 elsewhere)."""
+@njit(cache=True, _nrt=False)
+def _grid_e(k, j, cc):
+    """e = v^2/2 of grid speed j at node k (j = len(v_grid): the node's cap)."""
+    nv = cc.v_grid.shape[0]
+    return e_from_ms(cc.v_grid[j]) if j < nv else max(cc.e_cap[k], 0.0)
+
+
+@njit(cache=True, _nrt=False)
+def _land(e1, k1, cc):
+    """Where e1 lands on node k1's grid: (lower grid index, -1 above the cap; the upper one's weight, negative
+    where the state lies above k1's stall boundary: there a lower grid point below it does not count)."""
     n = cc.h.shape[0]
     v_grid = cc.v_grid
     nv = v_grid.shape[0]
+    if k1 == n:
+        return (0, 0.0) if e1 <= 1e-9 else (-1, 0.0)
+    v1 = ms_from_e(max(e1, 0.0))
+    i0, i1, w = _bracket(v1, v_grid[1] - v_grid[0], nv, ms_from_e(max(cc.e_cap[k1], 0.0)))
+    if i0 < 0:
+        return -1, 0.0
+    low = cc.e_low[k1]
+    if 0.0 < w < 1.0 and math.isfinite(low) and v1 >= ms_from_e(low):
+        w = -w
+    return i0, w
+
+
+@njit(cache=True)
+def cycle_prepare(cc, fo, tb):
+    """What does not depend on the price of time, once per grid, into ``tb`` (``records.CycleTables``): every
+    node's single-cell steps from every grid speed (``_cells_at``), then in the zones its paths from CH and from
+    AF (``_paths_at``, whole cells read off the first tables), and where each lands on its node's grid."""
+    n = cc.h.shape[0]
+    v_grid = cc.v_grid
+    nv = v_grid.shape[0]
+    dv = v_grid[1] - v_grid[0]
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
     se = np.zeros(N_U)
@@ -313,54 +484,67 @@ def cycle_prepare(cc, fo, st_e, st_w, st_t, st_ok, pa_j, pa_e, pa_t, pa_w):
     pe = np.zeros(N_P)
     pt = np.zeros(N_P)
     pw = np.zeros(N_P)
-    paths = pa_j.shape[0] == n
+    for k in range(n + 1):
+        v_cap = ms_from_e(max(cc.e_cap[k], 0.0))
+        top = min(int(v_cap / dv), nv - 1)
+        while top > 0 and top * dv > v_cap:
+            top -= 1
+        tb.top[k] = top
     for k in range(n):
-        zone = cc.zone[k] != 0 and not cc.relaxed and paths
         for j in range(nv + 1):
-            e = e_from_ms(v_grid[j]) if j < nv else max(cc.e_cap[k], 0.0)
+            e = _grid_e(k, j, cc)
             if e > cc.e_cap[k] * (1.0 + 1e-9) + 1e-9:
                 for u in range(N_U):
-                    st_ok[k, j, u] = NO
-                if paths:
-                    for m in range(N_P):
-                        pa_j[k, j, m] = -1
+                    tb.sok[k, j, u] = NO
                 continue
             _cells_at(e, k, cc, fo, se, sw, st, sok)
             for u in range(N_U):
-                st_e[k, j, u], st_w[k, j, u], st_t[k, j, u], st_ok[k, j, u] = se[u], sw[u], st[u], sok[u]
-            if zone:
-                _paths_at(e, k, CH, cc, fo, pj, pe, pt, pw, none_i, none_f)
-                for m in range(P_R_H):
-                    pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m] = pj[m], pe[m], pt[m], pw[m]
-                _paths_at(e, k, AF, cc, fo, pj, pe, pt, pw, none_i, none_f)
-                for m in range(P_R_H, N_P):
-                    pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m] = pj[m], pe[m], pt[m], pw[m]
-            elif paths:
+                tb.se[k, j, u], tb.sw[k, j, u], tb.st[k, j, u], tb.sok[k, j, u] = se[u], sw[u], st[u], sok[u]
+                i0, wx = _land(se[u], k + 1, cc) if sok[u] != NO else (-1, 0.0)
+                tb.si[k, j, u], tb.sx[k, j, u] = i0, wx
+    for k in range(n):
+        z = tb.zmap[k]
+        if z < 0:
+            continue
+        for j in range(nv + 1):
+            e = _grid_e(k, j, cc)
+            if e > cc.e_cap[k] * (1.0 + 1e-9) + 1e-9:
                 for m in range(N_P):
-                    pa_j[k, j, m] = -1
+                    tb.pj[z, j, m] = -1
+                continue
+            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, none_i, none_f)
+            for m in range(P_R_H):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m] = pj[m], pe[m], pt[m], pw[m]
+            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, none_i, none_f)
+            for m in range(P_R_H, N_P):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m] = pj[m], pe[m], pt[m], pw[m]
+            for m in range(N_P):
+                i0, wx = _land(tb.pe[z, j, m], tb.pj[z, j, m], cc) if tb.pj[z, j, m] >= 0 else (-1, 0.0)
+                tb.pi[z, j, m], tb.px[z, j, m] = i0, wx
 
 
 @njit(cache=True, _nrt=False)
-def look(V, k, s, e1, cc):
-    """The cost-to-go at node k in state s at e1, interpolated in speed on the node's grid (the shared grid
-    below its cap, the cap itself as the last column); above the node's stall boundary a lower grid point
-    below it does not count (as the priced DP reads it). At the stop: 0 at rest."""
-    if k == cc.h.shape[0]:
-        return 0.0 if e1 <= 1e-9 else np.inf
-    v_grid = cc.v_grid
-    nv = v_grid.shape[0]
-    v1 = ms_from_e(max(e1, 0.0))
-    v_cap = ms_from_e(max(cc.e_cap[k], 0.0))
-    i0, i1, w = _bracket(v1, v_grid[1] - v_grid[0], nv, v_cap)
+def _value(V, k1, s, i0, wx, tb):
+    """The cost-to-go at node k1 in state s where a state lands (``_land``: i0, wx): interpolated in speed between
+    grid point i0 and the next (the node's cap after its last grid point below it)."""
     if i0 < 0:
         return np.inf
-    a = V[k, s, i0]
-    z = V[k, s, i1]
-    if 0.0 < w < 1.0 and math.isinf(a) and not math.isinf(z):
-        low = cc.e_low[k]
-        if math.isfinite(low) and v1 >= ms_from_e(low):
-            return z
+    w = abs(wx)
+    if w <= 0.0:
+        return V[k1, s, i0]
+    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
+    a = V[k1, s, i0]
+    z = V[k1, s, i1]
+    if wx < 0.0 and math.isinf(a) and not math.isinf(z):
+        return z
     return _blend(a, z, w)
+
+
+@njit(cache=True, _nrt=False)
+def look(V, k1, s, e1, cc, tb):
+    """The cost-to-go at node k1 in state s at e1 (``_land``, ``_value``). At the stop: 0 at rest."""
+    i0, wx = _land(e1, k1, cc)
+    return _value(V, k1, s, i0, wx, tb)
 
 
 @njit(cache=True, _nrt=False)
@@ -377,117 +561,115 @@ def _arrive(k1, s, cc):
 
 
 @njit(cache=True, _nrt=False)
-def _options(k, s, price, V, cc, se, sw, st, sok, pj, pe, pt, pw, best):
-    """The best way on from node k in state s at ``price`` [kWh/s], given the single-cell steps (``se``..) and
-    the paths (``pj``..) from the train's speed: its cost [kWh]; ``best`` gets (option, state after it) with
-    options 0..4 a single cell under control U_T..U_E (U_B: staying applied), N_U + m the path m; -1: none."""
-    relaxed = cc.relaxed
-    c_best = np.inf
-    best[0] = -1
-    best[1] = NA
-    for u in range(N_U):
-        ok = sok[u]
-        if ok == NO:
-            continue
-        if relaxed:
-            if u == U_E:
-                continue
-            s1 = NA
-        elif s == AF:
-            # applied: stays applied (B), or is released at this node and runs on under u with no application
-            # before the zone ends (NA; an application after a release needs its recharge path first)
-            if u == U_B:
-                s1 = AF
-            elif ok == OK:
-                s1 = NA
-            else:
-                continue
-        elif u == U_B:
-            continue
-        elif s == CH:
-            if ok == OK:
-                s1 = CH
-            elif cc.curve_ok[k]:
-                s1 = AF  # a braking curve followed with the air brake: an application (no least hold)
-            else:
-                continue
-        elif ok == OK:
-            s1 = NA
-        else:
-            continue
-        s1 = _arrive(k + 1, s1, cc)
-        c = sw[u] / KJ_PER_KWH + price * st[u] + look(V, k + 1, s1, se[u], cc)
-        if c < c_best:
-            c_best = c
-            best[0] = u
-            best[1] = s1
-    if cc.zone[k] != 0 and not relaxed and s != NA:
-        for m in range(N_P):
-            jn = pj[m]
-            if jn < 0:
-                continue
-            s1 = _arrive(jn, AF if (m == P_A or m == P_RA_H) else CH, cc)
-            c = pw[m] / KJ_PER_KWH + price * pt[m] + look(V, jn, s1, pe[m], cc)
-            if c < c_best:
-                c_best = c
-                best[0] = N_U + m
-                best[1] = s1
-    return c_best
+def _after_cell(k, s, u, ok, cc):
+    """The state after a single cell under control u with verdict ok from state s at node k, -1: not allowed.
+    Applied (AF): stays applied (B), or is released at the node and runs on under u with no application before
+    the zone ends (NA: an application after a release needs its recharge path first). Charged (CH): any but B,
+    and a braking curve followed with the air brake is an application (no least hold, as in the calculator).
+    NA: no air brake."""
+    if ok == NO:
+        return -1
+    if cc.relaxed:
+        return -1 if u == U_E else _arrive(k + 1, NA, cc)
+    if s == AF:
+        if u == U_B:
+            return _arrive(k + 1, AF, cc)
+        return _arrive(k + 1, NA, cc) if ok == OK else -1
+    if u == U_B:
+        return -1
+    if ok == OK:
+        return _arrive(k + 1, s, cc)
+    if s == CH and cc.curve_ok[k]:
+        return _arrive(k + 1, AF, cc)
+    return -1
+
+
+@njit(cache=True, _nrt=False)
+def _path_allowed(k, s, m, cc):
+    return cc.zone[k] != 0 and not cc.relaxed and ((s == CH and m <= P_AR_E) or (s == AF and m >= P_R_H))
+
+
+@njit(cache=True, _nrt=False)
+def _path_state(m):
+    return AF if (m == P_A or m == P_RA_H) else CH
 
 
 @njit(cache=True)
-def cycle_backward(cc, fo, price, V, st_e, st_w, st_t, st_ok, pa_j, pa_e, pa_t, pa_w):
+def cycle_backward(cc, fo, price, V, tb):
     """V[k, s, j]: least traction energy + ``price`` x time [kWh] from node k in air state s at grid speed j
-    (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables."""
+    (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables: the options
+    of ``_after_cell`` and ``_path_allowed``, as the forward pass takes them."""
     n = cc.h.shape[0]
-    v_grid = cc.v_grid
-    nv = v_grid.shape[0]
+    nv = cc.v_grid.shape[0]
     for s in range(3):
         for j in range(nv + 1):
             V[n, s, j] = 0.0 if j == 0 or (j == nv and cc.e_cap[n] <= 1e-12) else np.inf
-    best = np.zeros(2, dtype=np.int64)
-    se = np.zeros(N_U)
-    sw = np.zeros(N_U)
-    st = np.zeros(N_U)
-    sok = np.zeros(N_U, dtype=np.int64)
-    pj = np.full(N_P, -1, dtype=np.int64)
-    pe = np.zeros(N_P)
-    pt = np.zeros(N_P)
-    pw = np.zeros(N_P)
-    nj = np.full(N_P, -1, dtype=np.int64)
+    cost = np.zeros(N_U)
     for k in range(n - 1, -1, -1):
         zone = cc.zone[k] != 0 and not cc.relaxed
+        z = tb.zmap[k]
+        k1 = k + 1
+        na1 = _arrive(k1, NA, cc)
+        ch1 = _arrive(k1, CH, cc)
+        af1 = _arrive(k1, AF, cc)
+        curve = cc.curve_ok[k]
         for j in range(nv + 1):
+            b_na = np.inf
+            b_ch = np.inf
+            b_af = np.inf
             for u in range(N_U):
-                se[u], sw[u], st[u], sok[u] = st_e[k, j, u], st_w[k, j, u], st_t[k, j, u], st_ok[k, j, u]
-            V[k, NA, j] = _options(k, NA, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
+                ok = tb.sok[k, j, u]
+                if ok == NO:
+                    continue
+                c = tb.sw[k, j, u] / KJ_PER_KWH + price * tb.st[k, j, u]
+                i0, wx = tb.si[k, j, u], tb.sx[k, j, u]
+                if cc.relaxed:
+                    if u != U_E:
+                        b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
+                    continue
+                if u == U_B:
+                    if zone:
+                        b_af = min(b_af, c + _value(V, k1, af1, i0, wx, tb))
+                    continue
+                if ok == OK:
+                    v_na = c + _value(V, k1, na1, i0, wx, tb)
+                    b_na = min(b_na, v_na)
+                    if zone:
+                        b_af = min(b_af, v_na)  # released here, on with no application in the zone
+                        b_ch = min(b_ch, c + _value(V, k1, ch1, i0, wx, tb))
+                elif zone and curve:
+                    b_ch = min(b_ch, c + _value(V, k1, af1, i0, wx, tb))
+            if zone and z >= 0:
+                for m in range(N_P):
+                    jn = tb.pj[z, j, m]
+                    if jn < 0:
+                        continue
+                    c = (tb.pw[z, j, m] / KJ_PER_KWH + price * tb.pt[z, j, m]
+                         + _value(V, jn, _arrive(jn, _path_state(m), cc), tb.pi[z, j, m], tb.px[z, j, m], tb))
+                    if m <= P_AR_E:
+                        b_ch = min(b_ch, c)
+                    else:
+                        b_af = min(b_af, c)
+            V[k, NA, j] = b_na
             if zone:
-                for m in range(N_P):
-                    pj[m], pe[m], pt[m], pw[m] = pa_j[k, j, m], pa_e[k, j, m], pa_t[k, j, m], pa_w[k, j, m]
-                    nj[m] = pj[m] if m <= P_AR_E else -1
-                V[k, CH, j] = _options(k, CH, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
-                for m in range(N_P):
-                    nj[m] = pj[m] if m >= P_R_H else -1
-                V[k, AF, j] = _options(k, AF, price, V, cc, se, sw, st, sok, nj, pe, pt, pw, best)
-                for m in range(N_P):
-                    nj[m] = -1
+                V[k, CH, j] = b_ch
+                V[k, AF, j] = b_af
             else:
-                V[k, CH, j] = V[k, NA, j]
-                V[k, AF, j] = V[k, NA, j]
+                V[k, CH, j] = b_na
+                V[k, AF, j] = b_na
         if zone and _zone_start(k, cc):
             for j in range(nv + 1):
                 V[k, NA, j] = V[k, CH, j]  # (arriving from outside the zone: charged)
 
 
 @njit(cache=True)
-def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes, ev_s, ev_t, ev_k):
+def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, ev_t, ev_k):
     """The drive from rest: at each node the best option at the train's actual speed and air state, its steps
-    and paths run from there (exact times: the drive keeps the rules); per cell its control and air state (at
-    its start), per node speed [km/h] and time [s], and the events (``ev_s``: where, as node + the fraction of
-    its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s], traction work [kJ], the number of
-    events); time inf when no drive reaches the stop."""
+    and paths run exactly from there (so the drive keeps the rules: exact times); per cell its control and air
+    state (at its start), per node speed [km/h] and time [s], and the events (``ev_s``: where, as node + the
+    fraction of its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s], traction work [kJ],
+    the number of events); time inf when no drive reaches the stop."""
     n = cc.h.shape[0]
-    best = np.zeros(2, dtype=np.int64)
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
     se = np.zeros(N_U)
@@ -515,10 +697,25 @@ def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes, ev_s, ev_t,
         for m in range(N_P):
             pj[m] = -1
         if cc.zone[k] != 0 and not cc.relaxed and s != NA:
-            _paths_at(e, k, s, cc, fo, pj, pe, pt, pw, none_i, none_f)
-        c = _options(k, s, price, V, cc, se, sw, st, sok, pj, pe, pt, pw, best)
-        o = best[0]
-        if o < 0 or not math.isfinite(c) or n_ev > ev_s.shape[0] - 4:
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, none_i, none_f)
+        c_best = np.inf
+        o = -1
+        s_next = NA
+        for u in range(N_U):
+            s1 = _after_cell(k, s, u, sok[u], cc)
+            if s1 < 0:
+                continue
+            c = sw[u] / KJ_PER_KWH + price * st[u] + look(V, k + 1, s1, se[u], cc, tb)
+            if c < c_best:
+                c_best, o, s_next = c, u, s1
+        for m in range(N_P):
+            if pj[m] < 0 or not _path_allowed(k, s, m, cc):
+                continue
+            s1 = _arrive(pj[m], _path_state(m), cc)
+            c = pw[m] / KJ_PER_KWH + price * pt[m] + look(V, pj[m], s1, pe[m], cc, tb)
+            if c < c_best:
+                c_best, o, s_next = c, N_U + m, s1
+        if o < 0 or not math.isfinite(c_best) or n_ev > ev_s.shape[0] - 4:
             return np.inf, np.inf, float(n_ev)
         if o < N_U:
             controls[k] = o
@@ -543,13 +740,16 @@ def cycle_forward(cc, fo, price, V, controls, air, v_nodes, t_nodes, ev_s, ev_t,
             v_nodes[k] = kmh_from_e(max(e, 0.0))
             t_nodes[k] = t
         else:
-            jn, e_new, dt, w, n_ev = run_path(e, k, o - N_U, cc, fo, True, controls, air, v_nodes, t_nodes, t, ev_s,
-                                              ev_t, ev_k, n_ev)
-            t += dt
-            work += w
-            e = e_new
-            k = jn
-        s = best[1]
+            m = o - N_U
+            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev_s, ev_t, ev_k, n_ev, pj, pe, pt,
+                            pw)
+            if pj[m] < 0:  # (the same path as the one chosen: cannot happen)
+                return np.inf, np.inf, float(n_ev)
+            t += pt[m]
+            work += pw[m]
+            e = pe[m]
+            k = pj[m]
+        s = s_next
     if s == AF and not cc.relaxed:  # (the stop's application, released at rest)
         ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(n), t, EV_RELEASE
         n_ev += 1

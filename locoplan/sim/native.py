@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .records import FIELD_TYPES, CellModel, Cells, CycleCells, DPCells, Forces, IPMLayout, Outputs, Plans
+from .records import FIELD_TYPES, CellModel, Cells, CycleCells, CycleTables, DPCells, Forces, IPMLayout, Outputs, Plans
 
 _F, _I, _A1, _A2, _A3, _A4 = "f8", "i8", "f8[:]", "f8[:, :]", "f8[:, :, :]", "f8[:, :, :, :]"
 
@@ -50,12 +50,11 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
-    "cycle_prepare": ("locoplan.optimize.cycle_kernel", "cycle_prepare", "void",
-                      (CycleCells, Forces, _A3, _A3, _A3, "i8[:, :, :]", "i8[:, :, :]", _A3, _A3, _A3)),
+    "cycle_prepare": ("locoplan.optimize.cycle_kernel", "cycle_prepare", "void", (CycleCells, Forces, CycleTables)),
     "cycle_backward": ("locoplan.optimize.cycle_kernel", "cycle_backward", "void",
-                       (CycleCells, Forces, _F, _A3, _A3, _A3, _A3, "i8[:, :, :]", "i8[:, :, :]", _A3, _A3, _A3)),
+                       (CycleCells, Forces, _F, _A3, CycleTables)),
     "cycle_forward": ("locoplan.optimize.cycle_kernel", "cycle_forward", "UniTuple(f8, 3)",
-                      (CycleCells, Forces, _F, _A3, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1, "i8[:]")),
+                      (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1, "i8[:]")),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
                       ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
                        "i8[:]", _A1, "i8[:]")),
@@ -118,7 +117,7 @@ def module_name() -> str:
 class _Checked:
     """An ahead-of-time function behind a check of its arguments' types (it makes none itself)."""
 
-    _DTYPES = {"f8": np.float64, "i8": np.int64, "i1": np.int8, "b1": np.bool_}
+    _DTYPES = {"f8": np.float64, "i8": np.int64, "i4": np.int32, "i1": np.int8, "b1": np.bool_}
 
     def __init__(self, name: str, fn, arg_types: tuple):
         self.name, self.fn = name, fn

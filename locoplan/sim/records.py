@@ -142,6 +142,30 @@ class CycleCells(NamedTuple):
     relaxed: bool
 
 
+class CycleTables(NamedTuple):
+    """What the cycle DP computes once per grid (``optimize/cycle_kernel.py``, ``cycle_prepare``): per node k, grid
+    speed j and single-cell control u (``se`` .. [k, j, u]) the step's e at the cell's end, traction work [kJ],
+    time [s], verdict (``sok``) and where e lands on the next node's grid (``si`` its lower grid index, -1: above the
+    cap; ``sx`` the weight of the upper one, negative where the state lies above that node's stall boundary); per
+    zone node (``zmap[k]``: its row, -1 outside the zones) and path m the same for the path's end (``pj`` its node,
+    -1: none); ``top[k]`` the last grid index below node k's cap."""
+
+    se: np.ndarray
+    sw: np.ndarray
+    st: np.ndarray
+    sok: np.ndarray
+    si: np.ndarray
+    sx: np.ndarray
+    pj: np.ndarray
+    pe: np.ndarray
+    pt: np.ndarray
+    pw: np.ndarray
+    pi: np.ndarray
+    px: np.ndarray
+    top: np.ndarray
+    zmap: np.ndarray
+
+
 class CellModel(NamedTuple):
     """E*'s cell problem (``ocp/cells.py``) for its compiled evaluation (``ocp/cell_kernel.py``): ``nf``
     forces per cell (variables ``[v_0, f_0.., v_1, ...]`` scaled by ``v_ref`` and ``f_ref``), the cells'
@@ -205,6 +229,9 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
     CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _F, _F, _B),
+    CycleTables: ("f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i1[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
+                  "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]", "i8[:]",
+                  "i8[:]"),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),
     IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),
