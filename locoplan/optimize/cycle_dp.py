@@ -93,6 +93,8 @@ PRICE_CLOSE = 1.002
 PRICE_RANGE = (1e-5, 50.0)
 """Prices of time searched [kWh/s] (geometric bisection), beyond a hint's walk."""
 MAX_SOLVES = 40
+REC_STEP_S = 10.0
+"""The recharge's states lie this far apart in time since the release [s] (at most: the recharge in equal parts)."""
 HINT_STEP = 0.05
 """From a price hint the search steps 5 % of the price away, doubling, until the time crosses T."""
 
@@ -214,12 +216,14 @@ class CycleDPSolver:
         curve_ok[-1] = True  # the stop
         t_build = calc.t_build_s[idx[:-1]] if cyc is not None else np.zeros(n)
         self.s_m = calc.s_m[idx]
+        t_rec = float(cyc.recharge_s) if cyc else 0.0
+        n_rec = max(1, int(math.ceil(t_rec / REC_STEP_S - 1e-9))) if t_rec > 0 else 1
         self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone, curve_ok,
-                                           t_build, e_low, float(cyc.recharge_s) if cyc else 0.0,
+                                           t_build, e_low, t_rec,
                                            float(cyc.min_hold_s) if cyc and cyc.min_hold_s is not None else -1.0,
-                                           bool(relaxed)))
+                                           n_rec, bool(relaxed)))
         nv = len(base.v_grid)
-        self._V = np.empty((n + 1, 3, nv + 1))
+        self._V = np.empty((n + 1, 3 + n_rec, nv + 1))
         zmap = np.full(n + 1, -1, dtype=np.int64)
         if not relaxed:
             zmap[np.flatnonzero(zone[:-1])] = np.arange(int(np.count_nonzero(zone[:-1])))
@@ -227,7 +231,8 @@ class CycleDPSolver:
         s3, p3 = (n, nv + 1, N_U), (nz, nv + 1, N_P)
         self.tables = CycleTables(np.zeros(s3), np.zeros(s3), np.zeros(s3), np.zeros(s3, dtype=np.int8),
                                   np.zeros(s3, dtype=np.int32), np.zeros(s3), np.full(p3, -1, dtype=np.int32),
-                                  np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3, dtype=np.int32), np.zeros(p3),
+                                  np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3, dtype=np.int32),
+                                  np.zeros(p3),
                                   np.zeros(n + 1, dtype=np.int64), zmap)
         kernels().cycle_prepare(self.cells, calc.forces, self.tables)
         self.n_solves = 0

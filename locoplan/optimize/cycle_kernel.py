@@ -18,23 +18,28 @@ from ..physics.units import KJ_PER_KWH
 from ..sim.kernel import davis_kn, e_from_ms, kmh_from_e, ms_from_e
 from .dp_kernel import _blend, _bracket, _interp1
 
-CH, NA, AF = 0, 1, 2
-"""Air-brake states at a node: released and charged (may apply), released with no application before the zone
-ends (or outside every zone: no air brake there), applied at full with its least hold over (may release)."""
+CH, NA, AF, R0 = 0, 1, 2, 3
+"""Air-brake states at a node: released and charged (may apply); released, outside every zone (no air brake
+there: the next zone is reached charged); applied at full with its least hold over (may release); released and
+recharging, R0 + b for b = 0 .. n_rec - 1 with b x the recharge / n_rec [s] since the release (a train in it
+cannot apply; its value between two of them is interpolated in time, and taken as none where the one before is:
+never earlier than the rules allow)."""
 U_T, U_H, U_C, U_B, U_E = 0, 1, 2, 3, 4
 N_U = 5
 """A cell's control: full traction, hold the speed (traction, or braking up to what the state allows, at full
 where that cannot hold it), coast, braking with the air brake applied (and the full electric brake), the full
 electric brake alone. The first four are the calculator's condition codes (T, K, C, B)."""
-P_A, P_AR_H, P_AR_C, P_AR_E, P_R_H, P_R_C, P_R_E, P_RA_H = 0, 1, 2, 3, 4, 5, 6, 7
-N_P = 8
+P_A, P_AR_H, P_AX_H, P_AX_C, P_AX_E, P_R_H, P_RA_H = 0, 1, 2, 3, 4, 5, 6
+N_P = 7
+N_CH = 5
 """Paths of several cells from a node, made of phases whose ends come at exact times (inside a cell where they
-fall there), each continued to the next node under its last phase's control:
-- from a charged brake (CH): an application (``P_A``: the air brake builds up, held until both its least hold
-  and its build-up are over; then AF), or that application released the instant it may be, and its recharge
-  under H, C or E (``P_AR_*``; then CH);
-- from an applied one (AF): a release at the node and the recharge under H, C or E (``P_R_*``; then CH), or the
-  recharge under H and an application the instant it is over (``P_RA_H``; then AF)."""
+fall there):
+- from a charged brake (CH): an application, held until both its least hold and its build-up are over, then on
+  applied to the next node (``P_A``: AF there), or released that instant and, under H, recharged for exactly the
+  recharge time, on to the node after (``P_AR_H``: CH there), or released that instant and the rest of that cell
+  under H, C or E (``P_AX_*``: recharging at the next node, the time since the release known exactly);
+- from an applied one (AF): released at the node and recharged under H for exactly the recharge time, on to the
+  node after (``P_R_H``: CH), or with an application the instant the recharge is over (``P_RA_H``: AF)."""
 OK, AIR, NO = 0, 1, 2
 """A step's verdict: possible as it is (or held at the next node's cap by the electric brake alone), possible
 only with the air brake (applied, or following a braking curve), not possible."""
@@ -282,26 +287,27 @@ def _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t, kind, cc):
 
 @njit(cache=True, _nrt=False)
 def _rec_u(m):
-    """The control of path m's recharge."""
-    if m == P_AR_C or m == P_R_C:
+    """The control of path m after its release."""
+    if m == P_AX_C:
         return U_C
-    if m == P_AR_E or m == P_R_E:
+    if m == P_AX_E:
         return U_E
     return U_H
 
 
 @njit(cache=True, _nrt=False)
 def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                ev_k, n_ev, pj, pe, pt, pw):
-    """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AR_E`` from a charged brake at node k at e, their
+                ev_k, n_ev, pj, pe, pt, pw, pq):
+    """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AX_E`` from a charged brake at node k at e, their
     application stepped once: the air brake (and the full electric brake) from the node, its force building up
     linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
-    over; then ``P_A`` brakes on to the next node (AF there), ``P_AR_*`` release at that instant and recharge
-    under H, C or E for the recharge time, on to the node after (CH there; NA where the zone ends first). Into
-    ``pj`` (end node, -1: none), ``pe``, ``pt`` [s], ``pw`` [kJ]; returns the events recorded (``rec``: one path)."""
+    over; then as the path says (``P_A``, ``P_AR_H``, ``P_AX_*``). Into ``pj`` (end node, -1: none), ``pe``,
+    ``pt`` [s], ``pw`` [kJ] and ``pq`` (the time since the release at the end node [s], ``P_AX_*``); returns the
+    events recorded (``rec``: one path)."""
     n = cc.h.shape[0]
     for m in range(first, last + 1):
         pj[m] = -1
+        pq[m] = 0.0
     t_b = cc.t_build[k]
     dur = max(hold_s(k, cc), t_b)
     n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_APPLY, cc)
@@ -323,7 +329,13 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
         u = _rec_u(m)
         n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t_start + ta, EV_RELEASE, cc)
         if rec:
-            controls[j] = u  # (the cell of the release: the recharge's control from there)
+            controls[j] = u  # (the cell of the release: its control after it)
+        if m != P_AR_H:  # released, the rest of the cell under u: recharging at the next node
+            e1, dt, w, ok = _finish(ea, j, x, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + ta)
+            if ok:
+                pj[m], pe[m], pt[m], pw[m], pq[m] = j + 1, e1, ta + dt, wa + w, dt
+            continue
         j2, x2, er, tr, wr, st2 = _phase(ea, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
                                          v_nodes, t_nodes, t_start + ta)
         if st2 < 0:
@@ -341,74 +353,52 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
 @njit(cache=True, _nrt=False)
 def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
                   ev_k, n_ev, pj, pe, pt, pw):
-    """The paths ``first`` .. ``last`` of ``P_R_H`` .. ``P_RA_H`` from an applied brake at node k at e: released
-    at the node, then the recharge under H, C or E for the recharge time, on to the node after (CH there; NA where
-    the zone ends first), or (``P_RA_H``, its recharge under H shared with ``P_R_H``) an application the instant
-    the recharge is over, held until its least hold and build-up are over, on to the node after (AF there).
-    Into ``pj``.. as ``apply_paths``."""
+    """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node,
+    recharged under H for exactly the recharge time, then on under H to the node after (CH there; NA where the
+    zone ends first), or an application the instant the recharge is over, held until its least hold and build-up
+    are over, on to the node after (AF there). Into ``pj``.. as ``apply_paths``; ``rec``: one path recorded."""
     n = cc.h.shape[0]
     for m in range(first, last + 1):
         pj[m] = -1
     n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
-    for m in range(first, min(last, P_R_E) + 1):
-        u = _rec_u(m)
-        j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
-                                         v_nodes, t_nodes, t_start)
-        if st2 < 0:
-            continue
-        if st2 > 0:
-            pj[m], pe[m], pt[m], pw[m] = j2, er, tr, wr
-            if m == P_R_H and last == P_RA_H and first <= P_R_H:
-                pj[P_RA_H] = -1
-            continue
-        if m == P_R_H and last == P_RA_H:  # the recharge under H, then an application the instant it is over
-            t_b = cc.t_build[j2]
-            dur = max(hold_s(j2, cc), t_b)
-            j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, False, controls,
-                                             air, v_nodes, t_nodes, t_start + tr)
-            if st3 == 2:
-                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
-            elif st3 == 0:
-                e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, use_tab, False, v_nodes,
-                                        t_nodes, 0.0)
-                if ok:
-                    pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + ta + dt, wr + wa
-            if first == P_RA_H:
-                continue
-        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
-                                t_start + tr)
+    j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                     v_nodes, t_nodes, t_start)
+    if st2 < 0:
+        return n_ev
+    if st2 > 0:
+        if first == P_R_H:
+            pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2, er, tr, wr
+        return n_ev
+    if first == P_R_H:
+        e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, True, cc, fo, tb, use_tab, rec and last == P_R_H, v_nodes,
+                                t_nodes, t_start + tr)
         if ok:
-            pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, tr + dt, wr + w
+            pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2 + 1, e1, tr + dt, wr + w
+    if last == P_RA_H:  # an application the instant the recharge is over
+        n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j2, x2, t_start + tr, EV_APPLY, cc)
+        t_b = cc.t_build[j2]
+        dur = max(hold_s(j2, cc), t_b)
+        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
+                                         v_nodes, t_nodes, t_start + tr)
+        if st3 == 2:
+            pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
+        elif st3 == 0:
+            e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + tr + ta)
+            if ok:
+                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + ta + dt, wr + wa
     return n_ev
 
 
 @njit(cache=True, _nrt=False)
-def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev, pj, pe, pt, pw):
+def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev, pj, pe, pt, pw,
+             pq):
     """Path m alone from node k at e, stepped exactly and recorded (the forward pass): its end in ``pj``.. [m];
     returns the events recorded."""
-    if m <= P_AR_E:
+    if m < N_CH:
         return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                           ev_k, n_ev, pj, pe, pt, pw)
-    if m == P_RA_H:  # recorded: the recharge under H, the event, the application
-        n_ev = _event(True, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
-        pj[m] = -1
-        j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, False, True, controls, air,
-                                         v_nodes, t_nodes, t_start)
-        if st2 != 0:
-            return n_ev
-        n_ev = _event(True, ev_s, ev_t, ev_k, n_ev, j2, x2, t_start + tr, EV_APPLY, cc)
-        t_b = cc.t_build[j2]
-        dur = max(hold_s(j2, cc), t_b)
-        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, False, True, controls, air,
-                                         v_nodes, t_nodes, t_start + tr)
-        if st3 == 2:
-            pj[m], pe[m], pt[m], pw[m] = cc.h.shape[0], ea, tr + ta, wr + wa
-        elif st3 == 0:
-            e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, False, True, v_nodes, t_nodes,
-                                    t_start + tr + ta)
-            if ok:
-                pj[m], pe[m], pt[m], pw[m] = j3 + 1, e1, tr + ta + dt, wr + wa
-        return n_ev
+                           ev_k, n_ev, pj, pe, pt, pw, pq)
+    pq[m] = 0.0
     return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
                          ev_k, n_ev, pj, pe, pt, pw)
 
@@ -426,14 +416,15 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
 
 
 @njit(cache=True, _nrt=False)
-def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, none_i, none_f):
-    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AR_E``; AF: ``P_R_H`` .. ``P_RA_H``; others -1)
-    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``; ``use_tab``: whole cells off the tables ``tb``."""
+def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f):
+    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``; others -1)
+    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``, ``pq``; ``use_tab``: whole cells off the tables."""
     for m in range(N_P):
         pj[m] = -1
+        pq[m] = 0.0
     if s == CH:
-        apply_paths(e, k, P_A, P_AR_E, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f, none_f,
-                    none_i, 0, pj, pe, pt, pw)
+        apply_paths(e, k, P_A, N_CH - 1, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f,
+                    none_f, none_i, 0, pj, pe, pt, pw, pq)
     elif s == AF:
         release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f,
                       none_f, none_i, 0, pj, pe, pt, pw)
@@ -484,6 +475,7 @@ def cycle_prepare(cc, fo, tb):
     pe = np.zeros(N_P)
     pt = np.zeros(N_P)
     pw = np.zeros(N_P)
+    pq = np.zeros(N_P)
     for k in range(n + 1):
         v_cap = ms_from_e(max(cc.e_cap[k], 0.0))
         top = min(int(v_cap / dv), nv - 1)
@@ -512,12 +504,14 @@ def cycle_prepare(cc, fo, tb):
                 for m in range(N_P):
                     tb.pj[z, j, m] = -1
                 continue
-            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, none_i, none_f)
-            for m in range(P_R_H):
-                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m] = pj[m], pe[m], pt[m], pw[m]
-            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, none_i, none_f)
-            for m in range(P_R_H, N_P):
-                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m] = pj[m], pe[m], pt[m], pw[m]
+            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f)
+            for m in range(N_CH):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
+                                                                                                 pw[m], pq[m])
+            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f)
+            for m in range(N_CH, N_P):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
+                                                                                                 pw[m], 0.0)
             for m in range(N_P):
                 i0, wx = _land(tb.pe[z, j, m], tb.pj[z, j, m], cc) if tb.pj[z, j, m] >= 0 else (-1, 0.0)
                 tb.pi[z, j, m], tb.px[z, j, m] = i0, wx
@@ -541,6 +535,28 @@ def _value(V, k1, s, i0, wx, tb):
 
 
 @njit(cache=True, _nrt=False)
+def _value_rec(V, k1, tau, i0, wx, cc, tb):
+    """The cost-to-go at node k1 of a released brake ``tau`` [s] into its recharge: charged once the recharge is
+    over (CH); outside a zone NA; else interpolated in time between the recharge states around ``tau``, and none
+    where the earlier of the two has none (a value never counts on more time than has passed)."""
+    n = cc.h.shape[0]
+    if k1 == n or cc.zone[k1] == 0:
+        return _value(V, k1, NA, i0, wx, tb)
+    if tau >= cc.t_rec - 1e-9:
+        return _value(V, k1, CH, i0, wx, tb)
+    q = tau / (cc.t_rec / cc.n_rec)
+    b = min(int(q), cc.n_rec - 1)
+    f = q - b
+    v0 = _value(V, k1, R0 + b, i0, wx, tb)
+    if f <= 1e-12 or math.isinf(v0):
+        return v0
+    v1 = _value(V, k1, R0 + b + 1 if b + 1 < cc.n_rec else CH, i0, wx, tb)
+    if math.isinf(v1):
+        return v0
+    return v0 + f * (v1 - v0)
+
+
+@njit(cache=True, _nrt=False)
 def look(V, k1, s, e1, cc, tb):
     """The cost-to-go at node k1 in state s at e1 (``_land``, ``_value``). At the stop: 0 at rest."""
     i0, wx = _land(e1, k1, cc)
@@ -561,35 +577,6 @@ def _arrive(k1, s, cc):
 
 
 @njit(cache=True, _nrt=False)
-def _after_cell(k, s, u, ok, cc):
-    """The state after a single cell under control u with verdict ok from state s at node k, -1: not allowed.
-    Applied (AF): stays applied (B), or is released at the node and runs on under u with no application before
-    the zone ends (NA: an application after a release needs its recharge path first). Charged (CH): any but B,
-    and a braking curve followed with the air brake is an application (no least hold, as in the calculator).
-    NA: no air brake."""
-    if ok == NO:
-        return -1
-    if cc.relaxed:
-        return -1 if u == U_E else _arrive(k + 1, NA, cc)
-    if s == AF:
-        if u == U_B:
-            return _arrive(k + 1, AF, cc)
-        return _arrive(k + 1, NA, cc) if ok == OK else -1
-    if u == U_B:
-        return -1
-    if ok == OK:
-        return _arrive(k + 1, s, cc)
-    if s == CH and cc.curve_ok[k]:
-        return _arrive(k + 1, AF, cc)
-    return -1
-
-
-@njit(cache=True, _nrt=False)
-def _path_allowed(k, s, m, cc):
-    return cc.zone[k] != 0 and not cc.relaxed and ((s == CH and m <= P_AR_E) or (s == AF and m >= P_R_H))
-
-
-@njit(cache=True, _nrt=False)
 def _path_state(m):
     return AF if (m == P_A or m == P_RA_H) else CH
 
@@ -597,11 +584,17 @@ def _path_state(m):
 @njit(cache=True)
 def cycle_backward(cc, fo, price, V, tb):
     """V[k, s, j]: least traction energy + ``price`` x time [kWh] from node k in air state s at grid speed j
-    (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables: the options
-    of ``_after_cell`` and ``_path_allowed``, as the forward pass takes them."""
+    (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables. A cell's
+    options (the forward pass takes the same ones): outside a zone (NA) T, H, C, E, a cap followed by the electric
+    brake alone; charged (CH) T, H, C, E (a braking curve followed with the air brake: an application, AF at the
+    next node), or a path ``P_A`` .. ``P_AX_E``; applied (AF) stay applied (B), a release (the recharge's state at
+    this node) or a path ``P_R_H``, ``P_RA_H``; recharging (R0 + b) T, H, C, E, no air brake, charged once the
+    recharge is over at a node. In the relaxed DP (no zones) NA has T, H and B at will."""
     n = cc.h.shape[0]
     nv = cc.v_grid.shape[0]
-    for s in range(3):
+    n_s = V.shape[1]
+    dtau = cc.t_rec / cc.n_rec
+    for s in range(n_s):
         for j in range(nv + 1):
             V[n, s, j] = 0.0 if j == 0 or (j == nv and cc.e_cap[n] <= 1e-12) else np.inf
     cost = np.zeros(N_U)
@@ -619,6 +612,7 @@ def cycle_backward(cc, fo, price, V, tb):
             b_af = np.inf
             for u in range(N_U):
                 ok = tb.sok[k, j, u]
+                cost[u] = np.inf
                 if ok == NO:
                     continue
                 c = tb.sw[k, j, u] / KJ_PER_KWH + price * tb.st[k, j, u]
@@ -632,31 +626,41 @@ def cycle_backward(cc, fo, price, V, tb):
                         b_af = min(b_af, c + _value(V, k1, af1, i0, wx, tb))
                     continue
                 if ok == OK:
-                    v_na = c + _value(V, k1, na1, i0, wx, tb)
-                    b_na = min(b_na, v_na)
+                    cost[u] = c
+                    b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
                     if zone:
-                        b_af = min(b_af, v_na)  # released here, on with no application in the zone
                         b_ch = min(b_ch, c + _value(V, k1, ch1, i0, wx, tb))
                 elif zone and curve:
                     b_ch = min(b_ch, c + _value(V, k1, af1, i0, wx, tb))
-            if zone and z >= 0:
-                for m in range(N_P):
-                    jn = tb.pj[z, j, m]
-                    if jn < 0:
-                        continue
-                    c = (tb.pw[z, j, m] / KJ_PER_KWH + price * tb.pt[z, j, m]
-                         + _value(V, jn, _arrive(jn, _path_state(m), cc), tb.pi[z, j, m], tb.px[z, j, m], tb))
-                    if m <= P_AR_E:
-                        b_ch = min(b_ch, c)
-                    else:
-                        b_af = min(b_af, c)
-            V[k, NA, j] = b_na
             if zone:
+                for b in range(cc.n_rec):  # recharging, b x dtau since the release
+                    best = np.inf
+                    for u in range(N_U):
+                        if math.isfinite(cost[u]):
+                            best = min(best, cost[u] + _value_rec(V, k1, b * dtau + tb.st[k, j, u], tb.si[k, j, u],
+                                                                  tb.sx[k, j, u], cc, tb))
+                    V[k, R0 + b, j] = best
+                b_af = min(b_af, V[k, R0, j])  # released here
+                if z >= 0:
+                    for m in range(N_P):
+                        jn = tb.pj[z, j, m]
+                        if jn < 0:
+                            continue
+                        c = tb.pw[z, j, m] / KJ_PER_KWH + price * tb.pt[z, j, m]
+                        if m == P_AX_H or m == P_AX_C or m == P_AX_E:
+                            c += _value_rec(V, jn, tb.pq[z, j, m], tb.pi[z, j, m], tb.px[z, j, m], cc, tb)
+                        else:
+                            c += _value(V, jn, _arrive(jn, _path_state(m), cc), tb.pi[z, j, m], tb.px[z, j, m], tb)
+                        if m < N_CH:
+                            b_ch = min(b_ch, c)
+                        else:
+                            b_af = min(b_af, c)
+                V[k, NA, j] = b_na
                 V[k, CH, j] = b_ch
                 V[k, AF, j] = b_af
             else:
-                V[k, CH, j] = b_na
-                V[k, AF, j] = b_na
+                for s in range(n_s):
+                    V[k, s, j] = b_na
         if zone and _zone_start(k, cc):
             for j in range(nv + 1):
                 V[k, NA, j] = V[k, CH, j]  # (arriving from outside the zone: charged)
@@ -664,11 +668,11 @@ def cycle_backward(cc, fo, price, V, tb):
 
 @njit(cache=True)
 def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, ev_t, ev_k):
-    """The drive from rest: at each node the best option at the train's actual speed and air state, its steps
-    and paths run exactly from there (so the drive keeps the rules: exact times); per cell its control and air
-    state (at its start), per node speed [km/h] and time [s], and the events (``ev_s``: where, as node + the
-    fraction of its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s], traction work [kJ],
-    the number of events); time inf when no drive reaches the stop."""
+    """The drive from rest: at each node the best option at the train's actual speed and air state (the time
+    since a release exact), its steps and paths run exactly from there (so the drive keeps the rules); per cell
+    its control and air state (at its start), per node speed [km/h] and time [s], and the events (``ev_s``:
+    where, as node + the fraction of its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s],
+    traction work [kJ], the number of events); time inf when no drive reaches the stop."""
     n = cc.h.shape[0]
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
@@ -680,8 +684,10 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
     pe = np.zeros(N_P)
     pt = np.zeros(N_P)
     pw = np.zeros(N_P)
+    pq = np.zeros(N_P)
     e = 0.0
     t = 0.0
+    tau = 0.0  # since the last release [s], in a recharge state (R0)
     work = 0.0
     n_ev = 0
     v_nodes[0] = 0.0
@@ -693,38 +699,71 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
             s = NA
         elif s == NA and _zone_start(k, cc):
             s = CH
+        elif s == R0 and tau >= cc.t_rec - 1e-9:
+            s = CH
         _cells_at(e, k, cc, fo, se, sw, st, sok)
         for m in range(N_P):
             pj[m] = -1
-        if cc.zone[k] != 0 and not cc.relaxed and s != NA:
-            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, none_i, none_f)
+        if cc.zone[k] != 0 and not cc.relaxed and (s == CH or s == AF):
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f)
         c_best = np.inf
         o = -1
         s_next = NA
+        zone = cc.zone[k] != 0 and not cc.relaxed
         for u in range(N_U):
-            s1 = _after_cell(k, s, u, sok[u], cc)
-            if s1 < 0:
+            if sok[u] == NO or (cc.relaxed and u == U_E):
                 continue
-            c = sw[u] / KJ_PER_KWH + price * st[u] + look(V, k + 1, s1, se[u], cc, tb)
-            if c < c_best:
+            c = sw[u] / KJ_PER_KWH + price * st[u]
+            i0, wx = _land(se[u], k + 1, cc)
+            s1 = -1
+            if cc.relaxed or s == NA:
+                if sok[u] == OK or cc.relaxed:
+                    s1 = _arrive(k + 1, NA, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif u == U_B:
+                if s == AF:
+                    s1 = _arrive(k + 1, AF, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif s == CH:
+                if sok[u] == OK:
+                    s1 = _arrive(k + 1, CH, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+                elif cc.curve_ok[k]:
+                    s1 = _arrive(k + 1, AF, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif sok[u] == OK:  # recharging, or released here from AF
+                t_since = (tau if s == R0 else 0.0) + st[u]
+                s1 = R0
+                c += _value_rec(V, k + 1, t_since, i0, wx, cc, tb)
+            if s1 >= 0 and c < c_best:
                 c_best, o, s_next = c, u, s1
-        for m in range(N_P):
-            if pj[m] < 0 or not _path_allowed(k, s, m, cc):
-                continue
-            s1 = _arrive(pj[m], _path_state(m), cc)
-            c = pw[m] / KJ_PER_KWH + price * pt[m] + look(V, pj[m], s1, pe[m], cc, tb)
-            if c < c_best:
-                c_best, o, s_next = c, N_U + m, s1
+        if zone:
+            for m in range(N_P):
+                if pj[m] < 0:
+                    continue
+                c = pw[m] / KJ_PER_KWH + price * pt[m]
+                i0, wx = _land(pe[m], pj[m], cc)
+                if m == P_AX_H or m == P_AX_C or m == P_AX_E:
+                    c += _value_rec(V, pj[m], pq[m], i0, wx, cc, tb)
+                    s1 = R0
+                else:
+                    s1 = _arrive(pj[m], _path_state(m), cc)
+                    c += _value(V, pj[m], s1, i0, wx, tb)
+                if c < c_best:
+                    c_best, o, s_next = c, N_U + m, s1
         if o < 0 or not math.isfinite(c_best) or n_ev > ev_s.shape[0] - 4:
             return np.inf, np.inf, float(n_ev)
         if o < N_U:
             controls[k] = o
             curve = s == CH and sok[o] == AIR
             if cc.relaxed or not (o == U_B or curve):
-                air[k] = AIR_OFF
+                air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
                 if s == AF and not cc.relaxed:  # released at this node
                     ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_RELEASE
                     n_ev += 1
+                    tau = 0.0
+                if s_next == R0:
+                    tau += st[o]
             elif curve:
                 air[k] = AIR_CURVE
                 ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_CURVE
@@ -742,14 +781,17 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
         else:
             m = o - N_U
             n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev_s, ev_t, ev_k, n_ev, pj, pe, pt,
-                            pw)
-            if pj[m] < 0:  # (the same path as the one chosen: cannot happen)
+                            pw, pq)
+            if pj[m] < 0:  # (the path chosen, run again: cannot happen)
                 return np.inf, np.inf, float(n_ev)
             t += pt[m]
             work += pw[m]
             e = pe[m]
             k = pj[m]
+            tau = pq[m]
         s = s_next
+        if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
+            s = NA
     if s == AF and not cc.relaxed:  # (the stop's application, released at rest)
         ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(n), t, EV_RELEASE
         n_ev += 1

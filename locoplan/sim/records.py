@@ -125,8 +125,9 @@ class CycleCells(NamedTuple):
     there (``zone`` 1/0; 0 = no air brake), per cell whether a cap there is a braking curve an application may
     follow (``curve_ok``) and the build-up time of an application made in it (``t_build`` [s]); each node's
     lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge ``t_rec``
-    and least hold ``t_hold`` [s] (< 0: the build-up time), and ``relaxed``: the air brake as a continuous
-    force everywhere (no state: the relaxation's DP)."""
+    and least hold ``t_hold`` [s] (< 0: the build-up time), ``n_rec`` the recharge's states (one every
+    ``t_rec / n_rec`` seconds since a release), and ``relaxed``: the air brake as a continuous force everywhere
+    (no state: the relaxation's DP)."""
 
     h: np.ndarray
     grav: np.ndarray
@@ -139,6 +140,7 @@ class CycleCells(NamedTuple):
     e_low: np.ndarray
     t_rec: float
     t_hold: float
+    n_rec: int
     relaxed: bool
 
 
@@ -148,7 +150,8 @@ class CycleTables(NamedTuple):
     time [s], verdict (``sok``) and where e lands on the next node's grid (``si`` its lower grid index, -1: above the
     cap; ``sx`` the weight of the upper one, negative where the state lies above that node's stall boundary); per
     zone node (``zmap[k]``: its row, -1 outside the zones) and path m the same for the path's end (``pj`` its node,
-    -1: none); ``top[k]`` the last grid index below node k's cap."""
+    -1: none; ``pq`` the time since its release there [s], for a path that ends recharging); ``top[k]`` the last
+    grid index below node k's cap."""
 
     se: np.ndarray
     sw: np.ndarray
@@ -160,6 +163,7 @@ class CycleTables(NamedTuple):
     pe: np.ndarray
     pt: np.ndarray
     pw: np.ndarray
+    pq: np.ndarray
     pi: np.ndarray
     px: np.ndarray
     top: np.ndarray
@@ -228,10 +232,10 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
-    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _F, _F, _B),
+    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _F, _F, "i8", _B),
     CycleTables: ("f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i1[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
-                  "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]", "i8[:]",
-                  "i8[:]"),
+                  "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
+                  "i8[:]", "i8[:]"),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),
     IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),
