@@ -69,7 +69,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -89,7 +89,9 @@ CELL_MIN_M = 10.0
 SPEED_STEP_KMH = 0.5
 """The coarser grid's speed step [km/h] (the finer grid: half)."""
 PRICE_CLOSE = 1.002
-"""The price of time is bisected until the two prices whose drives bracket T are within this ratio."""
+PRICE_CLOSE_COARSE = 1.01
+"""The price of time is bisected until the two prices whose drives bracket T are within this ratio (on the coarser
+grid, whose bracket starts the finer grid's search, within the wider one)."""
 PRICE_RANGE = (1e-5, 50.0)
 """Prices of time searched [kWh/s] (geometric bisection), beyond a hint's walk."""
 MAX_SOLVES = 40
@@ -236,6 +238,7 @@ class CycleDPSolver:
                                   np.zeros(n + 1, dtype=np.int64), zmap)
         kernels().cycle_prepare(self.cells, calc.forces, self.tables)
         self.n_solves = 0
+        self.drives: list[CycleDrive] = []
 
     @property
     def zone_m(self) -> float:
@@ -267,18 +270,23 @@ class CycleDPSolver:
         nxt = self.s_m[np.minimum(i + 1, len(self.s_m) - 1)]
         return self.s_m[i] + (at - i) * (nxt - self.s_m[i])
 
-    def bracket(self, t0_s: float, price_hint: float | None = None) -> tuple[CycleDrive | None, CycleDrive | None]:
+    def bracket(self, t0_s: float, price_hint: float | None = None, seed: tuple[float, float] | None = None,
+                close: float = PRICE_CLOSE) -> tuple[CycleDrive | None, CycleDrive | None]:
         """The two drives whose running times bracket ``t0_s``: (the fastest found slower than it, the slowest found
-        no slower), their prices within ``PRICE_CLOSE`` of each other. The running time falls as the price rises;
-        from ``price_hint`` [kWh/s] (e.g. E*'s slope) the search walks out in doubling steps until the time
-        crosses ``t0_s``, then bisects geometrically. The first is None where even the lowest price drives no
-        slower than ``t0_s`` (the least energy comes within the time), the second where no price reaches it."""
+        no slower), their prices within ``close`` of each other. The running time falls as the price rises; the
+        search starts from ``seed`` (two prices [kWh/s] that bracketed ``t0_s`` on another grid) or from
+        ``price_hint`` [kWh/s] (e.g. E*'s slope), walks out in doubling steps until the time crosses ``t0_s``, then
+        bisects geometrically. The first is None where even the lowest price drives no slower than ``t0_s`` (the
+        least energy comes within the time), the second where no price reaches it. Every drive solved is kept in
+        ``drives``."""
         slow: CycleDrive | None = None
         fast: CycleDrive | None = None
 
         def too_slow(x: float) -> bool:
             nonlocal slow, fast
             d = self.solve(math.exp(x))
+            if d is not None:
+                self.drives.append(d)
             if d is None or d.time_s > t0_s:  # (none: too cheap a price to reach the stop at all)
                 if d is not None and (slow is None or d.time_s < slow.time_s):
                     slow = d
@@ -289,10 +297,17 @@ class CycleDPSolver:
 
         bottom, top = (math.log(p) for p in PRICE_RANGE)
         x_slow = x_fast = None
-        if price_hint is not None and PRICE_RANGE[0] < price_hint < PRICE_RANGE[1]:
-            x = math.log(price_hint)
-            up = too_slow(x)
-            x_slow, x_fast = (x, None) if up else (None, x)
+        starts = [math.log(p) for p in seed if PRICE_RANGE[0] < p < PRICE_RANGE[1]] if seed else []
+        if not starts and price_hint is not None and PRICE_RANGE[0] < price_hint < PRICE_RANGE[1]:
+            starts = [math.log(price_hint)]
+        if starts:
+            for x in sorted(starts):
+                if too_slow(x):
+                    x_slow = x if x_slow is None else max(x_slow, x)
+                elif x_fast is None:
+                    x_fast = x
+            up = x_fast is None
+            x = max(starts) if up else min(starts)
             step = HINT_STEP
             while (x_slow is None or x_fast is None) and self.n_solves < MAX_SOLVES:
                 nx = min(top, x + step) if up else max(bottom, x - step)
@@ -310,7 +325,7 @@ class CycleDPSolver:
                 x_fast = bottom
         if x_slow is None or x_fast is None:
             return slow, fast
-        while x_fast - x_slow > math.log(PRICE_CLOSE) and self.n_solves < MAX_SOLVES:
+        while x_fast - x_slow > math.log(close) and self.n_solves < MAX_SOLVES:
             mid = 0.5 * (x_slow + x_fast)
             if too_slow(mid):
                 x_slow = mid
@@ -319,16 +334,23 @@ class CycleDPSolver:
         return slow, fast
 
 
-def energy_at(slow: CycleDrive | None, fast: CycleDrive | None, t0_s: float) -> float:
-    """Traction energy in at most ``t0_s`` [kWh]: on the chord between two drives that bracket it; where even the
-    lowest price drives within ``t0_s`` (``slow`` None) that drive's energy (the least energy whatever the time)."""
-    if fast is None:
+def energy_at(drives: list[CycleDrive], t0_s: float) -> float:
+    """Traction energy in at most ``t0_s`` [kWh] from the drives found: the lowest chord at ``t0_s`` between a
+    drive slower and one no slower than it (a point on the energy-time curve's lower hull, as E*'s curve is convex);
+    where every drive is no slower than ``t0_s``, the least energy among them (the least energy comes within the
+    time). Raises ``InfeasibleError`` where no drive runs within ``t0_s``."""
+    fast = [d for d in drives if d.time_s <= t0_s]
+    slow = [d for d in drives if d.time_s > t0_s]
+    if not fast:
         raise InfeasibleError(f"no drive keeping the air brake's cycle runs in {t0_s:.1f} s"
-                              + ("" if slow is None else f" (the fastest found takes {slow.time_s:.1f} s)"))
-    if slow is None or slow.time_s - fast.time_s <= 1e-9:
-        return fast.energy_kwh
-    w = (slow.time_s - t0_s) / (slow.time_s - fast.time_s)
-    return slow.energy_kwh + w * (fast.energy_kwh - slow.energy_kwh)
+                              + (f" (the fastest found takes {min(d.time_s for d in slow):.1f} s)" if slow else ""))
+    best = min(d.energy_kwh for d in fast)
+    for a in slow:
+        for b in fast:
+            if a.time_s - b.time_s > 1e-9:
+                w = (a.time_s - t0_s) / (a.time_s - b.time_s)
+                best = min(best, a.energy_kwh + w * (b.energy_kwh - a.energy_kwh))
+    return best
 
 
 @dataclass(frozen=True)
@@ -339,23 +361,25 @@ class GridOptimum:
     cell_m: float
     speed_step_kmh: float
     energy_kwh: float
-    times_s: tuple[float, float]
-    prices_kwh_per_s: tuple[float, float]
+    times_s: tuple[float, ...]
+    prices_kwh_per_s: tuple[float, ...]
     solves: int
     wall_s: float
 
 
 def grid_optimum(calc: TractionCalculator, t0_s: float, cell_m: float, speed_step_kmh: float,
-                 price_hint: float | None = None, relaxed: bool = False) -> tuple[GridOptimum, CycleDrive]:
-    """The cycle DP's energy at ``t0_s`` on one grid, and the bracketing drive nearer ``t0_s``."""
+                 price_hint: float | None = None, relaxed: bool = False, seed: tuple[float, float] | None = None,
+                 close: float = PRICE_CLOSE) -> tuple[GridOptimum, CycleDrive]:
+    """The cycle DP's energy at ``t0_s`` on one grid (``energy_at``), and the drive nearest ``t0_s`` no slower
+    than it (or the slowest found, where all are slower)."""
     t = time.perf_counter()
     solver = CycleDPSolver(calc, cell_m, speed_step_kmh, relaxed=relaxed)
-    slow, fast = solver.bracket(t0_s, price_hint)
-    e = energy_at(slow, fast, t0_s)
+    slow, fast = solver.bracket(t0_s, price_hint, seed, close)
+    e = energy_at(solver.drives, t0_s)
     ends = [d for d in (slow, fast) if d is not None]
-    near = min(ends, key=lambda d: abs(d.time_s - t0_s))
     return (GridOptimum(cell_m, speed_step_kmh, e, tuple(d.time_s for d in ends),
-                        tuple(d.price_kwh_per_s for d in ends), solver.n_solves, time.perf_counter() - t), near)
+                        tuple(d.price_kwh_per_s for d in ends), solver.n_solves, time.perf_counter() - t),
+            fast if fast is not None else slow)
 
 
 def coarse_cell_m(calc: TractionCalculator) -> float:
@@ -365,3 +389,70 @@ def coarse_cell_m(calc: TractionCalculator) -> float:
 
 def kmh_top(calc: TractionCalculator) -> float:
     return float(kmh_from_e(max(float(np.max(calc.e_envelope)), 0.0)))
+
+
+@dataclass(frozen=True)
+class CycleOptimum:
+    """The least traction energy of a drive that keeps the air brake's cycle, at one running time.
+
+    ``cycles``: whether the cycle can bind on the line (``cycle_binds``); without it the cycle optimum is the
+    relaxed E* itself and nothing is solved (``energy_kwh`` None). ``energy_kwh`` [kWh]: the cycle DP on the finer
+    of two nested grids (``grids``: cell [m], speed step [km/h], energy [kWh], solves, wall time [s] each);
+    ``accuracy``: its estimated relative accuracy, the two grids' difference plus the same DP's excess over E*
+    without the cycle on the finer grid (``relaxed_dp_kwh`` against ``estar_kwh``; where E* is not given, the grids'
+    difference alone). ``price_kwh_per_s``: the price of time of the finer grid's drive nearest T; ``drive`` that
+    drive (``CycleDrive``); ``solve_time_s`` the wall time of it all [s]."""
+
+    time_s: float
+    cycles: bool
+    energy_kwh: float | None = None
+    accuracy: float | None = None
+    estar_kwh: float | None = None
+    relaxed_dp_kwh: float | None = None
+    price_kwh_per_s: float | None = None
+    grids: tuple = ()
+    solve_time_s: float = 0.0
+    drive: CycleDrive | None = None
+    method: str = "cycle DP"
+
+    @property
+    def accuracy_percent(self) -> float | None:
+        return None if self.accuracy is None else 100.0 * self.accuracy
+
+
+def grid_calculator(calc: TractionCalculator, cell_m: float) -> TractionCalculator:
+    """``calc``, or one of the same route, train and model on a grid fine enough for DP cells of ``cell_m``."""
+    if calc.options.step_m <= cell_m + 1e-9:
+        return calc
+    return TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=cell_m))
+
+
+def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar_kwh: float | None = None,
+                        price_hint: float | None = None, cell_m: float | None = None,
+                        speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
+    """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP on
+    cells of ``cell_m`` (default ``coarse_cell_m``) and on cells half as long, the price of time bisected to
+    ``time_s`` from ``price_hint`` [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it) and, on the finer
+    grid, from the coarser grid's bracket; the same finer grid without the cycle against ``estar_kwh`` [kWh] (E* at
+    ``time_s``) for the accuracy. Where the cycle cannot bind, nothing is solved (``cycles`` False). Raises
+    ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
+    t_wall = time.perf_counter()
+    if not cycle_binds(calc):
+        return CycleOptimum(float(time_s), False, estar_kwh=estar_kwh, method="relaxed E* (the cycle cannot bind)")
+    cell = coarse_cell_m(calc) if cell_m is None else float(cell_m)
+    coarse, d1 = grid_optimum(grid_calculator(calc, cell), time_s, cell, speed_step_kmh, price_hint,
+                              close=PRICE_CLOSE_COARSE)
+    fine_calc = grid_calculator(calc, cell / 2)
+    fine, d2 = grid_optimum(fine_calc, time_s, cell / 2, speed_step_kmh, price_hint, seed=coarse.prices_kwh_per_s)
+    relaxed_kwh = None
+    excess = 0.0
+    if estar_kwh is not None:
+        rel, _ = grid_optimum(fine_calc, time_s, cell / 2, speed_step_kmh, price_hint, relaxed=True)
+        relaxed_kwh = rel.energy_kwh
+        excess = max(rel.energy_kwh - estar_kwh, 0.0)
+    e = fine.energy_kwh
+    acc = (abs(fine.energy_kwh - coarse.energy_kwh) + excess) / max(abs(e), 1e-9)
+    grids = tuple({"cell_m": g.cell_m, "speed_step_kmh": g.speed_step_kmh, "energy_kwh": g.energy_kwh,
+                   "solves": g.solves, "wall_s": g.wall_s} for g in (coarse, fine))
+    return CycleOptimum(float(time_s), True, e, acc, estar_kwh, relaxed_kwh, d2.price_kwh_per_s, grids,
+                        time.perf_counter() - t_wall, d2)
