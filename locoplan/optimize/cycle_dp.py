@@ -173,6 +173,19 @@ def _join_short_gaps(zone: np.ndarray, s: np.ndarray, e_cap: np.ndarray, t_rec: 
         k = j
 
 
+def apply_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
+    """Per DP cell (between calculator nodes ``idx``) the speed (as e = v^2/2) at which the calculator applies the
+    air brake of a released train on a grade the electric brake cannot hold at the limit (``kernel.cycle_speeds``:
+    below the limit by the build-up's overshoot, 1 km/h at least): the lowest of its calculator cells; inf where
+    none is such a grade."""
+    n_calc = len(calc.h_m)
+    e = np.full(n_calc, np.inf)
+    short = np.flatnonzero(calc.next_short == np.arange(n_calc))
+    for k in short:
+        e[k] = float(calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), int(k), np.zeros(1))[0][0])
+    return np.minimum.reduceat(e, idx[:-1])
+
+
 def cycle_binds(calc: TractionCalculator) -> bool:
     """Whether the air brake's cycle can make a drive dearer than the relaxation on this line (module
     docstring): a model with the cycle, and a descent the electric brake cannot hold at the limit, or two
@@ -217,11 +230,12 @@ class CycleDPSolver:
         curve_ok = (base.e_cap[1:] < e_lim * (1.0 - 1e-6)) | ~holds
         curve_ok[-1] = True  # the stop
         t_build = calc.t_build_s[idx[:-1]] if cyc is not None else np.zeros(n)
+        e_app = apply_speeds(calc, idx) if cyc is not None and not relaxed else np.full(n, np.inf)
         self.s_m = calc.s_m[idx]
         t_rec = float(cyc.recharge_s) if cyc else 0.0
         n_rec = max(1, int(math.ceil(t_rec / REC_STEP_S - 1e-9))) if t_rec > 0 else 1
         self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone, curve_ok,
-                                           t_build, e_low, t_rec,
+                                           t_build, e_app, e_low, t_rec,
                                            float(cyc.min_hold_s) if cyc and cyc.min_hold_s is not None else -1.0,
                                            n_rec, bool(relaxed)))
         nv = len(base.v_grid)

@@ -185,6 +185,26 @@ def _split(e, u, t0, t_b, k, rest, r, cc, fo):
 
 
 @njit(cache=True, _nrt=False)
+def _split_speed(e, u, k, rest, e_to, cc, fo):
+    """Where in the remaining ``rest`` [m] of cell k the train under control u (no air brake) reaches e_to (between
+    e and the rest's end): (length [m], work [kJ], its time [s]); the speed there is e_to. e linear in distance
+    first, then Newton on the part's own e."""
+    e1 = _part(e, u, 0.0, 0.0, k, rest, cc, fo, False)[0]
+    x = rest * (e_to - e) / (e1 - e) if e1 != e else rest
+    x = min(max(x, 1e-9 * rest), rest)
+    for _ in range(4):
+        ex = _part(e, u, 0.0, 0.0, k, x, cc, fo, False)[0]
+        if abs(ex - e_to) <= 1e-9 * max(e_to, 1.0):
+            break
+        slope = (ex - e) / x
+        if slope == 0.0:
+            break
+        x = min(max(x + (e_to - ex) / slope, 1e-9 * rest), rest)
+    ex, wx = _part(e, u, 0.0, 0.0, k, x, cc, fo, False)
+    return x, wx, _part_time(e, ex, x)
+
+
+@njit(cache=True, _nrt=False)
 def _tab_cell(e, j, u, cc, tb):
     """Cell j under control u from e read off the one-cell tables (``cycle_prepare``), interpolated in speed
     between the two grid speeds around e: (e at its end, work [kJ], time [s], verdict); verdict -1 where the
@@ -238,8 +258,8 @@ def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air
         if ok < 0:
             e1, w, ok = _to_node(e, u, t, t_b, j, rest, cc, fo, False)
             dt = _part_time(e, e1, rest) if ok != NO else np.inf
-        if ok == NO or (is_rec and ok != OK) or not math.isfinite(dt):
-            return j, x, e, t, w_sum, -1
+        if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
+            return j, x, e, t, w_sum, -1  # (recharging past the apply speed: the calculator would apply again)
         r = dur - t
         if dt > r:
             xs, es, ws, ts = _split(e, u, t, t_b, j, rest, r, cc, fo)
@@ -256,6 +276,15 @@ def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air
             return j, x, e, t, w_sum, 2
         if cc.zone[j] == 0:
             return j, x, e, t, w_sum, 1
+        if is_rec and e >= cc.e_app[j]:  # the calculator would apply here, before the recharge is over
+            return j, x, e, t, w_sum, -1
+
+
+@njit(cache=True, _nrt=False)
+def _descending(e, k, cc, fo):
+    """Whether resistance plus gravity at e in cell k is negative (a descent at that speed): while the brake
+    recharges there the calculator holds the speed with the electric brake (H), whatever the plan's condition."""
+    return davis_kn(kmh_from_e(max(e, 0.0)), fo.ra, fo.rb, fo.rc) + cc.grav[k] < 0.0
 
 
 @njit(cache=True, _nrt=False)
@@ -269,7 +298,7 @@ def _finish(e, j, x, u, t0, t_b, is_rec, cc, fo, tb, use_tab, rec, v_nodes, t_no
     if ok < 0:
         e1, w, ok = _to_node(e, u, t0, t_b, j, rest, cc, fo, False)
         dt = _part_time(e, e1, rest) if ok != NO else np.inf
-    if ok == NO or (is_rec and ok != OK) or not math.isfinite(dt):
+    if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
         return e, 0.0, 0.0, False
     if rec:
         v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
@@ -310,9 +339,22 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
         pq[m] = 0.0
     t_b = cc.t_build[k]
     dur = max(hold_s(k, cc), t_b)
-    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_APPLY, cc)
-    j, x, ea, ta, wa, st = _phase(e, k, 0.0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
-                                  t_nodes, t_start)
+    x0 = 0.0
+    t0 = 0.0
+    w0 = 0.0
+    if e < cc.e_app[k]:  # where holding (H) would reach the apply speed inside this cell, applied there
+        e1, w1, ok1 = _to_node(e, U_H, 0.0, 0.0, k, cc.h[k], cc, fo, False)
+        if ok1 == OK and e1 > cc.e_app[k]:
+            x0, w0, t0 = _split_speed(e, U_H, k, cc.h[k], cc.e_app[k], cc, fo)
+            e = cc.e_app[k]
+            if rec:
+                controls[k] = U_H
+                air[k] = AIR_OFF
+    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, x0, t_start + t0, EV_APPLY, cc)
+    j, x, ea, ta, wa, st = _phase(e, k, x0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
+                                  t_nodes, t_start + t0)
+    ta += t0
+    wa += w0
     if st < 0 or st == 1:
         return n_ev
     if st == 2:  # (the stop, braking)
@@ -327,6 +369,8 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
                 pj[m], pe[m], pt[m], pw[m] = j + 1, e1, ta + dt, wa + w
             continue
         u = _rec_u(m)
+        if u != U_H and _descending(ea, j, cc, fo):
+            continue  # (recharging on a descent the calculator holds the speed electrically: H)
         n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t_start + ta, EV_RELEASE, cc)
         if rec:
             controls[j] = u  # (the cell of the release: its control after it)
@@ -360,6 +404,8 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
     n = cc.h.shape[0]
     for m in range(first, last + 1):
         pj[m] = -1
+    if e >= cc.e_app[k]:  # (released at or above the apply speed: applied again at once, before its recharge)
+        return n_ev
     n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
     j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
                                      v_nodes, t_nodes, t_start)
@@ -610,6 +656,9 @@ def cycle_backward(cc, fo, price, V, tb):
             b_na = np.inf
             b_ch = np.inf
             b_af = np.inf
+            e = _grid_e(k, j, cc)
+            must_apply = zone and e >= cc.e_app[k]  # released at the apply speed: the calculator applies
+            desc = zone and _descending(e, k, cc, fo)
             for u in range(N_U):
                 ok = tb.sok[k, j, u]
                 cost[u] = np.inf
@@ -626,17 +675,21 @@ def cycle_backward(cc, fo, price, V, tb):
                         b_af = min(b_af, c + _value(V, k1, af1, i0, wx, tb))
                     continue
                 if ok == OK:
-                    cost[u] = c
+                    # (a released train on a grade the electric brake cannot hold is applied at the apply speed: it
+                    # does not pass it within the cell)
+                    passes = zone and tb.se[k, j, u] > cc.e_app[k] * (1.0 + 1e-9)
+                    if not (desc and u != U_H) and not passes:
+                        cost[u] = c
                     b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
-                    if zone:
+                    if zone and not must_apply and not passes:
                         b_ch = min(b_ch, c + _value(V, k1, ch1, i0, wx, tb))
-                elif zone and curve:
+                elif zone and curve and not must_apply:
                     b_ch = min(b_ch, c + _value(V, k1, af1, i0, wx, tb))
             if zone:
                 for b in range(cc.n_rec):  # recharging, b x dtau since the release
                     best = np.inf
                     for u in range(N_U):
-                        if math.isfinite(cost[u]):
+                        if math.isfinite(cost[u]) and not must_apply:
                             best = min(best, cost[u] + _value_rec(V, k1, b * dtau + tb.st[k, j, u], tb.si[k, j, u],
                                                                   tb.sx[k, j, u], cc, tb))
                     V[k, R0 + b, j] = best
@@ -710,9 +763,17 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
         o = -1
         s_next = NA
         zone = cc.zone[k] != 0 and not cc.relaxed
+        must_apply = zone and e >= cc.e_app[k]
+        desc = zone and _descending(e, k, cc, fo)
         for u in range(N_U):
             if sok[u] == NO or (cc.relaxed and u == U_E):
                 continue
+            if must_apply and not (s == AF and u == U_B):
+                continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
+            if desc and (s == R0 or (s == AF and u != U_B)) and u != U_H:
+                continue
+            if zone and u != U_B and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
+                continue  # (released, it would pass the apply speed within the cell)
             c = sw[u] / KJ_PER_KWH + price * st[u]
             i0, wx = _land(se[u], k + 1, cc)
             s1 = -1

@@ -123,7 +123,8 @@ class CycleCells(NamedTuple):
     (lengths ``h`` [m], mean gravity ``grav`` [kN], ``allowed`` catenary 1/0, the cap at each node ``e_cap`` as
     e = v^2/2, the shared speed grid ``v_grid`` [m/s]) and the air brake's: per node whether its state is tracked
     there (``zone`` 1/0; 0 = no air brake), per cell whether a cap there is a braking curve an application may
-    follow (``curve_ok``) and the build-up time of an application made in it (``t_build`` [s]); each node's
+    follow (``curve_ok``), the build-up time of an application made in it (``t_build`` [s]) and the speed at which
+    the calculator applies it on a grade the electric brake cannot hold (``e_app``, e; inf elsewhere); each node's
     lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge ``t_rec``
     and least hold ``t_hold`` [s] (< 0: the build-up time), ``n_rec`` the recharge's states (one every
     ``t_rec / n_rec`` seconds since a release), and ``relaxed``: the air brake as a continuous force everywhere
@@ -137,6 +138,7 @@ class CycleCells(NamedTuple):
     zone: np.ndarray
     curve_ok: np.ndarray
     t_build: np.ndarray
+    e_app: np.ndarray
     e_low: np.ndarray
     t_rec: float
     t_hold: float
@@ -232,7 +234,7 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
-    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _F, _F, "i8", _B),
+    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _A1, _F, _F, "i8", _B),
     CycleTables: ("f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i1[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
                   "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
                   "i8[:]", "i8[:]"),
