@@ -40,6 +40,8 @@ MARGIN_RANGE = (0.25, 4.0)
 
 PLAN_SEARCH_STEPS = 12
 """At most this many drives are tried for a start plan's running time (``cycle_plan_start``)."""
+CAP_KMH = 0.5
+"""A drive's hold within this much of the cap [km/h] at both ends of its cell is a hold at the cap."""
 MIN_RUN_CELLS = 2.5
 """A run of the drive shorter than this many of its cells joins its predecessor in the plan read off it."""
 
@@ -122,18 +124,20 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
     return co
 
 
-def _condition(u: int, air: int, in_region: bool) -> str:
+def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool) -> str:
     """The calculator's condition for a drive's cell: T, K (holding; the full electric brake alone is a hold it
     cannot keep on a descent), C, and an application: B, or K on a descent the electric brake cannot hold, where
-    the calculator cycles by itself and the plan's release margins place its releases."""
+    the calculator cycles by itself and the plan's release margins place its releases. A hold at the cap (the
+    limit, a braking curve) is the condition that reaches it there, C on a descent, T elsewhere: the calculator
+    holds a train at a limit it reaches, whereas its K holds the speed at which it begins."""
     if u == U_T:
         return "T"
     if u == U_C:
         return "C"
-    if u in (U_H, U_E):
-        return "K"
     if u == U_B or air in (AIR_CYCLE, AIR_CURVE):
         return "K" if in_region else "B"
+    if u == U_H and at_cap:
+        return "C" if descending else "T"
     return "K"
 
 
@@ -147,7 +151,13 @@ def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float
     in_region = np.zeros(len(mid), dtype=bool)
     for a, b in regions:
         in_region |= (mid >= a) & (mid < b)
-    names = [_condition(int(u), int(a), bool(r)) for u, a, r in zip(drive.controls, drive.air, in_region)]
+    cap_kmh = kmh_from_e(np.maximum(np.interp(drive.s_m, calc.s_m, calc.e_envelope), 0.0))
+    at_cap = (drive.speed_kmh[:-1] >= cap_kmh[:-1] - CAP_KMH) & (drive.speed_kmh[1:] >= cap_kmh[1:] - CAP_KMH)
+    k_calc = np.clip(np.searchsorted(calc.s_m, mid) - 1, 0, len(calc.h_m) - 1)
+    v_mid = 0.5 * (drive.speed_kmh[1:] + drive.speed_kmh[:-1])
+    load = np.array([float(calc.forces_kn(np.float64(v / 3.6), int(k))[2]) for v, k in zip(v_mid, k_calc)])
+    names = [_condition(int(u), int(a), bool(r), bool(c), bool(g < 0.0))
+             for u, a, r, c, g in zip(drive.controls, drive.air, in_region, at_cap, load)]
     codes = np.array([CODE[c] for c in names], dtype=np.int64)
     view = SimpleNamespace(s_m=drive.s_m, controls=codes, time_s=drive.time_s, energy_kwh=drive.energy_kwh,
                            price_kwh_per_s=drive.price_kwh_per_s)
