@@ -105,8 +105,9 @@ HINT_STEP = 0.05
 class CycleDrive:
     """A drive of the cycle DP at one price: its nodes [m], per cell the control at its start
     (``cycle_kernel.U_*``: T, H, C, B, E) and the air brake's state there (``cycle_kernel.AIR_*``), per node the
-    speed [km/h] and time [s]; the air brake's events: where [m], when [s] and what (``cycle_kernel.EV_*``:
-    applied, released, applied following a braking curve); its running time [s] and traction energy [kWh]."""
+    speed [km/h] and time [s]; the air brake's events: where [m], when [s], at what speed [km/h] and what
+    (``cycle_kernel.EV_*``: applied, released, applied following a braking curve); its running time [s] and
+    traction energy [kWh]."""
 
     price_kwh_per_s: float
     s_m: np.ndarray
@@ -116,6 +117,7 @@ class CycleDrive:
     t_s: np.ndarray
     event_m: np.ndarray
     event_s: np.ndarray
+    event_kmh: np.ndarray
     event_kind: np.ndarray
     time_s: float
     energy_kwh: float
@@ -268,15 +270,15 @@ class CycleDPSolver:
         air = np.zeros(n, dtype=np.int64)
         v = np.zeros(n + 1)
         t_nodes = np.zeros(n + 1)
-        ev_at, ev_t, ev_k = np.zeros(4 * n + 16), np.zeros(4 * n + 16), np.zeros(4 * n + 16, dtype=np.int64)
+        ev, ev_k = np.zeros((4 * n + 16, 3)), np.zeros(4 * n + 16, dtype=np.int64)
         t, work, n_ev = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, self.tables,
-                                        controls, air, v, t_nodes, ev_at, ev_t, ev_k)
+                                        controls, air, v, t_nodes, ev, ev_k)
         self.n_solves += 1
         if not math.isfinite(t):
             return None
         m = int(n_ev)
-        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, self._where(ev_at[:m]),
-                          ev_t[:m].copy(), ev_k[:m].copy(), float(t), kwh(float(work)))
+        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, self._where(ev[:m, 0]),
+                          ev[:m, 1].copy(), ev[:m, 2].copy(), ev_k[:m].copy(), float(t), kwh(float(work)))
 
     def _where(self, at: np.ndarray) -> np.ndarray:
         """Positions [m] of events given as node + the fraction of its cell."""

@@ -307,9 +307,14 @@ def _finish(e, j, x, u, t0, t_b, is_rec, cc, fo, tb, use_tab, rec, v_nodes, t_no
 
 
 @njit(cache=True, _nrt=False)
-def _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t, kind, cc):
+def _event(rec, ev, ev_k, n_ev, j, x, t, e, kind, cc):
+    """Record an event (``rec``) of ``kind`` at x [m] into cell j, time t [s], e = v^2/2: ``ev[n_ev]`` = (node +
+    fraction of its cell, time [s], speed [km/h]). Returns the events recorded."""
     if rec:
-        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(j) + (x / cc.h[j] if j < cc.h.shape[0] else 0.0), t, kind
+        ev[n_ev, 0] = float(j) + (x / cc.h[j] if j < cc.h.shape[0] else 0.0)
+        ev[n_ev, 1] = t
+        ev[n_ev, 2] = kmh_from_e(max(e, 0.0))
+        ev_k[n_ev] = kind
         return n_ev + 1
     return n_ev
 
@@ -325,8 +330,8 @@ def _rec_u(m):
 
 
 @njit(cache=True, _nrt=False)
-def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                ev_k, n_ev, pj, pe, pt, pw, pq):
+def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                n_ev, pj, pe, pt, pw, pq):
     """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AX_E`` from a charged brake at node k at e, their
     application stepped once: the air brake (and the full electric brake) from the node, its force building up
     linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
@@ -350,7 +355,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
             if rec:
                 controls[k] = U_H
                 air[k] = AIR_OFF
-    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, x0, t_start + t0, EV_APPLY, cc)
+    n_ev = _event(rec, ev, ev_k, n_ev, k, x0, t_start + t0, e, EV_APPLY, cc)
     j, x, ea, ta, wa, st = _phase(e, k, x0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
                                   t_nodes, t_start + t0)
     ta += t0
@@ -371,7 +376,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
         u = _rec_u(m)
         if u != U_H and _descending(ea, j, cc, fo):
             continue  # (recharging on a descent the calculator holds the speed electrically: H)
-        n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j, x, t_start + ta, EV_RELEASE, cc)
+        n_ev = _event(rec, ev, ev_k, n_ev, j, x, t_start + ta, ea, EV_RELEASE, cc)
         if rec:
             controls[j] = u  # (the cell of the release: its control after it)
         if m != P_AR_H:  # released, the rest of the cell under u: recharging at the next node
@@ -395,8 +400,8 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
 
 
 @njit(cache=True, _nrt=False)
-def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                  ev_k, n_ev, pj, pe, pt, pw):
+def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                  n_ev, pj, pe, pt, pw):
     """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node,
     recharged under H for exactly the recharge time, then on under H to the node after (CH there; NA where the
     zone ends first), or an application the instant the recharge is over, held until its least hold and build-up
@@ -406,7 +411,7 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         pj[m] = -1
     if e >= cc.e_app[k]:  # (released at or above the apply speed: applied again at once, before its recharge)
         return n_ev
-    n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, k, 0.0, t_start, EV_RELEASE, cc)
+    n_ev = _event(rec, ev, ev_k, n_ev, k, 0.0, t_start, e, EV_RELEASE, cc)
     j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
                                      v_nodes, t_nodes, t_start)
     if st2 < 0:
@@ -421,7 +426,7 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         if ok:
             pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2 + 1, e1, tr + dt, wr + w
     if last == P_RA_H:  # an application the instant the recharge is over
-        n_ev = _event(rec, ev_s, ev_t, ev_k, n_ev, j2, x2, t_start + tr, EV_APPLY, cc)
+        n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_APPLY, cc)
         t_b = cc.t_build[j2]
         dur = max(hold_s(j2, cc), t_b)
         j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
@@ -437,16 +442,15 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
 
 
 @njit(cache=True, _nrt=False)
-def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t, ev_k, n_ev, pj, pe, pt, pw,
-             pq):
+def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev, ev_k, n_ev, pj, pe, pt, pw, pq):
     """Path m alone from node k at e, stepped exactly and recorded (the forward pass): its end in ``pj``.. [m];
     returns the events recorded."""
     if m < N_CH:
-        return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                           ev_k, n_ev, pj, pe, pt, pw, pq)
+        return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                           n_ev, pj, pe, pt, pw, pq)
     pq[m] = 0.0
-    return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev_s, ev_t,
-                         ev_k, n_ev, pj, pe, pt, pw)
+    return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                         n_ev, pj, pe, pt, pw)
 
 
 @njit(cache=True, _nrt=False)
@@ -462,18 +466,18 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
 
 
 @njit(cache=True, _nrt=False)
-def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f):
+def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, none_f2):
     """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``; others -1)
     into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``, ``pq``; ``use_tab``: whole cells off the tables."""
     for m in range(N_P):
         pj[m] = -1
         pq[m] = 0.0
     if s == CH:
-        apply_paths(e, k, P_A, N_CH - 1, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f,
-                    none_f, none_i, 0, pj, pe, pt, pw, pq)
+        apply_paths(e, k, P_A, N_CH - 1, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
+                    none_i, 0, pj, pe, pt, pw, pq)
     elif s == AF:
-        release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f,
-                      none_f, none_i, 0, pj, pe, pt, pw)
+        release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
+                      none_i, 0, pj, pe, pt, pw)
 
 
 @njit(cache=True, _nrt=False)
@@ -513,6 +517,7 @@ def cycle_prepare(cc, fo, tb):
     dv = v_grid[1] - v_grid[0]
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
+    none_f2 = np.zeros((1, 3))
     se = np.zeros(N_U)
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
@@ -550,11 +555,11 @@ def cycle_prepare(cc, fo, tb):
                 for m in range(N_P):
                     tb.pj[z, j, m] = -1
                 continue
-            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f)
+            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
             for m in range(N_CH):
                 tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
                                                                                                  pw[m], pq[m])
-            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f)
+            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
             for m in range(N_CH, N_P):
                 tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
                                                                                                  pw[m], 0.0)
@@ -720,15 +725,16 @@ def cycle_backward(cc, fo, price, V, tb):
 
 
 @njit(cache=True)
-def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, ev_t, ev_k):
+def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_k):
     """The drive from rest: at each node the best option at the train's actual speed and air state (the time
     since a release exact), its steps and paths run exactly from there (so the drive keeps the rules); per cell
-    its control and air state (at its start), per node speed [km/h] and time [s], and the events (``ev_s``:
-    where, as node + the fraction of its cell, ``ev_t`` their time [s], ``ev_k`` ``EV_*``). Returns (time [s],
-    traction work [kJ], the number of events); time inf when no drive reaches the stop."""
+    its control and air state (at its start), per node speed [km/h] and time [s], and the events (``ev[i]``: where,
+    as node + the fraction of its cell, time [s], speed [km/h]; ``ev_k[i]`` ``EV_*``). Returns (time [s], traction
+    work [kJ], the number of events); time inf when no drive reaches the stop."""
     n = cc.h.shape[0]
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
+    none_f2 = np.zeros((1, 3))
     se = np.zeros(N_U)
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
@@ -758,7 +764,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
         for m in range(N_P):
             pj[m] = -1
         if cc.zone[k] != 0 and not cc.relaxed and (s == CH or s == AF):
-            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f)
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
         c_best = np.inf
         o = -1
         s_next = NA
@@ -812,7 +818,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
                     c += _value(V, pj[m], s1, i0, wx, tb)
                 if c < c_best:
                     c_best, o, s_next = c, N_U + m, s1
-        if o < 0 or not math.isfinite(c_best) or n_ev > ev_s.shape[0] - 4:
+        if o < 0 or not math.isfinite(c_best) or n_ev > ev.shape[0] - 4:
             return np.inf, np.inf, float(n_ev)
         if o < N_U:
             controls[k] = o
@@ -820,15 +826,13 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
             if cc.relaxed or not (o == U_B or curve):
                 air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
                 if s == AF and not cc.relaxed:  # released at this node
-                    ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_RELEASE
-                    n_ev += 1
+                    n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_RELEASE, cc)
                     tau = 0.0
                 if s_next == R0:
                     tau += st[o]
             elif curve:
                 air[k] = AIR_CURVE
-                ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(k), t, EV_CURVE
-                n_ev += 1
+                n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CURVE, cc)
             elif k > 0 and air[k - 1] == AIR_CURVE:
                 air[k] = AIR_CURVE
             else:
@@ -841,8 +845,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
             t_nodes[k] = t
         else:
             m = o - N_U
-            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev_s, ev_t, ev_k, n_ev, pj, pe, pt,
-                            pw, pq)
+            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq)
             if pj[m] < 0:  # (the path chosen, run again: cannot happen)
                 return np.inf, np.inf, float(n_ev)
             t += pt[m]
@@ -854,6 +857,5 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev_s, e
         if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
             s = NA
     if s == AF and not cc.relaxed:  # (the stop's application, released at rest)
-        ev_s[n_ev], ev_t[n_ev], ev_k[n_ev] = float(n), t, EV_RELEASE
-        n_ev += 1
+        n_ev = _event(True, ev, ev_k, n_ev, n, 0.0, t, e, EV_RELEASE, cc)
     return t, work, float(n_ev)

@@ -54,7 +54,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "cycle_backward": ("locoplan.optimize.cycle_kernel", "cycle_backward", "void",
                        (CycleCells, Forces, _F, _A3, CycleTables)),
     "cycle_forward": ("locoplan.optimize.cycle_kernel", "cycle_forward", "UniTuple(f8, 3)",
-                      (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1, "i8[:]")),
+                      (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A2, "i8[:]")),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
                       ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
                        "i8[:]", _A1, "i8[:]")),

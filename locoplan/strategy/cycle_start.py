@@ -174,18 +174,18 @@ def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[
     out = []
     if calc.air_cycle is None:
         return ()
-    ev_m, ev_k = drive.event_m, drive.event_kind
-    v2 = drive.speed_kmh ** 2
+    ev_m, ev_k, v_ev = drive.event_m, drive.event_kind, drive.event_kmh
     mid = 0.5 * (calc.s_m[1:] + calc.s_m[:-1])
     for a, b in calc.cycle_regions_m:
-        rel = [x for i, (x, k) in enumerate(zip(ev_m, ev_k))
+        rel = [i for i, (x, k) in enumerate(zip(ev_m, ev_k))
                if k == EV_RELEASE and a <= x < b and i > 0 and ev_k[i - 1] == EV_APPLY]
         if not rel:
             continue
         margins = []
-        for x in rel:
+        for i in rel:
+            x = ev_m[i]
             k = int(np.clip(np.searchsorted(mid, x), 0, len(mid) - 1))
-            v_rel = float(np.sqrt(max(np.interp(x, drive.s_m, v2), 0.0)))
+            v_rel = float(v_ev[i])
             e_app, e_one = calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), k, np.array([1.0]))
             v_app, v_one = float(kmh_from_e(e_app[0])), float(kmh_from_e(e_one[0]))
             if not (math.isfinite(v_app) and v_app - v_one > 1e-9):
