@@ -231,7 +231,9 @@ class CycleDPSolver:
         holds = np.minimum.reduceat(calc.brake_holds_limit.astype(np.int64), idx[:-1]) > 0
         curve_ok = (base.e_cap[1:] < e_lim * (1.0 - 1e-6)) | ~holds
         curve_ok[-1] = True  # the stop
-        t_build = calc.t_build_s[idx[:-1]] if cyc is not None else np.zeros(n)
+        # an application's build-up (and least hold) in a DP cell: the longest of its calculator cells' (a hold that
+        # is never shorter than the calculator would ask wherever in the cell the application is made)
+        t_build = np.maximum.reduceat(calc.t_build_s, idx[:-1]) if cyc is not None else np.zeros(n)
         e_app = apply_speeds(calc, idx) if cyc is not None and not relaxed else np.full(n, np.inf)
         self.s_m = calc.s_m[idx]
         t_rec = float(cyc.recharge_s) if cyc else 0.0

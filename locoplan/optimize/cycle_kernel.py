@@ -47,8 +47,9 @@ AIR_OFF, AIR_CYCLE, AIR_RECHARGE, AIR_CURVE = 0, 1, 2, 3
 """The drive's air brake at each cell's start: released (charged, or no application ahead in the zone), applied
 (an application of its own, with its build-up and least hold), released and recharging, applied following a
 braking curve (no least hold: released where the curve ends, as in the calculator)."""
-EV_APPLY, EV_RELEASE, EV_CURVE = 1, 2, 3
-"""The drive's events: an application, a release, an application following a braking curve."""
+EV_APPLY, EV_RELEASE, EV_CURVE, EV_CHARGED = 1, 2, 3, 4
+"""The drive's events: an application, a release, an application following a braking curve, a recharge over (where
+a recharge path's ends, or a recharging train finds it over at a node)."""
 PH_APPLY, PH_REC = 0, 1
 
 
@@ -236,13 +237,14 @@ def _tab_cell(e, j, u, cc, tb):
 
 
 @njit(cache=True, _nrt=False)
-def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start):
+def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, part):
     """A phase of a path: control u from ``x`` [m] into cell j at e until it has lasted ``dur`` [s] (an
     application: the air brake building up from the phase's start over ``t_b``; ``is_rec``: a recharge, whose
     caps only the electric brake may follow). Returns (j, x, e, time [s], work [kJ], status) where it ends: status
     0 = inside cell j, x metres in; 1 = the zone ended first, at node j (x = 0); 2 = the stop; -1 = not possible.
     With ``use_tab`` whole cells are read off the one-cell tables where they can be (``_tab_cell``: a recharge, an
-    application whose build-up is over), else stepped; ``rec``: recorded from ``t_start`` [s]."""
+    application whose build-up is over), else stepped; ``rec``: recorded from ``t_start`` [s]. Where it ends inside
+    a cell, ``part`` gets the start of its part of that cell: (x [m], e, time, work)."""
     n = cc.h.shape[0]
     t = 0.0
     w_sum = 0.0
@@ -263,6 +265,9 @@ def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air
         r = dur - t
         if dt > r:
             xs, es, ws, ts = _split(e, u, t, t_b, j, rest, r, cc, fo)
+            # (where it ends, and the part of the cell it ends in: from there a path that goes on under the same
+            # control steps the whole part, as a drive's record has it, not two pieces of it)
+            part[0], part[1], part[2], part[3] = x, e, t, w_sum
             return j, x + xs, es, t + ts, w_sum + ws, 0
         e = e1
         t += dt
@@ -331,13 +336,13 @@ def _rec_u(m):
 
 @njit(cache=True, _nrt=False)
 def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
-                n_ev, pj, pe, pt, pw, pq):
+                n_ev, pj, pe, pt, pw, pq, part):
     """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AX_E`` from a charged brake at node k at e, their
     application stepped once: the air brake (and the full electric brake) from the node, its force building up
     linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
     over; then as the path says (``P_A``, ``P_AR_H``, ``P_AX_*``). Into ``pj`` (end node, -1: none), ``pe``,
     ``pt`` [s], ``pw`` [kJ] and ``pq`` (the time since the release at the end node [s], ``P_AX_*``); returns the
-    events recorded (``rec``: one path)."""
+    events recorded (``rec``: one path). ``part``: a buffer of 4 (``_phase``)."""
     n = cc.h.shape[0]
     for m in range(first, last + 1):
         pj[m] = -1
@@ -357,7 +362,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
                 air[k] = AIR_OFF
     n_ev = _event(rec, ev, ev_k, n_ev, k, x0, t_start + t0, e, EV_APPLY, cc)
     j, x, ea, ta, wa, st = _phase(e, k, x0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
-                                  t_nodes, t_start + t0)
+                                  t_nodes, t_start + t0, part)
     ta += t0
     wa += w0
     if st < 0 or st == 1:
@@ -367,11 +372,12 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
             pj[m], pe[m], pt[m], pw[m] = n, ea, ta, wa
         return n_ev
     for m in range(first, last + 1):
-        if m == P_A:
-            e1, dt, w, ok = _finish(ea, j, x, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
-                                    t_start + ta)
+        if m == P_A:  # (braking on: the part of the cell where the hold ends stepped whole)
+            xp, ep, tp, wp = part[0], part[1], part[2], part[3]
+            e1, dt, w, ok = _finish(ep, j, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + t0 + tp)
             if ok:
-                pj[m], pe[m], pt[m], pw[m] = j + 1, e1, ta + dt, wa + w
+                pj[m], pe[m], pt[m], pw[m] = j + 1, e1, t0 + tp + dt, w0 + wp + w
             continue
         u = _rec_u(m)
         if u != U_H and _descending(ea, j, cc, fo):
@@ -386,12 +392,13 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
                 pj[m], pe[m], pt[m], pw[m], pq[m] = j + 1, e1, ta + dt, wa + w, dt
             continue
         j2, x2, er, tr, wr, st2 = _phase(ea, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
-                                         v_nodes, t_nodes, t_start + ta)
+                                         v_nodes, t_nodes, t_start + ta, part)
         if st2 < 0:
             continue
         if st2 > 0:  # the zone, or the route, ended during the recharge
             pj[m], pe[m], pt[m], pw[m] = j2, er, ta + tr, wa + wr
             continue
+        n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + ta + tr, er, EV_CHARGED, cc)
         e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
                                 t_start + ta + tr)
         if ok:
@@ -401,7 +408,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
 
 @njit(cache=True, _nrt=False)
 def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
-                  n_ev, pj, pe, pt, pw):
+                  n_ev, pj, pe, pt, pw, part):
     """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node,
     recharged under H for exactly the recharge time, then on under H to the node after (CH there; NA where the
     zone ends first), or an application the instant the recharge is over, held until its least hold and build-up
@@ -413,7 +420,7 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         return n_ev
     n_ev = _event(rec, ev, ev_k, n_ev, k, 0.0, t_start, e, EV_RELEASE, cc)
     j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
-                                     v_nodes, t_nodes, t_start)
+                                     v_nodes, t_nodes, t_start, part)
     if st2 < 0:
         return n_ev
     if st2 > 0:
@@ -421,6 +428,7 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
             pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2, er, tr, wr
         return n_ev
     if first == P_R_H:
+        n_ev = _event(rec and last == P_R_H, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_CHARGED, cc)
         e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, True, cc, fo, tb, use_tab, rec and last == P_R_H, v_nodes,
                                 t_nodes, t_start + tr)
         if ok:
@@ -430,27 +438,29 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         t_b = cc.t_build[j2]
         dur = max(hold_s(j2, cc), t_b)
         j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
-                                         v_nodes, t_nodes, t_start + tr)
+                                         v_nodes, t_nodes, t_start + tr, part)
         if st3 == 2:
             pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
-        elif st3 == 0:
-            e1, dt, w, ok = _finish(ea, j3, x3, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
-                                    t_start + tr + ta)
+        elif st3 == 0:  # (braking on: the part of the cell where the hold ends stepped whole)
+            xp, ep, tp, wp = part[0], part[1], part[2], part[3]
+            e1, dt, w, ok = _finish(ep, j3, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + tr + tp)
             if ok:
-                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + ta + dt, wr + wa
+                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + tp + dt, wr + wp + w
     return n_ev
 
 
 @njit(cache=True, _nrt=False)
-def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev, ev_k, n_ev, pj, pe, pt, pw, pq):
+def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
+             part):
     """Path m alone from node k at e, stepped exactly and recorded (the forward pass): its end in ``pj``.. [m];
     returns the events recorded."""
     if m < N_CH:
         return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
-                           n_ev, pj, pe, pt, pw, pq)
+                           n_ev, pj, pe, pt, pw, pq, part)
     pq[m] = 0.0
     return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
-                         n_ev, pj, pe, pt, pw)
+                         n_ev, pj, pe, pt, pw, part)
 
 
 @njit(cache=True, _nrt=False)
@@ -466,7 +476,7 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
 
 
 @njit(cache=True, _nrt=False)
-def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, none_f2):
+def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part):
     """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``; others -1)
     into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``, ``pq``; ``use_tab``: whole cells off the tables."""
     for m in range(N_P):
@@ -474,10 +484,10 @@ def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, 
         pq[m] = 0.0
     if s == CH:
         apply_paths(e, k, P_A, N_CH - 1, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
-                    none_i, 0, pj, pe, pt, pw, pq)
+                    none_i, 0, pj, pe, pt, pw, pq, part)
     elif s == AF:
         release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
-                      none_i, 0, pj, pe, pt, pw)
+                      none_i, 0, pj, pe, pt, pw, part)
 
 
 @njit(cache=True, _nrt=False)
@@ -518,6 +528,7 @@ def cycle_prepare(cc, fo, tb):
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
     none_f2 = np.zeros((1, 3))
+    part = np.zeros(4)
     se = np.zeros(N_U)
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
@@ -555,11 +566,11 @@ def cycle_prepare(cc, fo, tb):
                 for m in range(N_P):
                     tb.pj[z, j, m] = -1
                 continue
-            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
+            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
             for m in range(N_CH):
                 tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
                                                                                                  pw[m], pq[m])
-            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
+            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
             for m in range(N_CH, N_P):
                 tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
                                                                                                  pw[m], 0.0)
@@ -735,6 +746,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
     none_f2 = np.zeros((1, 3))
+    part = np.zeros(4)
     se = np.zeros(N_U)
     sw = np.zeros(N_U)
     st = np.zeros(N_U)
@@ -760,11 +772,12 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             s = CH
         elif s == R0 and tau >= cc.t_rec - 1e-9:
             s = CH
+            n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CHARGED, cc)
         _cells_at(e, k, cc, fo, se, sw, st, sok)
         for m in range(N_P):
             pj[m] = -1
         if cc.zone[k] != 0 and not cc.relaxed and (s == CH or s == AF):
-            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2)
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
         c_best = np.inf
         o = -1
         s_next = NA
@@ -845,7 +858,8 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             t_nodes[k] = t
         else:
             m = o - N_U
-            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq)
+            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
+                            part)
             if pj[m] < 0:  # (the path chosen, run again: cannot happen)
                 return np.inf, np.inf, float(n_ev)
             t += pt[m]
