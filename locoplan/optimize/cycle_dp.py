@@ -95,10 +95,16 @@ grid, whose bracket starts the finer grid's search, within the wider one)."""
 PRICE_RANGE = (1e-5, 50.0)
 """Prices of time searched [kWh/s] (geometric bisection), beyond a hint's walk."""
 MAX_SOLVES = 40
-REC_STEP_S = 10.0
+TIME_CLOSE_SHARE = 1e-3
+TIME_SAME_S = 0.5
+"""The search for T stops once the two drives that bracket it are within this share of T of each other, or twice in a
+row a new price's drive ran within ``TIME_SAME_S`` [s] of the end it replaced (the drive's time jumps between them:
+no drive lies between)."""
+REC_STEP_S = 15.0
 """The recharge's states lie this far apart in time since the release [s] (at most: the recharge in equal parts)."""
-HINT_STEP = 0.05
-"""From a price hint the search steps 5 % of the price away, doubling, until the time crosses T."""
+HINT_STEP = 0.15
+"""From a price hint the search steps 15 % of the price away (the cycle's price lies above E*'s slope), doubling, until the
+time crosses T."""
 
 
 @dataclass(frozen=True)
@@ -326,7 +332,7 @@ class CycleDPSolver:
                     x_fast = x
             up = x_fast is None
             x = max(starts) if up else min(starts)
-            step = HINT_STEP
+            step = HINT_STEP if len(starts) < 2 else max(abs(starts[1] - starts[0]), 0.2 * HINT_STEP)
             while (x_slow is None or x_fast is None) and self.n_solves < MAX_SOLVES:
                 nx = min(top, x + step) if up else max(bottom, x - step)
                 if nx == x:
@@ -343,12 +349,37 @@ class CycleDPSolver:
                 x_fast = bottom
         if x_slow is None or x_fast is None:
             return slow, fast
-        while x_fast - x_slow > math.log(close) and self.n_solves < MAX_SOLVES:
-            mid = 0.5 * (x_slow + x_fast)
+        # regula falsi on the log price (Illinois: an end kept twice counts half), bisection where the times of the
+        # bracket's ends are not both known; until the prices are within ``close`` or the two drives' times within
+        # ``TIME_CLOSE_SHARE`` of t0_s
+        t_s = slow.time_s if slow is not None else None
+        t_f = fast.time_s if fast is not None else None
+        w_s = w_f = 1.0
+        last = 0
+        stalls = 0  # new drives that only repeat an end's time: the running time jumps there (a staircase)
+        while x_fast - x_slow > math.log(close) and self.n_solves < MAX_SOLVES and stalls < 2:
+            if slow is not None and fast is not None and slow.time_s - fast.time_s <= TIME_CLOSE_SHARE * t0_s:
+                break
+            if t_s is not None and t_f is not None and t_s > t_f:
+                a, b = w_s * (t_s - t0_s), w_f * (t0_s - t_f)
+                mid = x_slow + (x_fast - x_slow) * a / (a + b)
+                span = x_fast - x_slow  # (kept off the ends: the staircase of times)
+                mid = min(max(mid, x_slow + 0.05 * span), x_fast - 0.05 * span)
+            else:
+                mid = 0.5 * (x_slow + x_fast)
+            before = (t_s, t_f)
             if too_slow(mid):
                 x_slow = mid
+                t_s = slow.time_s if slow is not None else None
+                w_f, w_s = (0.5 * w_f if last == -1 else w_f), 1.0
+                last = -1
             else:
                 x_fast = mid
+                t_f = fast.time_s
+                w_s, w_f = (0.5 * w_s if last == 1 else w_s), 1.0
+                last = 1
+            moved = [abs(a - b) for a, b in zip(before, (t_s, t_f)) if a is not None and b is not None]
+            stalls = stalls + 1 if moved and min(moved) <= TIME_SAME_S else 0
         return slow, fast
 
 
