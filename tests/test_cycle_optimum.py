@@ -112,7 +112,8 @@ def test_hand_worked_numbers():
 def test_constant_descent_cycles_as_worked_by_hand(descent, c80x50):
     """The DP's drive cycles as the hand-worked best cycle: on the descent (its first and last application left
     out: where the descent begins and ends) each application at 59.0 km/h, held its build-up time, released at
-    54.72 km/h and made again 91.3 s later (within the DP's one step per 50 m cell: 0.05 km/h, 0.5 s); and the
+    54.72 km/h and made again 91.3 s later (within the DP's one step per cell of 25 .. 50 m: 0.05 km/h, 0.5 s;
+    the last two climbs may end sooner, the drive fitting its cycles to the descent's foot); and the
     cycle optimum is E* at T less the cycle's cost on the descent, 30 km x 3.19 s/km, within one cycle's 5.18 s at
     either end (E*'s slope x 2 x 5.18 s) plus the optimum's stated accuracy."""
     route, calc, t, co = descent
@@ -128,7 +129,9 @@ def test_constant_descent_cycles_as_worked_by_hand(descent, c80x50):
     assert np.all(d.event_kind[inner + 1] == EV_RELEASE)
     np.testing.assert_allclose(d.event_s[inner + 1] - d.event_s[inner], T_BUILD_S, atol=1e-6)
     np.testing.assert_allclose(d.event_kmh[inner + 1], cyc["v_rel"], atol=0.05)
-    np.testing.assert_allclose(d.event_s[inner[1:]] - d.event_s[inner[:-1] + 1], cyc["t_climb"], atol=0.5)
+    climbs = d.event_s[apply[1:]] - d.event_s[apply[:-1] + 1]
+    np.testing.assert_allclose(climbs[:-2], cyc["t_climb"], atol=0.5)
+    assert np.all(climbs[-2:] <= cyc["t_climb"] + 0.5)  # (near the foot it may apply sooner: the descent ends)
     # the cycle's cost on the descent, as time: the optimum is E* with that much less time elsewhere
     cost_s = DESCENT_M / cyc["distance"] * cyc["behind"]
     assert cost_s == pytest.approx(95.8, abs=0.1)

@@ -88,6 +88,9 @@ CELL_MIN_M = 10.0
 """On a short line the coarser grid has at least ``MIN_CELLS`` cells, of at least ``CELL_MIN_M``."""
 SPEED_STEP_KMH = 0.5
 """The coarser grid's speed step [km/h] (the finer grid: half)."""
+REFINE_TOL = 2.5e-3
+MAX_GRIDS = 3
+"""The cells are halved once, and once more where the two grids' optima differ by more than ``REFINE_TOL``."""
 PRICE_CLOSE = 1.002
 PRICE_CLOSE_COARSE = 1.01
 """The price of time is bisected until the two prices whose drives bracket T are within this ratio (on the coarser
@@ -480,28 +483,36 @@ def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar_kwh: f
                         price_hint: float | None = None, cell_m: float | None = None,
                         speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
     """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP on
-    cells of ``cell_m`` (default ``coarse_cell_m``) and on cells half as long, the price of time bisected to
-    ``time_s`` from ``price_hint`` [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it) and, on the finer
-    grid, from the coarser grid's bracket; the same finer grid without the cycle against ``estar_kwh`` [kWh] (E* at
-    ``time_s``) for the accuracy. Where the cycle cannot bind, nothing is solved (``cycles`` False). Raises
-    ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
+    cells of ``cell_m`` (default ``coarse_cell_m``), then on cells half as long, and once more (``MAX_GRIDS``) where
+    those two differ by more than ``REFINE_TOL``; the price of time searched for ``time_s`` from ``price_hint``
+    [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it), on each finer grid from the coarser one's
+    bracket; the finest grid without the cycle against ``estar_kwh`` [kWh] (E* at ``time_s``) for the accuracy: the
+    last two grids' difference plus that excess. Where the cycle cannot bind, nothing is solved (``cycles`` False).
+    Raises ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
     t_wall = time.perf_counter()
     if not cycle_binds(calc):
         return CycleOptimum(float(time_s), False, estar_kwh=estar_kwh, method="relaxed E* (the cycle cannot bind)")
     cell = coarse_cell_m(calc) if cell_m is None else float(cell_m)
-    coarse, d1 = grid_optimum(grid_calculator(calc, cell), time_s, cell, speed_step_kmh, price_hint,
-                              close=PRICE_CLOSE_COARSE)
-    fine_calc = grid_calculator(calc, cell / 2)
-    fine, d2 = grid_optimum(fine_calc, time_s, cell / 2, speed_step_kmh, price_hint, seed=coarse.prices_kwh_per_s)
+    g, drive = grid_optimum(grid_calculator(calc, cell), time_s, cell, speed_step_kmh, price_hint,
+                            close=PRICE_CLOSE_COARSE)
+    found = [g]
+    while True:
+        cell /= 2
+        fine_calc = grid_calculator(calc, cell)
+        g, drive = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, seed=found[-1].prices_kwh_per_s)
+        found.append(g)
+        diff = abs(found[-1].energy_kwh - found[-2].energy_kwh) / max(abs(g.energy_kwh), 1e-9)
+        if diff <= REFINE_TOL or len(found) >= MAX_GRIDS:
+            break
     relaxed_kwh = None
     excess = 0.0
     if estar_kwh is not None:
-        rel, _ = grid_optimum(fine_calc, time_s, cell / 2, speed_step_kmh, price_hint, relaxed=True)
+        rel, _ = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, relaxed=True)
         relaxed_kwh = rel.energy_kwh
         excess = max(rel.energy_kwh - estar_kwh, 0.0)
-    e = fine.energy_kwh
-    acc = (abs(fine.energy_kwh - coarse.energy_kwh) + excess) / max(abs(e), 1e-9)
-    grids = tuple({"cell_m": g.cell_m, "speed_step_kmh": g.speed_step_kmh, "energy_kwh": g.energy_kwh,
-                   "solves": g.solves, "wall_s": g.wall_s} for g in (coarse, fine))
-    return CycleOptimum(float(time_s), True, e, acc, estar_kwh, relaxed_kwh, d2.price_kwh_per_s, grids,
-                        time.perf_counter() - t_wall, d2)
+    e = g.energy_kwh
+    acc = (abs(found[-1].energy_kwh - found[-2].energy_kwh) + excess) / max(abs(e), 1e-9)
+    grids = tuple({"cell_m": x.cell_m, "speed_step_kmh": x.speed_step_kmh, "energy_kwh": x.energy_kwh,
+                   "solves": x.solves, "wall_s": x.wall_s} for x in found)
+    return CycleOptimum(float(time_s), True, e, acc, estar_kwh, relaxed_kwh, drive.price_kwh_per_s, grids,
+                        time.perf_counter() - t_wall, drive)

@@ -33,13 +33,20 @@ from ..optimize.cycle_dp import CycleDrive, CycleOptimum, cycle_binds, solve_cyc
 from ..optimize.cycle_kernel import AIR_CURVE, AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_E, U_H, U_T
 from ..physics.units import kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
+from ..sim.constants import CYCLE_MARGIN
+from ..sim.result import AIR_RECHARGE
 from .general_builder import DriveSequence, sequence_from_drive
 
 MARGIN_RANGE = (0.25, 4.0)
 """The release margins a plan may carry (the proposed strategy's search range, ``optimize/problem.py``)."""
+MARGIN_STEP = 1.25
+MARGIN_REPAIRS = 8
+"""A descent's margin refused for its recharge is deepened by this factor, at most this many times in a plan."""
 
 PLAN_SEARCH_STEPS = 12
-"""At most this many drives are tried for a start plan's running time (``cycle_plan_start``)."""
+PLAN_MIN_TRIES = 4
+"""At most ``PLAN_SEARCH_STEPS`` drives, at least ``PLAN_MIN_TRIES``, are tried for a start plan's running time
+(``cycle_plan_start``)."""
 CAP_KMH = 0.5
 """A drive's hold within this much of the cap [km/h] at both ends of its cell is a hold at the cap."""
 MIN_RUN_CELLS = 2.5
@@ -191,26 +198,52 @@ def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[
             if not (math.isfinite(v_app) and v_app - v_one > 1e-9):
                 continue
             margins.append((v_app - v_rel) / (v_app - v_one))
-        if margins:
+        if margins:  # (the median release; deepened where the calculator refuses it: repair_margins)
             out.append((float(a), float(b), float(np.clip(np.median(margins), *MARGIN_RANGE))))
     return tuple(out)
+
+
+def repair_margins(calc: TractionCalculator, plan: Plan) -> Plan:
+    """``plan`` with the release margin of each descent where the calculator refuses it for applying the air brake
+    again before its recharge is over deepened (x ``MARGIN_STEP``, within ``MARGIN_RANGE``) until it runs, at most
+    ``MARGIN_REPAIRS`` times; a refusal elsewhere, or none, leaves it as it is."""
+    for _ in range(MARGIN_REPAIRS):
+        res = calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
+        if res.reason_code[0] != AIR_RECHARGE:
+            return plan
+        x = float(res.failure_m[0])
+        margins = list(plan.release_margins)
+        hit = [i for i, (a, b, _) in enumerate(margins) if a <= x < b]
+        if hit:
+            a, b, m = margins[hit[0]]
+            margins[hit[0]] = (a, b, float(min(m * MARGIN_STEP, MARGIN_RANGE[1])))
+        else:  # a descent the plan left to the rule: its margin deepened from the rule's
+            regions = [(float(a), float(b)) for a, b in calc.cycle_regions_m if a <= x < b]
+            if not regions:
+                return plan
+            margins.append((*regions[0], CYCLE_MARGIN * MARGIN_STEP))
+            margins.sort()
+        plan = Plan(plan.conditions, plan.starts_m, tuple(margins))
+    return plan
 
 
 def plan_from_cycle_drive(calc: TractionCalculator, drive: CycleDrive, min_run_m: float | None = None) -> Plan:
     """A plan the calculator runs, read off a cycle DP drive: its condition sequence and nominal switching points
     (``drive_sequence``; the final B where the stop's braking curve begins) and its release margins
-    (``release_margins``)."""
+    (``release_margins``, deepened where the calculator would refuse them: ``repair_margins``)."""
     seq = drive_sequence(calc, drive, min_run_m)
-    return Plan(seq.conditions, (0.0, *[float(x) for x in seq.nominal_m], float("nan")), release_margins(calc, drive))
+    plan = Plan(seq.conditions, (0.0, *[float(x) for x in seq.nominal_m], float("nan")), release_margins(calc, drive))
+    return repair_margins(calc, plan)
 
 
 def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, time_s: float, *,
                      calc: TractionCalculator | None = None, tolerance_s: float | None = None) -> Plan | None:
     """A plan read off a cycle DP drive whose run on ``calc`` takes ``time_s`` [s] (within ``tolerance_s``, default
-    0.5 % of it) or as near as the DP's prices reach: the cycle optimum's finer grid (``cycle_optimum``) with the
+    0.5 % of it) or as near as the DP's prices reach: the cycle optimum's finest grid (``cycle_optimum``) with the
     price of time bisected on the plan's own running time on ``calc`` (the DP's cells are coarser than the
-    calculator's, its drive's plan runs a little faster or slower than the drive). None where the cycle cannot
-    bind, or no plan read off a drive reaches the stop."""
+    calculator's, its drive's plan runs a little faster or slower than the drive); of the plans tried that run on
+    time, the one with the least energy. None where the cycle cannot bind, or no plan read off a drive reaches the
+    stop."""
     from ..optimize.cycle_dp import CycleDPSolver, grid_calculator
 
     options = options or ModelOptions()
@@ -219,21 +252,21 @@ def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, t
     co = cycle_optimum(route, train, options, time_s, calc=calc)
     if not co.cycles or co.drive is None or not co.grids:
         return None
-    cell = float(co.grids[-1]["cell_m"])
+    cell = float(co.grids[-1]["cell_m"])  # (the finest grid's)
     solver = CycleDPSolver(grid_calculator(calc, cell), cell, float(co.grids[-1]["speed_step_kmh"]))
     tol = 0.005 * time_s if tolerance_s is None else float(tolerance_s)
-    best: tuple[float, Plan] | None = None
+    tried: list[tuple[float, float, Plan]] = []  # (time [s], energy [kWh], plan) of every plan that ran
 
     def plan_time(price: float) -> float:
-        nonlocal best
         d = solver.solve(price)
         if d is None:
             return math.inf
         plan = plan_from_cycle_drive(calc, d)
         res = calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
-        t = float(res.running_time_s[0]) if res.feasible[0] else math.inf
-        if math.isfinite(t) and (best is None or abs(t - time_s) < abs(best[0] - time_s)):
-            best = (t, plan)
+        if not res.feasible[0]:
+            return math.inf
+        t = float(res.running_time_s[0])
+        tried.append((t, float(res.traction_energy_kwh[0]), plan))
         return t
 
     x = math.log(co.drive.price_kwh_per_s)
@@ -241,7 +274,7 @@ def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, t
     step = 0.05
     for _ in range(PLAN_SEARCH_STEPS):
         t = plan_time(math.exp(x))
-        if abs(t - time_s) <= tol:
+        if abs(t - time_s) <= tol and len(tried) >= PLAN_MIN_TRIES:
             break
         if t > time_s:
             lo = x
@@ -251,4 +284,9 @@ def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, t
             x = 0.5 * (lo + hi)
         else:
             x, step = (x + step, 2 * step) if hi is None else (x - step, 2 * step)
-    return None if best is None else best[1]
+    if not tried:
+        return None
+    # the least energy among the plans on time (a drive's plan can lose more than its time says: a crawl over a
+    # crest, a hold at another speed), else the one nearest the time
+    on_time = [p for p in tried if abs(p[0] - time_s) <= tol]
+    return min(on_time, key=lambda p: p[1])[2] if on_time else min(tried, key=lambda p: abs(p[0] - time_s))[2]
