@@ -195,7 +195,8 @@ def cycle_optimum_line(row: dict) -> str:
     e = row.get("optimum_with_cycle_kwh")
     if e is None:
         return ""
-    cells = " and ".join(f"{c:g}" for c in row.get("optimum_with_cycle_cells_m") or [])
+    sizes = [f"{c:.3g}" for c in row.get("optimum_with_cycle_cells_m") or []]
+    cells = ", ".join(sizes[:-1]) + (" and " if len(sizes) > 1 else "") + sizes[-1] if sizes else "?"
     took = row.get("optimum_with_cycle_solve_time_s")
     return (f"\nwith the air brake's cycle: {e:.2f} kWh within "
             f"{within_percent(row.get('optimum_with_cycle_accuracy_percent'))} (+{100 * (e / row['energy_kwh'] - 1):.1f} % "
