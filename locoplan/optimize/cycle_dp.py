@@ -2,67 +2,67 @@
 
 E* (``ocp/bound.py``) relaxes the wagons' air brake to a continuous force a run may modulate at will, so on a
 descent the electric brake cannot hold it holds the limit exactly, and a plan's gap to it mixes what the planner
-loses with what the cycle must cost: an application builds up over its build-up time, is held at least its
-least hold, is released in full, and may not be made again before the recharge time has passed, and while it is
-on the train brakes with it and the full electric brake (docs/model.md, "the air brake's cycle"). This module
-finds the least traction energy of a drive that keeps those rules, on the calculator's train model, by dynamic
-programming at a price of time (as ``dp.py``), bisected to the running time.
+loses with what the cycle must cost: an application builds up over its build-up time, is held at least its least
+hold, is released in full, may not be made again before the recharge time has passed, and while it is on the train
+brakes with it and the full electric brake (docs/model.md, "the air brake's cycle"). This module finds the least
+traction energy of a drive that keeps those rules, on the calculator's train model, by dynamic programming at a
+price of time (as ``dp.py``), the price searched for the running time.
 
-The state is (node, speed, air state), the air state one of
+**The state** is (node, speed, air state), the air state one of
 - CH: released and charged: may apply;
-- AF: applied at full, its least hold over: brakes with the air brake and the full electric brake; may release;
-- NA: released, and no application before the zone (below) ends; outside every zone the only state.
-Controls at a node: a cell of full traction (T), speed holding (H: traction or, where it cannot hold, the
-full electric brake; the air brake only in AF), coasting (C) or the full electric brake (E); in AF the air
-brake stays applied (B) or is released (then a cell of T, H, C or E in NA, or a recharge path); in CH an
-application. The parts of the cycle that need time are *paths*, run cell by cell with exact times:
-- an application from (node, speed): braking with the air brake building up linearly from the application
-  (the calculator's build-up over its build-up time, at each cell's middle time) and the full electric brake,
-  until both its least hold and its build-up are over, at the first node after: state AF there;
-- a release's recharge: from (node, speed), a cell after cell under one control (H, C or E; a cap met on
-  the way followed by the electric brake alone) until the recharge time has passed at a node: charged (CH)
-  there; or until the zone ends (NA) or the stop.
-So the drive never applies again before its recharge is over nor releases before its least hold: every drive
-the DP finds keeps the cycle exactly, with no rounding of times to buckets (an elapsed-time state advanced by
-whole buckets per cell, rounded down to stay on the safe side, loses up to a bucket every cell: 5-10 s of a
-90 s recharge on 50 m cells). The price: while a released brake recharges, the drive keeps one control. On a
-descent the electric brake cannot hold that costs nothing: the least rise in speed during the recharge (the
-full electric brake) lets the release come at the highest speed, and coasting first and braking after gains
-less distance than it costs in a lower release speed (with a_C > a_E the accelerations, the distance covered in
-the recharge t_r from a release speed that reaches the same speed at its end falls by (a_C - a_E) t_C^2 / 2
-for t_C of coasting).
+- AF: applied, its least hold and build-up over: brakes with the air brake and the full electric brake; may stay
+  applied (B) or be released at the node;
+- R0 + b: released and recharging, b x 15 s (``REC_STEP_S``, the recharge in equal parts) since the release; charged
+  at the first node where the recharge is over. Between two of these states a value is interpolated in time, and
+  taken as none where the earlier state has none: a drive never counts on more time than has passed;
+- NA: outside every zone (below): no air brake.
+A single cell's controls: full traction (T), holding the speed (H: traction, or the electric brake, at full where
+it cannot hold), coasting (C), the full electric brake (E), and in AF the air brake staying on (B).
 
-A braking curve (to a lower limit, to the stop, along a descent full braking cannot hold) is followed as the
-calculator follows it: with up to full braking. Where that needs the air brake it is an application of its own,
-made by a charged brake (CH, or one applied already) and released where the curve ends (no least hold: the
-calculator's curve applications); the limit itself is never followed with the air brake (on a descent the
-electric brake cannot hold, an application must come first, as in the calculator, where the cycle applies
-below the limit).
+**Paths**: whatever the cycle does for a time of its own runs as a path of phases whose ends fall at their exact
+times, inside a cell where they fall there (``cycle_kernel.P_*``): from CH an application (building up linearly
+over its build-up time, at each cell's middle time as the calculator has it) until its least hold and build-up are
+over, then braking on to the next node (AF), or released that very instant and recharged under H for exactly the
+recharge time (CH at the node after), or released that instant and the rest of the cell under H, C or E (recharging
+at the next node, the time since the release known exactly); from AF a release and the recharge under H for exactly
+the recharge time (CH), or with an application the instant it is over (AF). So both the least hold and the recharge
+bind exactly where they bind, and the drive the forward pass returns -- every step and path run again from the
+train's actual state, the time since a release exact -- keeps the rules: no application within a recharge, no hold
+shorter than the least. (An elapsed-time state advanced by whole buckets per cell, rounded down to stay on the safe
+side, loses up to a bucket every cell: 5-10 s of a 90 s recharge on 50 m cells.) The backward pass reads the paths'
+whole cells off the one-cell tables, interpolated in speed; the forward pass steps them.
 
-**Where the state matters** (``air_zones``): around the cells where the air brake may be needed -- the
-descents whose grade the electric brake cannot hold at the limit (``cycle_regions_m``), the braking curves that
-need the air brake (``next_air_curve``), the descents full braking cannot hold -- extended by the distance
-covered at the top speed in the recharge and twice the application (before) and twice the application (after),
-joined where less than the recharge time at the top speed lies between them. Outside the zones there is no
-state and no air brake: the drive brakes electrically there, and arrives charged at the next zone (a gap of at
-least the recharge time at the top speed lies between). Restricting the drives keeps the answer a drive's.
+**The calculator's rules that bind a plan** are the drive's too: a released brake is applied when the speed reaches
+the apply speed on a grade the electric brake cannot hold (``kernel.cycle_speeds``; an application starts where
+holding reaches it, inside the cell), and while it recharges on a descent the electric brake holds the speed. A
+braking curve (to a lower limit, to the stop, along a descent full braking cannot hold) is followed as the calculator
+follows it, with up to full braking: where that needs the air brake it is an application of its own by a charged
+brake, released where the curve ends (no least hold). The limit itself is never held with the air brake: on a descent
+the electric brake cannot hold, the application comes at the apply speed, below it.
 
-**Where the cycle cannot bind** (``cycle_binds``): without the cycle (``--no-air-brake``, ``--point-mass``),
-or where no descent needs the cycle and no two places that need the air brake lie within the recharge time of
-each other, every application is a braking curve followed with full braking, as in the relaxation: the cycle
-optimum is the relaxed E* itself, and nothing is solved.
+**Where the state matters** (``air_zones``): around the cells where the air brake may be needed -- the descents
+whose grade the electric brake cannot hold at the limit (``cycle_regions_m``), the braking curves that need the air
+brake (``next_air_curve``), the descents full braking cannot hold -- extended by the distance covered at the top
+speed in a recharge and two applications (before) and two applications (after), joined where less than a
+recharge at the top speed lies between them. Outside the zones there is no air brake and no state: the drive brakes
+electrically there and reaches the next zone charged (at least a recharge at the top speed lies between). A
+restriction of the drives: the answer stays a drive's.
 
-**What the number is**: the energy of drives that keep the cycle on the DP's grid, at the running time T
-interpolated linearly between the two drives whose times bracket T (a chord of the energy-time curve, above it
-where the curve is convex). So it approximates the cycle optimum from above on its grid, with the DP's own
-discretisation: one control per cell of about ``cell_m``, speeds interpolated between the grid's, applications
-and releases at nodes. Its accuracy is estimated as E*'s is: the same problem on a second grid with the cells
-and the speed step halved, the difference of the two the stated accuracy, the finer one the answer. It is not a
-bound: a drive on a finer grid, or switching inside cells, may use less; nor is the DP's cell model the
-calculator's (one step per DP cell of merged calculator cells): a plan read off the drive, run on the
-calculator, lands within the accuracy measured in ``benchmarks/bench_cycle_optimum.py``. The same DP with the air
-brake relaxed (``relaxed=True``: no state, full braking at will) measures the grid's own excess over E* on the
-same line.
+**Where the cycle cannot bind** (``cycle_binds``): without the cycle in the model (``--no-air-brake``,
+``--point-mass``, ``ModelOptions.air_cycle`` off), or where no descent needs the cycle and no two places that need the
+air brake lie within a recharge at the top speed of each other, every application is a braking curve followed with
+up to full braking, as in the relaxation: the cycle optimum is E* itself, and nothing is solved.
+
+**What the number is** (``solve_cycle_optimum``): the energy at T of drives that keep the cycle on the DP's grid,
+on the chord between the two drives whose running times bracket T (the lowest such chord; above the energy-time
+curve where it is convex). It approximates the cycle optimum from above on its grid: one control per cell of about
+``cell_m``, speeds interpolated between the grid's, applications and releases at nodes where no time binds them. Its
+stated accuracy: the DP on cells of ``coarse_cell_m`` and half as long (once more where those two differ by more
+than ``REFINE_TOL``), the last two grids' difference plus the same DP's excess over E* without the cycle on the
+finest grid (``relaxed=True``: no state, full braking at will). It is not a bound: a drive on a finer grid, or one
+switching inside cells, may use less, and the DP's cells are not the calculator's (benchmarks/bench_cycle_optimum.py
+measures plans on the calculator against it). The recharge that binds after a release at a node (the release
+speed, not a time, decides it) converges at first order in the cell: there the grids' difference shows it.
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InfeasibleError
-from ..physics.units import kmh_from_e, kwh
+from ..physics.units import kwh
 from ..sim.calculator import TractionCalculator
 from ..sim.native import kernels
 from ..sim.records import CycleCells, CycleTables, contiguous
@@ -437,10 +437,6 @@ def grid_optimum(calc: TractionCalculator, t0_s: float, cell_m: float, speed_ste
 def coarse_cell_m(calc: TractionCalculator) -> float:
     """The coarser grid's cell length [m]: ``CELL_M``, and on a short line at least ``MIN_CELLS`` cells."""
     return max(CELL_MIN_M, min(CELL_M, calc.route.length_m / MIN_CELLS))
-
-
-def kmh_top(calc: TractionCalculator) -> float:
-    return float(kmh_from_e(max(float(np.max(calc.e_envelope)), 0.0)))
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from ..model.plan import Plan
 from ..model.route import Route
 from ..model.train import Train
 from ..optimize.cycle_dp import CycleDrive, CycleOptimum, cycle_binds, solve_cycle_optimum
-from ..optimize.cycle_kernel import AIR_CURVE, AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_E, U_H, U_T
+from ..optimize.cycle_kernel import AIR_CURVE, AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_H, U_T
 from ..physics.units import kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
