@@ -395,6 +395,8 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
                    "accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
                    "slope_kwh_per_s": None if b.slope_kwh_per_s is None else round(b.slope_kwh_per_s, 5),
                    "method": b.method, "cells": b.cells, "solve_time_s": round(b.solve_time_s, 3), "reason": None}
+            if not curve and objective == "traction":
+                row.update(cycle_optimum_row(route, train, options, t))
             if check:
                 step(f"E* at {t:g} s, second method")
                 c = check_bound(route, train, options, t, mesh_tol=mesh_tol, max_degree=max_degree, objective=objective)
@@ -413,6 +415,22 @@ def energy_curve(route, train, options: ModelOptions, times_s: list[float], *, m
                          "slope_kwh_per_s": None, "method": None, "cells": None, "solve_time_s": None,
                          "reason": str(exc)})
     return {"route": route.name, "consist": train.name, "objective": objective, "results": rows}
+
+
+def cycle_optimum_row(route, train, options: ModelOptions, time_s: float) -> dict:
+    """``bound`` where the consist's air brake cycles on the line: the least energy of a drive that keeps the cycle
+    (``strategy.cycle_start.cycle_optimum``) beside E*, with its accuracy; {} where the model has no cycle or it
+    cannot bind there (the cycle optimum is E* itself), so that ``bound`` is unchanged for them."""
+    from .strategy.cycle_start import cycle_optimum
+
+    co = cycle_optimum(route, train, options, time_s)
+    if not co.cycles or co.energy_kwh is None:
+        return {}
+    acc = co.accuracy_percent
+    return {"optimum_with_cycle_kwh": round(co.energy_kwh, 3),
+            "optimum_with_cycle_accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
+            "optimum_with_cycle_cells_m": [g["cell_m"] for g in co.grids],
+            "optimum_with_cycle_solve_time_s": round(co.solve_time_s, 3)}
 
 
 def curve_verdict(rows: list[dict]) -> Verdict:

@@ -208,6 +208,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
         "gap_to_optimum_kwh": None if gap is None else gap.gap_kwh,
         "optimum_kwh": None if gap is None else gap.optimum_kwh,
         "optimum_accuracy_percent": None if gap is None else gap.accuracy_percent,
+        **cycle_gap(ctx, res),
         "weights": list(ctx.weights) if fit is not None else None,
         "e_min_kwh": None if e_min is None else round(float(e_min), 2),
         "e_min_source": None if e_min is None else ctx.e_min_source,
@@ -224,6 +225,34 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
                             for a, b, m in outcome.plan.release_margins] or None,
         **(outcome.extra or {}),
     }
+
+
+def cycle_gap(ctx: StrategyContext, res: BatchResult) -> dict:
+    """The plan against the optimum with the air brake's cycle at its own running time (``strategy.cycle_start``:
+    the least traction energy of a drive that keeps the cycle, with its accuracy): ``optimum_with_cycle_kwh``,
+    ``optimum_with_cycle_accuracy_percent`` and ``gap_to_cycle_optimum_percent``, all None where the model has no
+    cycle, the cycle cannot bind on the line (then it is E* itself), the objective is not the traction energy, or
+    there is no such drive at that time. E* <= it: the plan's gap to E* splits into what the cycle costs and what
+    a better plan could save."""
+    none = {"optimum_with_cycle_kwh": None, "optimum_with_cycle_accuracy_percent": None,
+            "gap_to_cycle_optimum_percent": None}
+    c = ctx.calc
+    if not ctx.yardstick or not res.feasible[0] or ctx.objective != "traction" or c.air_cycle is None:
+        return none
+    from .errors import LocoplanError
+    from .strategy.cycle_start import cycle_optimum
+
+    t, e = float(res.running_time_s[0]), float(res.traction_energy_kwh[0])
+    try:
+        co = cycle_optimum(c.route, c.train, c.options, t, calc=c)
+    except LocoplanError:
+        return none
+    if not co.cycles or co.energy_kwh is None:
+        return none
+    acc = co.accuracy_percent
+    return {"optimum_with_cycle_kwh": round(co.energy_kwh, 2),
+            "optimum_with_cycle_accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
+            "gap_to_cycle_optimum_percent": round(100.0 * (e - co.energy_kwh) / co.energy_kwh, 2)}
 
 
 def air_brake_summary(res: BatchResult) -> dict:

@@ -123,29 +123,44 @@ def _cache_file(key: tuple) -> Path | None:
     return Path(root) / "bounds" / f"{digest}.json"
 
 
-def _cache_read(key: tuple) -> "Bound | None":
+def cache_load(key: tuple) -> dict | None:
+    """What ``cache_store`` kept under ``key`` (a hash of it and of the code, ``_cache_file``), or None."""
     f = _cache_file(key)
     try:
-        return Bound(**json.loads(f.read_text())) if f is not None and f.is_file() else None
-    except (OSError, ValueError, TypeError):
+        return json.loads(f.read_text()) if f is not None and f.is_file() else None
+    except (OSError, ValueError):
         return None
 
 
-def _cache_write(key: tuple, b: "Bound") -> None:
+def cache_store(key: tuple, data: dict) -> None:
+    """Keep ``data`` (plain JSON) on disk under ``key``: atomic; a cache that cannot be written is simply not kept,
+    nor its temporary file."""
     f = _cache_file(key)
     if f is None:
         return
     tmp = None
-    try:  # atomic; a cache that cannot be written is simply not kept, nor its temporary file
+    try:
         f.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp")
         with os.fdopen(fd, "w") as out:
-            json.dump(asdict(b), out)
+            json.dump(data, out)
         os.replace(tmp, f)
-    except OSError:
+    except (OSError, TypeError, ValueError):
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+
+
+def _cache_read(key: tuple) -> "Bound | None":
+    data = cache_load(key)
+    try:
+        return Bound(**data) if data is not None else None
+    except TypeError:
+        return None
+
+
+def _cache_write(key: tuple, b: "Bound") -> None:
+    cache_store(key, asdict(b))
 
 
 def net_regen(train: Train, objective: str) -> float:

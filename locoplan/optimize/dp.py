@@ -77,6 +77,37 @@ def dp_caps(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
                                      for a, b in zip(idx[:-1], idx[1:])])
 
 
+def dp_nodes(calc: TractionCalculator, cell_m: float) -> np.ndarray:
+    """The DP's nodes (indices of calculator nodes): calculator nodes at least ``cell_m`` apart (the first and the
+    last always), and every edge of a neutral span: a cell that straddled one would lose the catenary (traction
+    and the electric brake) over its whole length, while its start node's cap, the calculator's braking curve,
+    counts on the electric brake up to the edge, and no state could follow that curve into a span where it can
+    only coast."""
+    edges = set((np.flatnonzero(np.diff(calc.traction_allowed) != 0) + 1).tolist())
+    keep = [0]
+    for i in range(1, len(calc.s_m) - 1):
+        if i in edges or calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
+            keep.append(i)
+    if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1 and keep[-1] not in edges:
+        keep.pop()
+    keep.append(len(calc.s_m) - 1)
+    return np.array(keep)
+
+
+def dp_cells(calc: TractionCalculator, idx: np.ndarray, speed_step_kmh: float) -> DPCells:
+    """The DP's cells between the calculator nodes ``idx``: lengths [m], the length-weighted mean gravity [kN]
+    (exact work), traction allowed (0 if anywhere in the cell it is not), the cap at each node (``dp_caps``) and
+    the speed grid [m/s] from rest to the envelope's top in steps of ``speed_step_kmh``."""
+    s = calc.s_m[idx]
+    h = np.diff(s)
+    work = np.concatenate([[0.0], np.cumsum(calc.gravity_kn * calc.h_m)])
+    gravity = np.diff(work[idx]) / h
+    allowed = np.array([calc.traction_allowed[a:b].min() for a, b in zip(idx[:-1], idx[1:])])
+    top = float(kmh_from_e(max(calc.e_envelope.max(), 0.0)))
+    v_grid = ms(np.arange(0.0, top + speed_step_kmh, speed_step_kmh))
+    return DPCells(h, gravity, allowed, dp_caps(calc, idx), v_grid)
+
+
 class PricedDriveSolver:
     """DP over one calculator's route; ``solve(price)`` gives the priced optimum.
 
@@ -96,28 +127,11 @@ class PricedDriveSolver:
             fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
             switch_penalty_kwh = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
         self.switch_penalty_kwh = float(switch_penalty_kwh)
-        # DP nodes: calculator nodes at least cell_m apart (the first and the last always), and every edge of a
-        # neutral span: a cell that straddled one would lose the catenary (traction and the electric brake) over
-        # its whole length, while its start node's cap, the calculator's braking curve, counts on the electric
-        # brake up to the edge, and no state could follow that curve into a span where it can only coast
-        edges = set((np.flatnonzero(np.diff(calc.traction_allowed) != 0) + 1).tolist())
-        keep = [0]
-        for i in range(1, len(calc.s_m) - 1):
-            if i in edges or calc.s_m[i] - calc.s_m[keep[-1]] >= cell_m - 1e-9:
-                keep.append(i)
-        if calc.s_m[-1] - calc.s_m[keep[-1]] < 0.5 * cell_m and len(keep) > 1 and keep[-1] not in edges:
-            keep.pop()
-        keep.append(len(calc.s_m) - 1)
-        idx = np.array(keep)
+        idx = dp_nodes(calc, cell_m)
         self.s_m = calc.s_m[idx]
-        h = np.diff(self.s_m)
-        work = np.concatenate([[0.0], np.cumsum(calc.gravity_kn * calc.h_m)])
-        gravity = np.diff(work[idx]) / h
-        allowed = np.array([calc.traction_allowed[a:b].min() for a, b in zip(idx[:-1], idx[1:])])
-        cap = dp_caps(calc, idx)
-        top = float(kmh_from_e(max(calc.e_envelope.max(), 0.0)))
-        self.v_grid = ms(np.arange(0.0, top + speed_step_kmh, speed_step_kmh))
-        self._cells = contiguous(DPCells(h, gravity, allowed, cap, self.v_grid))
+        self._cells = contiguous(dp_cells(calc, idx, speed_step_kmh))
+        self.v_grid = self._cells.v_grid
+        h = self._cells.h
         if run_buckets is None:  # a bucket no longer than the shortest cell (a run advances a bucket per cell)
             run_buckets = int(min(MAX_RUN_BUCKETS, max(RUN_BUCKETS, math.ceil(self.min_run_m / max(h.min(), 1e-9) - 1e-9))))
         self._ctg = np.empty((len(h) + 1, 4, run_buckets + 1, len(self.v_grid) + 1))

@@ -185,4 +185,21 @@ def energy_bound_line(route: str, consist: str, row: dict, objective: str = "tra
             + run
             + (f"\nsecond method ({c['method']}, {c['lgr_points']:,} LGR points): {c['energy_kwh']:.2f} kWh "
                f"within {within_percent(c['accuracy_percent'])}; E* - it = {c['difference_percent']:+.3f} %"
-               if (c := row.get("check")) else ""))
+               if (c := row.get("check")) else "")
+            + cycle_optimum_line(row))
+
+
+def cycle_optimum_line(row: dict) -> str:
+    """``bound --time`` where the air brake cycles: the least energy keeping the cycle, beside E* (which relaxes
+    the air brake to a continuous force)."""
+    e = row.get("optimum_with_cycle_kwh")
+    if e is None:
+        return ""
+    sizes = [f"{c:.3g}" for c in row.get("optimum_with_cycle_cells_m") or []]
+    cells = ", ".join(sizes[:-1]) + (" and " if len(sizes) > 1 else "") + sizes[-1] if sizes else "?"
+    took = row.get("optimum_with_cycle_solve_time_s")
+    return (f"\nwith the air brake's cycle: {e:.2f} kWh within "
+            f"{within_percent(row.get('optimum_with_cycle_accuracy_percent'))} (+{100 * (e / row['energy_kwh'] - 1):.1f} % "
+            f"over E*, which relaxes the air brake to a continuous force; a DP over position, speed and the brake's "
+            f"state on {cells} m cells, "
+            + (f"solved in {took:.2f} s)" if took else "from the cache of earlier solves)"))

@@ -11,7 +11,7 @@ from typing import Optional
 from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
-from ..ocp.bound import GAP_DIGIT_PERCENT, within_percent
+from ..ocp.bound import GAP_DIGIT_PERCENT, percent_digits, within_percent
 
 # ------------------------------------------------------------------------------- fitting a width
 # A table is printed at the console's width (the terminal's, or COLUMNS, or 80 when piped). Numbers
@@ -250,10 +250,28 @@ def summary_table(summary: dict, width: int = 80) -> list:
     if summary.get("gap_to_optimum_kwh") is not None and summary.get("min_recharge_margin_s") is not None:
         # (a plan that cycles its air brake: E* holds that descent with the air brake at will)
         rows.append(("E*", "relaxes the air brake to a continuous force (no cycle): a lower bound"))
+    rows += cycle_optimum_rows(summary)
     rows += coupler_rows(summary)
     rows += air_brake_rows(summary)
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
+
+
+def cycle_optimum_rows(summary: dict) -> list[tuple[str, str]]:
+    """Where the air brake cycles: the bracket of the optimum, E* (the air brake relaxed) .. the least energy of a
+    drive that keeps the cycle, and where the plan sits in it (its gap to the latter in per cent to the digits
+    that optimum's accuracy allows)."""
+    e_cyc = summary.get("optimum_with_cycle_kwh")
+    if e_cyc is None or summary.get("optimum_kwh") is None:
+        return []
+    acc = summary.get("optimum_with_cycle_accuracy_percent")
+    e, e_star = summary["traction_energy_kwh"], summary["optimum_kwh"]
+    digits = percent_digits(acc)
+    gap = summary.get("gap_to_cycle_optimum_percent")
+    where = ("" if gap is None or digits is None else f", {gap:+.{digits}f} % over the latter")
+    cost = "" if e_cyc - e_star <= 1e-9 else f": the cycle costs {100.0 * (e_cyc - e_star) / e_star:.1f} %"
+    return [("optimum bracket", f"{e_star:.2f} .. {e_cyc:.2f} kWh, E* (the air brake relaxed) .. the least energy "
+             f"keeping its cycle (within {within_percent(acc)}){cost}; the plan {e:.2f} kWh{where}")]
 
 
 def energy_rows(summary: dict) -> list[tuple[str, str]]:

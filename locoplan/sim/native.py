@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .records import FIELD_TYPES, CellModel, Cells, DPCells, Forces, IPMLayout, Outputs, Plans
+from .records import FIELD_TYPES, CellModel, Cells, CycleCells, CycleTables, DPCells, Forces, IPMLayout, Outputs, Plans
 
 _F, _I, _A1, _A2, _A3, _A4 = "f8", "i8", "f8[:]", "f8[:, :]", "f8[:, :, :]", "f8[:, :, :, :]"
 
@@ -50,6 +50,11 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",
                 (DPCells, Forces, _F, _F, _F, _A4, _A1, "i8[:]", _A1)),
+    "cycle_prepare": ("locoplan.optimize.cycle_kernel", "cycle_prepare", "void", (CycleCells, Forces, CycleTables)),
+    "cycle_backward": ("locoplan.optimize.cycle_kernel", "cycle_backward", "void",
+                       (CycleCells, Forces, _F, _A3, CycleTables)),
+    "cycle_forward": ("locoplan.optimize.cycle_kernel", "cycle_forward", "UniTuple(f8, 3)",
+                      (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A2, "i8[:]")),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
                       ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
                        "i8[:]", _A1, "i8[:]")),
@@ -78,7 +83,8 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     "ipm_update": ("locoplan.ocp.ipm_kernel", "ipm_update", "void",
                    (IPMLayout, _A1, _A2, _A1, _F, _A1, _F, _A2, _A1, _A1, _A1, _F, _A1, _A2, _A1, _A1, _A1, _A1, _A1)),
 }
-_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "ocp/band_kernel.py",
+_SOURCES = ("sim/constants.py", "sim/records.py", "sim/kernel.py", "optimize/dp_kernel.py", "optimize/cycle_kernel.py",
+            "ocp/band_kernel.py",
             "ocp/cell_kernel.py", "ocp/ipm_kernel.py", "sim/native.py",
             "model/conditions.py", "physics/units.py", "physics/resistance.py", "physics/braking.py",
             "physics/backend.py")
@@ -111,7 +117,7 @@ def module_name() -> str:
 class _Checked:
     """An ahead-of-time function behind a check of its arguments' types (it makes none itself)."""
 
-    _DTYPES = {"f8": np.float64, "i8": np.int64, "i1": np.int8, "b1": np.bool_}
+    _DTYPES = {"f8": np.float64, "i8": np.int64, "i4": np.int32, "i1": np.int8, "b1": np.bool_}
 
     def __init__(self, name: str, fn, arg_types: tuple):
         self.name, self.fn = name, fn
@@ -153,7 +159,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
+    ``forward``, the cycle DP's ``cycle_prepare``, ``cycle_backward``, ``cycle_forward``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
     ``cell_values``, ``cell_derivatives``, ``cell_hessian`` and the interior-point method's ``ipm_*``)."""
     global _kernels
     if _kernels is None:

@@ -118,6 +118,60 @@ class DPCells(NamedTuple):
     v_grid: np.ndarray
 
 
+class CycleCells(NamedTuple):
+    """The cycle DP's grid (``optimize/cycle_dp.py``, ``optimize/cycle_kernel.py``): the priced DP's cells
+    (lengths ``h`` [m], mean gravity ``grav`` [kN], ``allowed`` catenary 1/0, the cap at each node ``e_cap`` as
+    e = v^2/2, the shared speed grid ``v_grid`` [m/s]) and the air brake's: per node whether its state is tracked
+    there (``zone`` 1/0; 0 = no air brake), per cell whether a cap there is a braking curve an application may
+    follow (``curve_ok``), the build-up time of an application made in it (``t_build`` [s]) and the speed at which
+    the calculator applies it on a grade the electric brake cannot hold (``e_app``, e; inf elsewhere); each node's
+    lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge ``t_rec``
+    and least hold ``t_hold`` [s] (< 0: the build-up time), ``n_rec`` the recharge's states (one every
+    ``t_rec / n_rec`` seconds since a release), and ``relaxed``: the air brake as a continuous force everywhere
+    (no state: the relaxation's DP)."""
+
+    h: np.ndarray
+    grav: np.ndarray
+    allowed: np.ndarray
+    e_cap: np.ndarray
+    v_grid: np.ndarray
+    zone: np.ndarray
+    curve_ok: np.ndarray
+    t_build: np.ndarray
+    e_app: np.ndarray
+    e_low: np.ndarray
+    t_rec: float
+    t_hold: float
+    n_rec: int
+    relaxed: bool
+
+
+class CycleTables(NamedTuple):
+    """What the cycle DP computes once per grid (``optimize/cycle_kernel.py``, ``cycle_prepare``): per node k, grid
+    speed j and single-cell control u (``se`` .. [k, j, u]) the step's e at the cell's end, traction work [kJ],
+    time [s], verdict (``sok``) and where e lands on the next node's grid (``si`` its lower grid index, -1: above the
+    cap; ``sx`` the weight of the upper one, negative where the state lies above that node's stall boundary); per
+    zone node (``zmap[k]``: its row, -1 outside the zones) and path m the same for the path's end (``pj`` its node,
+    -1: none; ``pq`` the time since its release there [s], for a path that ends recharging); ``top[k]`` the last
+    grid index below node k's cap."""
+
+    se: np.ndarray
+    sw: np.ndarray
+    st: np.ndarray
+    sok: np.ndarray
+    si: np.ndarray
+    sx: np.ndarray
+    pj: np.ndarray
+    pe: np.ndarray
+    pt: np.ndarray
+    pw: np.ndarray
+    pq: np.ndarray
+    pi: np.ndarray
+    px: np.ndarray
+    top: np.ndarray
+    zmap: np.ndarray
+
+
 class CellModel(NamedTuple):
     """E*'s cell problem (``ocp/cells.py``) for its compiled evaluation (``ocp/cell_kernel.py``): ``nf``
     forces per cell (variables ``[v_0, f_0.., v_1, ...]`` scaled by ``v_ref`` and ``f_ref``), the cells'
@@ -180,6 +234,10 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
+    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _A1, _F, _F, "i8", _B),
+    CycleTables: ("f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i1[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
+                  "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
+                  "i8[:]", "i8[:]"),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),
     IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),

@@ -1,0 +1,514 @@
+"""The least energy of a drive that keeps the air brake's cycle: a DP over position, speed and the brake's state.
+
+E* (``ocp/bound.py``) relaxes the wagons' air brake to a continuous force a run may modulate at will, so on a
+descent the electric brake cannot hold it holds the limit exactly, and a plan's gap to it mixes what the planner
+loses with what the cycle must cost: an application builds up over its build-up time, is held at least its least
+hold, is released in full, may not be made again before the recharge time has passed, and while it is on the train
+brakes with it and the full electric brake (docs/model.md, "the air brake's cycle"). This module finds the least
+traction energy of a drive that keeps those rules, on the calculator's train model, by dynamic programming at a
+price of time (as ``dp.py``), the price searched for the running time.
+
+**The state** is (node, speed, air state), the air state one of
+- CH: released and charged: may apply;
+- AF: applied, its least hold and build-up over: brakes with the air brake and the full electric brake; may stay
+  applied (B) or be released at the node;
+- R0 + b: released and recharging, b x 15 s (``REC_STEP_S``, the recharge in equal parts) since the release; charged
+  at the first node where the recharge is over. Between two of these states a value is interpolated in time, and
+  taken as none where the earlier state has none: a drive never counts on more time than has passed;
+- NA: outside every zone (below): no air brake.
+A single cell's controls: full traction (T), holding the speed (H: traction, or the electric brake, at full where
+it cannot hold), coasting (C), the full electric brake (E), and in AF the air brake staying on (B).
+
+**Paths**: whatever the cycle does for a time of its own runs as a path of phases whose ends fall at their exact
+times, inside a cell where they fall there (``cycle_kernel.P_*``): from CH an application (building up linearly
+over its build-up time, at each cell's middle time as the calculator has it) until its least hold and build-up are
+over, then braking on to the next node (AF), or released that very instant and recharged under H for exactly the
+recharge time (CH at the node after), or released that instant and the rest of the cell under H, C or E (recharging
+at the next node, the time since the release known exactly); from AF a release and the recharge under H for exactly
+the recharge time (CH), or with an application the instant it is over (AF). So both the least hold and the recharge
+bind exactly where they bind, and the drive the forward pass returns -- every step and path run again from the
+train's actual state, the time since a release exact -- keeps the rules: no application within a recharge, no hold
+shorter than the least. (An elapsed-time state advanced by whole buckets per cell, rounded down to stay on the safe
+side, loses up to a bucket every cell: 5-10 s of a 90 s recharge on 50 m cells.) The backward pass reads the paths'
+whole cells off the one-cell tables, interpolated in speed; the forward pass steps them.
+
+**The calculator's rules that bind a plan** are the drive's too: a released brake is applied when the speed reaches
+the apply speed on a grade the electric brake cannot hold (``kernel.cycle_speeds``; an application starts where
+holding reaches it, inside the cell), and while it recharges on a descent the electric brake holds the speed. A
+braking curve (to a lower limit, to the stop, along a descent full braking cannot hold) is followed as the calculator
+follows it, with up to full braking: where that needs the air brake it is an application of its own by a charged
+brake, released where the curve ends (no least hold). The limit itself is never held with the air brake: on a descent
+the electric brake cannot hold, the application comes at the apply speed, below it.
+
+**Where the state matters** (``air_zones``): around the cells where the air brake may be needed -- the descents
+whose grade the electric brake cannot hold at the limit (``cycle_regions_m``), the braking curves that need the air
+brake (``next_air_curve``), the descents full braking cannot hold -- extended by the distance covered at the top
+speed in a recharge and two applications (before) and two applications (after), joined where less than a
+recharge at the top speed lies between them. Outside the zones there is no air brake and no state: the drive brakes
+electrically there and reaches the next zone charged (at least a recharge at the top speed lies between). A
+restriction of the drives: the answer stays a drive's.
+
+**Where the cycle cannot bind** (``cycle_binds``): without the cycle in the model (``--no-air-brake``,
+``--point-mass``, ``ModelOptions.air_cycle`` off), or where no descent needs the cycle and no two places that need the
+air brake lie within a recharge at the top speed of each other, every application is a braking curve followed with
+up to full braking, as in the relaxation: the cycle optimum is E* itself, and nothing is solved.
+
+**What the number is** (``solve_cycle_optimum``): the energy at T of drives that keep the cycle on the DP's grid,
+on the chord between the two drives whose running times bracket T (the lowest such chord; above the energy-time
+curve where it is convex). It approximates the cycle optimum from above on its grid: one control per cell of about
+``cell_m``, speeds interpolated between the grid's, applications and releases at nodes where no time binds them. Its
+stated accuracy: the DP on cells of ``coarse_cell_m`` and half as long (once more where those two differ by more
+than ``REFINE_TOL``), the last two grids' difference plus the same DP's excess over E* without the cycle on the
+finest grid (``relaxed=True``: no state, full braking at will). It is not a bound: a drive on a finer grid, or one
+switching inside cells, may use less, and the DP's cells are not the calculator's (benchmarks/bench_cycle_optimum.py
+measures plans on the calculator against it). The recharge that binds after a release at a node (the release
+speed, not a time, decides it) converges at first order in the cell: there the grids' difference shows it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..errors import InfeasibleError
+from ..physics.units import kwh
+from ..sim.calculator import TractionCalculator
+from ..sim.native import kernels
+from ..sim.records import CycleCells, CycleTables, contiguous
+from .cycle_kernel import N_P, N_U
+from .dp import dp_cells, dp_nodes
+
+CELL_M = 100.0
+"""Target length of the coarser grid's cells [m] (the finer grid: half)."""
+MIN_CELLS = 300
+CELL_MIN_M = 10.0
+"""On a short line the coarser grid has at least ``MIN_CELLS`` cells, of at least ``CELL_MIN_M``."""
+SPEED_STEP_KMH = 0.5
+"""The coarser grid's speed step [km/h] (the finer grid: half)."""
+REFINE_TOL = 2.5e-3
+MAX_GRIDS = 3
+"""The cells are halved once, and once more where the two grids' optima differ by more than ``REFINE_TOL``."""
+PRICE_CLOSE = 1.002
+PRICE_CLOSE_COARSE = 1.01
+"""The price of time is bisected until the two prices whose drives bracket T are within this ratio (on the coarser
+grid, whose bracket starts the finer grid's search, within the wider one)."""
+PRICE_RANGE = (1e-5, 50.0)
+"""Prices of time searched [kWh/s] (geometric bisection), beyond a hint's walk."""
+MAX_SOLVES = 40
+TIME_CLOSE_SHARE = 1e-3
+TIME_SAME_S = 0.5
+"""The search for T stops once the two drives that bracket it are within this share of T of each other, or twice in a
+row a new price's drive ran within ``TIME_SAME_S`` [s] of the end it replaced (the drive's time jumps between them:
+no drive lies between)."""
+REC_STEP_S = 15.0
+"""The recharge's states lie this far apart in time since the release [s] (at most: the recharge in equal parts)."""
+HINT_STEP = 0.15
+"""From a price hint the search steps 15 % of the price away (the cycle's price lies above E*'s slope), doubling, until the
+time crosses T."""
+
+
+@dataclass(frozen=True)
+class CycleDrive:
+    """A drive of the cycle DP at one price: its nodes [m], per cell the control at its start
+    (``cycle_kernel.U_*``: T, H, C, B, E) and the air brake's state there (``cycle_kernel.AIR_*``), per node the
+    speed [km/h] and time [s]; the air brake's events: where [m], when [s], at what speed [km/h] and what
+    (``cycle_kernel.EV_*``: applied, released, applied following a braking curve); its running time [s] and
+    traction energy [kWh]."""
+
+    price_kwh_per_s: float
+    s_m: np.ndarray
+    controls: np.ndarray
+    air: np.ndarray
+    speed_kmh: np.ndarray
+    t_s: np.ndarray
+    event_m: np.ndarray
+    event_s: np.ndarray
+    event_kmh: np.ndarray
+    event_kind: np.ndarray
+    time_s: float
+    energy_kwh: float
+
+
+def air_zones(calc: TractionCalculator, idx: np.ndarray, e_cap: np.ndarray) -> np.ndarray:
+    """Per DP cell (between calculator nodes ``idx``): whether the air brake's state is tracked there (see the
+    module docstring). ``e_cap``: the DP's caps at its nodes (e = v^2/2)."""
+    cyc = calc.air_cycle
+    n = len(idx) - 1
+    if cyc is None:
+        return np.zeros(n, dtype=bool)
+    own = np.arange(len(calc.h_m))
+    need = (calc.next_short == own) | (calc.next_air_curve == own) | ~calc.brake_holds_limit
+    cell = np.add.reduceat(need.astype(np.int64), idx[:-1]) > 0
+    if not cell.any():
+        return cell
+    s = calc.s_m[idx]
+    v_top = float(np.sqrt(2.0 * max(float(np.max(e_cap)), 0.0)))
+    t_app = max(float(np.max(calc.t_build_s)), cyc.min_hold_s or 0.0)
+    before = v_top * (cyc.recharge_s + 2.0 * t_app)
+    after = v_top * 2.0 * t_app
+    join = v_top * cyc.recharge_s
+    spans: list[list[float]] = []
+    on = np.flatnonzero(cell)
+    for k in on:
+        a, b = s[k] - before, s[k + 1] + after
+        if spans and a <= spans[-1][1] + join:
+            spans[-1][1] = max(spans[-1][1], b)
+        else:
+            spans.append([a, b])
+    zone = np.zeros(n, dtype=bool)
+    for a, b in spans:
+        zone |= (s[1:] > a) & (s[:-1] < b)
+    _join_short_gaps(zone, s, e_cap, cyc.recharge_s)
+    return zone
+
+
+def _join_short_gaps(zone: np.ndarray, s: np.ndarray, e_cap: np.ndarray, t_rec: float) -> None:
+    """Fill (in place) every gap between two zones that a train at its top speed there crosses in less than the
+    recharge time: leaving a zone in any state, the brake must be charged at the next."""
+    n = len(zone)
+    k = 0
+    while k < n:
+        if zone[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and not zone[j]:
+            j += 1
+        if 0 < k and j < n:  # a gap between two zones: cells k .. j-1
+            v = float(np.sqrt(2.0 * max(float(np.max(e_cap[k:j + 1])), 0.0)))
+            if s[j] - s[k] < v * t_rec * (1.0 + 1e-9):
+                zone[k:j] = True
+        k = j
+
+
+def apply_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
+    """Per DP cell (between calculator nodes ``idx``) the speed (as e = v^2/2) at which the calculator applies the
+    air brake of a released train on a grade the electric brake cannot hold at the limit (``kernel.cycle_speeds``:
+    below the limit by the build-up's overshoot, 1 km/h at least): the lowest of its calculator cells; inf where
+    none is such a grade."""
+    n_calc = len(calc.h_m)
+    e = np.full(n_calc, np.inf)
+    short = np.flatnonzero(calc.next_short == np.arange(n_calc))
+    for k in short:
+        e[k] = float(calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), int(k), np.zeros(1))[0][0])
+    return np.minimum.reduceat(e, idx[:-1])
+
+
+def cycle_binds(calc: TractionCalculator) -> bool:
+    """Whether the air brake's cycle can make a drive dearer than the relaxation on this line (module
+    docstring): a model with the cycle, and a descent the electric brake cannot hold at the limit, or two
+    places that need the air brake (braking curves, descents full braking cannot hold) less than the recharge
+    time at the top speed apart."""
+    if calc.air_cycle is None:
+        return False
+    if len(calc.cycle_regions_m):
+        return True
+    own = np.arange(len(calc.h_m))
+    need = (calc.next_air_curve == own) | ~calc.brake_holds_limit
+    if not need.any():
+        return False
+    runs = np.flatnonzero(np.diff(np.concatenate([[0], need.astype(np.int8), [0]])) != 0)
+    starts, ends = runs[::2], runs[1::2]  # cells [starts, ends)
+    v_top = float(np.sqrt(2.0 * max(float(np.max(calc.e_envelope)), 0.0)))
+    gaps = calc.s_m[starts[1:]] - calc.s_m[ends[:-1]]
+    return bool(np.any(gaps < v_top * calc.air_cycle.recharge_s))
+
+
+class CycleDPSolver:
+    """The cycle DP over one calculator's route on cells of about ``cell_m`` [m] and a speed grid of
+    ``speed_step_kmh``; ``solve(price)`` gives the priced optimum. ``relaxed``: the same DP with the air brake a
+    continuous force (no state), the relaxation's grid optimum."""
+
+    def __init__(self, calc: TractionCalculator, cell_m: float = CELL_M, speed_step_kmh: float = SPEED_STEP_KMH,
+                 relaxed: bool = False):
+        cyc = calc.air_cycle
+        if cyc is None and not relaxed:
+            raise InfeasibleError("the cycle DP needs a model with the air brake's cycle (the air brake, its cycle on)")
+        self.calc, self.relaxed = calc, relaxed
+        self.cell_m, self.speed_step_kmh = float(cell_m), float(speed_step_kmh)
+        idx = dp_nodes(calc, cell_m)
+        base = contiguous(dp_cells(calc, idx, speed_step_kmh))
+        n = len(idx) - 1
+        e_low = np.zeros(n + 1)
+        kernels().stall_boundary(base, calc.forces, e_low)
+        zone_cells = np.zeros(n, dtype=bool) if relaxed else air_zones(calc, idx, base.e_cap)
+        zone = np.concatenate([zone_cells, zone_cells[-1:]]).astype(np.int64)
+        e_lim = np.minimum.reduceat(calc.e_limit_cell, idx[:-1])
+        holds = np.minimum.reduceat(calc.brake_holds_limit.astype(np.int64), idx[:-1]) > 0
+        curve_ok = (base.e_cap[1:] < e_lim * (1.0 - 1e-6)) | ~holds
+        curve_ok[-1] = True  # the stop
+        # an application's build-up (and least hold) in a DP cell: the longest of its calculator cells' (a hold that
+        # is never shorter than the calculator would ask wherever in the cell the application is made)
+        t_build = np.maximum.reduceat(calc.t_build_s, idx[:-1]) if cyc is not None else np.zeros(n)
+        e_app = apply_speeds(calc, idx) if cyc is not None and not relaxed else np.full(n, np.inf)
+        self.s_m = calc.s_m[idx]
+        t_rec = float(cyc.recharge_s) if cyc else 0.0
+        n_rec = max(1, int(math.ceil(t_rec / REC_STEP_S - 1e-9))) if t_rec > 0 else 1
+        self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone, curve_ok,
+                                           t_build, e_app, e_low, t_rec,
+                                           float(cyc.min_hold_s) if cyc and cyc.min_hold_s is not None else -1.0,
+                                           n_rec, bool(relaxed)))
+        nv = len(base.v_grid)
+        self._V = np.empty((n + 1, 3 + n_rec, nv + 1))
+        zmap = np.full(n + 1, -1, dtype=np.int64)
+        if not relaxed:
+            zmap[np.flatnonzero(zone[:-1])] = np.arange(int(np.count_nonzero(zone[:-1])))
+        nz = max(int(zmap.max()) + 1, 1)
+        s3, p3 = (n, nv + 1, N_U), (nz, nv + 1, N_P)
+        self.tables = CycleTables(np.zeros(s3), np.zeros(s3), np.zeros(s3), np.zeros(s3, dtype=np.int8),
+                                  np.zeros(s3, dtype=np.int32), np.zeros(s3), np.full(p3, -1, dtype=np.int32),
+                                  np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3, dtype=np.int32),
+                                  np.zeros(p3),
+                                  np.zeros(n + 1, dtype=np.int64), zmap)
+        kernels().cycle_prepare(self.cells, calc.forces, self.tables)
+        self.n_solves = 0
+        self.drives: list[CycleDrive] = []
+
+    @property
+    def zone_m(self) -> float:
+        """Length of the line where the air brake's state is tracked [m]."""
+        return float(np.sum(self.cells.h[self.cells.zone[:-1] != 0]))
+
+    def solve(self, price_kwh_per_s: float) -> CycleDrive | None:
+        """The drive that minimises traction energy + ``price_kwh_per_s`` x time, or None when none reaches the stop."""
+        n = len(self.s_m) - 1
+        k = kernels()
+        k.cycle_backward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, self.tables)
+        controls = np.zeros(n, dtype=np.int64)
+        air = np.zeros(n, dtype=np.int64)
+        v = np.zeros(n + 1)
+        t_nodes = np.zeros(n + 1)
+        ev, ev_k = np.zeros((4 * n + 16, 3)), np.zeros(4 * n + 16, dtype=np.int64)
+        t, work, n_ev = k.cycle_forward(self.cells, self.calc.forces, float(price_kwh_per_s), self._V, self.tables,
+                                        controls, air, v, t_nodes, ev, ev_k)
+        self.n_solves += 1
+        if not math.isfinite(t):
+            return None
+        m = int(n_ev)
+        return CycleDrive(float(price_kwh_per_s), self.s_m, controls, air, v, t_nodes, self._where(ev[:m, 0]),
+                          ev[:m, 1].copy(), ev[:m, 2].copy(), ev_k[:m].copy(), float(t), kwh(float(work)))
+
+    def _where(self, at: np.ndarray) -> np.ndarray:
+        """Positions [m] of events given as node + the fraction of its cell."""
+        i = np.minimum(np.floor(at).astype(np.int64), len(self.s_m) - 1)
+        nxt = self.s_m[np.minimum(i + 1, len(self.s_m) - 1)]
+        return self.s_m[i] + (at - i) * (nxt - self.s_m[i])
+
+    def bracket(self, t0_s: float, price_hint: float | None = None, seed: tuple[float, float] | None = None,
+                close: float = PRICE_CLOSE) -> tuple[CycleDrive | None, CycleDrive | None]:
+        """The two drives whose running times bracket ``t0_s``: (the fastest found slower than it, the slowest found
+        no slower), their prices within ``close`` of each other. The running time falls as the price rises; the
+        search starts from ``seed`` (two prices [kWh/s] that bracketed ``t0_s`` on another grid) or from
+        ``price_hint`` [kWh/s] (e.g. E*'s slope), walks out in doubling steps until the time crosses ``t0_s``, then
+        bisects geometrically. The first is None where even the lowest price drives no slower than ``t0_s`` (the
+        least energy comes within the time), the second where no price reaches it. Every drive solved is kept in
+        ``drives``."""
+        slow: CycleDrive | None = None
+        fast: CycleDrive | None = None
+
+        def too_slow(x: float) -> bool:
+            nonlocal slow, fast
+            d = self.solve(math.exp(x))
+            if d is not None:
+                self.drives.append(d)
+            if d is None or d.time_s > t0_s:  # (none: too cheap a price to reach the stop at all)
+                if d is not None and (slow is None or d.time_s < slow.time_s):
+                    slow = d
+                return True
+            if fast is None or d.time_s > fast.time_s:
+                fast = d
+            return False
+
+        bottom, top = (math.log(p) for p in PRICE_RANGE)
+        x_slow = x_fast = None
+        starts = [math.log(p) for p in seed if PRICE_RANGE[0] < p < PRICE_RANGE[1]] if seed else []
+        if not starts and price_hint is not None and PRICE_RANGE[0] < price_hint < PRICE_RANGE[1]:
+            starts = [math.log(price_hint)]
+        if starts:
+            for x in sorted(starts):
+                if too_slow(x):
+                    x_slow = x if x_slow is None else max(x_slow, x)
+                elif x_fast is None:
+                    x_fast = x
+            up = x_fast is None
+            x = max(starts) if up else min(starts)
+            step = HINT_STEP if len(starts) < 2 else max(abs(starts[1] - starts[0]), 0.2 * HINT_STEP)
+            while (x_slow is None or x_fast is None) and self.n_solves < MAX_SOLVES:
+                nx = min(top, x + step) if up else max(bottom, x - step)
+                if nx == x:
+                    break
+                x, step = nx, 2.0 * step
+                if too_slow(x):
+                    x_slow = x
+                else:
+                    x_fast = x
+        else:
+            x_slow = bottom if too_slow(bottom) else None
+            x_fast = None if too_slow(top) else top
+            if x_slow is None:
+                x_fast = bottom
+        if x_slow is None or x_fast is None:
+            return slow, fast
+        # regula falsi on the log price (Illinois: an end kept twice counts half), bisection where the times of the
+        # bracket's ends are not both known; until the prices are within ``close`` or the two drives' times within
+        # ``TIME_CLOSE_SHARE`` of t0_s
+        t_s = slow.time_s if slow is not None else None
+        t_f = fast.time_s if fast is not None else None
+        w_s = w_f = 1.0
+        last = 0
+        stalls = 0  # new drives that only repeat an end's time: the running time jumps there (a staircase)
+        while x_fast - x_slow > math.log(close) and self.n_solves < MAX_SOLVES and stalls < 2:
+            if slow is not None and fast is not None and slow.time_s - fast.time_s <= TIME_CLOSE_SHARE * t0_s:
+                break
+            if t_s is not None and t_f is not None and t_s > t_f:
+                a, b = w_s * (t_s - t0_s), w_f * (t0_s - t_f)
+                mid = x_slow + (x_fast - x_slow) * a / (a + b)
+                span = x_fast - x_slow  # (kept off the ends: the staircase of times)
+                mid = min(max(mid, x_slow + 0.05 * span), x_fast - 0.05 * span)
+            else:
+                mid = 0.5 * (x_slow + x_fast)
+            before = (t_s, t_f)
+            if too_slow(mid):
+                x_slow = mid
+                t_s = slow.time_s if slow is not None else None
+                w_f, w_s = (0.5 * w_f if last == -1 else w_f), 1.0
+                last = -1
+            else:
+                x_fast = mid
+                t_f = fast.time_s
+                w_s, w_f = (0.5 * w_s if last == 1 else w_s), 1.0
+                last = 1
+            moved = [abs(a - b) for a, b in zip(before, (t_s, t_f)) if a is not None and b is not None]
+            stalls = stalls + 1 if moved and min(moved) <= TIME_SAME_S else 0
+        return slow, fast
+
+
+def energy_at(drives: list[CycleDrive], t0_s: float) -> float:
+    """Traction energy in at most ``t0_s`` [kWh] from the drives found: the lowest chord at ``t0_s`` between a
+    drive slower and one no slower than it (a point on the energy-time curve's lower hull, as E*'s curve is convex);
+    where every drive is no slower than ``t0_s``, the least energy among them (the least energy comes within the
+    time). Raises ``InfeasibleError`` where no drive runs within ``t0_s``."""
+    fast = [d for d in drives if d.time_s <= t0_s]
+    slow = [d for d in drives if d.time_s > t0_s]
+    if not fast:
+        raise InfeasibleError(f"no drive keeping the air brake's cycle runs in {t0_s:.1f} s"
+                              + (f" (the fastest found takes {min(d.time_s for d in slow):.1f} s)" if slow else ""))
+    best = min(d.energy_kwh for d in fast)
+    for a in slow:
+        for b in fast:
+            if a.time_s - b.time_s > 1e-9:
+                w = (a.time_s - t0_s) / (a.time_s - b.time_s)
+                best = min(best, a.energy_kwh + w * (b.energy_kwh - a.energy_kwh))
+    return best
+
+
+@dataclass(frozen=True)
+class GridOptimum:
+    """The cycle DP on one grid: cell length [m], speed step [km/h], energy at T [kWh], the bracketing drives'
+    times [s] and prices [kWh/s], the solves it took and the wall time [s]."""
+
+    cell_m: float
+    speed_step_kmh: float
+    energy_kwh: float
+    times_s: tuple[float, ...]
+    prices_kwh_per_s: tuple[float, ...]
+    solves: int
+    wall_s: float
+
+
+def grid_optimum(calc: TractionCalculator, t0_s: float, cell_m: float, speed_step_kmh: float,
+                 price_hint: float | None = None, relaxed: bool = False, seed: tuple[float, float] | None = None,
+                 close: float = PRICE_CLOSE) -> tuple[GridOptimum, CycleDrive]:
+    """The cycle DP's energy at ``t0_s`` on one grid (``energy_at``), and the drive nearest ``t0_s`` no slower
+    than it (or the slowest found, where all are slower)."""
+    t = time.perf_counter()
+    solver = CycleDPSolver(calc, cell_m, speed_step_kmh, relaxed=relaxed)
+    slow, fast = solver.bracket(t0_s, price_hint, seed, close)
+    e = energy_at(solver.drives, t0_s)
+    ends = [d for d in (slow, fast) if d is not None]
+    return (GridOptimum(cell_m, speed_step_kmh, e, tuple(d.time_s for d in ends),
+                        tuple(d.price_kwh_per_s for d in ends), solver.n_solves, time.perf_counter() - t),
+            fast if fast is not None else slow)
+
+
+def coarse_cell_m(calc: TractionCalculator) -> float:
+    """The coarser grid's cell length [m]: ``CELL_M``, and on a short line at least ``MIN_CELLS`` cells."""
+    return max(CELL_MIN_M, min(CELL_M, calc.route.length_m / MIN_CELLS))
+
+
+@dataclass(frozen=True)
+class CycleOptimum:
+    """The least traction energy of a drive that keeps the air brake's cycle, at one running time.
+
+    ``cycles``: whether the cycle can bind on the line (``cycle_binds``); without it the cycle optimum is the
+    relaxed E* itself and nothing is solved (``energy_kwh`` None). ``energy_kwh`` [kWh]: the cycle DP on the finer
+    of two nested grids (``grids``: cell [m], speed step [km/h], energy [kWh], solves, wall time [s] each);
+    ``accuracy``: its estimated relative accuracy, the two grids' difference plus the same DP's excess over E*
+    without the cycle on the finer grid (``relaxed_dp_kwh`` against ``estar_kwh``; where E* is not given, the grids'
+    difference alone). ``price_kwh_per_s``: the price of time of the finer grid's drive nearest T; ``drive`` that
+    drive (``CycleDrive``); ``solve_time_s`` the wall time of it all [s]."""
+
+    time_s: float
+    cycles: bool
+    energy_kwh: float | None = None
+    accuracy: float | None = None
+    estar_kwh: float | None = None
+    relaxed_dp_kwh: float | None = None
+    price_kwh_per_s: float | None = None
+    grids: tuple = ()
+    solve_time_s: float = 0.0
+    drive: CycleDrive | None = None
+    method: str = "cycle DP"
+
+    @property
+    def accuracy_percent(self) -> float | None:
+        return None if self.accuracy is None else 100.0 * self.accuracy
+
+
+def grid_calculator(calc: TractionCalculator, cell_m: float) -> TractionCalculator:
+    """``calc``, or one of the same route, train and model on a grid fine enough for DP cells of ``cell_m``."""
+    if calc.options.step_m <= cell_m + 1e-9:
+        return calc
+    return TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=cell_m))
+
+
+def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar_kwh: float | None = None,
+                        price_hint: float | None = None, cell_m: float | None = None,
+                        speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
+    """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP on
+    cells of ``cell_m`` (default ``coarse_cell_m``), then on cells half as long, and once more (``MAX_GRIDS``) where
+    those two differ by more than ``REFINE_TOL``; the price of time searched for ``time_s`` from ``price_hint``
+    [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it), on each finer grid from the coarser one's
+    bracket; the finest grid without the cycle against ``estar_kwh`` [kWh] (E* at ``time_s``) for the accuracy: the
+    last two grids' difference plus that excess. Where the cycle cannot bind, nothing is solved (``cycles`` False).
+    Raises ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
+    t_wall = time.perf_counter()
+    if not cycle_binds(calc):
+        return CycleOptimum(float(time_s), False, estar_kwh=estar_kwh, method="relaxed E* (the cycle cannot bind)")
+    cell = coarse_cell_m(calc) if cell_m is None else float(cell_m)
+    g, drive = grid_optimum(grid_calculator(calc, cell), time_s, cell, speed_step_kmh, price_hint,
+                            close=PRICE_CLOSE_COARSE)
+    found = [g]
+    while True:
+        cell /= 2
+        fine_calc = grid_calculator(calc, cell)
+        g, drive = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, seed=found[-1].prices_kwh_per_s)
+        found.append(g)
+        diff = abs(found[-1].energy_kwh - found[-2].energy_kwh) / max(abs(g.energy_kwh), 1e-9)
+        if diff <= REFINE_TOL or len(found) >= MAX_GRIDS:
+            break
+    relaxed_kwh = None
+    excess = 0.0
+    if estar_kwh is not None:
+        rel, _ = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, relaxed=True)
+        relaxed_kwh = rel.energy_kwh
+        excess = max(rel.energy_kwh - estar_kwh, 0.0)
+    e = g.energy_kwh
+    acc = (abs(found[-1].energy_kwh - found[-2].energy_kwh) + excess) / max(abs(e), 1e-9)
+    grids = tuple({"cell_m": x.cell_m, "speed_step_kmh": x.speed_step_kmh, "energy_kwh": x.energy_kwh,
+                   "solves": x.solves, "wall_s": x.wall_s} for x in found)
+    return CycleOptimum(float(time_s), True, e, acc, estar_kwh, relaxed_kwh, drive.price_kwh_per_s, grids,
+                        time.perf_counter() - t_wall, drive)

@@ -1,0 +1,875 @@
+"""The cycle DP's compiled loops (numba): a cell's step under a control, the air brake's applications and
+recharges as paths with exact times, the backward and the forward pass.
+
+``cycle_dp.py`` holds the method and its documentation; these are its inner loops, called through
+``locoplan.sim.native`` (ahead-of-time compiled where possible, numba's JIT otherwise). The forces are
+``locoplan.physics``' own, compiled in ``sim/kernel.py``: traction, the electric brake, the air brake,
+resistance plus gravity; the step is the calculator's (forces at the mid-speed, two passes, dt = 2 h / (v0 + v1)).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..physics.units import KJ_PER_KWH
+from ..sim.kernel import davis_kn, e_from_ms, kmh_from_e, ms_from_e
+from .dp_kernel import _blend, _bracket, _interp1
+
+CH, NA, AF, R0 = 0, 1, 2, 3
+"""Air-brake states at a node: released and charged (may apply); released, outside every zone (no air brake
+there: the next zone is reached charged); applied at full with its least hold over (may release); released and
+recharging, R0 + b for b = 0 .. n_rec - 1 with b x the recharge / n_rec [s] since the release (a train in it
+cannot apply; its value between two of them is interpolated in time, and taken as none where the one before is:
+never earlier than the rules allow)."""
+U_T, U_H, U_C, U_B, U_E = 0, 1, 2, 3, 4
+N_U = 5
+"""A cell's control: full traction, hold the speed (traction, or braking up to what the state allows, at full
+where that cannot hold it), coast, braking with the air brake applied (and the full electric brake), the full
+electric brake alone. The first four are the calculator's condition codes (T, K, C, B)."""
+P_A, P_AR_H, P_AX_H, P_AX_C, P_AX_E, P_R_H, P_RA_H = 0, 1, 2, 3, 4, 5, 6
+N_P = 7
+N_CH = 5
+"""Paths of several cells from a node, made of phases whose ends come at exact times (inside a cell where they
+fall there):
+- from a charged brake (CH): an application, held until both its least hold and its build-up are over, then on
+  applied to the next node (``P_A``: AF there), or released that instant and, under H, recharged for exactly the
+  recharge time, on to the node after (``P_AR_H``: CH there), or released that instant and the rest of that cell
+  under H, C or E (``P_AX_*``: recharging at the next node, the time since the release known exactly);
+- from an applied one (AF): released at the node and recharged under H for exactly the recharge time, on to the
+  node after (``P_R_H``: CH), or with an application the instant the recharge is over (``P_RA_H``: AF)."""
+OK, AIR, NO = 0, 1, 2
+"""A step's verdict: possible as it is (or held at the next node's cap by the electric brake alone), possible
+only with the air brake (applied, or following a braking curve), not possible."""
+AIR_OFF, AIR_CYCLE, AIR_RECHARGE, AIR_CURVE = 0, 1, 2, 3
+"""The drive's air brake at each cell's start: released (charged, or no application ahead in the zone), applied
+(an application of its own, with its build-up and least hold), released and recharging, applied following a
+braking curve (no least hold: released where the curve ends, as in the calculator)."""
+EV_APPLY, EV_RELEASE, EV_CURVE, EV_CHARGED = 1, 2, 3, 4
+"""The drive's events: an application, a release, an application following a braking curve, a recharge over (where
+a recharge path's ends, or a recharging train finds it over at a node)."""
+PH_APPLY, PH_REC = 0, 1
+
+
+@njit(cache=True, _nrt=False)
+def _brake_force(vm, lvl, k, cc, fo):
+    """Braking [kN] at vm in cell k: the electric brake where the catenary feeds it plus ``lvl`` x the air brake."""
+    b = _interp1(vm, fo.ev, fo.ef) * cc.allowed[k]
+    if lvl > 0.0:
+        b += lvl * _interp1(vm, fo.av, fo.af)
+    return b
+
+
+@njit(cache=True, _nrt=False)
+def _free_part(e, u, t0, t_b, k, length, cc, fo):
+    """``length`` [m] of cell k from e = v^2/2 under control u (not H), no cap: (e at its end, traction work
+    [kJ]). With U_B the air brake's level is its linear build-up at the part's middle time, ``t0`` [s] after the
+    application at the part's start (``t_b`` its build-up time; <= 0: full at once)."""
+    g_k = cc.grav[k]
+    v0 = ms_from_e(max(e, 0.0))
+    e1 = e
+    f = 0.0
+    for _ in range(2):
+        e_m = max(0.5 * (e + e1), 0.0)
+        vm = kmh_from_e(e_m)
+        f = 0.0
+        b = 0.0
+        if u == U_T:
+            f = _interp1(vm, fo.tv, fo.tf) * cc.allowed[k]
+        elif u == U_E:
+            b = _brake_force(vm, 0.0, k, cc, fo)
+        elif u == U_B:
+            lvl = 1.0
+            if t_b > 0.0:
+                t_mid = t0 + length / (v0 + ms_from_e(e_m) + 1e-12)  # the calculator's mid-cell time
+                lvl = min(max(t_mid / t_b, 0.0), 1.0)
+            b = _brake_force(vm, lvl, k, cc, fo)
+        load = davis_kn(vm, fo.ra, fo.rb, fo.rc) + g_k
+        e1 = e + length / fo.m * (f - b - load)
+    if u == U_T:
+        f = _interp1(kmh_from_e(max(0.5 * (e + e1), 0.0)), fo.tv, fo.tf) * cc.allowed[k]
+    return e1, f * length
+
+
+@njit(cache=True, _nrt=False)
+def _part(e, u, t0, t_b, k, length, cc, fo, full_hold):
+    """As ``_free_part``, and H: the speed held with traction or braking (the electric brake, or with
+    ``full_hold`` full braking) where it can be, else full traction (a climb) or that braking at full (a
+    descent); from rest H is not possible (e_end -1)."""
+    if u != U_H:
+        return _free_part(e, u, t0, t_b, k, length, cc, fo)
+    if e <= 0.0:
+        return -1.0, 0.0
+    v_kmh = kmh_from_e(e)
+    load0 = davis_kn(v_kmh, fo.ra, fo.rb, fo.rc) + cc.grav[k]
+    f_max = _interp1(v_kmh, fo.tv, fo.tf) * cc.allowed[k]
+    b_max = _brake_force(v_kmh, 1.0 if full_hold else 0.0, k, cc, fo)
+    if load0 > f_max:
+        return _free_part(e, U_T, t0, t_b, k, length, cc, fo)
+    if -load0 > b_max:
+        return _free_part(e, U_B if full_hold else U_E, 0.0, 0.0, k, length, cc, fo)
+    return e, max(load0, 0.0) * length
+
+
+@njit(cache=True, _nrt=False)
+def _to_node(e, u, t0, t_b, k, length, cc, fo, full_hold):
+    """The last ``length`` [m] of cell k under control u from e, held under the next node's cap the way the
+    calculator holds a train there: (e_end, work [kJ], verdict OK / AIR / NO). Where the step would end above the
+    cap, the train follows the cap if full braking from e keeps it there (the calculator's braking curves are
+    full braking; a tolerance for their finer steps): by the electric brake alone (OK) or only with the air
+    brake (AIR). The last cell ends at rest. A step under U_B is AIR (the air brake is on)."""
+    n = cc.h.shape[0]
+    e1, w = _part(e, u, t0, t_b, k, length, cc, fo, full_hold)
+    if e1 < 0.0 and u == U_H:
+        return -1.0, 0.0, NO
+    air = AIR if u == U_B else OK
+    cap = 0.0 if k == n - 1 else cc.e_cap[k + 1]
+    if e1 > cap * (1.0 + 1e-9) + 1e-9:
+        fall = 0.02 * (e - cap if e > cap else 0.0)
+        tol = fall + 1e-3 * max(e, 1.0)
+        e_el = e1 if u == U_E else _free_part(e, U_E, 0.0, 0.0, k, length, cc, fo)[0]
+        # (the electric brake follows a falling curve within 2 % of its fall, and no more: a tolerance in e
+        # would let it hold, cell after cell, a limit it cannot hold on a descent)
+        if e_el <= cap + fall + 1e-9 * max(e, 1.0):
+            return cap, w, air
+        e_f = _free_part(e, U_B, 0.0, 0.0, k, length, cc, fo)[0]
+        if e_f <= cap + tol:
+            return cap, w, AIR
+        return -1.0, 0.0, NO
+    if e1 < 0.0:
+        return (0.0, w, air) if k == n - 1 else (-1.0, 0.0, NO)
+    return e1, w, air
+
+
+@njit(cache=True, _nrt=False)
+def cell(e, u, k, cc, fo, full_hold):
+    """Cell k under control u from e (the air brake, with U_B, at full): ``_to_node`` over the whole cell."""
+    return _to_node(e, u, 1e9, 0.0, k, cc.h[k], cc, fo, full_hold)
+
+
+@njit(cache=True, _nrt=False)
+def _part_time(e, e1, length):
+    """Time [s] of ``length`` [m] from e to e1 (2 length / (v0 + v1)); inf when the train does not move."""
+    s = ms_from_e(max(e, 0.0)) + ms_from_e(max(e1, 0.0))
+    return 2.0 * length / s if s > 0.0 else np.inf
+
+
+@njit(cache=True, _nrt=False)
+def hold_s(k, cc):
+    """The least hold [s] of an application made in cell k: the given one, else its build-up time."""
+    return cc.t_hold if cc.t_hold >= 0.0 else cc.t_build[k]
+
+
+@njit(cache=True, _nrt=False)
+def _split(e, u, t0, t_b, k, rest, r, cc, fo):
+    """Where in the remaining ``rest`` [m] of cell k the train under control u reaches ``r`` [s] (less than the
+    time of the whole rest): (length [m], e there, work [kJ], its time, >= r by at most a rounding: a phase never
+    ends early). Constant acceleration first (x = v0 r + a r^2 / 2), then Newton on the part's own time."""
+    e1 = _part(e, u, t0, t_b, k, rest, cc, fo, False)[0]
+    v0 = ms_from_e(max(e, 0.0))
+    a = (e1 - e) / rest  # de/ds = dv/dt
+    x = v0 * r + 0.5 * a * r * r
+    x = min(max(x, 1e-9 * rest), rest * (1.0 - 1e-12))
+    ex = e
+    wx = 0.0
+    tx = 0.0
+    for _ in range(6):
+        ex, wx = _part(e, u, t0, t_b, k, x, cc, fo, False)
+        tx = _part_time(e, ex, x)
+        if tx >= r and tx - r < 1e-9:
+            break
+        x = min(max(x + (r - tx) * ms_from_e(max(ex, 0.0)) + (1e-10 if tx < r else 0.0), 1e-9 * rest),
+                rest * (1.0 - 1e-12))
+    return x, ex, wx, tx
+
+
+@njit(cache=True, _nrt=False)
+def _split_speed(e, u, k, rest, e_to, cc, fo):
+    """Where in the remaining ``rest`` [m] of cell k the train under control u (no air brake) reaches e_to (between
+    e and the rest's end): (length [m], work [kJ], its time [s]); the speed there is e_to. e linear in distance
+    first, then Newton on the part's own e."""
+    e1 = _part(e, u, 0.0, 0.0, k, rest, cc, fo, False)[0]
+    x = rest * (e_to - e) / (e1 - e) if e1 != e else rest
+    x = min(max(x, 1e-9 * rest), rest)
+    for _ in range(4):
+        ex = _part(e, u, 0.0, 0.0, k, x, cc, fo, False)[0]
+        if abs(ex - e_to) <= 1e-9 * max(e_to, 1.0):
+            break
+        slope = (ex - e) / x
+        if slope == 0.0:
+            break
+        x = min(max(x + (e_to - ex) / slope, 1e-9 * rest), rest)
+    ex, wx = _part(e, u, 0.0, 0.0, k, x, cc, fo, False)
+    return x, wx, _part_time(e, ex, x)
+
+
+@njit(cache=True, _nrt=False)
+def _tab_cell(e, j, u, cc, tb):
+    """Cell j under control u from e read off the one-cell tables (``cycle_prepare``), interpolated in speed
+    between the two grid speeds around e: (e at its end, work [kJ], time [s], verdict); verdict -1 where the
+    tables cannot say (no tables, above the grid, the two grid speeds' verdicts differ): step it exactly."""
+    v_grid = cc.v_grid
+    nv = v_grid.shape[0]
+    dv = v_grid[1] - v_grid[0]
+    v = ms_from_e(max(e, 0.0))
+    top = tb.top[j]
+    i0 = int(v / dv)
+    if i0 < top:
+        i1 = i0 + 1
+        w = (v - i0 * dv) / dv
+    else:  # between the last grid speed below the cap and the cap (the last column)
+        v_cap = ms_from_e(max(cc.e_cap[j], 0.0))
+        span = v_cap - top * dv
+        if v > v_cap * (1.0 + 1e-9) + 1e-9 or span <= 1e-12:
+            return 0.0, 0.0, 0.0, -1
+        i0, i1 = top, nv
+        w = min(max((v - top * dv) / span, 0.0), 1.0)
+    ok = tb.sok[j, i0, u]
+    if tb.sok[j, i1, u] != ok:
+        return 0.0, 0.0, 0.0, -1
+    if ok == NO:
+        return 0.0, 0.0, 0.0, NO
+    return (tb.se[j, i0, u] + w * (tb.se[j, i1, u] - tb.se[j, i0, u]),
+            tb.sw[j, i0, u] + w * (tb.sw[j, i1, u] - tb.sw[j, i0, u]),
+            tb.st[j, i0, u] + w * (tb.st[j, i1, u] - tb.st[j, i0, u]), ok)
+
+
+@njit(cache=True, _nrt=False)
+def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, part):
+    """A phase of a path: control u from ``x`` [m] into cell j at e until it has lasted ``dur`` [s] (an
+    application: the air brake building up from the phase's start over ``t_b``; ``is_rec``: a recharge, whose
+    caps only the electric brake may follow). Returns (j, x, e, time [s], work [kJ], status) where it ends: status
+    0 = inside cell j, x metres in; 1 = the zone ended first, at node j (x = 0); 2 = the stop; -1 = not possible.
+    With ``use_tab`` whole cells are read off the one-cell tables where they can be (``_tab_cell``: a recharge, an
+    application whose build-up is over), else stepped; ``rec``: recorded from ``t_start`` [s]. Where it ends inside
+    a cell, ``part`` gets the start of its part of that cell: (x [m], e, time, work)."""
+    n = cc.h.shape[0]
+    t = 0.0
+    w_sum = 0.0
+    while True:
+        h = cc.h[j]
+        if rec and x == 0.0:
+            controls[j] = u
+            air[j] = AIR_RECHARGE if is_rec else AIR_CYCLE
+        rest = h - x
+        ok = -1
+        if use_tab and x == 0.0 and (is_rec or t >= t_b):
+            e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
+        if ok < 0:
+            e1, w, ok = _to_node(e, u, t, t_b, j, rest, cc, fo, False)
+            dt = _part_time(e, e1, rest) if ok != NO else np.inf
+        if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
+            return j, x, e, t, w_sum, -1  # (recharging past the apply speed: the calculator would apply again)
+        r = dur - t
+        if dt > r:
+            xs, es, ws, ts = _split(e, u, t, t_b, j, rest, r, cc, fo)
+            # (where it ends, and the part of the cell it ends in: from there a path that goes on under the same
+            # control steps the whole part, as a drive's record has it, not two pieces of it)
+            part[0], part[1], part[2], part[3] = x, e, t, w_sum
+            return j, x + xs, es, t + ts, w_sum + ws, 0
+        e = e1
+        t += dt
+        w_sum += w
+        if rec:
+            v_nodes[j + 1] = kmh_from_e(max(e, 0.0))
+            t_nodes[j + 1] = t_start + t
+        j += 1
+        x = 0.0
+        if j == n:
+            return j, x, e, t, w_sum, 2
+        if cc.zone[j] == 0:
+            return j, x, e, t, w_sum, 1
+        if is_rec and e >= cc.e_app[j]:  # the calculator would apply here, before the recharge is over
+            return j, x, e, t, w_sum, -1
+
+
+@njit(cache=True, _nrt=False)
+def _descending(e, k, cc, fo):
+    """Whether resistance plus gravity at e in cell k is negative (a descent at that speed): while the brake
+    recharges there the calculator holds the speed with the electric brake (H), whatever the plan's condition."""
+    return davis_kn(kmh_from_e(max(e, 0.0)), fo.ra, fo.rb, fo.rc) + cc.grav[k] < 0.0
+
+
+@njit(cache=True, _nrt=False)
+def _finish(e, j, x, u, t0, t_b, is_rec, cc, fo, tb, use_tab, rec, v_nodes, t_nodes, t_start):
+    """The rest of cell j from ``x`` [m] under control u (an application ``t0`` [s] old, or a recharge) to its
+    node: (e there, time [s], work [kJ], ok False where not possible)."""
+    rest = cc.h[j] - x
+    ok = -1
+    if use_tab and x == 0.0 and (is_rec or t0 >= t_b):
+        e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
+    if ok < 0:
+        e1, w, ok = _to_node(e, u, t0, t_b, j, rest, cc, fo, False)
+        dt = _part_time(e, e1, rest) if ok != NO else np.inf
+    if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
+        return e, 0.0, 0.0, False
+    if rec:
+        v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
+        t_nodes[j + 1] = t_start + dt
+    return e1, dt, w, True
+
+
+@njit(cache=True, _nrt=False)
+def _event(rec, ev, ev_k, n_ev, j, x, t, e, kind, cc):
+    """Record an event (``rec``) of ``kind`` at x [m] into cell j, time t [s], e = v^2/2: ``ev[n_ev]`` = (node +
+    fraction of its cell, time [s], speed [km/h]). Returns the events recorded."""
+    if rec:
+        ev[n_ev, 0] = float(j) + (x / cc.h[j] if j < cc.h.shape[0] else 0.0)
+        ev[n_ev, 1] = t
+        ev[n_ev, 2] = kmh_from_e(max(e, 0.0))
+        ev_k[n_ev] = kind
+        return n_ev + 1
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def _rec_u(m):
+    """The control of path m after its release."""
+    if m == P_AX_C:
+        return U_C
+    if m == P_AX_E:
+        return U_E
+    return U_H
+
+
+@njit(cache=True, _nrt=False)
+def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                n_ev, pj, pe, pt, pw, pq, part):
+    """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AX_E`` from a charged brake at node k at e, their
+    application stepped once: the air brake (and the full electric brake) from the node, its force building up
+    linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
+    over; then as the path says (``P_A``, ``P_AR_H``, ``P_AX_*``). Into ``pj`` (end node, -1: none), ``pe``,
+    ``pt`` [s], ``pw`` [kJ] and ``pq`` (the time since the release at the end node [s], ``P_AX_*``); returns the
+    events recorded (``rec``: one path). ``part``: a buffer of 4 (``_phase``)."""
+    n = cc.h.shape[0]
+    for m in range(first, last + 1):
+        pj[m] = -1
+        pq[m] = 0.0
+    t_b = cc.t_build[k]
+    dur = max(hold_s(k, cc), t_b)
+    x0 = 0.0
+    t0 = 0.0
+    w0 = 0.0
+    if e < cc.e_app[k]:  # where holding (H) would reach the apply speed inside this cell, applied there
+        e1, w1, ok1 = _to_node(e, U_H, 0.0, 0.0, k, cc.h[k], cc, fo, False)
+        if ok1 == OK and e1 > cc.e_app[k]:
+            x0, w0, t0 = _split_speed(e, U_H, k, cc.h[k], cc.e_app[k], cc, fo)
+            e = cc.e_app[k]
+            if rec:
+                controls[k] = U_H
+                air[k] = AIR_OFF
+    n_ev = _event(rec, ev, ev_k, n_ev, k, x0, t_start + t0, e, EV_APPLY, cc)
+    j, x, ea, ta, wa, st = _phase(e, k, x0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
+                                  t_nodes, t_start + t0, part)
+    ta += t0
+    wa += w0
+    if st < 0 or st == 1:
+        return n_ev
+    if st == 2:  # (the stop, braking)
+        for m in range(first, last + 1):
+            pj[m], pe[m], pt[m], pw[m] = n, ea, ta, wa
+        return n_ev
+    for m in range(first, last + 1):
+        if m == P_A:  # (braking on: the part of the cell where the hold ends stepped whole)
+            xp, ep, tp, wp = part[0], part[1], part[2], part[3]
+            e1, dt, w, ok = _finish(ep, j, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + t0 + tp)
+            if ok:
+                pj[m], pe[m], pt[m], pw[m] = j + 1, e1, t0 + tp + dt, w0 + wp + w
+            continue
+        u = _rec_u(m)
+        if u != U_H and _descending(ea, j, cc, fo):
+            continue  # (recharging on a descent the calculator holds the speed electrically: H)
+        n_ev = _event(rec, ev, ev_k, n_ev, j, x, t_start + ta, ea, EV_RELEASE, cc)
+        if rec:
+            controls[j] = u  # (the cell of the release: its control after it)
+        if m != P_AR_H:  # released, the rest of the cell under u: recharging at the next node
+            e1, dt, w, ok = _finish(ea, j, x, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + ta)
+            if ok:
+                pj[m], pe[m], pt[m], pw[m], pq[m] = j + 1, e1, ta + dt, wa + w, dt
+            continue
+        j2, x2, er, tr, wr, st2 = _phase(ea, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                         v_nodes, t_nodes, t_start + ta, part)
+        if st2 < 0:
+            continue
+        if st2 > 0:  # the zone, or the route, ended during the recharge
+            pj[m], pe[m], pt[m], pw[m] = j2, er, ta + tr, wa + wr
+            continue
+        n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + ta + tr, er, EV_CHARGED, cc)
+        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                t_start + ta + tr)
+        if ok:
+            pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, ta + tr + dt, wa + wr + w
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                  n_ev, pj, pe, pt, pw, part):
+    """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node,
+    recharged under H for exactly the recharge time, then on under H to the node after (CH there; NA where the
+    zone ends first), or an application the instant the recharge is over, held until its least hold and build-up
+    are over, on to the node after (AF there). Into ``pj``.. as ``apply_paths``; ``rec``: one path recorded."""
+    n = cc.h.shape[0]
+    for m in range(first, last + 1):
+        pj[m] = -1
+    if e >= cc.e_app[k]:  # (released at or above the apply speed: applied again at once, before its recharge)
+        return n_ev
+    n_ev = _event(rec, ev, ev_k, n_ev, k, 0.0, t_start, e, EV_RELEASE, cc)
+    j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                     v_nodes, t_nodes, t_start, part)
+    if st2 < 0:
+        return n_ev
+    if st2 > 0:
+        if first == P_R_H:
+            pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2, er, tr, wr
+        return n_ev
+    if first == P_R_H:
+        n_ev = _event(rec and last == P_R_H, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_CHARGED, cc)
+        e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, True, cc, fo, tb, use_tab, rec and last == P_R_H, v_nodes,
+                                t_nodes, t_start + tr)
+        if ok:
+            pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2 + 1, e1, tr + dt, wr + w
+    if last == P_RA_H:  # an application the instant the recharge is over
+        n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_APPLY, cc)
+        t_b = cc.t_build[j2]
+        dur = max(hold_s(j2, cc), t_b)
+        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
+                                         v_nodes, t_nodes, t_start + tr, part)
+        if st3 == 2:
+            pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
+        elif st3 == 0:  # (braking on: the part of the cell where the hold ends stepped whole)
+            xp, ep, tp, wp = part[0], part[1], part[2], part[3]
+            e1, dt, w, ok = _finish(ep, j3, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                                    t_start + tr + tp)
+            if ok:
+                pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + tp + dt, wr + wp + w
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
+             part):
+    """Path m alone from node k at e, stepped exactly and recorded (the forward pass): its end in ``pj``.. [m];
+    returns the events recorded."""
+    if m < N_CH:
+        return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                           n_ev, pj, pe, pt, pw, pq, part)
+    pq[m] = 0.0
+    return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                         n_ev, pj, pe, pt, pw, part)
+
+
+@njit(cache=True, _nrt=False)
+def _cells_at(e, k, cc, fo, se, sw, st, sok):
+    """Each single-cell control's step from e at node k (``cell``): e at the cell's end, traction work [kJ], time
+    [s] and verdict, into ``se``, ``sw``, ``st``, ``sok`` (NO also where the train would not move)."""
+    for u in range(N_U):
+        e1, w, ok = cell(e, u, k, cc, fo, cc.relaxed)
+        dt = _part_time(e, e1, cc.h[k]) if ok != NO else np.inf
+        if not math.isfinite(dt):
+            ok = NO
+        se[u], sw[u], st[u], sok[u] = e1, w, dt, ok
+
+
+@njit(cache=True, _nrt=False)
+def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part):
+    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``; others -1)
+    into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``, ``pq``; ``use_tab``: whole cells off the tables."""
+    for m in range(N_P):
+        pj[m] = -1
+        pq[m] = 0.0
+    if s == CH:
+        apply_paths(e, k, P_A, N_CH - 1, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
+                    none_i, 0, pj, pe, pt, pw, pq, part)
+    elif s == AF:
+        release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
+                      none_i, 0, pj, pe, pt, pw, part)
+
+
+@njit(cache=True, _nrt=False)
+def _grid_e(k, j, cc):
+    """e = v^2/2 of grid speed j at node k (j = len(v_grid): the node's cap)."""
+    nv = cc.v_grid.shape[0]
+    return e_from_ms(cc.v_grid[j]) if j < nv else max(cc.e_cap[k], 0.0)
+
+
+@njit(cache=True, _nrt=False)
+def _land(e1, k1, cc):
+    """Where e1 lands on node k1's grid: (lower grid index, -1 above the cap; the upper one's weight, negative
+    where the state lies above k1's stall boundary: there a lower grid point below it does not count)."""
+    n = cc.h.shape[0]
+    v_grid = cc.v_grid
+    nv = v_grid.shape[0]
+    if k1 == n:
+        return (0, 0.0) if e1 <= 1e-9 else (-1, 0.0)
+    v1 = ms_from_e(max(e1, 0.0))
+    i0, i1, w = _bracket(v1, v_grid[1] - v_grid[0], nv, ms_from_e(max(cc.e_cap[k1], 0.0)))
+    if i0 < 0:
+        return -1, 0.0
+    low = cc.e_low[k1]
+    if 0.0 < w < 1.0 and math.isfinite(low) and v1 >= ms_from_e(low):
+        w = -w
+    return i0, w
+
+
+@njit(cache=True)
+def cycle_prepare(cc, fo, tb):
+    """What does not depend on the price of time, once per grid, into ``tb`` (``records.CycleTables``): every
+    node's single-cell steps from every grid speed (``_cells_at``), then in the zones its paths from CH and from
+    AF (``_paths_at``, whole cells read off the first tables), and where each lands on its node's grid."""
+    n = cc.h.shape[0]
+    v_grid = cc.v_grid
+    nv = v_grid.shape[0]
+    dv = v_grid[1] - v_grid[0]
+    none_i = np.zeros(1, dtype=np.int64)
+    none_f = np.zeros(1)
+    none_f2 = np.zeros((1, 3))
+    part = np.zeros(4)
+    se = np.zeros(N_U)
+    sw = np.zeros(N_U)
+    st = np.zeros(N_U)
+    sok = np.zeros(N_U, dtype=np.int64)
+    pj = np.zeros(N_P, dtype=np.int64)
+    pe = np.zeros(N_P)
+    pt = np.zeros(N_P)
+    pw = np.zeros(N_P)
+    pq = np.zeros(N_P)
+    for k in range(n + 1):
+        v_cap = ms_from_e(max(cc.e_cap[k], 0.0))
+        top = min(int(v_cap / dv), nv - 1)
+        while top > 0 and top * dv > v_cap:
+            top -= 1
+        tb.top[k] = top
+    for k in range(n):
+        for j in range(nv + 1):
+            e = _grid_e(k, j, cc)
+            if e > cc.e_cap[k] * (1.0 + 1e-9) + 1e-9:
+                for u in range(N_U):
+                    tb.sok[k, j, u] = NO
+                continue
+            _cells_at(e, k, cc, fo, se, sw, st, sok)
+            for u in range(N_U):
+                tb.se[k, j, u], tb.sw[k, j, u], tb.st[k, j, u], tb.sok[k, j, u] = se[u], sw[u], st[u], sok[u]
+                i0, wx = _land(se[u], k + 1, cc) if sok[u] != NO else (-1, 0.0)
+                tb.si[k, j, u], tb.sx[k, j, u] = i0, wx
+    for k in range(n):
+        z = tb.zmap[k]
+        if z < 0:
+            continue
+        for j in range(nv + 1):
+            e = _grid_e(k, j, cc)
+            if e > cc.e_cap[k] * (1.0 + 1e-9) + 1e-9:
+                for m in range(N_P):
+                    tb.pj[z, j, m] = -1
+                continue
+            _paths_at(e, k, CH, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
+            for m in range(N_CH):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
+                                                                                                 pw[m], pq[m])
+            _paths_at(e, k, AF, cc, fo, tb, True, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
+            for m in range(N_CH, N_P):
+                tb.pj[z, j, m], tb.pe[z, j, m], tb.pt[z, j, m], tb.pw[z, j, m], tb.pq[z, j, m] = (pj[m], pe[m], pt[m],
+                                                                                                 pw[m], 0.0)
+            for m in range(N_P):
+                i0, wx = _land(tb.pe[z, j, m], tb.pj[z, j, m], cc) if tb.pj[z, j, m] >= 0 else (-1, 0.0)
+                tb.pi[z, j, m], tb.px[z, j, m] = i0, wx
+
+
+@njit(cache=True, _nrt=False)
+def _value(V, k1, s, i0, wx, tb):
+    """The cost-to-go at node k1 in state s where a state lands (``_land``: i0, wx): interpolated in speed between
+    grid point i0 and the next (the node's cap after its last grid point below it)."""
+    if i0 < 0:
+        return np.inf
+    w = abs(wx)
+    if w <= 0.0:
+        return V[k1, s, i0]
+    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
+    a = V[k1, s, i0]
+    z = V[k1, s, i1]
+    if wx < 0.0 and math.isinf(a) and not math.isinf(z):
+        return z
+    return _blend(a, z, w)
+
+
+@njit(cache=True, _nrt=False)
+def _value_rec(V, k1, tau, i0, wx, cc, tb):
+    """The cost-to-go at node k1 of a released brake ``tau`` [s] into its recharge: charged once the recharge is
+    over (CH); outside a zone NA; else interpolated in time between the recharge states around ``tau``, and none
+    where the earlier of the two has none (a value never counts on more time than has passed)."""
+    n = cc.h.shape[0]
+    if k1 == n or cc.zone[k1] == 0:
+        return _value(V, k1, NA, i0, wx, tb)
+    if tau >= cc.t_rec - 1e-9:
+        return _value(V, k1, CH, i0, wx, tb)
+    q = tau / (cc.t_rec / cc.n_rec)
+    b = min(int(q), cc.n_rec - 1)
+    f = q - b
+    v0 = _value(V, k1, R0 + b, i0, wx, tb)
+    if f <= 1e-12 or math.isinf(v0):
+        return v0
+    v1 = _value(V, k1, R0 + b + 1 if b + 1 < cc.n_rec else CH, i0, wx, tb)
+    if math.isinf(v1):
+        return v0
+    return v0 + f * (v1 - v0)
+
+
+@njit(cache=True, _nrt=False)
+def look(V, k1, s, e1, cc, tb):
+    """The cost-to-go at node k1 in state s at e1 (``_land``, ``_value``). At the stop: 0 at rest."""
+    i0, wx = _land(e1, k1, cc)
+    return _value(V, k1, s, i0, wx, tb)
+
+
+@njit(cache=True, _nrt=False)
+def _zone_start(k, cc):
+    return cc.zone[k] != 0 and (k == 0 or cc.zone[k - 1] == 0)
+
+
+@njit(cache=True, _nrt=False)
+def _arrive(k1, s, cc):
+    """The state a train in state s arrives in at node k1 (outside a zone, and at the stop: NA)."""
+    if k1 == cc.h.shape[0] or cc.zone[k1] == 0:
+        return NA
+    return s
+
+
+@njit(cache=True, _nrt=False)
+def _path_state(m):
+    return AF if (m == P_A or m == P_RA_H) else CH
+
+
+@njit(cache=True)
+def cycle_backward(cc, fo, price, V, tb):
+    """V[k, s, j]: least traction energy + ``price`` x time [kWh] from node k in air state s at grid speed j
+    (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables. A cell's
+    options (the forward pass takes the same ones): outside a zone (NA) T, H, C, E, a cap followed by the electric
+    brake alone; charged (CH) T, H, C, E (a braking curve followed with the air brake: an application, AF at the
+    next node), or a path ``P_A`` .. ``P_AX_E``; applied (AF) stay applied (B), a release (the recharge's state at
+    this node) or a path ``P_R_H``, ``P_RA_H``; recharging (R0 + b) T, H, C, E, no air brake, charged once the
+    recharge is over at a node. In the relaxed DP (no zones) NA has T, H and B at will."""
+    n = cc.h.shape[0]
+    nv = cc.v_grid.shape[0]
+    n_s = V.shape[1]
+    dtau = cc.t_rec / cc.n_rec
+    for s in range(n_s):
+        for j in range(nv + 1):
+            V[n, s, j] = 0.0 if j == 0 or (j == nv and cc.e_cap[n] <= 1e-12) else np.inf
+    cost = np.zeros(N_U)
+    for k in range(n - 1, -1, -1):
+        zone = cc.zone[k] != 0 and not cc.relaxed
+        z = tb.zmap[k]
+        k1 = k + 1
+        na1 = _arrive(k1, NA, cc)
+        ch1 = _arrive(k1, CH, cc)
+        af1 = _arrive(k1, AF, cc)
+        curve = cc.curve_ok[k]
+        for j in range(nv + 1):
+            b_na = np.inf
+            b_ch = np.inf
+            b_af = np.inf
+            e = _grid_e(k, j, cc)
+            must_apply = zone and e >= cc.e_app[k]  # released at the apply speed: the calculator applies
+            desc = zone and _descending(e, k, cc, fo)
+            for u in range(N_U):
+                ok = tb.sok[k, j, u]
+                cost[u] = np.inf
+                if ok == NO:
+                    continue
+                c = tb.sw[k, j, u] / KJ_PER_KWH + price * tb.st[k, j, u]
+                i0, wx = tb.si[k, j, u], tb.sx[k, j, u]
+                if cc.relaxed:
+                    if u != U_E:
+                        b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
+                    continue
+                if u == U_B:
+                    if zone:
+                        b_af = min(b_af, c + _value(V, k1, af1, i0, wx, tb))
+                    continue
+                if ok == OK:
+                    # (a released train on a grade the electric brake cannot hold is applied at the apply speed: it
+                    # does not pass it within the cell)
+                    passes = zone and tb.se[k, j, u] > cc.e_app[k] * (1.0 + 1e-9)
+                    if not (desc and u != U_H) and not passes:
+                        cost[u] = c
+                    b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
+                    if zone and not must_apply and not passes:
+                        b_ch = min(b_ch, c + _value(V, k1, ch1, i0, wx, tb))
+                elif zone and curve and not must_apply:
+                    b_ch = min(b_ch, c + _value(V, k1, af1, i0, wx, tb))
+            if zone:
+                for b in range(cc.n_rec):  # recharging, b x dtau since the release
+                    best = np.inf
+                    for u in range(N_U):
+                        if math.isfinite(cost[u]) and not must_apply:
+                            best = min(best, cost[u] + _value_rec(V, k1, b * dtau + tb.st[k, j, u], tb.si[k, j, u],
+                                                                  tb.sx[k, j, u], cc, tb))
+                    V[k, R0 + b, j] = best
+                b_af = min(b_af, V[k, R0, j])  # released here
+                if z >= 0:
+                    for m in range(N_P):
+                        jn = tb.pj[z, j, m]
+                        if jn < 0:
+                            continue
+                        c = tb.pw[z, j, m] / KJ_PER_KWH + price * tb.pt[z, j, m]
+                        if m == P_AX_H or m == P_AX_C or m == P_AX_E:
+                            c += _value_rec(V, jn, tb.pq[z, j, m], tb.pi[z, j, m], tb.px[z, j, m], cc, tb)
+                        else:
+                            c += _value(V, jn, _arrive(jn, _path_state(m), cc), tb.pi[z, j, m], tb.px[z, j, m], tb)
+                        if m < N_CH:
+                            b_ch = min(b_ch, c)
+                        else:
+                            b_af = min(b_af, c)
+                V[k, NA, j] = b_na
+                V[k, CH, j] = b_ch
+                V[k, AF, j] = b_af
+            else:
+                for s in range(n_s):
+                    V[k, s, j] = b_na
+        if zone and _zone_start(k, cc):
+            for j in range(nv + 1):
+                V[k, NA, j] = V[k, CH, j]  # (arriving from outside the zone: charged)
+
+
+@njit(cache=True)
+def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_k):
+    """The drive from rest: at each node the best option at the train's actual speed and air state (the time
+    since a release exact), its steps and paths run exactly from there (so the drive keeps the rules); per cell
+    its control and air state (at its start), per node speed [km/h] and time [s], and the events (``ev[i]``: where,
+    as node + the fraction of its cell, time [s], speed [km/h]; ``ev_k[i]`` ``EV_*``). Returns (time [s], traction
+    work [kJ], the number of events); time inf when no drive reaches the stop."""
+    n = cc.h.shape[0]
+    none_i = np.zeros(1, dtype=np.int64)
+    none_f = np.zeros(1)
+    none_f2 = np.zeros((1, 3))
+    part = np.zeros(4)
+    se = np.zeros(N_U)
+    sw = np.zeros(N_U)
+    st = np.zeros(N_U)
+    sok = np.zeros(N_U, dtype=np.int64)
+    pj = np.full(N_P, -1, dtype=np.int64)
+    pe = np.zeros(N_P)
+    pt = np.zeros(N_P)
+    pw = np.zeros(N_P)
+    pq = np.zeros(N_P)
+    e = 0.0
+    t = 0.0
+    tau = 0.0  # since the last release [s], in a recharge state (R0)
+    work = 0.0
+    n_ev = 0
+    v_nodes[0] = 0.0
+    t_nodes[0] = 0.0
+    s = CH if cc.zone[0] != 0 and not cc.relaxed else NA
+    k = 0
+    while k < n:
+        if cc.relaxed or cc.zone[k] == 0:
+            s = NA
+        elif s == NA and _zone_start(k, cc):
+            s = CH
+        elif s == R0 and tau >= cc.t_rec - 1e-9:
+            s = CH
+            n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CHARGED, cc)
+        _cells_at(e, k, cc, fo, se, sw, st, sok)
+        for m in range(N_P):
+            pj[m] = -1
+        if cc.zone[k] != 0 and not cc.relaxed and (s == CH or s == AF):
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
+        c_best = np.inf
+        o = -1
+        s_next = NA
+        zone = cc.zone[k] != 0 and not cc.relaxed
+        must_apply = zone and e >= cc.e_app[k]
+        desc = zone and _descending(e, k, cc, fo)
+        for u in range(N_U):
+            if sok[u] == NO or (cc.relaxed and u == U_E):
+                continue
+            if must_apply and not (s == AF and u == U_B):
+                continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
+            if desc and (s == R0 or (s == AF and u != U_B)) and u != U_H:
+                continue
+            if zone and u != U_B and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
+                continue  # (released, it would pass the apply speed within the cell)
+            c = sw[u] / KJ_PER_KWH + price * st[u]
+            i0, wx = _land(se[u], k + 1, cc)
+            s1 = -1
+            if cc.relaxed or s == NA:
+                if sok[u] == OK or cc.relaxed:
+                    s1 = _arrive(k + 1, NA, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif u == U_B:
+                if s == AF:
+                    s1 = _arrive(k + 1, AF, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif s == CH:
+                if sok[u] == OK:
+                    s1 = _arrive(k + 1, CH, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+                elif cc.curve_ok[k]:
+                    s1 = _arrive(k + 1, AF, cc)
+                    c += _value(V, k + 1, s1, i0, wx, tb)
+            elif sok[u] == OK:  # recharging, or released here from AF
+                t_since = (tau if s == R0 else 0.0) + st[u]
+                s1 = R0
+                c += _value_rec(V, k + 1, t_since, i0, wx, cc, tb)
+            if s1 >= 0 and c < c_best:
+                c_best, o, s_next = c, u, s1
+        if zone:
+            for m in range(N_P):
+                if pj[m] < 0:
+                    continue
+                c = pw[m] / KJ_PER_KWH + price * pt[m]
+                i0, wx = _land(pe[m], pj[m], cc)
+                if m == P_AX_H or m == P_AX_C or m == P_AX_E:
+                    c += _value_rec(V, pj[m], pq[m], i0, wx, cc, tb)
+                    s1 = R0
+                else:
+                    s1 = _arrive(pj[m], _path_state(m), cc)
+                    c += _value(V, pj[m], s1, i0, wx, tb)
+                if c < c_best:
+                    c_best, o, s_next = c, N_U + m, s1
+        if o < 0 or not math.isfinite(c_best) or n_ev > ev.shape[0] - 4:
+            return np.inf, np.inf, float(n_ev)
+        if o < N_U:
+            controls[k] = o
+            curve = s == CH and sok[o] == AIR
+            if cc.relaxed or not (o == U_B or curve):
+                air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
+                if s == AF and not cc.relaxed:  # released at this node
+                    n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_RELEASE, cc)
+                    tau = 0.0
+                if s_next == R0:
+                    tau += st[o]
+            elif curve:
+                air[k] = AIR_CURVE
+                n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CURVE, cc)
+            elif k > 0 and air[k - 1] == AIR_CURVE:
+                air[k] = AIR_CURVE
+            else:
+                air[k] = AIR_CYCLE
+            t += st[o]
+            work += sw[o]
+            e = se[o]
+            k += 1
+            v_nodes[k] = kmh_from_e(max(e, 0.0))
+            t_nodes[k] = t
+        else:
+            m = o - N_U
+            n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
+                            part)
+            if pj[m] < 0:  # (the path chosen, run again: cannot happen)
+                return np.inf, np.inf, float(n_ev)
+            t += pt[m]
+            work += pw[m]
+            e = pe[m]
+            k = pj[m]
+            tau = pq[m]
+        s = s_next
+        if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
+            s = NA
+    if s == AF and not cc.relaxed:  # (the stop's application, released at rest)
+        n_ev = _event(True, ev, ev_k, n_ev, n, 0.0, t, e, EV_RELEASE, cc)
+    return t, work, float(n_ev)
