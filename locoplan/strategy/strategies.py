@@ -408,7 +408,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         common["tolerance_s"] = RANKING_MARGIN * ctx.ranking_tolerance_s
     common["min_gap_m"] = min_run_m(ctx.calc.train)
     best, evaluations, failure = None, 0, None
-    for start in (_optimum_start, _drive_start):
+    for start in (_optimum_start, _cycle_start, _drive_start):
         if best is not None and _close_enough(ctx, best):
             break
         seq = start(ctx)
@@ -438,9 +438,10 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
 
 CLOSE_SHARE = 0.005
 CLOSE_KWH = 0.15
-"""The optimum's start is searched first; the DP drive's too only where the plan found from it is not on time
-on the reporting grid, or exceeds E* at its own running time by more than ``CLOSE_SHARE`` of it (or
-``CLOSE_KWH`` where that is more): the better of the two plans is kept."""
+"""The optimum's start is searched first; the next start (the drive optimal with the air brake's cycle, where it
+binds; the priced DP drive) only where the best plan so far is not on time on the reporting grid, or exceeds E*
+at its own running time by more than ``CLOSE_SHARE`` of it (or ``CLOSE_KWH`` where that is more), and the optimum
+with the cycle too where the cycle binds: the best plan is kept."""
 
 
 def _close_enough(ctx: StrategyContext, found) -> bool:
@@ -464,7 +465,41 @@ def _close_enough(ctx: StrategyContext, found) -> bool:
         e_star = energy_bound(c.route, c.train, c.options, t, calc=c, objective=ctx.objective).energy_kwh
     except LocoplanError:
         return False
-    return float(res.energy_kwh(ctx.objective)[0]) - e_star <= max(CLOSE_SHARE * abs(e_star), CLOSE_KWH)
+    e = float(res.energy_kwh(ctx.objective)[0])
+    if e - e_star <= max(CLOSE_SHARE * abs(e_star), CLOSE_KWH):
+        return True
+    co = _cycle_optimum(ctx, t)  # where the air brake cycles, the optimum that keeps the cycle is the yardstick
+    return co is not None and e - co.energy_kwh <= max(CLOSE_SHARE * abs(co.energy_kwh), CLOSE_KWH)
+
+
+def _cycle_optimum(ctx: StrategyContext, time_s: float):
+    """The optimum with the air brake's cycle at ``time_s`` (``cycle_start.cycle_optimum``, cached beside E*), or
+    None where the model has no cycle, it cannot bind on the line, or the objective is not the traction energy."""
+    from ..errors import LocoplanError
+    from .cycle_start import cycle_optimum
+
+    c = ctx.calc
+    if c.air_cycle is None or ctx.objective != "traction":
+        return None
+    try:
+        co = cycle_optimum(c.route, c.train, c.options, time_s, calc=c)
+    except LocoplanError:
+        return None
+    return co if co.cycles and co.energy_kwh is not None and co.drive is not None else None
+
+
+def _cycle_start(ctx: StrategyContext):
+    """The condition sequence of the drive that is optimal with the air brake's cycle at the planned time
+    (``cycle_start.drive_sequence``), or None where the cycle cannot bind."""
+    from .cycle_start import drive_sequence
+
+    if math.isnan(ctx.t0_s):
+        return None
+    co = _cycle_optimum(ctx, ctx.t0_s + OPTIMUM_START_SHARE * (ctx.tolerance_s or 0.0))
+    if co is None:
+        return None
+    seq = drive_sequence(ctx.calc, co.drive)
+    return seq if len(seq.conditions) > 1 else None
 
 
 def _optimum_start(ctx: StrategyContext):
