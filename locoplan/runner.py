@@ -125,7 +125,13 @@ def _drives(calc: TractionCalculator) -> bool:
 
 
 def check_time_possible(ctx: StrategyContext) -> None:
-    """A planned time below the fastest run cannot be met by any plan (SPEC: exit 1, say the fastest)."""
+    """A planned time below the fastest run cannot be met by any plan (SPEC: exit 1, say the fastest); nor any
+    time where the fastest run itself is refused (the air brake's cycle cannot keep its rules on a descent, say):
+    no plan keeps them either, so a time it would scale (``--time 1.1x``) is no time of a drivable run."""
+    res = ctx.calc.evaluate(("T",), np.zeros((1, 0)))
+    if not res.feasible[0]:
+        raise InfeasibleError(f"no run of '{ctx.calc.route.name}' with '{ctx.calc.train.name}' keeps the model's rules: "
+                              f"the fastest run {res.reason(0)}")
     fastest = ctx.calc.fastest_time_s
     if not math.isnan(ctx.t0_s) and ctx.t0_s < fastest:
         raise InfeasibleError(f"planned running time {ctx.t0_s:g} s is below the fastest possible run, "
