@@ -255,10 +255,15 @@ def cycle_gap(ctx: StrategyContext, res: BatchResult) -> dict:
         return none
     if not co.cycles or co.energy_kwh is None:
         return none
+    from .ocp.bound import percent_floor_kwh
+
     acc = co.accuracy_percent
+    # a percentage only where the optimum is not a few kWh (a line nearly coasted), as for E*'s gap
+    pct = (round(100.0 * (e - co.energy_kwh) / co.energy_kwh, 2) if co.energy_kwh >= percent_floor_kwh(c.route, c.train)
+           else None)
     return {"optimum_with_cycle_kwh": round(co.energy_kwh, 2),
             "optimum_with_cycle_accuracy_percent": None if acc is None else float(f"{acc:.2g}"),
-            "gap_to_cycle_optimum_percent": round(100.0 * (e - co.energy_kwh) / co.energy_kwh, 2)}
+            "gap_to_cycle_optimum_percent": pct}
 
 
 def air_brake_summary(res: BatchResult) -> dict:

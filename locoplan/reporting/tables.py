@@ -269,7 +269,9 @@ def cycle_optimum_rows(summary: dict) -> list[tuple[str, str]]:
     digits = percent_digits(acc)
     gap = summary.get("gap_to_cycle_optimum_percent")
     where = ("" if gap is None or digits is None else f", {gap:+.{digits}f} % over the latter")
-    cost = "" if e_cyc - e_star <= 1e-9 else f": the cycle costs {100.0 * (e_cyc - e_star) / e_star:.1f} %"
+    cost = ("" if e_cyc - e_star <= 1e-9 else
+            f": the cycle costs {100.0 * (e_cyc - e_star) / e_star:.1f} %" if gap is not None and e_star > 0 else
+            f": the cycle costs {e_cyc - e_star:.2f} kWh")
     return [("optimum bracket", f"{e_star:.2f} .. {e_cyc:.2f} kWh, E* (the air brake relaxed) .. the least energy "
              f"keeping its cycle (within {within_percent(acc)}){cost}; the plan {e:.2f} kWh{where}")]
 
