@@ -526,7 +526,7 @@ def _optimum_start(ctx: StrategyContext):
         except LocoplanError:
             break
         seq = sequence_from_optimum(ctx.search, grid, sol, min_run_m(ctx.calc.train))
-        res = ctx.search.evaluate(seq.conditions, np.array([[*seq.nominal_m, np.nan]]))
+        res = ctx.calc.evaluate(seq.conditions, np.array([[*seq.nominal_m, np.nan]]))  # (the reporting grid's time)
         t_plan = float(res.running_time_s[0]) if res.feasible[0] else math.nan
         miss = abs(t_plan - target) if math.isfinite(t_plan) else math.inf
         if best is None or miss < best[0]:
