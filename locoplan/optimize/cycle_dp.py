@@ -69,28 +69,32 @@ from __future__ import annotations
 
 import math
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InfeasibleError
-from ..physics.units import kwh
+from ..physics.units import kinetic_e, kmh_from_e, kwh
 from ..sim.calculator import TractionCalculator
+from ..sim.constants import LOOKAHEAD_MARGIN_KMH
 from ..sim.native import kernels
 from ..sim.records import CycleCells, CycleTables, contiguous
 from .cycle_kernel import N_P, N_U
-from .dp import dp_cells, dp_nodes
+from .dp import dp_cells
+from .problem import MARGIN_MIN
 
 CELL_M = 100.0
 """Target length of the coarser grid's cells [m] (the finer grid: half)."""
 MIN_CELLS = 300
 CELL_MIN_M = 10.0
 """On a short line the coarser grid has at least ``MIN_CELLS`` cells, of at least ``CELL_MIN_M``."""
-SPEED_STEP_KMH = 0.5
-"""The coarser grid's speed step [km/h] (the finer grid: half)."""
-REFINE_TOL = 2.5e-3
-MAX_GRIDS = 3
-"""The cells are halved once, and once more where the two grids' optima differ by more than ``REFINE_TOL``."""
+SPEED_STEP_KMH = 1.0
+"""The coarser grid's speed step [km/h] (the finer grid: half, with its cells)."""
+MAX_GRIDS = 2
+"""The grids solved: the coarser, then cells and speed step halved (each a first-order error of the DP's; halving
+one alone leaves the other's, and two grids that differ by little may both be off by more). A third grid would
+cost four times the second (twice the cells, twice the speeds)."""
 PRICE_CLOSE = 1.002
 PRICE_CLOSE_COARSE = 1.01
 """The price of time is bisected until the two prices whose drives bracket T are within this ratio (on the coarser
@@ -130,6 +134,30 @@ class CycleDrive:
     event_kind: np.ndarray
     time_s: float
     energy_kwh: float
+
+
+def cycle_nodes(calc: TractionCalculator, cell_m: float) -> np.ndarray:
+    """The cycle DP's nodes (indices of calculator nodes): the first and the last, every edge of a neutral span (as
+    ``dp.dp_nodes``: a cell that straddled one would lose the catenary over its whole length), every change of the
+    speed limit (where a braking curve to a lower limit ends, so an application may be released exactly there),
+    and between them the calculator nodes nearest to equal cells of about ``cell_m`` [m]: the grids of ``cell_m``
+    and ``cell_m / 2`` are then about halves of each other whatever the calculator's own spacing (the first
+    calculator node at least ``cell_m`` on made cells of up to twice that on a grid with many breakpoints)."""
+    s = calc.s_m
+    n = len(s) - 1
+    must = {0, n}
+    must |= set((np.flatnonzero(np.diff(calc.traction_allowed) != 0) + 1).tolist())
+    must |= set((np.flatnonzero(np.diff(calc.e_limit_cell) != 0) + 1).tolist())
+    ends = sorted(must)
+    keep = [0]
+    for a, b in zip(ends[:-1], ends[1:]):
+        m = max(1, int(round((s[b] - s[a]) / cell_m)))
+        targets = s[a] + (s[b] - s[a]) * np.arange(1, m) / m
+        i = np.clip(np.searchsorted(s, targets), 1, n)
+        i = np.where(np.abs(s[i - 1] - targets) <= np.abs(s[i] - targets), i - 1, i)
+        keep.extend(int(x) for x in np.unique(i) if a < x < b)
+        keep.append(b)
+    return np.array(keep)
 
 
 def air_zones(calc: TractionCalculator, idx: np.ndarray, e_cap: np.ndarray) -> np.ndarray:
@@ -197,6 +225,21 @@ def apply_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
     return np.minimum.reduceat(e, idx[:-1])
 
 
+def keep_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
+    """Per DP cell (between calculator nodes ``idx``) the speed (as e = v^2/2) at or below which an applied air brake
+    may be kept on with the electric brake eased, and released: on a grade the electric brake cannot hold at the
+    limit, the calculator's release speed there (``kernel.cycle_speeds``) at the least release margin a plan
+    carries (``problem.MARGIN_MIN``: the highest release speed any plan has; above it the calculator brakes an
+    application at full); inf elsewhere (there it keeps an application on, or releases it, at any speed). The
+    highest of its calculator cells': what one of them allows, the DP cell allows."""
+    n_calc = len(calc.h_m)
+    e = np.full(n_calc, np.inf)
+    short = np.flatnonzero(calc.next_short == np.arange(n_calc))
+    for k in short:
+        e[k] = float(calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), int(k), np.array([MARGIN_MIN]))[1][0])
+    return np.maximum.reduceat(e, idx[:-1])
+
+
 def cycle_binds(calc: TractionCalculator) -> bool:
     """Whether the air brake's cycle can make a drive dearer than the relaxation on this line (module
     docstring): a model with the cycle, and a descent the electric brake cannot hold at the limit, or two
@@ -228,27 +271,28 @@ class CycleDPSolver:
         if cyc is None and not relaxed:
             raise InfeasibleError("the cycle DP needs a model with the air brake's cycle (the air brake, its cycle on)")
         self.calc, self.relaxed = calc, relaxed
+        self.owner = calc  # (the calculator it was asked for: ``cycle_solver``'s cache key)
         self.cell_m, self.speed_step_kmh = float(cell_m), float(speed_step_kmh)
-        idx = dp_nodes(calc, cell_m)
+        idx = cycle_nodes(calc, cell_m)
         base = contiguous(dp_cells(calc, idx, speed_step_kmh))
         n = len(idx) - 1
         e_low = np.zeros(n + 1)
         kernels().stall_boundary(base, calc.forces, e_low)
         zone_cells = np.zeros(n, dtype=bool) if relaxed else air_zones(calc, idx, base.e_cap)
         zone = np.concatenate([zone_cells, zone_cells[-1:]]).astype(np.int64)
-        e_lim = np.minimum.reduceat(calc.e_limit_cell, idx[:-1])
-        holds = np.minimum.reduceat(calc.brake_holds_limit.astype(np.int64), idx[:-1]) > 0
-        curve_ok = (base.e_cap[1:] < e_lim * (1.0 - 1e-6)) | ~holds
-        curve_ok[-1] = True  # the stop
         # an application's build-up (and least hold) in a DP cell: the longest of its calculator cells' (a hold that
         # is never shorter than the calculator would ask wherever in the cell the application is made)
         t_build = np.maximum.reduceat(calc.t_build_s, idx[:-1]) if cyc is not None else np.zeros(n)
         e_app = apply_speeds(calc, idx) if cyc is not None and not relaxed else np.full(n, np.inf)
+        e_keep = keep_speeds(calc, idx) if cyc is not None and not relaxed else np.full(n, np.inf)
+        # (the calculator's look-ahead releases only where the train stays this far under the apply speed)
+        e_rec = np.where(np.isfinite(e_app), kinetic_e(np.maximum(kmh_from_e(np.minimum(e_app, 1e12))
+                                                                  - LOOKAHEAD_MARGIN_KMH, 0.0)), np.inf)
         self.s_m = calc.s_m[idx]
         t_rec = float(cyc.recharge_s) if cyc else 0.0
         n_rec = max(1, int(math.ceil(t_rec / REC_STEP_S - 1e-9))) if t_rec > 0 else 1
-        self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone, curve_ok,
-                                           t_build, e_app, e_low, t_rec,
+        self.cells = contiguous(CycleCells(base.h, base.grav, base.allowed, base.e_cap, base.v_grid, zone,
+                                           t_build, e_app, e_keep, e_rec, e_low, t_rec,
                                            float(cyc.min_hold_s) if cyc and cyc.min_hold_s is not None else -1.0,
                                            n_rec, bool(relaxed)))
         nv = len(base.v_grid)
@@ -262,7 +306,7 @@ class CycleDPSolver:
                                   np.zeros(s3, dtype=np.int32), np.zeros(s3), np.full(p3, -1, dtype=np.int32),
                                   np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3), np.zeros(p3, dtype=np.int32),
                                   np.zeros(p3),
-                                  np.zeros(n + 1, dtype=np.int64), zmap)
+                                  np.zeros(n + 1, dtype=np.int64), zmap, np.zeros((n + 1, nv + 1)), np.zeros(n + 1))
         kernels().cycle_prepare(self.cells, calc.forces, self.tables)
         self.n_solves = 0
         self.drives: list[CycleDrive] = []
@@ -407,30 +451,113 @@ def energy_at(drives: list[CycleDrive], t0_s: float) -> float:
 
 @dataclass(frozen=True)
 class GridOptimum:
-    """The cycle DP on one grid: cell length [m], speed step [km/h], energy at T [kWh], the bracketing drives'
-    times [s] and prices [kWh/s], the solves it took and the wall time [s]."""
+    """The cycle DP on one grid at a running time T: cell length [m], speed step [km/h]; the DP's own energy at T
+    [kWh] (``energy_at``); the drives that bracket T (their times [s] and prices [kWh/s]); the cycle's cost against
+    the same DP without the cycle at the same prices (``lost_s`` [s], ``extra_kwh`` [kWh]: time and traction energy
+    more than the relaxed drive, weighted as the bracket's chord weighs its ends); ``estimate_kwh`` the cycle
+    optimum it gives (``CycleOptimum``); the solves it took and the wall time [s]."""
 
     cell_m: float
     speed_step_kmh: float
     energy_kwh: float
     times_s: tuple[float, ...]
     prices_kwh_per_s: tuple[float, ...]
+    lost_s: float
+    extra_kwh: float
+    estimate_kwh: float
     solves: int
     wall_s: float
 
 
+_SOLVERS: OrderedDict[tuple, CycleDPSolver] = OrderedDict()
+SOLVER_CACHE = 4
+"""Prepared solvers kept in the process, the least recently used dropped first: their tables depend neither on the
+running time nor on the price, so a second cycle optimum of the same line (a plan's own running time, a start's)
+solves again without preparing again (the preparation is most of a grid's time). About 100 MB each for 60 km on
+50 m cells."""
+
+
+def cycle_solver(calc: TractionCalculator, cell_m: float, speed_step_kmh: float = SPEED_STEP_KMH,
+                 relaxed: bool = False) -> CycleDPSolver:
+    """``CycleDPSolver`` of ``calc``'s route, train and model on cells of ``cell_m`` (``grid_calculator``), from the
+    process's cache where it was prepared before (its drives forgotten)."""
+    key = (id(calc), float(cell_m), float(speed_step_kmh), bool(relaxed))
+    solver = _SOLVERS.get(key)
+    if solver is None or solver.owner is not calc:
+        solver = CycleDPSolver(grid_calculator(calc, cell_m), cell_m, speed_step_kmh, relaxed=relaxed)
+        solver.owner = calc  # (held: the key's id stays this calculator's while the solver is cached)
+        _SOLVERS[key] = solver
+        while len(_SOLVERS) > SOLVER_CACHE:
+            _SOLVERS.popitem(last=False)
+    else:
+        _SOLVERS.move_to_end(key)
+        solver.drives, solver.n_solves = [], 0
+    return solver
+
+
+class EstarCurve:
+    """E* [kWh] near a running time, from ``estar(t) -> (E* [kWh], dE*/dT [kWh/s], its relative accuracy)``: at
+    ``t0_s`` and, once asked
+    for a time further than ``NEAR_S`` from it, at that time too (one solve), a cubic between the two with their
+    slopes (Hermite); near ``t0_s`` alone, its tangent. Times are solved at 0.1 s."""
+
+    NEAR_S = 1.0
+
+    def __init__(self, estar, t0_s: float):
+        self.estar = estar
+        self.points = {round(float(t0_s), 1): estar(float(t0_s))}
+
+    def __call__(self, t_s: float) -> float:
+        t0 = min(self.points, key=lambda t: abs(t - t_s))
+        if abs(t_s - t0) > self.NEAR_S and len(self.points) < 2:
+            t1 = round(float(t_s), 1)
+            try:
+                self.points[t1] = self.estar(t1)
+            except InfeasibleError:
+                pass
+        (a, (ea, sa, _)), *rest = sorted(self.points.items())
+        if not rest:
+            return ea + sa * (t_s - a)
+        b, (eb, sb, _) = rest[0]
+        h = b - a
+        x = (t_s - a) / h
+        h00, h10, h01, h11 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x, -2 * x**3 + 3 * x**2, x**3 - x**2
+        return h00 * ea + h10 * h * sa + h01 * eb + h11 * h * sb
+
+
 def grid_optimum(calc: TractionCalculator, t0_s: float, cell_m: float, speed_step_kmh: float,
-                 price_hint: float | None = None, relaxed: bool = False, seed: tuple[float, float] | None = None,
-                 close: float = PRICE_CLOSE) -> tuple[GridOptimum, CycleDrive]:
-    """The cycle DP's energy at ``t0_s`` on one grid (``energy_at``), and the drive nearest ``t0_s`` no slower
-    than it (or the slowest found, where all are slower)."""
+                 price_hint: float | None = None, seed: tuple[float, float] | None = None,
+                 close: float = PRICE_CLOSE, estar: EstarCurve | None = None) -> tuple[GridOptimum, CycleDrive]:
+    """The cycle DP at ``t0_s`` on one grid (``cycle_solver``, bracketed to ``t0_s``: ``CycleDPSolver.bracket``):
+    its energy there (``energy_at``), the cycle's cost against the relaxed DP at each bracketing drive's own price,
+    and the cycle optimum that gives (``estar``: E* near ``t0_s``; without it, the DP's own energy); and the drive
+    nearest ``t0_s`` no slower than it (or the slowest found, where all are slower)."""
     t = time.perf_counter()
-    solver = CycleDPSolver(calc, cell_m, speed_step_kmh, relaxed=relaxed)
+    solver = cycle_solver(calc, cell_m, speed_step_kmh)
     slow, fast = solver.bracket(t0_s, price_hint, seed, close)
     e = energy_at(solver.drives, t0_s)
     ends = [d for d in (slow, fast) if d is not None]
+    rel = cycle_solver(calc, cell_m, speed_step_kmh, relaxed=True)
+    costs = []
+    for d in ends:  # (the same DP without the cycle at the drive's own price: what the cycle costs there)
+        r = rel.solve(d.price_kwh_per_s)
+        costs.append((d.time_s - r.time_s, d.energy_kwh - r.energy_kwh) if r is not None else (0.0, 0.0))
+    if slow is not None and fast is not None and slow.time_s > fast.time_s:
+        w = (slow.time_s - t0_s) / (slow.time_s - fast.time_s)  # (the fast end's weight, as on the chord)
+        weights = (1.0 - w, w)
+    else:
+        weights = (1.0,) * len(ends)
+    lost = sum(w * c[0] for w, c in zip(weights, costs))
+    extra = sum(w * c[1] for w, c in zip(weights, costs))
+    if estar is None:
+        estimate = e
+    elif slow is None:  # (every drive within the time: the least energy comes sooner than it)
+        estimate = estar(fast.time_s - costs[-1][0]) + costs[-1][1]
+    else:
+        estimate = sum(w * (estar(t0_s - c[0]) + c[1]) for w, c in zip(weights, costs))
     return (GridOptimum(cell_m, speed_step_kmh, e, tuple(d.time_s for d in ends),
-                        tuple(d.price_kwh_per_s for d in ends), solver.n_solves, time.perf_counter() - t),
+                        tuple(d.price_kwh_per_s for d in ends), lost, extra, estimate, solver.n_solves + rel.n_solves,
+                        time.perf_counter() - t),
             fast if fast is not None else slow)
 
 
@@ -444,19 +571,23 @@ class CycleOptimum:
     """The least traction energy of a drive that keeps the air brake's cycle, at one running time.
 
     ``cycles``: whether the cycle can bind on the line (``cycle_binds``); without it the cycle optimum is the
-    relaxed E* itself and nothing is solved (``energy_kwh`` None). ``energy_kwh`` [kWh]: the cycle DP on the finer
-    of two nested grids (``grids``: cell [m], speed step [km/h], energy [kWh], solves, wall time [s] each);
-    ``accuracy``: its estimated relative accuracy, the two grids' difference plus the same DP's excess over E*
-    without the cycle on the finer grid (``relaxed_dp_kwh`` against ``estar_kwh``; where E* is not given, the grids'
-    difference alone). ``price_kwh_per_s``: the price of time of the finer grid's drive nearest T; ``drive`` that
-    drive (``CycleDrive``); ``solve_time_s`` the wall time of it all [s]."""
+    relaxed E* itself and nothing is solved (``energy_kwh`` None). ``energy_kwh`` [kWh]: E* (``estar_kwh``) moved by
+    what the cycle costs on the finest of the nested grids (``grids``: per grid its ``GridOptimum`` as a dict): the
+    cycle DP's drives that bracket T against the same DP without the cycle at the same prices of time lose
+    ``lost_s`` [s] and use ``extra_kwh`` [kWh] more, so the optimum is E*(T - lost_s) + extra_kwh (on E*'s own
+    curve; never below E*(T)); where E* is not given, the finest grid's own DP energy. ``accuracy``: its change from
+    the grid before, relative. ``dp_kwh``: the finest grid's own DP energy at T; ``price_kwh_per_s`` the price of
+    time of its drive nearest T, ``drive`` that drive (``CycleDrive``); ``solve_time_s`` the wall time of it all
+    [s]."""
 
     time_s: float
     cycles: bool
     energy_kwh: float | None = None
     accuracy: float | None = None
     estar_kwh: float | None = None
-    relaxed_dp_kwh: float | None = None
+    dp_kwh: float | None = None
+    lost_s: float | None = None
+    extra_kwh: float | None = None
     price_kwh_per_s: float | None = None
     grids: tuple = ()
     solve_time_s: float = 0.0
@@ -475,40 +606,37 @@ def grid_calculator(calc: TractionCalculator, cell_m: float) -> TractionCalculat
     return TractionCalculator(calc.route, calc.train, replace(calc.options, step_m=cell_m))
 
 
-def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar_kwh: float | None = None,
-                        price_hint: float | None = None, cell_m: float | None = None,
-                        speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
-    """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP on
-    cells of ``cell_m`` (default ``coarse_cell_m``), then on cells half as long, and once more (``MAX_GRIDS``) where
-    those two differ by more than ``REFINE_TOL``; the price of time searched for ``time_s`` from ``price_hint``
-    [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it), on each finer grid from the coarser one's
-    bracket; the finest grid without the cycle against ``estar_kwh`` [kWh] (E* at ``time_s``) for the accuracy: the
-    last two grids' difference plus that excess. Where the cycle cannot bind, nothing is solved (``cycles`` False).
-    Raises ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
+def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar=None, price_hint: float | None = None,
+                        cell_m: float | None = None, speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
+    """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP and
+    the same DP without the cycle on cells of ``cell_m`` (default ``coarse_cell_m``), then on cells half as long, and
+    once more (``MAX_GRIDS``) where the two estimates differ by more than ``REFINE_TOL``; the price of time searched
+    for ``time_s`` from ``price_hint`` [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it), on each finer
+    grid from the coarser one's bracket. ``estar(t) -> (E* [kWh], dE*/dT [kWh/s], E*'s relative accuracy)``: E* at
+    a running time (at ``time_s`` and, where the cycle costs time, once more near ``time_s`` less that); the optimum
+    is E* moved by the cycle's cost on the finest grid, its accuracy the change from the grid before plus E*'s own. Where the cycle cannot bind,
+    nothing is solved (``cycles`` False). Raises ``InfeasibleError`` where no drive that keeps the cycle runs in
+    ``time_s``."""
     t_wall = time.perf_counter()
     if not cycle_binds(calc):
-        return CycleOptimum(float(time_s), False, estar_kwh=estar_kwh, method="relaxed E* (the cycle cannot bind)")
+        e0 = None if estar is None else float(estar(float(time_s))[0])  # (E* itself)
+        return CycleOptimum(float(time_s), False, estar_kwh=e0, method="relaxed E* (the cycle cannot bind)")
+    curve = None if estar is None else EstarCurve(estar, time_s)
     cell = coarse_cell_m(calc) if cell_m is None else float(cell_m)
-    g, drive = grid_optimum(grid_calculator(calc, cell), time_s, cell, speed_step_kmh, price_hint,
-                            close=PRICE_CLOSE_COARSE)
+    step = float(speed_step_kmh)
+    g, drive = grid_optimum(calc, time_s, cell, step, price_hint, close=PRICE_CLOSE_COARSE, estar=curve)
     found = [g]
-    while True:
-        cell /= 2
-        fine_calc = grid_calculator(calc, cell)
-        g, drive = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, seed=found[-1].prices_kwh_per_s)
+    while len(found) < MAX_GRIDS:
+        cell, step = cell / 2, step / 2
+        g, drive = grid_optimum(calc, time_s, cell, step, price_hint, seed=found[-1].prices_kwh_per_s, estar=curve)
         found.append(g)
-        diff = abs(found[-1].energy_kwh - found[-2].energy_kwh) / max(abs(g.energy_kwh), 1e-9)
-        if diff <= REFINE_TOL or len(found) >= MAX_GRIDS:
-            break
-    relaxed_kwh = None
-    excess = 0.0
-    if estar_kwh is not None:
-        rel, _ = grid_optimum(fine_calc, time_s, cell, speed_step_kmh, price_hint, relaxed=True)
-        relaxed_kwh = rel.energy_kwh
-        excess = max(rel.energy_kwh - estar_kwh, 0.0)
-    e = g.energy_kwh
-    acc = (abs(found[-1].energy_kwh - found[-2].energy_kwh) + excess) / max(abs(e), 1e-9)
-    grids = tuple({"cell_m": x.cell_m, "speed_step_kmh": x.speed_step_kmh, "energy_kwh": x.energy_kwh,
-                   "solves": x.solves, "wall_s": x.wall_s} for x in found)
-    return CycleOptimum(float(time_s), True, e, acc, estar_kwh, relaxed_kwh, drive.price_kwh_per_s, grids,
-                        time.perf_counter() - t_wall, drive)
+    e_star = None if curve is None else float(curve.points[round(float(time_s), 1)][0])
+    e = g.estimate_kwh if e_star is None else max(g.estimate_kwh, e_star)
+    acc = abs(found[-1].estimate_kwh - found[-2].estimate_kwh) / max(abs(e), 1e-9)
+    if curve is not None:
+        acc += max(p[2] for p in curve.points.values())  # (E*'s own, where the optimum stands on it)
+    grids = tuple({"cell_m": x.cell_m, "speed_step_kmh": x.speed_step_kmh, "dp_kwh": x.energy_kwh,
+                   "lost_s": x.lost_s, "extra_kwh": x.extra_kwh, "estimate_kwh": x.estimate_kwh, "solves": x.solves,
+                   "wall_s": x.wall_s} for x in found)
+    return CycleOptimum(float(time_s), True, e, acc, e_star, g.energy_kwh, g.lost_s, g.extra_kwh,
+                        drive.price_kwh_per_s, grids, time.perf_counter() - t_wall, drive)
