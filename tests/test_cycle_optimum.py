@@ -153,9 +153,10 @@ def test_constant_descent_cycles_as_worked_by_hand(descent, c80x50):
     out: where the descent begins and ends) each application comes at 59.0 km/h (on some cycles up to 0.5 km/h
     sooner, at a node: a plan may brake there, and the DP's value, interpolated between its grid speeds, may prefer
     it by a hair), is released after the same hold as by hand (13.35 s, within 0.25 s: the DP steps the air brake's
-    build-up once per cell of 25 .. 50 m, at the cell's middle time) at 55.70 km/h (within 0.05 km/h), and the recharge is over 60 s later, 0.5 km/h or more under the apply speed; and the cycle
-    optimum is E* at T less the cycle's cost on the descent, 30 km x 2.66 s/km, within one cycle's 3.58 s at either
-    end and a second per cycle for the early applications (E*'s slope x that) plus the optimum's stated accuracy."""
+    build-up once per cell of 25 .. 50 m, at the cell's middle time) at 55.70 km/h (within 0.05 km/h), and the
+    recharge is over 60 s later, 0.5 km/h or more under the apply speed; and the cycle optimum is E* at T less the
+    cycle's cost on the descent, 30 km x 2.66 s/km, within one cycle's 3.58 s at either end and a second per cycle
+    for the early applications (E*'s slope x that) plus the optimum's stated accuracy."""
     route, calc, t, co = descent
     cyc = hand_worked_cycle()
     assert co.cycles and co.energy_kwh is not None and co.accuracy is not None
@@ -239,7 +240,8 @@ def test_the_nested_grids_converge(optima, name):
     DP's own energy comes nearer the optimum."""
     route, calc, t, co = optima[name]
     coarse, fine = co.grids
-    assert fine["cell_m"] == pytest.approx(coarse["cell_m"] / 2) and fine["speed_step_kmh"] == coarse["speed_step_kmh"] / 2
+    assert fine["cell_m"] == pytest.approx(coarse["cell_m"] / 2)
+    assert fine["speed_step_kmh"] == coarse["speed_step_kmh"] / 2
     assert abs(fine["estimate_kwh"] - coarse["estimate_kwh"]) <= abs(fine["dp_kwh"] - coarse["dp_kwh"]) + 1e-6
     assert abs(fine["dp_kwh"] - fine["estimate_kwh"]) <= abs(coarse["dp_kwh"] - coarse["estimate_kwh"]) + 1e-6
     assert co.accuracy >= abs(fine["estimate_kwh"] - coarse["estimate_kwh"]) / co.energy_kwh

@@ -3,42 +3,51 @@
 E* (``ocp/bound.py``) relaxes the wagons' air brake to a continuous force a run may modulate at will, so on a
 descent the electric brake cannot hold it holds the limit exactly, and a plan's gap to it mixes what the planner
 loses with what the cycle must cost: an application builds up over its build-up time, is held at least its least
-hold, is released in full, may not be made again before the recharge time has passed, and while it is on the train
-brakes with it and the full electric brake (docs/model.md, "the air brake's cycle"). This module finds the least
-traction energy of a drive that keeps those rules, on the calculator's train model, by dynamic programming at a
-price of time (as ``dp.py``), the price searched for the running time.
+hold, is released in full, may not be made again before the recharge time has passed (docs/model.md, "the air
+brake's cycle"). This module finds the least traction energy of a drive that keeps those rules, and the
+calculator's rules for them, on the calculator's train model, by dynamic programming at a price of time (as
+``dp.py``), the price searched for the running time.
 
 **The state** is (node, speed, air state), the air state one of
 - CH: released and charged: may apply;
-- AF: applied, its least hold and build-up over: brakes with the air brake and the full electric brake; may stay
-  applied (B) or be released at the node;
+- AF: applied, its least hold and build-up over: may stay applied or be released (where the calculator would);
 - R0 + b: released and recharging, b x 15 s (``REC_STEP_S``, the recharge in equal parts) since the release; charged
   at the first node where the recharge is over. Between two of these states a value is interpolated in time, and
   taken as none where the earlier state has none: a drive never counts on more time than has passed;
 - NA: outside every zone (below): no air brake.
-A single cell's controls: full traction (T), holding the speed (H: traction, or the electric brake, at full where
-it cannot hold), coasting (C), the full electric brake (E), and in AF the air brake staying on (B).
+A single cell's controls (``cycle_kernel.U_*``): full traction (T), holding the speed (H: traction, or the electric
+brake, at full where it cannot hold), coasting (C), the full electric brake (E), and with the brake applied: at full
+(B: the air brake and the full electric brake) or kept on with the electric brake eased (K: the speed held with
+braking between the air brake alone and it plus the full electric brake, the air brake alone where that slows the
+train even so).
+
+**The calculator's rules** (``sim/kernel.py``, ``run_plans`` and ``release_safe``) are the drive's: a released brake
+is applied when the speed reaches the apply speed on a grade the electric brake cannot hold (``apply_speeds``; an
+application starts where holding reaches it, inside the cell); an applied brake brakes at full above the speed at
+which the calculator keeps an application on (``keep_speeds``: its release speed at the least release margin a plan
+may carry, the highest of any plan) and at or below it may be kept on with the electric brake eased, or released;
+every application, whatever made it (the apply speed, braking, a braking curve that needs the air brake), is held
+its least hold; a release is made only where the recharge keeps the train ``LOOKAHEAD_MARGIN_KMH`` under the apply
+speed (the calculator's look-ahead: a recharging train stays under ``e_rec``), and while it recharges on a descent
+the electric brake holds the speed. A braking curve (to a lower limit, to the stop, along a descent full braking
+cannot hold) is followed with up to full braking; where that needs the air brake it is an application like any
+other. The nodes (``cycle_nodes``) fall on every change of the speed limit, so a curve's end is a node.
 
 **Paths**: whatever the cycle does for a time of its own runs as a path of phases whose ends fall at their exact
 times, inside a cell where they fall there (``cycle_kernel.P_*``): from CH an application (building up linearly
-over its build-up time, at each cell's middle time as the calculator has it) until its least hold and build-up are
-over, then braking on to the next node (AF), or released that very instant and recharged under H for exactly the
-recharge time (CH at the node after), or released that instant and the rest of the cell under H, C or E (recharging
-at the next node, the time since the release known exactly); from AF a release and the recharge under H for exactly
-the recharge time (CH), or with an application the instant it is over (AF). So both the least hold and the recharge
-bind exactly where they bind, and the drive the forward pass returns -- every step and path run again from the
-train's actual state, the time since a release exact -- keeps the rules: no application within a recharge, no hold
-shorter than the least. (An elapsed-time state advanced by whole buckets per cell, rounded down to stay on the safe
-side, loses up to a bucket every cell: 5-10 s of a 90 s recharge on 50 m cells.) The backward pass reads the paths'
-whole cells off the one-cell tables, interpolated in speed; the forward pass steps them.
-
-**The calculator's rules that bind a plan** are the drive's too: a released brake is applied when the speed reaches
-the apply speed on a grade the electric brake cannot hold (``kernel.cycle_speeds``; an application starts where
-holding reaches it, inside the cell), and while it recharges on a descent the electric brake holds the speed. A
-braking curve (to a lower limit, to the stop, along a descent full braking cannot hold) is followed as the calculator
-follows it, with up to full braking: where that needs the air brake it is an application of its own by a charged
-brake, released where the curve ends (no least hold). The limit itself is never held with the air brake: on a descent
-the electric brake cannot hold, the application comes at the apply speed, below it.
+over its build-up time, at each cell's middle time as the calculator has it; at full down to the keep speed, kept on
+from the point it is reached) until its least hold and build-up are over, then on to the next node (AF), or released
+that very instant and recharged under H for exactly the recharge time (CH at the node after), or released that
+instant and the rest of the cell under H, C or E (recharging at the next node, the time since the release known
+exactly), or kept on and released at the first instant of that cell from which the recharge is possible; from AF a
+release at the node, or kept on into the cell and released at the first instant from which the recharge is
+possible (as the calculator releases at the first chance its look-ahead gives: on a descent, a release a node late
+costs up to a cell's fall in speed every cycle), then the recharge under H for exactly the recharge time (CH), or
+with an application the instant it is over (AF). So the least hold, the release and the recharge bind exactly where
+they bind, and the drive the forward pass returns -- every step and path run again from the train's actual state,
+the time since a release exact -- keeps the rules: no application within a recharge, no hold shorter than the
+least. The backward pass reads the paths' whole cells off the one-cell tables, interpolated in speed; the forward
+pass steps them.
 
 **Where the state matters** (``air_zones``): around the cells where the air brake may be needed -- the descents
 whose grade the electric brake cannot hold at the limit (``cycle_regions_m``), the braking curves that need the air
@@ -53,16 +62,19 @@ restriction of the drives: the answer stays a drive's.
 air brake lie within a recharge at the top speed of each other, every application is a braking curve followed with
 up to full braking, as in the relaxation: the cycle optimum is E* itself, and nothing is solved.
 
-**What the number is** (``solve_cycle_optimum``): the energy at T of drives that keep the cycle on the DP's grid,
-on the chord between the two drives whose running times bracket T (the lowest such chord; above the energy-time
-curve where it is convex). It approximates the cycle optimum from above on its grid: one control per cell of about
-``cell_m``, speeds interpolated between the grid's, applications and releases at nodes where no time binds them. Its
-stated accuracy: the DP on cells of ``coarse_cell_m`` and half as long (once more where those two differ by more
-than ``REFINE_TOL``), the last two grids' difference plus the same DP's excess over E* without the cycle on the
-finest grid (``relaxed=True``: no state, full braking at will). It is not a bound: a drive on a finer grid, or one
-switching inside cells, may use less, and the DP's cells are not the calculator's (benchmarks/bench_cycle_optimum.py
-measures plans on the calculator against it). The recharge that binds after a release at a node (the release
-speed, not a time, decides it) converges at first order in the cell: there the grids' difference shows it.
+**What the number is** (``solve_cycle_optimum``): on each grid (``grid_optimum``) the cycle DP's drives that bracket
+T, and the same DP without the cycle (``relaxed``: no state, the air brake a continuous force) at each drive's own
+price of time; against those the cycle costs ``lost_s`` of running time and ``extra_kwh`` of traction energy
+(weighted as the chord at T weighs the bracket's two ends). The cycle optimum is E*(T - lost_s) + extra_kwh: the
+relaxed optimum with the time the cycle loses taken from the rest of the line, and the energy it spends added
+(E* near T from the caller, a cubic between its values and slopes at T and T - lost_s: ``EstarCurve``), never
+below E*(T). So the DP's own discretisation error, which its drives and its relaxed drives share, cancels: the DP's
+energy at T (``dp_kwh``, on the chord between the drives that bracket T) lies above the optimum by about that error
+(0.1-1 % on 50 m cells), the difference of the two DPs by much less. Grids: cells of ``coarse_cell_m`` and a speed
+step of ``SPEED_STEP_KMH``, then both halved (``MAX_GRIDS``); the stated accuracy is the two grids' change in the
+estimate, relative, plus E*'s own. It is an estimate, not a bound: the cycle's cost is measured on the DP's grid,
+where a drive switches at nodes only and its speeds are interpolated, and the DP's cells are not the calculator's
+(benchmarks/bench_cycle_optimum.py measures plans on the calculator against it).
 """
 
 from __future__ import annotations
@@ -110,8 +122,8 @@ no drive lies between)."""
 REC_STEP_S = 15.0
 """The recharge's states lie this far apart in time since the release [s] (at most: the recharge in equal parts)."""
 HINT_STEP = 0.15
-"""From a price hint the search steps 15 % of the price away (the cycle's price lies above E*'s slope), doubling, until the
-time crosses T."""
+"""From a price hint the search steps 15 % of the price away (the cycle's price lies above E*'s slope), doubling,
+until the time crosses T."""
 
 
 @dataclass(frozen=True)
@@ -497,9 +509,8 @@ def cycle_solver(calc: TractionCalculator, cell_m: float, speed_step_kmh: float 
 
 class EstarCurve:
     """E* [kWh] near a running time, from ``estar(t) -> (E* [kWh], dE*/dT [kWh/s], its relative accuracy)``: at
-    ``t0_s`` and, once asked
-    for a time further than ``NEAR_S`` from it, at that time too (one solve), a cubic between the two with their
-    slopes (Hermite); near ``t0_s`` alone, its tangent. Times are solved at 0.1 s."""
+    ``t0_s`` and, once asked for a time further than ``NEAR_S`` from it, at that time too (one solve), a cubic
+    between the two with their slopes (Hermite); near ``t0_s`` alone, its tangent. Times are solved at 0.1 s."""
 
     NEAR_S = 1.0
 
@@ -609,14 +620,14 @@ def grid_calculator(calc: TractionCalculator, cell_m: float) -> TractionCalculat
 def solve_cycle_optimum(calc: TractionCalculator, time_s: float, *, estar=None, price_hint: float | None = None,
                         cell_m: float | None = None, speed_step_kmh: float = SPEED_STEP_KMH) -> CycleOptimum:
     """The cycle optimum of ``calc``'s route, train and model in ``time_s`` [s] (module docstring): the cycle DP and
-    the same DP without the cycle on cells of ``cell_m`` (default ``coarse_cell_m``), then on cells half as long, and
-    once more (``MAX_GRIDS``) where the two estimates differ by more than ``REFINE_TOL``; the price of time searched
+    the same DP without the cycle on cells of ``cell_m`` (default ``coarse_cell_m``) and a speed step of
+    ``speed_step_kmh``, then both halved (``MAX_GRIDS`` grids); the price of time searched
     for ``time_s`` from ``price_hint`` [kWh/s] (E*'s -dE*/dT there: the cycle's price lies above it), on each finer
     grid from the coarser one's bracket. ``estar(t) -> (E* [kWh], dE*/dT [kWh/s], E*'s relative accuracy)``: E* at
     a running time (at ``time_s`` and, where the cycle costs time, once more near ``time_s`` less that); the optimum
-    is E* moved by the cycle's cost on the finest grid, its accuracy the change from the grid before plus E*'s own. Where the cycle cannot bind,
-    nothing is solved (``cycles`` False). Raises ``InfeasibleError`` where no drive that keeps the cycle runs in
-    ``time_s``."""
+    is E* moved by the cycle's cost on the finest grid, its accuracy the change from the grid before plus E*'s own
+    (without ``estar``: the finest grid's own DP energy). Where the cycle cannot bind, nothing is solved (``cycles``
+    False). Raises ``InfeasibleError`` where no drive that keeps the cycle runs in ``time_s``."""
     t_wall = time.perf_counter()
     if not cycle_binds(calc):
         e0 = None if estar is None else float(estar(float(time_s))[0])  # (E* itself)
