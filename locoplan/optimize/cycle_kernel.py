@@ -20,37 +20,56 @@ from .dp_kernel import _blend, _bracket, _interp1
 
 CH, NA, AF, R0 = 0, 1, 2, 3
 """Air-brake states at a node: released and charged (may apply); released, outside every zone (no air brake
-there: the next zone is reached charged); applied at full with its least hold over (may release); released and
+there: the next zone is reached charged); applied, its least hold and build-up over (may release); released and
 recharging, R0 + b for b = 0 .. n_rec - 1 with b x the recharge / n_rec [s] since the release (a train in it
 cannot apply; its value between two of them is interpolated in time, and taken as none where the one before is:
 never earlier than the rules allow)."""
-U_T, U_H, U_C, U_B, U_E = 0, 1, 2, 3, 4
-N_U = 5
+U_T, U_H, U_C, U_B, U_E, U_K = 0, 1, 2, 3, 4, 5
+N_U = 6
 """A cell's control: full traction, hold the speed (traction, or braking up to what the state allows, at full
 where that cannot hold it), coast, braking with the air brake applied (and the full electric brake), the full
-electric brake alone. The first four are the calculator's condition codes (T, K, C, B)."""
-P_A, P_AR_H, P_AX_H, P_AX_C, P_AX_E, P_R_H, P_RA_H = 0, 1, 2, 3, 4, 5, 6
-N_P = 7
-N_CH = 5
+electric brake alone, and the air brake kept on with the electric brake eased (``U_K``: braking between the air
+brake alone and it plus the full electric brake, the speed held where that range holds it, as the calculator
+holds a kept-on application; the air brake alone where it slows the train even so; full braking where even that
+cannot hold). The first four are the calculator's condition codes (T, K, C, B)."""
+P_A, P_AR_H, P_AX_H, P_AX_C, P_AX_E, P_AKR_H, P_R_H, P_RA_H, P_KR_H = 0, 1, 2, 3, 4, 5, 6, 7, 8
+N_P = 9
+N_CH = 6
 """Paths of several cells from a node, made of phases whose ends come at exact times (inside a cell where they
 fall there):
-- from a charged brake (CH): an application, held until both its least hold and its build-up are over, then on
-  applied to the next node (``P_A``: AF there), or released that instant and, under H, recharged for exactly the
+- from a charged brake (CH): an application (at the apply speed, where a plan brakes, or where a braking curve
+  needs the air brake: one kind, as the calculator holds every application its least hold), braking as the
+  calculator brakes an applied train (``_applied_u``: at full above the speed it may be kept on at, else kept on
+  with the electric brake eased; either way following the caps, with full braking where it must), held until both
+  its least hold and its build-up are over, then on applied to the next node (``P_A``: AF there), or released that
+  instant (where it may be released) and, under H, recharged for exactly the
   recharge time, on to the node after (``P_AR_H``: CH there), or released that instant and the rest of that cell
-  under H, C or E (``P_AX_*``: recharging at the next node, the time since the release known exactly);
-- from an applied one (AF): released at the node and recharged under H for exactly the recharge time, on to the
-  node after (``P_R_H``: CH), or with an application the instant the recharge is over (``P_RA_H``: AF)."""
+  under H, C or E (``P_AX_*``: recharging at the next node, the time since the release known exactly), or kept on
+  and released at the first point of that cell from which the recharge under H is possible, recharged so for
+  exactly the recharge time, on to the node after (``P_AKR_H``: CH; ``kept_release_path``);
+- from an applied one (AF, where it may be released): released at the node and recharged under H for exactly the
+  recharge time, on to the node after (``P_R_H``: CH), or with an application the instant the recharge is over
+  (``P_RA_H``: AF); or kept on into the cell and released at the first instant from which that recharge is
+  possible (``P_KR_H``: CH; ``kept_release_path``), as the calculator releases at the first chance its look-ahead
+  gives: on a descent, where the recharge under the electric brake binds, a release a node late would cost up to
+  a cell's fall in speed every cycle."""
+RELEASE_ITERATIONS = 14
+"""Bisections of a cell for the first instant a kept-on application may be released (``kept_release_path``), and of
+the speed for the highest from which a release at a node may recharge (``release_threshold``)."""
 OK, AIR, NO = 0, 1, 2
 """A step's verdict: possible as it is (or held at the next node's cap by the electric brake alone), possible
 only with the air brake (applied, or following a braking curve), not possible."""
-AIR_OFF, AIR_CYCLE, AIR_RECHARGE, AIR_CURVE = 0, 1, 2, 3
+AIR_OFF, AIR_CYCLE, AIR_RECHARGE = 0, 1, 2
 """The drive's air brake at each cell's start: released (charged, or no application ahead in the zone), applied
-(an application of its own, with its build-up and least hold), released and recharging, applied following a
-braking curve (no least hold: released where the curve ends, as in the calculator)."""
-EV_APPLY, EV_RELEASE, EV_CURVE, EV_CHARGED = 1, 2, 3, 4
-"""The drive's events: an application, a release, an application following a braking curve, a recharge over (where
-a recharge path's ends, or a recharging train finds it over at a node)."""
+(with its build-up and least hold, whatever made it: the apply speed, a plan's braking, a braking curve), released
+and recharging."""
+EV_APPLY, EV_RELEASE, EV_CHARGED = 1, 2, 3
+"""The drive's events: an application, a release, a recharge over (where a recharge path's ends, or a recharging
+train finds it over at a node)."""
 PH_APPLY, PH_REC = 0, 1
+APPLIED, RECHARGING, CHARGED = 0, 1, 2
+"""What binds the rest of a cell after a path's last event (``_finish``): applied; released and recharging;
+released and charged."""
 
 
 @njit(cache=True, _nrt=False)
@@ -66,7 +85,8 @@ def _brake_force(vm, lvl, k, cc, fo):
 def _free_part(e, u, t0, t_b, k, length, cc, fo):
     """``length`` [m] of cell k from e = v^2/2 under control u (not H), no cap: (e at its end, traction work
     [kJ]). With U_B the air brake's level is its linear build-up at the part's middle time, ``t0`` [s] after the
-    application at the part's start (``t_b`` its build-up time; <= 0: full at once)."""
+    application at the part's start (``t_b`` its build-up time; <= 0: full at once), and the full electric brake;
+    with U_K the air brake alone at that level (the electric brake eased to nothing)."""
     g_k = cc.grav[k]
     v0 = ms_from_e(max(e, 0.0))
     e1 = e
@@ -80,12 +100,12 @@ def _free_part(e, u, t0, t_b, k, length, cc, fo):
             f = _interp1(vm, fo.tv, fo.tf) * cc.allowed[k]
         elif u == U_E:
             b = _brake_force(vm, 0.0, k, cc, fo)
-        elif u == U_B:
+        elif u == U_B or u == U_K:
             lvl = 1.0
             if t_b > 0.0:
                 t_mid = t0 + length / (v0 + ms_from_e(e_m) + 1e-12)  # the calculator's mid-cell time
                 lvl = min(max(t_mid / t_b, 0.0), 1.0)
-            b = _brake_force(vm, lvl, k, cc, fo)
+            b = _brake_force(vm, lvl, k, cc, fo) if u == U_B else lvl * _interp1(vm, fo.av, fo.af)
         load = davis_kn(vm, fo.ra, fo.rb, fo.rc) + g_k
         e1 = e + length / fo.m * (f - b - load)
     if u == U_T:
@@ -97,13 +117,26 @@ def _free_part(e, u, t0, t_b, k, length, cc, fo):
 def _part(e, u, t0, t_b, k, length, cc, fo, full_hold):
     """As ``_free_part``, and H: the speed held with traction or braking (the electric brake, or with
     ``full_hold`` full braking) where it can be, else full traction (a climb) or that braking at full (a
-    descent); from rest H is not possible (e_end -1)."""
-    if u != U_H:
+    descent); and U_K, the calculator's kept-on application: the speed held by braking between the air brake
+    (at its level at the part's middle time, ``t0`` [s] after the application; ``t_b`` the build-up) and it plus
+    the full electric brake where that range holds it, else the air brake alone (it slows the train even so) or
+    both at full (they cannot hold it). From rest neither is possible (e_end -1)."""
+    if u != U_H and u != U_K:
         return _free_part(e, u, t0, t_b, k, length, cc, fo)
     if e <= 0.0:
         return -1.0, 0.0
     v_kmh = kmh_from_e(e)
     load0 = davis_kn(v_kmh, fo.ra, fo.rb, fo.rc) + cc.grav[k]
+    if u == U_K:
+        lvl = 1.0
+        if t_b > 0.0:  # (held: the part's middle time at this speed)
+            lvl = min(max((t0 + 0.5 * length / ms_from_e(e)) / t_b, 0.0), 1.0)
+        b_air = lvl * _interp1(v_kmh, fo.av, fo.af)
+        if -load0 < b_air:
+            return _free_part(e, U_K, t0, t_b, k, length, cc, fo)
+        if -load0 > b_air + _brake_force(v_kmh, 0.0, k, cc, fo):
+            return _free_part(e, U_B, t0, t_b, k, length, cc, fo)
+        return e, 0.0
     f_max = _interp1(v_kmh, fo.tv, fo.tf) * cc.allowed[k]
     b_max = _brake_force(v_kmh, 1.0 if full_hold else 0.0, k, cc, fo)
     if load0 > f_max:
@@ -119,12 +152,12 @@ def _to_node(e, u, t0, t_b, k, length, cc, fo, full_hold):
     calculator holds a train there: (e_end, work [kJ], verdict OK / AIR / NO). Where the step would end above the
     cap, the train follows the cap if full braking from e keeps it there (the calculator's braking curves are
     full braking; a tolerance for their finer steps): by the electric brake alone (OK) or only with the air
-    brake (AIR). The last cell ends at rest. A step under U_B is AIR (the air brake is on)."""
+    brake (AIR). The last cell ends at rest. A step under U_B or U_K is AIR (the air brake is on)."""
     n = cc.h.shape[0]
     e1, w = _part(e, u, t0, t_b, k, length, cc, fo, full_hold)
     if e1 < 0.0 and u == U_H:
         return -1.0, 0.0, NO
-    air = AIR if u == U_B else OK
+    air = AIR if (u == U_B or u == U_K) else OK
     cap = 0.0 if k == n - 1 else cc.e_cap[k + 1]
     if e1 > cap * (1.0 + 1e-9) + 1e-9:
         fall = 0.02 * (e - cap if e > cap else 0.0)
@@ -237,9 +270,38 @@ def _tab_cell(e, j, u, cc, tb):
 
 
 @njit(cache=True, _nrt=False)
+def _applied_u(e, j, u, cc):
+    """The control an applied train at e in cell j is under when asked for ``u``: the calculator brakes at full
+    (U_B) an application above the speed at which it may be kept on (``e_keep``: its release speed at the least
+    release margin), and keeps it on with the electric brake eased (U_K) at or below it."""
+    if u == U_K and e > cc.e_keep[j] * (1.0 + 1e-9):
+        return U_B
+    return u
+
+
+@njit(cache=True, _nrt=False)
+def _keep_point(e, t0, t_b, k, rest, cc, fo):
+    """Where in the remaining ``rest`` [m] of cell k full braking (U_B, the air brake ``t0`` [s] into its build-up of
+    ``t_b``) from e brings the train down to ``e_keep`` (bisection, ``RELEASE_ITERATIONS``); 0 where it does not
+    within the rest."""
+    if _part(e, U_B, t0, t_b, k, rest, cc, fo, False)[0] >= cc.e_keep[k]:
+        return 0.0
+    lo, hi = 0.0, rest
+    for _ in range(RELEASE_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        if _part(e, U_B, t0, t_b, k, mid, cc, fo, False)[0] > cc.e_keep[k]:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True, _nrt=False)
 def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, part):
     """A phase of a path: control u from ``x`` [m] into cell j at e until it has lasted ``dur`` [s] (an
-    application: the air brake building up from the phase's start over ``t_b``; ``is_rec``: a recharge, whose
+    application, u = U_K: braking as the calculator brakes an applied train, ``_applied_u``: at full down to the
+    keep speed, kept on from the point it is reached; the air brake building up from the phase's start over
+    ``t_b``; ``is_rec``: a recharge, whose
     caps only the electric brake may follow). Returns (j, x, e, time [s], work [kJ], status) where it ends: status
     0 = inside cell j, x metres in; 1 = the zone ended first, at node j (x = 0); 2 = the stop; -1 = not possible.
     With ``use_tab`` whole cells are read off the one-cell tables where they can be (``_tab_cell``: a recharge, an
@@ -250,25 +312,38 @@ def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air
     w_sum = 0.0
     while True:
         h = cc.h[j]
+        ue = _applied_u(e, j, u, cc)
         if rec and x == 0.0:
-            controls[j] = u
+            controls[j] = ue
             air[j] = AIR_RECHARGE if is_rec else AIR_CYCLE
         rest = h - x
         ok = -1
         if use_tab and x == 0.0 and (is_rec or t >= t_b):
-            e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
+            e1, w, dt, ok = _tab_cell(e, j, ue, cc, tb)
         if ok < 0:
-            e1, w, ok = _to_node(e, u, t, t_b, j, rest, cc, fo, False)
+            e1, w, ok = _to_node(e, ue, t, t_b, j, rest, cc, fo, False)
             dt = _part_time(e, e1, rest) if ok != NO else np.inf
-        if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
-            return j, x, e, t, w_sum, -1  # (recharging past the apply speed: the calculator would apply again)
+        if ok == NO or (is_rec and ok != OK) or not math.isfinite(dt):
+            return j, x, e, t, w_sum, -1
         r = dur - t
+        if ue != u and e1 < cc.e_keep[j]:  # braking at full down to the keep speed, reached inside the cell:
+            xk = _keep_point(e, t, t_b, j, rest, cc, fo)  # kept on from there (the rule, not a cell later)
+            if xk > 0.0:
+                ek, wk = _part(e, ue, t, t_b, j, xk, cc, fo, False)
+                tk = _part_time(e, ek, xk)
+                if tk < r:
+                    e, x, t, w_sum = ek, x + xk, t + tk, w_sum + wk
+                    continue
         if dt > r:
-            xs, es, ws, ts = _split(e, u, t, t_b, j, rest, r, cc, fo)
+            xs, es, ws, ts = _split(e, ue, t, t_b, j, rest, r, cc, fo)
+            if is_rec and es > cc.e_rec[j] * (1.0 + 1e-9):
+                return j, x, e, t, w_sum, -1  # (recharging near the apply speed: the calculator would not release)
             # (where it ends, and the part of the cell it ends in: from there a path that goes on under the same
             # control steps the whole part, as a drive's record has it, not two pieces of it)
             part[0], part[1], part[2], part[3] = x, e, t, w_sum
             return j, x + xs, es, t + ts, w_sum + ws, 0
+        if is_rec and e1 > cc.e_rec[j] * (1.0 + 1e-9):
+            return j, x, e, t, w_sum, -1
         e = e1
         t += dt
         w_sum += w
@@ -281,7 +356,7 @@ def _phase(e, j, x, u, dur, t_b, is_rec, cc, fo, tb, use_tab, rec, controls, air
             return j, x, e, t, w_sum, 2
         if cc.zone[j] == 0:
             return j, x, e, t, w_sum, 1
-        if is_rec and e >= cc.e_app[j]:  # the calculator would apply here, before the recharge is over
+        if is_rec and e >= cc.e_rec[j]:  # (near the apply speed before the recharge is over)
             return j, x, e, t, w_sum, -1
 
 
@@ -293,17 +368,21 @@ def _descending(e, k, cc, fo):
 
 
 @njit(cache=True, _nrt=False)
-def _finish(e, j, x, u, t0, t_b, is_rec, cc, fo, tb, use_tab, rec, v_nodes, t_nodes, t_start):
-    """The rest of cell j from ``x`` [m] under control u (an application ``t0`` [s] old, or a recharge) to its
-    node: (e there, time [s], work [kJ], ok False where not possible)."""
+def _finish(e, j, x, u, t0, t_b, mode, cc, fo, tb, use_tab, rec, v_nodes, t_nodes, t_start):
+    """The rest of cell j from ``x`` [m] under control u to its node: applied (``mode`` ``APPLIED``: an application
+    ``t0`` [s] old, U_K as ``_applied_u`` has it), released and recharging (``RECHARGING``: without the air brake,
+    under ``e_rec``) or released and charged (``CHARGED``: without the air brake, not past the apply speed).
+    Returns (e there, time [s], work [kJ], ok False where not possible)."""
+    u = _applied_u(e, j, u, cc)
     rest = cc.h[j] - x
     ok = -1
-    if use_tab and x == 0.0 and (is_rec or t0 >= t_b):
+    if use_tab and x == 0.0 and (mode != APPLIED or t0 >= t_b):
         e1, w, dt, ok = _tab_cell(e, j, u, cc, tb)
     if ok < 0:
         e1, w, ok = _to_node(e, u, t0, t_b, j, rest, cc, fo, False)
         dt = _part_time(e, e1, rest) if ok != NO else np.inf
-    if ok == NO or (is_rec and (ok != OK or e1 > cc.e_app[j] * (1.0 + 1e-9))) or not math.isfinite(dt):
+    bound = cc.e_rec[j] if mode == RECHARGING else cc.e_app[j]
+    if ok == NO or (mode != APPLIED and (ok != OK or e1 > bound * (1.0 + 1e-9))) or not math.isfinite(dt):
         return e, 0.0, 0.0, False
     if rec:
         v_nodes[j + 1] = kmh_from_e(max(e1, 0.0))
@@ -338,9 +417,11 @@ def _rec_u(m):
 def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
                 n_ev, pj, pe, pt, pw, pq, part):
     """The paths ``first`` .. ``last`` of ``P_A`` .. ``P_AX_E`` from a charged brake at node k at e, their
-    application stepped once: the air brake (and the full electric brake) from the node, its force building up
-    linearly over the cell's build-up time (the calculator's), until both its least hold and its build-up are
-    over; then as the path says (``P_A``, ``P_AR_H``, ``P_AX_*``). Into ``pj`` (end node, -1: none), ``pe``,
+    application stepped once: the air brake from the node, its force building up linearly over the cell's build-up
+    time (the calculator's), braking as the calculator brakes an applied train (``_applied_u``: at full above the
+    speed it may be kept on at, kept on with the electric brake eased at or below it), until both its least hold
+    and its build-up are over; then as the path says (``P_A``, ``P_AR_H``, ``P_AX_*``; a release only at or below
+    that speed, as the calculator releases). Into ``pj`` (end node, -1: none), ``pe``,
     ``pt`` [s], ``pw`` [kJ] and ``pq`` (the time since the release at the end node [s], ``P_AX_*``); returns the
     events recorded (``rec``: one path). ``part``: a buffer of 4 (``_phase``)."""
     n = cc.h.shape[0]
@@ -361,7 +442,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
                 controls[k] = U_H
                 air[k] = AIR_OFF
     n_ev = _event(rec, ev, ev_k, n_ev, k, x0, t_start + t0, e, EV_APPLY, cc)
-    j, x, ea, ta, wa, st = _phase(e, k, x0, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
+    j, x, ea, ta, wa, st = _phase(e, k, x0, U_K, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air, v_nodes,
                                   t_nodes, t_start + t0, part)
     ta += t0
     wa += w0
@@ -372,13 +453,22 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
             pj[m], pe[m], pt[m], pw[m] = n, ea, ta, wa
         return n_ev
     for m in range(first, last + 1):
+        if m == P_AKR_H:  # kept on past the hold, released at the first chance in the rest of its cell
+            n_ev = kept_release_path(ea, j, x, P_AKR_H, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes,
+                                     t_start + ta, ev, ev_k, n_ev, pj, pe, pt, pw, part)
+            if pj[m] >= 0:
+                pt[m] += ta
+                pw[m] += wa
+            continue
         if m == P_A:  # (braking on: the part of the cell where the hold ends stepped whole)
             xp, ep, tp, wp = part[0], part[1], part[2], part[3]
-            e1, dt, w, ok = _finish(ep, j, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+            e1, dt, w, ok = _finish(ep, j, xp, U_K, tp, t_b, APPLIED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
                                     t_start + t0 + tp)
             if ok:
                 pj[m], pe[m], pt[m], pw[m] = j + 1, e1, t0 + tp + dt, w0 + wp + w
             continue
+        if ea > cc.e_keep[j] * (1.0 + 1e-9) or ea >= cc.e_rec[j]:
+            continue  # (above its release speed, or near the apply speed, the calculator keeps an application on)
         u = _rec_u(m)
         if u != U_H and _descending(ea, j, cc, fo):
             continue  # (recharging on a descent the calculator holds the speed electrically: H)
@@ -386,7 +476,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
         if rec:
             controls[j] = u  # (the cell of the release: its control after it)
         if m != P_AR_H:  # released, the rest of the cell under u: recharging at the next node
-            e1, dt, w, ok = _finish(ea, j, x, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+            e1, dt, w, ok = _finish(ea, j, x, u, 0.0, 0.0, RECHARGING, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
                                     t_start + ta)
             if ok:
                 pj[m], pe[m], pt[m], pw[m], pq[m] = j + 1, e1, ta + dt, wa + w, dt
@@ -399,7 +489,7 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
             pj[m], pe[m], pt[m], pw[m] = j2, er, ta + tr, wa + wr
             continue
         n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + ta + tr, er, EV_CHARGED, cc)
-        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, True, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
                                 t_start + ta + tr)
         if ok:
             pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, ta + tr + dt, wa + wr + w
@@ -409,15 +499,16 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
 @njit(cache=True, _nrt=False)
 def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
                   n_ev, pj, pe, pt, pw, part):
-    """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node,
-    recharged under H for exactly the recharge time, then on under H to the node after (CH there; NA where the
-    zone ends first), or an application the instant the recharge is over, held until its least hold and build-up
-    are over, on to the node after (AF there). Into ``pj``.. as ``apply_paths``; ``rec``: one path recorded."""
+    """``P_R_H`` and/or ``P_RA_H`` (``first`` .. ``last``) from an applied brake at node k at e: released at the node
+    (where it may be: at or below ``e_keep``), recharged under H for exactly the recharge time, then on under H to the
+    node after (CH there; NA where the zone ends first), or an application the instant the recharge is over (braking
+    as ``apply_paths``' does), held until its least hold and build-up are over, on to the node after (AF there).
+    Into ``pj``.. as ``apply_paths``; ``rec``: one path recorded."""
     n = cc.h.shape[0]
     for m in range(first, last + 1):
         pj[m] = -1
-    if e >= cc.e_app[k]:  # (released at or above the apply speed: applied again at once, before its recharge)
-        return n_ev
+    if e >= cc.e_rec[k] or e > cc.e_keep[k] * (1.0 + 1e-9):
+        return n_ev  # (above its release speed, or near the apply speed, the calculator keeps an application on)
     n_ev = _event(rec, ev, ev_k, n_ev, k, 0.0, t_start, e, EV_RELEASE, cc)
     j2, x2, er, tr, wr, st2 = _phase(e, k, 0.0, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
                                      v_nodes, t_nodes, t_start, part)
@@ -429,7 +520,7 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         return n_ev
     if first == P_R_H:
         n_ev = _event(rec and last == P_R_H, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_CHARGED, cc)
-        e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, True, cc, fo, tb, use_tab, rec and last == P_R_H, v_nodes,
+        e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec and last == P_R_H, v_nodes,
                                 t_nodes, t_start + tr)
         if ok:
             pj[P_R_H], pe[P_R_H], pt[P_R_H], pw[P_R_H] = j2 + 1, e1, tr + dt, wr + w
@@ -437,16 +528,107 @@ def release_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_
         n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_APPLY, cc)
         t_b = cc.t_build[j2]
         dur = max(hold_s(j2, cc), t_b)
-        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_B, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
+        j3, x3, ea, ta, wa, st3 = _phase(er, j2, x2, U_K, dur, t_b, False, cc, fo, tb, use_tab, rec, controls, air,
                                          v_nodes, t_nodes, t_start + tr, part)
         if st3 == 2:
             pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = n, ea, tr + ta, wr + wa
         elif st3 == 0:  # (braking on: the part of the cell where the hold ends stepped whole)
             xp, ep, tp, wp = part[0], part[1], part[2], part[3]
-            e1, dt, w, ok = _finish(ep, j3, xp, U_B, tp, t_b, False, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+            e1, dt, w, ok = _finish(ep, j3, xp, U_K, tp, t_b, APPLIED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
                                     t_start + tr + tp)
             if ok:
                 pj[P_RA_H], pe[P_RA_H], pt[P_RA_H], pw[P_RA_H] = j3 + 1, e1, tr + tp + dt, wr + wp + w
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def _recharges(e, k, x, cc, fo, tb, use_tab, ints, floats, part):
+    """Whether a train released at e, ``x`` [m] into cell k, can be held by the electric brake (H) for exactly the
+    recharge time (``_phase``, not recorded: ``ints``, ``floats`` any arrays; never near the apply speed, every cap
+    followed without the air brake)."""
+    if e >= cc.e_rec[k] or e > cc.e_keep[k] * (1.0 + 1e-9):
+        return False
+    return _phase(e, k, x, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, False, ints, ints, floats, floats, 0.0,
+                  part)[5] >= 0
+
+
+@njit(cache=True, _nrt=False)
+def release_threshold(k, cc, fo, tb, ints, floats, part):
+    """The highest e = v^2/2 at node k from which an applied train may be released there and recharge under the
+    electric brake (``_recharges``, bisected in speed, ``RELEASE_ITERATIONS``); -1 where none may (not even from a
+    walking pace). On a descent the electric brake alone cannot hold, the lower the speed the longer the train
+    takes to come near the apply speed."""
+    hi = min(min(cc.e_rec[k], cc.e_keep[k]), max(cc.e_cap[k], 0.0))
+    if hi > 0.0 and _recharges(hi * (1.0 - 1e-9), k, 0.0, cc, fo, tb, True, ints, floats, part):
+        return hi * (1.0 - 1e-9)
+    lo = e_from_ms(1.0)
+    if lo >= hi or not _recharges(lo, k, 0.0, cc, fo, tb, True, ints, floats, part):
+        return -1.0
+    for _ in range(RELEASE_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        if _recharges(mid, k, 0.0, cc, fo, tb, True, ints, floats, part):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, _nrt=False)
+def kept_release_path(e, k, x0, m, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
+                      n_ev, pj, pe, pt, pw, part):
+    """Path m (``P_KR_H``, or ``P_AKR_H``'s end) from an applied brake, its build-up over, ``x0`` [m] into cell k at e
+    above the release threshold there (``tb.ethr`` at the cell's two nodes, interpolated; at or below it, a release
+    at once is ``P_R_H``'s, ``P_AR_H``'s): kept on as the calculator keeps it (``_applied_u``, decided at ``x0``) to
+    the first point of the cell where its speed falls to the threshold (bisected), released there where the
+    recharge under H then holds exactly (``_recharges``; else a little further on, twice), recharged so for exactly
+    the recharge time and on under H to the node after (CH there; NA where the zone ends first). Into ``pj``.. as
+    ``apply_paths``, time and work from ``x0``; ``rec``: recorded from ``t_start`` [s]."""
+    n = cc.h.shape[0]
+    pj[m] = -1
+    if k + 1 >= n or cc.zone[k + 1] == 0 or cc.relaxed:
+        return n_ev
+    thr0, thr1 = tb.ethr[k], tb.ethr[k + 1]
+    h = cc.h[k]
+    if thr0 < 0.0 or thr1 < 0.0 or e <= thr0 + (x0 / h) * (thr1 - thr0):
+        return n_ev
+    u = _applied_u(e, k, U_K, cc)
+    if _part(e, u, 1e9, 0.0, k, h - x0, cc, fo, False)[0] > thr1:
+        return n_ev  # (not even at the node after)
+    lo, hi = x0, h
+    for _ in range(RELEASE_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        if _part(e, u, 1e9, 0.0, k, mid - x0, cc, fo, False)[0] <= thr0 + (mid / h) * (thr1 - thr0):
+            hi = mid
+        else:
+            lo = mid
+    found = False
+    for _ in range(3):
+        if _recharges(_part(e, u, 1e9, 0.0, k, hi - x0, cc, fo, False)[0], k, hi, cc, fo, tb, use_tab, controls,
+                      v_nodes, part):
+            found = True
+            break
+        hi += 0.5 * (h - hi)
+    if not found:
+        return n_ev
+    x = hi
+    ex, wx = _part(e, u, 1e9, 0.0, k, x - x0, cc, fo, False)
+    tx = _part_time(e, ex, x - x0)
+    if rec and x0 == 0.0:
+        controls[k] = u
+        air[k] = AIR_CYCLE
+    n_ev = _event(rec, ev, ev_k, n_ev, k, x, t_start + tx, ex, EV_RELEASE, cc)
+    j2, x2, er, tr, wr, st2 = _phase(ex, k, x, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                     v_nodes, t_nodes, t_start + tx, part)
+    if st2 < 0:
+        return n_ev
+    if st2 > 0:  # the zone, or the route, ended during the recharge
+        pj[m], pe[m], pt[m], pw[m] = j2, er, tx + tr, wx + wr
+        return n_ev
+    n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tx + tr, er, EV_CHARGED, cc)
+    e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                            t_start + tx + tr)
+    if ok:
+        pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, tx + tr + dt, wx + wr + w
     return n_ev
 
 
@@ -459,6 +641,9 @@ def run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t_start, ev, 
         return apply_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
                            n_ev, pj, pe, pt, pw, pq, part)
     pq[m] = 0.0
+    if m == P_KR_H:
+        return kept_release_path(e, k, 0.0, P_KR_H, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start,
+                                 ev, ev_k, n_ev, pj, pe, pt, pw, part)
     return release_paths(e, k, m, m, cc, fo, tb, False, True, controls, air, v_nodes, t_nodes, t_start, ev, ev_k,
                          n_ev, pj, pe, pt, pw, part)
 
@@ -477,7 +662,8 @@ def _cells_at(e, k, cc, fo, se, sw, st, sok):
 
 @njit(cache=True, _nrt=False)
 def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part):
-    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``; others -1)
+    """The paths from e at node k in state s (CH: ``P_A`` .. ``P_AX_E``; AF: ``P_R_H``, ``P_RA_H``, ``P_KR_H``;
+    others -1)
     into ``pj`` (end node, -1: none), ``pe``, ``pt``, ``pw``, ``pq``; ``use_tab``: whole cells off the tables."""
     for m in range(N_P):
         pj[m] = -1
@@ -488,6 +674,8 @@ def _paths_at(e, k, s, cc, fo, tb, use_tab, pj, pe, pt, pw, pq, none_i, none_f, 
     elif s == AF:
         release_paths(e, k, P_R_H, P_RA_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
                       none_i, 0, pj, pe, pt, pw, part)
+        kept_release_path(e, k, 0.0, P_KR_H, cc, fo, tb, use_tab, False, none_i, none_i, none_f, none_f, 0.0, none_f2,
+                          none_i, 0, pj, pe, pt, pw, part)
 
 
 @njit(cache=True, _nrt=False)
@@ -519,8 +707,9 @@ def _land(e1, k1, cc):
 @njit(cache=True)
 def cycle_prepare(cc, fo, tb):
     """What does not depend on the price of time, once per grid, into ``tb`` (``records.CycleTables``): every
-    node's single-cell steps from every grid speed (``_cells_at``), then in the zones its paths from CH and from
-    AF (``_paths_at``, whole cells read off the first tables), and where each lands on its node's grid."""
+    node's single-cell steps from every grid speed (``_cells_at``), then in the zones each node's release threshold
+    (``release_threshold``) and its paths from CH and from AF (``_paths_at``, whole cells read off the first
+    tables), and where each lands on its node's grid."""
     n = cc.h.shape[0]
     v_grid = cc.v_grid
     nv = v_grid.shape[0]
@@ -556,6 +745,8 @@ def cycle_prepare(cc, fo, tb):
                 tb.se[k, j, u], tb.sw[k, j, u], tb.st[k, j, u], tb.sok[k, j, u] = se[u], sw[u], st[u], sok[u]
                 i0, wx = _land(se[u], k + 1, cc) if sok[u] != NO else (-1, 0.0)
                 tb.si[k, j, u], tb.sx[k, j, u] = i0, wx
+    for k in range(n + 1):  # (the release thresholds first: a kept-on release path reads its cell's two)
+        tb.ethr[k] = release_threshold(k, cc, fo, tb, none_i, none_f, part) if k < n and tb.zmap[k] >= 0 else -1.0
     for k in range(n):
         z = tb.zmap[k]
         if z < 0:
@@ -597,23 +788,65 @@ def _value(V, k1, s, i0, wx, tb):
 
 
 @njit(cache=True, _nrt=False)
+def _deadline(k1, i0, wx, tb):
+    """The recharge's deadline (``tb.dl``) at node k1 where a state lands (``_land``: i0, wx): the later of the two
+    grid speeds' around it (the earlier where it lies above the stall boundary and the lower one has none), so that
+    a drive never counts on a release the exact speed would not allow. (On a descent it rises by the time the train
+    takes to gain a speed step, 11 s per 0.5 km/h on 12 per mille: a release there is found to the instant by
+    ``kept_release_path`` instead.)"""
+    if i0 < 0:
+        return np.inf
+    d0 = tb.dl[k1, i0]
+    w = abs(wx)
+    if w <= 0.0:
+        return d0
+    d1 = tb.dl[k1, tb.dl.shape[1] - 1 if i0 == tb.top[k1] else i0 + 1]
+    if wx < 0.0 and math.isinf(d0):
+        return d1
+    return max(d0, d1)
+
+
+@njit(cache=True, _nrt=False)
+def _value_soft(V, k1, s, i0, wx, tb):
+    """As ``_value``, but where one of the two grid speeds has no value, the other's: for a recharging train whose
+    deadline says it goes on, a neighbour that cannot (a speed step faster, too near the apply speed) says nothing
+    of it."""
+    if i0 < 0:
+        return np.inf
+    w = abs(wx)
+    if w <= 0.0:
+        return V[k1, s, i0]
+    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
+    a = V[k1, s, i0]
+    z = V[k1, s, i1]
+    if math.isinf(a):
+        return z
+    if math.isinf(z):
+        return a
+    return a + w * (z - a)
+
+
+@njit(cache=True, _nrt=False)
 def _value_rec(V, k1, tau, i0, wx, cc, tb):
     """The cost-to-go at node k1 of a released brake ``tau`` [s] into its recharge: charged once the recharge is
-    over (CH); outside a zone NA; else interpolated in time between the recharge states around ``tau``, and none
-    where the earlier of the two has none (a value never counts on more time than has passed)."""
+    over (CH); outside a zone NA; none before the recharge's deadline there (``_deadline``: the time since the
+    release exact, never rounded); else interpolated in time between the recharge states around ``tau`` (the later
+    one's where the earlier has none: the deadline, not the states, says what is possible)."""
     n = cc.h.shape[0]
     if k1 == n or cc.zone[k1] == 0:
         return _value(V, k1, NA, i0, wx, tb)
     if tau >= cc.t_rec - 1e-9:
         return _value(V, k1, CH, i0, wx, tb)
+    if tau < _deadline(k1, i0, wx, tb) - 1e-9:
+        return np.inf
     q = tau / (cc.t_rec / cc.n_rec)
     b = min(int(q), cc.n_rec - 1)
     f = q - b
-    v0 = _value(V, k1, R0 + b, i0, wx, tb)
-    if f <= 1e-12 or math.isinf(v0):
-        return v0
-    v1 = _value(V, k1, R0 + b + 1 if b + 1 < cc.n_rec else CH, i0, wx, tb)
-    if math.isinf(v1):
+    v0 = _value_soft(V, k1, R0 + b, i0, wx, tb)
+    v1 = _value_soft(V, k1, R0 + b + 1 if b + 1 < cc.n_rec else CH, i0, wx, tb)
+    if math.isinf(v0):
+        return v1
+    if f <= 1e-12 or math.isinf(v1):
         return v0
     return v0 + f * (v1 - v0)
 
@@ -648,8 +881,9 @@ def cycle_backward(cc, fo, price, V, tb):
     """V[k, s, j]: least traction energy + ``price`` x time [kWh] from node k in air state s at grid speed j
     (j = len(v_grid): at the node's cap) to the stop (inf = none), from ``cycle_prepare``'s tables. A cell's
     options (the forward pass takes the same ones): outside a zone (NA) T, H, C, E, a cap followed by the electric
-    brake alone; charged (CH) T, H, C, E (a braking curve followed with the air brake: an application, AF at the
-    next node), or a path ``P_A`` .. ``P_AX_E``; applied (AF) stay applied (B), a release (the recharge's state at
+    brake alone; charged (CH) T, H, C, E (a cap followed by the electric brake alone: one that needs the air brake
+    is an application, a path), or a path ``P_A`` .. ``P_AX_E``; applied (AF) stay applied, braking at full (B) or,
+    at or below ``e_keep``, kept on with the electric brake eased (K), or there a release (the recharge's state at
     this node) or a path ``P_R_H``, ``P_RA_H``; recharging (R0 + b) T, H, C, E, no air brake, charged once the
     recharge is over at a node. In the relaxed DP (no zones) NA has T, H and B at will."""
     n = cc.h.shape[0]
@@ -659,6 +893,8 @@ def cycle_backward(cc, fo, price, V, tb):
     for s in range(n_s):
         for j in range(nv + 1):
             V[n, s, j] = 0.0 if j == 0 or (j == nv and cc.e_cap[n] <= 1e-12) else np.inf
+    for j in range(nv + 1):
+        tb.dl[n, j] = 0.0
     cost = np.zeros(N_U)
     for k in range(n - 1, -1, -1):
         zone = cc.zone[k] != 0 and not cc.relaxed
@@ -667,14 +903,15 @@ def cycle_backward(cc, fo, price, V, tb):
         na1 = _arrive(k1, NA, cc)
         ch1 = _arrive(k1, CH, cc)
         af1 = _arrive(k1, AF, cc)
-        curve = cc.curve_ok[k]
         for j in range(nv + 1):
             b_na = np.inf
             b_ch = np.inf
             b_af = np.inf
             e = _grid_e(k, j, cc)
             must_apply = zone and e >= cc.e_app[k]  # released at the apply speed: the calculator applies
+            rec_bad = zone and e >= cc.e_rec[k]  # (no recharge from here: the look-ahead keeps it on)
             desc = zone and _descending(e, k, cc, fo)
+            keep = zone and e <= cc.e_keep[k] * (1.0 + 1e-9)  # applied: may be kept on (K), or released
             for u in range(N_U):
                 ok = tb.sok[k, j, u]
                 cost[u] = np.inf
@@ -683,33 +920,46 @@ def cycle_backward(cc, fo, price, V, tb):
                 c = tb.sw[k, j, u] / KJ_PER_KWH + price * tb.st[k, j, u]
                 i0, wx = tb.si[k, j, u], tb.sx[k, j, u]
                 if cc.relaxed:
-                    if u != U_E:
+                    if u != U_E and u != U_K:
                         b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
                     continue
-                if u == U_B:
-                    if zone:
+                if u == U_B or u == U_K:
+                    if zone and (u == U_B or keep):
                         b_af = min(b_af, c + _value(V, k1, af1, i0, wx, tb))
                     continue
                 if ok == OK:
                     # (a released train on a grade the electric brake cannot hold is applied at the apply speed: it
                     # does not pass it within the cell)
                     passes = zone and tb.se[k, j, u] > cc.e_app[k] * (1.0 + 1e-9)
-                    if not (desc and u != U_H) and not passes:
-                        cost[u] = c
+                    if not (desc and u != U_H) and not rec_bad and tb.se[k, j, u] <= cc.e_rec[k] * (1.0 + 1e-9):
+                        cost[u] = c  # (a recharging train's step)
                     b_na = min(b_na, c + _value(V, k1, na1, i0, wx, tb))
                     if zone and not must_apply and not passes:
                         b_ch = min(b_ch, c + _value(V, k1, ch1, i0, wx, tb))
-                elif zone and curve and not must_apply:
-                    b_ch = min(b_ch, c + _value(V, k1, af1, i0, wx, tb))
             if zone:
+                # the recharge's deadline here: charged (where CH goes on), or the earliest any step of a recharging
+                # train reaches the next node in time for its deadline there
+                dl = cc.t_rec if math.isfinite(b_ch) else np.inf
+                if not rec_bad:
+                    for u in range(N_U):
+                        if math.isfinite(cost[u]):
+                            i0, wx = tb.si[k, j, u], tb.sx[k, j, u]
+                            if k1 == n or cc.zone[k1] == 0:  # (no air brake beyond: no deadline, if it goes on)
+                                d1 = 0.0 if math.isfinite(_value(V, k1, NA, i0, wx, tb)) else np.inf
+                            else:
+                                d1 = _deadline(k1, i0, wx, tb)
+                            if math.isfinite(d1):
+                                dl = min(dl, max(d1 - tb.st[k, j, u], 0.0))
+                tb.dl[k, j] = dl
                 for b in range(cc.n_rec):  # recharging, b x dtau since the release
                     best = np.inf
                     for u in range(N_U):
-                        if math.isfinite(cost[u]) and not must_apply:
+                        if math.isfinite(cost[u]):
                             best = min(best, cost[u] + _value_rec(V, k1, b * dtau + tb.st[k, j, u], tb.si[k, j, u],
                                                                   tb.sx[k, j, u], cc, tb))
                     V[k, R0 + b, j] = best
-                b_af = min(b_af, V[k, R0, j])  # released here
+                if keep:
+                    b_af = min(b_af, V[k, R0, j])  # released here
                 if z >= 0:
                     for m in range(N_P):
                         jn = tb.pj[z, j, m]
@@ -730,6 +980,7 @@ def cycle_backward(cc, fo, price, V, tb):
             else:
                 for s in range(n_s):
                     V[k, s, j] = b_na
+                tb.dl[k, j] = 0.0
         if zone and _zone_start(k, cc):
             for j in range(nv + 1):
                 V[k, NA, j] = V[k, CH, j]  # (arriving from outside the zone: charged)
@@ -784,15 +1035,20 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
         zone = cc.zone[k] != 0 and not cc.relaxed
         must_apply = zone and e >= cc.e_app[k]
         desc = zone and _descending(e, k, cc, fo)
+        keep = zone and e <= cc.e_keep[k] * (1.0 + 1e-9)
         for u in range(N_U):
-            if sok[u] == NO or (cc.relaxed and u == U_E):
+            if sok[u] == NO or (cc.relaxed and (u == U_E or u == U_K)):
                 continue
+            on = u == U_B or u == U_K  # (the air brake applied through the cell)
             if must_apply and not (s == AF and u == U_B):
                 continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
-            if desc and (s == R0 or (s == AF and u != U_B)) and u != U_H:
+            rec = s == R0 or (s == AF and not on)  # (recharging through the cell)
+            if desc and rec and u != U_H:
                 continue
-            if zone and u != U_B and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
+            if zone and not on and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
                 continue  # (released, it would pass the apply speed within the cell)
+            if zone and rec and (e >= cc.e_rec[k] or se[u] > cc.e_rec[k] * (1.0 + 1e-9)):
+                continue  # (recharging, it would come near the apply speed: the calculator would not release)
             c = sw[u] / KJ_PER_KWH + price * st[u]
             i0, wx = _land(se[u], k + 1, cc)
             s1 = -1
@@ -800,18 +1056,15 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
                 if sok[u] == OK or cc.relaxed:
                     s1 = _arrive(k + 1, NA, cc)
                     c += _value(V, k + 1, s1, i0, wx, tb)
-            elif u == U_B:
-                if s == AF:
+            elif on:
+                if s == AF and (u == U_B or keep):
                     s1 = _arrive(k + 1, AF, cc)
                     c += _value(V, k + 1, s1, i0, wx, tb)
             elif s == CH:
                 if sok[u] == OK:
                     s1 = _arrive(k + 1, CH, cc)
                     c += _value(V, k + 1, s1, i0, wx, tb)
-                elif cc.curve_ok[k]:
-                    s1 = _arrive(k + 1, AF, cc)
-                    c += _value(V, k + 1, s1, i0, wx, tb)
-            elif sok[u] == OK:  # recharging, or released here from AF
+            elif sok[u] == OK and (s == R0 or keep):  # recharging, or released here from AF
                 t_since = (tau if s == R0 else 0.0) + st[u]
                 s1 = R0
                 c += _value_rec(V, k + 1, t_since, i0, wx, cc, tb)
@@ -835,19 +1088,13 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             return np.inf, np.inf, float(n_ev)
         if o < N_U:
             controls[k] = o
-            curve = s == CH and sok[o] == AIR
-            if cc.relaxed or not (o == U_B or curve):
+            if cc.relaxed or not (o == U_B or o == U_K):
                 air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
                 if s == AF and not cc.relaxed:  # released at this node
                     n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_RELEASE, cc)
                     tau = 0.0
                 if s_next == R0:
                     tau += st[o]
-            elif curve:
-                air[k] = AIR_CURVE
-                n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CURVE, cc)
-            elif k > 0 and air[k - 1] == AIR_CURVE:
-                air[k] = AIR_CURVE
             else:
                 air[k] = AIR_CYCLE
             t += st[o]

@@ -122,11 +122,14 @@ class CycleCells(NamedTuple):
     """The cycle DP's grid (``optimize/cycle_dp.py``, ``optimize/cycle_kernel.py``): the priced DP's cells
     (lengths ``h`` [m], mean gravity ``grav`` [kN], ``allowed`` catenary 1/0, the cap at each node ``e_cap`` as
     e = v^2/2, the shared speed grid ``v_grid`` [m/s]) and the air brake's: per node whether its state is tracked
-    there (``zone`` 1/0; 0 = no air brake), per cell whether a cap there is a braking curve an application may
-    follow (``curve_ok``), the build-up time of an application made in it (``t_build`` [s]) and the speed at which
-    the calculator applies it on a grade the electric brake cannot hold (``e_app``, e; inf elsewhere); each node's
-    lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge ``t_rec``
-    and least hold ``t_hold`` [s] (< 0: the build-up time), ``n_rec`` the recharge's states (one every
+    there (``zone`` 1/0; 0 = no air brake), per cell the build-up time of an application made in it (``t_build``
+    [s]), the speed at which the calculator applies it on a grade the electric brake cannot hold (``e_app``, e; inf
+    elsewhere) and the speed at or below which an application may be kept on with the electric brake eased, or
+    released (``e_keep``, e: the calculator's release speed at the least release margin there; inf elsewhere), the
+    speed a recharging train stays below (``e_rec``, e: the apply speed less the look-ahead's margin, as the
+    calculator releases only where the train stays that far below it through the recharge; inf elsewhere);
+    each node's lowest feasible e under full traction (``e_low``, the priced DP's stall boundary); the recharge
+    ``t_rec`` and least hold ``t_hold`` [s] (< 0: the build-up time), ``n_rec`` the recharge's states (one every
     ``t_rec / n_rec`` seconds since a release), and ``relaxed``: the air brake as a continuous force everywhere
     (no state: the relaxation's DP)."""
 
@@ -136,9 +139,10 @@ class CycleCells(NamedTuple):
     e_cap: np.ndarray
     v_grid: np.ndarray
     zone: np.ndarray
-    curve_ok: np.ndarray
     t_build: np.ndarray
     e_app: np.ndarray
+    e_keep: np.ndarray
+    e_rec: np.ndarray
     e_low: np.ndarray
     t_rec: float
     t_hold: float
@@ -153,7 +157,11 @@ class CycleTables(NamedTuple):
     cap; ``sx`` the weight of the upper one, negative where the state lies above that node's stall boundary); per
     zone node (``zmap[k]``: its row, -1 outside the zones) and path m the same for the path's end (``pj`` its node,
     -1: none; ``pq`` the time since its release there [s], for a path that ends recharging); ``top[k]`` the last
-    grid index below node k's cap."""
+    grid index below node k's cap; ``dl[k, j]`` the recharge's deadline at node k and grid speed j: the least time
+    since a release [s] from which a recharging train there can go on (0: any; the recharge time: only charged; inf:
+    not even charged), written by each backward pass (it does not depend on the price of time); ``ethr[k]`` the
+    highest e at node k from which an applied train may be released there and recharge under the electric brake
+    (-1: none, or outside the zones)."""
 
     se: np.ndarray
     sw: np.ndarray
@@ -170,6 +178,8 @@ class CycleTables(NamedTuple):
     px: np.ndarray
     top: np.ndarray
     zmap: np.ndarray
+    dl: np.ndarray
+    ethr: np.ndarray
 
 
 class CellModel(NamedTuple):
@@ -234,10 +244,10 @@ FIELD_TYPES: dict[type, tuple[str, ...]] = {
     Outputs: (_A1, _A1, "i8[:]", "i8[:]", "i8[:]", "i8[:]", _A2, _A2, "i1[:, :]", _A2, _A2, _A2, "i8[:]", _A1,
               "i8[:]", _A1, "i1[:, :]"),
     DPCells: (_A1, _A1, _A1, _A1, _A1),
-    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", "b1[:]", _A1, _A1, _A1, _F, _F, "i8", _B),
+    CycleCells: (_A1, _A1, _A1, _A1, _A1, "i8[:]", _A1, _A1, _A1, _A1, _A1, _F, _F, "i8", _B),
     CycleTables: ("f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i1[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
                   "i4[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :, :]", "i4[:, :, :]", "f8[:, :, :]",
-                  "i8[:]", "i8[:]"),
+                  "i8[:]", "i8[:]", _A2, _A1),
     CellModel: ("i8", _A1, _A1, _A1, _A2, _F, _F, _F, _F, _F, _F, _F, _F, _A1, "i8[:]", "i8[:]", _A1, _A1, _A1, _A1,
                 "i8[:]", _A1, _A2, _A1),
     IPMLayout: ("i8[:, :]", "b1[:]", "i8[:]", "i8[:]", _A1, _A1, "i8[:]", "i8[:]"),

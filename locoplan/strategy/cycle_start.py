@@ -30,7 +30,7 @@ from ..model.plan import Plan
 from ..model.route import Route
 from ..model.train import Train
 from ..optimize.cycle_dp import CycleDrive, CycleOptimum, cycle_binds, solve_cycle_optimum
-from ..optimize.cycle_kernel import AIR_CURVE, AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_H, U_T
+from ..optimize.cycle_kernel import AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_H, U_K, U_T
 from ..physics.units import kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
@@ -123,9 +123,13 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
     if not cycle_binds(calc):
         co = CycleOptimum(time_s, False, method="relaxed E* (the cycle cannot bind)")
     else:
-        b = energy_bound(route, train, options, time_s)
-        hint = None if b.slope_kwh_per_s is None else -float(b.slope_kwh_per_s)
-        co = solve_cycle_optimum(calc, time_s, estar_kwh=float(b.energy_kwh), price_hint=hint)
+        def estar(t: float) -> tuple[float, float, float]:
+            b = energy_bound(route, train, options, t)
+            return (float(b.energy_kwh), 0.0 if b.slope_kwh_per_s is None else float(b.slope_kwh_per_s),
+                    0.0 if b.accuracy is None else float(b.accuracy))
+
+        hint = -estar(time_s)[1]
+        co = solve_cycle_optimum(calc, time_s, estar=estar, price_hint=hint if hint > 0.0 else None)
     _OPTIMA[key] = co
     cache_store(key, _to_json(co))
     return co
@@ -141,7 +145,9 @@ def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool
         return "T"
     if u == U_C:
         return "C"
-    if u == U_B or air in (AIR_CYCLE, AIR_CURVE):
+    if u == U_K:
+        return "K"
+    if u == U_B or air == AIR_CYCLE:
         return "K" if in_region else "B"
     if u == U_H and at_cap:
         return "C" if descending else "T"
@@ -244,7 +250,7 @@ def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, t
     calculator's, its drive's plan runs a little faster or slower than the drive); of the plans tried that run on
     time, the one with the least energy. None where the cycle cannot bind, or no plan read off a drive reaches the
     stop."""
-    from ..optimize.cycle_dp import CycleDPSolver, grid_calculator
+    from ..optimize.cycle_dp import cycle_solver
 
     options = options or ModelOptions()
     calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(
@@ -253,7 +259,7 @@ def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, t
     if not co.cycles or co.drive is None or not co.grids:
         return None
     cell = float(co.grids[-1]["cell_m"])  # (the finest grid's)
-    solver = CycleDPSolver(grid_calculator(calc, cell), cell, float(co.grids[-1]["speed_step_kmh"]))
+    solver = cycle_solver(calc, cell, float(co.grids[-1]["speed_step_kmh"]))
     tol = 0.005 * time_s if tolerance_s is None else float(tolerance_s)
     tried: list[tuple[float, float, Plan]] = []  # (time [s], energy [kWh], plan) of every plan that ran
 
