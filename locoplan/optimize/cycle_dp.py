@@ -58,9 +58,9 @@ electrically there and reaches the next zone charged (at least a recharge at the
 restriction of the drives: the answer stays a drive's.
 
 **Where the cycle cannot bind** (``cycle_binds``): without the cycle in the model (``--no-air-brake``,
-``--point-mass``, ``ModelOptions.air_cycle`` off), or where no descent needs the cycle and no two places that need the
-air brake lie within a recharge at the top speed of each other, every application is a braking curve followed with
-up to full braking, as in the relaxation: the cycle optimum is E* itself, and nothing is solved.
+``--point-mass``, ``ModelOptions.air_cycle`` off), or where nothing but the stop's braking curve needs the air
+brake, the only application is the stop's, followed with up to full braking and kept on, as in the relaxation: the
+cycle optimum is E* itself, and nothing is solved.
 
 **What the number is** (``solve_cycle_optimum``): on each grid (``grid_optimum``) the cycle DP's drives that bracket
 T, and the same DP without the cycle (``relaxed``: no state, the air brake a continuous force) at each drive's own
@@ -254,22 +254,22 @@ def keep_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
 
 def cycle_binds(calc: TractionCalculator) -> bool:
     """Whether the air brake's cycle can make a drive dearer than the relaxation on this line (module
-    docstring): a model with the cycle, and a descent the electric brake cannot hold at the limit, or two
-    places that need the air brake (braking curves, descents full braking cannot hold) less than the recharge
-    time at the top speed apart."""
+    docstring): a model with the cycle, and a place that needs the air brake (a descent the electric brake cannot
+    hold at the limit, a braking curve the electric brake cannot follow, a descent full braking cannot hold).
+    One such place besides the stop's braking curve is enough: an application lasts at least its least hold (its
+    build-up), so a short braking curve leaves the train under the limit after it, which the relaxation never
+    does; the stop's application stays on (the train stops)."""
     if calc.air_cycle is None:
         return False
     if len(calc.cycle_regions_m):
         return True
     own = np.arange(len(calc.h_m))
     need = (calc.next_air_curve == own) | ~calc.brake_holds_limit
-    if not need.any():
-        return False
-    runs = np.flatnonzero(np.diff(np.concatenate([[0], need.astype(np.int8), [0]])) != 0)
-    starts, ends = runs[::2], runs[1::2]  # cells [starts, ends)
-    v_top = float(np.sqrt(2.0 * max(float(np.max(calc.e_envelope)), 0.0)))
-    gaps = calc.s_m[starts[1:]] - calc.s_m[ends[:-1]]
-    return bool(np.any(gaps < v_top * calc.air_cycle.recharge_s))
+    n = len(need)
+    last = n
+    while last > 0 and need[last - 1]:  # (the stop's own curve: the run of such cells that reaches the end)
+        last -= 1
+    return bool(need[:last].any())
 
 
 class CycleDPSolver:

@@ -291,15 +291,18 @@ class TractionCalculator:
         drop, the stop) that the brake could not recharge in between -- the next begins within the distance
         covered at the lower limit in the recharge time, and 90 % of the electric brake cannot slow the train
         enough to reach it after the recharge (``late_enough``) -- the first drop is braked on the electric
-        brake's own curve instead: the envelope there becomes the lower of the two, from where that curve leaves
-        it, so that no release comes just before the next curve. Returns whether the envelope changed."""
+        brake's own curve to its lower limit instead (``_electric_curve_to``): the envelope there becomes the lower
+        of the two, from where that curve leaves it, so that no release comes just before the next curve. (The
+        curve to that drop alone: the electric brake's envelope of everything ahead holds, on a descent it can
+        barely hold, the crawl from which it could stop the train by itself, far under the limit the drop
+        needs.) Returns whether the envelope changed."""
         if self.air_cycle is None:
             return False
         n = len(self.h_m)
         on = self.next_air_curve == np.arange(n)  # cells on a curve that needs the air brake
         if not on.any():
             return False
-        s, env, el = self.s_m, self.e_envelope, self.e_envelope_el
+        s, env = self.s_m, self.e_envelope
         t_rec = self.air_cycle.recharge_s
         ends = np.flatnonzero(on[:-1] & ~on[1:]) + 1  # the first cell after each run of such cells
         changed = False
@@ -313,13 +316,36 @@ class TractionCalculator:
                 continue
             if late_enough(v, d, float(self.electric_decel(kmh(v), b)), t_rec + ARRIVE_AFTER_S):
                 continue
+            curve = self._electric_curve_to(int(b), float(env[b]))
             z = b
-            while z > 0 and el[z - 1] < env[z - 1] * (1 - 1e-9):
+            while z > 0 and curve[z - 1] < env[z - 1] * (1 - 1e-9):
                 z -= 1
             if z < b:
-                env[z:b + 1] = np.minimum(env[z:b + 1], el[z:b + 1])
+                env[z:b + 1] = np.minimum(env[z:b + 1], curve[z:b + 1])
                 changed = True
         return changed
+
+    def _electric_curve_to(self, b: int, e_b: float) -> np.ndarray:
+        """The braking curve (as e per node, inf where it is not followed back) that ``ELECTRIC_CURVE_SHARE`` of the
+        electric brake follows to ``e_b`` at node ``b``, backwards from ``b`` until it reaches the envelope (four
+        midpoint sub-steps a cell), and no further back than a cell where the electric brake cannot slow the
+        train (a neutral span, a grade it cannot hold: as the electric brake's own envelope, no curve is traced
+        back through it)."""
+        n_sub = 4
+        out = np.full(len(self.s_m), np.inf)
+        out[b] = e = e_b
+        for k in range(b - 1, -1, -1):
+            h = self.h_m[k] / n_sub
+            for _ in range(n_sub):
+                a = float(self.electric_decel(float(kmh_from_e(e)), k))
+                a = float(self.electric_decel(float(kmh_from_e(e + 0.5 * h * a)), k))
+                if a <= 0.0:
+                    return out
+                e += h * a
+            out[k] = e
+            if e >= self.e_envelope[k]:
+                break
+        return out
 
     def electric_decel(self, v_kmh, k):
         """-de/ds [m/s^2] at ``v_kmh`` in cell(s) ``k`` under ``ELECTRIC_CURVE_SHARE`` of the electric brake (cut
