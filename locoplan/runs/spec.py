@@ -449,6 +449,11 @@ def execute(task: Task) -> RunRecord:
     spec = task.spec
     ctx, base = context_for(task)
     profile = history = None
+    if spec.fitness and task.e_min_kwh is None and ctx.e_min_kwh is None and not math.isnan(ctx.t0_s):
+        try:  # (the general builder's E_min, E* at the window's end, each run from E*'s cache: every run's fitness)
+            ctx.e_min()
+        except InfeasibleError:
+            pass
     try:
         run = run_strategy(ctx, spec.strategy, with_fitness=spec.fitness)
     except InfeasibleError as exc:
