@@ -19,7 +19,7 @@ from ..errors import InfeasibleError
 from ..physics.units import KJ_PER_KWH, kinetic_e
 from ..sim.calculator import TractionCalculator
 from .mesh import Mesh, RefineSettings, initial_mesh, refine
-from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors
+from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors, on_state_bound
 from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, TrainEnergyProblem
 
 INITIAL_DEGREE = 5
@@ -255,6 +255,8 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
             converged = True
             break
         lower, upper = control_activity(sol)
+        held = on_state_bound(sol)  # a control that holds a state on its bound is on no arc of its own
+        lower, upper = lower & ~held, upper & ~held
         mesh, done = refine(sol.mesh, errors, sol.grid.s_col, sol.U / su, sol.grid.offsets, settings, lower, upper)
         history.append(MeshStep(**{**step.__dict__, "split": done["split"], "raised": done["raised"]}))
         last = sol
