@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from ..errors import InputError
 from . import nodes as _nodes
 from .mesh import Grid, Mesh
+from .interrupt import solve_nlp
 from .phase import MultiPhaseProblem
 
 IPOPT_OPTIONS = {
@@ -440,7 +441,7 @@ class RadauTranscription:
         kw = {}
         if warm is not None and warm.lam_g is not None:
             kw["lam_x0"], kw["lam_g0"] = carry_multipliers(warm, self)
-        sol = self.solver(x0=w0, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg, **kw)
+        sol = solve_nlp(self.solver, x0=w0, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg, **kw)
         solve_time = _time.perf_counter() - t0
         stats = self.solver.stats()
         w = np.asarray(sol["x"], dtype=float).ravel()
