@@ -65,6 +65,7 @@ def test_ctrl_c_stops_an_ipopt_solve_at_once():
     assert solve_nlp(quick, x0=[1.0, 1.0])["f"] < 1e-12
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="watches the command's loaded libraries in /proc")
 def test_an_interrupted_ocp_command_writes_nothing_and_exits_130(root, tmp_path):
     """The command line: Ctrl-C during the heavy-haul line's minimum-energy solve (about 20 s of solving)
     ends it with exit 130, no --out file and no --json object; stderr says so."""
@@ -74,7 +75,18 @@ def test_an_interrupted_ocp_command_writes_nothing_and_exits_130(root, tmp_path)
                              "--consist", "HXD1x2-C80x100", "--objective", "energy", "--out", str(out), "--json"],
                             cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    time.sleep(4.0)  # CasADi loaded and the first solves under way (earlier, Python raises the interrupt itself)
+    maps = f"/proc/{proc.pid}/maps"
+    deadline = time.perf_counter() + 300
+    while time.perf_counter() < deadline and proc.poll() is None:  # until IPOPT is loaded: the solve under way
+        try:
+            with open(maps) as fh:
+                if "nlpsol_ipopt" in fh.read():  # CasADi's IPOPT plugin: loaded for the first solve
+                    break
+        except OSError:
+            pass
+        time.sleep(0.1)
+    time.sleep(1.0)
+    assert proc.poll() is None, "the command ended before it could be interrupted"
     t0 = time.perf_counter()
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=600)

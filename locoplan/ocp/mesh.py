@@ -348,19 +348,21 @@ def _arc(lower: np.ndarray, upper: np.ndarray) -> tuple[str | None, ...] | None:
 
 def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarray, offsets: np.ndarray,
            settings: RefineSettings, at_lower: np.ndarray | None = None,
-           at_upper: np.ndarray | None = None) -> tuple[Mesh, dict]:
+           at_upper: np.ndarray | None = None, on_state_bound: np.ndarray | None = None) -> tuple[Mesh, dict]:
     """The next mesh (see the module text). ``errors`` per interval; ``s_col`` the collocation points,
     ``u_scaled`` the controls there divided by their scales, ``at_lower`` / ``at_upper`` whether each
-    control sits on its lower / upper bound there.
+    control sits on its lower / upper bound there, ``on_state_bound`` whether a state sits on its upper
+    bound there (the train on its limit).
 
     1. A switch between two neighbouring points, next to an interval above the tolerance, gets a
        moving mesh point: an existing boundary between them is freed, else the interval is cut
        half-way; the point may move between the two points that bracket the switch.
     2. The intervals either side of a moving point keep the arc their other points show (a control
        on its lower or upper bound throughout), so the switch cannot hide inside them. The point next
-       to a moving end is no evidence (it may be a compromise between the arcs), nor is a point the
-       caller leaves out of ``at_lower`` / ``at_upper`` (the train on its limit, where the controls
-       hold the state and lie on no arc of their own).
+       to a moving end is no evidence (it may be a compromise between the arcs), nor is a point where a
+       state is on its bound (the train on its limit: the controls hold it there and lie on no arc of
+       their own; a point reached on the limit with no force, as a coarse mesh gives where the train
+       reaches it, would put a coasting arc into the cruise).
     3. Other intervals above the tolerance, next to moving points or not, get a higher degree
        (GPOPS-II eq. 29), or, where that did not halve their error at the last refinement (a kink),
        are cut at the kink, each piece keeping the interval's density of points; beyond
@@ -450,6 +452,8 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
             o = origin[j]
             cols = np.arange(offsets[o], offsets[o + 1])
             cols = cols[(s_col[cols] >= iv.s_a - 1e-9) & (s_col[cols] <= iv.s_b + 1e-9)]
+            if on_state_bound is not None:
+                cols = cols[~on_state_bound[cols]]
             keep = np.ones(cols.size, dtype=bool)
             if cols.size:
                 keep[0] &= not moving_start
@@ -459,7 +463,7 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
             elif ivs[o].regime is not None:
                 reg = ivs[o].regime
             else:
-                reg = _arc(at_lower[:, cols], at_upper[:, cols])
+                reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else None
             if reg is not None:
                 out[j] = replace(iv, regime=reg)
     # moving points between alike arcs track nothing: fix them; the others get bounds from the

@@ -549,7 +549,8 @@ def control_activity(sol: RadauSolution, tol: float = 1e-3) -> tuple[np.ndarray,
 def on_state_bound(sol: RadauSolution, tol: float = 1e-4) -> np.ndarray:
     """Whether a state sits on its upper bound (within ``tol`` of its scale) at each collocation point:
     the train at its speed limit, where the controls hold the state on the bound (a cruise at the limit,
-    braking to hold it on a descent) instead of lying on a bound of their own."""
+    braking to hold it on a descent) instead of lying on a bound of their own (``mesh.refine`` takes no
+    arc from such a point)."""
     problem, grid = sol.problem, sol.grid
     n = grid.n_col
     upper = np.array([problem.phases[k].state_upper for k in grid.phase_col], dtype=float).T
