@@ -17,6 +17,8 @@ from .errors import InputError, LocoplanError, Problem
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
 EXIT_OK, EXIT_FAILED, EXIT_INVALID = 0, 1, 2
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT, the shells' convention): the command stopped, nothing written."""
 """Exit codes (SPEC section 3): every result does its job; a valid request whose result does not (no
 feasible plan, a timetabled plan outside its window, an optimum not confirmed); invalid input."""
 
@@ -165,8 +167,9 @@ def validate_files(files: Iterable, stock_dir=None) -> Validation:
 EXIT_RULE = ("Exit codes, the same for every command: 0 every result does its job; 1 a valid request whose "
              "result does not (no feasible plan, a planned time below the fastest run, or a plan made to keep the "
              "timetable outside T0 +- tolerance; a --sequence, time-saving and energy-saving are measured, their "
-             "earliness or lateness reported, never exit 1 for it); 2 invalid input. With --json, stdout holds one "
-             "JSON object whatever the outcome, with verdict, exit_code and errors.")
+             "earliness or lateness reported, never exit 1 for it); 2 invalid input; 130 interrupted (Ctrl-C), nothing "
+             "written. With --json, stdout holds one JSON object whatever the outcome (but an interruption), with "
+             "verdict, exit_code and errors.")
 """The exit-code rule, as ``locoplan --help`` states it (docs/cli.md, 'Exit codes')."""
 
 
@@ -453,7 +456,7 @@ def check_counts(**counts: int) -> None:
             raise InputError(Problem(CMDLINE, "--" + name.replace("_", "-"), "must be >= 1"))
 
 
-__all__ = ["EXIT_OK", "EXIT_RULE", "EXIT_FAILED", "EXIT_INVALID", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "PlannedTimes", "Verdict",
+__all__ = ["EXIT_OK", "EXIT_RULE", "EXIT_FAILED", "EXIT_INVALID", "EXIT_INTERRUPTED", "VERDICTS", "Plan", "simulate", "optimize", "Validation", "validate_files", "ModelRequest", "PlannedTime", "PlannedTimes", "Verdict",
            "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time", "planned_times",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
            "check_energy_ocp", "bound_times", "energy_curve", "curve_verdict", "curve_exit_code", "check_counts"]

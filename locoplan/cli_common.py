@@ -258,6 +258,12 @@ def guarded(fn):
         except typer.Exit as exc:
             code = exc.exit_code
             raise
+        except KeyboardInterrupt:  # Ctrl-C: every output left unwritten (all_or_none), no --json object
+            try:
+                err.print("[bold red]interrupted:[/] nothing written", highlight=False, markup=True, soft_wrap=True)
+            except OSError:
+                pass
+            raise typer.Exit(api.EXIT_INTERRUPTED) from None
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)
             # an infeasible request has no file

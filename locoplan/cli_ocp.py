@@ -65,11 +65,10 @@ def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective tim
     two-stage adaptive Gauss collocation pseudospectral method (time); multi-phase Radau control after
     Bai Yun et al., energy-saving high-speed train operation (energy)."""
     from .io.load import load_route, load_train
-    from .ocp.min_time_run import check_options, solve_ocp
-    from .reporting.ocp_study import check_output_path, write_ocp_output
+    from .ocp.registry import check_options
 
     method = method or DEFAULT_METHOD.get(objective, "two-stage")
-    if objective == "energy":
+    if objective == "energy":  # the minimum-time machinery (ocp.min_time_run) is not loaded for it
         check_options(method, None, None, stage2, objective)
         from .cli_energy import run_energy_ocp
 
@@ -77,6 +76,9 @@ def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective tim
                        efficiency, regen, comfort, model, as_json, out_file, plot, nodes, state_nodes)
         return
     check_options(method, nodes, state_nodes, stage2, objective)
+    from .ocp.min_time_run import solve_ocp
+    from .reporting.ocp_study import check_output_path, write_ocp_output
+
     check_output_path(out_file, "--out", (".csv", ".json"))
     check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
     r = load_route(route)

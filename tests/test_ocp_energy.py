@@ -18,6 +18,7 @@ from locoplan.cli import app
 from locoplan.io.load import load_route, load_train
 from locoplan.ocp import nodes
 from locoplan.ocp.bound import energy_bound
+from locoplan.ocp.energy import MAX_MESH_ITERATIONS
 from locoplan.ocp.mesh import Interval
 from locoplan.ocp.mpoc import run_mpoc
 from locoplan.ocp.train_energy import EnergyOptions, energy_options
@@ -26,7 +27,8 @@ from locoplan.physics.energy import EnergyModel, energy_rate_kn
 from locoplan.physics.resistance import train_resistance_kn
 from locoplan.physics.traction import gradient_force_kn, max_force_kn
 from locoplan.runner import make_context, run_strategy
-from locoplan.sim.calculator import ModelOptions
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from routes import hand_made_route
 
 runner = CliRunner()
 SMALL = "tests/data/routes/mpoc-small.yaml"
@@ -162,6 +164,79 @@ def test_orderings_of_seed001_strategies(freight):
     assert e["mpoc"]["traction_energy_kwh"] < e["mpoc-c"]["traction_energy_kwh"] < e["sfs"]["traction_energy_kwh"]
     n_opt = run_mpoc(route, train, ModelOptions(), 1500.0, energy=EnergyOptions(ignore_neutral=True)).summary["objective"]
     assert n_opt < energy_bound(route, train, ModelOptions(), 1500.0).energy_kwh
+
+
+# ---- the refinement meets its tolerance ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("options", [ModelOptions(point_mass=True, air_brake=False), ModelOptions()],
+                         ids=["point-mass", "default"])
+def test_refinement_meets_its_tolerance_on_freight_20km(freight, options, monkeypatch, tmp_path):
+    """The hp refinement reaches 1e-5 on freight-20km at 1500 s (the command's models: --point-mass brakes
+    with the locomotive alone) in fewer solves than its cap, and its optimum is E* (the cell method,
+    ocp/cells.py, an independent transcription) within 0.02 %."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    route, train = freight
+    run = run_mpoc(route, train, options, 1500.0)
+    es, mesh = run.solution, run.summary["mesh"]
+    assert es.converged and mesh["converged"] and mesh["max_error"] <= 1e-5
+    assert len(es.history) < MAX_MESH_ITERATIONS and es.history[-1].max_error <= 1e-5
+    b = energy_bound(route, train, options, 1500.0)
+    assert b.converged and b.accuracy < 2e-5
+    assert es.objective_kwh == pytest.approx(b.energy_kwh, rel=2e-4)
+    assert run.feasible and run.summary["running_time_s"] == pytest.approx(1500.0, abs=1.0)
+
+
+def test_a_train_on_its_limit_shows_no_arc_to_hold():
+    """A point where the train is on its speed limit holds the limit (the control is the state
+    constraint's), so it is no evidence of a control arc next to a moving point: the interval keeps its
+    controls free; without the state constraint the same point makes the arc 'lower' (a coast)."""
+    from locoplan.ocp.mesh import Mesh, RefineSettings, refine
+
+    # two intervals of 3 points; the switch (a jump of the first control) lies between points 1 and 2
+    ivs = (Interval(0, 0.0, 300.0, 3), Interval(0, 300.0, 600.0, 3))
+    s_col = np.array([0.0, 100.0, 250.0, 300.0, 400.0, 550.0])
+    u = np.array([[1.0, 1.0, 0.0, 0.3, 0.3, 0.3], [0.0] * 6])
+    lower = np.array([[False, False, True, False, False, False], [True] * 6])
+    upper = np.array([[True, True, False, False, False, False], [False] * 6])
+    errors = np.array([1e-3, 1e-9])
+    new, _ = refine(Mesh(ivs), errors, s_col, u, np.array([0, 3, 6]), RefineSettings(), lower, upper)
+    held = {iv.s_a: iv.regime for iv in new.intervals}
+    right = next(iv for iv in new.intervals if iv.free_start is not None)
+    assert held[right.s_a] == ("lower", "lower")  # the coasting point 250 m: a coast arc after the switch
+    on_limit = np.array([False, False, True, False, False, False])
+    new, _ = refine(Mesh(ivs), errors, s_col, u, np.array([0, 3, 6]), RefineSettings(), lower, upper, on_limit)
+    right = next(iv for iv in new.intervals if iv.free_start is not None)
+    assert right.regime in (None, (None, "lower"))  # on the limit: the traction there is free
+
+
+def test_mpoc_on_a_descent_where_the_air_brake_cycles(monkeypatch, tmp_path):
+    """HXD1 + 50 x C80 on 10 km at 60 km/h with 7 km at -15 per mille (tests/test_air_cycle.py's line): the
+    electric brake cannot hold 60 km/h there, so the calculator's air brake cycles (applied at 59.0 km/h,
+    released at about 45.5 km/h, 60 s to recharge), where the optimum's continuous air brake holds the
+    limit. The cycle's mean speed, (59.0 + 45.5) / 2 km/h over the 6.7 km where it cycles, costs about
+    6700 / (52.25 / 3.6) - 6700 / (60 / 3.6) = 59.6 s: the optimum is solved for that much less, and its
+    plan, which cycles, runs in T. Both stay above E*(T), the relaxation's optimum."""
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
+    route = hand_made_route([(10000, 60.0)], [(2000, 0.0), (9000, -15.0), (10000, 0.0)], 10000)
+    train = load_train("HXD1-C80x50")
+    calc = TractionCalculator(route, train, ModelOptions())
+    (a, b), = calc.cycle_regions_m
+    loss = (b - a) / ((59.0 + 45.5) / 2 / 3.6) - (b - a) / (60.0 / 3.6)
+    assert loss == pytest.approx(59.6, abs=0.5)
+    T = round(1.2 * calc.fastest_time_s)
+    run = run_mpoc(route, train, ModelOptions(), T, calc=calc)
+    s = run.summary
+    assert s["feasible"], s["reason"]
+    assert s["running_time_s"] == pytest.approx(T, abs=1.0) and run.check.result.air_applications[0] >= 2
+    assert 0.7 * loss <= T - s["optimum_time_s"] <= 1.5 * loss  # the time the cycle costs, given back
+    assert "cycles" in s["cycle_note"] and f"solved for {s['optimum_time_s']:.1f} s" in s["cycle_note"]
+    e_star = energy_bound(route, train, ModelOptions(), T).energy_kwh
+    assert s["traction_energy_kwh"] >= e_star and s["objective"] >= e_star * (1 - 2e-4)
+    # near the fastest run the optimum's plan does not keep the cycle's recharge before the stop: the reason
+    # names the rule
+    near = run_mpoc(route, train, ModelOptions(), round(1.05 * calc.fastest_time_s), calc=calc)
+    assert not near.feasible and "before its recharge of 60 s was over" in near.summary["reason"]
 
 
 # ---- commands ------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from . import nodes as _nodes
+from .interrupt import solve_nlp
 from .nlp import Guess, as_column, final_bounds, ipopt_solver, phase_functions
 from .phase import MultiPhaseProblem
 
@@ -151,7 +152,7 @@ def solve_cvp(
     ubx = np.concatenate(([tf_hi / ts], np.repeat(u_hi[:, None], m, 1).ravel(order="F")))
     x0 = np.concatenate(([tf0 / ts], p0.ravel(order="F")))
     t_solve = _time.perf_counter()
-    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+    sol = solve_nlp(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solve_time = _time.perf_counter() - t_solve
     stats = solver.stats()
 

@@ -19,7 +19,7 @@ from ..errors import InfeasibleError
 from ..physics.units import KJ_PER_KWH, kinetic_e
 from ..sim.calculator import TractionCalculator
 from .mesh import Mesh, RefineSettings, initial_mesh, refine
-from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors
+from .radau import RadauSolution, RadauTranscription, control_activity, interval_errors, on_state_bound
 from .train_energy import DEFAULT_MAX_DEGREE, DEFAULT_MESH_TOL, TrainEnergyProblem
 
 INITIAL_DEGREE = 5
@@ -34,6 +34,12 @@ WARM_MAX_ITER = 150
 on the same mesh: the ones that converge take 5-80; one that has not by 150 has gone astray (on
 CH_Fribourg_Bern, 5200 t, two such solves ran to IPOPT's 500 twice each: 30 of 37 s) and the
 fallback below (the same intervals with nothing held or moving) is tried sooner."""
+ARC_SHARE = 1e-2
+"""For the refinement, a control within this share of its scale of a bound is on it (switches and held
+arcs): the interior-point solve leaves a bound whose multiplier is small (a full-braking arc whose exact
+force barely changes the energy) a few tenths of a per cent off it, and such an arc unrecognised leaves its
+switch free to spread over the points around it; the plan's reading takes the same share for no force
+(``to_plan.IDLE_SHARE``)."""
 ENERGY_STOP_MAX_ERROR = 3e-3
 """With ``energy_tol``: the largest relative dynamics error at which a settled objective ends refinement."""
 _GOOD = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
@@ -254,8 +260,9 @@ def solve_energy(tep: TrainEnergyProblem, calc: TractionCalculator, *, mesh_tol:
             history.append(step)
             converged = True
             break
-        lower, upper = control_activity(sol)
-        mesh, done = refine(sol.mesh, errors, sol.grid.s_col, sol.U / su, sol.grid.offsets, settings, lower, upper)
+        lower, upper = control_activity(sol, ARC_SHARE)
+        mesh, done = refine(sol.mesh, errors, sol.grid.s_col, sol.U / su, sol.grid.offsets, settings, lower, upper,
+                            on_state_bound(sol))
         history.append(MeshStep(**{**step.__dict__, "split": done["split"], "raised": done["raised"]}))
         last = sol
 

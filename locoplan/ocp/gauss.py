@@ -42,6 +42,7 @@ import numpy as np
 from ..errors import InputError
 from . import nodes as _nodes
 from .mesh import Interval, Mesh
+from .interrupt import solve_nlp
 from .nlp import Guess, as_column, final_bounds, ipopt_solver, phase_functions
 from .phase import MultiPhaseProblem
 
@@ -414,7 +415,7 @@ def solve_gauss(problem: MultiPhaseProblem, mesh: Mesh, guess: Guess, *, ipopt_o
     lbw_v, ubw_v, w0_v = (np.concatenate(a) for a in (lbw, ubw, w0))
     w0_v = np.clip(w0_v, lbw_v, ubw_v)
     t_solve = _time.perf_counter()
-    sol = solver(x0=w0_v, lbx=lbw_v, ubx=ubw_v, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+    sol = solve_nlp(solver, x0=w0_v, lbx=lbw_v, ubx=ubw_v, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solve_time = _time.perf_counter() - t_solve
     stats = solver.stats()
 

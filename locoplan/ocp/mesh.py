@@ -47,8 +47,9 @@ class Interval:
     """Bounds within which ``s_a`` (shared with the previous interval's end) is an NLP variable: a
     moving mesh point placed on a detected switch (None: fixed)."""
     last_error: float | None = None
-    """The interval's error on the previous mesh when only its degree was raised since (if raising
-    did not halve it, the solution is not smooth here and the interval is split)."""
+    """The interval's error on the previous mesh when its degree was raised at the last refinement
+    (if raising did not halve it, the solution is not smooth here and the interval is split); None
+    once a refinement leaves it as it is."""
     regime: tuple[str | None, ...] | None = None
     """Per control: ``"lower"`` (held at its lower bound), ``"upper"`` (at its upper or speed-dependent
     bound) or ``None`` (free) on the whole interval: the arc the solution showed next to a switch,
@@ -290,7 +291,9 @@ class Grid:
 class RefineSettings:
     """``tol``: relative error to reach; ``min_degree`` / ``max_degree``: LGR points per interval;
     ``jump``: a control change between neighbouring points above this share of its scale marks a
-    switch; ``min_length``: intervals are not cut below this length [units of s]."""
+    switch; ``min_length``: intervals are not cut below this length [units of s]; ``kink``: a corner
+    of the controls is cut at only where a point lies this share of its scale off the chord of its
+    neighbours (a smaller bend is no corner: the interval is cut into pieces instead)."""
 
     tol: float = 1e-5
     min_degree: int = 3
@@ -298,6 +301,7 @@ class RefineSettings:
     jump: float = 0.05
     margin: float = 0.3
     min_length: float = 1e-3
+    kink: float = 1e-3
 
 
 def _switch_gaps(u: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None, jump: float) -> np.ndarray:
@@ -312,15 +316,20 @@ def _switch_gaps(u: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | No
     return hit
 
 
-def _kink(s: np.ndarray, u: np.ndarray) -> float | None:
+def _kink(s: np.ndarray, u: np.ndarray, visible: float) -> float | None:
     """Where the controls' slope changes most between neighbouring collocation points (a kink, such
-    as a force curve's corner crossed at full traction): the point between the two gaps."""
+    as a force curve's corner crossed at full traction): the point between the two gaps; None when no
+    point leaves the line through its two neighbours by more than ``visible`` (a share of the control's
+    scale, ``u`` is scaled): a straight or merely curved control has no corner to cut at."""
     if s.size < 3:
         return None
     slope = np.diff(u, axis=1) / np.diff(s)[None, :]
     change = np.max(np.abs(np.diff(slope, axis=1)), axis=0)
     k = int(np.argmax(change))
-    return float(s[k + 1]) if change[k] > 0 else None
+    # how far the middle point lies off the chord of its neighbours
+    w = (s[k + 1] - s[k]) / (s[k + 2] - s[k])
+    off = np.max(np.abs(u[:, k + 1] - ((1 - w) * u[:, k] + w * u[:, k + 2])))
+    return float(s[k + 1]) if off > visible else None
 
 
 def _node(iv: Interval, k: int) -> float:
@@ -339,19 +348,25 @@ def _arc(lower: np.ndarray, upper: np.ndarray) -> tuple[str | None, ...] | None:
 
 def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarray, offsets: np.ndarray,
            settings: RefineSettings, at_lower: np.ndarray | None = None,
-           at_upper: np.ndarray | None = None) -> tuple[Mesh, dict]:
+           at_upper: np.ndarray | None = None, on_state_bound: np.ndarray | None = None) -> tuple[Mesh, dict]:
     """The next mesh (see the module text). ``errors`` per interval; ``s_col`` the collocation points,
     ``u_scaled`` the controls there divided by their scales, ``at_lower`` / ``at_upper`` whether each
-    control sits on its lower / upper bound there.
+    control sits on its lower / upper bound there, ``on_state_bound`` whether a state sits on its upper
+    bound there (the train on its limit).
 
     1. A switch between two neighbouring points, next to an interval above the tolerance, gets a
        moving mesh point: an existing boundary between them is freed, else the interval is cut
        half-way; the point may move between the two points that bracket the switch.
     2. The intervals either side of a moving point keep the arc their other points show (a control
-       on its lower or upper bound throughout), so the switch cannot hide inside them.
-    3. Other intervals above the tolerance get a higher degree (GPOPS-II eq. 29), or, where that did
-       not halve their error last time (a kink), are cut at the kink; beyond ``max_degree`` they
-       are cut into pieces of ``min_degree``.
+       on its lower or upper bound throughout), so the switch cannot hide inside them. The point next
+       to a moving end is no evidence (it may be a compromise between the arcs), nor is a point where a
+       state is on its bound (the train on its limit: the controls hold it there and lie on no arc of
+       their own; a point reached on the limit with no force, as a coarse mesh gives where the train
+       reaches it, would put a coasting arc into the cruise).
+    3. Other intervals above the tolerance, next to moving points or not, get a higher degree
+       (GPOPS-II eq. 29), or, where that did not halve their error at the last refinement (a kink),
+       are cut at the kink, each piece keeping the interval's density of points; beyond
+       ``max_degree`` they are cut into pieces of ``min_degree``.
     """
     ivs = list(mesh.intervals)
     n_iv = len(ivs)
@@ -395,57 +410,62 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
                 out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=iv.regime))
                 origin.append(i)
             continue
-        if bad[i] and iv.free_start is None and (i + 1 >= n_iv or i + 1 not in freed):
-            e = errors[i]
-            p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
-            stalled = iv.last_error is not None and e > 0.5 * iv.last_error
-            cols = slice(offsets[i], offsets[i + 1])
-            kink = _kink(s_col[cols], u_scaled[:, cols]) if stalled else None
-            if kink is not None and (kink - iv.s_a <= settings.min_length or iv.s_b - kink <= settings.min_length):
-                kink = None
-            if kink is None and (iv.n + p <= settings.max_degree or iv.length <= 2 * settings.min_length):
-                out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
-                origin.append(i)
-                done["raised"] += 1
-                continue
-            if kink is not None:
-                edges = [iv.s_a, kink, iv.s_b]
-            else:
-                pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
-                edges = list(np.linspace(iv.s_a, iv.s_b, pieces + 1))
-            done["split"] += 1
-            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-                mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
-                out.append(Interval(iv.phase, float(a), float(b), settings.min_degree + (1 if mapping != "linear" else 0),
-                                    mapping, iv.free_start if k == 0 else None, regime=iv.regime))
-                origin.append(i)
+        if not bad[i]:
+            out.append(replace(iv, last_error=None) if iv.last_error is not None else iv)
+            origin.append(i)
             continue
-        if bad[i] and iv.n < settings.max_degree:  # next to a moving point: a higher degree
-            e = errors[i]
-            p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
-            iv = replace(iv, n=min(iv.n + p, settings.max_degree))
+        e = errors[i]
+        p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
+        stalled = iv.last_error is not None and e > 0.5 * iv.last_error
+        cols = slice(offsets[i], offsets[i + 1])
+        kink = _kink(s_col[cols], u_scaled[:, cols], settings.kink) if stalled else None
+        if kink is not None and (kink - iv.s_a <= settings.min_length or iv.s_b - kink <= settings.min_length):
+            kink = None
+        if kink is None and (iv.n + p <= settings.max_degree or iv.length <= 2 * settings.min_length):
+            out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
+            origin.append(i)
             done["raised"] += 1
-        out.append(iv)
-        origin.append(i)
-    # arcs either side of every moving point, from the old points inside each side's interval (leaving
-    # out the one nearest the moving point, whose value may be a compromise between the arcs; a side
-    # with no other point keeps the arc it had)
+            continue
+        if kink is not None:  # either side of a corner the control is smooth: each piece keeps the density
+            edges = [iv.s_a, kink, iv.s_b]
+        else:
+            pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
+            edges = list(np.linspace(iv.s_a, iv.s_b, pieces + 1))
+        done["split"] += 1
+        for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+            mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
+            degree = settings.min_degree + (1 if mapping != "linear" else 0)
+            if kink is not None:
+                degree = max(degree, min(settings.max_degree, math.ceil(iv.n * (b - a) / iv.length)))
+            out.append(Interval(iv.phase, float(a), float(b), degree, mapping, iv.free_start if k == 0 else None,
+                                regime=iv.regime))
+            origin.append(i)
+    # arcs either side of every moving point, from the old points inside each side's interval, leaving
+    # out the one next to each of its moving ends (its value may be a compromise between two arcs); a
+    # side with no other point keeps the arc it had, or, having none, takes the arc of the points it has
     if at_lower is not None:
         for j, iv in enumerate(out):
-            if iv.free_start is None or j == 0:
+            moving_start = j > 0 and iv.free_start is not None
+            moving_end = j + 1 < len(out) and out[j + 1].free_start is not None
+            if not (moving_start or moving_end):
                 continue
-            for side, drop in ((j - 1, -1), (j, 0)):
-                o = origin[side]
-                cols = np.arange(offsets[o], offsets[o + 1])
-                inside = (s_col[cols] >= out[side].s_a - 1e-9) & (s_col[cols] <= out[side].s_b + 1e-9)
-                cols = cols[inside]
-                if cols.size > 1:
-                    cols = np.delete(cols, drop)
-                elif cols.size == 1 and ivs[o].regime is not None:
-                    cols = cols[:0]
-                reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else ivs[o].regime
-                if reg is not None:
-                    out[side] = replace(out[side], regime=reg)
+            o = origin[j]
+            cols = np.arange(offsets[o], offsets[o + 1])
+            cols = cols[(s_col[cols] >= iv.s_a - 1e-9) & (s_col[cols] <= iv.s_b + 1e-9)]
+            if on_state_bound is not None:
+                cols = cols[~on_state_bound[cols]]
+            keep = np.ones(cols.size, dtype=bool)
+            if cols.size:
+                keep[0] &= not moving_start
+                keep[-1] &= not moving_end
+            if keep.any():
+                reg = _arc(at_lower[:, cols[keep]], at_upper[:, cols[keep]])
+            elif ivs[o].regime is not None:
+                reg = ivs[o].regime
+            else:
+                reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else None
+            if reg is not None:
+                out[j] = replace(iv, regime=reg)
     # moving points between alike arcs track nothing: fix them; the others get bounds from the
     # collocation points around them
     for j, iv in enumerate(out):

@@ -29,8 +29,6 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from scipy.integrate import quad
-from scipy.optimize import brentq
 
 from ..errors import InfeasibleError, InputError, Problem
 from ..physics.gradient import curve_gradient_permille, tunnel_gradient_permille
@@ -371,6 +369,9 @@ def exact_minimum(problem: MinTimeTrainProblem) -> ExactMinimum:
     peak is within 1e-9 of the balancing speed, the run is taken to hold that speed with full
     traction in between).
     """
+    from scipy.integrate import quad  # scipy.integrate: ~1 s to import, only for this closed form
+    from scipy.optimize import brentq
+
     m, vlim, length = problem.mass_t, problem.speed_limit_ms, problem.length_m
 
     def acc(v):

@@ -22,11 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, Problem
 from ..physics.units import kmh, kwh
-from . import nodes as _nodes
 from .min_time import ExactMinimum, MinTimeTrainProblem, bounds_note, exact_minimum, train_problem
-from .registry import OBJECTIVES, OCP_METHODS, STAGE2_MODES
+from .registry import OBJECTIVES, OCP_METHODS, SOURCE, STAGE2_MODES, check_options  # noqa: F401  (re-exported)
 from .solve import OcpSolution, Resimulation, resimulate, solve_min_time
 
 __all__ = ["ARRIVAL_TOL_M", "LIMIT_TOL_KMH", "OcpRun", "PROFILE_COLUMNS", "TIME_TOL_S", "check_options", "run_ocp",
@@ -38,8 +36,6 @@ LIMIT_TOL_KMH = 0.1
 """Largest accepted overspeed of the re-simulated train [km/h]."""
 ARRIVAL_TOL_M = 0.5
 """A re-simulated train that stops within this distance of the end has arrived [m]."""
-
-SOURCE = "ocp"  # the 'file' of a Problem about a command-line option rather than a file
 
 
 # --------------------------------------------------------------------------------------------------
@@ -131,69 +127,6 @@ def traction_energy_kwh(run: OcpRun, t_end_s: float | None = None, dt_s: float =
     v = np.interp(t, rs.time_s[keep], rs.speed_ms[keep])
     power_kw = np.maximum(run.force_at(t), 0.0) * v
     return float(kwh(np.sum(0.5 * (power_kw[1:] + power_kw[:-1]) * np.diff(t))))
-
-
-def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective: str = "time") -> tuple[int, int | None]:
-    """Validate the options of :func:`solve_ocp` before any file is read or NLP built; returns the
-    control-node count (the method's seed default if ``None``) and the state-node count (or ``None``).
-    Every problem is reported at once as an :class:`InputError` naming the option."""
-    problems: list[Problem] = []
-    if objective not in OBJECTIVES:
-        problems.append(Problem(SOURCE, "--objective", f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}"))
-    elif OBJECTIVES[objective] is None:
-        problems.append(Problem(SOURCE, "--objective", f"'{objective}' is not built yet"))
-    spec = OCP_METHODS.get(method)
-    if spec is None:
-        problems.append(Problem(SOURCE, "--method", f"unknown method {method!r}; choose one of {', '.join(OCP_METHODS)}"))
-    elif objective in OBJECTIVES and objective not in spec.objectives:
-        fit = [k for k, m in OCP_METHODS.items() if objective in m.objectives]
-        problems.append(Problem(SOURCE, "--method", f"{method} solves --objective {'/'.join(spec.objectives)}, not "
-                                f"{objective}; use {' or '.join(fit)}"))
-        spec = None
-
-    def count(flag: str, value, even: bool = False):
-        if value is None:
-            return None
-        try:
-            whole = not isinstance(value, bool) and float(value).is_integer()
-        except (TypeError, ValueError):
-            whole = False
-        if not whole:
-            problems.append(Problem(SOURCE, flag, f"must be a whole number, got {value!r}"))
-            return None
-        n = int(value)
-        if not 2 <= n <= _nodes.MAX_NODES:
-            problems.append(Problem(SOURCE, flag, f"must be between 2 and {_nodes.MAX_NODES}, got {n}"))
-            return None
-        if even and n % 2:
-            problems.append(Problem(SOURCE, flag, f"the two-stage method pairs the control on the LG points "
-                                    f"(U_(2l-1) = U_(2l)), so the state nodes must be even, got {n}"))
-            return None
-        return n
-
-    n = count("--nodes", nodes)
-    m = count("--state-nodes", state_nodes, even=method == "two-stage")
-    if spec is not None:
-        if m is not None and not spec.has_state_nodes:
-            problems.append(Problem(SOURCE, "--state-nodes", f"{method} has no state collocation nodes (RK4 states "
-                                    "on the control grid); leave --state-nodes out"))
-        if method == "gpm" and m is not None and n is not None and m != n:
-            problems.append(Problem(SOURCE, "--state-nodes", f"GPM shares its LG points between states and control: "
-                                    f"--state-nodes {m} must equal --nodes {n}"))
-        if method == "two-stage" and m is not None and n is not None and m != 2 * n:
-            problems.append(Problem(SOURCE, "--state-nodes", f"stage 1 pairs the control, so {m} state nodes give "
-                                    f"{m // 2} control nodes, not --nodes {n}"))
-        if method == "gpm" and m is not None and n is None:
-            n = m
-        if method == "two-stage" and m is not None and n is None:
-            n = m // 2
-        if n is None:
-            n = spec.seed_nodes[0]
-    if stage2 not in STAGE2_MODES:
-        problems.append(Problem(SOURCE, "--stage2", f"unknown stage-2 mode {stage2!r}; choose one of {', '.join(STAGE2_MODES)}"))
-    if problems:
-        raise InputError(problems)
-    return n, m
 
 
 def _reasons(problem: MinTimeTrainProblem, sol: OcpSolution, rs: Resimulation) -> list[str]:

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from importlib import resources
 
 from ..catalogue import DEFAULT_CONSIST_FILE
+from ..errors import InputError, Problem
+from . import nodes as _nodes
 
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
 """The seed 000 test train: the default of ``--objective time``."""
@@ -80,3 +82,69 @@ def study_route_file(rel: str):
 def study_route_files(routes: dict[int, str] | None = None) -> dict:
     """Table number -> route file of :data:`STUDY_ROUTES` (or ``routes``), resolved by :func:`study_route_file`."""
     return {k: study_route_file(v) for k, v in (routes or STUDY_ROUTES).items()}
+
+
+SOURCE = "ocp"  # the 'file' of a Problem about a command-line option rather than a file
+
+
+def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective: str = "time") -> tuple[int, int | None]:
+    """Validate the options of :func:`solve_ocp` before any file is read or NLP built; returns the
+    control-node count (the method's seed default if ``None``) and the state-node count (or ``None``).
+    Every problem is reported at once as an :class:`InputError` naming the option."""
+    problems: list[Problem] = []
+    if objective not in OBJECTIVES:
+        problems.append(Problem(SOURCE, "--objective", f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}"))
+    elif OBJECTIVES[objective] is None:
+        problems.append(Problem(SOURCE, "--objective", f"'{objective}' is not built yet"))
+    spec = OCP_METHODS.get(method)
+    if spec is None:
+        problems.append(Problem(SOURCE, "--method", f"unknown method {method!r}; choose one of {', '.join(OCP_METHODS)}"))
+    elif objective in OBJECTIVES and objective not in spec.objectives:
+        fit = [k for k, m in OCP_METHODS.items() if objective in m.objectives]
+        problems.append(Problem(SOURCE, "--method", f"{method} solves --objective {'/'.join(spec.objectives)}, not "
+                                f"{objective}; use {' or '.join(fit)}"))
+        spec = None
+
+    def count(flag: str, value, even: bool = False):
+        if value is None:
+            return None
+        try:
+            whole = not isinstance(value, bool) and float(value).is_integer()
+        except (TypeError, ValueError):
+            whole = False
+        if not whole:
+            problems.append(Problem(SOURCE, flag, f"must be a whole number, got {value!r}"))
+            return None
+        n = int(value)
+        if not 2 <= n <= _nodes.MAX_NODES:
+            problems.append(Problem(SOURCE, flag, f"must be between 2 and {_nodes.MAX_NODES}, got {n}"))
+            return None
+        if even and n % 2:
+            problems.append(Problem(SOURCE, flag, f"the two-stage method pairs the control on the LG points "
+                                    f"(U_(2l-1) = U_(2l)), so the state nodes must be even, got {n}"))
+            return None
+        return n
+
+    n = count("--nodes", nodes)
+    m = count("--state-nodes", state_nodes, even=method == "two-stage")
+    if spec is not None:
+        if m is not None and not spec.has_state_nodes:
+            problems.append(Problem(SOURCE, "--state-nodes", f"{method} has no state collocation nodes (RK4 states "
+                                    "on the control grid); leave --state-nodes out"))
+        if method == "gpm" and m is not None and n is not None and m != n:
+            problems.append(Problem(SOURCE, "--state-nodes", f"GPM shares its LG points between states and control: "
+                                    f"--state-nodes {m} must equal --nodes {n}"))
+        if method == "two-stage" and m is not None and n is not None and m != 2 * n:
+            problems.append(Problem(SOURCE, "--state-nodes", f"stage 1 pairs the control, so {m} state nodes give "
+                                    f"{m // 2} control nodes, not --nodes {n}"))
+        if method == "gpm" and m is not None and n is None:
+            n = m
+        if method == "two-stage" and m is not None and n is None:
+            n = m // 2
+        if n is None:
+            n = spec.seed_nodes[0]
+    if stage2 not in STAGE2_MODES:
+        problems.append(Problem(SOURCE, "--stage2", f"unknown stage-2 mode {stage2!r}; choose one of {', '.join(STAGE2_MODES)}"))
+    if problems:
+        raise InputError(problems)
+    return n, m

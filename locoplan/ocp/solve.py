@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ..errors import InfeasibleError, InputError
 from ..physics.units import kmh
@@ -429,6 +428,8 @@ def resimulate(
     control is saturated at the traction / brake limits, as a real drive would be. A train at rest
     does not roll back: it stays put while the force cannot overcome resistance plus grade.
     """
+    from scipy.integrate import solve_ivp  # ~0.5 s to import: only where a minimum-time run is re-simulated
+
     tf = float(solution.objective_s)
     length = problem.length_m
     vlim = problem.speed_limit_ms

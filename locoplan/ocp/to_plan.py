@@ -158,7 +158,7 @@ def shoot_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, spa
         target = float(kmh(np.sqrt(2.0 * max(float(sol.states_at([q])[0, 0]), 0.0))))
         sw = np.repeat(np.array([starts[1:]]), cand.size, axis=0)
         sw[:, j - 1] = cand
-        res = calc.evaluate(conds, sw, profile=True)
+        res = calc.evaluate(conds, sw, profile=True, couplers=False)
         v_q = np.array([np.interp(q, res.profile.s_m, res.profile.v_kmh[i]) for i in range(cand.size)])
         ok = res.feasible & np.isfinite(v_q)
         if not ok.any():
@@ -207,10 +207,27 @@ def tune_last_coast(calc: TractionCalculator, plan: Plan, time_s: float, span_m:
         if (t_ok[a] - time_s) * (t_ok[a + 1] - time_s) <= 0 and t_ok[a] != t_ok[a + 1]:
             w = (t_ok[a] - time_s) / (t_ok[a] - t_ok[a + 1])
             best = x_ok[a] + w * (x_ok[a + 1] - x_ok[a])
+            if abs(_time_at(calc, plan, j, best) - time_s) > TIME_TOL_S / 2:
+                # the time is not linear across the bracket (a braking curve, an air-brake cycle): look inside it
+                inner = np.linspace(x_ok[a], x_ok[a + 1], 41)
+                sw = np.repeat(starts[None, 1:], inner.size, axis=0)
+                sw[:, j - 1] = inner
+                r2 = calc.evaluate(plan.conditions, sw)
+                t2 = np.where(r2.feasible, r2.running_time_s, np.nan)
+                if np.isfinite(t2).any():
+                    best = float(inner[int(np.nanargmin(np.abs(t2 - time_s)))])
             break
     new = list(plan.starts_m)
     new[j] = float(best)
     return Plan(plan.conditions, tuple(new)), float(best - x0)
+
+
+def _time_at(calc: TractionCalculator, plan: Plan, j: int, x: float) -> float:
+    """The running time [s] of ``plan`` with its ``j``-th condition starting at ``x`` (inf if it fails)."""
+    sw = np.array(plan.starts_m[1:], dtype=float)[None, :]
+    sw[0, j - 1] = x
+    res = calc.evaluate(plan.conditions, sw)
+    return float(res.running_time_s[0]) if res.feasible[0] else math.inf
 
 
 def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_move_m: float = FIT_MOVE_M,
@@ -240,7 +257,7 @@ def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_m
     def run(X):
         sw = np.repeat(starts[None, 1:], X.shape[0], axis=0)
         sw[:, free - 1] = X
-        res = calc.evaluate(plan.conditions, sw, profile=True)
+        res = calc.evaluate(plan.conditions, sw, profile=True, couplers=False)
         prof = res.profile
         t = np.array([np.interp(q, prof.s_m, prof.t_s[i]) for i in range(X.shape[0])])
         v = np.array([np.interp(q, prof.s_m, prof.v_kmh[i]) for i in range(X.shape[0])])
@@ -270,12 +287,17 @@ def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_m
     return Plan(plan.conditions, tuple(float(v) for v in new))
 
 
-def tune_coasting_point(calc: TractionCalculator, plan: Plan, time_s: float, tol_s: float = TIME_TOL_S / 2) -> tuple[Plan, float]:
+def tune_coasting_point(calc: TractionCalculator, plan: Plan, time_s: float, tol_s: float = TIME_TOL_S / 2,
+                        least_energy: bool = False) -> tuple[Plan, float]:
     """Seed 001's 'move the last coasting point so that T is still met', made sure to work: the last
     coasting point first, over its whole run; if the time cannot be met there, the one before it, and
-    so on. Returns the plan and the shift [m] of the point moved."""
+    so on. With ``least_energy`` every coasting point is tried and, of the plans that meet the time, the
+    one of least energy kept (on a descent where the air brake cycles, moving the last coasting point
+    changes the cycles more than the time; the time is cheaper bought elsewhere). Returns the plan and
+    the shift [m] of the point moved."""
     idx = [i for i, c in enumerate(plan.conditions) if c == "C" and i > 0]
     best = (plan, 0.0)
+    on_time: list[tuple[float, Plan, float]] = []
     for j in reversed(idx):
         starts = np.array(plan.starts_m, dtype=float)
         nxt = starts[j + 1] if j + 1 < len(starts) and not math.isnan(starts[j + 1]) else calc.route.length_m
@@ -283,9 +305,14 @@ def tune_coasting_point(calc: TractionCalculator, plan: Plan, time_s: float, tol
         cand, shift = tune_last_coast(calc, plan, time_s, span_m=span, index=j)
         res = calc.evaluate(cand.conditions, cand.switches_m)
         if res.feasible[0] and abs(float(res.running_time_s[0]) - time_s) <= tol_s:
-            return cand, shift
+            if not least_energy:
+                return cand, shift
+            on_time.append((float(res.traction_energy_kwh[0]), cand, shift))
         if j == idx[-1]:
             best = (cand, shift)
+    if on_time:
+        _, cand, shift = min(on_time, key=lambda c: c[0])
+        return cand, shift
     return best
 
 

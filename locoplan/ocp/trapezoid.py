@@ -22,6 +22,7 @@ from ..physics.gradient import equivalent_gradient_permille, point_gradient_knot
 from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..sim.calculator import ModelOptions, limit_kmh_at, neutral_spans_m
+from .interrupt import solve_nlp
 
 CHECK_STEPS_M = (10.0, 5.0)
 """The two grid steps of :func:`trapezoid_energy` [m]."""
@@ -146,7 +147,7 @@ def trapezoid_min_energy(route, train, time_s: float, options: ModelOptions | No
     n_g = 2 * (n - 1) + 2 * n
     lbg = np.concatenate([np.zeros(2 * (n - 1)), np.full(2 * n, -np.inf)])
     ubg = np.zeros(n_g)
-    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    sol = solve_nlp(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     x = np.asarray(sol["x"]).ravel()
     st = solver.stats()
     return {"energy_kwh": float(sol["f"]) * 100.0, "time_s": float(x[2 * n - 1]), "s_m": s, "v_kmh": x[:n] * 3.6,

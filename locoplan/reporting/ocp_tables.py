@@ -91,7 +91,9 @@ def energy_summary_table(s: dict, width: int = 80) -> list:
         ("method", f"multi-phase Radau (LGR) collocation, hp mesh refinement ({s['strategy'].upper()})"),
         ("problem", f"minimum {s['energy_model']}; {s['phases']} phases; neutral sections: {s['neutral_sections']}"
                     + (f"; comfort {s['comfort_ms2']:g} m/s²" if s.get("comfort_ms2") else "")),
-        ("planned time", f"{s['planned_time_s']:g} s (fastest run {s['fastest_time_s']:.1f} s)"),
+        ("planned time", f"{s['planned_time_s']:g} s (fastest run {s['fastest_time_s']:.1f} s)"
+                         + (f"; the optimum solved for {s['optimum_time_s']:.1f} s"
+                            if s.get("optimum_time_s") not in (None, s["planned_time_s"]) else "")),
         ("mesh", f"{mesh['intervals']} intervals, {mesh['points']} LGR points, {mesh['moving_points']} on switches; "
                  f"largest error {mesh['max_error']:.2g} (tolerance {mesh['tolerance']:g})"
                  + ("" if mesh["converged"] else " [yellow]not reached[/]")),
@@ -106,9 +108,9 @@ def energy_summary_table(s: dict, width: int = 80) -> list:
         rows.append(("neutral coasting", ", ".join(f"{a:.1f} s / {b:.1f} s" for a, b in s["neutral_margins_s"])
                      + " (before the head enters / after the tail leaves)"))
     rows.append(("confirmed", confirmed))
-    for key in ("plan_note", "mesh_note"):
+    for key in ("plan_note", "cycle_note", "mesh_note"):
         if s.get(key):
-            rows.append(("note", s[key]))
+            rows.append(("note", escape(s[key])))
     if s["feasible"]:
         rows += [("running time", f"{s['running_time_s']:.1f} s"), ("traction energy", f"{s['traction_energy_kwh']:.2f} kWh")]
     rows.append(("solve time", f"{s['solve_time_s']:.2f} s in all; the optimal control {s['optimal_control_time_s']:.2f} s "

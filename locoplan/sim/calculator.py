@@ -616,7 +616,8 @@ class TractionCalculator:
         return frac
 
     def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
-                 recovered: bool = False, release_margin=None, margin_regions_m=None) -> BatchResult:
+                 recovered: bool = False, release_margin=None, margin_regions_m=None,
+                 couplers: bool = True) -> BatchResult:
         """Integrate a batch of plans.
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
@@ -630,6 +631,9 @@ class TractionCalculator:
         with ``margin_regions_m`` ((n_regions, 2) spans [from, to) [m], e.g. ``cycle_regions_m``: a cell's cycles
         take the margin of the span holding its midpoint, the rule outside them); None or <= 0: the rule's
         ``CYCLE_MARGIN``.
+        couplers: with the profile, each cell's largest coupler forces for the report (the consist's vehicle
+        line); False leaves them out of a profile only compared by time and speed (the limits of a consist
+        that has them are checked either way).
         Returns running time [s], traction energy sum F ds [kWh], feasibility and its reason per plan,
         and on request the per-cell profile. A consist with a coupler or force-rate limit has every plan
         checked against it (on the profile, computed for that even when not returned).
@@ -652,7 +656,7 @@ class TractionCalculator:
             res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap, margin, region)
         if not profile:
             return replace(res, profile=None) if want else res
-        if self.vehicle_line is not None:  # the coupler forces of every cell, for the report
+        if self.vehicle_line is not None and couplers:  # the coupler forces of every cell, for the report
             p = res.profile
             tension, compression = self.coupler_extremes(p.v_kmh, p.traction_kn, p.brake_kn)
             res = replace(res, profile=replace(p, coupler_tension_kn=tension, coupler_compression_kn=compression))
