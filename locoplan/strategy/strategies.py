@@ -526,8 +526,16 @@ def _optimum_start(ctx: StrategyContext):
         except LocoplanError:
             break
         seq = sequence_from_optimum(ctx.search, grid, sol, min_run_m(ctx.calc.train))
-        res = ctx.calc.evaluate(seq.conditions, np.array([[*seq.nominal_m, np.nan]]))  # (the reporting grid's time)
+        # timed on the grid the search will run on: the search grid where it times the plan as the reporting grid
+        # does (``_search_grid_for``), else the reporting grid (a slow plan's crawl the coarse grid misjudges)
+        x = np.array([[*seq.nominal_m, np.nan]])
+        res = ctx.calc.evaluate(seq.conditions, x)
         t_plan = float(res.running_time_s[0]) if res.feasible[0] else math.nan
+        if ctx.search is not ctx.calc and math.isfinite(t_plan):
+            rs = ctx.search.evaluate(seq.conditions, x)
+            t_s = float(rs.running_time_s[0]) if rs.feasible[0] else math.nan
+            if abs(t_s - t_plan) <= SEARCH_GRID_TIME_SHARE * tol:
+                t_plan = t_s
         miss = abs(t_plan - target) if math.isfinite(t_plan) else math.inf
         if best is None or miss < best[0]:
             best = (miss, seq)
