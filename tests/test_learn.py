@@ -185,16 +185,17 @@ def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
 
 def test_every_simulated_log_reads_back_even_a_creeping_arrival(base):
     """400 runs of random drivers and cruise speeds on the 6 km line, each log written and read back: every
-    one reads (time rises at the 0.1 s the log writes). Among them (seed 5) trains that creep their last
-    metre or more at under 0.01 km/h; such an arrival once took 0.05 s, its last two rows had one time, and
-    learn refused the log: the arrival step is now at least ``MIN_ARRIVAL_S``, and one of them takes exactly
-    that. (Seed 0 had the case until the recharge rule braked this line's last limit drop electrically.)"""
+    one reads (time rises at the 0.1 s the log writes). Among them (seed 0) trains that creep their last
+    metre or more at under 0.01 km/h; such an arrival could take 0.05 s, its last two rows had one time, and
+    learn refused the log: the arrival step is at least ``MIN_ARRIVAL_S``, and one of them takes exactly
+    that. (Which seeds creep depends on how the calculator brakes the line's last limit drop: the assertion
+    that the case is there keeps the test honest.)"""
     from locoplan.learn.drivers import MIN_ARRIVAL_S, SpeedNoise, draw_drivers, route_tables, simulate_runs
 
     from locoplan.io.load import load_train
 
     calc = TractionCalculator(load_route(LINE), load_train(ROOT / "configs/consists/HXD1-C80x50.yaml"))
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(0)
     p = draw_drivers(400, rng)
     cruise = rng.uniform(40, 80, 400)
     out = simulate_runs(calc, route_tables(calc), p, cruise, SpeedNoise(rng, p.noise_kmh, 1500, 400).block(0), 1500.0,
