@@ -234,11 +234,12 @@ def optimum_solution(route: Route, train: Train, options: ModelOptions | None, t
                      objective: str = "traction", step_m: float | None = None):
     """E*'s optimum at ``time_s`` on one grid, (its calculator, its solution: node speeds, each cell's traction and
     braking, ``ocp.cells.CellSolution`` or from the disk cache ``StructureSolution``), for where the optimum
-    drives, holds a speed, coasts and brakes: the condition structure of a plan near it. The grid's cells are ``step_m`` long (default: about ``STRUCTURE_CELLS`` of them within
-    ``STRUCTURE_STEP_M``), graded towards the rest points as E*'s; started from the last E* solved for this
-    route and train where there is one. Kept in this process and on disk (as E*, ``LOCOPLAN_CACHE_DIR``). Raises
-    ``InfeasibleError`` as ``energy_bound``."""
-    from .cells import WARM_MU, cell_calculator, cell_problem, solve_cells, warm_point
+    drives, holds a speed, coasts and brakes: the condition structure of a plan near it. The grid's cells are
+    ``step_m`` long (default: about ``STRUCTURE_CELLS`` of them within ``STRUCTURE_STEP_M``), graded towards the
+    rest points as E*'s; solved from a cold start, so that the structure, hence the plan read off it, does not
+    depend on which E* this process solved before. Kept in this process and on disk (as E*,
+    ``LOCOPLAN_CACHE_DIR``). Raises ``InfeasibleError`` as ``energy_bound``."""
+    from .cells import cell_calculator, solve_cells
     from .train_energy import check_runnable
 
     options = relaxed(options)
@@ -251,16 +252,8 @@ def optimum_solution(route: Route, train: Train, options: ModelOptions | None, t
         calc = cell_calculator(route, train, options, step_m)
         check_runnable(calc, time_s)
         sol = _structure_read(key, len(calc.h_m))
-        if sol is None:
-            warm = _WARM.get(base)
-            if warm is not None:
-                try:
-                    sol = solve_cells(calc, time_s, mu_init=WARM_MU,
-                                      point=warm_point(cell_problem(calc, time_s, regen), warm)[0], regen=regen)
-                except InfeasibleError:
-                    sol = None
-            if sol is None:
-                sol = solve_cells(calc, time_s, regen=regen)
+        if sol is None:  # (a cold start: the structure a plan is read from must not depend on what was solved
+            sol = solve_cells(calc, time_s, regen=regen)  # before; a warm start saves only a few hundredths of a s)
             _structure_write(key, sol)
         if len(_SOLUTIONS) > 32:
             _SOLUTIONS.pop(next(iter(_SOLUTIONS)))
