@@ -403,6 +403,27 @@ def _event(rec, ev, ev_k, n_ev, j, x, t, e, kind, cc):
     return n_ev
 
 
+
+@njit(cache=True, _nrt=False)
+def _recharge_on(e, j, x, u, t0, w0, m, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start, part, ev,
+                 ev_k, n_ev, pj, pe, pt, pw):
+    """Path m after a release at e, x [m] into cell j, t0 [s] and w0 [kWh] into the path: recharged under u for
+    exactly the recharge time, then on under u to the node after (charged there; where the zone or the route ends
+    during the recharge, there). Its end in ``pj``.. [m]; returns the events recorded."""
+    j2, x2, er, tr, wr, st2 = _phase(e, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
+                                     v_nodes, t_nodes, t_start + t0, part)
+    if st2 < 0:
+        return n_ev
+    if st2 > 0:  # the zone, or the route, ended during the recharge
+        pj[m], pe[m], pt[m], pw[m] = j2, er, t0 + tr, w0 + wr
+        return n_ev
+    n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + t0 + tr, er, EV_CHARGED, cc)
+    e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
+                            t_start + t0 + tr)
+    if ok:
+        pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, t0 + tr + dt, w0 + wr + w
+    return n_ev
+
 @njit(cache=True, _nrt=False)
 def _rec_u(m):
     """The control of path m after its release."""
@@ -481,18 +502,8 @@ def apply_paths(e, k, first, last, cc, fo, tb, use_tab, rec, controls, air, v_no
             if ok:
                 pj[m], pe[m], pt[m], pw[m], pq[m] = j + 1, e1, ta + dt, wa + w, dt
             continue
-        j2, x2, er, tr, wr, st2 = _phase(ea, j, x, u, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
-                                         v_nodes, t_nodes, t_start + ta, part)
-        if st2 < 0:
-            continue
-        if st2 > 0:  # the zone, or the route, ended during the recharge
-            pj[m], pe[m], pt[m], pw[m] = j2, er, ta + tr, wa + wr
-            continue
-        n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + ta + tr, er, EV_CHARGED, cc)
-        e1, dt, w, ok = _finish(er, j2, x2, u, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
-                                t_start + ta + tr)
-        if ok:
-            pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, ta + tr + dt, wa + wr + w
+        n_ev = _recharge_on(ea, j, x, u, ta, wa, m, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes,
+                            t_start, part, ev, ev_k, n_ev, pj, pe, pt, pw)
     return n_ev
 
 
@@ -617,19 +628,8 @@ def kept_release_path(e, k, x0, m, cc, fo, tb, use_tab, rec, controls, air, v_no
         controls[k] = u
         air[k] = AIR_CYCLE
     n_ev = _event(rec, ev, ev_k, n_ev, k, x, t_start + tx, ex, EV_RELEASE, cc)
-    j2, x2, er, tr, wr, st2 = _phase(ex, k, x, U_H, cc.t_rec, 0.0, True, cc, fo, tb, use_tab, rec, controls, air,
-                                     v_nodes, t_nodes, t_start + tx, part)
-    if st2 < 0:
-        return n_ev
-    if st2 > 0:  # the zone, or the route, ended during the recharge
-        pj[m], pe[m], pt[m], pw[m] = j2, er, tx + tr, wx + wr
-        return n_ev
-    n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tx + tr, er, EV_CHARGED, cc)
-    e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, CHARGED, cc, fo, tb, use_tab, rec, v_nodes, t_nodes,
-                            t_start + tx + tr)
-    if ok:
-        pj[m], pe[m], pt[m], pw[m] = j2 + 1, e1, tx + tr + dt, wx + wr + w
-    return n_ev
+    return _recharge_on(ex, k, x, U_H, tx, wx, m, cc, fo, tb, use_tab, rec, controls, air, v_nodes, t_nodes, t_start,
+                        part, ev, ev_k, n_ev, pj, pe, pt, pw)
 
 
 @njit(cache=True, _nrt=False)
