@@ -771,17 +771,25 @@ def cycle_prepare(cc, fo, tb):
 
 
 @njit(cache=True, _nrt=False)
+def _grid_pair(V, k1, s, i0, wx, tb):
+    """The cost-to-go at node k1 in state s at the two grid speeds around where a state lands (``_land``: i0 >= 0,
+    wx), and the weight of the upper: (lower, upper, weight); the upper is the node's cap after its last grid point
+    below it, and the lower itself where the state lands on it (weight 0)."""
+    a = V[k1, s, i0]
+    w = abs(wx)
+    if w <= 0.0:
+        return a, a, 0.0
+    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
+    return a, V[k1, s, i1], w
+
+
+@njit(cache=True, _nrt=False)
 def _value(V, k1, s, i0, wx, tb):
     """The cost-to-go at node k1 in state s where a state lands (``_land``: i0, wx): interpolated in speed between
     grid point i0 and the next (the node's cap after its last grid point below it)."""
     if i0 < 0:
         return np.inf
-    w = abs(wx)
-    if w <= 0.0:
-        return V[k1, s, i0]
-    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
-    a = V[k1, s, i0]
-    z = V[k1, s, i1]
+    a, z, w = _grid_pair(V, k1, s, i0, wx, tb)
     if wx < 0.0 and math.isinf(a) and not math.isinf(z):
         return z
     return _blend(a, z, w)
@@ -813,17 +821,12 @@ def _value_soft(V, k1, s, i0, wx, tb):
     of it."""
     if i0 < 0:
         return np.inf
-    w = abs(wx)
-    if w <= 0.0:
-        return V[k1, s, i0]
-    i1 = V.shape[2] - 1 if i0 == tb.top[k1] else i0 + 1
-    a = V[k1, s, i0]
-    z = V[k1, s, i1]
+    a, z, w = _grid_pair(V, k1, s, i0, wx, tb)
     if math.isinf(a):
         return z
     if math.isinf(z):
         return a
-    return a + w * (z - a)
+    return _blend(a, z, w)
 
 
 @njit(cache=True, _nrt=False)

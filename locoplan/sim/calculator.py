@@ -326,26 +326,14 @@ class TractionCalculator:
         return changed
 
     def _electric_curve_to(self, b: int, e_b: float) -> np.ndarray:
-        """The braking curve (as e per node, inf where it is not followed back) that ``ELECTRIC_CURVE_SHARE`` of the
-        electric brake follows to ``e_b`` at node ``b``, backwards from ``b`` until it reaches the envelope (four
-        midpoint sub-steps a cell), and no further back than a cell where the electric brake cannot slow the
-        train (a neutral span, a grade it cannot hold: as the electric brake's own envelope, no curve is traced
-        back through it)."""
-        n_sub = 4
-        out = np.full(len(self.s_m), np.inf)
-        out[b] = e = e_b
-        for k in range(b - 1, -1, -1):
-            h = self.h_m[k] / n_sub
-            for _ in range(n_sub):
-                a = float(self.electric_decel(float(kmh_from_e(e)), k))
-                a = float(self.electric_decel(float(kmh_from_e(e + 0.5 * h * a)), k))
-                if a <= 0.0:
-                    return out
-                e += h * a
-            out[k] = e
-            if e >= self.e_envelope[k]:
-                break
-        return out
+        """The braking curve (as e per node) that ``ELECTRIC_CURVE_SHARE`` of the electric brake follows to ``e_b`` at
+        node ``b`` alone: the electric brake's own envelope (``_braking_envelope``) with no limit after node ``b``
+        (inf there, and where no curve is traced back through a grade the electric brake cannot hold)."""
+        limit_node, limit_cell = self.e_limit_node.copy(), self.e_limit_cell.copy()
+        limit_node[b] = min(limit_node[b], e_b)
+        limit_node[b + 1:] = np.inf
+        limit_cell[b:] = np.inf
+        return self._braking_envelope(electric_only=True, limit_node=limit_node, limit_cell=limit_cell)[0]
 
     def electric_decel(self, v_kmh, k):
         """-de/ds [m/s^2] at ``v_kmh`` in cell(s) ``k`` under ``ELECTRIC_CURVE_SHARE`` of the electric brake (cut
@@ -475,7 +463,8 @@ class TractionCalculator:
                     code[i], cell[i], value[i] = FORCE_RATE, k, rate[k - 1]
         return code, cell, value
 
-    def _braking_envelope(self, electric_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def _braking_envelope(self, electric_only: bool = False, limit_node: np.ndarray | None = None,
+                          limit_cell: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Highest e at each node from which max braking still respects every later limit and stops at
         the end: backward integration (RK2, fine sub-steps) from each limit drop and from the stop.
 
@@ -485,8 +474,11 @@ class TractionCalculator:
         ``electric_only``: the electric brake's own envelope, the braking curves it follows alone (where
         traction is allowed); inf on the grades it cannot hold at the limit and at their start nodes (there
         the air brake cycles, ``kernel.run_plans``), no curve traced back through them; built on
-        ``ELECTRIC_CURVE_SHARE`` of the electric brake's force.
+        ``ELECTRIC_CURVE_SHARE`` of the electric brake's force. ``limit_node``, ``limit_cell``: the limits (as e) to
+        brake for instead of the route's (inf: none), e.g. one drop alone (``_electric_curve_to``).
         """
+        lim_node = self.e_limit_node if limit_node is None else limit_node
+        lim_cell = self.e_limit_cell if limit_cell is None else limit_cell
         n_sub = ENVELOPE_SUBSTEPS
         m = self.m_eff_t
         forces, holds_all = self.forces, self.brake_holds_limit
@@ -496,19 +488,20 @@ class TractionCalculator:
             holds_all = ~self._short_at_limit
             reset = self._short_at_limit.astype(np.int64)
         if self.backend == "numba":  # the same loop compiled (kernel.braking_envelope)
-            e_env = np.empty_like(self.e_limit_node)
+            e_env = np.empty_like(lim_node)
             found = np.empty(len(self.h_m))
-            cells = self._cells(self.e_limit_node, holds_all, holds_all)  # (e_env and holds_limit not read)
+            cells = contiguous(self._cells(lim_node, holds_all, holds_all)._replace(  # (e_env, holds_limit not read)
+                e_limit_node=lim_node, e_limit_cell=lim_cell))
             count = kernels().braking_envelope(cells, forces, n_sub, e_env, found, reset)
             return e_env, found[:count].copy()
-        e_env = self.e_limit_node.copy()
+        e_env = lim_node.copy()
         entries = []
         for k in range(len(self.h_m) - 1, -1, -1):
             if reset[k]:
                 e_env[k] = np.inf
                 continue
             e = e_env[k + 1]
-            cap = self.e_limit_cell[k]
+            cap = lim_cell[k]
             if electric_only:
                 decel = lambda e_: float(self.electric_decel(kmh_from_e(max(e_, 0.0)), k))  # noqa: E731
             else:
