@@ -9,6 +9,7 @@ from rich.table import Table
 
 from .tables import key_value_table
 from ..ocp.bound import within_percent
+from ..model.conditions import CONDITION_NAMES
 
 
 def time_summary_table(s: dict, width: int = 80) -> list:
@@ -135,9 +136,8 @@ def plan_sequence_table(runs: list[dict]) -> Table:
     table = Table(title="condition sequence (re-simulated plan)", title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("condition", "from [m]", "to [m]"):
         table.add_column(escape(col), justify="right" if col != "condition" else "left")
-    names = {"T": "T traction", "K": "K cruise", "C": "C coast", "B": "B brake"}
     for r in runs:
-        table.add_row(names[r["condition"]], f"{r['from_m']:.0f}", f"{r['to_m']:.0f}")
+        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", f"{r['to_m']:.0f}")
     return table
 
 

@@ -10,7 +10,7 @@ from ..errors import InputError, Problem
 from ..sim.result import Profile
 from .files import atomic_write
 
-COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f"}
+COND_COLOURS = {"T": "#d62728", "K": "#1f77b4", "C": "#2ca02c", "B": "#7f7f7f", "E": "#9467bd"}
 
 
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
@@ -201,6 +201,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
     """Speed profiles over the limits on ``ax`` (one profile: coloured by condition), the equivalent
     gradient on ``axg``. With ``route``: the file's limit and gradient too (labelled as such, where they
     differ from the train's), and the line's stations, neutral sections, tunnels and curves."""
+    from ..model.conditions import CONDITION_NAMES
     from ..sim.result import CONDITIONS
     from .writers import section_values
 
@@ -221,7 +222,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
                 # each cell as its own segment from node k to k + 1, separated by NaN
                 xs = np.column_stack([s_km[cells], s_km[cells + 1], np.full(cells.size, np.nan)]).ravel()
                 ys = np.column_stack([v[cells], v[cells + 1], np.full(cells.size, np.nan)]).ravel()
-                ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label={"T": "traction", "K": "cruise", "C": "coast", "B": "brake"}[name])
+                ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label=CONDITION_NAMES[name])
         else:
             ax.plot(s_km, v, lw=1.6, label=label, color=_colour(label, profiles))
     if single and ref.air is not None:  # the air brake's applications as shaded spans

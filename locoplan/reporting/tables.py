@@ -12,6 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 from ..ocp.bound import GAP_DIGIT_PERCENT, percent_digits, within_percent
+from ..model.conditions import CONDITION_NAMES
 
 # ------------------------------------------------------------------------------- fitting a width
 # A table is printed at the console's width (the terminal's, or COLUMNS, or 80 when piped). Numbers
@@ -326,9 +327,8 @@ def sequence_table(runs: list[dict], width: int = 80) -> list:
     table = Table(title="condition sequence", title_justify="left")
     for col in ("condition", "from [m]", "to [m]", "length [m]"):
         table.add_column(escape(col), justify="right" if col != "condition" else "left")
-    names = {"T": "T traction", "K": "K cruise", "C": "C coast", "B": "B brake"}
     for r in runs:
-        table.add_row(names[r["condition"]], f"{r['from_m']:.0f}", f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}")
+        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}")
     return fit(table, width)
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from .. import bounds
 from ..errors import InputError, Problem
-from ..model.conditions import CODE
+from ..model.conditions import CODE, N_CONDITIONS
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
 from ..physics.braking import full_brake_kn
@@ -585,7 +585,7 @@ class TractionCalculator:
 
     # ----------------------------------------------------------------- plans
     def condition_fractions(self, conditions: tuple[str, ...], switches_m: np.ndarray) -> np.ndarray:
-        """Share of each cell under each condition, shape (4, n_plans, n_cells).
+        """Share of each cell under each condition, shape (N_CONDITIONS, n_plans, n_cells).
 
         Condition j runs from ``starts[j]`` (0 for the first, then the switches) to the next start. A
         NaN switch means 'never': the previous condition runs on until a braking curve takes over.
@@ -600,9 +600,9 @@ class TractionCalculator:
             span = np.where(np.isinf(starts), 0.0, ends - starts)
         cov = np.minimum(cov, span[:, :, None])
         share = np.diff(cov, axis=2) / self.h_m  # (n, n_cond, n_cells)
-        frac = np.zeros((4, n, len(self.h_m)))
+        frac = np.zeros((N_CONDITIONS, n, len(self.h_m)))
         codes = np.array([CODE[c] for c in conditions])
-        for code in range(4):
+        for code in range(N_CONDITIONS):
             sel = codes == code
             if sel.any():
                 frac[code] = share[:, sel, :].sum(axis=1)
@@ -726,11 +726,11 @@ class TractionCalculator:
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw, airs)
 
     def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_air: float) -> bool:
-        """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (4, cells),
+        """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (N_CONDITIONS, cells),
         ``cruise`` its cruise speed's e (inf: none), ``s_air`` [m] the curve it waits for (inf: none)."""
         h, env, nxt = self.h_m, self.e_envelope, self.next_air_curve
         fo, t_rec = self.forces, self.air_cycle.recharge_s
-        T_, K_, C_, B_ = CODE["T"], CODE["K"], CODE["C"], CODE["B"]
+        T_, K_, C_, B_, E_ = CODE["T"], CODE["K"], CODE["C"], CODE["B"], CODE["E"]
         t, j, n = 0.0, k, len(h)
         while j < n and t < t_rec:
             if frac_i[B_, j] > 0.0:
@@ -744,7 +744,7 @@ class TractionCalculator:
                     gain = max(-(b_el + load), 0.0)
                 else:
                     f_max = float(_interp(v_kmh, fo.tv, fo.tf)) * self.traction_allowed[j]
-                    gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - load
+                    gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - frac_i[E_, j] * b_el - load
                 e1 = e + (h[j] / fo.m) * gain
             if e1 <= E_FLOOR:
                 return True
@@ -798,7 +798,7 @@ class TractionCalculator:
         n, n_cells = frac.shape[1:]
         m = self.m_eff_t
         # per-cell rows, contiguous, so that each step reads plain vectors
-        fT, fK, fB = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"]))
+        fT, fK, fB, fE = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"], CODE["E"]))
         # only coasting or a cruise that cannot hold may break a limit; traction is held at it (a cell
         # that mixes traction in is judged by the next one)
         may_exceed = np.ascontiguousarray(((frac[CODE["C"]] + frac[CODE["K"]] > 0) & (frac[CODE["T"]] == 0)).T)
@@ -811,20 +811,22 @@ class TractionCalculator:
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
         f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
-        slope = np.maximum((fT[0] * f0 - fB[0] * b0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
+        e0 = float(_interp(0.0, self.electric_brake_speed_kmh, self.electric_brake_kn)) * self.traction_allowed[0]
+        slope = np.maximum((fT[0] * f0 - fB[0] * b0 - fE[0] * e0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
-            t, work, prof, airs = self._loop(fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e,
+            t, work, prof, airs = self._loop(fT, fK, fB, fE, frac, may_exceed, over, stop, nohold, slope, cruise_e,
                                              cruise_cap, want_profile, np.zeros((n, 1)) if margin is None else margin,
                                              np.zeros(n_cells, dtype=np.int64) if region is None else region)
         def first_of(flags):
             return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
 
         first_stop = first_of(stop)
-        braking_at_stop = fB[np.minimum(first_stop, n_cells - 1), np.arange(n)] > 0
+        at = np.minimum(first_stop, n_cells - 1), np.arange(n)
+        braking_at_stop = fB[at] + fE[at] > 0
         return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
                              airs)
 
-    def _loop(self, fT, fK, fB, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, margin,
+    def _loop(self, fT, fK, fB, fE, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, margin,
               region):
         """The distance loop: one pass over the cells, every plan advanced at once."""
         n_cells, n = fT.shape
@@ -895,7 +897,7 @@ class TractionCalculator:
             el_k, air_k = _interp(v_kmh, ev, ef), _interp(v_kmh, av, af)
             b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
-            fT_k, fk, fB_k, b_use, may_ex = fT[k], fK[k], fB[k], b_max, may_exceed[k]
+            fT_k, fk, fB_k, fE_k, b_use, may_ex = fT[k], fK[k], fB[k], fE[k], b_max, may_exceed[k]
             ov = band = hold_cap = None
             if cyc is not None:
                 b_el = el_k * allowed[k]
@@ -956,6 +958,7 @@ class TractionCalculator:
                 both = ov | band
                 hold_k = band | kept
                 fT_k = np.where(both, 0.0, fT_k)
+                fE_k = np.where(both, 0.0, fE_k)
                 fk = np.where(hold_k, 1.0, np.where(ov, 0.0, fk))
                 fB_k = np.where(ov & ~kept, 1.0, np.where(kept, 0.0, fB_k))
                 may_ex = may_ex & ~both
@@ -973,7 +976,8 @@ class TractionCalculator:
             hold = np.minimum(np.maximum(load, -b_use), f_max if hold_cap is None else hold_cap)  # cruise: the force that keeps the speed
             full = fT_k * f_max
             tr = full + fk * np.maximum(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB_k * b_use + fk * hold - load)
+            b_e = el_k * allowed[k]  # the electric brake alone (E)
+            e_pred = e + (hk / m) * (full - fB_k * b_use - fE_k * b_e + fk * hold - load)
             if strict:  # by default the train is held at the limit by braking instead
                 over[k] = (e_pred > e_over[k]) & may_ex
             capped = e_pred > c1
@@ -982,7 +986,7 @@ class TractionCalculator:
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
-                crawl = ~capped & (fB_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
+                crawl = ~capped & (fB_k == 0.0) & (fE_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
                 if band is not None:
                     crawl &= ~band
             if crawl.any():
@@ -1059,7 +1063,7 @@ class TractionCalculator:
                 t_nodes[:, k + 1] = t
                 v_nodes[:, k + 1] = kmh(v_new)
                 trac[:, k] = w_tr / hk
-                brk[:, k] = (fB_k * b_use - fk * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
+                brk[:, k] = (fB_k * b_use + fE_k * b_e - fk * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
                 dominant = np.argmax(frac[:, :, k], axis=0)
                 if not allowed[k]:  # no traction in a neutral section: what was T is coasting
                     dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..model.conditions import B, C, K, T
+from ..model.conditions import B, C, E, K, N_CONDITIONS, T
 from ..physics import braking, resistance, units
 from ..physics.units import KMH2_PER_E
 from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, ARRIVE_AFTER_S, CRAWL_STEP_M,
@@ -122,7 +122,7 @@ def _judge_recharge(wait, t_rec, i, k, air_margin, air_at, air_wait):
 def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_air):
     """Whether the air brake may be released at cell ``k``'s start at e = v^2/2 [m^2/s^2] and recharge before it
     is needed again, by looking ``t_rec`` seconds ahead along the plan (its runs ``codes``, ``starts``,
-    ``ends`` from run ``j0``; its cruise speed's e, inf: none; ``sh`` a scratch array of 4): on a descent the
+    ``ends`` from run ``j0``; its cruise speed's e, inf: none; ``sh`` a scratch array of ``N_CONDITIONS``): on a descent the
     train is held by the electric brake alone (``run_plans``: whatever the plan's condition while the brake
     recharges), holding the speed where it can, at full where it cannot; elsewhere it drives the plan's own
     condition. Unsafe: the plan brakes (B, an application), the train reaches the apply speed of a grade the
@@ -151,7 +151,7 @@ def release_safe(k, e, t_rec, ce_, fo, codes, starts, ends, j0, cruise_e, sh, s_
                     gain = 0.0
             else:
                 f_max = _interp(v_kmh, fo.tv, fo.tf) * allowed[j]
-                gain = sh[T] * f_max + sh[K] * min(max(load, -b_el), f_max) - load
+                gain = sh[T] * f_max + sh[K] * min(max(load, -b_el), f_max) - sh[E] * b_el - load
             e1 = e + (h[j] / fo.m) * gain
         if e1 <= E_FLOOR:  # at rest: no application ahead (the plan fails on its own)
             return True
@@ -225,9 +225,9 @@ def _interp(x, xs, ys):
 
 @njit(cache=True, _nrt=False)
 def _shares(s0, s1, codes, starts, ends, j0, out):
-    """Share of cell [s0, s1] under each condition (out[4]); runs j0.. of the plan; returns the first run
-    that may still overlap the next cell."""
-    for c in range(4):
+    """Share of cell [s0, s1] under each condition (out[N_CONDITIONS]); runs j0.. of the plan; returns the first
+    run that may still overlap the next cell."""
+    for c in range(N_CONDITIONS):
         out[c] = 0.0
     h = s1 - s0
     j = j0
@@ -293,8 +293,8 @@ def run_plans(ce_, fo, pl, out):
     n = starts.shape[0]
     n_cells = h.shape[0]
     last = n_cells - 1
-    shares = np.zeros(4)
-    ahead = np.zeros(4)
+    shares = np.zeros(N_CONDITIONS)
+    ahead = np.zeros(N_CONDITIONS)
     for i in range(n):
         e = 0.0
         v = 0.0
@@ -325,7 +325,7 @@ def run_plans(ce_, fo, pl, out):
         for k in range(n_cells):
             j0_cell = j0
             j0 = _shares(s[k], s[k + 1], codes, starts[i], ends[i], j0, shares)
-            fT, fK, fC, fB = shares[T], shares[K], shares[C], shares[B]
+            fT, fK, fC, fB, fE = shares[T], shares[K], shares[C], shares[B], shares[E]
             hk = h[k]
             c0 = e_env[k]
             c1 = e_env[k + 1]
@@ -336,7 +336,7 @@ def run_plans(ce_, fo, pl, out):
                 b0 = brake_kn(0.0, allowed[0], fo)
                 l0 = load_kn(0.0, grav[0], fo)
                 hold0 = min(max(l0, -b0), f0)
-                slope = max((fT * f0 - fB * b0 + fK * hold0 - l0) / m, 0.0)
+                slope = max((fT * f0 - fB * b0 - fE * _interp(0.0, fo.ev, fo.ef) * allowed[0] + fK * hold0 - l0) / m, 0.0)
             e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1))
             ce = np.inf
             if has_cruise and fC == 0.0:  # the seeds' cruise speed caps T and K, not C
@@ -415,15 +415,15 @@ def run_plans(ce_, fo, pl, out):
                     if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition:
                         if e > e_rel_now or fB > 0.0:  # a cycle's application, down to its release speed, or
                             # the plan's braking: at full
-                            fT, fK, fC, fB = 0.0, 0.0, 0.0, 1.0
+                            fT, fK, fC, fB, fE = 0.0, 0.0, 0.0, 1.0, 0.0
                         else:  # kept on (its least hold, or no safe release yet): the speed held, the electric
-                            fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0  # brake eased down to the air brake alone
+                            fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0  # brake eased to the air brake alone
                             kept = True
                         ov = True
                 elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
                     # in the cycle's band, or recharging on a descent: held by the electric brake alone (at
                     # full where it cannot hold), whatever the plan's condition
-                    fT, fK, fC, fB = 0.0, 1.0, 0.0, 0.0
+                    fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0
                     band = True
                 b_use = b_el + lvl * air_k
                 if el_cap and released and not air_on and t - t_rel < t_rec:
@@ -442,7 +442,7 @@ def run_plans(ce_, fo, pl, out):
             hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
             full = fT * f_max
             tr = full + fK * max(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB * b_use + fK * hold - load)
+            e_pred = e + (hk / m) * (full - fB * b_use - fE * el_k * allowed[k] + fK * hold - load)
             if strict and over_at[i] < 0:
                 if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
                     over_at[i] = k
@@ -450,7 +450,7 @@ def run_plans(ce_, fo, pl, out):
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
-            crawl = ((not capped) and k > 0 and fB == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+            crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
                      and stop_at[i] < 0 and not band)
             t_crawl = 0.0
             w_crawl = 0.0
@@ -478,7 +478,7 @@ def run_plans(ce_, fo, pl, out):
                 if e_new <= E_FLOOR:
                     if stop_at[i] < 0:
                         stop_at[i] = k
-                        fb_at[i] = 1 if fB > 0.0 else 0
+                        fb_at[i] = 1 if fB + fE > 0.0 else 0
                     e_new = E_FLOOR
                 v_new = ms_from_e(e_new)
             else:
@@ -522,10 +522,10 @@ def run_plans(ce_, fo, pl, out):
                 t_nodes[i, k + 1] = t
                 v_nodes[i, k + 1] = kmh(v_new)
                 trac[i, k] = w_tr / hk
-                brk[i, k] = (fB * b_use - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
+                brk[i, k] = (fB * b_use + fE * el_k * allowed[k] - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
                 dom = 0
                 best = shares[0]
-                for c in range(1, 4):
+                for c in range(1, N_CONDITIONS):
                     if shares[c] > best:
                         best = shares[c]
                         dom = c

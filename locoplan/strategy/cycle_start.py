@@ -30,7 +30,7 @@ from ..model.plan import Plan
 from ..model.route import Route
 from ..model.train import Train
 from ..optimize.cycle_dp import CycleDrive, CycleOptimum, cycle_binds, solve_cycle_optimum
-from ..optimize.cycle_kernel import AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_H, U_K, U_T
+from ..optimize.cycle_kernel import AIR_CYCLE, EV_APPLY, EV_RELEASE, U_B, U_C, U_E, U_H, U_K, U_T
 from ..physics.units import kmh_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator
 from ..sim.constants import CYCLE_MARGIN
@@ -136,8 +136,8 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
 
 
 def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool) -> str:
-    """The calculator's condition for a drive's cell: T, K (holding; the full electric brake alone is a hold it
-    cannot keep on a descent), C, and an application: B, or K on a descent the electric brake cannot hold, where
+    """The calculator's condition for a drive's cell: T, K (holding), C, E (the full electric brake alone), and an
+    application: B, or K on a descent the electric brake cannot hold, where
     the calculator cycles by itself and the plan's release margins place its releases. A hold at the cap (the
     limit, a braking curve) is the condition that reaches it there, C on a descent, T elsewhere: the calculator
     holds a train at a limit it reaches, whereas its K holds the speed at which it begins."""
@@ -147,6 +147,8 @@ def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool
         return "C"
     if u == U_K:
         return "K"
+    if u == U_E and air != AIR_CYCLE:
+        return "E"
     if u == U_B or air == AIR_CYCLE:
         return "K" if in_region else "B"
     if u == U_H and at_cap:

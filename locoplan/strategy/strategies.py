@@ -426,6 +426,12 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         if failure is not None:
             raise failure
         raise InfeasibleError(f"proposed: {no_drive_message(ctx)}")
+    if not _close_enough(ctx, best):
+        found = _electric_braking(ctx, best, common)
+        if found is not None:
+            evaluations += found[2].n_evaluations if found[2] is not None else 0
+            if found[4] < best[4]:
+                best = found
     seq, problem, result, x, _ = best
     if problem is None:  # one condition, then the stop: nothing to search
         return StrategyOutcome(_plan(seq.conditions, []), algorithm=None, solve_time_s=time.perf_counter() - t,
@@ -601,6 +607,90 @@ def _drive_start(ctx: StrategyContext):
         # lower speed inside the traction run (partial traction), where ISSA places it
         seq = with_holds(ctx.search, seq)
     return seq
+
+
+def _electric_braking(ctx: StrategyContext, found, common: dict):
+    """Where the best plan ``found`` (seq, problem, result, x, fitness) lets the air brake apply to follow a
+    limit or a braking curve (its least hold then slows a train well under the limit ahead, or holds it through
+    a neutral section on a descent), the same plan with the electric brake alone (E) just before each such
+    application (at most ``ELECTRIC_RUNS``): each run's length and end tried on a small batch (``ELECTRIC_TRIES_M``),
+    the fastest on time kept, then ISSA over all switching points from there; the ``_search`` tuple, or None where
+    the model has no separate air brake, the plan makes no such application, or no run saves time."""
+    seq, problem, _, x, _ = found
+    calc = ctx.calc
+    if calc.air_cycle is None or problem is None:
+        return None
+    plan = _plan(seq.conditions, x, problem)
+    res = calc.evaluate(plan.conditions, plan.switches_m, profile=True, **plan.cycle_kwargs())
+    prof = res.profile
+    if not res.feasible[0] or prof.air is None:
+        return None
+    s = calc.s_m
+    starts = np.array([v if math.isfinite(v) else np.inf for v in plan.starts_m])
+    own = np.searchsorted(starts, s[:-1], side="right") - 1  # each cell's plan condition
+    applied = np.flatnonzero((prof.air[0] == AIR_APPLIED) & (np.array(plan.conditions)[own] != "B"))
+    if not applied.size:
+        return None
+    gap = common["min_gap_m"]
+    conditions, nominal = list(seq.conditions), list(np.asarray(x, dtype=float)[:len(seq.nominal_m)])
+    t_best = float(res.running_time_s[0])
+    episodes = [int(k) for i, k in enumerate(applied) if i == 0 or s[k] - s[applied[i - 1]] > ELECTRIC_EPISODE_M]
+    for k in episodes[:ELECTRIC_RUNS]:
+        x_app = float(s[k])
+        groups: dict[tuple, list] = {}
+        for end in ELECTRIC_TRIES_M[0]:
+            for length in ELECTRIC_TRIES_M[1]:
+                b, a = x_app + end, x_app + end - length
+                if length < gap or a <= gap or b >= calc.route.length_m - gap:
+                    continue
+                got = _insert_run(conditions, nominal, "E", a, b)
+                if got is not None:
+                    groups.setdefault(tuple(got[0]), []).append(got[1])
+        for conds, noms in groups.items():  # one batch per sequence
+            r = calc.evaluate(conds, np.array([[*nom, np.nan] for nom in noms]), **_batch_margins(plan, len(noms)))
+            t_c = np.where(r.feasible, r.running_time_s, np.inf)
+            i = int(np.argmin(t_c))
+            if t_c[i] < t_best - 1e-6:
+                conditions, nominal, t_best = list(conds), noms[i], float(t_c[i])
+    if tuple(conditions) == tuple(seq.conditions):
+        return None
+    from types import SimpleNamespace
+
+    from .general_builder import _with_windows
+    drive = SimpleNamespace(time_s=seq.drive_time_s, energy_kwh=seq.drive_energy_kwh, price_kwh_per_s=seq.price_kwh_per_s)
+    new = _with_windows(tuple(conditions), np.array(nominal), gap, calc.route.length_m, False, drive)
+    try:
+        return _search(ctx, new, common)
+    except InfeasibleError:
+        return None
+
+
+ELECTRIC_RUNS = 6
+ELECTRIC_EPISODE_M = 2000.0
+ELECTRIC_TRIES_M = ((-300.0, -150.0, -50.0, 0.0, 50.0), (100.0, 200.0, 400.0, 800.0))
+"""``_electric_braking``: the applications it tries to avoid (the first of each episode, applications more than
+``ELECTRIC_EPISODE_M`` apart; at most ``ELECTRIC_RUNS`` episodes), and each E run's end relative to the
+application's cell [m] and its length [m] (at least the shortest run)."""
+
+
+def _insert_run(conditions: list, nominal: list, c: str, a: float, b: float):
+    """``conditions`` (the first starting at 0) and their later starts ``nominal`` with condition ``c`` from ``a`` to
+    ``b`` [m] inside one run (that run's condition again after ``b``), or None where [a, b] spans a switch."""
+    starts = [0.0, *nominal]
+    j = int(np.searchsorted(starts, a, side="right") - 1)
+    nxt = starts[j + 1] if j + 1 < len(starts) else math.inf
+    if b >= nxt or j + 1 >= len(conditions) or conditions[j] in ("B", c):
+        return None
+    conds = conditions[:j + 1] + [c, conditions[j]] + conditions[j + 1:]
+    return conds, nominal[:j] + [a, b] + nominal[j:]
+
+
+def _batch_margins(plan: Plan, n: int) -> dict:
+    """The release margins of ``plan`` as ``evaluate`` takes them, for a batch of ``n`` plans."""
+    kw = plan.cycle_kwargs()
+    if kw:
+        kw["release_margin"] = np.repeat(kw["release_margin"], n, axis=0)
+    return kw
 
 
 def _search(ctx: StrategyContext, seq, common: dict):
