@@ -1,0 +1,88 @@
+"""The fifth condition, E: the locomotives' electric brake alone. Against an independent integration of the
+electric brake's curve, and its place beside B in every model (the same as B where the model has no separate air
+brake; no application of the wagons' air brake where the default model has one)."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from locoplan.io.load import load_route, load_train
+from locoplan.model.plan import parse_sequence
+from locoplan.physics.resistance import train_resistance_kn
+from locoplan.physics.traction import max_force_kn
+from locoplan.sim.calculator import ModelOptions, TractionCalculator
+from locoplan.sim.result import CODE
+
+LEVEL = """schema: locoplan/route@1
+name: level 6 km
+length_m: 6000
+speed_limits:
+  - {from_m: 0, to_m: 6000, kmh: 80}
+gradients:
+  - {from_m: 0, to_m: 6000, permille: 0.0}
+"""
+
+
+@pytest.fixture(scope="module")
+def level(tmp_path_factory):
+    path = tmp_path_factory.mktemp("e") / "level.yaml"
+    path.write_text(LEVEL)
+    return load_route(path), load_train("HXD1-C80x50")
+
+
+def _speed_at(calc, plan, x):
+    res = calc.evaluate(plan.conditions, plan.switches_m, profile=True)
+    assert res.feasible[0]
+    return res, float(np.interp(x, res.profile.s_m, res.profile.v_kmh[0]))
+
+
+def test_e_brakes_on_the_electric_curve_alone(level):
+    """From 3,000 to 3,600 m of level track E slows the train as m dv/ds v = -(electric brake + resistance),
+    integrated independently (solve_ivp, tight tolerances) from the calculator's own speed at 3,000 m: within
+    0.1 km/h at 3,600 m; and no air application where B makes one."""
+    route, train = level
+    calc = TractionCalculator(route, train, ModelOptions(step_m=10.0))
+    a, b = 3000.0, 3600.0
+    e_plan = parse_sequence(f"T:0,E:{a:g},C:{b:g},B", route.length_m)
+    res, v_b = _speed_at(calc, e_plan, b)
+    v_a = float(np.interp(a, res.profile.s_m, res.profile.v_kmh[0]))
+    assert v_a == pytest.approx(80.0, abs=0.5)  # at the limit when E begins
+
+    def dv_ds(_s, y):
+        v_kmh = y[0] * 3.6
+        brake = float(max_force_kn(v_kmh, calc.electric_brake_speed_kmh, calc.electric_brake_kn))
+        resist = float(train_resistance_kn(v_kmh, train.resistance_kn))
+        return [-(brake + resist) / (calc.m_eff_t * y[0])]
+
+    sol = solve_ivp(dv_ds, (a, b), [v_a / 3.6], rtol=1e-10, atol=1e-10)
+    assert v_b == pytest.approx(3.6 * sol.y[0, -1], abs=0.1)
+    assert v_b < v_a - 10.0  # it brakes in earnest
+    b_plan = parse_sequence(f"T:0,B:{a:g},C:{b:g},B", route.length_m)
+    rb, v_bb = _speed_at(calc, b_plan, b)
+    assert rb.air_applications[0] == res.air_applications[0] + 1  # B's application; both apply for the stop
+    assert v_bb < v_b - 5.0  # B adds the wagons' air brake
+    # the profile names the condition: E in the run
+    cells = (res.profile.s_m[:-1] >= a + 20) & (res.profile.s_m[1:] <= b - 20)
+    assert set(res.profile.condition[0][cells]) == {CODE["E"]}
+
+
+@pytest.mark.parametrize("options", [ModelOptions.seeds(), ModelOptions(air_brake=False)], ids=["point-mass", "no-air-brake"])
+def test_e_is_b_where_the_electric_brake_is_the_only_brake(level, options):
+    route, train = level
+    calc = TractionCalculator(route, train, options)
+    r_e = calc.evaluate(*(lambda p: (p.conditions, p.switches_m))(parse_sequence("T:0,E:3000,C:3600,B", route.length_m)))
+    r_b = calc.evaluate(*(lambda p: (p.conditions, p.switches_m))(parse_sequence("T:0,B:3000,C:3600,B", route.length_m)))
+    assert r_e.feasible[0] and r_b.feasible[0]
+    assert r_e.running_time_s[0] == pytest.approx(r_b.running_time_s[0], rel=1e-12)
+    assert r_e.traction_energy_kwh[0] == pytest.approx(r_b.traction_energy_kwh[0], rel=1e-12)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_e_in_both_loops(level, backend):
+    """The compiled loop and its numpy twin run E alike (time to 1e-9)."""
+    route, train = level
+    plan = parse_sequence("T:0,E:2500,K:2900,E:4000,C:4300,B", route.length_m)
+    ref = TractionCalculator(route, train).evaluate(plan.conditions, plan.switches_m)
+    got = TractionCalculator(route, train, backend=backend).evaluate(plan.conditions, plan.switches_m)
+    assert got.running_time_s[0] == pytest.approx(ref.running_time_s[0], rel=1e-9)
+    assert got.traction_energy_kwh[0] == pytest.approx(ref.traction_energy_kwh[0], rel=1e-9)
