@@ -129,7 +129,7 @@ def _progress(enabled: bool):
 @guarded
 def simulate(route: Path = ROUTE,
              strategy: Optional[str] = typer.Option(None, "--strategy", help=f"Built-in strategy: {', '.join(STRATEGIES)}."),
-             sequence: Optional[str] = typer.Option(None, "--sequence", help='Conditions and switching points, e.g. "T:0,K:2200,C:9000,B" (bare final B: brake where the braking curve begins).'),
+             sequence: Optional[str] = typer.Option(None, "--sequence", help='Conditions and switching points, e.g. "T:0,K:2200,C:9000,B" (T traction, K cruise, C coast, B brake, E the electric brake alone; bare final B: brake where the braking curve begins).'),
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png, .svg or .pdf."),
