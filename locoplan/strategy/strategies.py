@@ -408,7 +408,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
         common["tolerance_s"] = RANKING_MARGIN * ctx.ranking_tolerance_s
     common["min_gap_m"] = min_run_m(ctx.calc.train)
     best, evaluations, failure = None, 0, None
-    for start in (_optimum_start, _cycle_start, _drive_start):
+    for start in (_optimum_start, _held_burst_start, _cycle_start, _drive_start):
         if best is not None and _close_enough(ctx, best):
             break
         seq = start(ctx)
@@ -555,6 +555,30 @@ def _optimum_start(ctx: StrategyContext):
             t_next = b + (target - tb) * (b - a) / (tb - ta) if tb != ta else b + (target - tb)
         t_opt = max(t_next, fastest * (1 + 1e-3))
     return None if best is None else best[1]
+
+
+def _held_burst_start(ctx: StrategyContext):
+    """The optimum's sequence (``_optimum_start``) with each burst of traction (a run of T no longer than the shortest
+    run, between runs of other conditions: where E* pushes a crawling train over a crest with a partial force for a
+    cell or two) held instead (K, the speed at which it begins held with partial traction): full traction for the
+    shortest run gives far more than E*'s burst, and the time it gains must be spent again later. None where the
+    sequence has no such burst."""
+    seq = _optimum_start(ctx)
+    if seq is None or len(seq.nominal_m) < 2:
+        return None
+    gap = min_run_m(ctx.calc.train)
+    starts = np.concatenate([[0.0], seq.nominal_m])
+    ends = np.concatenate([seq.nominal_m, [ctx.calc.route.length_m]])
+    body = list(seq.conditions[:-1])
+    conds = list(seq.conditions)
+    hit = False
+    for j in range(1, len(body) - 1):
+        if body[j] == "T" and ends[j] - starts[j] <= gap * (1 + 1e-6) and body[j - 1] != "T" and body[j + 1] != "T":
+            conds[j] = "K"
+            hit = True
+    if not hit:
+        return None
+    return replace(seq, conditions=tuple(conds))
 
 
 CALIBRATION_STEPS = 3
