@@ -86,3 +86,34 @@ def test_e_in_both_loops(level, backend):
     got = TractionCalculator(route, train, backend=backend).evaluate(plan.conditions, plan.switches_m)
     assert got.running_time_s[0] == pytest.approx(ref.running_time_s[0], rel=1e-9)
     assert got.traction_energy_kwh[0] == pytest.approx(ref.traction_energy_kwh[0], rel=1e-9)
+
+
+def test_the_proposed_plan_brakes_on_the_electric_brake_before_a_drop(root):
+    """A generated falling line (tests/data/routes/falling-drops-37km.yaml) with HXD1 + 25 x C64 at 1.23 x the
+    fastest run: coasting into the drop from 75 to 65 km/h at 20.78 km, the train meets the braking curve at a
+    speed the electric brake cannot follow, so the air brake applies and its least hold leaves the train about
+    5 km/h under the new limit: the plan that waits for the curve was 94.5 kWh, 4.4 % over the optimum with the
+    cycle. The proposed plan brakes on the electric brake alone (E) before the drop; each of its E runs, coasted
+    instead, runs slower (it is what saves the time), and the plan lies within 2 % of the cycle optimum."""
+    from locoplan.runner import make_context, run_strategy, schedule_verdict
+
+    route = load_route(root / "tests/data/routes/falling-drops-37km.yaml")
+    train = load_train(root / "tests/data/consists/HXD1-C64x25.yaml")
+    calc = TractionCalculator(route, train)
+    t0 = round(1.23 * calc.fastest_time_s, 1)
+    ctx = make_context(route, train, ModelOptions(), time_s=t0, tolerance_s=0.01 * t0, yardstick=True)
+    run = run_strategy(ctx, "proposed")
+    s = run.summary
+    assert schedule_verdict(ctx, run) is None, s
+    plan = run.outcome.plan
+    assert "E" in plan.conditions, plan.text()
+    res = calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
+    for j, c in enumerate(plan.conditions):
+        if c != "E":
+            continue
+        coasted = tuple("C" if i == j else x for i, x in enumerate(plan.conditions))
+        alt = calc.evaluate(coasted, plan.switches_m, **plan.cycle_kwargs())
+        assert not alt.feasible[0] or alt.running_time_s[0] > res.running_time_s[0] + 1.0, (j, plan.text())
+    co = s["optimum_with_cycle_kwh"]
+    assert co is not None and s["optimum_kwh"] <= co
+    assert s["traction_energy_kwh"] <= 1.02 * co, (s["traction_energy_kwh"], co)

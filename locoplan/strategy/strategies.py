@@ -684,9 +684,47 @@ def _electric_braking(ctx: StrategyContext, found, common: dict):
     drive = SimpleNamespace(time_s=seq.drive_time_s, energy_kwh=seq.drive_energy_kwh, price_kwh_per_s=seq.price_kwh_per_s)
     new = _with_windows(tuple(conditions), np.array(nominal), gap, calc.route.length_m, False, drive)
     try:
-        return _search(ctx, new, common)
+        found = _search(ctx, new, common)
     except InfeasibleError:
         return None
+    return _without_idle_electric(ctx, found, common, drive)
+
+
+def _without_idle_electric(ctx: StrategyContext, found, common: dict, drive):
+    """``found`` (``_search``'s tuple) with each E run that saves no time (the search may have moved the switching
+    points round it so that coasting there runs as fast) coasted instead: the plan on time and using no more energy
+    without it (the last first)."""
+    from .general_builder import _with_windows
+
+    seq, problem, _, x, _ = found
+    if problem is None:
+        return found
+    calc = ctx.calc
+    n = len(seq.conditions) - 1  # switches (the final B's is NaN)
+    conds, sw, margins = list(seq.conditions), list(np.asarray(x, dtype=float)[:problem.n_switches]), \
+        np.asarray(x, dtype=float)[problem.n_switches:]
+    plan = _plan(conds, x, problem)
+    base = calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
+    changed = False
+    for j in range(n - 1, 0, -1):
+        if conds[j] != "E" or j + 1 >= len(conds) - 1 or conds[j - 1] != conds[j + 1]:
+            continue
+        c2 = conds[:j] + conds[j + 2:]
+        s2 = sw[:j - 1] + sw[j + 1:]
+        trial = Plan(tuple(c2), (0.0, *s2, float("nan")), plan.release_margins)
+        r = calc.evaluate(trial.conditions, trial.switches_m, **trial.cycle_kwargs())
+        t = float(r.running_time_s[0])
+        on_time = not ctx.tolerance_s or abs(t - ctx.t0_s) <= ctx.tolerance_s
+        if r.feasible[0] and on_time and float(r.energy_kwh(ctx.objective)[0]) <= float(base.energy_kwh(ctx.objective)[0]) + 1e-9:
+            conds, sw, base, changed = c2, s2, r, True
+    if not changed:
+        return found
+    gap = common["min_gap_m"]
+    new = _with_windows(tuple(conds), np.array(sw), gap, calc.route.length_m, False, drive)
+    problem2 = _problem(ctx, calc, new, common)
+    x2 = np.concatenate([sw, margins])
+    f = float(problem2.fitness(problem2.simulate(np.atleast_2d(x2)))[0])
+    return new, problem2, found[2], x2, f
 
 
 ELECTRIC_RUNS = 6
