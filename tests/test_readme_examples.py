@@ -24,8 +24,11 @@ The convention the pages follow (write new examples this way):
   other trailing ``# comment`` is ignored by the shell.
 - Every output: no ``…`` (nothing cut), and no line wider than the terminal unless it carries one
   whole unbreakable token, a plan string or a path. ``--json`` output must parse as JSON.
-- Lines that are not ``$ locoplan`` commands (``$ cat``, ``$ python``) are shown for the reader and
-  not run; their output is not compared.
+- ``$ mkdir -p /tmp/...`` lines are run; other lines that are not ``$ locoplan`` commands (``$ cat``,
+  ``$ python``) are shown for the reader and not run, their output not compared.
+- Paths under ``/tmp/`` are a folder of the block's own (blocks run side by side). Commands that read
+  ``../shared/data/external`` (the public TTOBench and railtoolkit sources, beside the checkout) are
+  skipped where it is not there.
 
 Each command has a hang guard of 900 s. Each block has a fresh cache of optima (``LOCOPLAN_CACHE_DIR``),
 so a command prints what it prints on a new machine; a later command of the block finds what an
@@ -115,6 +118,7 @@ class Example:
     exit_code: int = 0
     slow: bool = False
     block: int = 0
+    mkdirs: list[str] = field(default_factory=list)
 
 
 def examples(text: str, page: str = "README.md") -> list[Example]:
@@ -137,14 +141,21 @@ def examples(text: str, page: str = "README.md") -> list[Example]:
             current: Example | None = None
             expect_code_for: Example | None = None
             mine: list[Example] = []
+            mkdirs: list[str] = []
             for k, line in enumerate(body):
                 if line.startswith("$ "):
                     cmd = line[2:].strip()
                     expect_code_for = None
-                    if cmd == "echo $?":
+                    made = re.match(r"^mkdir -p ((/tmp/[\w./-]+\s*)+)$", cmd)
+                    if made:
+                        mkdirs += [d[len("/tmp/"):] for d in made.group(1).split()]
+                        current = None
+                    elif cmd == "echo $?":
                         expect_code_for, current = (mine[-1] if mine else None), None
                     elif _is_locoplan(cmd):
-                        current = Example(page, i + 2 + k, cmd, slow=bool(re.search(r"#\s*slow\b", cmd)), block=block)
+                        current = Example(page, i + 2 + k, cmd, slow=bool(re.search(r"#\s*slow\b", cmd)), block=block,
+                                          mkdirs=mkdirs)
+                        mkdirs = []
                         mine.append(current)
                     else:
                         current = None
@@ -264,13 +275,23 @@ def test_a_drifted_number_is_caught():
 
 
 # ------------------------------------------------------------------------------------------ running them
+EXTERNAL = ROOT.parent / "shared" / "data" / "external"
+"""The public TTOBench and railtoolkit sources the import examples read (not part of this repository)."""
+
+
 def _sandbox(tmp: Path) -> Path:
-    """A working folder that looks like the checkout: inputs linked, docs/ copied (examples write plots there)."""
+    """A working folder that looks like the checkout: inputs linked, docs/ copied (examples write plots
+    there), ``../shared`` beside it as beside the checkout, and a ``tmp/`` of its own for the pages' /tmp/."""
+    repo = tmp / "repo"
+    repo.mkdir()
     for name in ("routes", "configs", "tests", "benchmarks", "locoplan", "pyproject.toml", "README.md"):
         if (ROOT / name).exists():
-            (tmp / name).symlink_to(ROOT / name)
-    shutil.copytree(ROOT / "docs", tmp / "docs")
-    return tmp
+            (repo / name).symlink_to(ROOT / name)
+    shutil.copytree(ROOT / "docs", repo / "docs")
+    (repo / "tmp").mkdir()
+    if (ROOT.parent / "shared").exists():
+        (tmp / "shared").symlink_to(ROOT.parent / "shared")
+    return repo
 
 
 def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subprocess.CompletedProcess]:
@@ -279,10 +300,15 @@ def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subproc
     env.pop("LINES", None)
     done = {}
     for e in block:
+        for folder in e.mkdirs:
+            (cwd / "tmp" / folder).mkdir(parents=True, exist_ok=True)
         script = re.sub(r"^(COLUMNS=\d+\s+)?locoplan\s", lambda m: f"{m.group(1) or ''}{shlex.quote(sys.executable)} -m locoplan ",
                         e.command)
-        done[e.line] = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
-                                      timeout=900)  # a hang guard, not a speed test
+        script = re.sub(r"(?<![\w.])/tmp/", f"{cwd}/tmp/", script)  # the block's own /tmp/ (blocks run side by side)
+        res = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
+                             timeout=900)  # a hang guard, not a speed test
+        res.stdout, res.stderr = (t.replace(f"{cwd}/tmp/", "/tmp/") for t in (res.stdout, res.stderr))
+        done[e.line] = res
     return done
 
 
@@ -317,6 +343,8 @@ def ran(request, tmp_path_factory):
 def test_example(example, ran, request):
     if example.slow and not request.config.getoption("--run-slow"):
         pytest.skip("a slow example (# slow): python -m pytest --run-slow runs it")
+    if "../shared/data/external" in example.command and not EXTERNAL.exists():
+        pytest.skip(f"needs the public sources in {EXTERNAL}")
     res = ran[_key(example)]
     where = f"{example.page}:{example.line}: {example.command}"
     assert res.returncode == example.exit_code, f"{where}\nexit {res.returncode}\n{res.stdout}\n{res.stderr}"
