@@ -26,7 +26,8 @@ The convention the pages follow (write new examples this way):
   whole unbreakable token, a plan string or a path. ``--json`` output must parse as JSON.
 - ``$ mkdir -p /tmp/...`` lines are run; other lines that are not ``$ locoplan`` commands (``$ cat``,
   ``$ python``) are shown for the reader and not run, their output not compared.
-- Paths under ``/tmp/`` are a folder of the block's own (blocks run side by side). Commands that read
+- Paths under ``/tmp/`` are a folder of the block's own (blocks run side by side). An absolute path
+  into the checkout is printed as ``.../`` (it differs from machine to machine). Commands that read
   ``../shared/data/external`` (the public TTOBench and railtoolkit sources, beside the checkout) are
   skipped where it is not there.
 
@@ -307,7 +308,8 @@ def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subproc
         script = re.sub(r"(?<![\w.])/tmp/", f"{cwd}/tmp/", script)  # the block's own /tmp/ (blocks run side by side)
         res = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
                              timeout=900)  # a hang guard, not a speed test
-        res.stdout, res.stderr = (t.replace(f"{cwd}/tmp/", "/tmp/") for t in (res.stdout, res.stderr))
+        res.stdout, res.stderr = (t.replace(f"{cwd}/tmp/", "/tmp/").replace(f"{cwd}/", ".../").replace(f"{ROOT}/", ".../")
+                                  for t in (res.stdout, res.stderr))
         done[e.line] = res
     return done
 
