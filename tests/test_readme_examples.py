@@ -322,9 +322,11 @@ def _key(e: Example) -> str:
 def ran(request, tmp_path_factory):
     """Every example that runs in this session, block by block, two blocks at a time (each command one process)."""
     slow = request.config.getoption("--run-slow")
+    chosen = {(x.callspec.params["example"].page, x.callspec.params["example"].block) for x in request.session.items
+              if getattr(x, "callspec", None) is not None and "example" in x.callspec.params}
     blocks: dict[tuple[str, int], list[Example]] = {}
-    for e in EXAMPLES:
-        if slow or not e.slow:
+    for e in EXAMPLES:  # the whole block of every selected example (a command may read what an earlier one wrote)
+        if (slow or not e.slow) and (e.page, e.block) in chosen:
             blocks.setdefault((e.page, e.block), []).append(e)
 
     def one(item):
