@@ -26,8 +26,12 @@ The convention the pages follow (write new examples this way):
   whole unbreakable token, a plan string or a path. ``--json`` output must parse as JSON.
 - ``$ mkdir -p /tmp/...`` lines are run; other lines that are not ``$ locoplan`` commands (``$ cat``,
   ``$ python``) are shown for the reader and not run, their output not compared.
-- Paths under ``/tmp/`` are a folder of the block's own (blocks run side by side). An absolute path
-  into the checkout is printed as ``.../`` (it differs from machine to machine). Commands that read
+- Paths under ``/tmp/`` are real and printed as shown (the same length, so wrapped as shown). Each
+  file or folder a block names right under ``/tmp/`` must be called ``locoplan-...`` (the test deletes
+  it); the block holds it alone while it runs (a lock, ``/tmp/.locoplan-example-NAME.lock``, also
+  against other test sessions on the machine) and finds it cleared when it starts, so a block never
+  reads what another block wrote: commands that share a store or a folder are one block. An absolute
+  path into the checkout is printed as ``.../`` (it differs from machine to machine). Commands that read
   ``../shared/data/external`` (the public TTOBench and railtoolkit sources, beside the checkout) are
   skipped where it is not there.
 
@@ -38,6 +42,7 @@ earlier one cached, as a user's does in ``~/.cache/locoplan``.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import re
@@ -275,6 +280,18 @@ def test_a_drifted_number_is_caught():
     assert missing_lines(["│ proposed │ 371.73 kWh in 726.5 s │"], "│ proposed │ 371.33 kWh in 726.5 s │", "") != []
 
 
+def test_tmp_names_are_the_tests_own():
+    """The test deletes what a block names under /tmp/: only locoplan-... names, never a user's file."""
+    blocks: dict[tuple[str, int], list[Example]] = {}
+    for e in EXAMPLES:
+        blocks.setdefault((e.page, e.block), []).append(e)
+    bad = {f"{page}: /tmp/{name}" for (page, _), block in blocks.items() for name in tmp_names(block)
+           if not name.startswith("locoplan-")}
+    assert not bad, sorted(bad)
+    assert tmp_names(examples("```\n$ mkdir -p /tmp/locoplan-a/b\n$ locoplan x --out /tmp/locoplan-c.db\n```\n")) == \
+        ["locoplan-a", "locoplan-c.db"]
+
+
 # ------------------------------------------------------------------------------------------ running them
 EXTERNAL = ROOT.parent / "shared" / "data" / "external"
 """The public TTOBench and railtoolkit sources the import examples read (not part of this repository)."""
@@ -282,17 +299,34 @@ EXTERNAL = ROOT.parent / "shared" / "data" / "external"
 
 def _sandbox(tmp: Path) -> Path:
     """A working folder that looks like the checkout: inputs linked, docs/ copied (examples write plots
-    there), ``../shared`` beside it as beside the checkout, and a ``tmp/`` of its own for the pages' /tmp/."""
+    there) and ``../shared`` beside it as beside the checkout."""
     repo = tmp / "repo"
     repo.mkdir()
     for name in ("routes", "configs", "tests", "benchmarks", "locoplan", "pyproject.toml", "README.md"):
         if (ROOT / name).exists():
             (repo / name).symlink_to(ROOT / name)
     shutil.copytree(ROOT / "docs", repo / "docs")
-    (repo / "tmp").mkdir()
     if (ROOT.parent / "shared").exists():
         (tmp / "shared").symlink_to(ROOT.parent / "shared")
     return repo
+
+
+TMP = Path("/tmp")
+_TMP_NAME = re.compile(r"(?<![\w.])/tmp/([^\s/'\"]+)")
+
+
+def tmp_names(block: list[Example]) -> list[str]:
+    """The files and folders right under /tmp/ that the block's commands name (sorted: the order their
+    locks are taken in)."""
+    names = {m.group(1) for e in block for m in _TMP_NAME.finditer(e.command)}
+    return sorted(names | {d.split("/")[0] for e in block for d in e.mkdirs})
+
+
+def _clear(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
 
 
 def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subprocess.CompletedProcess]:
@@ -300,17 +334,29 @@ def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subproc
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
     env.pop("LINES", None)
     done = {}
-    for e in block:
-        for folder in e.mkdirs:
-            (cwd / "tmp" / folder).mkdir(parents=True, exist_ok=True)
-        script = re.sub(r"^(COLUMNS=\d+\s+)?locoplan\s", lambda m: f"{m.group(1) or ''}{shlex.quote(sys.executable)} -m locoplan ",
-                        e.command)
-        script = re.sub(r"(?<![\w.])/tmp/", f"{cwd}/tmp/", script)  # the block's own /tmp/ (blocks run side by side)
-        res = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
-                             timeout=900)  # a hang guard, not a speed test
-        res.stdout, res.stderr = (t.replace(f"{cwd}/tmp/", "/tmp/").replace(f"{cwd}/", ".../").replace(f"{ROOT}/", ".../")
-                                  for t in (res.stdout, res.stderr))
-        done[e.line] = res
+    names = tmp_names(block)
+    locks = []
+    try:
+        for name in names:  # the block's own /tmp/ names: held alone (blocks run side by side), found cleared
+            lock = open(TMP / f".locoplan-example-{name}.lock", "w")
+            locks.append(lock)
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            _clear(TMP / name)
+        for e in block:
+            for folder in e.mkdirs:
+                (TMP / folder).mkdir(parents=True, exist_ok=True)
+            script = re.sub(r"^(COLUMNS=\d+\s+)?locoplan\s",
+                            lambda m: f"{m.group(1) or ''}{shlex.quote(sys.executable)} -m locoplan ", e.command)
+            res = subprocess.run(["bash", "-c", script], cwd=cwd, env=env, capture_output=True, text=True,
+                                 timeout=900)  # a hang guard, not a speed test
+            res.stdout, res.stderr = (t.replace(f"{cwd}/", ".../").replace(f"{ROOT}/", ".../")
+                                      for t in (res.stdout, res.stderr))
+            done[e.line] = res
+    finally:
+        for name in names[:len(locks)]:
+            _clear(TMP / name)
+        for lock in locks:
+            lock.close()  # releases the lock
     return done
 
 
