@@ -323,10 +323,12 @@ def tmp_names(block: list[Example]) -> list[str]:
 
 
 def _clear(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path)
-    elif path.exists() or path.is_symlink():
-        path.unlink()
+    """``path`` gone, with a store's SQLite journal beside it (``-wal``, ``-shm``, ``-journal``)."""
+    for p in (path, *(path.with_name(path.name + tail) for tail in ("-wal", "-shm", "-journal"))):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        elif p.exists() or p.is_symlink():
+            p.unlink()
 
 
 def _run_block(block: list[Example], cache: str, cwd: Path) -> dict[int, subprocess.CompletedProcess]:
