@@ -5,6 +5,11 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def pytest_addoption(parser):
+    parser.addoption("--run-slow", action="store_true", default=False,
+                     help="also run the tests marked slow (the documentation's # slow examples)")
+
+
 @pytest.fixture(scope="session")
 def root() -> Path:
     return ROOT

@@ -128,3 +128,17 @@ def test_pinned_typer_is_the_tested_one(root):
     from packaging.version import Version
 
     assert Version(pin.group(1)) <= Version(md.version("typer")) < Version(pin.group(2))
+
+
+def test_bound_help_describes_the_methods_it_runs():
+    """bound solves E* on the calculator's cells (ocp.bound.METHOD) and --check by the Radau method
+    (ocp.bound.CHECK_METHOD): the help says so, and names no method the command does not run."""
+    from locoplan.ocp import bound
+
+    assert (bound.METHOD, bound.CHECK_METHOD) == ("cells", "radau")
+    text = " ".join(_help(["bound"]).split())
+    summary, options = text.split("Options:", 1)
+    assert "calculator's cells" in summary and "Radau" not in summary
+    check = options.split("--check / --no-check", 1)[1].split("[default", 1)[0]
+    assert "Radau" in check and "trapezoidal" not in text and "10 and 5 m" not in text
+    assert "(--check)" in options.split("--mesh-tol", 1)[1].split("--max-phase-degree", 1)[0]

@@ -351,3 +351,19 @@ def test_a_leg_plan_that_ends_outside_its_bounds_is_made_again_with_the_time_mov
     ran = arrives + float(res.runs[1]["run"].result.profile.t_s[0, -1])
     assert abs(ran - total) <= s["tolerance_s"] + 0.05
     assert res.failures == [] and s["plans"]["late"]["punctual"] is True
+
+
+@pytest.mark.parametrize("name", ["CH_Stadelhofen_Altstetten-journey.yaml", "CN_Songjiazhuang_Yizhuang-journey.yaml"])
+def test_the_shipped_journeys_carry_a_running_time_the_default_consist_keeps(root, name):
+    """`locoplan journey FILE` needs no --time on a shipped journey: the file gives its run_time_s."""
+    journey, route = load_journey(root / "routes/journeys" / name)
+    assert journey.run_time_s is not None and journey.run_time_s > 0
+
+
+def test_a_shipped_journey_runs_alone(root, tmp_path, monkeypatch):
+    monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path / "cache"))
+    r = runner.invoke(app, ["journey", str(root / "routes/journeys/CH_Stadelhofen_Altstetten-journey.yaml"),
+                            "--strategies", "four-stage", "--json"])
+    d = json.loads(r.stdout)
+    assert r.exit_code == 0, r.output
+    assert d["running_time_s"] == 720.0 and d["fastest_running_time_s"] < 720.0 and d["errors"] == []

@@ -123,3 +123,51 @@ def test_pareto_title_wraps_a_long_name_inside_the_figure(tmp_path, monkeypatch)
     assert ax.title.get_text().split() == f"{route} — {front['consist']}: energy-time front".split()
     _title_fits(fig, ax)
     plt.close(fig)
+
+
+@pytest.fixture(scope="module")
+def ns_profiles(root):
+    """Plans on freight-20km-ns whose grids differ: mpoc-n refines its grid at its own switching points."""
+    from locoplan import api
+    from locoplan.sim.calculator import ModelOptions
+
+    route = load_route(root / "routes/freight-20km-ns.yaml")
+    train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
+    profiles = {name: api.simulate(route, train, ModelOptions(), strategy=name, time_s=1500.0).run.result.profile
+                for name in ("mpoc-n", "sfs", "time-saving", "four-stage")}
+    return route, profiles
+
+
+@pytest.mark.parametrize("pair", [("mpoc-n", "sfs"), ("time-saving", "mpoc-n"), ("sfs", "four-stage", "mpoc-n")])
+def test_compared_profiles_are_each_drawn_on_their_own_grid(pair, ns_profiles):
+    """Each strategy's speed line has its own positions as x (grids of different sizes side by side),
+    labelled with its name; the limit and gradient come from the first."""
+    import matplotlib.pyplot as plt
+
+    from locoplan.reporting.plot import draw_profiles
+
+    route, profiles = ns_profiles
+    sizes = {profiles[name].s_m.size for name in pair}
+    assert len(sizes) == 2, sizes  # the case that failed: grids of different sizes in one figure
+    fig, (ax, axg) = plt.subplots(2, 1)
+    try:
+        draw_profiles(ax, axg, [(name, profiles[name]) for name in pair], "t", route)
+        lines = {ln.get_label(): ln for ln in ax.lines}
+        for name in pair:
+            x, y = (np.asarray(a, float) for a in lines[name].get_data())
+            prof = profiles[name]
+            np.testing.assert_allclose(x, prof.s_m / 1000.0)
+            np.testing.assert_allclose(y, prof.v_kmh[0], equal_nan=True)
+            assert x[-1] == pytest.approx(route.length_m / 1000.0)
+        assert [n for n in _legend_labels(ax) if n in pair] == list(pair)
+    finally:
+        plt.close(fig)
+
+
+def test_plot_profiles_writes_a_figure_of_plans_on_different_grids(tmp_path, ns_profiles):
+    from locoplan.reporting.plot import plot_profiles
+
+    route, profiles = ns_profiles
+    out = tmp_path / "c.png"
+    plot_profiles(out, [(n, profiles[n]) for n in ("mpoc-n", "sfs", "time-saving")], "t", route=route)
+    assert out.stat().st_size > 10_000

@@ -223,8 +223,8 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
                 xs = np.column_stack([s_km[cells], s_km[cells + 1], np.full(cells.size, np.nan)]).ravel()
                 ys = np.column_stack([v[cells], v[cells + 1], np.full(cells.size, np.nan)]).ravel()
                 ax.plot(xs, ys, color=COND_COLOURS[name], lw=2, label=CONDITION_NAMES[name])
-        else:
-            ax.plot(s_km, v, lw=1.6, label=label, color=_colour(label, profiles))
+        else:  # each on its own grid: plans refine the grid at their own switching points
+            ax.plot(prof.s_m / 1000.0, v, lw=1.6, label=label, color=_colour(label, profiles))
     if single and ref.air is not None:  # the air brake's applications as shaded spans
         from ..sim.result import AIR_APPLIED, AIR_ON
 
