@@ -352,13 +352,13 @@ class _Stdout:
         try:
             return self._stream.write(text)
         except OSError as exc:
-            raise _named_stdout(exc)
+            raise _named_stdout(exc) from exc
 
     def flush(self):
         try:
             return self._stream.flush()
         except OSError as exc:
-            raise _named_stdout(exc)
+            raise _named_stdout(exc) from exc
 
     def __getattr__(self, name):
         return getattr(self._stream, name)

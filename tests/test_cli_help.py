@@ -80,7 +80,7 @@ def test_help_names_values_not_types(path):
 def test_numeric_options_show_a_default_or_say_what_none_means(path):
     """Every option with a number (N, S, M, KWH...) says its default, in [default: ...] or in words."""
     numeric = re.compile(r"^  --[a-z0-9-]+ (N|S|M|KWH|KMH|T|SHARE|GAMMA|REL|PERMILLE|M/S2)\b")
-    for flag, entry in _options(_help(path)).items():
+    for entry in _options(_help(path)).values():
         if numeric.match(entry):
             assert "default" in entry or "required" in entry, (path, entry)
 

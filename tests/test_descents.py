@@ -9,7 +9,6 @@ resistance at 60 km/h R = 200 x 9.81 x (1.40 + 0.0038 x 60 + 0.0003 x 3600) / 10
 train down the grade at 60 km/h: it cannot hold the limit, and over a 2 km descent it gains speed.
 """
 
-import json
 import math
 import re
 

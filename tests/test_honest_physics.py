@@ -10,7 +10,6 @@ phi_h(60) = 0.322 x 210 / 270 = 0.25044).
 """
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -24,7 +23,7 @@ from locoplan.model.plan import parse_sequence
 from locoplan.physics.braking import composite_shoe_friction
 from locoplan.physics.traction import max_force_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import CANNOT_HOLD, CODE, IMPOSSIBLE
+from locoplan.sim.result import CODE, IMPOSSIBLE
 from routes import hand_made_route
 
 runner = CliRunner()

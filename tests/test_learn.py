@@ -139,7 +139,7 @@ def test_a_log_set_keeps_summaries_and_reads_the_rows_again_as_checked(sim_logs,
     text = run.log_file.read_text()
     run.log_file.write_text(text.replace("\n2.0,", "\n2.00,", 1))  # the same numbers, other bytes: changed all the same
     with pytest.raises(InputError) as exc:
-        run.data
+        run.data  # noqa: B018 (reading the property is the check)
     assert f"{run.log_file}: changed while locoplan was using it" in str(exc.value)
 
 
@@ -441,7 +441,7 @@ def _known_logs(folder: Path, base) -> dict:
                 rows_x, rows_t, rows_v = [0.0], [0.0], [0.0]
                 t_start = 0.0
                 speeds = np.zeros((len(line.sections), line.divisions + 1))
-                for i, sec in enumerate(line.sections):
+                for i in range(len(line.sections)):
                     speeds[i, 0] = v
                     x = line.points_m[i]
                     for k in range(1, line.divisions + 1):

@@ -4,7 +4,6 @@ from: the same source through the same compiler, so the calculator's and the DP'
 nothing themselves); a failed build falls back to the JIT functions and is not retried; parallel first
 runs build the module once."""
 
-import math
 import os
 import subprocess
 import sys

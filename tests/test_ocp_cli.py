@@ -27,7 +27,7 @@ from locoplan.ocp.min_time import exact_minimum, exact_minimum_time, train_probl
 from locoplan.ocp.min_time_run import run_ocp
 from locoplan.ocp.registry import OCP_METHODS
 from locoplan.ocp.seed000 import SEED000_TABLES
-from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
+from oracles import LIMIT, seed000_exact
 
 runner = CliRunner()
 ROUTES = {"routes/seed000-flat.yaml": 0.0, "routes/seed000-grade30.yaml": 30.0}

@@ -505,7 +505,7 @@ class TractionCalculator:
             if electric_only:
                 decel = lambda e_: float(self.electric_decel(kmh_from_e(max(e_, 0.0)), k))  # noqa: E731
             else:
-                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # noqa: E731 -de/ds [m/s^2]
             holds = bool(holds_all[k])
             if e >= cap:
                 if holds:  # no braking curve runs through this cell: the limit itself bounds it
