@@ -5,8 +5,8 @@ means one thing across commands."""
 import re
 
 import pytest
+import typer
 import typer.main
-from typer import _click as click
 from typer.core import TyperGroup
 from typer.testing import CliRunner
 
@@ -17,7 +17,7 @@ runner = CliRunner()
 
 def _commands() -> list[list[str]]:
     group = typer.main.get_command(app)
-    ctx = click.Context(group)
+    ctx = typer.Context(group)
     found = []
 
     def walk(cmd, path):
