@@ -147,6 +147,7 @@ def test_impossible_descent_on_the_command_line(root, monkeypatch, tmp_path):
 
 @pytest.mark.parametrize("options", [SEEDS, ModelOptions(air_brake=False), ModelOptions()],
                          ids=["point-mass", "no-air-brake", "default"])
+@pytest.mark.slow
 def test_every_model_plans_the_hand_case(root, monkeypatch, options):
     """optimize plans the descent in every model, on time, never above the limit, with a gap to E*."""
     monkeypatch.chdir(root)

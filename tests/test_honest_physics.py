@@ -190,6 +190,7 @@ def test_rotating_mass_factor_of_vehicles(tmp_path):
 SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--e-min", "580", "--no-gap"]
 
 
+@pytest.mark.slow
 def test_optimize_meets_five_times_the_fastest_run(root, monkeypatch, freight):
     """Five times the fastest run (about 12 km/h on average): the optimum's own sequence holds low speeds, so the
     plan is on time (the priced drive's sequences could not go that slow). (At ten times, about 6 km/h, the

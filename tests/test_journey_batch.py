@@ -60,6 +60,7 @@ def _journey_record(store: Path, name: str):
     return next(r for r in _records(store) if r.summary.get("journey") == name)
 
 
+@pytest.mark.slow
 def test_the_study_expands_journeys_by_their_fastest_total(batch):
     study, _, report = batch
     specs = load_study(study).specs
@@ -195,6 +196,7 @@ def test_results_tell_journey_runs_from_route_runs(batch, tmp_path):
     assert {g["kind"]: g["runs"] for g in json.loads(res.stdout)["summary"]} == {"journey": 2, "route": 1}
 
 
+@pytest.mark.slow
 def test_pareto_on_a_journey_is_the_front_over_its_total_time(tmp_path):
     png = tmp_path / "front.png"
     res = cli.invoke(app, ["pareto", str(TWIN), "--consist", CONSIST, "--times", "1.1x,1.3x", "--strategies", "four-stage",
