@@ -218,6 +218,7 @@ def test_results_export_csv_json_parquet_and_where(filled_store, tmp_path):
     assert table.num_rows == 7 and "traction_energy_kwh" in table.column_names
 
 
+@pytest.mark.slow
 def test_results_summary_is_the_stores_statistics_and_plots(filled_store, reference, tmp_path):
     _, ref = reference
     png, box = tmp_path / "et.png", tmp_path / "box.png"

@@ -333,6 +333,7 @@ def test_compare_json_has_the_fields_its_table_shows(compared):
         100 * (1 - four["traction_energy_kwh"] / fast["traction_energy_kwh"]), abs=0.01)
 
 
+@pytest.mark.slow
 def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
     res, table, out = compared
     data = json.loads(res.stdout)

@@ -236,6 +236,7 @@ def test_cycle_optimum_lies_above_the_relaxed_estar(optima, name):
 
 
 @pytest.mark.parametrize("name", ["descent", "freight-20km", "heavy-haul-60km"])
+@pytest.mark.slow
 def test_the_nested_grids_converge(optima, name):
     """The DP's own energy has a first-order error in its cell and speed step; the cycle's cost against the same DP
     without the cycle cancels most of it: halving both, the optimum moves less than the DP's own energy, and the

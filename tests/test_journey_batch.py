@@ -69,6 +69,7 @@ def test_the_study_expands_journeys_by_their_fastest_total(batch):
     assert report["runs"] == 3 and report["ran"] == 3 and report["from_store"] == 0
 
 
+@pytest.mark.slow
 def test_a_journey_record_holds_what_the_journey_command_gives_at_the_same_time(batch):
     """The batch's record of the twin journey at 1.2x against ``locoplan journey --time 1.2x --json`` (this
     process, its own E* solves): the same total, the same allocation, the journey's E* within its stated

@@ -154,6 +154,7 @@ def test_consist_for_mass_uses_the_train_model(base):
     assert build_train(c2, base[1]).mass_t == pytest.approx(3650.0) and c2.vehicles[1].count == 35
 
 
+@pytest.mark.slow
 def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
     out, summary = sim_logs
     runs = load_logs(out)

@@ -126,6 +126,7 @@ def test_optimum_agrees_with_a_fine_trapezoidal_collocation(small, small_run):
     assert s["max_limit_violation_kmh"] < 0.1 and s["mesh_history"][-1]["max_error"] <= 1e-5
 
 
+@pytest.mark.slow
 def test_neutral_section_is_coasted_and_ignoring_it_is_a_lower_bound(small, small_run):
     route, train = small
     sol = small_run.solution.solution

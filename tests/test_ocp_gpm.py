@@ -103,6 +103,7 @@ def test_two_stage_on_a_route_too_short_for_the_limit():
     assert abs(rs.time_to_length_s - sol.objective_s) < 0.05 and rs.max_overspeed_kmh < 0.01
 
 
+@pytest.mark.slow
 def test_best_method_is_the_best(runs):
     for grade in GRADES:
         best = min(runs[grade, m, n][1].objective_s for m, n in RUNS)

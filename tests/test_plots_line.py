@@ -96,6 +96,7 @@ def test_energy_optimum_plot_marks_the_line_and_both_limits(tmp_path, figures, n
     _title_fits(fig, ax)
 
 
+@pytest.mark.slow
 def test_energy_optimum_plot_without_the_route_labels_the_one_limit(tmp_path, figures, ns_run):
     _, _, run = ns_run
     plot_ocp.plot_energy_run(tmp_path / "e.png", run)
