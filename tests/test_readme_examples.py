@@ -151,7 +151,6 @@ def ran(request):
     return dict(zip((e.line for e in todo), results))
 
 
-@pytest.mark.slow  # every example runs in a process of its own
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda e: f"README:{e.line}:{e.command[:50]}")
 def test_readme_example(example, ran):
     if example.slow:
