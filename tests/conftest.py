@@ -55,5 +55,5 @@ def pytest_collection_modifyitems(items):
     """The documentation's examples (each a process of its own) are among the slow tests, left out of the quick
     subset (``-m "not slow"``)."""
     for item in items:
-        if item.path.name == "test_readme_examples.py" and item.originalname == "test_readme_example":
+        if item.path.name == "test_readme_examples.py" and item.originalname in ("test_readme_example", "test_example"):
             item.add_marker(pytest.mark.slow)
