@@ -23,10 +23,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import sys as _sys
-from pathlib import Path as _Path
-_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
-
 from locoplan.runs import SerialExecutor, Store, make_executor, run_many  # noqa: E402
 from locoplan.runs.spec import load_inputs, spec_key  # noqa: E402
 from locoplan.runs.study import load_study  # noqa: E402

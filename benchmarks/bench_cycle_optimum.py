@@ -136,8 +136,8 @@ def main() -> None:
         os.environ["LOCOPLAN_CACHE_DIR"] = os.environ.get("LOCOPLAN_BENCH_CACHE", cache)
         native = Path(os.environ.get("LOCOPLAN_NATIVE_DIR", ""))
         print(f"kernels: {native if native.parts else 'per LOCOPLAN_CACHE_DIR'}", file=sys.stderr)
-        head = (f"| line | train | T [s] | E* [kWh] | cycle optimum [kWh] | within | +% over E* | wall [s] | "
-                f"plan from drive: T [s] | E [kWh] | over cycle opt. | proposed: T [s] | E [kWh] | over E* | over cycle opt. |")
+        head = ("| line | train | T [s] | E* [kWh] | cycle optimum [kWh] | within | +% over E* | wall [s] | "
+                "plan from drive: T [s] | E [kWh] | over cycle opt. | proposed: T [s] | E [kWh] | over E* | over cycle opt. |")
         print(head)
         print("|" + "---|" * (head.count("|") - 1))
         for label, route, train, factor in cases([x.strip() for x in args.lines.split(",")], args.random, args.seed):

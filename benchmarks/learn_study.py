@@ -22,10 +22,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import sys as _sys
-from pathlib import Path as _Path
-_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
-
 from locoplan.io.load import build_train, load_consist, load_route  # noqa: E402
 from locoplan.io.logs import load_logs  # noqa: E402
 from locoplan.reporting.writers import to_json  # noqa: E402

@@ -19,10 +19,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # this checkout first
 
-import sys as _sys
-from pathlib import Path as _Path
-_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
-
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp.mpoc import run_mpoc  # noqa: E402
 from locoplan.ocp.train_energy import EnergyOptions  # noqa: E402
@@ -51,14 +47,14 @@ def main() -> None:
 
     print("\nTable 3: neutral sections in the model (MPOC) or coasted through afterwards (MPOC-C); energies in kWh")
     print(f"{'line':<46} {'T [s]':>6} {'MPOC-N':>8} {'(NLP)':>8} {'MPOC-C':>8} {'MPOC':>8} {'(NLP)':>8} {'saving':>7} {'order':>6}")
-    for route, train, T, r, nlp in rows:
+    for route, _train, T, r, nlp in rows:
         e = {n: r[n]["traction_energy_kwh"] for n in NAMES}
         order = nlp["mpoc-n"] <= nlp["mpoc"] * (1 + 1e-5) and e["mpoc"] <= e["mpoc-c"]
         print(f"{route.name[:46]:<46} {T:6.0f} {e['mpoc-n']:8.2f} {nlp['mpoc-n']:8.2f} {e['mpoc-c']:8.2f} {e['mpoc']:8.2f} "
               f"{nlp['mpoc']:8.2f} {100 * (1 - e['mpoc'] / e['mpoc-c']):6.2f}% {'ok' if order else 'NO':>6}")
     print("\nTable 4: MPOC against the standard four-stage method with neutral-section coasting (SFS)")
     print(f"{'line':<46} {'SFS [kWh]':>10} {'SFS time':>9} {'MPOC [kWh]':>11} {'MPOC time':>10} {'saving':>7} {'order':>6}")
-    for route, train, T, r, nlp in rows:
+    for route, _train, _T, r, _nlp in rows:
         s, m = r["sfs"], r["mpoc"]
         print(f"{route.name[:46]:<46} {s['traction_energy_kwh']:10.2f} {s['running_time_s']:9.1f} {m['traction_energy_kwh']:11.2f} "
               f"{m['running_time_s']:10.1f} {100 * (1 - m['traction_energy_kwh'] / s['traction_energy_kwh']):6.2f}% "
@@ -66,7 +62,7 @@ def main() -> None:
     print("\nTable 5: solve time [s] (wall clock: MPOC = build, NLP solves, refinement, plan and its check; SFS = "
           "brute force at 1 m)")
     print(f"{'line':<46} {'train':<24} {'MPOC-N':>7} {'MPOC-C':>7} {'MPOC':>7} {'SFS':>7}")
-    for route, train, T, r, nlp in rows:
+    for route, train, _T, r, _nlp in rows:
         print(f"{route.name[:46]:<46} {train.name[:24]:<24} " + " ".join(f"{r[n]['solve_time_s']:7.2f}" for n in NAMES))
 
 

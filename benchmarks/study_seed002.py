@@ -52,7 +52,7 @@ def main() -> None:
     algorithms = args.algorithms.split(",")
     records = run_many(study_specs(spec, algorithms, args.runs), make_executor(args.workers)).records
     results = {alg: [r for r in records if r.spec["algorithm"] == alg] for alg in algorithms}
-    print(f"\n| algorithm | seed | time [s] | energy [kWh] | fitness | on time | < four-stage | < time-saving | solve [s] |")
+    print("\n| algorithm | seed | time [s] | energy [kWh] | fitness | on time | < four-stage | < time-saving | solve [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     all_ok = True
     best_energy = min([s["traction_energy_kwh"] for s in base.values()]

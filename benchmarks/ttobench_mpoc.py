@@ -23,10 +23,6 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]  # this checkout first
 
 from ttobench_routes import LINES, line  # noqa: E402
 
-import sys as _sys
-from pathlib import Path as _Path
-_sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout's locoplan, installed or not
-
 from locoplan.errors import LocoplanError  # noqa: E402
 from locoplan.io.load import load_train  # noqa: E402
 from locoplan.ocp.mpoc import run_mpoc  # noqa: E402

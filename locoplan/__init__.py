@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
+"""The one place the version is written (pyproject.toml reads it): it moves whenever results change (CHANGELOG.md),
+so that ``locoplan_version`` in every JSON output and a store's version check mean something."""
 
 _API = {
     # files and models

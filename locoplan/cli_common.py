@@ -204,15 +204,14 @@ def locate_schedule(text: str) -> str:
 group_reasons = api.group_reasons
 
 
-def _given() -> list[str]:
-    """The command line as typed (kept by the command group; empty when a command runs on its own)."""
-    try:
-        from typer._click.globals import get_current_context
+COMMAND_LINE: ContextVar[tuple[str, ...]] = ContextVar("locoplan_command_line", default=())
+"""The command line as typed, set by the command group while it runs a command (empty when a command runs on
+its own)."""
 
-        ctx = get_current_context(silent=True)
-        return list(ctx.find_root().meta.get("locoplan.args", [])) if ctx is not None else []
-    except ImportError:
-        return []
+
+def _given() -> list[str]:
+    """The command line as typed (``COMMAND_LINE``)."""
+    return list(COMMAND_LINE.get())
 
 
 def guarded(fn):
@@ -352,13 +351,13 @@ class _Stdout:
         try:
             return self._stream.write(text)
         except OSError as exc:
-            raise _named_stdout(exc)
+            raise _named_stdout(exc) from exc
 
     def flush(self):
         try:
             return self._stream.flush()
         except OSError as exc:
-            raise _named_stdout(exc)
+            raise _named_stdout(exc) from exc
 
     def __getattr__(self, name):
         return getattr(self._stream, name)

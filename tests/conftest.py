@@ -54,3 +54,11 @@ def _private_cache(tmp_path_factory):
         os.environ.pop("LOCOPLAN_CACHE_DIR", None)
     else:
         os.environ["LOCOPLAN_CACHE_DIR"] = old
+
+
+def pytest_collection_modifyitems(items):
+    """The documentation's examples (each a process of its own) are among the slow tests, left out of the quick
+    subset (``-m "not slow"``)."""
+    for item in items:
+        if item.path.name == "test_readme_examples.py" and item.originalname in ("test_readme_example", "test_example"):
+            item.add_marker(pytest.mark.slow)

@@ -60,6 +60,7 @@ def c80x50():
     return load_train("HXD1-C80x50")
 
 
+@pytest.mark.slow
 def test_hand_worked_numbers(c80x50):
     assert GRAVITY_KN == pytest.approx(765.18, abs=0.01) and resistance_kn(60) == pytest.approx(86.64, abs=0.01)
     assert a_up(60) == pytest.approx(0.041835, abs=1e-6) and air_kn(60) / 5200 == pytest.approx(0.23623, abs=1e-5)
@@ -326,6 +327,7 @@ def test_a_drop_just_before_the_stop_is_braked_electrically():
     assert 0.0 < res.running_time_s[0] - cont.running_time_s[0] < bound
 
 
+@pytest.mark.slow
 def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):
     """`optimize` on the heavy-haul line (30.5 km at -12 per mille, which the two HXD1s cannot hold): on time,
     its cycles each at least the 90 s recharge apart, its couplers within 2,250 kN, and E* (the air brake
@@ -402,6 +404,7 @@ def test_each_descent_releases_where_its_margin_says(c80x50):
 
 
 @pytest.mark.parametrize("strategy", ["time-saving", "energy-saving", "four-stage", "proposed"])
+@pytest.mark.slow
 def test_every_strategy_plans_drivable_cycles(c80x50, strategy):
     """Every strategy's plan down the 7 km at -15 per mille is accepted by the calculator, so its air brake keeps
     the recharge (each application at least 60 s after the release before it) and the limit."""

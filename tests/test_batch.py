@@ -88,6 +88,7 @@ def test_study_expands_to_the_product_with_factor_times(study_file):
     assert all(1.2 * fastest <= s.time_s < 1.2 * fastest + 0.1 for s in specs)
 
 
+@pytest.mark.slow
 def test_killed_batch_resumes_without_a_run_twice_or_lost_and_equals_one_by_one(study_file, reference, tmp_path):
     """Kill the batch (SIGKILL to its process group: parent and workers) a random moment after its
     first commit, restart it: the restart runs exactly the runs the store lacked, and every stored
@@ -130,6 +131,7 @@ def test_killed_batch_resumes_without_a_run_twice_or_lost_and_equals_one_by_one(
     assert _comparable(records) == ref
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_identical_records(reference):
     distributed = pytest.importorskip("distributed")
     from locoplan.runs import DaskExecutor
@@ -189,6 +191,7 @@ def filled_store(reference, tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_results_export_csv_json_parquet_and_where(filled_store, tmp_path):
     import csv
     import io
@@ -215,6 +218,7 @@ def test_results_export_csv_json_parquet_and_where(filled_store, tmp_path):
     assert table.num_rows == 7 and "traction_energy_kwh" in table.column_names
 
 
+@pytest.mark.slow
 def test_results_summary_is_the_stores_statistics_and_plots(filled_store, reference, tmp_path):
     _, ref = reference
     png, box = tmp_path / "et.png", tmp_path / "box.png"
@@ -235,6 +239,7 @@ def test_results_summary_is_the_stores_statistics_and_plots(filled_store, refere
     assert res.exit_code == 2 and not (tmp_path / "x.csv").exists()
 
 
+@pytest.mark.slow
 def test_pareto_front_is_nondominated_and_slower_plans_use_less_energy(tmp_path):
     from locoplan.runs.pareto import pareto
     from locoplan.runs.optimum import optimum_providers

@@ -31,6 +31,7 @@ def small(root):
 
 @pytest.mark.parametrize("options", [ModelOptions(), ModelOptions(point_mass=True), ModelOptions(air_brake=False)],
                          ids=["default", "point-mass", "no-air-brake"])
+@pytest.mark.slow
 def test_two_independent_methods_agree_within_their_stated_accuracy(small, options, monkeypatch, tmp_path):
     monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
     route, train = small
@@ -91,6 +92,7 @@ def test_the_summary_says_how_well_e_star_is_known():
     assert within_percent(0.0123) == "0.013 %" and within_percent(0.004) == "0.004 %"
 
 
+@pytest.mark.slow
 def test_the_error_estimate_integrates_the_collocated_controls(small, monkeypatch, tmp_path):
     """GPOPS-II's estimate: the dynamics integrated with the NLP's controls, interpolated, against the state
     polynomial. The equation of motion is linear in the traction, so a traction moved by dF at every point of
@@ -129,6 +131,7 @@ def test_the_error_estimate_integrates_the_collocated_controls(small, monkeypatc
     assert interval_errors(replace(sol, X=lifted))[j] >= 1.0 / (1.0 + np.max(np.abs(lifted[0, g.points_of(j)]))) * 0.99
 
 
+@pytest.mark.slow
 def test_bound_check_prints_both_methods(root, monkeypatch, tmp_path):
     monkeypatch.setenv("LOCOPLAN_CACHE_DIR", str(tmp_path))
     r = runner.invoke(app, ["bound", str(root / SMALL), "--time", "364", "--consist", "HXD1-C80x30", "--check", "--json"])
@@ -151,6 +154,7 @@ def test_the_slope_is_the_curves_derivative(small, monkeypatch, tmp_path):
     assert lo.slope_kwh_per_s < mid.slope_kwh_per_s < hi.slope_kwh_per_s  # convex: a second saves less and less
 
 
+@pytest.mark.slow
 def test_near_the_fastest_run_e_star_is_an_optimum_not_the_fastest_runs_energy(small, monkeypatch, tmp_path):
     """A few tenths of a per cent above the fastest run the cells' interior-point solve may find no interior
     (on hsr-leg1-ns with CRH380A, --point-mass, 690 s against 689.5 s it fails); runs there may already use

@@ -4,11 +4,10 @@ step-size convergence, feasibility verdicts and batch consistency."""
 import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
-from scipy.optimize import brentq
 
 from locoplan.model.plan import parse_sequence
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import CANNOT_HOLD, CODE, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
+from locoplan.sim.result import CODE, IMPOSSIBLE, LIMIT_EXCEEDED, OK, STALLED, STOPPED_SHORT
 
 G = 9.81
 

@@ -36,6 +36,7 @@ def _fastest(freight):
 
 # ------------------------------------------------------------------------------------ --time forms
 @pytest.mark.parametrize("form, factor", [("1.1x", 1.1), ("+10%", 1.1), ("1.25X", 1.25), ("+5 %", 1.05)])
+@pytest.mark.slow
 def test_time_takes_a_factor_or_a_supplement_of_the_fastest_run(form, factor, freight):
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--strategy", "four-stage", "--time", form, "--json"])
     assert res.exit_code == 0, res.output
@@ -60,6 +61,7 @@ def test_bad_time_forms_are_input_errors(form, why):
 
 @pytest.mark.parametrize("cmd", [["optimize", *SMALL], ["sweep", "--weight-grid", "0.5", *SMALL],
                                  ["compare", "--strategies", "four-stage", "--no-gap"], ["bound"]])
+@pytest.mark.slow
 def test_every_command_with_time_takes_the_forms(cmd, unscheduled):
     """A route without a schedule says which forms to give; every command that takes --time takes them."""
     res = runner.invoke(app, [cmd[0], str(unscheduled), *cmd[1:], "--json"])
@@ -80,6 +82,7 @@ def test_help_of_time_names_the_forms():
         assert "1.1x" in text and "+10%" in text, cmd
 
 
+@pytest.mark.slow
 def test_times_lists_take_every_form(unscheduled):
     """sweep's --times on a route without a schedule: seconds, factors and supplements mixed in one list."""
     res = runner.invoke(app, ["sweep", str(unscheduled), "--times", "1.1x,1450,+20%", *SMALL, "--json"])
@@ -265,6 +268,7 @@ def test_json_and_out_files_name_every_file_read_with_its_hash(tmp_path, root):
     (["compare", "routes/freight-20km.yaml", "--strategies", "time-saving", "--no-gap"], "c.json"),
     (["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL], "s.json"),
     (["ocp", "routes/seed000-grade30.yaml"], "o.json")], ids=lambda a: a[0] if isinstance(a, list) else a)
+@pytest.mark.slow
 def test_out_json_of_every_command_carries_the_provenance(tmp_path, argv, out_name):
     out = tmp_path / out_name
     res = runner.invoke(app, [*argv, "--out", str(out)])
@@ -314,6 +318,7 @@ def compared(tmp_path_factory, root):
     return res, table, out
 
 
+@pytest.mark.slow
 def test_compare_json_has_the_fields_its_table_shows(compared):
     res, _, _ = compared
     assert res.exit_code == 0, res.output
@@ -328,6 +333,7 @@ def test_compare_json_has_the_fields_its_table_shows(compared):
         100 * (1 - four["traction_energy_kwh"] / fast["traction_energy_kwh"]), abs=0.01)
 
 
+@pytest.mark.slow
 def test_compare_gives_every_punctual_energy_at_the_planned_time(compared):
     res, table, out = compared
     data = json.loads(res.stdout)
@@ -387,6 +393,7 @@ FIGURE_MAGIC = {".pdf": b"%PDF-", ".svg": b"<svg", ".png": b"\x89PNG"}
                                   ["sweep", "routes/freight-20km.yaml", "--times", "1500", *SMALL],
                                   ["bound", "routes/freight-20km.yaml", "--times", "1500,1600"],
                                   ["ocp", "routes/seed000-grade30.yaml"]], ids=lambda a: a[0])
+@pytest.mark.slow
 def test_every_plot_takes_pdf_and_svg(tmp_path, argv, suffix):
     """Wherever --plot takes a PNG it takes a PDF and an SVG (by the name's suffix, in any case)."""
     if suffix == ".PDF" and argv[0] != "optimize":
@@ -398,6 +405,7 @@ def test_every_plot_takes_pdf_and_svg(tmp_path, argv, suffix):
     assert FIGURE_MAGIC[suffix.lower()] in head, head[:40]
 
 
+@pytest.mark.slow
 def test_pareto_plot_as_pdf(tmp_path):
     plot = tmp_path / "front.pdf"
     res = runner.invoke(app, ["pareto", "routes/freight-20km.yaml", "--factors", "1.2", "--strategies", "four-stage",
@@ -493,6 +501,7 @@ def _python_spellings(text: str) -> list[str]:
     return bad
 
 
+@pytest.mark.slow
 def test_every_csv_writes_booleans_as_true_false_and_no_value_empty(tmp_path):
     """bound's curve (converged: a boolean; a failed time: empty cells) and drivers.csv read as typed values."""
     import csv
@@ -529,6 +538,7 @@ def test_profile_csv_is_numbers_and_conditions(tmp_path):
 
 
 # ------------------------------------------------------------------------------------ small habits
+@pytest.mark.slow
 def test_output_folders_are_created(tmp_path):
     out, plot = tmp_path / "new" / "deep" / "p.csv", tmp_path / "figs" / "p.svg"
     res = runner.invoke(app, ["simulate", "routes/freight-20km.yaml", "--out", str(out), "--plot", str(plot)])
@@ -541,6 +551,7 @@ def test_output_folders_are_created(tmp_path):
     assert logs.is_dir() and any(logs.rglob("*.csv"))
 
 
+@pytest.mark.slow
 def test_one_rule_for_output_folders_on_every_command(tmp_path, root):
     """Every output's missing folder is created with its parents: drivers' logs, learn's patterns and plot,
     compare's runs, a new store and results' exports, import's folder."""

@@ -5,8 +5,8 @@ means one thing across commands."""
 import re
 
 import pytest
+import typer
 import typer.main
-from typer import _click as click
 from typer.core import TyperGroup
 from typer.testing import CliRunner
 
@@ -17,7 +17,7 @@ runner = CliRunner()
 
 def _commands() -> list[list[str]]:
     group = typer.main.get_command(app)
-    ctx = click.Context(group)
+    ctx = typer.Context(group)
     found = []
 
     def walk(cmd, path):
@@ -80,7 +80,7 @@ def test_help_names_values_not_types(path):
 def test_numeric_options_show_a_default_or_say_what_none_means(path):
     """Every option with a number (N, S, M, KWH...) says its default, in [default: ...] or in words."""
     numeric = re.compile(r"^  --[a-z0-9-]+ (N|S|M|KWH|KMH|T|SHARE|GAMMA|REL|PERMILLE|M/S2)\b")
-    for flag, entry in _options(_help(path)).items():
+    for entry in _options(_help(path)).values():
         if numeric.match(entry):
             assert "default" in entry or "required" in entry, (path, entry)
 

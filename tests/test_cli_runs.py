@@ -22,6 +22,7 @@ def _in_repo(root, monkeypatch):
 
 
 @pytest.mark.parametrize("builder, point_mass", [("general", False), ("seed002", False), ("seed002", True)])
+@pytest.mark.slow
 def test_e_min_does_not_depend_on_the_seed(freight, builder, point_mass):
     """The issue measured 580.66, 572.87, 587.05 kWh for seeds 1, 2, 3: E_min, and so every fitness,
     must be one number per route, train, options and builder."""
@@ -56,6 +57,7 @@ def test_compare_with_one_strategy_that_cannot_run():
     assert "1264.11" in text.stdout and "four-stage: no feasible plan" in text.stdout
 
 
+@pytest.mark.slow
 def test_compare_default_strategies_a_failed_one_is_a_row_not_an_exit(monkeypatch):
     """Issue 8: without --strategies, a strategy the user did not name that cannot run is its row with
     its reason and a note on stderr, and compare exits 0 while a timetabled strategy is on time; an
@@ -92,6 +94,7 @@ def test_compare_exit_0_when_every_requested_strategy_does_its_job(tmp_path):
     assert float(rows[0]["traction_energy_kwh"]) > float(rows[1]["traction_energy_kwh"])
 
 
+@pytest.mark.slow
 def test_sweep_csv_one_row_per_run(tmp_path):
     out = tmp_path / "s.csv"
     res = runner.invoke(app, ["sweep", "routes/freight-20km.yaml", "--times", "1470,1530", "--e-min", "580",

@@ -192,6 +192,7 @@ def test_the_title_stands_clear_of_the_station_marks(tmp_path, saved_figures, fr
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+@pytest.mark.slow
 def test_drivers_simulate_shows_count_bar_and_eta_at_80_columns(tmp_path, root):
     from test_cli_width import _in_pty
 

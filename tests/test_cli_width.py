@@ -149,6 +149,7 @@ def _in_pty(args, root, timeout=120) -> tuple[int, str]:
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+@pytest.mark.slow
 def test_progress_bar_on_a_terminal_only_and_never_with_json(root):
     args = ["compare", "routes/freight-20km.yaml", "--strategies", "time-saving,four-stage", "--no-gap"]
     code, text = _in_pty(args, root)
@@ -247,6 +248,7 @@ def test_every_progress_bar_reads_at_80_columns(monkeypatch, label, field, text)
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+@pytest.mark.slow
 def test_bound_times_progress_at_80_columns(root):
     """bound --times on an 80-column terminal: "bound solves", the count, the bar, the ETA and the time
     being solved; nothing of it with --json."""
@@ -263,6 +265,7 @@ def test_bound_times_progress_at_80_columns(root):
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals are POSIX")
+@pytest.mark.slow
 def test_batch_progress_at_80_columns_and_never_with_json(root, tmp_path):
     study = tmp_path / "s.yaml"
     study.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\ntimes: [1500]\n"

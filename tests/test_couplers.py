@@ -201,6 +201,7 @@ def test_the_cheap_bound_is_a_bound():
     assert worst > 0.3
 
 
+@pytest.mark.slow
 def test_the_shipped_heavy_haul_train_and_line():
     """HXD1 x 2 (head and mid-train) + 100 x C80: 10,400 t, 1,270.4 m, found by its catalogue name; on the
     heavy-haul line (48 km of descent, 30.5 km of it at -12 per mille) the optimised plan is on time and its

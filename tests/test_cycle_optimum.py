@@ -148,6 +148,7 @@ def test_hand_worked_numbers():
     assert cyc["behind"] == pytest.approx(3.58, abs=0.01)
 
 
+@pytest.mark.slow
 def test_constant_descent_cycles_as_worked_by_hand(descent, c80x50):
     """The DP's drive cycles as the hand-worked best cycle: on the descent (its first and last application left
     out: where the descent begins and ends) each application comes at 59.0 km/h (on some cycles up to 0.5 km/h
@@ -210,6 +211,7 @@ def optima(root, descent, c80x50):
 
 
 @pytest.mark.parametrize("name", ["descent", "freight-20km", "heavy-haul-60km"])
+@pytest.mark.slow
 def test_cycle_optimum_lies_above_the_relaxed_estar(optima, name):
     """E* relaxes the air brake: every drive that keeps the cycle is one of its runs, so the DP's own drives (their
     energy at T, ``dp_kwh``, on the finest grid) lie above it, within the optimum's stated accuracy; and the cycle
@@ -234,6 +236,7 @@ def test_cycle_optimum_lies_above_the_relaxed_estar(optima, name):
 
 
 @pytest.mark.parametrize("name", ["descent", "freight-20km", "heavy-haul-60km"])
+@pytest.mark.slow
 def test_the_nested_grids_converge(optima, name):
     """The DP's own energy has a first-order error in its cell and speed step; the cycle's cost against the same DP
     without the cycle cancels most of it: halving both, the optimum moves less than the DP's own energy, and the
@@ -314,6 +317,7 @@ def test_the_drive_keeps_the_rules(optima, name):
 
 
 @pytest.mark.parametrize("name", ["descent", "freight-20km", "heavy-haul-60km"])
+@pytest.mark.slow
 def test_the_plan_from_the_drive_runs(optima, name):
     """The plan read off the drive (its sequence and per-descent release margins) runs on the calculator to the stop,
     no application refused for its recharge, and within 10 % of the drive's time and energy: the plan is a start for

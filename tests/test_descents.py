@@ -9,7 +9,6 @@ resistance at 60 km/h R = 200 x 9.81 x (1.40 + 0.0038 x 60 + 0.0003 x 3600) / 10
 train down the grade at 60 km/h: it cannot hold the limit, and over a 2 km descent it gains speed.
 """
 
-import json
 import math
 import re
 
@@ -148,6 +147,7 @@ def test_impossible_descent_on_the_command_line(root, monkeypatch, tmp_path):
 
 @pytest.mark.parametrize("options", [SEEDS, ModelOptions(air_brake=False), ModelOptions()],
                          ids=["point-mass", "no-air-brake", "default"])
+@pytest.mark.slow
 def test_every_model_plans_the_hand_case(root, monkeypatch, options):
     """optimize plans the descent in every model, on time, never above the limit, with a gap to E*."""
     monkeypatch.chdir(root)

@@ -181,6 +181,7 @@ def test_e_star_is_below_what_the_calculator_drives_in_the_same_time(small):
 
 
 @pytest.mark.parametrize("options", MODELS, ids=IDS)
+@pytest.mark.slow
 def test_a_curve_on_one_mesh_agrees_with_each_time_solved_alone_within_its_stated_accuracy(small, options, tmp_path,
                                                                                           monkeypatch):
     """``energy_bounds`` solves the times between the curve's ends once each, on the finer end's mesh: every

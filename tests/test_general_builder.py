@@ -113,6 +113,7 @@ def test_every_run_but_the_departure_is_half_a_train_long(freight):
     assert set(seq.conditions) <= set(CONDITIONS)
 
 
+@pytest.mark.slow
 def test_proposed_on_a_line_the_seed_builder_could_not_drive(root):
     """CH_StGallen_Wil with 3200 t: no climb is long-up at the limit speed, so seed 002's sequence collapsed
     to T-C-B and every coast stalled; the general builder drives it on time, below four-stage."""
@@ -153,6 +154,7 @@ def test_blend_is_safe_with_infinite_neighbours():
     assert _blend(math.inf, 7.0, 0.5) == math.inf and _blend(2.0, math.inf, 0.5) == math.inf
 
 
+@pytest.mark.slow
 def test_dp_drives_a_heavy_train_through_neutral_sections_near_its_top_speed(root):
     """HXD1 + 50 x C80 on the reconstructed high-speed leg (290 km/h allowed, the train's 100 km/h caps it;
     three neutral sections, a -10 per mille descent held at the cap by braking): the fastest run drives it,
@@ -186,6 +188,7 @@ def test_a_heavy_train_that_barely_climbs_a_steep_grade(root, leg):
     assert least["feasible"] and least["traction_energy_kwh"] <= run.summary["traction_energy_kwh"] + 1e-6
 
 
+@pytest.mark.slow
 def test_a_climb_a_weak_train_crawls_over(root):
     """Fr100 (V 90 + 10 ore wagons) on the 102 km railtoolkit line crawls over +18.1 per mille at 2,000 m
     at about 3 km/h. One step per cell decided stall or no stall by the cell size (it stalled on the

@@ -10,7 +10,6 @@ phi_h(60) = 0.322 x 210 / 270 = 0.25044).
 """
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -24,7 +23,7 @@ from locoplan.model.plan import parse_sequence
 from locoplan.physics.braking import composite_shoe_friction
 from locoplan.physics.traction import max_force_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
-from locoplan.sim.result import CANNOT_HOLD, CODE, IMPOSSIBLE
+from locoplan.sim.result import CODE, IMPOSSIBLE
 from routes import hand_made_route
 
 runner = CliRunner()
@@ -191,6 +190,7 @@ def test_rotating_mass_factor_of_vehicles(tmp_path):
 SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--e-min", "580", "--no-gap"]
 
 
+@pytest.mark.slow
 def test_optimize_meets_five_times_the_fastest_run(root, monkeypatch, freight):
     """Five times the fastest run (about 12 km/h on average): the optimum's own sequence holds low speeds, so the
     plan is on time (the priced drive's sequences could not go that slow). (At ten times, about 6 km/h, the

@@ -33,6 +33,7 @@ def _report(outcomes) -> str:
                      + o.stderr.strip()[-400:].replace("\n", "\n    ") for o in bad)
 
 
+@pytest.mark.slow
 def test_corpus_covers_every_class(corpus):
     _, cases = corpus
     assert len(cases) >= 100
@@ -69,6 +70,7 @@ def test_every_text_option_holding_numbers_has_a_parser():
     assert {"--time", "--times", "--weights", "--factors", "--seeds", "--masses", "--efficiency"} <= found
 
 
+@pytest.mark.slow
 def test_corpus_no_traceback_hang_or_wrong_success(corpus):
     tmp, cases = corpus
     batched = [c for c in cases if not c.alone_only]
@@ -80,6 +82,7 @@ def test_corpus_no_traceback_hang_or_wrong_success(corpus):
     assert max(o.peak_rss_bytes for o in outcomes) < hostile.MEMORY_CAP_BYTES
 
 
+@pytest.mark.slow
 def test_process_level_cases_alone(corpus):
     """The cases about the process itself, each as its own ``python -m locoplan`` under the caps."""
     tmp, cases = corpus
@@ -91,6 +94,7 @@ def test_process_level_cases_alone(corpus):
     assert all(o.peak_rss_bytes < hostile.MEMORY_CAP_BYTES for o in outcomes)
 
 
+@pytest.mark.slow
 def test_workers_end_with_their_parent(tmp_path):
     """kill -9 of a batch parent: its worker processes end too (they would live on, reparented)."""
     import os

@@ -77,6 +77,7 @@ def _ctrl_c_stops_an_ipopt_solve_at_once():
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="watches the command's loaded libraries in /proc")
+@pytest.mark.slow
 def test_an_interrupted_ocp_command_writes_nothing_and_exits_130(root, tmp_path):
     """The command line: Ctrl-C during the heavy-haul line's minimum-energy solve (about 20 s of solving)
     ends it with exit 130, no --out file and no --json object; stderr says so."""

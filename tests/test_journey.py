@@ -173,6 +173,7 @@ def _random_track(rng: np.random.Generator, n_stops: int) -> dict:
 
 
 @pytest.mark.parametrize("seed", [11, 12])
+@pytest.mark.slow
 def test_a_journey_imported_from_a_track_not_in_the_repository(tmp_path, monkeypatch, seed):
     """`import ttobench --journey` on a random track, then `journey --time 1.15x`: every leg planned and on
     time, the allocation adds up to the total, and no other allocation's E* sum is lower."""
@@ -249,6 +250,7 @@ def _journey_with_windows(j, legs, total_s: float, share: float, dwell_s: float)
 
 
 @pytest.mark.parametrize("seed,model", [(21, []), (22, ["--point-mass"])], ids=["default", "point-mass"])
+@pytest.mark.slow
 def test_the_plans_keep_every_stops_window_and_add_up_to_the_total(tmp_path, monkeypatch, seed, model):
     """A random line of 5 stops with tight windows at its stops (+-1 % of the total around the equal-supplement
     arrival): every stop's clock in the plans, recomputed from the legs' profiles in the CSV and the dwells, is

@@ -60,6 +60,7 @@ def _journey_record(store: Path, name: str):
     return next(r for r in _records(store) if r.summary.get("journey") == name)
 
 
+@pytest.mark.slow
 def test_the_study_expands_journeys_by_their_fastest_total(batch):
     study, _, report = batch
     specs = load_study(study).specs
@@ -68,6 +69,7 @@ def test_the_study_expands_journeys_by_their_fastest_total(batch):
     assert report["runs"] == 3 and report["ran"] == 3 and report["from_store"] == 0
 
 
+@pytest.mark.slow
 def test_a_journey_record_holds_what_the_journey_command_gives_at_the_same_time(batch):
     """The batch's record of the twin journey at 1.2x against ``locoplan journey --time 1.2x --json`` (this
     process, its own E* solves): the same total, the same allocation, the journey's E* within its stated
@@ -195,6 +197,7 @@ def test_results_tell_journey_runs_from_route_runs(batch, tmp_path):
     assert {g["kind"]: g["runs"] for g in json.loads(res.stdout)["summary"]} == {"journey": 2, "route": 1}
 
 
+@pytest.mark.slow
 def test_pareto_on_a_journey_is_the_front_over_its_total_time(tmp_path):
     png = tmp_path / "front.png"
     res = cli.invoke(app, ["pareto", str(TWIN), "--consist", CONSIST, "--times", "1.1x,1.3x", "--strategies", "four-stage",

@@ -27,6 +27,7 @@ descent: the envelope falls below it there (the train enters slower), in both ba
 
 @pytest.mark.parametrize("name,options", CASES, ids=[c[0] for c in CASES])
 @pytest.mark.parametrize("hilly", [False, True], ids=["freight-20km", "hilly-ns"])
+@pytest.mark.slow
 def test_backends_agree(freight, name, options, hilly):
     route, train = freight
     if hilly:
@@ -75,6 +76,7 @@ def _same_cycles(a, b):
         np.testing.assert_allclose(a.air_wait_s, b.air_wait_s, rtol=RTOL, atol=1e-9, equal_nan=True)
 
 
+@pytest.mark.slow
 def test_backends_agree_on_air_brake_cycles(heavy_haul):
     """The heavy-haul line's 30.5 km at -12 per mille, which the two HXD1s' electric brake cannot hold: random
     plans (some with a cruise speed, some with their own release margin) cycle the air brake, some are refused
@@ -94,6 +96,7 @@ def test_backends_agree_on_air_brake_cycles(heavy_haul):
         assert (b.air_applications >= 2).sum() > n // 4  # cycles, not single applications
 
 
+@pytest.mark.slow
 def test_a_plan_does_not_depend_on_its_batch(freight):
     """A stalled plan creeping at the speed floor used to take its time from its neighbours' arithmetic in
     the numpy loop; both backends now give each plan the numbers it gets alone."""

@@ -119,6 +119,7 @@ def test_manifest_mass_must_match_the_consist(tmp_path):
     assert "runs[0].mass_t: 4000 t disagrees with the consist 'HXD1 + 50 x C80 (5200 t)'" in str(exc.value)
 
 
+@pytest.mark.slow
 def test_a_log_set_keeps_summaries_and_reads_the_rows_again_as_checked(sim_logs, tmp_path):
     """A log set holds each run's summary, not its rows: ``data`` reads the log again, the same rows as read
     and checked first; a log whose content changed since is refused (file named), not used unchecked."""
@@ -139,7 +140,7 @@ def test_a_log_set_keeps_summaries_and_reads_the_rows_again_as_checked(sim_logs,
     text = run.log_file.read_text()
     run.log_file.write_text(text.replace("\n2.0,", "\n2.00,", 1))  # the same numbers, other bytes: changed all the same
     with pytest.raises(InputError) as exc:
-        run.data
+        run.data  # noqa: B018 (reading the property is the check)
     assert f"{run.log_file}: changed while locoplan was using it" in str(exc.value)
 
 
@@ -153,6 +154,7 @@ def test_consist_for_mass_uses_the_train_model(base):
     assert build_train(c2, base[1]).mass_t == pytest.approx(3650.0) and c2.vehicles[1].count == 35
 
 
+@pytest.mark.slow
 def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
     out, summary = sim_logs
     runs = load_logs(out)
@@ -183,6 +185,7 @@ def test_simulated_runs_are_physical_arrive_and_keep_the_limits(sim_logs, base):
     assert e.max() / e.min() > 1.05  # good and wasteful drivers differ
 
 
+@pytest.mark.slow
 def test_every_simulated_log_reads_back_even_a_creeping_arrival(base):
     """400 runs of random drivers and cruise speeds on the 6 km line, each log written and read back: every
     one reads (time rises at the 0.1 s the log writes). Among them (seed 0) trains that creep their last
@@ -210,6 +213,7 @@ def test_every_simulated_log_reads_back_even_a_creeping_arrival(base):
     assert creeping and last_steps.min() == pytest.approx(MIN_ARRIVAL_S)  # the case is here, and its step bounded
 
 
+@pytest.mark.slow
 def test_simulator_same_seed_same_logs_other_seed_differs(sim_logs, tmp_path, base):
     out, _ = sim_logs
     spec = SimulationSpec(LINE, load_route(LINE), *base, masses_t=(3200, 4200), times_s=(520, 560), n_drivers=6,
@@ -224,6 +228,7 @@ def test_simulator_same_seed_same_logs_other_seed_differs(sim_logs, tmp_path, ba
     assert (other / "logs/D03-m3200-t520-r1.csv").read_bytes() != (out / "logs/D03-m3200-t520-r1.csv").read_bytes()
 
 
+@pytest.mark.slow
 def test_simulator_in_blocks_writes_the_same_logs(sim_logs, tmp_path, base, monkeypatch):
     """The runs searched and recorded a few at a time (the memory bound at 20,000 logs) give the logs of one
     search over all runs: the stopping rule stays shared, so blocks that converge early take the steps of
@@ -269,6 +274,7 @@ def test_speed_noise_block_by_block_is_one_draw():
     assert rng.standard_normal() == np.random.default_rng(3).standard_normal(7 * 50 + 1)[-1]  # advanced past the draw
 
 
+@pytest.mark.slow
 def test_a_manifest_of_thousands_of_runs_is_read(tmp_path):
     """drivers simulate writes up to 20,000 runs into one manifest (15 values each): more values than any route
     may hold (100,000), so manifests have a bound of their own; 7,000 runs (105,000 values) are read."""
@@ -441,7 +447,7 @@ def _known_logs(folder: Path, base) -> dict:
                 rows_x, rows_t, rows_v = [0.0], [0.0], [0.0]
                 t_start = 0.0
                 speeds = np.zeros((len(line.sections), line.divisions + 1))
-                for i, sec in enumerate(line.sections):
+                for i in range(len(line.sections)):
                     speeds[i, 0] = v
                     x = line.points_m[i]
                     for k in range(1, line.divisions + 1):
@@ -578,6 +584,7 @@ def test_advice_plot_shows_the_line_and_both_limits(learned, tmp_path, monkeypat
     plt.close(kept[0])
 
 
+@pytest.mark.slow
 def test_advise_and_compare_commands(sim_logs, learned, tmp_path, monkeypatch):
     from locoplan.reporting.writers import to_json
 

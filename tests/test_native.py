@@ -4,7 +4,6 @@ from: the same source through the same compiler, so the calculator's and the DP'
 nothing themselves); a failed build falls back to the JIT functions and is not retried; parallel first
 runs build the module once."""
 
-import math
 import os
 import subprocess
 import sys
@@ -131,6 +130,7 @@ def test_a_failed_build_falls_back_to_jit_and_is_not_retried(tmp_path, monkeypat
     assert 900 < TractionCalculator(route, train).fastest_time_s < 1500
 
 
+@pytest.mark.slow
 def test_parallel_first_runs_build_the_module_once(tmp_path):
     """Two processes start on an empty folder at once: one builds under the lock, the other waits and loads
     the same module; both then run the calculator on it."""

@@ -62,6 +62,7 @@ def test_a_descent_held_by_the_electric_brake_recovers_eta_times_its_work():
     assert prof.brake_kn[0, on] == pytest.approx(B_HOLD, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_net_estar_is_a_lower_bound_and_agrees_with_the_radau_check():
     """E* of the net objective on a short line: below every plan's net energy at its time, below the
     traction E* less nothing (crediting can only lower the optimum: the traction optimum's own net energy
@@ -96,6 +97,7 @@ def test_a_train_that_regenerates_nothing_has_one_estar():
     assert energy_bound(route, train, None, t, objective="net").energy_kwh == energy_bound(route, train, None, t).energy_kwh
 
 
+@pytest.mark.slow
 def test_optimize_with_the_net_objective():
     """--objective net: the summary says so, its fitness counts the net energy, the gap is against the net
     E*, and the net plan's net energy is no worse than the traction plan's (each is searched for its own)."""
@@ -116,6 +118,7 @@ def test_optimize_with_the_net_objective():
     assert res.exit_code == 2 and "--objective" in res.output
 
 
+@pytest.mark.slow
 def test_a_batch_with_the_net_objective(tmp_path):
     """A study file's ``objective: net`` reaches every run (its records say so and count the net energy in
     their fitness), keys the runs apart from the traction ones, and leaves the traction runs' keys as they

@@ -27,7 +27,7 @@ from locoplan.ocp.min_time import exact_minimum, exact_minimum_time, train_probl
 from locoplan.ocp.min_time_run import run_ocp
 from locoplan.ocp.registry import OCP_METHODS
 from locoplan.ocp.seed000 import SEED000_TABLES
-from oracles import G, LIMIT, seed000_exact, seed000_resistance_kn
+from oracles import LIMIT, seed000_exact
 
 runner = CliRunner()
 ROUTES = {"routes/seed000-flat.yaml": 0.0, "routes/seed000-grade30.yaml": 30.0}
@@ -71,6 +71,7 @@ def two_stage(app, root):
 
 
 @pytest.mark.parametrize("grade", ROUTES.values())
+@pytest.mark.slow
 def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
     res = two_stage[grade]
     assert res.exit_code == 0, res.output
@@ -98,6 +99,7 @@ def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
     assert [r["condition"] for r in seq] == ["T", "K", "B"] and seq[-1]["to_m"] == pytest.approx(1500.0, abs=0.5)
 
 
+@pytest.mark.slow
 def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
     flat, grade30, train = seed000
     for route, grade in ((flat, 0.0), (grade30, 30.0)):
@@ -149,6 +151,7 @@ def test_library_rule_on_limit_violation(seed000):
 # ---- outputs ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_out_csv_and_plots(app, tmp_path):
     csv_path, png, svg = tmp_path / "p.csv", tmp_path / "p.png", tmp_path / "p.svg"
     res = _invoke(app, ["ocp", "routes/seed000-flat.yaml", "--json", "--out", str(csv_path), "--plot", str(png)])
@@ -170,6 +173,7 @@ def test_out_csv_and_plots(app, tmp_path):
     assert "<svg" in svg.read_text()[:500]
 
 
+@pytest.mark.slow
 def test_ocp_study(app, tmp_path):
     out, png = tmp_path / "study.json", tmp_path / "study.png"
     res = _invoke(app, ["ocp-study", "--json", "--out", str(out), "--plot", str(png)])
@@ -293,6 +297,7 @@ def test_registry_drives_the_choices(app):
         assert key in res.stdout
 
 
+@pytest.mark.slow
 def test_ocp_study_tables_at_80_columns_keep_numbers_whole(app):
     res = runner.invoke(app, ["ocp-study"], env={"COLUMNS": "80"})
     assert res.exit_code == 0, res.output

@@ -113,6 +113,7 @@ def test_interval_mappings(mapping):
 # ---- the optimum against an independent check --------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_optimum_agrees_with_a_fine_trapezoidal_collocation(small, small_run):
     route, train = small
     s = small_run.summary
@@ -125,6 +126,7 @@ def test_optimum_agrees_with_a_fine_trapezoidal_collocation(small, small_run):
     assert s["max_limit_violation_kmh"] < 0.1 and s["mesh_history"][-1]["max_error"] <= 1e-5
 
 
+@pytest.mark.slow
 def test_neutral_section_is_coasted_and_ignoring_it_is_a_lower_bound(small, small_run):
     route, train = small
     sol = small_run.solution.solution
@@ -143,6 +145,7 @@ def test_neutral_section_is_coasted_and_ignoring_it_is_a_lower_bound(small, smal
     assert free.summary["objective"] <= small_run.summary["objective"] * (1 + 1e-4)
 
 
+@pytest.mark.slow
 def test_energy_options_scale_and_credit(small, small_run):
     route, train = small
     half = run_mpoc(route, train, ModelOptions(), T_SMALL, energy=energy_options("0.8"))
@@ -152,6 +155,7 @@ def test_energy_options_scale_and_credit(small, small_run):
     assert regen.tep.model.controls == ("F", "B_e", "B_a")  # only the electric brake earns the credit
 
 
+@pytest.mark.slow
 def test_orderings_of_seed001_strategies(freight):
     """Seed 001 Tables 3-4 on a freight line with two neutral sections: ignoring them is a lower
     bound (MPOC-N's optimum), honouring them in the model beats coasting through them afterwards
@@ -171,6 +175,7 @@ def test_orderings_of_seed001_strategies(freight):
 
 @pytest.mark.parametrize("options", [ModelOptions(point_mass=True, air_brake=False), ModelOptions()],
                          ids=["point-mass", "default"])
+@pytest.mark.slow
 def test_refinement_meets_its_tolerance_on_freight_20km(freight, options, monkeypatch, tmp_path):
     """The hp refinement reaches 1e-5 on freight-20km at 1500 s (the command's models: --point-mass brakes
     with the locomotive alone) in fewer solves than its cap, and its optimum is E* (the cell method,
@@ -210,6 +215,7 @@ def test_a_train_on_its_limit_shows_no_arc_to_hold():
     assert right.regime in (None, (None, "lower"))  # on the limit: the traction there is free
 
 
+@pytest.mark.slow
 def test_mpoc_on_a_descent_where_the_air_brake_cycles(monkeypatch, tmp_path):
     """HXD1 + 50 x C80 on 10 km at 60 km/h with 7 km at -15 per mille (tests/test_air_cycle.py's line): the
     electric brake cannot hold 60 km/h there, so the calculator's air brake cycles (applied at 59.0 km/h,
@@ -249,6 +255,7 @@ def test_mpoc_on_a_descent_where_the_air_brake_cycles(monkeypatch, tmp_path):
 # ---- commands ------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_ocp_energy_command(root, monkeypatch, tmp_path, small_run):
     monkeypatch.chdir(root)
     out = tmp_path / "p.csv"
@@ -266,6 +273,7 @@ def test_ocp_energy_command(root, monkeypatch, tmp_path, small_run):
     assert res.exit_code == 0 and "mesh refinement" in res.stdout and "confirmed" in res.stdout
 
 
+@pytest.mark.slow
 def test_bound_command_and_gap_column(root, monkeypatch, small_run):
     monkeypatch.chdir(root)
     res = runner.invoke(app, ["bound", SMALL, "--times", "340,380", "--consist", "HXD1-C80x30", "--json"])

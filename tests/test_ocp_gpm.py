@@ -73,6 +73,7 @@ def test_seed_problem_matches_table1():
 
 @pytest.mark.parametrize("grade", GRADES)
 @pytest.mark.parametrize("nodes", [17, 24])
+@pytest.mark.slow
 def test_two_stage_reaches_exact_minimum(runs, grade, nodes):
     problem, sol, rs, wall = runs[grade, "two-stage", nodes]
     assert sol.success, sol.status
@@ -102,6 +103,7 @@ def test_two_stage_on_a_route_too_short_for_the_limit():
     assert abs(rs.time_to_length_s - sol.objective_s) < 0.05 and rs.max_overspeed_kmh < 0.01
 
 
+@pytest.mark.slow
 def test_best_method_is_the_best(runs):
     for grade in GRADES:
         best = min(runs[grade, m, n][1].objective_s for m, n in RUNS)
@@ -145,6 +147,7 @@ def test_cvp_improves_with_nodes(runs):
         assert runs[grade, "cvp", 40][1].objective_s < runs[grade, "cvp", 20][1].objective_s
 
 
+@pytest.mark.slow
 def test_seed_global_stage2():
     """``stage2="global"`` is the seed's stage 2 on the same global LG mesh: better than stage 1,
     close to the seed's own 141.59-141.75 s, but not within 0.02 s."""

@@ -27,6 +27,7 @@ def _proposed(route, train, options, t0, tol=None):
     return ctx, run
 
 
+@pytest.mark.slow
 def test_a_line_coasted_from_end_to_end_plans_at_its_optimum(root):
     """tests/data/routes/falling-40km.yaml with HXD1 + 30 x C80 coasts from rest to the stop with no traction at
     all. Asked for exactly that coasting time, and for 3 % more (spent holding lower speeds by braking), E* is
@@ -51,6 +52,7 @@ def test_a_line_coasted_from_end_to_end_plans_at_its_optimum(root):
 @pytest.mark.parametrize("options,consist", [(ModelOptions.seeds(), "HXD1-C80x50"), (ModelOptions(), "HXD1-C80x50"),
                                              (ModelOptions(air_brake=False), "HXD1-C80x30")],
                          ids=["point-mass", "default", "no-air-brake"])
+@pytest.mark.slow
 def test_a_start_down_a_steep_fall(root, options, consist):
     """CH_Stadelhofen_Altstetten's first leg falls up to 38 per mille from the start: at 1.1 x the fastest run
     the train powers for a few metres and rolls the rest. E* there is about 1.1 kWh for HXD1 + 50 x C80 in the
@@ -96,6 +98,7 @@ def test_a_departure_that_powers_a_few_metres_is_timed_as_driven():
     assert p.t_s[0, k] == pytest.approx(t, abs=0.3)
 
 
+@pytest.mark.slow
 def test_e_min_is_a_lower_bound_of_every_punctual_plan(freight, root):
     """E_min (E* at T0 + tolerance) is at most E* at any running time inside the window, hence at most any
     punctual plan's energy: checked against E* at the plan's own running time on three lines, and against

@@ -68,6 +68,7 @@ def ns_run(root):
     return route, train, run_mpoc(route, train, ModelOptions(), 1500.0)
 
 
+@pytest.mark.slow
 def test_energy_optimum_plot_marks_the_line_and_both_limits(tmp_path, figures, ns_run):
     route, train, run = ns_run
     plot_ocp.plot_energy_run(tmp_path / "e.png", run, route=route)
@@ -95,6 +96,7 @@ def test_energy_optimum_plot_marks_the_line_and_both_limits(tmp_path, figures, n
     _title_fits(fig, ax)
 
 
+@pytest.mark.slow
 def test_energy_optimum_plot_without_the_route_labels_the_one_limit(tmp_path, figures, ns_run):
     _, _, run = ns_run
     plot_ocp.plot_energy_run(tmp_path / "e.png", run)

@@ -109,6 +109,7 @@ def _records(stdout: str) -> list[dict]:
     return json.loads(stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_process_pool_workers_run_drivers_from_a_library_script(logs, in_process):
     res = _fresh(f"""
         import json, os
@@ -126,6 +127,7 @@ def test_process_pool_workers_run_drivers_from_a_library_script(logs, in_process
     assert _records(res.stdout) == [in_process]
 
 
+@pytest.mark.slow
 def test_dask_workers_run_drivers_from_a_library_script(logs, in_process):
     pytest.importorskip("distributed")
     res = _fresh(f"""

@@ -164,6 +164,7 @@ def test_optimize_json(root, monkeypatch):
     assert len(d["switching_points_m"]) == d["plan"].count(":") - 1
 
 
+@pytest.mark.slow
 def test_compare_explain_and_json(root, monkeypatch, tmp_path):
     monkeypatch.chdir(root)
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--explain", "--e-min", "580", *SMALL,

@@ -101,6 +101,7 @@ def test_a_second_writer_is_refused_and_the_lock_dies_with_its_holder(tmp_path):
     os.unlink(path)
 
 
+@pytest.mark.slow
 def test_store_cases_of_the_corpus(tmp_path):
     """The corpus's result-store cases (tests/hostile.py, class ``store``) alone: each exits as it says, with
     the words it names, no traceback (the full corpus runs them with every other class)."""

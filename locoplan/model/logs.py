@@ -24,7 +24,7 @@ order)::
     route: route.yaml                # default for every run; paths relative to this file
     consist: consists/m5200.yaml     # default for every run
     synthetic: true                  # required: is this data made by a simulator?
-    generator: {name: locoplan drivers simulate, version: 0.1.0, seed: 1}   # optional
+    generator: {name: locoplan drivers simulate, version: 0.2.0, seed: 1}   # optional
     runs:
       - {log: logs/r0001.csv, driver_id: D01, mass_t: 5200, scheduled_time_s: 1500,
          actual_time_s: 1502.0, date: 2024-03-01}

@@ -12,7 +12,6 @@ Storage: ``ab`` of shape (n, 2 kl + ku + 1), column ``j`` of the matrix in row `
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 

@@ -13,8 +13,8 @@ benchmarks/bench_bound.py print both.
 Solutions are cached per (route, train, model options, time) in this process, and the last solution of a
 route and train starts the next solve at another time (the energy-time curve: each point after the first
 starts from its neighbour). Results are also kept on disk (``LOCOPLAN_CACHE_DIR``, default
-``~/.cache/locoplan``; empty = off), keyed by a hash of everything E* depends on, the ocp code's own
-source included, so that a command run twice, or a batch over the same cases, solves each E* once.
+``~/.cache/locoplan``; empty = off), keyed by a hash of everything E* depends on, the source of every module it imports
+included (``code_digest``), so that a command run twice, or a batch over the same cases, solves each E* once.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import tempfile
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
@@ -105,15 +106,79 @@ def _base_key(route: Route, train: Train, options: ModelOptions) -> tuple:
     return (route.model_dump_json(), _train_key(train), replace(options, step_m=0.0))
 
 
-@lru_cache(maxsize=1)
-def _code_digest() -> str:
-    """A hash of the optimal-control and physics sources: a cached E* is only as good as the code."""
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+"""The locoplan package's folder, whose sources ``code_digest`` hashes."""
+
+# ``from``/``import`` first, for the regex engine's fast literal search; a match must begin its line
+_FROM_IMPORT = re.compile(r"from[ \t]+(\.*)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)")
+_PLAIN_IMPORT = re.compile(r"import[ \t]+locoplan\.([\w.]+)")
+
+
+def _statements(pattern: re.Pattern, text: str) -> list[tuple]:
+    return [m.groups() for m in pattern.finditer(text)
+            if text[text.rfind("\n", 0, m.start()) + 1:m.start()].strip(" \t") == ""]
+
+
+def code_sources(roots: tuple[str, ...], package: Path = PACKAGE_DIR) -> list[str]:
+    """Every locoplan source file (relative to ``package``, with ``/``) the modules ``roots`` (a ``.py`` file, or a
+    folder for all of its modules) import, directly or through others, themselves included: the imports are
+    read from the text (function-level ones too), each module brings its packages' ``__init__.py``, and a
+    package that imports its modules by name at run time (``importlib.import_module``) brings all of them.
+    The top-level ``__init__.py`` only maps the public names for users, so its run-time imports are not
+    followed."""
+    files = {os.path.relpath(os.path.join(d, f), package).replace(os.sep, "/")
+             for d, _, names in os.walk(package) for f in names if f.endswith(".py")}
+
+    def under(folder: str) -> list[str]:
+        return [f for f in files if f.startswith(folder + "/")]
+
+    todo = [f for r in roots for f in ([r] if r.endswith(".py") else under(r))]
+    seen: set[str] = set()
+    while todo:
+        f = todo.pop()
+        if f in seen or f not in files:
+            continue
+        seen.add(f)
+        parts = f.split("/")[:-1]
+        todo.extend("/".join(parts[:i] + ["__init__.py"]) for i in range(len(parts) + 1))
+        text = (package / f).read_text(encoding="utf-8")
+        if parts and f.endswith("__init__.py") and "import_module(" in text:
+            todo.extend(under("/".join(parts)))
+        targets = [(m.split("."), ()) for (m,) in _statements(_PLAIN_IMPORT, text)]
+        for dots, module, names in _statements(_FROM_IMPORT, text):
+            if dots:
+                base = parts[:len(parts) - (len(dots) - 1)] if len(dots) > 1 else parts
+            elif module.split(".")[0] == "locoplan":
+                base, module = [], module.partition(".")[2]
+            else:
+                continue  # another package's
+            names = re.sub(r"#[^\n]*", "", names).strip("() \n")
+            targets.append((base + [m for m in module.split(".") if m],
+                            [n.split()[0] for n in names.split(",") if n.strip()]))
+        for path, names in targets:
+            where = "/".join(path) + "/" if path else ""
+            todo.extend([where[:-1] + ".py", where + "__init__.py"] if path else ["__init__.py"])
+            todo.extend(x for n in names for x in (f"{where}{n}.py", f"{where}{n}/__init__.py"))
+    return sorted(seen)
+
+
+@lru_cache(maxsize=None)
+def code_digest(roots: tuple[str, ...], package: Path = PACKAGE_DIR) -> str:
+    """A hash of every source ``code_sources(roots)`` finds: a result cached on disk is only as good as the code
+    it was computed with, all of it, not only the package that computed it."""
     h = hashlib.sha256()
-    here = Path(__file__).resolve().parent
-    for folder in (here, here.parent / "physics"):
-        for f in sorted(folder.glob("*.py")):
-            h.update(f.read_bytes())
+    for f in code_sources(roots, package):
+        h.update(f.encode() + b"\0" + (package / f).read_bytes())
     return h.hexdigest()[:16]
+
+
+E_STAR_SOURCES = ("ocp",)
+"""E*'s code: the optimal-control package and all it imports (the calculator's grid and speed envelope in
+sim/, the route and train in model/, the formulas in physics/, ...)."""
+
+
+def _code_digest() -> str:
+    return code_digest(E_STAR_SOURCES, PACKAGE_DIR)
 
 
 def _cache_file(key: tuple) -> Path | None:

@@ -158,7 +158,6 @@ class CellEnergyProblem:
         curves' derivatives (kept for the last point: values, derivatives and Hessian read it in turn)."""
         if self._last is not None and self._last[0] is x:
             return self._last[1]
-        calc, tr = self.calc, self.calc.train
         xp = x * self.ref
         phys, V = self._speed_terms(xp[0::3])
         ftr, fel, fair = (curve(V) for curve in self._force_curves())

@@ -239,7 +239,7 @@ class CellIPM:
                                         grad_f, mu_, tau_, dual, *out)
             return (*out, a_p_, a_d_, dphi_)
 
-        for it in range(1, S.max_iter + 1):
+        for it in range(1, S.max_iter + 1):  # noqa: B007 (the count is returned after the loop)
             der = p.derivatives(x)
             e_dual, e_prim, p_max, p_min, s_c, mean_c = errors_k(
                 lay, der.grad_f, der.grad_e, y, der.grad_g, z, der.grad_c, zc, zl, zu, val.e, val.g, s, val.c, sc,

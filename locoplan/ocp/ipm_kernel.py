@@ -19,8 +19,6 @@ bound multiplier 0.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 

@@ -372,7 +372,7 @@ def exact_minimum(problem: MinTimeTrainProblem) -> ExactMinimum:
     from scipy.integrate import quad  # scipy.integrate: ~1 s to import, only for this closed form
     from scipy.optimize import brentq
 
-    m, vlim, length = problem.mass_t, problem.speed_limit_ms, problem.length_m
+    vlim, length = problem.speed_limit_ms, problem.length_m
 
     def acc(v):
         return problem.acceleration(v, problem.f_max_kn)

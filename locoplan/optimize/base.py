@@ -165,7 +165,7 @@ def sample_feasible(
     found_x: list[np.ndarray] = []
     found_f: list[np.ndarray] = []
     n_found = n_sampled = 0
-    for batch in range(1, max_batches + 1):
+    for _ in range(max_batches):
         missing = n - n_found
         if n_sampled == 0:
             size = missing

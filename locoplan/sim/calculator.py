@@ -57,10 +57,7 @@ DEFAULT_STEP_M = 50.0
 ENVELOPE_SUBSTEPS = 20
 """Sub-steps per cell for the braking envelope (computed once per route, so it can afford them)."""
 
-try:  # numpy's compiled interp without its Python-level argument checks (a third of its cost here)
-    from numpy._core.multiarray import interp as _interp
-except ImportError:  # pragma: no cover - other numpy layouts
-    _interp = np.interp
+_interp = np.interp  # numpy's public interp (its private compiled core saved a third of it, but is not an API)
 
 
 
@@ -505,7 +502,7 @@ class TractionCalculator:
             if electric_only:
                 decel = lambda e_: float(self.electric_decel(kmh_from_e(max(e_, 0.0)), k))  # noqa: E731
             else:
-                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # -de/ds [m/s^2]
+                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # noqa: E731 -de/ds [m/s^2]
             holds = bool(holds_all[k])
             if e >= cap:
                 if holds:  # no braking curve runs through this cell: the limit itself bounds it

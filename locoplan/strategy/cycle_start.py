@@ -16,11 +16,8 @@ strategy's search.
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import asdict, replace
-from functools import lru_cache
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -55,18 +52,12 @@ MIN_RUN_CELLS = 2.5
 _OPTIMA: dict[tuple, CycleOptimum] = {}
 
 
-@lru_cache(maxsize=1)
 def _code_digest() -> str:
-    """A hash of the sources the cycle optimum depends on beyond E*'s (the DP, the calculator): a cached one is only
-    as good as the code."""
-    h = hashlib.sha256()
-    here = Path(__file__).resolve().parents[1]
-    for rel in ("optimize/cycle_dp.py", "optimize/cycle_kernel.py", "optimize/dp.py", "optimize/dp_kernel.py",
-                "strategy/cycle_start.py"):
-        h.update((here / rel).read_bytes())
-    for f in sorted((here / "sim").glob("*.py")):
-        h.update(f.read_bytes())
-    return h.hexdigest()[:16]
+    """A hash of every source this module imports (the DP, the calculator, the builder, E*'s, ...): a cached cycle
+    optimum is only as good as the code."""
+    from ..ocp import bound
+
+    return bound.code_digest(("strategy/cycle_start.py",), bound.PACKAGE_DIR)
 
 
 def _key(route: Route, train: Train, options: ModelOptions, time_s: float) -> tuple:
