@@ -38,7 +38,7 @@ from ..optimize.base import NoFeasibleCandidateError, OptimizerParams
 from ..optimize.problem import MARGIN_MIN, SwitchingProblem
 from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
-from ..sim.result import BatchResult
+from ..sim.result import AIR_APPLIED, BatchResult
 from .sequence import build_sequence, classify_grades, fastest_runs
 from .general_builder import sequence_from_drive, sequence_from_optimum, with_holds
 
