@@ -188,3 +188,25 @@ def test_outside_the_window_ranks_after_every_plan_inside(freight):
     outside = res.feasible & ~inside
     assert inside.any() and outside.any() and f[inside].max() > 1000.0
     assert f[outside].min() > f[inside].max()
+
+
+def test_a_burst_over_a_crest_is_held_not_powered(root):
+    """A generated sawtooth line (tests/data/routes/sawtooth-21km.yaml) with HXD1 + 33 x C80 at 62 t in the seeds'
+    model at 1.58 x the fastest run. E* pushes the crawling train over the crest at 7.4 km with a partial force
+    for a cell; read as full traction for the shortest run (100 m) it gave the train 44 s it then had to spend
+    (4.59 % over E*). Holding the speed there instead (K) is one of the proposed plan's starts: on time and
+    within 3 % of E* at its own running time, with no run of full traction between 7 and 8 km."""
+    route = load_route(root / "tests/data/routes/sawtooth-21km.yaml")
+    train = load_train(root / "tests/data/consists/HXD1-C80x33.yaml")
+    options = ModelOptions.seeds()
+    t0 = round(1.58 * TractionCalculator(route, train, options).fastest_time_s, 1)
+    ctx, run = _proposed(route, train, options, t0)
+    s = run.summary
+    assert schedule_verdict(ctx, run) is None, s
+    e_star = energy_bound(route, train, options, s["running_time_s"]).energy_kwh
+    assert s["traction_energy_kwh"] <= 1.03 * e_star, (s["traction_energy_kwh"], e_star)
+    plan = run.outcome.plan
+    starts = list(plan.starts_m[1:]) + [route.length_m]
+    for c, a, b in zip(plan.conditions, plan.starts_m, starts):
+        if c == "T" and not math.isnan(a) and a < 8000.0 and (math.isnan(b) or b > 7000.0):
+            raise AssertionError(f"full traction from {a:.0f} m: {plan.text()}")
