@@ -244,6 +244,7 @@ def guarded(fn):
                 try:
                     with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
                         bounds.check_command(wrapper, kwargs, _given())  # every option's value, before any work
+                        _check_outputs_not_inputs(run["command"], kwargs)
                         result = fn(*args, **_grouped(kwargs, groups))
                 except typer.Exit:
                     _flush_stdout()
@@ -289,6 +290,52 @@ def guarded(fn):
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
+
+
+_WRITTEN = {"out_file": "--out", "plot": "--plot", "boxplot": "--boxplot"}
+"""The parameters that name a file a command writes (besides the store of a command in :data:`_WRITES_STORE`)."""
+_WRITES_STORE = {"batch": ("store_path", "--store")}
+"""Commands that write into a store they are given (the store is their output, not an input)."""
+
+
+def _param_names() -> dict[str, str]:
+    """Parameter name -> how the command line shows it (``--consist``, ``ROUTE``), for the running command."""
+    try:
+        from typer._click.globals import get_current_context
+
+        ctx = get_current_context(silent=True)
+    except ImportError:
+        ctx = None
+    names = {}
+    for param in getattr(getattr(ctx, "command", None), "params", ()) or ():
+        opts = getattr(param, "opts", None) or []
+        long = [o for o in opts if o.startswith("--")]
+        names[param.name] = long[0] if long and param.param_type_name == "option" else (param.metavar or param.name.upper())
+    return names
+
+
+def _check_outputs_not_inputs(command: str, kwargs: dict) -> None:
+    """Before any work: no output file of the command (``--out``, ``--plot``, ``--boxplot``, batch's ``--store``) is a
+    file it reads (its route, study, store, consist, ...), nor are two outputs one file (by real path, through links,
+    or by inode). Files named inside an input (a study's routes) are checked when the outputs are moved into place
+    (:func:`~locoplan.reporting.files.all_or_none`)."""
+    from .reporting.files import check_distinct, check_not_inputs
+
+    shown = _param_names()
+    outputs = {flag: kwargs.get(name) for name, flag in _WRITTEN.items() if kwargs.get(name) is not None}
+    store = _WRITES_STORE.get(command)
+    if store and kwargs.get(store[0]) is not None:
+        outputs[store[1]] = kwargs[store[0]]
+    inputs: dict[str, list[Path]] = {}
+    for name, value in kwargs.items():
+        if name in _WRITTEN or name in _OUTPUTS or (store and name == store[0]) or value is None:
+            continue
+        paths = [value] if isinstance(value, (Path, str)) else list(value) if isinstance(value, (list, tuple)) else []
+        paths = [Path(p) for p in paths if isinstance(p, Path) or (name == "consist" and isinstance(p, str))]
+        if paths:
+            inputs[shown.get(name, name)] = paths
+    check_distinct(outputs)
+    check_not_inputs(outputs, inputs)
 
 
 def _grouped(kwargs: dict, groups: dict) -> dict:
