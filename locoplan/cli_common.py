@@ -25,8 +25,32 @@ from .reporting.writers import provenance, provenance_fields, to_json, write_out
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
-out = Console()
-err = Console(stderr=True)
+MIN_COLUMNS = 40
+"""The least width tables and messages are laid out for: ``COLUMNS=0`` or ``1`` (or a terminal that narrow) would
+print nothing, or a character a line."""
+
+
+class _Console(Console):
+    """rich's console at :data:`MIN_COLUMNS` at least, and without emoji codes: a route named ``:x:`` stays ``:x:``
+    (user text is escaped for markup where it is printed)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(emoji=False, **kwargs)
+
+    @property
+    def size(self):
+        from rich.console import ConsoleDimensions
+
+        size = Console.size.fget(self)
+        return ConsoleDimensions(max(size.width, MIN_COLUMNS), size.height)
+
+    @size.setter
+    def size(self, new_size) -> None:
+        Console.size.fset(self, new_size)
+
+
+out = _Console()
+err = _Console(stderr=True)
 
 DEFAULT_CONSIST = DEFAULT_CONSIST_FILE
 
@@ -471,6 +495,38 @@ def std_streams():
         yield
     finally:
         sys.stdout, sys.stderr = stdout, stderr
+
+
+def sane_std_streams() -> None:
+    """At the start of a process: a standard stream that is closed (``locoplan ... >&-``, a daemon) is pointed at
+    /dev/null, so that no file the command opens takes its descriptor (a store opened as descriptor 1 would receive
+    the report) and nothing prints into ``None``; stdout and stderr replace what their encoding cannot write (an
+    ASCII terminal, a route named in another script) instead of failing."""
+    import os
+    import sys
+
+    for fd, mode in ((0, os.O_RDONLY), (1, os.O_WRONLY), (2, os.O_WRONLY)):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                null = os.open(os.devnull, mode)
+                if null != fd:
+                    os.dup2(null, fd)
+                    os.close(null)
+            except OSError:
+                continue
+            stream = open(fd, "r" if fd == 0 else "w", encoding="utf-8", errors="replace", closefd=False)
+            setattr(sys, ("stdin", "stdout", "stderr")[fd], stream)
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is None:
+            continue
+        try:
+            if getattr(stream, "errors", "strict") == "strict":
+                stream.reconfigure(errors="replace")
+        except (AttributeError, ValueError, OSError):
+            pass
 
 
 def _flush_stdout() -> None:
