@@ -146,8 +146,9 @@ def test_parallel_first_runs_build_the_module_once(tmp_path):
     outs = [p.communicate(timeout=900) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
     lines = [o[0].split("\n") for o in outs]
-    built = list(tmp_path.glob("locoplan_kernels_*"))
+    built = [p for p in tmp_path.glob("locoplan_kernels_*") if p.suffix != ".sha256"]
     assert len(built) == 1 and not list(tmp_path.glob("*.failed"))
+    assert native._intact(built[0])  # with its record of size and hash beside it
     assert lines[0][0] == lines[1][0] == f"native {built[0]}"
     assert lines[0][1] == lines[1][1]
     assert "numba" not in subprocess.run([sys.executable, "-c", code + "; import sys; print(sorted(sys.modules))"],
