@@ -40,7 +40,8 @@ def test_corpus_covers_every_class(corpus):
     by_class = {}
     for c in cases:
         by_class.setdefault(c.cls, []).append(c)
-    assert set(by_class) == {"yaml", "file", "number", "physics", "params", "option", "output", "message", "store", "study", "json"}
+    assert set(by_class) == {"yaml", "file", "number", "physics", "params", "option", "output", "message", "store", "study", "json",
+                             "inout", "cache", "env"}
     assert all(len(v) >= 5 for v in by_class.values()), {k: len(v) for k, v in by_class.items()}
     # valid-but-infeasible requests exit 1 with the physical reason; a few valid controls exit 0
     assert sum(c.exit == 1 for c in cases) >= 4 and sum(c.exit == 0 for c in cases) >= 5
