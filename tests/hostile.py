@@ -1190,7 +1190,8 @@ def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -
 
 def _stderr_full_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     """stderr on a full device: the messages are lost, but every output is written and the exit code is what it
-    would have been (2 bad input, 1 infeasible, 0 a success with warnings), never 2 for the lost messages."""
+    would have been (2 bad input, 1 infeasible or a result without the damaged runs of a store, 0 a success), never 2
+    for the lost messages."""
     out_dir = tmp / "stderr_full"
     out_dir.mkdir(exist_ok=True)
     bad = write("stderr_full_bad.yaml", route(length="abc"))
@@ -1201,7 +1202,7 @@ def _stderr_full_cases(cases: list[Case], write, good_route: str, tmp: Path) -> 
             ("bad_input", ["validate", bad], 2, (), None),
             ("usage", ["simulate", "--bogus"], 2, (), None),
             ("infeasible", ["optimize", good_route, "--consist", SMALL, "--time", "50"], 1, (), None),
-            ("warnings", ["results", str(tmp / "stores" / "broken_records.sqlite"), "--json"], 0, ('"runs": 1',), None),
+            ("damaged_store", ["results", str(tmp / "stores" / "broken_records.sqlite"), "--json"], 1, ('"runs": 1',), None),
             ("out_file", sim + ["--out", str(plan)], 0, ("running time",),
              lambda: None if plan.is_file() else "plan.json was not written"),
             ("drivers", ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2", "--runs", "1"], 0, (),

@@ -193,7 +193,7 @@ def bound_problem(data, time_s: float | None = None) -> str | None:
     if not isinstance(data["converged"], bool) or not isinstance(data.get("method", METHOD), str):
         return "converged or method of the wrong type"
     for why in (number("time_s", 1e-9), number("energy_kwh", 0.0 if objective == "traction" else None),
-                number("cells", 1, integer=True), number("step_m", 1e-9), number("solve_time_s", 0.0),
+                number("cells", 1, integer=True), number("step_m", 0.0), number("solve_time_s", 0.0),
                 number("accuracy", 0.0, optional=True), number("slope_kwh_per_s", optional=True),
                 number("traction_kwh", 0.0, optional=True), number("recovered_kwh", 0.0, optional=True)):
         if why:
