@@ -163,6 +163,8 @@ def _cache_read(key: tuple) -> "Bound | None":
 
 
 _REAL = (int, float)
+NEGATIVE_TOLERANCE_KWH = 0.01
+"""How far below 0 a kept traction energy may lie and still be the solver's tolerance, not a damaged entry [kWh]."""
 
 
 def bound_problem(data, time_s: float | None = None) -> str | None:
@@ -192,10 +194,12 @@ def bound_problem(data, time_s: float | None = None) -> str | None:
         return f"objective is {objective!r}"
     if not isinstance(data["converged"], bool) or not isinstance(data.get("method", METHOD), str):
         return "converged or method of the wrong type"
-    for why in (number("time_s", 1e-9), number("energy_kwh", 0.0 if objective == "traction" else None),
+    # a traction E* is never negative beyond the solver's tolerance (a net one may be: the brake returns energy)
+    for why in (number("time_s", 1e-9), number("energy_kwh", -NEGATIVE_TOLERANCE_KWH if objective == "traction" else None),
                 number("cells", 1, integer=True), number("step_m", 0.0), number("solve_time_s", 0.0),
                 number("accuracy", 0.0, optional=True), number("slope_kwh_per_s", optional=True),
-                number("traction_kwh", 0.0, optional=True), number("recovered_kwh", 0.0, optional=True)):
+                number("traction_kwh", -NEGATIVE_TOLERANCE_KWH, optional=True),
+                number("recovered_kwh", -NEGATIVE_TOLERANCE_KWH, optional=True)):
         if why:
             return why
     if time_s is not None and round(float(data["time_s"]), 2) != time_s:
