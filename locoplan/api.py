@@ -190,11 +190,17 @@ def planned_time(text: Optional[str], route, train=None, options: Optional[Model
     req = bounds.time_request(text, option)
     if req is None or req[0] == "s":
         return PlannedTime(None if req is None else req[1])
-    from .sim.calculator import TractionCalculator
-
-    fastest = TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    fastest = fastest_run_s(route, train, options, f"{option} {text}")
     t = bounds.time_of(req, fastest)
     return PlannedTime(t, f"{option} {text}: T0 = {t:g} s ({req[1]:g} x the fastest run, {fastest:.1f} s)")
+
+
+def fastest_run_s(route, train, options: Optional[ModelOptions], asked: str) -> float:
+    """The fastest run's time [s] that a factor (``asked``, e.g. ``--time 1.1x``) is taken of; InfeasibleError with
+    the physical reason on a line the train cannot run at all."""
+    from .sim.calculator import TractionCalculator
+
+    return TractionCalculator(route, train, options or ModelOptions()).fastest_time_for_factor_s(asked)
 
 
 @dataclass(frozen=True)
@@ -213,9 +219,7 @@ def planned_times(requests: list, route=None, train=None, options: Optional[Mode
     built only when a factor is among them), or of what ``fastest_s()`` returns (a journey's fastest total)."""
     if all(kind == "s" for kind, _ in requests):
         return PlannedTimes([v for _, v in requests])
-    from .sim.calculator import TractionCalculator
-
-    fastest = fastest_s() if fastest_s is not None else TractionCalculator(route, train, options or ModelOptions()).fastest_time_s
+    fastest = fastest_s() if fastest_s is not None else fastest_run_s(route, train, options, option)
     times = [bounds.time_of(r, fastest) for r in requests]
     shown = ", ".join(f"{t:g}" for t in times)
     return PlannedTimes(times, f"{option}: T0 = {shown} s (the fastest run is {fastest:.1f} s)")

@@ -450,6 +450,12 @@ def time_of(request: tuple[str, float], fastest_s: float) -> float:
     kind, value = request
     if kind == "s":
         return value
+    if fastest_s is None or not math.isfinite(fastest_s):  # a line the train cannot run: no factor of its fastest run
+        from .errors import InfeasibleError
+
+        raise InfeasibleError(f"{value:g}x is a factor of the fastest run, but the train has no run to the stop on "
+                              "this line (it stalls, or cannot hold a speed limit); give seconds, or a line and train "
+                              "that can run")
     return math.ceil(value * fastest_s * 10 - 1e-9) / 10
 
 

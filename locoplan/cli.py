@@ -421,8 +421,9 @@ _tidy_help(app)
 
 
 def main() -> None:
-    from .cli_common import std_streams
+    from .cli_common import sane_std_streams, std_streams
 
+    sane_std_streams()  # a closed stdout, a terminal that cannot write every character: no traceback
     try:
         with std_streams():  # also what click prints itself (help, usage): stdout's errors named, stderr's dropped
             app()

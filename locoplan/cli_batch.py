@@ -14,7 +14,7 @@ import typer
 from . import api, bounds
 from .api import ModelRequest
 from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, STOCK, TOL, WINDOW, _names,
-                         _range, _times, all_or_none, check_outputs, err, guarded, json_out, out)
+                         _range, _times, all_or_none, check_outputs, err, fail_on, guarded, json_out, out)
 from .reporting.tables import show
 
 __all__ = ["register"]
@@ -177,6 +177,14 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
             json_out({"store": str(store_path), "runs": len(rows), "summary": summary})
         else:
             show(out, store_summary_table(summary, group, f"{store_path}: {len(rows)} runs", out.width))
+    if store.damaged:  # the result is of the runs that could be read: said, and exit 1 (never a silent success)
+        n = len(store.damaged)
+        where = (f"{n:,} damaged part{'s' if n > 1 else ''} of the file" if store.file_damaged else
+                 f"{n:,} damaged record{'s' if n > 1 else ''}")
+        fail_on(api.Verdict([f"{store_path}: the store is damaged ({where}, named above): this "
+                             "result leaves out the runs there"
+                             + ("; run the batch into a new store to run them again" if store.file_damaged else
+                                "; locoplan batch on the store runs them again")]))
 
 @guarded
 def pareto(route: Path = typer.Argument(..., metavar="ROUTE|JOURNEY", help="Route YAML file, or a journey file (the front over its total running time, dwells excluded)."),

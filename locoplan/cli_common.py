@@ -25,8 +25,32 @@ from .reporting.writers import provenance, provenance_fields, to_json, write_out
 from .optimize.registry import ALGORITHMS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
-out = Console()
-err = Console(stderr=True)
+MIN_COLUMNS = 40
+"""The least width tables and messages are laid out for: ``COLUMNS=0`` or ``1`` (or a terminal that narrow) would
+print nothing, or a character a line."""
+
+
+class _Console(Console):
+    """rich's console at :data:`MIN_COLUMNS` at least, and without emoji codes: a route named ``:x:`` stays ``:x:``
+    (user text is escaped for markup where it is printed)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(emoji=False, **kwargs)
+
+    @property
+    def size(self):
+        from rich.console import ConsoleDimensions
+
+        size = Console.size.fget(self)
+        return ConsoleDimensions(max(size.width, MIN_COLUMNS), size.height)
+
+    @size.setter
+    def size(self, new_size) -> None:
+        Console.size.fset(self, new_size)
+
+
+out = _Console()
+err = _Console(stderr=True)
 
 DEFAULT_CONSIST = DEFAULT_CONSIST_FILE
 
@@ -243,6 +267,7 @@ def guarded(fn):
                 try:
                     with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
                         bounds.check_command(wrapper, kwargs, _given())  # every option's value, before any work
+                        _check_outputs_not_inputs(run["command"], kwargs)
                         result = fn(*args, **_grouped(kwargs, groups))
                 except typer.Exit:
                     _flush_stdout()
@@ -288,6 +313,52 @@ def guarded(fn):
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
+
+
+_WRITTEN = {"out_file": "--out", "plot": "--plot", "boxplot": "--boxplot"}
+"""The parameters that name a file a command writes (besides the store of a command in :data:`_WRITES_STORE`)."""
+_WRITES_STORE = {"batch": ("store_path", "--store")}
+"""Commands that write into a store they are given (the store is their output, not an input)."""
+
+
+def _param_names() -> dict[str, str]:
+    """Parameter name -> how the command line shows it (``--consist``, ``ROUTE``), for the running command."""
+    try:
+        from typer._click.globals import get_current_context
+
+        ctx = get_current_context(silent=True)
+    except ImportError:
+        ctx = None
+    names = {}
+    for param in getattr(getattr(ctx, "command", None), "params", ()) or ():
+        opts = getattr(param, "opts", None) or []
+        long = [o for o in opts if o.startswith("--")]
+        names[param.name] = long[0] if long and param.param_type_name == "option" else (param.metavar or param.name.upper())
+    return names
+
+
+def _check_outputs_not_inputs(command: str, kwargs: dict) -> None:
+    """Before any work: no output file of the command (``--out``, ``--plot``, ``--boxplot``, batch's ``--store``) is a
+    file it reads (its route, study, store, consist, ...), nor are two outputs one file (by real path, through links,
+    or by inode). Files named inside an input (a study's routes) are checked when the outputs are moved into place
+    (:func:`~locoplan.reporting.files.all_or_none`)."""
+    from .reporting.files import check_distinct, check_not_inputs
+
+    shown = _param_names()
+    outputs = {flag: kwargs.get(name) for name, flag in _WRITTEN.items() if kwargs.get(name) is not None}
+    store = _WRITES_STORE.get(command)
+    if store and kwargs.get(store[0]) is not None:
+        outputs[store[1]] = kwargs[store[0]]
+    inputs: dict[str, list[Path]] = {}
+    for name, value in kwargs.items():
+        if name in _WRITTEN or name in _OUTPUTS or (store and name == store[0]) or value is None:
+            continue
+        paths = [value] if isinstance(value, (Path, str)) else list(value) if isinstance(value, (list, tuple)) else []
+        paths = [Path(p) for p in paths if isinstance(p, Path) or (name == "consist" and isinstance(p, str))]
+        if paths:
+            inputs[shown.get(name, name)] = paths
+    check_distinct(outputs)
+    check_not_inputs(outputs, inputs)
 
 
 def _grouped(kwargs: dict, groups: dict) -> dict:
@@ -423,6 +494,38 @@ def std_streams():
         yield
     finally:
         sys.stdout, sys.stderr = stdout, stderr
+
+
+def sane_std_streams() -> None:
+    """At the start of a process: a standard stream that is closed (``locoplan ... >&-``, a daemon) is pointed at
+    /dev/null, so that no file the command opens takes its descriptor (a store opened as descriptor 1 would receive
+    the report) and nothing prints into ``None``; stdout and stderr replace what their encoding cannot write (an
+    ASCII terminal, a route named in another script) instead of failing."""
+    import os
+    import sys
+
+    for fd, mode in ((0, os.O_RDONLY), (1, os.O_WRONLY), (2, os.O_WRONLY)):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                null = os.open(os.devnull, mode)
+                if null != fd:
+                    os.dup2(null, fd)
+                    os.close(null)
+            except OSError:
+                continue
+            stream = open(fd, "r" if fd == 0 else "w", encoding="utf-8", errors="replace", closefd=False)
+            setattr(sys, ("stdin", "stdout", "stderr")[fd], stream)
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is None:
+            continue
+        try:
+            if getattr(stream, "errors", "strict") == "strict":
+                stream.reconfigure(errors="replace")
+        except (AttributeError, ValueError, OSError):
+            pass
 
 
 def _flush_stdout() -> None:

@@ -55,13 +55,15 @@ class Case:
     during: Callable[[], None] | None = None  # done in a thread while the command runs (run alone only)
     time_limit_s: float | None = None  # a longer limit than TIME_LIMIT_S (only for a slow case)
     slow: bool = False  # run by the benchmark only (benchmarks/hostile_corpus.py), not by the test suite
+    forbid_out: tuple[str, ...] = ()  # none may appear in stdout (a value a damaged cache planted)
+    close_stdout: bool = False  # the command runs with its stdout closed (`locoplan ... >&-`; run alone only)
 
     @property
     def alone_only(self) -> bool:
         """The case sets up its own process (umask, file-size limit, stdout, stderr, environment) or acts on it
         while it runs: never run in a shared batch."""
         return (self.umask is not None or self.fsize is not None or self.stdout_file is not None or self.permissions
-                or self.stderr_file is not None or self.env is not None or self.during is not None)
+                or self.stderr_file is not None or self.env is not None or self.during is not None or self.close_stdout)
 
 
 @dataclass
@@ -570,6 +572,7 @@ def build(tmp: Path) -> list[Case]:
     _store_mid_run_cases(cases, write, good_route, tmp)
     _stderr_full_cases(cases, write, good_route, tmp)
     _journey_cases(cases, write, good_route, tmp)
+    _trust_cases(cases, write, good_route, steep, tmp)
     merge_ok = write("merge_override.yaml", route(extra="curves:\n  - &c {from_m: 100, to_m: 200, radius_m: 800}\n"
                                                        "  - {<<: *c, from_m: 300, to_m: 400}\n"))
     cases.append(Case("merge_key_overridden", "message", ["validate", merge_ok], 0, (),
@@ -1187,7 +1190,8 @@ def _store_mid_run_cases(cases: list[Case], write, good_route: str, tmp: Path) -
 
 def _stderr_full_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     """stderr on a full device: the messages are lost, but every output is written and the exit code is what it
-    would have been (2 bad input, 1 infeasible, 0 a success with warnings), never 2 for the lost messages."""
+    would have been (2 bad input, 1 infeasible or a result without the damaged runs of a store, 0 a success), never 2
+    for the lost messages."""
     out_dir = tmp / "stderr_full"
     out_dir.mkdir(exist_ok=True)
     bad = write("stderr_full_bad.yaml", route(length="abc"))
@@ -1198,7 +1202,7 @@ def _stderr_full_cases(cases: list[Case], write, good_route: str, tmp: Path) -> 
             ("bad_input", ["validate", bad], 2, (), None),
             ("usage", ["simulate", "--bogus"], 2, (), None),
             ("infeasible", ["optimize", good_route, "--consist", SMALL, "--time", "50"], 1, (), None),
-            ("warnings", ["results", str(tmp / "stores" / "broken_records.sqlite"), "--json"], 0, ('"runs": 1',), None),
+            ("damaged_store", ["results", str(tmp / "stores" / "broken_records.sqlite"), "--json"], 1, ('"runs": 1',), None),
             ("out_file", sim + ["--out", str(plan)], 0, ("running time",),
              lambda: None if plan.is_file() else "plan.json was not written"),
             ("drivers", ["drivers", "simulate", good_route, "--out", str(logs), "--drivers", "2", "--runs", "1"], 0, (),
@@ -1498,13 +1502,14 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
         os.mkfifo(fifo)
     cases.append(Case("store_fifo", "store", batch(str(fifo)), 2, (str(fifo), "not a regular file")))
 
-    # damaged records: reported by key and what is wrong; the rest is used; batch runs them again
+    # damaged records: reported by key and what is wrong; the rest is used (exit 1: the result lacks them); batch runs
+    # them again
     broken = made("broken_records.sqlite", 4)
     with sqlite3.connect(broken) as conn:
         conn.execute("UPDATE runs SET record = '{bad' WHERE key = 'key0000'")
         conn.execute("UPDATE runs SET record = '{}' WHERE key = 'key0001'")
         conn.execute("UPDATE runs SET record = '[1, 2]' WHERE key = 'key0002'")
-    cases.append(Case("results_broken_records", "store", ["results", str(broken), "--json"], 0,
+    cases.append(Case("results_broken_records", "store", ["results", str(broken), "--json"], 1,
                       ("key0000", "not valid JSON", "key0001", "lacks 'key', 'summary'", "key0002", "not a JSON object",
                        "left out"), expect_out=('"runs": 1',)))
     # damaged summaries: a field of the wrong JSON type is named (summary.FIELD, what it is, what it should be)
@@ -1521,9 +1526,9 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                  "key0004", "not a finite number", "key0005", "the run is feasible", "left out")
     for fmt in ([], ["--json"], ["--format", "csv"], ["--format", "json"]):
         cases.append(Case("_".join(["results_typed_records", *(f.strip("-") for f in fmt)]), "store",
-                          ["results", str(typed), *fmt], 0, typed_why,
+                          ["results", str(typed), *fmt], 1, typed_why + ("the store is damaged",),
                           expect_out=('"runs": 1',) if fmt == ["--json"] else ("key0006",) if fmt else ()))
-    cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 0,
+    cases.append(Case("results_broken_records_csv", "store", ["results", str(broken), "--format", "csv"], 1,
                       ("key0000", "left out"), expect_out=("key0003",)))
     # a dropped table, garbage over the file's first page
     dropped = made("dropped.sqlite")
@@ -1537,7 +1542,7 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
     garbled.write_bytes(bytes(data))
     cases.append(Case("results_malformed", "store", ["results", str(garbled)], 2, (str(garbled), "damaged", "malformed")))
     cases.append(Case("batch_malformed", "store", batch(str(garbled)), 2, (str(garbled), "damaged", "malformed")))
-    # garbage over one page of runs mid-file: results uses the rest and names the damaged row ids; batch refuses
+    # garbage over one page of runs mid-file: results uses the rest, names the damaged row ids, exit 1; batch refuses
     partly = made("garbled_one_page.sqlite", 200)
     data = bytearray(partly.read_bytes())
     page = (len(data) // 4096 - 3) * 4096
@@ -1557,7 +1562,7 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                 continue
             readable_runs += row is not None and _is_record(row[0])
     assert 100 < readable_runs < 200, readable_runs
-    cases.append(Case("results_malformed_one_page", "store", ["results", str(partly), "--json"], 0,
+    cases.append(Case("results_malformed_one_page", "store", ["results", str(partly), "--json"], 1,
                       (str(partly), "rowids", "in a damaged part of the store file", "malformed", "run the batch into a new store"),
                       expect_out=(f'"runs": {readable_runs},',)))
     cases.append(Case("batch_malformed_one_page", "store", batch(str(partly)), 2,
@@ -1638,6 +1643,320 @@ def _store_cases(cases: list[Case], write, good_route: str, tmp: Path) -> None:
                       expect_out=('"runs": 5',)))
 
 
+def _trust_cases(cases: list[Case], write, good_route: str, steep: str, tmp: Path) -> None:
+    """What is read back and what is written over: outputs that name an input (through links, by inode), caches that
+    hold damaged or out-of-range entries, a line with no fastest run, the process's own environment (a closed stdout,
+    an ASCII terminal, COLUMNS=0, TERM=dumb), stores damaged mid-file, study files that multiply to millions, implausible
+    log values, and journeys whose stops lie closer than a route can be long."""
+    import sqlite3
+
+    sys.path.insert(0, str(ROOT))
+    from locoplan.runs.spec import RunRecord
+    from locoplan.runs.store import Store
+
+    work = tmp / "trust"
+    work.mkdir(exist_ok=True)
+
+    def unchanged(*paths: Path):
+        before = {p: p.read_bytes() for p in paths}
+
+        def check():
+            changed = [p.name for p, b in before.items() if not p.is_file() or p.read_bytes() != b]
+            return f"changed or lost: {changed}" if changed else None
+        return check
+
+    def store_of(name: str, n: int = 4) -> Path:
+        path = work / name
+        for p in (path, Path(f"{path}-wal"), Path(f"{path}-shm")):
+            if p.exists() or p.is_symlink():
+                p.unlink()
+        with Store(path) as st:
+            for i in range(n):
+                st.put(RunRecord(f"key{i:04d}", {"route": "hostile", "consist": "c", "strategy": "time-saving",
+                                                 "algorithm": None, "planned_time_s": 200.0 + i, "feasible": True,
+                                                 "running_time_s": 99.0, "traction_energy_kwh": 15.0 + i},
+                                 {"route": good_route, "consist": SMALL}, None, 0.1, {"locoplan": st.meta["locoplan"]},
+                                 "host:1"))
+        return path
+
+    # --- an output names an input: refused before any work (exit 2), the input byte for byte as it was
+    as_csv = store_of("runs.csv")
+    cases.append(Case("inout_results_out_is_store", "inout", ["results", str(as_csv), "--format", "csv", "--out", str(as_csv)],
+                      2, (str(as_csv), "--out", "is the input STORE"), after=unchanged(as_csv)))
+    store = store_of("inout.sqlite")
+    json_store = work / "inout_summary.json"
+    if json_store.exists():
+        json_store.unlink()
+    os.link(store, json_store)  # a hard link: another name, the same inode
+    cases.append(Case("inout_results_out_hard_link", "inout", ["results", str(store), "--out", str(json_store)], 2,
+                      (str(json_store), "--out", "is the input STORE"), after=unchanged(store)))
+    png_store = work / "inout_plot.png"
+    if png_store.is_symlink() or png_store.exists():
+        png_store.unlink()
+    png_store.symlink_to(store)
+    cases.append(Case("inout_results_plot_is_store", "inout", ["results", str(store), "--plot", str(png_store)], 2,
+                      (str(png_store), "--plot", "is the input STORE"), after=unchanged(store)))
+    plots = work / "plots"
+    plots.mkdir(exist_ok=True)
+    link = work / "plots_link"
+    if not link.is_symlink():
+        link.symlink_to(plots)
+
+    def nothing_in(folder: Path):
+        return lambda: f"written: {[p.name for p in folder.iterdir()]}" if any(folder.iterdir()) else None
+    cases.append(Case("inout_two_outputs_through_folder_link", "inout",
+                      ["results", str(store), "--plot", str(plots / "p.png"), "--boxplot", str(link / "p.png")], 2,
+                      ("--boxplot", "names the same file as --plot"), after=nothing_in(plots)))
+    route_csv = work / "route_as.csv"
+    if route_csv.is_symlink() or route_csv.exists():
+        route_csv.unlink()
+    route_csv.symlink_to(good_route)
+    for cmd in (["simulate"], ["optimize"], ["bound", "--times", "200,210"]):
+        cases.append(Case(f"inout_{cmd[0]}_out_is_route", "inout", [cmd[0], good_route, "--consist", SMALL, *cmd[1:],
+                                                                   "--out", str(route_csv)], 2,
+                          (str(route_csv), "--out", "is the input ROUTE"), after=unchanged(Path(good_route))))
+    patterns = work / "patterns.json"
+    patterns.write_text("{}\n")
+    cases.append(Case("inout_advise_out_is_patterns", "inout", ["advise", good_route, "--patterns", str(patterns), "--out",
+                                                               str(patterns)], 2, (str(patterns), "--out", "is the input --patterns"),
+                      after=unchanged(patterns)))
+    study = write("inout_study.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                                      "times: [200]\nstrategies: [time-saving]\n")
+    cases.append(Case("inout_batch_store_is_study", "inout", ["batch", study, "--store", study, "--workers", "1", "--quiet"], 2,
+                      (study, "--store", "is the input STUDY.yaml"), after=unchanged(Path(study))))
+    # a file named inside an input (a journey's route) is no output either: refused when the outputs are moved in
+    line_json = work / "line.json"
+    line_json.write_text(route(), encoding="utf-8")
+    jr = work / "journey_on_json_route.yaml"
+    jr.write_text(f"schema: locoplan/journey@1\nname: j\nroute: {line_json.name}\nrun_time_s: 300\nstations:\n"
+                  "  - {name: A, at_m: 0}\n  - {name: C, at_m: 1500}\n")
+    cases.append(Case("inout_journey_out_is_its_route", "inout", ["journey", str(jr), "--consist", SMALL, "--out", str(line_json)],
+                      2, (str(line_json), "is an input this command read", "nothing was written"), after=unchanged(line_json)))
+    # another program's SQLite file: refused, and left as it was (not switched to WAL)
+    foreign = work / "foreign.db"
+    if foreign.exists():
+        foreign.unlink()
+    with sqlite3.connect(foreign) as conn:
+        conn.execute("CREATE TABLE t (x)")
+        conn.execute("INSERT INTO t VALUES (1)")
+    conn.close()
+    cases.append(Case("inout_batch_foreign_sqlite_untouched", "inout", ["batch", study, "--store", str(foreign), "--workers", "1",
+                                                                        "--quiet"], 2, (str(foreign), "not a locoplan result store"),
+                      after=unchanged(foreign)))
+
+    # --- a line with no fastest run: a factor of it is exit 1 with the physical reason, never a NaN traceback
+    for cmd in (["bound", "--time", "1.1x"], ["optimize", "--time", "1.2x"], ["simulate", "--time", "+10%"],
+                ["compare", "--time", "1.1x"], ["sweep", "--times", "1.1x,1.2x"], ["bound", "--times", "1.1x,1.3x"],
+                ["pareto", "--no-optimum"], ["ocp", "--objective", "energy", "--time", "1.1x"]):
+        cases.append(Case(f"no_fastest_run_{cmd[0]}_{cmd[-1]}", "physics", [cmd[0], steep, "--consist", "HXD1-C80x50", *cmd[1:]],
+                          1, ("cannot run", "stalled at")))
+    cases.append(Case("no_fastest_run_bound_json", "physics", ["bound", steep, "--consist", "HXD1-C80x50", "--time", "1.1x",
+                                                               "--json"], 1, ("stalled at",),
+                      expect_out=('"exit_code": 1', "stalled at")))
+    steep_journey = write("steep_journey.yaml", f"schema: locoplan/journey@1\nname: steep j\nroute: {Path(steep).name}\n"
+                          "stations:\n  - {name: A, at_m: 0}\n  - {name: B, at_m: 3000}\n  - {name: C, at_m: 6000}\n")
+    cases.append(Case("no_fastest_run_journey_factor", "physics", ["journey", steep_journey, "--consist", "HXD1-C80x50", "--time",
+                                                                   "1.1x"], 1, ("cannot run", "stalled at")))
+
+    # --- the E* disk cache read back: a damaged or out-of-range entry is solved again, never printed
+    _estar_cache_cases(cases, good_route, work)
+
+    # --- the environment: a closed stdout, an encoding that cannot write the names, no width, a dumb terminal
+    named = write("route_named_in_another_script.yaml", route(name="'Zürich–Genève :x: [bold]fett[/bold]'"))
+    sim = ["simulate", named, "--consist", SMALL]
+    bad = sim + ["--time", "-3"]
+    fresh = work / "closed_stdout.sqlite"
+    for p in (fresh, Path(f"{fresh}-wal"), Path(f"{fresh}-shm")):
+        if p.exists():
+            p.unlink()
+
+    def store_whole():
+        if not fresh.is_file():
+            return "the store was not written"
+        try:
+            with sqlite3.connect(f"file:{fresh}?mode=ro", uri=True) as conn:
+                n = conn.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+        except sqlite3.Error as exc:
+            return f"the store is damaged: {exc}"
+        return None if n == 1 else f"the store holds {n} runs, expected 1"
+    cases.append(Case("env_stdout_closed_simulate", "env", sim, 0, (), close_stdout=True))
+    cases.append(Case("env_stdout_closed_error_kept", "env", bad, 2, (CMDLINE, "--time"), close_stdout=True))
+    cases.append(Case("env_stdout_closed_json", "env", sim + ["--json"], 0, (), close_stdout=True))
+    cases.append(Case("env_stdout_closed_batch_store_whole", "env", ["batch", study, "--store", str(fresh), "--workers", "1"],
+                      0, (), close_stdout=True, after=store_whole,
+                      note="a descriptor 1 left closed would be taken by the store, and the report written into it"))
+    ascii_env = {"PYTHONIOENCODING": "ascii"}
+    cases.append(Case("env_ascii_terminal_name", "env", sim, 0, (), env=ascii_env, expect_out=("Z?rich?Gen?ve", ":x:")))
+    cases.append(Case("env_ascii_terminal_error", "env", ["simulate", str(work / "Zürich-nowhere.yaml")], 2,
+                      ("nowhere.yaml", "no such file"), env=ascii_env))
+    cases.append(Case("env_ascii_terminal_json", "env", sim + ["--json"], 0, (), env=ascii_env,
+                      expect_out=("Z\\u00fcrich",)))
+    for cols in ("0", "1"):
+        cases.append(Case(f"env_columns_{cols}", "env", sim, 0, (), env={"COLUMNS": cols},
+                          expect_out=("Zürich–Genève", "strategy", "traction energy")))
+        cases.append(Case(f"env_columns_{cols}_error_kept", "env", bad, 2, (CMDLINE, "--time", "must be in"),
+                          env={"COLUMNS": cols}))
+    cases.append(Case("env_term_dumb", "env", sim, 0, (), env={"TERM": "dumb"}, expect_out=("strategy", "traction energy")))
+    cases.append(Case("env_emoji_code_in_name", "env", sim, 0, (), expect_out=(":x:", "[bold]fett[/bold]"), forbid_out=("❌",)))
+    cases.append(Case("env_emoji_code_in_message", "env", ["simulate", str(work / ":x:-nowhere.yaml")], 2, (":x:-nowhere.yaml",),
+                      forbid=("❌",)))
+
+    # --- stores: damage mid-file is exit 1 with the damage named; --where compares numbers as numbers
+    whole = store_of("where.sqlite", 4)
+    for text, why in (("planned_time_s<1000s", "a number with a unit"), ("planned_time_s<=2e2 s", "a number with a unit"),
+                      ("planned_time_s<abc", "is a number"), ("route<5", "is text")):
+        cases.append(Case(f"where_{text}", "store", ["results", str(whole), "--where", text], 2, (CMDLINE, "--where", why)))
+    for text, n in (("planned_time_s<1000", 4), ("planned_time_s<201.5", 2), ("planned_time_s>=2e2", 4),
+                    ("traction_energy_kwh>16.5", 2)):
+        cases.append(Case(f"where_numeric_{text}", "store", ["results", str(whole), "--where", text, "--json"], 0, (),
+                          expect_out=(f'"runs": {n},',)))
+    mid = store_of("damaged_mid_file.sqlite", 200)
+    data = bytearray(mid.read_bytes())
+    page = (len(data) // 4096 // 2) * 4096
+    data[page:page + 4096] = bytes(4096)  # a page of zeros in the middle (a lost block)
+    mid.write_bytes(bytes(data))
+    for fmt in ([], ["--json"], ["--format", "csv"]):
+        cases.append(Case("_".join(["store_damaged_mid_file", *(f.strip("-") for f in fmt)]) or "store_damaged_mid_file",
+                          "store", ["results", str(mid), *fmt], 1, (str(mid), "the store is damaged", "rowids"),
+                          expect_out=('"exit_code": 1',) if fmt == ["--json"] else ()))
+
+    # --- study files: the run count bounded before expansion; duplicates are one run
+    big = write("study_millions.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}]\nconsists: [{SMALL}]\n"
+                f"times: {list(range(200, 1200))}\nstrategies: [proposed]\nalgorithms: [issa, pso, ssa]\n"
+                f"seeds: {list(range(3000))}\n")
+    big_store = work / "millions.sqlite"
+    cases.append(Case("study_lists_multiply_to_millions", "study", ["batch", big, "--store", str(big_store), "--quiet"], 2,
+                      (big, "expands to 9,000,000 runs", "100,000"),
+                      after=lambda: f"{big_store.name} was made" if big_store.exists() else None))
+    dup = write("study_duplicate_times.yaml", f"schema: locoplan/study@1\nroutes: [{good_route}, {Path(good_route).parent}/./"
+                f"{Path(good_route).name}]\nconsists: [{SMALL}]\ntimes: [200, 200.0, '200']\nstrategies: [time-saving]\n")
+    cases.append(Case("study_duplicate_times_one_run", "study", ["batch", dup, "--store", str(work / "dup.sqlite"), "--workers",
+                                                                 "1", "--json", "--quiet"], 0, (),
+                      expect_out=('"runs": 1,', '"distinct_runs": 1,')))
+
+    # --- implausible values: driver logs (every numeric column, the manifest) and journeys' stop spacing
+    _log_cases(cases, good_route, work)
+    close = write("journey_stops_5m.yaml", f"schema: locoplan/journey@1\nname: close stops\nroute: {Path(good_route).name}\n"
+                  "run_time_s: 300\nstations:\n  - {name: A, at_m: 0}\n  - {name: B, at_m: 5}\n  - {name: C, at_m: 1500}\n")
+    why = (close, "stations[1].at_m", "5 m long", "at least 10 m")
+    cases.append(Case("journey_stops_5m_validate", "number", ["validate", close], 2, why, batch_file=close))
+    for cmd in (["journey"], ["pareto", "--no-optimum"]):
+        cases.append(Case(f"journey_stops_5m_{cmd[0]}", "number", [cmd[0], close, "--consist", SMALL, *cmd[1:]], 2, why))
+    close_study = write("study_journey_stops_5m.yaml", f"schema: locoplan/study@1\njourneys: [{close}]\nconsists: [{SMALL}]\n"
+                        "strategies: [time-saving]\n")
+    cases.append(Case("journey_stops_5m_batch", "number", ["batch", close_study, "--store", str(work / "close.sqlite"),
+                                                          "--workers", "1", "--quiet"], 2, why))
+    passing = write("journey_passing_5m.yaml", f"schema: locoplan/journey@1\nname: passing\nroute: {Path(good_route).name}\n"
+                    "run_time_s: 300\nstations:\n  - {name: A, at_m: 0}\n  - {name: B, at_m: 5, stop: false}\n"
+                    "  - {name: C, at_m: 1500}\n")
+    cases.append(Case("journey_passing_station_5m_ok", "number", ["validate", passing], 0, (), batch_file=passing))
+
+
+def _estar_cache_cases(cases: list[Case], good_route: str, work: Path) -> None:
+    """E* cache entries planted in a cache folder of each case's own: wrong types, not finite, negative, another time,
+    a missing or unknown field, not JSON; and a valid entry whose key (the time to 0.01 s) also covers a time below
+    the fastest run. Each must be solved again (never the planted 987.654) or refused."""
+    import json
+    import math
+
+    from locoplan.io.load import load_route_and_train
+    from locoplan.ocp import bound as estar
+    from locoplan.sim.calculator import ModelOptions, TractionCalculator
+
+    route_, train = load_route_and_train(good_route, SMALL, None)
+    options = estar.relaxed(ModelOptions())
+    base = estar._problem_key(route_, train, options, 0.0)
+
+    def planted(name: str, time_s: float, content: str) -> dict[str, str]:
+        folder = work / "caches" / name
+        old = os.environ.get("LOCOPLAN_CACHE_DIR")
+        os.environ["LOCOPLAN_CACHE_DIR"] = str(folder)
+        try:
+            f = estar._cache_file((base, round(time_s, 2), estar.METHOD, estar.E_STAR_TOL))
+        finally:
+            if old is None:
+                os.environ.pop("LOCOPLAN_CACHE_DIR", None)
+            else:
+                os.environ["LOCOPLAN_CACHE_DIR"] = old
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(content)
+        return {"LOCOPLAN_CACHE_DIR": str(folder)}
+
+    good = {"time_s": 200.0, "energy_kwh": 987.654, "converged": True, "cells": 300, "step_m": 5.0, "solve_time_s": 0.1,
+            "accuracy": 1e-5, "slope_kwh_per_s": -0.02, "method": "cells", "objective": "traction",
+            "traction_kwh": 987.654, "recovered_kwh": 0.0}
+    variants = {
+        "energy_text": {**good, "energy_kwh": "987.654"},
+        "energy_negative": {**good, "energy_kwh": -987.654, "traction_kwh": None},
+        "energy_nan": {**good, "energy_kwh": math.nan, "traction_kwh": 987.654},
+        "energy_infinite": {**good, "energy_kwh": math.inf, "traction_kwh": 987.654},
+        "cells_fraction": {**good, "cells": 1.5},
+        "converged_text": {**good, "converged": "yes"},
+        "another_time": {**good, "time_s": 150.0},
+        "field_missing": {k: v for k, v in good.items() if k != "cells"},
+        "field_unknown": {**good, "extra": 1},
+        "a_list": [good],
+    }
+    for name, entry in variants.items():
+        env = planted(name, 200.0, json.dumps(entry))  # json writes NaN and Infinity as Python reads them back
+        cases.append(Case(f"cache_estar_{name}", "cache", ["bound", good_route, "--consist", SMALL, "--time", "200", "--json"], 0,
+                          (), env=env, expect_out=('"exit_code": 0',), forbid_out=("987.654", "Infinity", "NaN")))
+    env = planted("not_json", 200.0, "\x00\x01 not json {")
+    cases.append(Case("cache_estar_not_json", "cache", ["bound", good_route, "--consist", SMALL, "--time", "200", "--json"], 0,
+                      (), env=env, expect_out=('"exit_code": 0',)))
+    fastest = TractionCalculator(route_, train, options).fastest_time_s
+    key_t = round(fastest, 2)
+    below = math.floor((key_t - 0.0049) * 10_000) / 10_000  # rounds to the same key, below the fastest run
+    if round(below, 2) == key_t and below < fastest:
+        env = planted("below_fastest", key_t, json.dumps({**good, "time_s": key_t}))
+        cases.append(Case("cache_estar_below_fastest_run", "cache", ["bound", good_route, "--consist", SMALL, "--time",
+                                                                     f"{below:.4f}"], 1, ("below the fastest possible run",),
+                          env=env, forbid_out=("987.654",)))
+
+
+def _log_cases(cases: list[Case], good_route: str, work: Path) -> None:
+    """A log set of one run (manifest, CSV) with one implausible value at a time: every numeric column, past its
+    bound or past what the run's train can give, and the manifest's numbers; each named at file:line."""
+    from locoplan.io.load import load_train
+
+    mass = load_train(SMALL).mass_t
+    rows = [(float(t), 7.5 * t, 27.0, 100.0) for t in range(201)]
+
+    def log_set(name: str, column: int | None = None, value: str = "", manifest: dict[str, str] | None = None) -> Path:
+        folder = work / "logs" / name
+        folder.mkdir(parents=True, exist_ok=True)
+        lines = ["time_s,position_m,speed_kmh,force_kn"]
+        for i, row in enumerate(rows):
+            cells = [f"{x:g}" for x in row]
+            if column is not None and i == 3:  # line 5 of the file
+                cells[column] = value
+            lines.append(",".join(cells))
+        (folder / "run.csv").write_text("\n".join(lines) + "\n")
+        entry = {"log": "run.csv", "driver_id": "D01", "mass_t": f"{mass:g}", "scheduled_time_s": "200",
+                 "actual_time_s": "200", "date": "2024-01-01", **(manifest or {})}
+        (folder / "manifest.yaml").write_text(
+            f"schema: locoplan/driver-logs@1\nroute: {good_route}\nconsist: {SMALL}\nsynthetic: true\nruns:\n"
+            "  - {" + ", ".join(f"{k}: {v}" for k, v in entry.items()) + "}\n")
+        return folder
+
+    for name, column, value, why in (
+            ("force_1e6", 3, "1e6", "not a plausible value"), ("force_1e308", 3, "1e308", "not a plausible value"),
+            ("force_minus_1e6", 3, "-1e6", "not a plausible value"),
+            ("force_past_the_train", 3, "5000", "more traction than the train"),
+            ("brake_past_the_train", 3, "-50000", "more braking than the train"),
+            ("speed_1e308", 2, "1e308", "not a plausible value"), ("speed_900", 2, "900", "not a plausible value"),
+            ("time_1e308", 0, "1e308", "not a plausible value"), ("position_1e308", 1, "1e308", "not a plausible value")):
+        folder = log_set(name, column, value)
+        col = ("time_s", "position_m", "speed_kmh", "force_kn")[column]
+        cases.append(Case(f"log_{name}", "number", ["learn", str(folder), "--out", str(folder / "p.json")], 2,
+                          (f"{folder / 'run.csv'}:5: column {column + 1} ({col})", why),
+                          after=lambda f=folder: "p.json written" if (f / "p.json").exists() else None))
+    for field_, value in (("mass_t", "1.0e+308"), ("scheduled_time_s", "1.0e+308"), ("actual_time_s", "1.0e+300")):
+        folder = log_set(f"manifest_{field_}", manifest={field_: value})
+        cases.append(Case(f"log_manifest_{field_}_huge", "number", ["learn", str(folder), "--out", str(folder / "p.json")], 2,
+                          (f"{folder / 'manifest.yaml'}:", f"runs[0].{field_}", "less than or equal")))
+
+
 _HELD: list[int] = []
 """File descriptors holding store locks for the corpus's whole life (a 'second writer')."""
 
@@ -1652,7 +1971,7 @@ def _is_record(text) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ running
-def _limits(umask: int | None, fsize: int | None = None, permissions: bool = False):
+def _limits(umask: int | None, fsize: int | None = None, permissions: bool = False, close_stdout: bool = False):
     def apply():
         if permissions and os.geteuid() == 0:  # as root, a read-only file is read-only only without these
             import ctypes
@@ -1670,15 +1989,18 @@ def _limits(umask: int | None, fsize: int | None = None, permissions: bool = Fal
         os.setsid()
         if umask is not None:
             os.umask(umask)
+        if close_stdout:
+            os.close(1)
     return apply
 
 
 def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float = TIME_LIMIT_S, module: str = "locoplan",
         fsize: int | None = None, stdout_file: str | None = None, permissions: bool = False,
-        stderr_file: str | None = None, more_env: dict[str, str] | None = None, during: Callable[[], None] | None = None):
+        stderr_file: str | None = None, more_env: dict[str, str] | None = None, during: Callable[[], None] | None = None,
+        close_stdout: bool = False):
     """Run ``python -m locoplan *argv`` (or the script ``module``) under the caps; (returncode or None on
     timeout, stdout, stderr, seconds, this child's peak RSS in bytes)."""
-    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONPATH=str(ROOT), **(more_env or {}))
+    env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1", "PYTHONPATH": str(ROOT), **(more_env or {})}
     env.pop("FORCE_COLOR", None)
     t = time.perf_counter()
     cmd = [sys.executable, "-m", module] if module == "locoplan" else [sys.executable, module]
@@ -1686,7 +2008,7 @@ def run(argv: list[str], cwd: Path, umask: int | None = None, timeout_s: float =
     err_sink = open(stderr_file, "wb") if stderr_file else None
     proc = subprocess.Popen([*cmd, *argv], cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                             stdout=sink or subprocess.PIPE, stderr=err_sink or subprocess.PIPE,
-                            preexec_fn=_limits(umask, fsize, permissions))
+                            preexec_fn=_limits(umask, fsize, permissions, close_stdout))
     for s in (sink, err_sink):
         if s:
             s.close()
@@ -1734,6 +2056,9 @@ def judge(case: Case, code, out: str, err: str, seconds: float, peak: int) -> Ou
     for text in case.forbid:
         if text in err:
             o.problems.append(f"stderr holds {text!r}")
+    for text in case.forbid_out:
+        if text in out:
+            o.problems.append(f"stdout holds {text!r}")
     if case.max_stderr_chars is not None and len(err) > case.max_stderr_chars:
         o.problems.append(f"stderr is {len(err):,} characters, more than {case.max_stderr_chars:,}")
     if case.exit != 0 and "error: : " in err:
@@ -1761,7 +2086,7 @@ def warm_up(cwd: Path) -> None:
 def run_case(case: Case, cwd: Path) -> Outcome:
     return judge(case, *run(case.argv, cwd, case.umask, timeout_s=case.time_limit_s or TIME_LIMIT_S, fsize=case.fsize,
                             stdout_file=case.stdout_file, permissions=case.permissions, stderr_file=case.stderr_file,
-                            more_env=case.env, during=case.during))
+                            more_env=case.env, during=case.during, close_stdout=case.close_stdout))
 
 
 def run_batch(cases: list[Case], cwd: Path, timeout_s: float | None = None) -> list[Outcome]:

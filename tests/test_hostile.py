@@ -41,7 +41,8 @@ def test_corpus_covers_every_class(corpus):
     by_class = {}
     for c in cases:
         by_class.setdefault(c.cls, []).append(c)
-    assert set(by_class) == {"yaml", "file", "number", "physics", "params", "option", "output", "message", "store", "study", "json"}
+    assert set(by_class) == {"yaml", "file", "number", "physics", "params", "option", "output", "message", "store", "study", "json",
+                             "inout", "cache", "env"}
     assert all(len(v) >= 5 for v in by_class.values()), {k: len(v) for k, v in by_class.items()}
     # valid-but-infeasible requests exit 1 with the physical reason; a few valid controls exit 0
     assert sum(c.exit == 1 for c in cases) >= 4 and sum(c.exit == 0 for c in cases) >= 5
@@ -195,3 +196,46 @@ def test_an_error_without_a_file_name_is_not_blamed_on_stdout():
         assert exc.filename == "<stdout>" and exc.errno == 28
     else:
         raise AssertionError("the write did not fail")
+
+
+def test_outputs_move_into_place_together_or_not_at_all(tmp_path, monkeypatch):
+    """When a later output cannot be moved into place (a full disk, a folder made read-only), the outputs moved before
+    it are undone: the file an output replaced is back byte for byte, a new one is gone, no temporary file is left."""
+    import os
+
+    from locoplan.errors import InputError
+    from locoplan.reporting import files
+
+    kept, new, last = tmp_path / "kept.json", tmp_path / "new.csv", tmp_path / "last.png"
+    kept.write_bytes(b"the user's old file\n")
+    real = os.replace
+
+    def replace(src, dst):
+        if os.fspath(dst) == os.fspath(last):
+            raise OSError(28, "No space left on device")
+        return real(src, dst)
+    monkeypatch.setattr(files.os, "replace", replace)
+    with pytest.raises(InputError, match="no output of this command was written"):
+        with files.all_or_none():
+            files.atomic_write_text(kept, "new content\n")
+            files.atomic_write_text(new, "a,b\n")
+            files.atomic_write_text(last, "png")
+    assert kept.read_bytes() == b"the user's old file\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.json"]
+
+
+def test_an_output_that_is_an_input_is_refused_when_moved_into_place(tmp_path):
+    """A file the command read (recorded by io.load) is never written over, whatever path names the output."""
+    from locoplan.errors import InputError
+    from locoplan.io.load import read_text, recording_reads
+    from locoplan.reporting import files
+
+    source = tmp_path / "line.yaml"
+    source.write_text("name: x\n")
+    (tmp_path / "link").symlink_to(tmp_path)
+    with recording_reads():
+        read_text(source)
+        with pytest.raises(InputError, match="is an input this command read"):
+            with files.all_or_none():
+                files.atomic_write_text(tmp_path / "link" / "line.yaml", "overwritten\n")
+    assert source.read_text() == "name: x\n" and sorted(p.name for p in tmp_path.iterdir()) == ["line.yaml", "link"]

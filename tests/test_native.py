@@ -146,8 +146,9 @@ def test_parallel_first_runs_build_the_module_once(tmp_path):
     outs = [p.communicate(timeout=900) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
     lines = [o[0].split("\n") for o in outs]
-    built = list(tmp_path.glob("locoplan_kernels_*"))
+    built = [p for p in tmp_path.glob("locoplan_kernels_*") if p.suffix != ".sha256"]
     assert len(built) == 1 and not list(tmp_path.glob("*.failed"))
+    assert native._intact(built[0])  # with its record of size and hash beside it
     assert lines[0][0] == lines[1][0] == f"native {built[0]}"
     assert lines[0][1] == lines[1][1]
     assert "numba" not in subprocess.run([sys.executable, "-c", code + "; import sys; print(sorted(sys.modules))"],
@@ -204,3 +205,99 @@ def test_a_numba_cache_that_cannot_be_saved_is_let_go(tmp_path, tolerant):
         assert res.returncode == 0 and res.stdout.strip() == "42", res.stderr[-2000:]
     else:
         assert res.returncode != 0 and "File too large" in res.stderr
+
+
+# --- what is read back from the cache folder is checked: the module against its record, a failed build by its cause
+def _builder(tmp_path, body: str) -> str:
+    """A stand-in for the build's interpreter (``python -m locoplan.sim.native OUT_DIR NAME``: $3 is OUT_DIR)."""
+    script = tmp_path / "builder.sh"
+    script.write_text("#!/bin/sh\n" + body)
+    script.chmod(0o755)
+    return str(script)
+
+
+def _good_module(both) -> Path:
+    nat, _ = both
+    path = Path(nat.source.split(" ", 1)[1])
+    assert native._intact(path) and native.record_path(path).is_file()  # the build recorded its size and hash
+    return path
+
+
+@pytest.mark.parametrize("damage", ["truncated", "bit flipped", "no record", "record of another file"])
+def test_a_damaged_module_is_never_loaded_but_built_again(tmp_path, monkeypatch, both, damage):
+    """A module whose size or content differs from its build's record (a truncated copy, a flipped bit, another file)
+    would crash every process that imports it (SIGBUS, SIGSEGV): it is removed and built again, never loaded."""
+    good = _good_module(both)
+    folder = tmp_path / "native"
+    folder.mkdir()
+    copy, record = folder / good.name, native.record_path(folder / good.name)
+    data = bytearray(good.read_bytes())
+    record.write_text(native.record_path(good).read_text())
+    if damage == "truncated":
+        data = data[: len(data) // 2]
+    elif damage == "bit flipped":
+        data[len(data) // 3] ^= 0x10
+    elif damage == "no record":
+        record.unlink()
+    else:
+        record.write_text('{"bytes": 5, "sha256": "00"}')
+    copy.write_bytes(bytes(data))
+    monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(folder))
+    monkeypatch.setattr(native, "_kernels", None)
+    monkeypatch.setattr(native.sys, "executable", _builder(tmp_path, f'cp "{good}" "$3/"\n'))
+    ns = native.kernels()
+    assert ns.source == f"native {copy}", ns.source
+    assert copy.read_bytes() == good.read_bytes() and native._intact(copy)
+    assert not list(folder.glob("*.failed")) and not list(folder.glob(".build-*"))
+
+
+@pytest.mark.parametrize("cause", ["killed", "out of memory", "timeout"])
+def test_a_build_cut_short_by_a_passing_cause_is_tried_again(tmp_path, monkeypatch, cause):
+    """A build killed (the out-of-memory killer), out of memory or past its time falls back to the JIT functions and
+    leaves no ``.failed``: the next command builds again (a failure of the code itself is kept, above)."""
+    body = {"killed": "kill -9 $$\n", "out of memory": "echo 'MemoryError' >&2\nexit 1\n", "timeout": "exec sleep 30\n"}[cause]
+    folder = tmp_path / "native"
+    folder.mkdir()
+    (folder / ".build-left-by-a-killed-command").mkdir()  # a build folder of a command killed before: removed
+    monkeypatch.setenv("LOCOPLAN_NATIVE_DIR", str(folder))
+    monkeypatch.setattr(native, "_kernels", None)
+    monkeypatch.setattr(native, "BUILD_TIMEOUT_S", 2.0)
+    monkeypatch.setattr(native.sys, "executable", _builder(tmp_path, body))
+    ns = native.kernels()
+    assert ns.source.startswith("numba-jit (the ahead-of-time build in") and "tried again" in ns.source, ns.source
+    assert not list(folder.glob("*.failed")) and not list(folder.glob(".build-*"))
+    monkeypatch.setattr(native, "_kernels", None)
+    monkeypatch.setattr(native.sys, "executable", _builder(tmp_path, "exit 1\n"))  # tried again: now a real failure
+    assert "failed, see" in native.kernels().source and list(folder.glob("*.failed"))
+
+
+def test_the_build_process_ends_with_its_parent(tmp_path):
+    """kill -9 of a command while it builds the kernels: the compiler's process ends too (it would run on, reparented,
+    and leave its folder)."""
+    import signal
+    import time
+
+    pid_file = tmp_path / "builder.pid"
+    builder = _builder(tmp_path, f'echo $$ > "{pid_file}"\nexec sleep 120\n')
+    code = f"import sys; from locoplan.sim import native; sys.executable = {builder!r}; native.kernels()"
+    env = {**os.environ, "LOCOPLAN_NATIVE_DIR": str(tmp_path / "native"), "PYTHONPATH": str(ROOT)}
+    env.pop("LOCOPLAN_NATIVE", None)
+    parent = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not (pid_file.is_file() and pid_file.read_text().strip()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    child = int(pid_file.read_text())
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(child), "the build's process outlived its parent"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False

@@ -50,7 +50,8 @@ def test_damaged_records_are_named_and_batch_runs_them_again(study, tmp_path):
         conn.execute("UPDATE runs SET record = '{bad' WHERE key = ?", (keys[0],))
         conn.execute("UPDATE runs SET record = '{}' WHERE key = ?", (keys[1],))
     res = cli.invoke(app, ["results", str(store), "--json"])
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 1, res.output  # the result lacks the damaged runs: said, never a silent success
+    assert "the store is damaged (2 damaged records" in res.stderr
     assert keys[0] in res.stderr and "not valid JSON" in res.stderr and keys[1] in res.stderr and "lacks" in res.stderr
     assert '"runs": 2' in res.stdout  # the two readable ones
     res = cli.invoke(app, ["batch", str(study), "--store", str(store), "--workers", "1", "--quiet", "--json"])

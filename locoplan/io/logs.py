@@ -59,12 +59,36 @@ def _column_problem(name: str, known: tuple[str, ...]) -> str | None:
     return f"unknown column{hint} (allowed: {', '.join(known)})"
 
 
+LOG_BOUNDS = {
+    "time_s": (0.0, 604_800.0, "s", "a run's clock (or the time of day) in seconds: no run is planned longer than a week"),
+    "position_m": (-2_000_000.0, 2_000_000.0, "m", "the longest route allowed is 2,000 km"),
+    "speed_kmh": (0.0, 600.0, "km/h", "no train runs faster (a vehicle's top speed is at most 600 km/h)"),
+    "force_kn": (-100_000.0, 100_000.0, "kN", "no train of at most 100,000 t pulls or brakes with more"),
+    "notch": (-100.0, 100.0, "", "a driver's handle has a few dozen notches at most"),
+}
+"""Plausible values of each numeric log column (low, high, unit, why): a value outside is refused at its file and
+line (1e308 is no force, and a log of impossible values would be learnt from). A force is held, besides, to what
+the run's train can give (:data:`FORCE_MARGIN`)."""
+
+FORCE_MARGIN = 1.25
+"""A logged force may exceed the train's largest traction (or braking) force by this factor: a recorder's reading
+is not the model's curve, but a force well past it is no reading of that train."""
+
+
+def force_limits_kn(train: Train) -> tuple[float, float]:
+    """(largest traction, largest braking) force ``train`` can give [kN]; a log may hold :data:`FORCE_MARGIN` x that."""
+    def top(a) -> float:
+        return float(np.max(a)) if np.size(a) else 0.0
+    return top(train.traction_kn), top(train.electric_brake_kn) + top(train.air_brake_kn)
+
+
 def _col(j: int, name: str) -> str:
     return f"column {j + 1} ({name})"
 
 
-def read_log_csv(path: Path, text: str | None = None) -> LogData:
-    """Read and check one log CSV. Every problem names the file, the line and the column."""
+def read_log_csv(path: Path, text: str | None = None, train: Train | None = None) -> LogData:
+    """Read and check one log CSV. Every problem names the file, the line and the column. Every value is held to
+    :data:`LOG_BOUNDS`; with the run's ``train``, each force also to what that train can give."""
     name = str(path)
     if text is None:
         text = read_text(path)  # a regular UTF-8 file of at most 10 MiB (a FIFO or /dev/zero is refused)
@@ -107,6 +131,7 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
             extra += 1
 
     prev: dict[str, float] = {}
+    traction_max, brake_max = force_limits_kn(train) if train is not None else (math.inf, math.inf)
     try:
         for row in reader:
             line = reader.line_num
@@ -140,6 +165,17 @@ def read_log_csv(path: Path, text: str | None = None) -> LogData:
                     ok = False
                 if c == "speed_kmh" and x < 0:
                     add(Problem(name, _col(j, c), f"speed must be >= 0 km/h (got {raw})", line))
+                    ok = False
+                elif not LOG_BOUNDS[c][0] <= x <= LOG_BOUNDS[c][1]:
+                    lo, hi, unit, why = LOG_BOUNDS[c]
+                    add(Problem(name, _col(j, c), f"{raw} is not a plausible value: must be in [{lo:,g}, {hi:,g}]"
+                                f"{' ' + unit if unit else ''} ({why})", line))
+                    ok = False
+                elif c == "force_kn" and (x > FORCE_MARGIN * traction_max + 1.0 or -x > FORCE_MARGIN * brake_max + 1.0):
+                    what, top = ("traction", traction_max) if x > 0 else ("braking", brake_max)
+                    add(Problem(name, _col(j, c), f"{raw} kN is more {what} than the train '{train.name}' can give (at "
+                                f"most {top:,.0f} kN, {FORCE_MARGIN:g} x that allowed for a reading): "
+                                "a log of another train, or a column in other units?", line))
                     ok = False
                 parsed[c] = x
             if not ok:
@@ -179,10 +215,10 @@ class LogFile:
     sha256: bytes
 
     @classmethod
-    def read_checked(cls, path: Path) -> tuple["LogFile", LogData]:
-        """The file and its rows, read and checked (``read_log_csv``)."""
+    def read_checked(cls, path: Path, train: Train | None = None) -> tuple["LogFile", LogData]:
+        """The file and its rows, read and checked (``read_log_csv``; each force against ``train``'s)."""
         raw = read_bytes(path)
-        return cls(path, hashlib.sha256(raw).digest()), read_log_csv(path, decode_text(raw, str(path)))
+        return cls(path, hashlib.sha256(raw).digest()), read_log_csv(path, decode_text(raw, str(path)), train)
 
     def __call__(self) -> LogData:
         raw = read_bytes(self.path)
@@ -289,7 +325,7 @@ def load_logs(paths: list[Path] | Path, stock_dir: str | Path | None = None) -> 
                 key = (consist_spec, str(stock_dir))
                 if key not in trains:
                     trains[key] = load_train(consist_spec, stock_dir)
-                log_file, data = LogFile.read_checked(log_path)
+                log_file, data = LogFile.read_checked(log_path, trains[key])
             except InputError as exc:
                 problems += exc.problems
                 continue

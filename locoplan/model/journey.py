@@ -12,6 +12,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from .common import RuleViolations, Strict, plausible
+from .route import PLAUSIBLE_ROUTE
 
 JOURNEY_SCHEMA = "locoplan/journey@1"
 
@@ -84,6 +85,14 @@ class Journey(Strict):
             if st[i].at_m <= st[i - 1].at_m:
                 problems.append((("stations", i, "at_m"), f"{st[i].at_m:g} m is not beyond the previous station "
                                  f"({st[i - 1].name}, {st[i - 1].at_m:g} m): list the stations in running order"))
+        stops = [i for i, s in enumerate(st) if s.stop]
+        shortest = PLAUSIBLE_ROUTE["length_m"][0]
+        for a, b in zip(stops, stops[1:]):  # each leg runs as a route of its own: at least a route's shortest length
+            if 0 < st[b].at_m - st[a].at_m < shortest:
+                problems.append((("stations", b, "at_m"), f"the leg {st[a].name} - {st[b].name} is "
+                                 f"{st[b].at_m - st[a].at_m:g} m long: a run between two stops is at least "
+                                 f"{shortest:g} m (the shortest route); make one of them a passing station (stop: false) "
+                                 "or drop it"))
         seen: dict[str, int] = {}
         for i, s in enumerate(st):
             if s.name in seen:

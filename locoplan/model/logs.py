@@ -70,9 +70,9 @@ class RunEntry(Strict):
     driver_id: str = Field(min_length=1)
     route: str | None = Field(default=None, description="route file (default: the manifest's)")
     consist: str | None = Field(default=None, description="consist file or catalogue name (default: the manifest's)")
-    mass_t: float = Field(gt=0, description="total train mass [t]")
-    scheduled_time_s: float = Field(gt=0, description="planned running time [s]")
-    actual_time_s: float = Field(gt=0, description="running time as driven [s]")
+    mass_t: float = Field(gt=0, le=100_000, description="total train mass [t] (at most 100,000 t, as a consist)")
+    scheduled_time_s: float = Field(gt=0, le=604_800, description="planned running time [s] (at most a week)")
+    actual_time_s: float = Field(gt=0, le=604_800, description="running time as driven [s] (at most a week)")
     date: dt.date = Field(strict=False, description="date of the run, YYYY-MM-DD")
 
 

@@ -26,7 +26,7 @@ import math
 import os
 import re
 import tempfile
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -218,11 +218,58 @@ def cache_store(key: tuple, data: dict) -> None:
 
 
 def _cache_read(key: tuple) -> "Bound | None":
+    """The E* kept on disk under ``key``, or None when there is none or it is not one E* could be: a field missing,
+    unknown or of the wrong type, a number not finite, an energy, a grid or a time out of its range, or a time other
+    than the one asked (a damaged or foreign file is ignored, and E* solved again)."""
     data = cache_load(key)
-    try:
-        return Bound(**data) if data is not None else None
-    except TypeError:
+    if data is None or bound_problem(data, key[1]) is not None:
         return None
+    return Bound(**data)
+
+
+_REAL = (int, float)
+NEGATIVE_TOLERANCE_KWH = 0.01
+"""How far below 0 a kept traction energy may lie and still be the solver's tolerance, not a damaged entry [kWh]."""
+
+
+def bound_problem(data, time_s: float | None = None) -> str | None:
+    """What is wrong with ``data`` read back as a :class:`Bound` (the fields ``asdict`` wrote), or None. ``time_s``:
+    the (rounded) time its key names; the stored time must round to it."""
+    if not isinstance(data, dict):
+        return "not a JSON object"
+    names = [f.name for f in fields(Bound)]
+    if set(data) - set(names):
+        return f"unknown fields {sorted(set(data) - set(names))}"
+    required = ("time_s", "energy_kwh", "converged", "cells", "step_m", "solve_time_s")
+    if any(n not in data for n in required):
+        return "a field is missing"
+
+    def number(name, low=None, optional=False, integer=False):
+        v = data.get(name)
+        if v is None and optional:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int if integer else _REAL) or not math.isfinite(v):
+            return f"{name} is not a finite {'integer' if integer else 'number'} ({v!r})"
+        if low is not None and v < low:
+            return f"{name} is {v!r}, below {low}"
+        return None
+
+    objective = data.get("objective", "traction")
+    if objective not in ("traction", "net"):
+        return f"objective is {objective!r}"
+    if not isinstance(data["converged"], bool) or not isinstance(data.get("method", METHOD), str):
+        return "converged or method of the wrong type"
+    # a traction E* is never negative beyond the solver's tolerance (a net one may be: the brake returns energy)
+    for why in (number("time_s", 1e-9), number("energy_kwh", -NEGATIVE_TOLERANCE_KWH if objective == "traction" else None),
+                number("cells", 1, integer=True), number("step_m", 0.0), number("solve_time_s", 0.0),
+                number("accuracy", 0.0, optional=True), number("slope_kwh_per_s", optional=True),
+                number("traction_kwh", -NEGATIVE_TOLERANCE_KWH, optional=True),
+                number("recovered_kwh", -NEGATIVE_TOLERANCE_KWH, optional=True)):
+        if why:
+            return why
+    if time_s is not None and round(float(data["time_s"]), 2) != time_s:
+        return f"time_s {data['time_s']!r} is not the time {time_s:g} s its key names"
+    return None
 
 
 def _cache_write(key: tuple, b: "Bound") -> None:
@@ -249,11 +296,11 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
     regen = net_regen(train, objective)
     base = _problem_key(route, train, options, regen)
+    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
+    check_runnable(calc, time_s)  # first: a cached E* (keyed by the time to 0.01 s) never answers a time below the fastest run
     known = _known(base, time_s, E_STAR_TOL)
     if known is not None:
         return known
-    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(route, train, options)
-    check_runnable(calc, time_s)
     from .cells import solve_estar
 
     floor = percent_floor_kwh(route, train)
@@ -313,7 +360,9 @@ def optimum_solution(route: Route, train: Train, options: ModelOptions | None, t
     if step_m is None:
         step_m = float(np.clip(route.length_m / STRUCTURE_CELLS, *STRUCTURE_STEP_M))
     key = (base, round(float(time_s), 2), float(step_m))
-    if key not in _SOLUTIONS:
+    if key in _SOLUTIONS:
+        check_runnable(_SOLUTIONS[key][0], time_s)  # the key rounds the time: never an answer below the fastest run
+    else:
         calc = cell_calculator(route, train, options, step_m)
         check_runnable(calc, time_s)
         sol = _structure_read(key, len(calc.h_m))
@@ -414,16 +463,16 @@ def energy_bounds(route: Route, train: Train, options: ModelOptions, times_s: li
     out: dict[float, Bound | LocoplanError] = {}
     todo = []
     for t in dict.fromkeys(float(x) for x in times_s):
+        try:
+            check_runnable(calc, t)  # first, as in energy_bound: no cached E* answers a time below the fastest run
+        except LocoplanError as exc:
+            progress(t)
+            out[t] = exc
+            continue
         known = _known(base, t, E_STAR_TOL) or _known(base, t, CURVE_TOL, CURVE_METHOD)
         if known is not None:
             progress(t)
             out[t] = known
-            continue
-        try:
-            check_runnable(calc, t)
-        except LocoplanError as exc:
-            progress(t)
-            out[t] = exc
             continue
         todo.append(t)
     todo.sort()

@@ -336,7 +336,7 @@ def check_runnable(calc: TractionCalculator, time_s: float, what: str = "") -> f
     fastest = float(res.running_time_s[0])
     if time_s < fastest:
         raise InfeasibleError(f"{what}planned running time {time_s:g} s is below the fastest possible run, "
-                              f"{fastest:.1f} s ({route.name}, {train.name})")
+                              f"{fastest:.{1 if fastest - time_s >= 0.05 else 4}f} s ({route.name}, {train.name})")
     return fastest
 
 

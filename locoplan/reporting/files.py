@@ -70,8 +70,16 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...]) -> Path:
     return path
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    return os.path.abspath(a) == os.path.abspath(b) or (a.exists() and b.exists() and os.path.samefile(a, b))
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """True when ``a`` and ``b`` name one file: the same real path (every link resolved, also a link to a folder
+    above a file still to be made) or, for two existing files, the same inode (a hard link)."""
+    try:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+        return os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
+    except (OSError, ValueError):  # a name too long, a loop of links: not provably one file
+        return False
+
 
 
 def check_distinct(outputs: dict[str, Path | None]) -> None:
@@ -81,10 +89,23 @@ def check_distinct(outputs: dict[str, Path | None]) -> None:
         if path is None:
             continue
         for other, p in seen:
-            if _same_file(Path(path), p):
-                raise InputError(Problem(str(path), option, f"names the same file as {other}: one output would be "
+            if same_file(Path(path), p):
+                raise InputError(Problem(str(path), option, f"names the same file as {other} ({p}): one output would be "
                                          "lost; name each output differently"))
         seen.append((option, Path(path)))
+
+
+def check_not_inputs(outputs: dict[str, Path | None], inputs: dict[str, list[Path]]) -> None:
+    """Before any work: no output (option -> path) names a file the command reads (option -> paths), by its path,
+    through links or by its inode; writing it would replace the input with the command's own result."""
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        for source, paths in inputs.items():
+            for given in paths:
+                if os.path.isfile(given) and same_file(path, given):
+                    raise InputError(Problem(str(path), option, f"is the input {source} ({given}): writing it would "
+                                             "replace what this command reads; name another output file"))
 
 
 def _temp_prefix(path: Path) -> str:
@@ -122,7 +143,7 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
         existing_folder(folder, str(path), "")
         make_folder(folder, str(path))
     pending = _PENDING.get()
-    if pending is not None and any(_same_file(path, target) for _, target in pending):
+    if pending is not None and any(same_file(path, target) for _, target in pending):
         raise InputError(Problem(str(path), "", "two outputs of this command name the same file: one would be lost; "
                                  "name each output differently"))
     try:
@@ -135,7 +156,7 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
         os.chmod(tmp, _mode_for(path))
         pending = _PENDING.get()
         if pending is None:
-            os.replace(tmp, path)
+            _commit([(tmp, path)])
         else:
             pending.append((tmp, path))
     except BaseException as exc:
@@ -163,18 +184,83 @@ def all_or_none(keep: Callable[[BaseException], bool] = lambda exc: False):
     finally:
         _PENDING.reset(token)
         if commit:
-            for i, (tmp, path) in enumerate(pending):
-                try:
-                    os.replace(tmp, path)
-                except OSError as exc:
-                    for rest, _ in pending[i:]:
-                        if os.path.exists(rest):
-                            os.unlink(rest)
-                    raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
+            _commit(pending)
         else:
-            for tmp, _ in pending:
-                if os.path.exists(tmp):
-                    os.unlink(tmp)
+            _discard(tmp for tmp, _ in pending)
+
+
+def _discard(paths) -> None:
+    for tmp in paths:
+        try:
+            os.unlink(tmp)
+        except OSError:  # already gone, or not ours to remove any more
+            pass
+
+
+def _read_by_this_command(path: Path) -> str | None:
+    """The input file (as named when read) that ``path`` is, when this command read it (``io.load`` records every
+    file it reads, so also a route named inside a study or a journey file); else None."""
+    from ..io.load import files_read
+
+    for entry in files_read() or ():
+        if same_file(path, entry["path"]):
+            return entry["path"]
+    return None
+
+
+def _commit(pending: list[tuple[str, Path]]) -> None:
+    """Move every staged output into place together: none replaces a file the command read, and when one move
+    fails the ones before it are undone (each replaced file is kept as a hard link until every move is done), so
+    the outputs appear all or none."""
+    for tmp, path in pending:
+        source = _read_by_this_command(path)
+        if source is not None:
+            _discard(t for t, _ in pending)
+            raise InputError(Problem(str(path), "", f"is an input this command read ({source}): writing it would "
+                                     "replace that input with this command's result; nothing was written; name "
+                                     "another output file"))
+    done: list[tuple[Path, str | None]] = []  # (output, its old file kept aside, or None if it was new)
+    try:
+        for tmp, path in pending:
+            backup = _keep_aside(path)
+            try:
+                os.replace(tmp, path)
+            except BaseException:
+                _discard([backup] if backup else [])
+                raise
+            done.append((path, backup))
+    except OSError as exc:
+        failed = pending[len(done)][1]
+        for path, backup in reversed(done):  # undo: the old file back, or no file
+            try:
+                if backup is not None:
+                    os.replace(backup, path)
+                else:
+                    os.unlink(path)
+            except OSError:
+                pass
+        _discard(t for t, _ in pending[len(done):])
+        raise InputError(Problem(str(failed), "", f"cannot write: {exc.strerror or exc}; no output of this command "
+                                 "was written")) from None
+    _discard(b for _, b in done if b is not None)
+
+
+def _keep_aside(path: Path) -> str | None:
+    """A hard link to the file ``path`` names now (or a copy where links are not allowed), beside it, to put back
+    if a later output cannot be moved into place; None when there is no file."""
+    if not os.path.lexists(path):
+        return None
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, backup = tempfile.mkstemp(prefix=_temp_prefix(path), suffix=".old", dir=folder)
+    os.close(fd)
+    os.unlink(backup)
+    try:
+        os.link(path, backup, follow_symlinks=False)
+    except OSError:
+        import shutil
+
+        shutil.copy2(path, backup, follow_symlinks=False)
+    return backup
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:

@@ -138,7 +138,8 @@ class _Line:
     def of(cls, base: RunSpec) -> "_Line":
         if base.journey is None:
             route, train = load_route_and_train(base.route, base.consist, base.stock_dir)
-            return cls(route, train, base.options, TractionCalculator(route, train, base.options).fastest_time_s)
+            calc = TractionCalculator(route, train, base.options)
+            return cls(route, train, base.options, calc.fastest_time_for_factor_s("the front's planned times"))
         from .journey import journey_fastest_s
 
         journey, route = load_journey(base.journey)

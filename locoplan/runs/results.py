@@ -58,23 +58,46 @@ def parse_where(conditions: list[str], fields: set[str]):
         if isinstance(value, float) and not math.isfinite(value):  # nan compares false with everything, inf is no bound
             raise InputError(Problem("", "where", f"{text!r}: {raw.strip()!r} is not a finite number, so the condition "
                                      "would keep every run or none"))
-        tests.append((name, _OPS[op], value, op))
+        if op in _ORDER and isinstance(value, str) and (m_unit := _WITH_UNIT.match(value)):
+            raise InputError(Problem("", "where", f"{text!r}: {value!r} is a number with a unit; write the number alone, "
+                                     f"{name}{op}{m_unit.group(1)} (the field's unit is in its name: _s seconds, _kwh "
+                                     "kWh, _m metres, ...)"))
+        tests.append((name, _OPS[op], value, op, raw.strip().strip("'\""), text))
 
     def keep(row: dict) -> bool:
-        for name, fn, value, op in tests:
+        for name, fn, value, op, written, text in tests:
             x = row.get(name)
             if x is None or value is None:
                 if not ((x is None) == (value is None) if op == "=" else (x is None) != (value is None) if op == "!=" else False):
                     return False
                 continue
+            if op == "~":
+                if not fn(x, value):
+                    return False
+                continue
+            number = isinstance(x, (int, float)) and not isinstance(x, bool)
+            if number and not isinstance(value, (int, float)):  # never numbers compared as text ('1000' < '200')
+                raise InputError(Problem("", "where", f"{text!r}: {name} is a number (e.g. {x:g}), and {written!r} is "
+                                         "not one: write a number"))
+            if isinstance(x, str) and not isinstance(value, str):
+                if op not in ("=", "!="):
+                    raise InputError(Problem("", "where", f"{text!r}: {name} is text (e.g. {x!r}): compare it with = != "
+                                             "or ~ (contains), not with a number"))
+                value = written  # a route named '100' is the text as written
             try:
                 if not fn(x, value):
                     return False
-            except TypeError:  # e.g. text against a number
-                if not fn(str(x), str(value)):
-                    return False
+            except TypeError:  # a list or a mapping against a value: no order between them
+                raise InputError(Problem("", "where", f"{text!r}: {name} holds {type(x).__name__} values, which "
+                                         f"{op!r} cannot compare with {written!r}; use ~ (contains)")) from None
         return True
     return keep
+
+
+_ORDER = ("<", "<=", ">", ">=")
+_WITH_UNIT = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%][A-Za-z/%.]*)$")
+"""A number followed by a unit (``1000s``, ``25 min``, ``1.5kWh``): refused in a comparison (the unit is in the field's
+name), never compared as text."""
 
 
 def _value(raw: str):

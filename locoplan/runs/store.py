@@ -223,8 +223,8 @@ class Store:
             try:
                 if create:
                     self.conn = sqlite3.connect(name, timeout=60.0, isolation_level=None)
-                    self.conn.execute("PRAGMA journal_mode=WAL")
-                    self.conn.execute("PRAGMA synchronous=FULL")
+                    if fresh:  # an existing file is switched to WAL only once it is known to be a store (below)
+                        self._wal()
                 else:
                     self.conn = self._open_read_only(folder)
                 tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
@@ -266,8 +266,17 @@ class Store:
             if found != ["ok"]:
                 raise InputError(Problem(name, "", _why(sqlite3.DatabaseError(
                     f"database disk image is malformed: {short('; '.join(map(str, found)), 120)}"), True, name)))
+        if create and not fresh:
+            with self._sql(writing=True):
+                self._wal()
         self._identity = _identity(self.path)
         """(device, inode) of the file opened: a store removed or replaced while a batch writes is noticed."""
+
+    def _wal(self) -> None:
+        """The write-ahead journal, and every commit synced (see the module's docstring). It stays with the file, so
+        it is set only on a new store or one known to be a store: another program's SQLite file is left as it was."""
+        self.conn.execute("PRAGMA journal_mode=WAL")
+        self.conn.execute("PRAGMA synchronous=FULL")
 
     def _discard(self) -> None:
         conn = getattr(self, "conn", None)

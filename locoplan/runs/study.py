@@ -225,11 +225,16 @@ def load_study(path: str | Path) -> Study:
     journeys = _study_files(name, "journeys", study.journeys, base, where, problems)
     if problems:
         raise InputError(problems)
-    routes = list(dict.fromkeys(routes))  # a route matched by two globs runs once
-    first: dict[Path, int] = {}
+    routes = list(_by_file(routes).values())  # a route matched by two globs, or named by two paths, runs once
+    first: dict[str, tuple[Path, int]] = {}
     for f, i in journeys:  # so does a journey (named by its first entry)
-        first.setdefault(f, i)
-    journeys = list(first.items())
+        first.setdefault(_same(f), (f, i))
+    journeys = list(first.values())
+    unique: dict[tuple, object] = {}
+    for t, raw in times:  # 200 and 200.0, or 1.1x and +10%, are one planned time: one run
+        unique.setdefault(t, (t, raw))
+    times = list(unique.values())
+    _check_count(name, study, len(routes) + len(journeys), len(times))
 
     m = study.model
     options = ModelOptions(step_m=m.step_m, point_mass=m.point_mass,
@@ -253,7 +258,37 @@ def load_study(path: str | Path) -> Study:
                         for a, seed in pairs:
                             specs.append(RunSpec(**{kind: str(f)}, consist=c, strategy=s, algorithm=a, seed=seed, time_s=t_s,
                                                  tags=(("time", label),) if label else (), **common))
-    return Study(path, study, specs)
+    return Study(path, study, list(dict.fromkeys(specs)))  # a factor that comes to a time also given in seconds: once
+
+
+MAX_STUDY_RUNS = 100_000
+"""A study file expands to at most this many runs (each an optimisation of seconds to minutes: 100,000 is weeks on
+a cluster, and the largest store whose summaries, exports and plots are measured). Counted from the lists' lengths
+before any run is made, so a file whose lists multiply to millions is refused at once, not after it fills memory."""
+
+
+def _check_count(name: str, study, files: int, times: int) -> None:
+    """Refuse a study whose product of lists exceeds :data:`MAX_STUDY_RUNS`, before it is expanded."""
+    per_time = sum(len(study.algorithms) * len(study.seeds) if registry.STRATEGIES[s].seeded else 1
+                   for s in study.strategies)
+    count = files * len(study.consists) * max(times, 1) * per_time
+    if count > MAX_STUDY_RUNS:
+        raise InputError(Problem(name, "", f"expands to {count:,} runs ({files:,} routes and journeys x "
+                                 f"{len(study.consists):,} consists x {max(times, 1):,} times x {per_time:,} strategy, "
+                                 f"optimiser and seed runs), more than the limit of {MAX_STUDY_RUNS:,} runs of one study "
+                                 "file: split it into several studies (one store can take them all)"))
+
+
+def _same(path: Path) -> str:
+    """The file ``path`` is, whatever the path that names it (``r.yaml``, ``./r.yaml``, a link to it)."""
+    return os.path.realpath(path)
+
+
+def _by_file(paths: list[Path]) -> dict[str, Path]:
+    out: dict[str, Path] = {}
+    for p in paths:
+        out.setdefault(_same(p), p)
+    return out
 
 
 _KINDS = {"routes": ("route", "locoplan/route@1", "journeys"), "journeys": ("journey", JOURNEY_SCHEMA, "routes")}

@@ -580,6 +580,19 @@ class TractionCalculator:
         res = self.evaluate(("T",), np.zeros((1, 0)))
         return float(res.running_time_s[0])
 
+    def fastest_time_for_factor_s(self, asked: str) -> float:
+        """:attr:`fastest_time_s` for a planned time written as a factor of it (``asked``, e.g. ``--time 1.1x``). A line
+        the train cannot run at all (it stalls on a climb, no brake holds a descent) has no fastest run, so no factor
+        of it: InfeasibleError (exit 1, as any planned time on that line) with the physical reason."""
+        fastest = self.fastest_time_s
+        if math.isfinite(fastest):
+            return fastest
+        from ..errors import InfeasibleError
+
+        why = self.evaluate(("T",), np.zeros((1, 0))).reason(0)
+        raise InfeasibleError(f"{asked}: a factor of the fastest run, but {self.train.name} cannot run {self.route.name} "
+                              f"even at full traction: {why}; no planned time can be kept on this line with this train")
+
     # ----------------------------------------------------------------- plans
     def condition_fractions(self, conditions: tuple[str, ...], switches_m: np.ndarray) -> np.ndarray:
         """Share of each cell under each condition, shape (N_CONDITIONS, n_plans, n_cells).

@@ -14,7 +14,12 @@ extension module in the cache folder; every later process imports that module, w
   file lock (parallel workers wait for one build instead of racing), and lands by an atomic rename.
 - No C compiler, no setuptools, a numba without ``pycc``, or ``LOCOPLAN_NATIVE=0``: the numba JIT
   functions (``cache=True``) are used instead; same code, same results (``tests/test_native.py``). A
-  failed build leaves a ``.failed`` file with its log and is not retried until that file is removed.
+  failed build leaves a ``.failed`` file with its log and is not retried until that file is removed; a build
+  that failed for a passing cause (killed, out of memory, out of room, past its time) leaves none and is
+  tried again by the next command. The build's process ends with the process that started it.
+- Beside the module, ``<name>.sha256`` records its size and content hash (written by the build). A module
+  whose record is missing or differs (truncated, a flipped bit, another file put there) is never loaded: it
+  is removed and built again. (A damaged extension module would crash every process that imports it.)
 
 The entry points take records (``sim/records.py``); their signatures are built from the records' field
 types, written once there. The ahead-of-time functions check nothing about their arguments (a float32
@@ -211,13 +216,45 @@ _NO_ROOM = ("[Errno 27]", "[Errno 28]", "[Errno 122]", "File too large", "No spa
 """A build log with one of these failed for want of room, not for the code: no ``.failed`` is kept for it."""
 
 
+_PASSING = ("MemoryError", "Cannot allocate memory", "std::bad_alloc", "out of memory", "[Errno 12]", "Killed")
+"""A build log with one of these failed for want of memory, not for the code: no ``.failed`` is kept for it."""
+
+
+def record_path(path: Path) -> Path:
+    """The record of a built module's size and content hash, beside it: ``<name>.sha256``."""
+    return path.with_name(path.name.split(".")[0] + ".sha256")
+
+
+def _digest(path: Path) -> dict:
+    h = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+            size += len(chunk)
+    return {"bytes": size, "sha256": h.hexdigest()}
+
+
+def _intact(path: Path) -> bool:
+    """The module at ``path`` is there and is the file its build recorded (size, then content hash)."""
+    import json
+
+    try:
+        want = json.loads(record_path(path).read_text())
+        if not isinstance(want, dict) or os.stat(path).st_size != want.get("bytes"):
+            return False
+        return _digest(path) == {"bytes": want["bytes"], "sha256": want.get("sha256")}
+    except (OSError, ValueError):
+        return False
+
+
 def _load_native() -> _Namespace:
     folder = native_dir()
     name = module_name()
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
     path = folder / f"{name}{suffix}"
     failed = folder / f"{name}.failed"
-    if not path.is_file():
+    if not _intact(path):
         if failed.is_file():
             raise _Unavailable(f"the ahead-of-time build failed before, see {failed}")
         try:
@@ -226,11 +263,15 @@ def _load_native() -> _Namespace:
             raise _Unavailable(f"cannot create {folder}: {exc.strerror}") from None
         try:
             with _locked(folder / ".lock"):
-                if not path.is_file() and not failed.is_file():
+                if not _intact(path) and not failed.is_file():
+                    for old in (path, record_path(path)):  # damaged, or of a build that was cut short
+                        with contextlib.suppress(FileNotFoundError):
+                            old.unlink()
+                    _remove_stale_builds(folder)
                     _build(folder, name, path, failed)
         except OSError as exc:  # a folder that cannot be written (read-only, full, not a folder)
             raise _Unavailable(f"cannot build in {folder}: {exc.strerror or exc}") from None
-        if not path.is_file():
+        if not _intact(path):
             raise _Unavailable(f"the ahead-of-time build failed, see {failed}")
     spec = importlib.util.spec_from_file_location(name, path)
     try:
@@ -257,8 +298,31 @@ def _locked(lock_path: Path):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+def _remove_stale_builds(folder: Path) -> None:
+    """Remove the temporary folders of builds whose process was killed (called under the lock, which every build
+    holds: no build is running)."""
+    import shutil
+
+    for stale in folder.glob(".build-*"):
+        if stale.is_dir():
+            shutil.rmtree(stale, ignore_errors=True)
+
+
+def _die_with_parent() -> None:
+    """In the build's process (Linux): the kernel kills it when the process that started it dies, so that a killed
+    command leaves no compiler running."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
-    """Compile in a subprocess into a temporary folder, then rename into place (or write ``.failed``)."""
+    """Compile in a subprocess into a temporary folder, then rename into place with its record of size and hash
+    (or write ``.failed``; not for a passing cause)."""
     if sys.stderr is not None and sys.stderr.isatty():
         print("locoplan: compiling the kernels for this machine (once, about a minute)...",
               file=sys.stderr, flush=True)
@@ -269,16 +333,33 @@ def _build(folder: Path, name: str, path: Path, failed: Path) -> None:
             path_env = os.pathsep.join(p for p in (str(Path(__file__).resolve().parents[2]),
                                                    os.environ.get("PYTHONPATH", "")) if p)
             out = subprocess.run(cmd, capture_output=True, text=True, timeout=BUILD_TIMEOUT_S,
-                                 env={**os.environ, "LOCOPLAN_NATIVE": "0", "PYTHONPATH": path_env})
+                                 env={**os.environ, "LOCOPLAN_NATIVE": "0", "PYTHONPATH": path_env},
+                                 preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
             log, ok = out.stdout + out.stderr, out.returncode == 0
+            passing = out.returncode < 0  # killed by a signal (the kernel's out-of-memory killer, a user)
+            if passing:
+                log += f"\nthe build was killed by signal {-out.returncode}"
+        except subprocess.TimeoutExpired as exc:
+            log, ok, passing = f"TimeoutExpired: {exc}", False, True  # a loaded machine: tried again next time
         except (OSError, subprocess.SubprocessError) as exc:
             log, ok = f"{type(exc).__name__}: {exc}", False
+            passing = isinstance(exc, OSError) and exc.errno in (12, 11)  # ENOMEM, EAGAIN: no process could be made
         built = Path(tmp) / path.name
         if ok and built.is_file():
+            import json
+
+            record = record_path(path)
+            staged = Path(tmp) / record.name
+            staged.write_text(json.dumps(_digest(built)))
+            os.replace(staged, record)
             os.replace(built, path)
         elif any(text in log for text in _NO_ROOM):  # a full disk or a file-size limit: tried again next time
             raise _Unavailable(f"the ahead-of-time build in {folder} had no room ({_no_room_line(log)}); "
                                "it is tried again by the next command")
+        elif passing or any(text in log for text in _PASSING):  # memory, a kill, a timeout: tried again next time
+            line = next((x.strip() for x in reversed(log.splitlines()) if x.strip()), "")[:200]
+            raise _Unavailable(f"the ahead-of-time build in {folder} was cut short ({line}); it is tried again by "
+                               "the next command")
         else:
             failed.write_text(f"{' '.join(cmd)}\n\n{log}")
 

@@ -76,6 +76,38 @@ def _to_json(co: CycleOptimum) -> dict:
     return out
 
 
+def _stored_problem(data, time_s: float) -> str | None:
+    """What is wrong with a cycle optimum read back from the disk cache (None: usable): its numbers must be finite,
+    its energies, accuracy and solve time non-negative, its time the one its key names, its drive's lists numbers; a
+    damaged or foreign file is solved again."""
+
+    if not isinstance(data, dict) or not isinstance(data.get("cycles"), bool):
+        return "not a cycle optimum"
+    t = data.get("time_s")
+    if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or round(float(t), 2) != time_s:
+        return f"time_s {t!r} is not the time {time_s:g} s its key names"
+    for name in ("energy_kwh", "accuracy", "estar_kwh", "dp_kwh", "lost_s", "extra_kwh", "price_kwh_per_s", "solve_time_s"):
+        v = data.get(name)
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return f"{name} is not a finite number ({v!r})"
+        if v < 0 and name in ("energy_kwh", "accuracy", "estar_kwh", "dp_kwh", "solve_time_s"):
+            return f"{name} is negative ({v!r})"
+    if data["cycles"] and data.get("energy_kwh") is None:
+        return "energy_kwh is missing"
+    drive = data.get("drive")
+    if drive is not None:
+        if not isinstance(drive, dict):
+            return "drive is not an object"
+        for name, v in drive.items():
+            if isinstance(v, list):
+                try:
+                    np.asarray(v, dtype=float)
+                except (TypeError, ValueError):
+                    return f"drive.{name} is not a list of numbers"
+    return None
+
 def _from_json(data: dict) -> CycleOptimum:
     d = data.pop("drive", None)
     drive = None
@@ -85,7 +117,6 @@ def _from_json(data: dict) -> CycleOptimum:
                               for k, v in d.items()})
     data["grids"] = tuple(data.get("grids", ()))
     return CycleOptimum(**data, drive=drive)
-
 
 def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
                   calc: TractionCalculator | None = None) -> CycleOptimum:
@@ -99,18 +130,21 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
 
     options = options or ModelOptions()
     time_s = float(time_s if time_s is not None else route.schedule.run_time_s)
+    from ..ocp.train_energy import check_runnable
+
     key = _key(route, train, options, time_s)
+    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(
+        route, train, options)
+    check_runnable(calc, time_s)  # first: the key rounds the time, so no kept optimum answers a time below the fastest run
     if key in _OPTIMA:
         return replace(_OPTIMA[key], solve_time_s=0.0)
     data = cache_load(key)
-    if data is not None:
+    if data is not None and _stored_problem(data, key[3]) is None:
         try:
             _OPTIMA[key] = _from_json(data)
             return replace(_OPTIMA[key], solve_time_s=0.0)
         except (TypeError, ValueError, KeyError):
             pass
-    calc = calc if calc is not None and calc.options == options and calc.route == route else TractionCalculator(
-        route, train, options)
     if not cycle_binds(calc):
         co = CycleOptimum(time_s, False, method="relaxed E* (the cycle cannot bind)")
     else:
@@ -124,7 +158,6 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
     _OPTIMA[key] = co
     cache_store(key, _to_json(co))
     return co
-
 
 def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool) -> str:
     """The calculator's condition for a drive's cell: T, K (holding), C, E (the full electric brake alone), and an
@@ -145,7 +178,6 @@ def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool
     if u == U_H and at_cap:
         return "C" if descending else "T"
     return "K"
-
 
 def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float | None = None) -> DriveSequence:
     """The drive's cells as a condition sequence with nominal switching points (``sequence_from_drive``: runs
@@ -170,7 +202,6 @@ def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float
     if min_run_m is None:
         min_run_m = MIN_RUN_CELLS * float(np.max(np.diff(drive.s_m)))
     return sequence_from_drive(calc, view, min_run_m=min_run_m)
-
 
 def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[float, float, float], ...]:
     """Per descent where the air brake cycles (``calc.cycle_regions_m``) the release margin that puts the
@@ -201,7 +232,6 @@ def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[
             out.append((float(a), float(b), float(np.clip(np.median(margins), *MARGIN_RANGE))))
     return tuple(out)
 
-
 def repair_margins(calc: TractionCalculator, plan: Plan) -> Plan:
     """``plan`` with the release margin of each descent where the calculator refuses it for applying the air brake
     again before its recharge is over deepened (x ``MARGIN_STEP``, within ``MARGIN_RANGE``) until it runs, at most
@@ -225,7 +255,6 @@ def repair_margins(calc: TractionCalculator, plan: Plan) -> Plan:
         plan = Plan(plan.conditions, plan.starts_m, tuple(margins))
     return plan
 
-
 def plan_from_cycle_drive(calc: TractionCalculator, drive: CycleDrive, min_run_m: float | None = None) -> Plan:
     """A plan the calculator runs, read off a cycle DP drive: its condition sequence and nominal switching points
     (``drive_sequence``; the final B where the stop's braking curve begins) and its release margins
@@ -233,7 +262,6 @@ def plan_from_cycle_drive(calc: TractionCalculator, drive: CycleDrive, min_run_m
     seq = drive_sequence(calc, drive, min_run_m)
     plan = Plan(seq.conditions, (0.0, *[float(x) for x in seq.nominal_m], float("nan")), release_margins(calc, drive))
     return repair_margins(calc, plan)
-
 
 def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, time_s: float, *,
                      calc: TractionCalculator | None = None, tolerance_s: float | None = None) -> Plan | None:
