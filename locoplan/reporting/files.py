@@ -212,7 +212,7 @@ def _commit(pending: list[tuple[str, Path]]) -> None:
     """Move every staged output into place together: none replaces a file the command read, and when one move
     fails the ones before it are undone (each replaced file is kept as a hard link until every move is done), so
     the outputs appear all or none."""
-    for tmp, path in pending:
+    for _tmp, path in pending:
         source = _read_by_this_command(path)
         if source is not None:
             _discard(t for t, _ in pending)
