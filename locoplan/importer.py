@@ -19,7 +19,7 @@ from pathlib import Path
 from .errors import InputError, Problem
 from .io.load import load_journey, load_train, parse_yaml, validate_data
 from .io.readers import READERS, ImportedFile, ImportOptions
-from .reporting.files import existing_folder, make_folder
+from .reporting.files import existing_folder, make_folder, put_back
 
 CLI = "<command line>"
 OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "journey": "--journey",
@@ -206,14 +206,7 @@ def _write_all(out_dir: Path, imported, licence_name: str | None) -> ImportRepor
                 os.replace(new, target)
                 moved.append((target, backup))
         except BaseException:
-            for target, backup in reversed(moved):
-                try:
-                    if backup is not None:
-                        os.replace(backup, target)
-                    else:
-                        os.unlink(target)
-                except OSError:
-                    pass
+            put_back(moved)
             for f in reversed(made):
                 try:
                     f.rmdir()

@@ -231,14 +231,7 @@ def _commit(pending: list[tuple[str, Path]]) -> None:
             done.append((path, backup))
     except OSError as exc:
         failed = pending[len(done)][1]
-        for path, backup in reversed(done):  # undo: the old file back, or no file
-            try:
-                if backup is not None:
-                    os.replace(backup, path)
-                else:
-                    os.unlink(path)
-            except OSError:
-                pass
+        put_back(done)
         _discard(t for t, _ in pending[len(done):])
         raise InputError(Problem(str(failed), "", f"cannot write: {exc.strerror or exc}; no output of this command "
                                  "was written")) from None
@@ -271,3 +264,16 @@ def check_output_path(path: str | Path | None, field: str, suffixes: tuple[str, 
     """:func:`check_output` under the name the batch commands use (``field`` names the output: ``out``,
     ``plot``...; the command line maps it to its flag)."""
     check_output(path, field, suffixes)
+
+
+def put_back(moved) -> None:
+    """Undo moves into place, the last first: each ``(path, backup)``'s backup back at ``path`` (the file it
+    replaced), or no file where there was none; best effort (an error here leaves that path as it is)."""
+    for path, backup in reversed(list(moved)):
+        try:
+            if backup is not None:
+                os.replace(backup, path)
+            else:
+                os.unlink(path)
+        except OSError:
+            pass
