@@ -18,7 +18,7 @@ from rich.markup import escape
 from . import __version__
 from . import api, bounds
 from .api import ModelRequest
-from .cli_common import (ALGO, BUILDER, COMMAND_LINE, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, ROUTE, SEED, STOCK, TIME, TOL,
+from .cli_common import (ALGO, BUILDER, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, ROUTE, SEED, STOCK, TIME, TOL,
                          WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
@@ -38,6 +38,8 @@ class _Group(typer.core.TyperGroup):
     def invoke(self, ctx):
         args = ctx.meta.get("locoplan.args", [])
         given = COMMAND_LINE.set(tuple(args))  # what the commands' checks read (cli_common._given)
+        cmd = next((c for c in (self.get_command(ctx, a) for a in args if not a.startswith("-")) if c is not None), None)
+        params = COMMAND_PARAMS.set(tuple(getattr(cmd, "params", ()) or ()))  # (cli_common._param_names)
         try:
             return super().invoke(ctx)
         except Exception as exc:
@@ -50,6 +52,7 @@ class _Group(typer.core.TyperGroup):
                 usage_error_json(exc, args)
             raise
         finally:
+            COMMAND_PARAMS.reset(params)
             COMMAND_LINE.reset(given)
 
 

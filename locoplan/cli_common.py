@@ -233,6 +233,11 @@ COMMAND_LINE: ContextVar[tuple[str, ...]] = ContextVar("locoplan_command_line", 
 its own)."""
 
 
+COMMAND_PARAMS: ContextVar[tuple] = ContextVar("locoplan_command_params", default=())
+"""The running command's parameters (click's ``Parameter`` objects: names, options, metavars), set by the command
+group while it runs a command (empty when a command runs on its own)."""
+
+
 def _given() -> list[str]:
     """The command line as typed (``COMMAND_LINE``)."""
     return list(COMMAND_LINE.get())
@@ -323,14 +328,8 @@ _WRITES_STORE = {"batch": ("store_path", "--store")}
 
 def _param_names() -> dict[str, str]:
     """Parameter name -> how the command line shows it (``--consist``, ``ROUTE``), for the running command."""
-    try:
-        from typer._click.globals import get_current_context
-
-        ctx = get_current_context(silent=True)
-    except ImportError:
-        ctx = None
     names = {}
-    for param in getattr(getattr(ctx, "command", None), "params", ()) or ():
+    for param in COMMAND_PARAMS.get():
         opts = getattr(param, "opts", None) or []
         long = [o for o in opts if o.startswith("--")]
         names[param.name] = long[0] if long and param.param_type_name == "option" else (param.metavar or param.name.upper())
