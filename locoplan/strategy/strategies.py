@@ -637,7 +637,7 @@ def _electric_braking(ctx: StrategyContext, found, common: dict):
     limit or a braking curve (its least hold then slows a train well under the limit ahead, or holds it through
     a neutral section on a descent), the same plan with the electric brake alone (E) just before each such
     application (at most ``ELECTRIC_RUNS``): each run's length and end tried on a small batch (``ELECTRIC_TRIES_M``),
-    the fastest on time kept, then ISSA over all switching points from there; the ``_search`` tuple, or None where
+    the fastest kept where it saves ``ELECTRIC_MIN_GAIN_S``, then ISSA over all switching points from there; the ``_search`` tuple, or None where
     the model has no separate air brake, the plan makes no such application, or no run saves time."""
     seq, problem, _, x, _ = found
     calc = ctx.calc
@@ -673,7 +673,7 @@ def _electric_braking(ctx: StrategyContext, found, common: dict):
             r = calc.evaluate(conds, np.array([[*nom, np.nan] for nom in noms]), **_batch_margins(plan, len(noms)))
             t_c = np.where(r.feasible, r.running_time_s, np.inf)
             i = int(np.argmin(t_c))
-            if t_c[i] < t_best - 1e-6:
+            if t_c[i] < t_best - ELECTRIC_MIN_GAIN_S:
                 conditions, nominal, t_best = list(conds), noms[i], float(t_c[i])
     if tuple(conditions) == tuple(seq.conditions):
         return None
@@ -727,6 +727,10 @@ def _without_idle_electric(ctx: StrategyContext, found, common: dict, drive):
 
 
 ELECTRIC_RUNS = 6
+ELECTRIC_MIN_GAIN_S = 1.0
+"""An E run is kept only where it saves at least this much running time [s]: the search after it costs as much as
+the first (3 s on the heavy-haul line, where the best E runs saved 0.04 s), and a few hundredths of a second buy
+next to no energy."""
 ELECTRIC_EPISODE_M = 2000.0
 ELECTRIC_TRIES_M = ((-300.0, -150.0, -50.0, 0.0, 50.0), (100.0, 200.0, 400.0, 800.0))
 """``_electric_braking``: the applications it tries to avoid (the first of each episode, applications more than
