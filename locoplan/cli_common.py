@@ -663,6 +663,14 @@ def _times(requests: Optional[list], route, consist: str = DEFAULT_CONSIST, stoc
     return planned.times_s
 
 
+def record_error(text: str) -> None:
+    """A failure the command has printed itself, kept for its ``--json`` document's ``errors`` (every exit-1 document
+    says why)."""
+    run = _RUN.get()
+    if run is not None:
+        run["errors"].append(text)
+
+
 def fail_on(verdict: api.Verdict, notes: bool = False) -> None:
     """After every output is written: name each result that failed its job, exit 1 if any did (with
     ``notes``, first say the verdict's notes)."""

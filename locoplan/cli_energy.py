@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import CONSIST, JSON, MODEL, OBJECTIVE, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out
+from .cli_common import CONSIST, JSON, MODEL, OBJECTIVE, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out, record_error
 
 __all__ = ["register", "run_energy_ocp"]
 
@@ -56,6 +56,7 @@ def run_energy_ocp(route_path: Path, consist: str, stock_dir: Optional[Path], ti
         show(out, energy_summary_table(s, out.width) + fit(plan_sequence_table(s["sequence"]), out.width)
              + fit(mesh_table(s["mesh_history"]), out.width, drop=(8, 7, 5)))
     if api.confirmed_verdict(run.feasible, s["reason"]).exit_code:
+        record_error(f"not confirmed: {s['objective']:.3f} kWh is not reported as a result: {s['reason']}")
         err.print(f"[bold red]not confirmed:[/] {s['objective']:.3f} kWh is not reported as a result: "
                   f"{escape(s['reason'])}", highlight=False, soft_wrap=True)
         raise typer.Exit(api.EXIT_FAILED)

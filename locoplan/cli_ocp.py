@@ -14,7 +14,7 @@ from rich.markup import escape
 
 from . import api
 from .api import ModelRequest
-from .cli_common import ModelGroup, err, guarded, json_out, out
+from .cli_common import ModelGroup, err, guarded, json_out, out, record_error
 from .ocp.registry import (
     DEFAULT_ENERGY_CONSIST,
     DEFAULT_METHOD,
@@ -104,6 +104,7 @@ def ocp(route: Path = typer.Argument(..., help="Route YAML file (--objective tim
 
         show(out, time_summary_table(run.summary, out.width))
     if api.confirmed_verdict(run.feasible, run.summary["reason"]).exit_code:
+        record_error(f"not confirmed: {run.summary['objective']:.3f} s is not reported as a result: {run.summary['reason']}")
         err.print(f"[bold red]not confirmed:[/] {run.summary['objective']:.3f} s is not reported as a result: "
                   f"{escape(run.summary['reason'])}", highlight=False, soft_wrap=True)
         raise typer.Exit(api.EXIT_FAILED)

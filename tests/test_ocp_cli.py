@@ -137,6 +137,7 @@ def test_unconfirmed_gpm_objective_is_not_a_result(app, tmp_path):
     assert data["resimulated_running_time_s"] is None and data["objective"] > 141.0  # the NLP's claim, labelled
     assert data["max_force_excess_kn"] > 50.0
     assert "not confirmed" in res.stderr
+    assert data["exit_code"] == 1 and len(data["errors"]) == 1 and "does not arrive" in data["errors"][0]  # why, in the JSON
     assert json.loads(out.read_text())["feasible"] is False  # the record is still written whole
 
 
