@@ -77,15 +77,17 @@ def test_e_is_b_where_the_electric_brake_is_the_only_brake(level, options):
     assert r_e.traction_energy_kwh[0] == pytest.approx(r_b.traction_energy_kwh[0], rel=1e-12)
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_e_in_both_loops(level, backend):
-    """The compiled loop and its numpy twin run E alike (time to 1e-9)."""
+@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions.seeds(), ModelOptions(air_brake=False)],
+                         ids=["default", "point-mass", "no-air-brake"])
+def test_e_in_both_loops(level, options):
+    """The compiled loop and its numpy twin run E alike (time and energy to 1e-9), with a hold and a stop after it."""
     route, train = level
     plan = parse_sequence("T:0,E:2500,K:2900,E:4000,C:4300,B", route.length_m)
-    ref = TractionCalculator(route, train).evaluate(plan.conditions, plan.switches_m)
-    got = TractionCalculator(route, train, backend=backend).evaluate(plan.conditions, plan.switches_m)
-    assert got.running_time_s[0] == pytest.approx(ref.running_time_s[0], rel=1e-9)
-    assert got.traction_energy_kwh[0] == pytest.approx(ref.traction_energy_kwh[0], rel=1e-9)
+    compiled = TractionCalculator(route, train, options, backend="numba").evaluate(plan.conditions, plan.switches_m)
+    twin = TractionCalculator(route, train, options, backend="numpy").evaluate(plan.conditions, plan.switches_m)
+    assert compiled.feasible[0] and twin.feasible[0]
+    assert twin.running_time_s[0] == pytest.approx(compiled.running_time_s[0], rel=1e-9)
+    assert twin.traction_energy_kwh[0] == pytest.approx(compiled.traction_energy_kwh[0], rel=1e-9)
 
 
 def test_the_proposed_plan_brakes_on_the_electric_brake_before_a_drop(root):

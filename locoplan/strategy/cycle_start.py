@@ -108,6 +108,7 @@ def _stored_problem(data, time_s: float) -> str | None:
                     return f"drive.{name} is not a list of numbers"
     return None
 
+
 def _from_json(data: dict) -> CycleOptimum:
     d = data.pop("drive", None)
     drive = None
@@ -117,6 +118,7 @@ def _from_json(data: dict) -> CycleOptimum:
                               for k, v in d.items()})
     data["grids"] = tuple(data.get("grids", ()))
     return CycleOptimum(**data, drive=drive)
+
 
 def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = None, time_s: float | None = None, *,
                   calc: TractionCalculator | None = None) -> CycleOptimum:
@@ -159,6 +161,7 @@ def cycle_optimum(route: Route, train: Train, options: ModelOptions | None = Non
     cache_store(key, _to_json(co))
     return co
 
+
 def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool) -> str:
     """The calculator's condition for a drive's cell: T, K (holding), C, E (the full electric brake alone), and an
     application: B, or K on a descent the electric brake cannot hold, where
@@ -178,6 +181,7 @@ def _condition(u: int, air: int, in_region: bool, at_cap: bool, descending: bool
     if u == U_H and at_cap:
         return "C" if descending else "T"
     return "K"
+
 
 def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float | None = None) -> DriveSequence:
     """The drive's cells as a condition sequence with nominal switching points (``sequence_from_drive``: runs
@@ -202,6 +206,7 @@ def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float
     if min_run_m is None:
         min_run_m = MIN_RUN_CELLS * float(np.max(np.diff(drive.s_m)))
     return sequence_from_drive(calc, view, min_run_m=min_run_m)
+
 
 def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[float, float, float], ...]:
     """Per descent where the air brake cycles (``calc.cycle_regions_m``) the release margin that puts the
@@ -232,6 +237,7 @@ def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[
             out.append((float(a), float(b), float(np.clip(np.median(margins), *MARGIN_RANGE))))
     return tuple(out)
 
+
 def repair_margins(calc: TractionCalculator, plan: Plan) -> Plan:
     """``plan`` with the release margin of each descent where the calculator refuses it for applying the air brake
     again before its recharge is over deepened (x ``MARGIN_STEP``, within ``MARGIN_RANGE``) until it runs, at most
@@ -255,6 +261,7 @@ def repair_margins(calc: TractionCalculator, plan: Plan) -> Plan:
         plan = Plan(plan.conditions, plan.starts_m, tuple(margins))
     return plan
 
+
 def plan_from_cycle_drive(calc: TractionCalculator, drive: CycleDrive, min_run_m: float | None = None) -> Plan:
     """A plan the calculator runs, read off a cycle DP drive: its condition sequence and nominal switching points
     (``drive_sequence``; the final B where the stop's braking curve begins) and its release margins
@@ -262,6 +269,7 @@ def plan_from_cycle_drive(calc: TractionCalculator, drive: CycleDrive, min_run_m
     seq = drive_sequence(calc, drive, min_run_m)
     plan = Plan(seq.conditions, (0.0, *[float(x) for x in seq.nominal_m], float("nan")), release_margins(calc, drive))
     return repair_margins(calc, plan)
+
 
 def cycle_plan_start(route: Route, train: Train, options: ModelOptions | None, time_s: float, *,
                      calc: TractionCalculator | None = None, tolerance_s: float | None = None) -> Plan | None:

@@ -637,8 +637,9 @@ def _electric_braking(ctx: StrategyContext, found, common: dict):
     limit or a braking curve (its least hold then slows a train well under the limit ahead, or holds it through
     a neutral section on a descent), the same plan with the electric brake alone (E) just before each such
     application (at most ``ELECTRIC_RUNS``): each run's length and end tried on a small batch (``ELECTRIC_TRIES_M``),
-    the fastest kept where it saves ``ELECTRIC_MIN_GAIN_S``, then ISSA over all switching points from there; the ``_search`` tuple, or None where
-    the model has no separate air brake, the plan makes no such application, or no run saves time."""
+    the fastest kept where it saves ``ELECTRIC_MIN_GAIN_S``, then ISSA over all switching points from there; the
+    ``_search`` tuple, or None where the model has no separate air brake, the plan makes no such application, or no
+    run saves that much time."""
     seq, problem, _, x, _ = found
     calc = ctx.calc
     if calc.air_cycle is None or problem is None:
