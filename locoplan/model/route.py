@@ -57,6 +57,21 @@ class Tunnel(Section):
     pass
 
 
+class Station(Strict):
+    """A named place along the line (a station, a junction, a block post): shown in outputs."""
+
+    name: str = Field(min_length=1)
+    at_m: float = Field(ge=0, description="position [m] from the route's start")
+
+
+class MileageChange(Strict):
+    """From ``at_m`` on, the kilometre post reads ``km`` and counts up (or down, ``descending``) with the distance run."""
+
+    at_m: float = Field(ge=0, description="position [m] from the route's start")
+    km: float = Field(description="kilometre post at at_m [km]")
+    descending: bool = Field(default=False, description="the posts count down in the running direction")
+
+
 class NeutralSection(Section):
     coast_before_s: Annotated[float, plausible(*_C, "s", "power is shut off seconds, not hours, around a neutral section")] = 0.0
     coast_after_s: Annotated[float, plausible(*_C, "s", "power is shut off seconds, not hours, around a neutral section")] = 0.0
@@ -101,6 +116,9 @@ class Route(Strict):
     curves: list[Curve] = []
     tunnels: list[Tunnel] = []
     neutral_sections: list[NeutralSection] = []
+    stations: list[Station] = []
+    chainage: float | list[MileageChange] | None = Field(
+        default=None, description="kilometre post at position 0 [km], or the mileage changes along the line")
 
     @model_validator(mode="after")
     def _check_sections(self) -> "Route":
@@ -114,9 +132,65 @@ class Route(Strict):
                 problems.append((("neutral_sections", i), f"starts at the departure stop ({ns.from_m:g} .. {ns.to_m:g} m): "
                                  "a train standing in a neutral section has no traction and can never start; move "
                                  "the stop, or the section"))
+        problems += _place_problems(self)
         if problems:
             raise RuleViolations(problems)
         return self
+
+    def mileage(self) -> list[MileageChange]:
+        """The kilometre posts as mileage changes (the first at 0); ``[]`` when the route has no chainage."""
+        if self.chainage is None:
+            return []
+        if isinstance(self.chainage, list):
+            return list(self.chainage)
+        return [MileageChange(at_m=0.0, km=float(self.chainage))]
+
+
+def _place_problems(route: "Route") -> list[tuple[tuple, str]]:
+    out: list[tuple[tuple, str]] = []
+    for i, st in enumerate(route.stations):
+        if st.at_m > route.length_m + 1e-9:
+            out.append((("stations", i, "at_m"), f"{st.at_m:g} m lies beyond the route's length_m {route.length_m:g}"))
+        if i and st.at_m < route.stations[i - 1].at_m:
+            out.append((("stations", i, "at_m"), f"not in order: {st.at_m:g} m comes before the previous station "
+                        f"({route.stations[i - 1].at_m:g} m); list stations in the running direction"))
+    if isinstance(route.chainage, list):
+        if not route.chainage:
+            out.append((("chainage",), "an empty list: give the kilometre post at position 0, or leave chainage out"))
+        elif abs(route.chainage[0].at_m) > 1e-9:
+            out.append((("chainage", 0, "at_m"), f"the first mileage change must be at 0 (got {route.chainage[0].at_m:g}), "
+                        "so that every position has a kilometre post"))
+        for i, mc in enumerate(route.chainage):
+            if mc.at_m > route.length_m + 1e-9:
+                out.append((("chainage", i, "at_m"), f"{mc.at_m:g} m lies beyond the route's length_m {route.length_m:g}"))
+            if i and mc.at_m <= route.chainage[i - 1].at_m:
+                out.append((("chainage", i, "at_m"), f"not after the previous mileage change ({mc.at_m:g} <= "
+                            f"{route.chainage[i - 1].at_m:g} m)"))
+    return out
+
+
+def kilometre_post(route: Route, s_m):
+    """The kilometre post [km] at position(s) ``s_m`` [m]; ``None`` when the route has no chainage."""
+    import numpy as np
+
+    changes = route.mileage()
+    if not changes:
+        return None
+    s = np.asarray(s_m, dtype=float)
+    at = np.array([c.at_m for c in changes])
+    k = np.clip(np.searchsorted(at, s, side="right") - 1, 0, len(changes) - 1)
+    km = np.array([c.km for c in changes])[k]
+    sign = np.where(np.array([c.descending for c in changes])[k], -1.0, 1.0)
+    post = km + sign * (s - at[k]) / 1000.0
+    return float(post) if post.ndim == 0 else post
+
+
+def format_post(km: float, form: str = "km") -> str:
+    """A kilometre post as people write it: ``12.345 km`` (form "km") or ``12+345`` (form "plus")."""
+    if form == "plus":
+        metres = int(round(abs(km) * 1000.0))
+        return f"{'-' if km < 0 and metres else ''}{metres // 1000}+{metres % 1000:03d}"
+    return f"{km:.3f} km"
 
 
 def route_slice(route: Route, from_m: float, to_m: float, name: str) -> Route:
@@ -139,4 +213,15 @@ def route_slice(route: Route, from_m: float, to_m: float, name: str) -> Route:
             "speed_limits": cut(route.speed_limits, contiguous=True), "gradients": cut(route.gradients, contiguous=True),
             "curves": cut(route.curves), "tunnels": cut(route.tunnels),
             "neutral_sections": cut(route.neutral_sections)}
+    stations = [{"name": st.name, "at_m": round(st.at_m - from_m, 6)} for st in route.stations
+                if from_m - 1e-6 <= st.at_m <= to_m + 1e-6]
+    if stations:
+        data["stations"] = [dict(d, at_m=min(max(d["at_m"], 0.0), round(to_m - from_m, 6))) for d in stations]
+    if route.chainage is not None:
+        changes = route.mileage()
+        first = {"at_m": 0.0, "km": round(float(kilometre_post(route, from_m)), 9),
+                 "descending": [c for c in changes if c.at_m <= from_m + 1e-9][-1].descending}
+        later = [{"at_m": round(c.at_m - from_m, 6), "km": c.km, "descending": c.descending}
+                 for c in changes if from_m + 1e-9 < c.at_m < to_m - 1e-9]
+        data["chainage"] = [first] + later
     return Route.model_validate(data)
