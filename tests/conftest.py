@@ -44,9 +44,14 @@ def _private_cache(tmp_path_factory):
     os.environ["LOCOPLAN_CACHE_DIR"] = str(tmp_path_factory.mktemp("locoplan-cache"))
     # the ahead-of-time kernels (locoplan.sim.native): built once per session, shared by every test and the
     # commands they run (a README example's own cache folder included), unless the caller gave a folder
+    # (parallel workers share one folder: one builds each kernel under a file lock, the others wait for it)
     native_set = "LOCOPLAN_NATIVE_DIR" in os.environ
     if not native_set:
-        os.environ["LOCOPLAN_NATIVE_DIR"] = str(tmp_path_factory.mktemp("locoplan-native"))
+        base = tmp_path_factory.getbasetemp()
+        shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+        native = shared / "locoplan-native"
+        native.mkdir(exist_ok=True)
+        os.environ["LOCOPLAN_NATIVE_DIR"] = str(native)
     yield
     if not native_set:
         os.environ.pop("LOCOPLAN_NATIVE_DIR", None)

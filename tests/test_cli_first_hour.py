@@ -655,8 +655,9 @@ def test_a_tight_schedule_names_its_file_and_line_and_is_said_once(tmp_path, roo
     assert res.exit_code == 1
     out, errs = " ".join(res.stdout.split()), " ".join(res.stderr.split())
     assert out.count("below the fastest possible run") == 1 and errs.count("below the fastest possible run") == 1
-    assert "four-stage, proposed: no feasible plan: " + where in out
-    assert "error: four-stage, proposed: " + where in errs
+    # (a long temporary path may be wrapped anywhere in the 80-column table: compared without white space)
+    assert ("four-stage, proposed: no feasible plan: " + where).replace(" ", "") in out.replace(" ", "")
+    assert ("error: four-stage, proposed: " + where).replace(" ", "") in errs.replace(" ", "")
     one = runner.invoke(app, ["optimize", str(tight), "--json", *SMALL])
     assert one.exit_code == 1 and where in json.loads(one.stdout)["reason"]
     asked = runner.invoke(app, ["optimize", str(tight), "--time", "1100", "--json", *SMALL])
