@@ -47,7 +47,7 @@ from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_
                         ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
-from .result import (AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
+from .result import (AIR_HELD, AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
                      STALLED, STOPPED_SHORT, BatchResult, Profile)
 
 DEFAULT_STEP_M = 50.0
@@ -733,7 +733,8 @@ class TractionCalculator:
         never = lambda a: np.where(a < 0, n_cells, a)  # noqa: E731
         prof = (t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None
         airs = (never(air_at), air_wait, air_apps, air_margin, air if want_profile else None) if cyc else None
-        return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at.astype(bool), t, work, prof, sw, airs)
+        return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at == 1, t, work, prof, sw, airs,
+                             held_at_stop=fb_at == 2)
 
     def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_air: float) -> bool:
         """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (N_CONDITIONS, cells),
@@ -816,7 +817,7 @@ class TractionCalculator:
         if cruise_e is not None:  # per plan and cell: the cruise speed caps T and K, not C
             cruise_cap = np.where(np.ascontiguousarray(frac[CODE["C"]].T) > 0, np.inf, cruise_e[None, :])
         over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
-        stop = np.zeros((n_cells, n), dtype=bool)  # at rest before the end
+        stop = np.zeros((n_cells, n), dtype=np.int8)  # at rest before the end (2: under an application kept on)
         nohold = np.zeros((n_cells, n), dtype=bool)  # full braking cannot hold the train at a limit
         # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
         # cells use the previous cell's mean slope
@@ -834,7 +835,7 @@ class TractionCalculator:
         at = np.minimum(first_stop, n_cells - 1), np.arange(n)
         braking_at_stop = fB[at] + fE[at] > 0
         return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
-                             airs)
+                             airs, held_at_stop=stop[at] == 2)
 
     def _loop(self, fT, fK, fB, fE, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, margin,
               region):
@@ -908,7 +909,7 @@ class TractionCalculator:
             b_max = full_brake_kn(el_k, air_k, allowed[k])
             load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
             fT_k, fk, fB_k, fE_k, b_use, may_ex = fT[k], fK[k], fB[k], fE[k], b_max, may_exceed[k]
-            ov = band = hold_cap = None
+            ov = band = hold_cap = kept = None
             if cyc is not None:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
@@ -991,14 +992,15 @@ class TractionCalculator:
             if strict:  # by default the train is held at the limit by braking instead
                 over[k] = (e_pred > e_over[k]) & may_ex
             capped = e_pred > c1
-            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
+            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest), never
+            # braking: an application kept on slows the train by the air brake alone, as at any speed
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
             crawl = np.zeros(n, dtype=bool)
             if k > 0:
                 crawl = ~capped & (fB_k == 0.0) & (fE_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
-                if band is not None:
-                    crawl &= ~band
+                if band is not None:  # (held by the electric brake, or an application kept on: braking)
+                    crawl &= ~band & ~kept
             if crawl.any():
                 e_c, t_c, w_c = self._crawl(k, e[crawl], np.broadcast_to(fT_k, (n,))[crawl],
                                             np.broadcast_to(fk, (n,))[crawl], k == last)
@@ -1029,8 +1031,9 @@ class TractionCalculator:
                 phi = 1.0
                 e_new = e_pred
             if k < last:
-                stop[k] = e_new <= E_FLOOR
-                at_rest |= stop[k]
+                rest = e_new <= E_FLOOR
+                stop[k] = rest if kept is None else np.where(rest, np.where(kept, 2, 1), 0)
+                at_rest |= stop[k] > 0
                 e_new = np.maximum(e_new, E_FLOOR)
                 v_new = ms_from_e(e_new)
             else:  # at rest before the end of the last cell (coasting up to the stop): short of it
@@ -1125,11 +1128,12 @@ class TractionCalculator:
         return e, t, w
 
     def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m,
-                 airs=None) -> BatchResult:
+                 airs=None, held_at_stop=None) -> BatchResult:
         """Each plan's first failure decides its verdict; assemble the typed result.
 
         first_*: (n,) the first cell where the plan broke a limit (strict mode), came to rest, or could not
-        be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest.
+        be held under a limit (n_cells = never); braking_at_stop: it was braking where it came to rest;
+        held_at_stop: an application it could not release (kept on) brought it to rest there.
         airs: the air brake's cycle (None without): the first cell where it was applied before its recharge
         was over (n_cells = never), the time since the release there, the applications, the least recharge
         margin and the per-cell state (or None). Refused so before any other failure, a plan keeps its run."""
@@ -1151,6 +1155,8 @@ class TractionCalculator:
         reason = np.where(~failed, OK, np.where(cannot_hold, CANNOT_HOLD,
                           np.where(first_over == first, LIMIT_EXCEEDED,
                                    np.where(braking_at_stop | short, STOPPED_SHORT, STALLED)))).astype(np.int8)
+        if held_at_stop is not None:
+            reason = np.where((reason == STALLED) & held_at_stop, AIR_HELD, reason).astype(np.int8)
         air_refused = np.zeros(len(first), dtype=bool)
         if airs is not None:
             air_refused = (airs[0] < first) & (self.impossible is None)
@@ -1181,7 +1187,7 @@ class TractionCalculator:
                 event[sel, at] = np.where(np.isnan(event[sel, at]), x[sel], event[sel, at])
             # a failed plan's profile ends where it failed (at rest where it stalled or stopped short;
             # before the cell where it broke or could not hold a limit): what follows is not a run
-            stopped = (reason == STALLED) | (reason == STOPPED_SHORT) | (reason == IMPOSSIBLE)
+            stopped = (reason == STALLED) | (reason == STOPPED_SHORT) | (reason == IMPOSSIBLE) | (reason == AIR_HELD)
             end = np.where(failed, np.where(stopped, cell + 1, np.minimum(first, at_node)), n_cells)
             if airs is not None:  # refused for its recharge: the run up to its own failure, if any
                 stopped_run = (first_stop == first) & failed_run

@@ -450,8 +450,9 @@ def run_plans(ce_, fo, pl, out):
             # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
             # (in the last cell too: coasting up to the stop must reach it)
             # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
+            # never braking: an application kept on slows the train by the air brake alone, as at any speed
             crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
-                     and stop_at[i] < 0 and not band)
+                     and stop_at[i] < 0 and not band and not kept)
             t_crawl = 0.0
             w_crawl = 0.0
             if crawl:
@@ -478,7 +479,7 @@ def run_plans(ce_, fo, pl, out):
                 if e_new <= E_FLOOR:
                     if stop_at[i] < 0:
                         stop_at[i] = k
-                        fb_at[i] = 1 if fB + fE > 0.0 else 0
+                        fb_at[i] = 2 if kept else (1 if fB + fE > 0.0 else 0)  # (2: an application kept on)
                     e_new = E_FLOOR
                 v_new = ms_from_e(e_new)
             else:

@@ -10,14 +10,15 @@ from ..model.conditions import CODE, CONDITIONS  # noqa: F401  (the codes of ``P
 
 from .constants import AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED  # noqa: F401  (the codes of ``Profile.air``)
 
-OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, COUPLER_LIMIT, FORCE_RATE, AIR_RECHARGE = range(9)
+OK, LIMIT_EXCEEDED, STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, COUPLER_LIMIT, FORCE_RATE, AIR_RECHARGE, AIR_HELD = range(10)
 REASONS = {OK: "ok", LIMIT_EXCEEDED: "limit exceeded", STALLED: "stalled", STOPPED_SHORT: "did not stop at the end",
            CANNOT_HOLD: "full braking cannot hold the limit",
            IMPOSSIBLE: "no entry speed keeps the limit under full braking",
            COUPLER_LIMIT: "coupler force over the consist's limit",
            FORCE_RATE: "force changes faster than the consist's limit",
-           AIR_RECHARGE: "air brake applied again before its recharge is over"}
-NEVER_ARRIVED = (STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE)
+           AIR_RECHARGE: "air brake applied again before its recharge is over",
+           AIR_HELD: "brought to rest by an air brake application it could not release"}
+NEVER_ARRIVED = (STALLED, STOPPED_SHORT, CANNOT_HOLD, IMPOSSIBLE, AIR_HELD)
 """Failures after which the train does not reach the stop (no running time); a plan refused for its coupler
 forces, its force rate or its air brake's recharge runs to the end and keeps its time and energy."""
 
@@ -159,4 +160,8 @@ class BatchResult:
                     f"was over, at {where:,.0f} m{on}: the cycle cannot hold the speed there")
         if code == STALLED:
             return f"stalled at {where:,.0f} m{on}"
+        if code == AIR_HELD:
+            return (f"brought to rest at {where:,.0f} m{on} by an air brake application it could not release: in its "
+                    f"recharge of {self.recharge_s:.0f} s the train would run over the speed at which it must apply "
+                    "again (the electric brake cannot hold it there, or is cut in a neutral section)")
         return f"did not stop at the end: came to rest at {where:,.0f} m"
