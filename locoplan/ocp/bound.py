@@ -333,6 +333,118 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
     return _remember(base, time_s, E_STAR_TOL, METHOD, b)
 
 
+@dataclass(frozen=True)
+class OptimumRun:
+    """E*'s own run at one running time, on the finest grid of its solve: ``bound`` (E*, its accuracy, dE*/dT), the
+    node positions [m] and speeds [m/s] and each cell's traction force [kN]. Its traction work, sum h F over the
+    cells, is ``bound.energy_kwh``; its running time, sum 2 h / (v0 + v1), is ``bound.time_s`` to the solver's
+    tolerance."""
+
+    bound: Bound
+    s_m: np.ndarray
+    v_ms: np.ndarray
+    traction_kn: np.ndarray
+
+    def cell_times_s(self) -> np.ndarray:
+        """Each cell's running time [s], ``2 h / (v0 + v1)`` (constant acceleration over the cell, as E*'s scheme)."""
+        v = self.v_ms
+        return 2.0 * np.diff(self.s_m) / np.maximum(v[:-1] + v[1:], 1e-12)
+
+
+_RUNS: dict[tuple, OptimumRun] = {}
+
+
+def optimum_run(route: Route, train: Train, options: ModelOptions | None, time_s: float) -> OptimumRun:
+    """E* at ``time_s`` (the traction objective) with its run: what ``energy_bound`` solves, to the same tolerance,
+    kept with the finest grid's solution, so that the run's energy and time can be split along the line (``locoplan
+    replay``). Kept in this process and on disk (``LOCOPLAN_CACHE_DIR``, as E*); the E* found is also what
+    ``energy_bound`` answers for that time afterwards. Raises ``InfeasibleError`` as ``energy_bound`` (a time below
+    the fastest run, a consist that cannot run the route, a solve that does not converge)."""
+    from .cells import solve_estar
+    from .train_energy import check_runnable
+
+    options = relaxed(options)
+    time_s = float(time_s)
+    base = _problem_key(route, train, options, 0.0)
+    calc = TractionCalculator(route, train, options)
+    check_runnable(calc, time_s)  # first: a kept run (keyed by the time to 0.01 s) never answers a time below the fastest
+    key = (base, round(time_s, 2), "run", E_STAR_TOL)
+    if key in _RUNS:
+        return _RUNS[key]
+    kept = _run_read(key, time_s)
+    if kept is None:
+        floor = percent_floor_kwh(route, train)
+        try:
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, warm=_WARM.get(base))
+        except InfeasibleError:
+            if _WARM.get(base) is None:
+                raise
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor)  # cold
+        _WARM[base] = es.solution
+        sol = es.solution
+        b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
+                  es.slope_kwh_per_s, METHOD, "traction", sol.traction_kwh, sol.recovered_kwh)
+        kept = OptimumRun(b, np.asarray(sol.s_m, float), np.asarray(sol.v_ms, float), np.asarray(sol.traction_kn, float))
+        _run_write(key, kept)
+    _remember(base, time_s, E_STAR_TOL, METHOD, replace(kept.bound, time_s=time_s))  # bound and gaps say the same E*
+    if len(_RUNS) > 64:
+        _RUNS.pop(next(iter(_RUNS)))
+    _RUNS[key] = kept
+    return kept
+
+
+_RUN_META = ("energy_kwh", "converged", "cells", "step_m", "solve_time_s", "accuracy", "slope_kwh_per_s", "traction_kwh",
+             "recovered_kwh")
+
+
+def _run_read(key: tuple, time_s: float) -> "OptimumRun | None":
+    """A run ``optimum_run`` kept on disk, or None (none, unreadable, or not a run: shapes that disagree, a value not
+    finite, a speed or force below 0, an energy that is not the cells' sum: a damaged file is solved again)."""
+    f = _cache_file(key)
+    if f is None:
+        return None
+    try:
+        with np.load(f.with_suffix(".run.npz"), allow_pickle=False) as z:
+            s, v, tr, meta = (np.array(z[k], dtype=float) for k in ("s_m", "v_ms", "traction_kn", "meta"))
+    except (OSError, ValueError, KeyError, TypeError, EOFError):
+        return None
+    n = s.size - 1
+    if not (n >= 1 and v.shape == (n + 1,) and tr.shape == (n,) and meta.shape == (len(_RUN_META),)):
+        return None
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v)) and np.all(np.isfinite(tr)) and np.all(np.diff(s) > 0)
+            and v.min() >= 0 and tr.min() >= -1e-6):
+        return None
+    data = dict(zip(_RUN_META, (float(x) for x in meta)))
+    if not math.isfinite(data["energy_kwh"]) or abs(kwh(float(np.sum(np.diff(s) * tr))) - data["energy_kwh"]) > 1e-6 * max(1.0, abs(data["energy_kwh"])):
+        return None
+    b = Bound(time_s, data["energy_kwh"], bool(data["converged"]), int(data["cells"]), data["step_m"], 0.0,
+              None if math.isnan(data["accuracy"]) else data["accuracy"], data["slope_kwh_per_s"], METHOD, "traction",
+              data["traction_kwh"], data["recovered_kwh"])
+    return OptimumRun(b, s, v, tr)
+
+
+def _run_write(key: tuple, run: OptimumRun) -> None:
+    f = _cache_file(key)
+    if f is None:
+        return
+    f = f.with_suffix(".run.npz")
+    b = run.bound
+    meta = np.array([b.energy_kwh, float(b.converged), b.cells, b.step_m, b.solve_time_s,
+                     math.nan if b.accuracy is None else b.accuracy, b.slope_kwh_per_s, b.traction_kwh, b.recovered_kwh],
+                    dtype=float)
+    tmp = None
+    try:  # atomic, as the bounds' JSON files
+        f.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp.npz")
+        with os.fdopen(fd, "wb") as out:
+            np.savez(out, s_m=run.s_m, v_ms=run.v_ms, traction_kn=run.traction_kn, meta=meta)
+        os.replace(tmp, f)
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
 STRUCTURE_STEP_M = (10.0, 40.0)
 STRUCTURE_CELLS = 1500
 """E*'s solution for its structure (``optimum_solution``): one grid of about ``STRUCTURE_CELLS`` cells, their
