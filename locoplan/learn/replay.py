@@ -10,19 +10,25 @@ steep / gentle up and down and level stretches, for the run's train). For sectio
 - the optimum's (E*'s run at the same running time T, ``ocp.bound.optimum_run``): its cells' traction work inside
   [a, b] and its time there (each cell at constant acceleration, ``2 h / (v0 + v1)``, split where a boundary falls
   inside a cell), its section times scaled to add up to T exactly (they do to the solver's tolerance);
-- the price of time ``lambda = -dE*/dT`` at T (the running time's multiplier in E*'s solve): the energy one more
-  second saves an optimal drive;
+- the optimum's prices (the multipliers of E*'s solve, ``ocp.bound.optimum_run``): of time, ``lambda = -dE*/dT``
+  at T, the energy one more second saves an optimal drive; and of kinetic energy, ``mu(x)``, the energy one more
+  kWh of the train's kinetic energy at x saves the optimum from there on (1 where it holds a speed with part of its
+  traction, above 1 under full traction, falling towards 0 while it coasts, 0 where it holds a speed by braking);
 
 and the section's excess
 
-    excess_k = (E_run,k - E*_k) + lambda (t_run,k - t*_k).
+    excess_k = (E_run,k - E*_k) + lambda (t_run,k - t*_k) + mu(a) dK(a) - mu(b) dK(b)
 
-The first term is the energy used there beyond the optimum's; the second prices the time the run spent there
-beyond the optimum's: a run slow on one section must be fast elsewhere to arrive at T, and an optimal drive makes
-that time good at lambda per second. Both the run and the optimum take T, so the time terms add up to zero and
-the sections' excesses add up to the run's, ``sum_k excess_k = E_run - E*(T)``. A driver who is slow on one
-section and makes it up on the next at the optimum's price is charged with neither: to first order the energy
-saved on the one is the time's value spent on the other.
+with dK(x) the run's kinetic energy less the optimum's at x (0 at the line's two ends, where both are at rest). The
+first term is the energy used there beyond the optimum's. The second prices the time the run spent there beyond
+the optimum's: a run slow on one section must be fast elsewhere to arrive at T, and an optimal drive makes that
+time good at lambda per second. The last two price the speed the run brings in and carries out: a section left
+faster than the optimum leaves it has stored energy the next one will not have to buy (credited to the section
+that stored it, charged to the one that spends it). These are the first-order terms of the value function of the
+rest of the run (energy still to use from a place, a speed and a time), so a section's excess is, to first order,
+what the run's driving on that section cost against driving it optimally from the state it was in. Both the run
+and the optimum take T and start and stop at rest, so the time and speed terms add up to zero and the sections'
+excesses add up to the run's, ``sum_k excess_k = E_run - E*(T)``, exactly.
 """
 
 from __future__ import annotations
@@ -34,15 +40,16 @@ import numpy as np
 
 from ..errors import LocoplanError
 from ..model.logs import LogData, LoggedRun
-from ..physics.units import kmh, kwh
+from ..physics.units import kmh, kwh, ms
 from ..sim.calculator import ModelOptions
 from .segments import LEVEL_PERMILLE, Section, segment_route
 
 
 @dataclass(frozen=True)
 class SectionExcess:
-    """One section of a run: the run's and the optimum's traction work [kWh] and time [s] there, the time's value
-    at the price of time [kWh] and the section's excess [kWh] (module docstring)."""
+    """One section of a run: the run's and the optimum's traction work [kWh] and time [s] there, the value of the
+    time it spent beyond the optimum's and of the speed it brought in less what it carried out [kWh], and the
+    section's excess [kWh] (module docstring)."""
 
     index: int
     kind: str
@@ -54,6 +61,7 @@ class SectionExcess:
     run_s: float
     optimum_s: float
     time_kwh: float
+    speed_kwh: float
 
     @property
     def energy_kwh(self) -> float:
@@ -62,14 +70,15 @@ class SectionExcess:
 
     @property
     def excess_kwh(self) -> float:
-        return self.energy_kwh + self.time_kwh
+        return self.energy_kwh + self.time_kwh + self.speed_kwh
 
     def to_dict(self) -> dict:
         return {"index": self.index, "type": self.kind, "from_m": round(self.from_m, 1), "to_m": round(self.to_m, 1),
                 "gradient_permille": round(self.gradient_permille, 3), "run_kwh": round(self.run_kwh, 3),
                 "optimum_kwh": round(self.optimum_kwh, 3), "run_s": round(self.run_s, 2),
                 "optimum_s": round(self.optimum_s, 2), "energy_kwh": round(self.energy_kwh, 3),
-                "time_kwh": round(self.time_kwh, 3), "excess_kwh": round(self.excess_kwh, 3)}
+                "time_kwh": round(self.time_kwh, 3), "speed_kwh": round(self.speed_kwh, 3),
+                "excess_kwh": round(self.excess_kwh, 3)}
 
 
 @dataclass(frozen=True)
@@ -184,6 +193,30 @@ def optimum_sections(s_m: np.ndarray, v_ms: np.ndarray, traction_kn: np.ndarray,
     return work, np.diff(t)
 
 
+def log_speed_at(data: LogData, x: np.ndarray) -> np.ndarray:
+    """The log's speed [km/h] where the head first reaches each position ``x`` [m] (linear between rows)."""
+    pos, v = data.position_m, data.speed_kmh
+    i = np.clip(np.searchsorted(pos, x, side="left"), 1, pos.size - 1)
+    p0, p1 = pos[i - 1], pos[i]
+    w = np.clip(np.where(p1 > p0, (x - p0) / np.where(p1 > p0, p1 - p0, 1.0), 1.0), 0.0, 1.0)
+    out = v[i - 1] + w * (v[i] - v[i - 1])
+    return np.where(x <= pos[0], v[0], np.where(x >= pos[-1], v[-1], out))
+
+
+def boundary_values(data: LogData, opt, sections: tuple[Section, ...]) -> np.ndarray:
+    """At each inner boundary of the sections, the value of the kinetic energy the run carries over the optimum's
+    there [kWh]: ``mu(x) (K_run(x) - K*(x))``, with ``mu`` the optimum's price of kinetic energy at x (its cells'
+    prices, linear between their middles) and K the train's kinetic energy."""
+    x = np.array([s.from_m for s in sections[1:]], dtype=float)
+    if not x.size:
+        return x
+    mid = 0.5 * (opt.s_m[1:] + opt.s_m[:-1])
+    mu = np.interp(x, mid, opt.kinetic_price)
+    v_run = ms(log_speed_at(data, x))
+    v_opt = np.interp(x, opt.s_m, opt.v_ms)
+    return mu * kwh(0.5 * opt.mass_t * (v_run ** 2 - v_opt ** 2))
+
+
 # ------------------------------------------------------------------------------------------ a run, many runs
 def replay_run(run: LoggedRun, options: ModelOptions | None = None, level_permille: float = LEVEL_PERMILLE,
                keep_profile: bool = False) -> RunReplay:
@@ -204,8 +237,10 @@ def replay_run(run: LoggedRun, options: ModelOptions | None = None, level_permil
     opt_kwh, opt_s = optimum_sections(opt.s_m, opt.v_ms, opt.traction_kn, sections)
     opt_s = opt_s * (T / float(np.sum(opt_s)))  # the optimum takes T, to the solver's tolerance: exactly T
     price = -float(opt.bound.slope_kwh_per_s)
+    carried = np.concatenate([[0.0], boundary_values(data, opt, sections), [0.0]])  # at rest at both ends
     rows = tuple(SectionExcess(s.index, s.kind, s.from_m, s.to_m, s.gradient_permille, float(run_kwh[k]),
-                               float(opt_kwh[k]), float(run_s[k]), float(opt_s[k]), price * float(run_s[k] - opt_s[k]))
+                               float(opt_kwh[k]), float(run_s[k]), float(opt_s[k]), price * float(run_s[k] - opt_s[k]),
+                               float(carried[k] - carried[k + 1]))
                  for k, s in enumerate(sections))
     return RunReplay(run, T, energy, float(opt.bound.energy_kwh), opt.bound.accuracy, price, rows,
                      optimum_s_m=opt.s_m if keep_profile else None,
@@ -213,12 +248,12 @@ def replay_run(run: LoggedRun, options: ModelOptions | None = None, level_permil
 
 
 def replay_logs(runs: list[LoggedRun], options: ModelOptions | None = None, level_permille: float = LEVEL_PERMILLE,
-                progress=lambda: None) -> list[RunReplay]:
-    """Every logged run replayed (:func:`replay_run`), in the order given; ``progress()`` after each."""
+                progress=lambda run: None) -> list[RunReplay]:
+    """Every logged run replayed (:func:`replay_run`), in the order given; ``progress(run)`` as each begins."""
     out = []
     for r in runs:
+        progress(r)
         out.append(replay_run(r, options, level_permille))
-        progress()
     return out
 
 
@@ -242,6 +277,7 @@ def summary(replays: list[RunReplay]) -> dict:
                          "gradient_permille": round(s.gradient_permille, 3),
                          "energy_kwh": round(sum(r.sections[k].energy_kwh for r in rs), 3),
                          "time_kwh": round(sum(r.sections[k].time_kwh for r in rs), 3),
+                         "speed_kwh": round(sum(r.sections[k].speed_kwh for r in rs), 3),
                          "excess_kwh": round(tot, 3), "mean_excess_kwh": round(tot / len(rs), 3)})
         e = sum(r.traction_energy_kwh for r in rs)
         x = sum(r.excess_kwh for r in rs)
