@@ -93,14 +93,15 @@ def replay_tables(doc: dict, width: int = 80) -> list:
     title = (f"{len(runs)} runs against E* at their own running times" if len(shown) == len(runs) else
              f"the {len(shown)} runs of {len(runs)} with the largest excess over E* at their own running times")
     t1 = Table(title=escape(title), title_justify="left")
-    for col in ("log", "time [s]", "energy [kWh]", "E* [kWh]", "excess [kWh]", "excess [%]", "worst section [m]"):
-        t1.add_column(escape(col), justify="left" if col in ("log", "worst section [m]") else "right")
+    for col in ("log", "time [s]", "energy [kWh]", "E* [kWh]", "excess [kWh]", "excess [%]", "worst section [km]: kWh"):
+        t1.add_column(escape(col), justify="left" if col in ("log", "worst section [km]: kWh") else "right")
     for r in shown:
         worst = max(r["sections"], key=lambda s: s["excess_kwh"]) if r["sections"] else None
         t1.add_row(escape(Path(r["log"]).stem), f"{r['running_time_s']:.1f}", _kwh(r["traction_energy_kwh"]),
                    _kwh(r["optimum_kwh"]), _kwh(r["excess_kwh"]),
                    "-" if r["excess_percent"] is None else f"{r['excess_percent']:.1f}",
-                   "-" if worst is None else f"{worst['from_m']:,.0f}-{worst['to_m']:,.0f}: {worst['excess_kwh']:+,.1f} kWh")
+                   "-" if worst is None else f"{worst['from_m'] / 1000:,.1f}-{worst['to_m'] / 1000:,.1f}: "
+                                             f"{worst['excess_kwh']:+,.1f}")
     blocks: list = fit(t1, width, drop=(5,), wrap=(0, 6))
     for line in doc["summary"]["lines"]:
         n = line["runs"]
@@ -109,14 +110,15 @@ def replay_tables(doc: dict, width: int = 80) -> list:
                                f" [kWh{per}]: excess = energy over the optimum's + value of the time spent + of the speed"
                                " brought in less carried out"),
                   title_justify="left")
-        for col in ("#", "type", "from [m]", "to [m]", "energy", "time", "speed", "excess", "share [%]"):
+        for col in ("#", "type", "km", "energy", "time", "speed", "excess", "share [%]"):
             t.add_column(escape(col), justify="left" if col == "type" else "right")
         total = line["excess_kwh"]
         for s in line["sections"]:
-            t.add_row(str(s["index"]), s["type"], f"{s['from_m']:,.0f}", f"{s['to_m']:,.0f}", f"{s['energy_kwh'] / n:+,.2f}",
+            t.add_row(str(s["index"]), s["type"], f"{s['from_m'] / 1000:,.1f}-{s['to_m'] / 1000:,.1f}",
+                      f"{s['energy_kwh'] / n:+,.2f}",
                       f"{s['time_kwh'] / n:+,.2f}", f"{s['speed_kwh'] / n:+,.2f}", f"{s['excess_kwh'] / n:+,.2f}",
                       f"{100 * s['excess_kwh'] / total:.1f}" if total > 0 else "-")
-        blocks += fit(t, width, drop=(8,))
+        blocks += fit(t, width, drop=(7,))
     s = doc["summary"]
     if s["compared"]:
         blocks.append(Note(f"{s['compared']} run{'s' if s['compared'] != 1 else ''}: {s['traction_energy_kwh']:,.2f} kWh used, "
