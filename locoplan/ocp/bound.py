@@ -359,6 +359,7 @@ class OptimumRun:
 
 
 _RUNS: dict[tuple, OptimumRun] = {}
+_RUN_CALCS: dict[tuple, TractionCalculator] = {}
 
 
 def optimum_run(route: Route, train: Train, options: ModelOptions | None, time_s: float) -> OptimumRun:
@@ -373,8 +374,12 @@ def optimum_run(route: Route, train: Train, options: ModelOptions | None, time_s
     options = relaxed(options)
     time_s = float(time_s)
     base = _problem_key(route, train, options, 0.0)
-    calc = TractionCalculator(route, train, options)
-    check_runnable(calc, time_s)  # first: a kept run (keyed by the time to 0.01 s) never answers a time below the fastest
+    if base not in _RUN_CALCS:  # built once per route, train and model: a log set has many runs of one line
+        if len(_RUN_CALCS) > 16:
+            _RUN_CALCS.pop(next(iter(_RUN_CALCS)))
+        _RUN_CALCS[base] = TractionCalculator(route, train, options)
+    # first: a kept run (keyed by the time to 0.01 s) never answers a time below the fastest run
+    check_runnable(_RUN_CALCS[base], time_s)
     key = (base, round(time_s, 2), "run", E_STAR_TOL)
     if key in _RUNS:
         return _RUNS[key]

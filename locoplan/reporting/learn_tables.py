@@ -123,7 +123,8 @@ def replay_tables(doc: dict, width: int = 80) -> list:
     if s["compared"]:
         blocks.append(Note(f"{s['compared']} run{'s' if s['compared'] != 1 else ''}: {s['traction_energy_kwh']:,.2f} kWh used, "
                            f"E* {s['optimum_kwh']:,.2f} kWh in the same running times: {s['excess_kwh']:,.2f} kWh "
-                           f"({s['excess_percent']:.1f} %) an optimal drive would have saved"))
+                           + ("" if s["excess_percent"] is None else f"({s['excess_percent']:.1f} %) ")
+                           + "an optimal drive would have saved"))
     if s["compared"] < s["runs"]:
         blocks.append(Note(f"{s['runs'] - s['compared']} of {s['runs']} runs have no E* at their running time (below)"))
     return blocks

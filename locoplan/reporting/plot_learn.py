@@ -173,7 +173,8 @@ def plot_replay(path: str | Path, replays: list, options) -> None:
     axb.set_ylabel("excess [kWh]")
     axb.set_xlabel("position [km]")
     axb.legend(fontsize=8, loc="lower right")
-    fit_title(ax, f"{route.name}, {run.train.name}: excess over E* {worst.excess_kwh:+,.1f} kWh "
-                  f"({worst.excess_percent:.1f} % of the run's energy), the largest of {len(done)} runs", fontsize=10)
+    share = "" if worst.excess_percent is None else f" ({worst.excess_percent:.1f} % of the run's energy)"
+    fit_title(ax, f"{route.name}, {run.train.name}: excess over E* {worst.excess_kwh:+,.1f} kWh{share}, the largest "
+                  f"of {len(done)} runs", fontsize=10)
     fig.tight_layout()
     _save(fig, path)
