@@ -486,6 +486,7 @@ def replay(runs: list, options: ModelOptions, level_permille: float = 2.0,
 
     bounds.check_option("--level", level_permille)
     replays = replay_logs(runs, options, level_permille, progress)
-    doc = {"model": {"point_mass": options.point_mass, "air_brake": options.air_brake},
+    doc = {"model": {"point_mass": options.point_mass, "air_brake": options.air_brake,
+                     "rotating_mass": options.rotating_mass},
            "level_permille": level_permille, "summary": summary(replays), "runs": [r.to_dict() for r in replays]}
     return Replayed(replays, doc, verdict(f"{r.run.log_file}: {r.reason}" for r in replays if r.reason))

@@ -203,6 +203,45 @@ def test_the_optimum_replayed_has_no_excess_anywhere(tmp_path):
         assert abs(s.excess_kwh) <= 1e-3 * opt.bound.energy_kwh / len(r.sections), s
 
 
+def test_a_run_slow_at_a_boundary_and_optimal_either_side_is_charged_second_order_only(tmp_path):
+    """The least-energy run that must pass 1000 m 6 km/h slower than the optimum (the cell solver with that node's
+    speed pinned) drives each side optimally from its state: it saves about mu dK of traction before the boundary
+    and spends it after. The speed term moves that to where it belongs: both sections' excesses are second order
+    (a tenth of mu dK at most), where the energy terms alone would credit one and charge the other with all of it."""
+    from locoplan.ocp.cells import CellIPM, IPMSettings, cell_calculator, cell_problem, initial_speeds
+    from locoplan.physics.units import ms
+
+    route_file = ROOT / "tests/data/learn/line-6km.yaml"
+    route, train = load_route(route_file), load_train(CONSIST)
+    T, x_b = 560.0, 1000.0
+    opt = optimum_run(route, train, ModelOptions(), T)
+    v_star = float(np.interp(x_b, opt.s_m, opt.v_ms))
+    calc = cell_calculator(route, train, relaxed(ModelOptions()), 5.0)
+    prob = cell_problem(calc, T)
+    i = int(np.argmin(np.abs(calc.s_m - x_b)))
+    assert calc.s_m[i] == pytest.approx(x_b)
+    v_b = v_star - ms(6.0)
+    prob.lb[3 * i] = prob.ub[3 * i] = v_b / prob.v_ref
+    x0 = prob.start_from_profile(np.minimum(initial_speeds(calc, T), prob.ub[0::3] * prob.v_ref))
+    res = CellIPM(prob, IPMSettings(mu_strategy="monotone", max_iter=300)).solve(x0)
+    assert res.converged
+    v, F = prob.speeds_ms(res.x), (res.x * prob.ref)[1::3]
+    t = np.concatenate([[0.0], np.cumsum(2 * calc.h_m / np.maximum(v[:-1] + v[1:], 1e-12))])
+    write_log_set(tmp_path, route_file, train, {"pinned": LogData(t, calc.s_m, kmh(v), np.append(F, 0.0))}, T)
+    (run,) = load_logs(tmp_path)
+    r = replay_run(run, ModelOptions())
+    k = next(j for j, sec in enumerate(r.sections) if sec.to_m == pytest.approx(x_b))
+    mu = float(np.interp(x_b, 0.5 * (opt.s_m[1:] + opt.s_m[:-1]), opt.kinetic_price))
+    carried = mu * kwh(0.5 * opt.mass_t * (v_b ** 2 - v_star ** 2))  # < 0: the run carries less over the boundary
+    assert carried < -10.0
+    before, after = r.sections[k], r.sections[k + 1]
+    assert before.energy_kwh == pytest.approx(carried, rel=0.05) and after.energy_kwh == pytest.approx(-carried, rel=0.1)
+    assert before.speed_kwh == pytest.approx(-carried, rel=0.02)
+    assert 0.0 <= r.excess_kwh <= 0.1 * abs(carried)
+    for sec in r.sections:
+        assert abs(sec.excess_kwh) <= 0.1 * abs(carried), sec
+
+
 def test_the_price_of_kinetic_energy_meets_pontryagin():
     """Where the optimum applies part of its traction, one kWh more of kinetic energy saves one kWh of traction
     (price 1); where it brakes with part of its brake, none (price 0); under full traction more than 1."""
