@@ -464,3 +464,29 @@ __all__ = ["EXIT_OK", "EXIT_RULE", "EXIT_FAILED", "EXIT_INVALID", "EXIT_INTERRUP
            "names", "weights", "check_choice", "check_fields", "value_grid", "positive_numbers", "seed_list", "one_of", "planned_time", "planned_times",
            "window_half_width", "group_reasons", "verdict", "compare_verdict", "confirmed_verdict",
            "check_energy_ocp", "bound_times", "energy_curve", "curve_verdict", "curve_exit_code", "check_counts"]
+
+
+# ------------------------------------------------------------------------------------------ replay
+@dataclass
+class Replayed:
+    """``locoplan replay``: every run against E* at its own running time (``learn.replay.RunReplay``), the
+    ``--json`` document (``runs``, ``summary``, the section rule) and the verdict: a run with no E* (a log
+    faster than the model's train can run the line, a consist that cannot run it) fails its job."""
+
+    replays: list
+    document: dict
+    verdict: Verdict
+
+
+def replay(runs: list, options: ModelOptions, level_permille: float = 2.0,
+           progress: Callable[[object], None] = lambda run: None) -> Replayed:
+    """Each logged run (``io.logs.load_logs``) against E* at its own running time, section by section, and the
+    summary over the runs (``learn.replay``)."""
+    from .learn.replay import replay_logs, summary
+
+    bounds.check_option("--level", level_permille)
+    replays = replay_logs(runs, options, level_permille, progress)
+    doc = {"model": {"point_mass": options.point_mass, "air_brake": options.air_brake,
+                     "rotating_mass": options.rotating_mass},
+           "level_permille": level_permille, "summary": summary(replays), "runs": [r.to_dict() for r in replays]}
+    return Replayed(replays, doc, verdict(f"{r.run.log_file}: {r.reason}" for r in replays if r.reason))

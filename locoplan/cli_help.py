@@ -41,6 +41,7 @@ SUMMARIES = {
     "ocp-study": "Minimum-time collocation methods side by side",
     "learn": "Learn pattern curves from good drivers' logs",
     "advise": "A plan from learned pattern curves, checked by simulation",
+    "replay": "Logged runs against E*: where they lost energy, by section",
     "import": "Public track, path and train files to locoplan files",
     "bound": "The least traction energy E* for a running time",
     "batch": "Many runs from a study file on a process pool; resumable",

@@ -14,8 +14,8 @@ import typer
 from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
-from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, guarded, json_out,
-                         out, plain, step_progress, wrote)
+from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, fail_on, guarded,
+                         json_out, out, plain, step_progress, wrote)
 from .reporting.learn_tables import fit_tables, groups_table, sections_table
 from .reporting.tables import fit, sequence_table, show, summary_table
 
@@ -157,10 +157,63 @@ def advise(route: Path = ROUTE,
     _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
 
 
+@guarded
+def replay(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yaml), manifests, or logs with their sidecar <log>.yaml."),
+           plot: Optional[Path] = typer.Option(None, "--plot", help="The run with the largest excess against E*'s run, and the excess by section, .png, .svg or .pdf."),
+           out_file: Optional[Path] = typer.Option(None, "--out", help="Every run and section: .json (the --json document) or .csv (one row per run and section)."),
+           level: float = typer.Option(2.0, "--level", help="|equivalent gradient| [per mille] at or below which a section is level."),
+           stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL_NO_STRICT):
+    """Each logged run against E*, the least traction energy at its own running time, and where it lost the
+    difference, section by section (the sections of the pattern curves); the total over the logs is what driving
+    at the optimum would have saved."""
+    from .io.logs import load_logs
+    from .reporting.learn_tables import replay_tables
+    from .reporting.writers import rows_csv, with_provenance, write_json
+    from .reporting.files import atomic_write_text
+
+    _check_outputs(out_file, plot)
+    opts = model.options()
+    runs = load_logs(logs, stock_dir)
+    with step_progress("runs", len(runs), not as_json) as step:
+        result = api.replay(runs, opts, level, progress=lambda run: step(run.log_file.stem))
+    doc = result.document
+    if out_file is not None and out_file.suffix.lower() == ".csv":
+        atomic_write_text(out_file, rows_csv(*replay_rows(doc)))
+    elif out_file is not None:
+        write_json(out_file, with_provenance(doc))
+    if plot:
+        from .reporting.plot_learn import plot_replay
+
+        plot_replay(plot, result.replays, opts)
+    if as_json:
+        json_out(doc)
+    else:
+        show(out, replay_tables(doc, out.width))
+    fail_on(result.verdict)
+
+
+REPLAY_RUN_COLUMNS = ("log", "driver_id", "mass_t", "running_time_s", "traction_energy_kwh", "optimum_kwh", "excess_kwh",
+                      "price_of_time_kwh_per_s")
+REPLAY_SECTION_COLUMNS = ("index", "type", "from_m", "to_m", "run_kwh", "optimum_kwh", "run_s", "optimum_s", "energy_kwh",
+                          "time_kwh", "speed_kwh", "excess_kwh")
+
+
+def replay_rows(doc: dict) -> tuple[list[dict], list[str]]:
+    """``replay --out FILE.csv``: one row per run and section, the run's fields then the section's (``section_``)."""
+    columns = list(REPLAY_RUN_COLUMNS) + [f"section_{c}" for c in REPLAY_SECTION_COLUMNS]
+    rows = []
+    for r in doc["runs"]:
+        head = {c: r[c] for c in REPLAY_RUN_COLUMNS}
+        for s in r["sections"] or [{}]:
+            rows.append({**head, **{f"section_{c}": s.get(c) for c in REPLAY_SECTION_COLUMNS}})
+    return rows, columns
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``drivers simulate``, ``learn`` and ``advise`` to ``app``, and the compare strategies."""
+    """Add ``drivers simulate``, ``learn``, ``advise`` and ``replay`` to ``app``, and the compare strategies."""
     drivers_app = typer.Typer(no_args_is_help=True, help="Synthetic drivers' logs (labelled synthetic), to learn pattern curves from.")
     drivers_app.command("simulate")(simulate)
     app.add_typer(drivers_app, name="drivers")
     app.command("learn")(learn)
     app.command("advise")(advise)
+    app.command("replay")(replay)

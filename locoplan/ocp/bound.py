@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import InfeasibleError, LocoplanError
 from ..model.route import Route
 from ..model.train import Train
-from ..physics.units import kwh, ms
+from ..physics.units import KJ_PER_KWH, kwh, ms
 from ..sim.calculator import ModelOptions, TractionCalculator
 
 DEFAULT_MESH_TOL = 1e-5
@@ -331,6 +331,144 @@ def energy_bound(route: Route, train: Train, options: ModelOptions | None = None
         b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
                   es.slope_kwh_per_s, METHOD, objective, es.solution.traction_kwh, es.solution.recovered_kwh)
     return _remember(base, time_s, E_STAR_TOL, METHOD, b)
+
+
+@dataclass(frozen=True)
+class OptimumRun:
+    """E*'s own run at one running time, on the finest grid of its solve: ``bound`` (E*, its accuracy, dE*/dT), the
+    node positions [m] and speeds [m/s] and each cell's traction force [kN]. Its traction work, sum h F over the
+    cells, is ``bound.energy_kwh``; its running time, sum 2 h / (v0 + v1), is ``bound.time_s`` to the solver's
+    tolerance."""
+
+    bound: Bound
+    s_m: np.ndarray
+    v_ms: np.ndarray
+    traction_kn: np.ndarray
+    kinetic_price: np.ndarray
+    """Each cell's price of kinetic energy [kWh of traction per kWh of kinetic energy]: what one more kWh of the
+    train's kinetic energy there saves the optimum from there on (the multiplier of the cell's work-energy balance;
+    1 where the optimum holds a speed with part of its traction, above 1 under full traction, falling towards 0
+    while it coasts, 0 where it holds a speed by braking)."""
+    mass_t: float
+    """The mass [t] whose kinetic energy that is (the train's inertial mass in the model)."""
+
+    def cell_times_s(self) -> np.ndarray:
+        """Each cell's running time [s], ``2 h / (v0 + v1)`` (constant acceleration over the cell, as E*'s scheme)."""
+        v = self.v_ms
+        return 2.0 * np.diff(self.s_m) / np.maximum(v[:-1] + v[1:], 1e-12)
+
+
+_RUNS: dict[tuple, OptimumRun] = {}
+_RUN_CALCS: dict[tuple, TractionCalculator] = {}
+
+
+def optimum_run(route: Route, train: Train, options: ModelOptions | None, time_s: float) -> OptimumRun:
+    """E* at ``time_s`` (the traction objective) with its run: what ``energy_bound`` solves, to the same tolerance,
+    kept with the finest grid's solution, so that the run's energy and time can be split along the line (``locoplan
+    replay``). Kept in this process and on disk (``LOCOPLAN_CACHE_DIR``, as E*); the E* found is also what
+    ``energy_bound`` answers for that time afterwards. Raises ``InfeasibleError`` as ``energy_bound`` (a time below
+    the fastest run, a consist that cannot run the route, a solve that does not converge)."""
+    from .cells import solve_estar
+    from .train_energy import check_runnable
+
+    options = relaxed(options)
+    time_s = float(time_s)
+    base = _problem_key(route, train, options, 0.0)
+    if base not in _RUN_CALCS:  # built once per route, train and model: a log set has many runs of one line
+        if len(_RUN_CALCS) > 16:
+            _RUN_CALCS.pop(next(iter(_RUN_CALCS)))
+        _RUN_CALCS[base] = TractionCalculator(route, train, options)
+    # first: a kept run (keyed by the time to 0.01 s) never answers a time below the fastest run
+    check_runnable(_RUN_CALCS[base], time_s)
+    key = (base, round(time_s, 2), "run", E_STAR_TOL)
+    if key in _RUNS:
+        return _RUNS[key]
+    kept = _run_read(key, time_s)
+    if kept is None:
+        floor = percent_floor_kwh(route, train)
+        try:
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor, warm=_WARM.get(base))
+        except InfeasibleError:
+            if _WARM.get(base) is None:
+                raise
+            es = solve_estar(route, train, options, time_s, tol=E_STAR_TOL, floor_kwh=floor)  # cold
+        _WARM[base] = es.solution
+        sol = es.solution
+        b = Bound(time_s, es.energy_kwh, es.converged, es.cells[-1], es.steps_m[-1], es.solve_time_s, es.accuracy,
+                  es.slope_kwh_per_s, METHOD, "traction", sol.traction_kwh, sol.recovered_kwh)
+        kept = OptimumRun(b, np.asarray(sol.s_m, float), np.asarray(sol.v_ms, float), np.asarray(sol.traction_kn, float),
+                          kinetic_price(es.calc, time_s, sol), float(es.calc.m_eff_t))
+        _run_write(key, kept)
+    _remember(base, time_s, E_STAR_TOL, METHOD, replace(kept.bound, time_s=time_s))  # bound and gaps say the same E*
+    if len(_RUNS) > 64:
+        _RUNS.pop(next(iter(_RUNS)))
+    _RUNS[key] = kept
+    return kept
+
+
+def kinetic_price(calc: TractionCalculator, time_s: float, sol) -> np.ndarray:
+    """Each cell's price of kinetic energy in E*'s solution ``sol`` on ``calc``'s cells (``OptimumRun.kinetic_price``):
+    the multiplier of the cell's balance, ``M (v1^2 - v0^2) / 2 - h (F - B - R - G) = 0`` scaled by ``h F_ref``, in
+    kWh of the objective per kWh of kinetic energy (where the optimum applies part of its traction the objective's
+    gradient h on F meets the balance's, so the price is 1 there)."""
+    from .cells import cell_problem
+
+    prob = cell_problem(calc, time_s)
+    return np.asarray(sol.result.y, float) * prob.e_ref * KJ_PER_KWH / (calc.h_m * prob.f_ref)
+
+
+_RUN_META = ("energy_kwh", "converged", "cells", "step_m", "solve_time_s", "accuracy", "slope_kwh_per_s", "traction_kwh",
+             "recovered_kwh", "mass_t")
+
+
+def _run_read(key: tuple, time_s: float) -> "OptimumRun | None":
+    """A run ``optimum_run`` kept on disk, or None (none, unreadable, or not a run: shapes that disagree, a value not
+    finite, a speed or force below 0, an energy that is not the cells' sum: a damaged file is solved again)."""
+    f = _cache_file(key)
+    if f is None:
+        return None
+    try:
+        with np.load(f.with_suffix(".run.npz"), allow_pickle=False) as z:
+            s, v, tr, mu, meta = (np.array(z[k], dtype=float) for k in ("s_m", "v_ms", "traction_kn", "kinetic_price", "meta"))
+    except (OSError, ValueError, KeyError, TypeError, EOFError):
+        return None
+    n = s.size - 1
+    if not (n >= 1 and v.shape == (n + 1,) and tr.shape == mu.shape == (n,) and meta.shape == (len(_RUN_META),)):
+        return None
+    if not (all(np.all(np.isfinite(a)) for a in (s, v, tr, mu, meta[-1:])) and np.all(np.diff(s) > 0)
+            and v.min() >= 0 and tr.min() >= -1e-6 and meta[-1] > 0):
+        return None
+    data = dict(zip(_RUN_META, (float(x) for x in meta)))
+    if not math.isfinite(data["energy_kwh"]) or abs(kwh(float(np.sum(np.diff(s) * tr))) - data["energy_kwh"]) > 1e-6 * max(1.0, abs(data["energy_kwh"])):
+        return None
+    b = Bound(time_s, data["energy_kwh"], bool(data["converged"]), int(data["cells"]), data["step_m"], 0.0,
+              None if math.isnan(data["accuracy"]) else data["accuracy"], data["slope_kwh_per_s"], METHOD, "traction",
+              data["traction_kwh"], data["recovered_kwh"])
+    return OptimumRun(b, s, v, tr, mu, data["mass_t"])
+
+
+def _run_write(key: tuple, run: OptimumRun) -> None:
+    f = _cache_file(key)
+    if f is None:
+        return
+    f = f.with_suffix(".run.npz")
+    b = run.bound
+    meta = np.array([b.energy_kwh, float(b.converged), b.cells, b.step_m, b.solve_time_s,
+                     math.nan if b.accuracy is None else b.accuracy, b.slope_kwh_per_s, b.traction_kwh, b.recovered_kwh,
+                     run.mass_t],
+                    dtype=float)
+    tmp = None
+    try:  # atomic, as the bounds' JSON files
+        f.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=f.parent, suffix=".tmp.npz")
+        with os.fdopen(fd, "wb") as out:
+            np.savez(out, s_m=run.s_m, v_ms=run.v_ms, traction_kn=run.traction_kn, kinetic_price=run.kinetic_price,
+                     meta=meta)
+        os.replace(tmp, f)
+    except OSError:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 STRUCTURE_STEP_M = (10.0, 40.0)

@@ -3,6 +3,9 @@ drivers and the fit report) and ``advise`` (the sections of the advice)."""
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 from rich.markup import escape
 from rich.table import Table
 
@@ -69,3 +72,59 @@ def sections_table(sections: list[dict]) -> Table:
                       f"{s['share']:.4f}", f"{s['time_s']:.1f}", f"{s['realised_share']:.4f}",
                       " ".join(f"{x:.0f}" for x in v))
     return table
+
+
+REPLAY_RUNS_SHOWN = 20
+"""``replay`` lists at most this many runs in its table (those with the largest excess); ``--json`` has all."""
+
+
+def _kwh(x) -> str:
+    return "-" if x is None else f"{x:,.2f}"
+
+
+def replay_tables(doc: dict, width: int = 80) -> list:
+    """``locoplan replay``: the runs against E* (the ``REPLAY_RUNS_SHOWN`` with the largest excess), then per line
+    the excess section by section (the run's own with one run, the mean per run with more), then the total."""
+    from .tables import Note, fit
+
+    runs = doc["runs"]
+    shown = sorted(runs, key=lambda r: -math.inf if r["excess_kwh"] is None else r["excess_kwh"], reverse=True)
+    shown = shown[:REPLAY_RUNS_SHOWN] if len(runs) > REPLAY_RUNS_SHOWN else runs
+    title = (f"{len(runs)} runs against E* at their own running times" if len(shown) == len(runs) else
+             f"the {len(shown)} runs of {len(runs)} with the largest excess over E* at their own running times")
+    t1 = Table(title=escape(title), title_justify="left")
+    for col in ("log", "time [s]", "energy [kWh]", "E* [kWh]", "excess [kWh]", "excess [%]", "worst section [km]: kWh"):
+        t1.add_column(escape(col), justify="left" if col in ("log", "worst section [km]: kWh") else "right")
+    for r in shown:
+        worst = max(r["sections"], key=lambda s: s["excess_kwh"]) if r["sections"] else None
+        t1.add_row(escape(Path(r["log"]).stem), f"{r['running_time_s']:.1f}", _kwh(r["traction_energy_kwh"]),
+                   _kwh(r["optimum_kwh"]), _kwh(r["excess_kwh"]),
+                   "-" if r["excess_percent"] is None else f"{r['excess_percent']:.1f}",
+                   "-" if worst is None else f"{worst['from_m'] / 1000:,.1f}-{worst['to_m'] / 1000:,.1f}: "
+                                             f"{worst['excess_kwh']:+,.1f}")
+    blocks: list = fit(t1, width, drop=(5,), wrap=(0, 6))
+    for line in doc["summary"]["lines"]:
+        n = line["runs"]
+        per = "" if n == 1 else ", mean per run"
+        t = Table(title=escape(f"{line['route']}: where {'the run' if n == 1 else f'{n} runs'} lost energy, by section"
+                               f" [kWh{per}]: excess = energy over the optimum's + value of the time spent + of the speed"
+                               " brought in less carried out"),
+                  title_justify="left")
+        for col in ("#", "type", "km", "energy", "time", "speed", "excess", "share [%]"):
+            t.add_column(escape(col), justify="left" if col == "type" else "right")
+        total = line["excess_kwh"]
+        for s in line["sections"]:
+            t.add_row(str(s["index"]), s["type"], f"{s['from_m'] / 1000:,.1f}-{s['to_m'] / 1000:,.1f}",
+                      f"{s['energy_kwh'] / n:+,.2f}",
+                      f"{s['time_kwh'] / n:+,.2f}", f"{s['speed_kwh'] / n:+,.2f}", f"{s['excess_kwh'] / n:+,.2f}",
+                      f"{100 * s['excess_kwh'] / total:.1f}" if total > 0 else "-")
+        blocks += fit(t, width, drop=(7,))
+    s = doc["summary"]
+    if s["compared"]:
+        blocks.append(Note(f"{s['compared']} run{'s' if s['compared'] != 1 else ''}: {s['traction_energy_kwh']:,.2f} kWh used, "
+                           f"E* {s['optimum_kwh']:,.2f} kWh in the same running times: {s['excess_kwh']:,.2f} kWh "
+                           + ("" if s["excess_percent"] is None else f"({s['excess_percent']:.1f} %) ")
+                           + "an optimal drive would have saved"))
+    if s["compared"] < s["runs"]:
+        blocks.append(Note(f"{s['runs'] - s['compared']} of {s['runs']} runs have no E* at their running time (below)"))
+    return blocks

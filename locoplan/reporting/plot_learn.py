@@ -120,3 +120,61 @@ def plot_advice(path: str | Path, advice, title: str) -> None:
         axg.text(sec.from_m / 1000 + 0.05, axg.get_ylim()[0], sec.kind, fontsize=7, rotation=90, va="bottom")
     fig.tight_layout()
     _save(fig, path)
+
+
+def plot_replay(path: str | Path, replays: list, options) -> None:
+    """``locoplan replay --plot``: the run with the largest excess against E*'s run at the same running time (speed
+    over the line's limits, the sections marked), and below, its excess section by section beside the mean per run
+    of every run on the same line and sections (bars: the section's energy over the optimum's plus the time's
+    value at the price of time)."""
+    from ..ocp.bound import optimum_run
+    from ..physics.units import kmh
+    from ..sim.calculator import limit_kmh_at
+
+    path = check_plot_path(path)
+    done = [r for r in replays if r.compared]
+    plt = _figure()
+    fig, (ax, axb) = plt.subplots(2, 1, figsize=(11, 7), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    if not done:
+        ax.text(0.5, 0.5, "no run has an E* at its running time", ha="center", transform=ax.transAxes)
+        _save(fig, path)
+        return
+    worst = max(done, key=lambda r: r.excess_kwh)
+    run, route = worst.run, worst.run.route
+    data = run.data
+    opt = optimum_run(route, run.train, options, worst.running_time_s)  # kept from the replay: no second solve
+    s = np.linspace(0.0, route.length_m, 2001)
+    length = None if options is not None and options.point_mass else run.train.length_m
+    lim = np.minimum(limit_kmh_at(route, 0.5 * (s[1:] + s[:-1]), length), run.train.max_speed_kmh)
+    ax.step(s[:-1] / 1000, lim, where="post", color="black", lw=1.0, label="speed limit")
+    ax.plot(data.position_m / 1000, data.speed_kmh, color="#d62728", lw=1.2,
+            label=f"{Path(run.log_file).stem}: {worst.traction_energy_kwh:,.1f} kWh in {worst.running_time_s:,.1f} s")
+    ax.plot(opt.s_m / 1000, kmh(opt.v_ms), color="#2ca02c", lw=1.2,
+            label=f"E* at the same time: {worst.optimum_kwh:,.1f} kWh")
+    ax.set_ylabel("speed [km/h]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=8, loc="lower center")
+    same = [r for r in done if r.run.route.name == route.name
+            and [(x.from_m, x.to_m) for x in r.sections] == [(x.from_m, x.to_m) for x in worst.sections]]
+    a = np.array([x.from_m for x in worst.sections]) / 1000
+    w = np.array([x.to_m - x.from_m for x in worst.sections]) / 1000
+    mine = np.array([x.excess_kwh for x in worst.sections])
+    mean = np.mean([[x.excess_kwh for x in r.sections] for r in same], axis=0)
+    axb.bar(a, mine, width=w * (0.48 if len(same) > 1 else 0.96), align="edge", color="#d62728", alpha=0.8,
+            label="this run")
+    if len(same) > 1:
+        axb.bar(a + 0.5 * w, mean, width=w * 0.48, align="edge", color="#1f77b4", alpha=0.8,
+                label=f"mean of {len(same)} runs on this line")
+    axb.axhline(0.0, color="black", lw=0.6)
+    for x, sec in zip(a, worst.sections):
+        for axis in (ax, axb):
+            axis.axvline(x, color="grey", lw=0.5)
+        axb.text(x + 0.02, 1.0, sec.kind, fontsize=7, rotation=90, va="top", transform=axb.get_xaxis_transform())
+    axb.set_ylabel("excess [kWh]")
+    axb.set_xlabel("position [km]")
+    axb.legend(fontsize=8, loc="lower right")
+    share = "" if worst.excess_percent is None else f" ({worst.excess_percent:.1f} % of the run's energy)"
+    fit_title(ax, f"{route.name}, {run.train.name}: excess over E* {worst.excess_kwh:+,.1f} kWh{share}, the largest "
+                  f"of {len(done)} runs", fontsize=10)
+    fig.tight_layout()
+    _save(fig, path)
