@@ -39,7 +39,7 @@ from ..errors import InfeasibleError, InputError, Problem
 from ..model.conditions import CONDITIONS
 from ..model.route import Route
 from ..model.train import Train
-from ..physics.units import KJ_PER_KWH, kinetic_e, kmh_from_e
+from ..physics.units import KJ_PER_KWH, kinetic_e, kmh_from_e, ms_from_e
 from ..sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at
 from ..sim.native import kernels
 from .dp import PricedDriveSolver
@@ -62,6 +62,9 @@ of cell times: the search stops at the first drive within it)."""
 CLOSE_S = 0.3
 """A drive arriving no more than this [s] before the planned arrival is close enough (the search for the switch
 node stops there)."""
+SPLIT_SHARES = 8
+SPLIT_BISECT = 5
+"""A switch inside a cell: tried at ``1 / SPLIT_SHARES`` .. of the cell, then refined by ``SPLIT_BISECT`` halvings."""
 TOO_FAST_KMH = 0.5
 """A state faster than the limit by more than this [km/h] is refused (the train over the limit); the braking
 envelope likewise (the train beyond a braking curve: it cannot stop in time)."""
@@ -89,12 +92,12 @@ class Replan:
     late_s: float
     """Arrival after the planned one [s], 0 when on time or early."""
     on_time: bool
-    """Arrives no later than planned (a late arrival: the fastest remaining run)."""
+    """Arrives inside the window (planned +- the tolerance)."""
     next_condition: str | None
     next_switch_m: float | None
     target_speed_kmh: float | None
     remaining_energy_kwh: float
-    remaining_optimum_kwh: float
+    remaining_optimum_kwh: float | None
     runs: list[tuple[str, float]]
     """The remainder as (condition, where it begins [m]) from the state on."""
     s_m: np.ndarray = field(repr=False)
@@ -273,6 +276,8 @@ class Replanner:
             else:
                 lo = mid
         m = n
+        a = b = -1
+        t_a = t_b = math.inf
         if hi == P:  # late whatever the price: the fastest
             first = second = P - 1
             if not math.isfinite(pure(P - 1)):
@@ -289,21 +294,112 @@ class Replanner:
                 fast = self._scratch
                 self._drive(k0, h0, g0, e0, prev, hi, hi, n, fast)
                 a, b = k0, n  # m = a: the slow drive (late); m = b: the fast one (on time)
-                t_b = pure(hi)
+                t_a, t_b = pure(lo), pure(hi)
                 while b - a > 1 and t_b < t_rem - CLOSE_S:
                     mid = (a + b) // 2
                     t_rest = self._drive(mid, float(self.cells.h[mid]), float(self.cells.grav[mid]),
                                          float(kinetic_e(fast[1][mid])), int(fast[0][mid - 1]), lo, lo, n)[0]
-                    if math.isfinite(t_rest) and fast[2][mid] + t_rest <= t_rem + ON_TIME_S:
-                        b, t_b = mid, fast[2][mid] + t_rest
+                    t_mid = fast[2][mid] + t_rest if math.isfinite(t_rest) else math.inf
+                    if t_mid <= t_rem + ON_TIME_S:
+                        b, t_b = mid, t_mid
                     else:
-                        a = mid
+                        a, t_a = mid, t_mid
+                # the drive's time moves in steps (a cell more of traction before a long coast is seconds): of the
+                # two drives either side of the planned arrival, the closer, if it keeps the window
                 m = b
+        bound = (self._optimum({i: cache[i] for i in (first, second) if i in cache}, t_rem) if hi < P
+                 else None)  # (late whatever the price: no drive keeps the time)
+        split = None
+        if first != second and b - a == 1 and t_rem - t_b > CLOSE_S and math.isfinite(t_a):
+            split = self._split(a, k0, s, h0, g0, e0, prev, hi, lo, t_rem)
+            if split is not None:
+                return self._result(st, planned, *split, first, second, float(split[0][a - k0 + 1]), bound, t_start)
         t, w = self._drive(k0, h0, g0, e0, prev, first, second, m)
         if not math.isfinite(t):
             raise InfeasibleError(f"no drive reaches the stop from {s:.1f} m at {st.v_kmh:.1f} km/h")
-        bound = self._optimum({i: cache[i] for i in (first, second) if i in cache}, t_rem)
-        return self._result(st, planned, k0, s, e0, first, second, m, t, w, bound, t_start)
+        arrays = (np.concatenate([[s], self.s_nodes[k0 + 1:]]), np.concatenate([[st.v_kmh], self._speeds[k0 + 1:]]),
+                  np.concatenate([[0.0], self._times[k0 + 1:]]), np.concatenate([[0.0], self._works[k0 + 1:]]),
+                  self._controls[k0:n].copy())
+        return self._result(st, planned, *arrays, first, second,
+                            float(self.s_nodes[m]) if first != second and m < n else None, bound, t_start)
+
+    def _split(self, a: int, k0: int, s: float, h0: float, g0: float, e0: float, prev: int, hi: int, lo: int,
+               t_rem: float):
+        """The switch from the faster price's drive to the slower one's inside cell ``a`` (between the two nodes
+        whose switches bracket the time): the faster drive's condition in that cell held for a share f of it, then
+        the slower price's drive from there, f bisected so that the drive arrives on time. The arrays of
+        :meth:`_result` (positions, speeds, times, works from the state, controls), or None."""
+        n = len(self.s_nodes) - 1
+        fast = self._scratch
+        if a == k0:
+            x_a, e_a, h_a, g_a, p_a, t_a0, w_a0 = s, e0, h0, g0, prev, 0.0, 0.0
+        else:
+            x_a, e_a = float(self.s_nodes[a]), float(kinetic_e(fast[1][a]))
+            h_a, g_a, p_a = float(self.cells.h[a]), float(self.cells.grav[a]), int(fast[0][a - 1])
+            t_a0, w_a0 = float(fast[2][a]), float(fast[3][a])
+        u = int(fast[0][a])
+        kern = kernels_replan()
+        fo = self.calc.forces
+        allowed = float(self.cells.allowed[a])
+        # the slower drive's own condition in cell a (its drive with the switch at node a)
+        self._drive(a, h_a, g_a, e_a, p_a, lo, lo, n)
+        u_s = int(self._controls[a])
+        last = a == n - 1
+        cap_end = 0.0 if last else float(self.cells.e_cap[a + 1])
+
+        def at(f: float):
+            """The faster drive's condition for f of the cell, the slower's for the rest, the slower drive on."""
+            hf = f * h_a
+            cap = float(np.interp(x_a + hf, self.calc.s_m, self.calc.e_envelope))
+            e_f, w_f = kern._capped(e_a, u, hf, g_a, allowed, cap, False, fo)
+            if e_f < 0:
+                return math.inf, None
+            e_2, w_2 = kern._capped(e_f, u_s, h_a - hf, g_a, allowed, cap_end, last, fo)
+            v_a, v_f, v_2 = (float(ms_from_e(max(x, 0.0))) for x in (e_a, e_f, e_2))
+            if e_2 < 0 or v_a + v_f <= 0 or v_f + v_2 <= 0:
+                return math.inf, None
+            t_1, t_2 = 2.0 * hf / (v_a + v_f), 2.0 * (h_a - hf) / (v_f + v_2)
+            t_r = 0.0
+            if not last:
+                t_r, _ = self._drive(a + 1, float(self.cells.h[a + 1]), float(self.cells.grav[a + 1]), e_2, u_s,
+                                     lo, lo, n)
+            return t_a0 + t_1 + t_2 + t_r, (e_f, e_2, w_f, w_2, t_1, t_2)
+
+        # the drive's time is not monotone in f (its decisions jump with the state): the best of a few shares that
+        # arrives on time, refined by bisection towards its late neighbour
+        grid = [k / SPLIT_SHARES for k in range(1, SPLIT_SHARES)]
+        times_f = [at(f)[0] for f in grid]
+        ok = [i for i, t_f in enumerate(times_f) if t_f <= t_rem + ON_TIME_S]
+        if not ok:
+            return None
+        i = max(ok, key=lambda j: times_f[j])
+        f_early = grid[i]
+        late = [j for j in (i - 1, i + 1) if 0 <= j < len(grid) and times_f[j] > t_rem + ON_TIME_S]
+        if late and t_rem - times_f[i] > CLOSE_S:
+            f_late = grid[late[0]]
+            for _ in range(SPLIT_BISECT):
+                f = 0.5 * (f_late + f_early)
+                t_f, _ = at(f)
+                if t_f <= t_rem + ON_TIME_S:
+                    f_early = f
+                    if t_rem - t_f <= CLOSE_S:
+                        break
+                else:
+                    f_late = f
+        t_f, parts = at(f_early)
+        if parts is None or not t_f <= t_rem + ON_TIME_S:
+            return None
+        e_f, e_2, w_f, w_2, t_1, t_2 = parts
+        x_f = x_a + f_early * h_a
+        t1, t2 = t_a0 + t_1, t_a0 + t_1 + t_2
+        w1, w2 = w_a0 + w_f, w_a0 + w_f + w_2
+        pos = np.concatenate([[s], self.s_nodes[k0 + 1:a + 1], [x_f], self.s_nodes[a + 1:]])
+        speeds = np.concatenate([[float(kmh_from_e(e0))], fast[1][k0 + 1:a + 1],
+                                 [float(kmh_from_e(e_f)), float(kmh_from_e(max(e_2, 0.0)))], self._speeds[a + 2:]])
+        times = np.concatenate([[0.0], fast[2][k0 + 1:a + 1], [t1, t2], t2 + self._times[a + 2:]])
+        works = np.concatenate([[0.0], fast[3][k0 + 1:a + 1], [w1, w2], w2 + self._works[a + 2:]])
+        controls = np.concatenate([fast[0][k0:a], [u, u_s], self._controls[a + 1:n]]).astype(np.int64)
+        return pos, speeds, times, works, controls
 
     def _optimum(self, drives: dict, t_rem: float) -> float:
         """The Lagrangian bound at the remaining time from the bracketing prices' drives (``remaining_optimum_kwh``):
@@ -314,33 +410,36 @@ class Replanner:
                 best = max(best, w_i / KJ_PER_KWH + float(self.prices[i]) * (t_i - max(t_rem, 0.0)))
         return best
 
+    def inside(self, arrival_s: float, planned_s: float) -> bool:
+        """``arrival_s`` keeps the window around ``planned_s`` (+- the tolerance, at least ``ON_TIME_S``)."""
+        return abs(arrival_s - planned_s) <= max(self.tolerance_s, ON_TIME_S) + 1e-9
+
     def _at_stop(self, st: TrainState, planned: float, t_start: float) -> Replan:
         late = max(st.t_s - planned, 0.0)
         L = self.route.length_m
-        return Replan(st, planned, float(st.t_s), late, late <= 1e-9, None, None, None, 0.0, 0.0, [],
+        return Replan(st, planned, float(st.t_s), late, self.inside(st.t_s, planned), None, None, None, 0.0, 0.0, [],
                       np.array([L]), np.array([st.v_kmh]), np.array([st.t_s]), np.array([0.0]),
                       np.zeros(0, dtype=np.int64), (0.0, 0.0), None, time.perf_counter() - t_start)
 
-    def _result(self, st, planned, k0, s, e0, first, second, m, t, w, bound, t_start) -> Replan:
-        n = len(self.s_nodes) - 1
-        controls = self._controls[k0:n].copy()
-        pos = np.concatenate([[s], self.s_nodes[k0 + 1:]])
-        speeds = np.concatenate([[st.v_kmh], self._speeds[k0 + 1:]])
-        times = st.t_s + np.concatenate([[0.0], self._times[k0 + 1:]])
-        energy = np.concatenate([[0.0], self._works[k0 + 1:]]) / KJ_PER_KWH
+    def _result(self, st, planned, pos, speeds, times, works, controls, first, second, switch_m, bound,
+                t_start) -> Replan:
+        speeds = np.asarray(speeds, float).copy()
+        speeds[0] = st.v_kmh
         runs: list[tuple[str, float]] = []
         for i, u in enumerate(controls):
             c = CONDITIONS[int(u)]
             if not runs or runs[-1][0] != c:
                 runs.append((c, float(pos[i])))
         nxt = next((i for i in range(1, len(controls)) if controls[i] != controls[0]), None)
+        t, w = float(times[-1]), float(works[-1])
         arrival = st.t_s + t
         late = max(arrival - planned, 0.0)
-        return Replan(st, planned, float(arrival), float(late), arrival <= planned + ON_TIME_S,
+        return Replan(st, planned, float(arrival), float(late), self.inside(arrival, planned),
                       CONDITIONS[int(controls[0])], None if nxt is None else float(pos[nxt]),
-                      float(speeds[nxt]) if nxt is not None else 0.0, w / KJ_PER_KWH, bound, runs, pos, speeds, times,
-                      energy, controls, (float(self.prices[first]), float(self.prices[second])),
-                      float(self.s_nodes[m]) if first != second and m < n else None, time.perf_counter() - t_start)
+                      float(speeds[nxt]) if nxt is not None else 0.0, w / KJ_PER_KWH, bound, runs, pos, speeds,
+                      st.t_s + times, works / KJ_PER_KWH, controls,
+                      (float(self.prices[first]), float(self.prices[second])), switch_m,
+                      time.perf_counter() - t_start)
 
 
 _REPLAN_KERNELS = None
