@@ -216,8 +216,8 @@ class Replanner:
     def _drive(self, k0: int, h0: float, g0: float, e0: float, prev: int, first: int, second: int, m: int,
                out: tuple | None = None):
         c, v, t_, w_ = out if out is not None else (self._controls, self._speeds, self._times, self._works)
-        return kernels_replan().forward_from(self.cells, self.calc.forces, self.prices, self.V, self.e_low, first,
-                                             second, m, k0, h0, g0, e0, prev, self.penalty_kwh, c, v, t_, w_)
+        return kernels().replan_forward(self.cells, self.calc.forces, self.prices, self.V, self.e_low, first, second,
+                                        m, k0, h0, g0, e0, prev, self.penalty_kwh, c, v, t_, w_)
 
     def replan(self, st: TrainState, planned_arrival_s: float | None = None) -> Replan:
         """The rest of the run from ``st``, arriving at ``planned_arrival_s`` (clock since departure; default the
@@ -338,7 +338,7 @@ class Replanner:
             h_a, g_a, p_a = float(self.cells.h[a]), float(self.cells.grav[a]), int(fast[0][a - 1])
             t_a0, w_a0 = float(fast[2][a]), float(fast[3][a])
         u = int(fast[0][a])
-        kern = kernels_replan()
+        kern = kernels()
         fo = self.calc.forces
         allowed = float(self.cells.allowed[a])
         # the slower drive's own condition in cell a (its drive with the switch at node a)
@@ -351,10 +351,10 @@ class Replanner:
             """The faster drive's condition for f of the cell, the slower's for the rest, the slower drive on."""
             hf = f * h_a
             cap = float(np.interp(x_a + hf, self.calc.s_m, self.calc.e_envelope))
-            e_f, w_f = kern._capped(e_a, u, hf, g_a, allowed, cap, False, fo)
+            e_f, w_f = kern.replan_step(e_a, u, hf, g_a, allowed, cap, 0, fo)
             if e_f < 0:
                 return math.inf, None
-            e_2, w_2 = kern._capped(e_f, u_s, h_a - hf, g_a, allowed, cap_end, last, fo)
+            e_2, w_2 = kern.replan_step(e_f, u_s, h_a - hf, g_a, allowed, cap_end, int(last), fo)
             v_a, v_f, v_2 = (float(ms_from_e(max(x, 0.0))) for x in (e_a, e_f, e_2))
             if e_2 < 0 or v_a + v_f <= 0 or v_f + v_2 <= 0:
                 return math.inf, None
@@ -440,16 +440,3 @@ class Replanner:
                       st.t_s + times, works / KJ_PER_KWH, controls,
                       (float(self.prices[first]), float(self.prices[second])), switch_m,
                       time.perf_counter() - t_start)
-
-
-_REPLAN_KERNELS = None
-
-
-def kernels_replan():
-    """The re-planner's compiled forward pass (numba's JIT, cached on disk)."""
-    global _REPLAN_KERNELS
-    if _REPLAN_KERNELS is None:
-        from . import replan_kernel
-
-        _REPLAN_KERNELS = replan_kernel
-    return _REPLAN_KERNELS

@@ -22,9 +22,9 @@ from .dp_kernel import _interp_node, _step
 
 
 @njit(cache=True, _nrt=False)
-def _capped(e, u, h, g, allowed, cap, last, fo):
+def capped_step(e, u, h, g, allowed, cap, last, fo):
     """One step of length ``h`` under control u from e, held under ``cap`` as ``dp_kernel._capped_step`` holds it:
-    (e_end, work [kJ]); e_end < 0 = not possible. ``last``: the step ends at the stop (at rest)."""
+    (e_end, work [kJ]); e_end < 0 = not possible. ``last`` (1/0): the step ends at the stop (at rest)."""
     e1, w = _step(e, u, h, g, allowed, fo)
     if e1 > cap * (1.0 + 1e-9) + 1e-9:
         if u == B_:
@@ -35,7 +35,7 @@ def _capped(e, u, h, g, allowed, cap, last, fo):
             return -1.0, 0.0
         return cap, w
     if e1 < 0.0:
-        return (0.0, w) if last else (-1.0, 0.0)
+        return (0.0, w) if last != 0 else (-1.0, 0.0)
     return e1, w
 
 
@@ -70,7 +70,7 @@ def forward_from(dp, fo, prices, V, e_low, first, second, m, k0, h0, g0, e0, pre
         for u in range(4):
             if u == H_ and e <= 0.0:
                 continue
-            e1, w = _capped(e, u, h, g, allowed[k], cap, last, fo)
+            e1, w = capped_step(e, u, h, g, allowed[k], cap, 1 if last else 0, fo)
             if e1 < 0.0:
                 continue
             v1 = ms_from_e(e1)

@@ -286,6 +286,8 @@ class DriveResult:
     departure: Replan
     setup_s: float
     cycle_relaxed: bool
+    hindsight_s_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    hindsight_v_kmh: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     def summary(self) -> dict:
         hs = {"arrival_s": round(self.hindsight_s, 2),
@@ -318,7 +320,8 @@ def hindsight_estar(route: Route, train: Train, options: ModelOptions, d: Distur
     legs = [route_slice(line, a, b, f"{line.name} ({a:.0f} .. {b:.0f} m)") for a, b in zip(cuts[:-1], cuts[1:])]
     moving = planned_s - sum(h.s for h in d.holds)
     res = journey_estar(legs, cuts[:-1], real_train(train, d), options, moving, [], tol=tol)
-    return res.energy_kwh, res.accuracy
+    sol = res.finest.solution
+    return res.energy_kwh, res.accuracy, np.asarray(res.finest.grid.s_m), np.asarray(sol.v_ms) * 3.6
 
 
 def drive(route: Route, train: Train, options: ModelOptions, d: Disturbance, *, planned_s: float, tolerance_s: float,
@@ -332,9 +335,10 @@ def drive(route: Route, train: Train, options: ModelOptions, d: Disturbance, *, 
     closed_run = run_train("closed loop", sim, loop, d, planned_s)
     closed_run.replans, closed_run.replan_ms = loop.replans, loop.ms
     note = None
+    s_h = v_h = np.zeros(0)
     try:
-        e_h, acc = hindsight_estar(route, train, options, d, planned_s)
+        e_h, acc, s_h, v_h = hindsight_estar(route, train, options, d, planned_s)
     except InfeasibleError as exc:
         e_h, acc, note = None, None, str(exc)
     return DriveResult(planned_s, tolerance_s, open_run, closed_run, e_h, planned_s, acc, note, departure, rp.setup_s,
-                       rp.cycle_relaxed)
+                       rp.cycle_relaxed, s_h, v_h)
