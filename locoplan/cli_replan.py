@@ -31,11 +31,11 @@ def _setup(route: Path, consist: str, stock_dir: Optional[Path], model: ModelReq
 
 @guarded
 def replan(route: Path = ROUTE,
-           at_m: Optional[float] = typer.Option(None, "--at-m", help="The train's head position [m] from the start of the line."),
-           speed_kmh: Optional[float] = typer.Option(None, "--speed-kmh", help="The train's speed [km/h]."),
-           elapsed_s: Optional[float] = typer.Option(None, "--elapsed-s", help="The time since departure [s]."),
-           condition: Optional[str] = typer.Option(None, "--condition", help="The condition in progress (T, K, C or B), if known: a change from it costs what the plan charges for a switch."),
-           stream: bool = typer.Option(False, "--stream", help="Read one JSON state per line on stdin ({\"s_m\", \"v_kmh\", \"t_s\"}, optionally \"condition\", \"planned_arrival_s\", \"restriction\": {\"from_m\", \"to_m\", \"kmh\"}) and write one JSON advice per line, each at once; a bad line gets an error line and the stream goes on."),
+           at_m: Optional[float] = typer.Option(None, "--at-m", help="The train's head position [m] from the start of the line (required without --stream)."),
+           speed_kmh: Optional[float] = typer.Option(None, "--speed-kmh", help="The train's speed [km/h] (required without --stream)."),
+           elapsed_s: Optional[float] = typer.Option(None, "--elapsed-s", help="The time since departure [s] (required without --stream)."),
+           condition: Optional[str] = typer.Option(None, "--condition", help="The condition in progress (T, K, C or B); default: none known. A change from it costs what the plan charges for a switch."),
+           stream: bool = typer.Option(False, "--stream/--no-stream", help="Read one JSON state per line on stdin (keys s_m, v_kmh, t_s; optionally condition, planned_arrival_s, restriction with from_m, to_m, kmh) and write one JSON advice per line, each at once; a bad line gets an error line and the stream goes on."),
            time_s: Optional[str] = TIME, tolerance: Optional[float] = TOL, consist: str = CONSIST,
            stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL):
     """The least-energy rest of the run from the train's actual state, arriving at the planned time: the condition
@@ -71,7 +71,7 @@ def replan(route: Path = ROUTE,
         json_out(d)
     else:
         for line in replan_lines(d):
-            out.print(line, highlight=False, markup=False, soft_wrap=True)
+            out.print(line, highlight=False, markup=False)
     fail_on(api.replan_verdict(d))
 
 
@@ -160,7 +160,7 @@ def drive(route: Path = ROUTE,
         json_out(s)
     else:
         for text in drive_lines(s):
-            out.print(text, highlight=False, markup=False, soft_wrap=True)
+            out.print(text, highlight=False, markup=False)
     fail_on(api.drive_verdict(s))
 
 
