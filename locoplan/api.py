@@ -490,3 +490,51 @@ def replay(runs: list, options: ModelOptions, level_permille: float = 2.0,
                      "rotating_mass": options.rotating_mass},
            "level_permille": level_permille, "summary": summary(replays), "runs": [r.to_dict() for r in replays]}
     return Replayed(replays, doc, verdict(f"{r.run.log_file}: {r.reason}" for r in replays if r.reason))
+
+
+# ------------------------------------------------------------------------------------------ on board
+def punctuality_tolerance(route, t0_s: float, tolerance_s: Optional[float]) -> float:
+    """The window's half width [s]: as given, else the route's schedule tolerance, else 1 % of T0 (as ``optimize``)."""
+    from .runner import DEFAULT_TOLERANCE_SHARE
+
+    if tolerance_s is not None:
+        if tolerance_s >= t0_s:
+            raise InputError(Problem(CMDLINE, "--tolerance", f"{tolerance_s:g} s is not below the planned time {t0_s:g} s"))
+        return float(tolerance_s)
+    if route.schedule is not None and route.schedule.tolerance_s is not None:
+        return float(route.schedule.tolerance_s)
+    return max(1.0, DEFAULT_TOLERANCE_SHARE * t0_s)
+
+
+def replanner(route, train, options: ModelOptions, t0_s: float, tolerance_s: float):
+    """The set-up of on-board re-planning (``optimize.replan.Replanner``): the DP's cost-to-go at a ladder of
+    prices around T0's; InfeasibleError where the train cannot run the line."""
+    from .optimize.replan import Replanner
+
+    return Replanner(route, train, options, planned_s=t0_s, tolerance_s=tolerance_s)
+
+
+def replan_verdict(summary: dict) -> Verdict:
+    """A re-plan outside its window is exit 1 (late even on the fastest remaining run, or early even on the least
+    energy), as any plan outside its window."""
+    if summary["on_time"]:
+        return Verdict()
+    w = summary["window_s"]
+    if summary["late_s"] > 0:
+        why = (f"late: the fastest remaining run arrives at {summary['arrival_s']:.1f} s, "
+               f"{summary['late_s']:.1f} s after the planned {summary['planned_arrival_s']:.1f} s (window "
+               f"{w[0]:.1f} .. {w[1]:.1f} s)")
+    else:
+        why = (f"early: the least-energy remaining run arrives at {summary['arrival_s']:.1f} s, before the window "
+               f"{w[0]:.1f} .. {w[1]:.1f} s")
+    return Verdict([why])
+
+
+def drive_verdict(summary: dict) -> Verdict:
+    """``drive``: the closed loop's job is to arrive inside the window."""
+    c = summary["closed_loop"]
+    if c.get("inside_window"):
+        return Verdict()
+    w = summary["window_s"]
+    what = f"arrives at {c['arrival_s']:.1f} s" if c.get("arrived") else "does not arrive (" + c.get("note", "") + ")"
+    return Verdict([f"the closed-loop run {what}, outside the window {w[0]:.1f} .. {w[1]:.1f} s"])

@@ -280,6 +280,10 @@ OPTIONS: dict[str, tuple] = {
     "--load-class": ("float", 0.0, 100_000.0, True, False, "t", "the width of a load class"),
     "--level": ("float", 0.0, 40.0, False, False, "per mille", "the |equivalent gradient| at or below which a section is level"),
     "--mass": ("float", 0.0, 100_000.0, True, False, "t", "a train's mass (the heaviest ever run is 100,000 t)"),
+    "--at-m": ("float", 0.0, 2_000_000.0, False, False, "m", "a position on a line (no line is longer than 2,000 km)"),
+    "--speed-kmh": ("float", 0.0, 400.0, False, False, "km/h", "a train's speed"),
+    "--elapsed-s": ("float", 0.0, _WEEK, False, False, "s", "the time since departure"),
+    "--every": ("float", 1.0, 3600.0, False, False, "s", "the time between two re-plans"),
 }
 
 MAX_OPTION_CHARS = 10_000

@@ -418,6 +418,10 @@ from .cli_batch import register as _register_batch  # noqa: E402  (batch, result
 
 _register_batch(app)
 
+from .cli_replan import register as _register_replan  # noqa: E402  (on board: replan, drive)
+
+_register_replan(app)
+
 from .cli_help import tidy as _tidy_help  # noqa: E402  (every option's value named with its unit, once all are registered)
 
 _tidy_help(app)

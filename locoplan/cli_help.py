@@ -14,7 +14,8 @@ import inspect
 import typer
 
 METAVARS = {
-    "--algorithm": "NAME", "--algorithms": "NAME,...", "--boxplot": "FILE", "--builder": "NAME", "--by": "FIELD,...",
+    "--algorithm": "NAME", "--at-m": "M", "--speed-kmh": "KMH", "--elapsed-s": "S", "--every": "S",
+    "--condition": "T|K|C|B", "--disturb": "FILE", "--algorithms": "NAME,...", "--boxplot": "FILE", "--builder": "NAME", "--by": "FIELD,...",
     "--cap-kmh": "KMH", "--comfort": "M/S2", "--consist": "FILE|NAME", "--divisions": "N", "--drivers": "N",
     "--e-min": "KWH", "--efficiency": "ETA|KMH:ETA,...", "--factors": "A:B:STEP|X,...", "--folds": "N",
     "--format": "csv|parquet|json", "--holdout": "SHARE", "--leg": "N", "--level": "PERMILLE", "--load-class": "T",
@@ -48,6 +49,8 @@ SUMMARIES = {
     "results": "Export, summarise and plot a result store",
     "pareto": "The energy-time front of the strategies' plans",
     "drivers": "Synthetic drivers' logs (labelled synthetic)",
+    "replan": "On board: the rest of the run from the train's state",
+    "drive": "Closed loop: a disturbed run re-planned, open loop, E*",
 }
 """Each command's line in ``locoplan --help``: what it does, short enough for 80 columns (click would
 cut the docstring's first sentence with "...")."""

@@ -22,6 +22,7 @@ from ..errors import InputError, Problem
 from ..model.common import RuleViolations
 from ..model.consist import Consist, Vehicle
 from ..model.journey import Journey
+from ..model.disturbance import Disturbance
 from ..model.route import Route
 from ..model.train import Train, build_train, shorter_than_train  # noqa: F401  (build_train: re-exported for the loaders' callers)
 
@@ -30,6 +31,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "locoplan/vehicle@1": Vehicle,
     "locoplan/consist@1": Consist,
     "locoplan/journey@1": Journey,
+    "locoplan/disturbance@1": Disturbance,
 }
 
 CATALOGUE = resources.files("locoplan.catalogue")
@@ -762,6 +764,11 @@ def load_journey(path: str | Path) -> tuple[Journey, Route]:
     if problems:
         raise InputError(problems)
     return journey, route
+
+
+def load_disturbance(path: str | Path) -> Disturbance:
+    """A disturbance file (``locoplan drive --disturb``), checked against the route it disturbs by the caller."""
+    return load_file(path, "locoplan/disturbance@1")  # type: ignore[return-value]
 
 
 def load_vehicle(path: str | Path) -> Vehicle:

@@ -225,3 +225,24 @@ def route_slice(route: Route, from_m: float, to_m: float, name: str) -> Route:
                  for c in changes if from_m + 1e-9 < c.at_m < to_m - 1e-9]
         data["chainage"] = [first] + later
     return Route.model_validate(data)
+
+
+def with_restriction(route: Route, from_m: float, to_m: float, kmh: float) -> Route:
+    """``route`` with a temporary speed restriction: the limit no higher than ``kmh`` on ``from_m`` .. ``to_m`` (cut
+    to the line), every other section as it was (sections split at the restriction's ends)."""
+    a, b = max(0.0, float(from_m)), min(route.length_m, float(to_m))
+    if b - a <= 1e-6:
+        return route
+    limits = []
+    for sec in route.speed_limits:
+        for lo, hi, inside in ((sec.from_m, min(sec.to_m, a), False), (max(sec.from_m, a), min(sec.to_m, b), True),
+                               (max(sec.from_m, b), sec.to_m, False)):
+            if hi - lo > 1e-6:
+                v = min(sec.kmh, float(kmh)) if inside else sec.kmh
+                if limits and limits[-1]["kmh"] == v and abs(limits[-1]["to_m"] - lo) < 1e-6:
+                    limits[-1]["to_m"] = hi
+                else:
+                    limits.append({"from_m": lo, "to_m": hi, "kmh": v})
+    data = route.model_dump(mode="json", by_alias=True, exclude_none=True)
+    data["speed_limits"] = limits
+    return Route.model_validate(data)
