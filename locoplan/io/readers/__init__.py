@@ -4,12 +4,15 @@ line in ``READERS``; ``importer.run_import`` does the rest (checks, validation, 
 from __future__ import annotations
 
 from .base import Imported, ImportedFile, ImportOptions, Reader
+from .osrd import OsrdInfraReader, OsrdTrainReader
 from .railtoolkit import RailtoolkitReader
 from .ttobench import TTOBenchReader
 
 READERS: dict[str, Reader] = {
     "ttobench": TTOBenchReader(),
     "railtoolkit": RailtoolkitReader(),
+    "osrd": OsrdInfraReader(),
+    "osrd-train": OsrdTrainReader(),
 }
 
 __all__ = ["READERS", "Imported", "ImportedFile", "ImportOptions", "Reader"]
