@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from .base import Imported, ImportedFile, ImportOptions, Reader
 from .osrd import OsrdInfraReader, OsrdTrainReader
+from .railml import RailmlReader
 from .railtoolkit import RailtoolkitReader
 from .ttobench import TTOBenchReader
 
@@ -13,6 +14,7 @@ READERS: dict[str, Reader] = {
     "railtoolkit": RailtoolkitReader(),
     "osrd": OsrdInfraReader(),
     "osrd-train": OsrdTrainReader(),
+    "railml": RailmlReader(),
 }
 
 __all__ = ["READERS", "Imported", "ImportedFile", "ImportOptions", "Reader"]
