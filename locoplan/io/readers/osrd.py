@@ -492,7 +492,7 @@ class OsrdInfraReader:
         # curves: |radius|; 0 is straight
         raw = on_path(segs, infra.curves)
         curve_pieces, clamped = [], 0
-        for a, b, (r, loc) in raw:
+        for a, b, (r, _loc) in raw:
             if r == 0:
                 continue
             radius = abs(r)

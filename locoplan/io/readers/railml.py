@@ -360,7 +360,7 @@ class RailmlReader:
         curves_raw = self._steps(tracks, segments, length, "radiusChanges", "radiusChange", "radius", check, signed=False)
         check.raise_if_any()
         gradients = step_function(length, [(a, b, v[0] if v else 0.0) for a, b, v in grads], 0.0, combine=lambda vs: vs[-1])
-        for a, b, v in grads:
+        for _a, _b, v in grads:
             if v and abs(v[0]) > MAX_GRADIENT_PERMILLE:
                 check.add(v[1], f"slope {v[0]:g} per mille is beyond the route schema's +-{MAX_GRADIENT_PERMILLE:g}", "slope")
         curves, clamped = [], 0
