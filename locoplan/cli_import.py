@@ -37,6 +37,15 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
             all_legs: bool = typer.Option(False, "--all-legs", help="ttobench: every leg, one route file each (the default)."),
             journey: bool = typer.Option(False, "--journey", help="ttobench: the whole line as one route and a journey file with every stop (for locoplan journey), instead of one route per leg."),
             load_fraction: float = typer.Option(1.0, "--load-fraction", help="railtoolkit: share of each wagon's load_limit put on (1 = fully loaded, as TrainRuns.jl)."),
+            from_station: Optional[str] = typer.Option(None, "--from", help="osrd, railml: the station the run starts at (an operational point's id or name)."),
+            to_station: Optional[str] = typer.Option(None, "--to", help="osrd, railml: the station the run ends at."),
+            via: list[str] = typer.Option([], "--via", help="osrd, railml: a station the path must pass, in the order given (repeat the option for more)."),
+            stop: list[str] = typer.Option([], "--stop", help="osrd, railml: a station passed on the way where the journey stops (repeat for more; the first and last stations always are stops)."),
+            speed_tag: Optional[str] = typer.Option(None, "--speed-tag", help="osrd: the speed sections' limit for this tag (a train category, e.g. MA100) where a section gives one; else its speed_limit."),
+            thermal: bool = typer.Option(False, "--thermal", help="osrd: the train runs on its own power: neutral sections and track without electrification do not cut traction."),
+            mode: Optional[str] = typer.Option(None, "--mode", help="osrd-train: the traction mode whose effort curve is written (default: the rolling stock's default_mode)."),
+            track: list[str] = typer.Option([], "--track", help="railml: a track (its id) to run along, from its begin to its end; repeat for tracks joined end to end, in running order."),
+            category: Optional[str] = typer.Option(None, "--category", help="railml: the train category whose speed limits apply where speedChange elements give one (trainCategory, or a speed profile's id/name)."),
             as_json: bool = typer.Option(False, "--json", help="Machine-readable list of written files on stdout."),
             ):
     """Convert public track / path / train files into route, vehicle and consist files (all written, or none)."""
@@ -54,7 +63,18 @@ def import_(fmt: str = typer.Argument(..., metavar="FORMAT", help=f"Source forma
         flags.append("--journey")
     if load_fraction != 1.0:
         flags += ["--load-fraction", f"{load_fraction:g}"]
+    for flag, value in (("--from", from_station), ("--to", to_station), ("--speed-tag", speed_tag), ("--mode", mode),
+                        ("--category", category)):
+        if value is not None:
+            flags += [flag, value]
+    for flag, values in (("--via", via), ("--stop", stop), ("--track", track)):
+        for value in values:
+            flags += [flag, value]
+    if thermal:
+        flags.append("--thermal")
     options = ImportOptions(cap_kmh=cap_kmh, leg=leg, all_legs=all_legs, journey=journey, load_fraction=load_fraction,
+                            from_station=from_station, to_station=to_station, via=tuple(via), stops=tuple(stop),
+                            speed_tag=speed_tag, thermal=thermal, mode=mode, tracks=tuple(track), category=category,
                             command=_command(fmt, sources, out_dir, flags))
     report = run_import(fmt, list(sources), out_dir, options)
     wrote([p for p, _, _ in report.written] + ([report.licence] if report.licence else []))

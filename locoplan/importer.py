@@ -23,7 +23,9 @@ from .reporting.files import existing_folder, make_folder, put_back
 
 CLI = "<command line>"
 OPTION_FLAGS = {"cap_kmh": "--cap-kmh", "leg": "--leg", "all_legs": "--all-legs", "journey": "--journey",
-                "load_fraction": "--load-fraction"}
+                "load_fraction": "--load-fraction", "from_station": "--from", "to_station": "--to", "via": "--via",
+                "stops": "--stop", "speed_tag": "--speed-tag", "thermal": "--thermal", "mode": "--mode",
+                "tracks": "--track", "category": "--category"}
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,8 @@ def run_import(fmt: str, sources: list[Path], out_dir: Path, options: ImportOpti
     licence_name = f"LICENSE-{imported.licence_name}.txt" if imported.licence else None
     if licence_name:
         _check_target(out_dir, ImportedFile(licence_name, "licence", "", "", str(imported.licence)))
+    for name, source in imported.more_licences:
+        _check_target(out_dir, ImportedFile(name, "licence", "", "", str(source)))
     make_folder(out_dir, str(out_dir), "--out")  # a missing output folder is made (nothing was refused)
     try:
         return _write_all(out_dir, imported, licence_name)
@@ -182,11 +186,15 @@ def _write_all(out_dir: Path, imported, licence_name: str | None) -> ImportRepor
             (tmp / item.relpath).parent.mkdir(parents=True, exist_ok=True)
             (tmp / item.relpath).write_text(item.text, encoding="utf-8")
         _validate(tmp, imported.files)
+        extra = [name for name, _ in imported.more_licences] if licence_name else []
         if licence_name:
             shutil.copyfile(imported.licence, tmp / licence_name)
+            for name, source in imported.more_licences:
+                shutil.copyfile(source, tmp / name)
         pairs = [(tmp / item.relpath, out_dir / item.relpath) for item in imported.files]
         if licence_name:
             pairs.append((tmp / licence_name, out_dir / licence_name))
+            pairs += [(tmp / name, out_dir / name) for name in extra]
         backups = tmp / ".backup"
         backups.mkdir()
         try:

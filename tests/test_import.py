@@ -441,7 +441,7 @@ def test_out_must_be_a_writable_folder(case, tmp_path, monkeypatch):
 
 def test_unknown_format_lists_the_known_ones(tmp_path):
     res = _invoke(["import", "osm", str(tmp_path / "x"), "--out", str(tmp_path)])
-    assert res.exit_code == 2 and "unknown format 'osm' (one of: ttobench, railtoolkit)" in res.stderr
+    assert res.exit_code == 2 and "unknown format 'osm' (one of: ttobench, railtoolkit, osrd, osrd-train, railml)" in res.stderr
 
 
 def test_units_are_converted_and_sharp_curves_clamped_with_a_note(tmp_path):

@@ -32,8 +32,12 @@ class ImportOptions:
     ``cap_kmh`` caps every speed limit [km/h]; ``leg`` picks one stop-to-stop leg (1-based) and
     ``all_legs`` asks for every leg explicitly (the default), ``journey`` the whole line as one route and a
     journey file with every stop (``locoplan journey``); ``load_fraction`` is the share of each
-    wagon's load limit put on in the consist (1 = fully loaded); ``command`` is the command line
-    recorded in each file's header.
+    wagon's load limit put on in the consist (1 = fully loaded). Networks (osrd, railml): the path runs
+    ``from_station`` .. ``to_station`` through the ``via`` stations in order (railml: or along ``tracks``),
+    stopping at ``stops``; ``speed_tag`` (osrd) / ``category`` (railml) pick a train category's speed
+    limits; ``thermal``: the train runs on its own power (missing electrification and neutral sections
+    cut no traction). ``mode`` (osrd-train): the traction mode whose effort curve is written.
+    ``command`` is the command line recorded in each file's header.
     """
 
     cap_kmh: float | None = None
@@ -41,6 +45,15 @@ class ImportOptions:
     all_legs: bool = False
     journey: bool = False
     load_fraction: float = 1.0
+    from_station: str | None = None
+    to_station: str | None = None
+    via: tuple[str, ...] = ()
+    stops: tuple[str, ...] = ()
+    speed_tag: str | None = None
+    thermal: bool = False
+    mode: str | None = None
+    tracks: tuple[str, ...] = ()
+    category: str | None = None
     command: str = ""
 
 
@@ -69,6 +82,8 @@ class Imported:
     licence: Path | None = None
     licence_name: str = ""
     notes: list[str] = field(default_factory=list)
+    more_licences: list[tuple[str, Path]] = field(default_factory=list)
+    """Further licence texts the licence needs beside it (file name written, source), e.g. the GPL under the LGPL."""
 
 
 class Reader(Protocol):

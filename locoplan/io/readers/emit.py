@@ -53,8 +53,11 @@ def sections(key: str, rows: list[tuple[float, float, str, float]], comment: str
     return out
 
 
-def route_yaml(head: list[str], name: str, length_m: float, speed_limits, gradients, curves=()) -> str:
-    """A ``locoplan/route@1`` file; ``speed_limits``/``gradients``/``curves``: (from_m, to_m, value) rows."""
+def route_yaml(head: list[str], name: str, length_m: float, speed_limits, gradients, curves=(), tunnels=(),
+               neutral_sections=(), stations=(), chainage=None) -> str:
+    """A ``locoplan/route@1`` file; ``speed_limits``/``gradients``/``curves``: (from_m, to_m, value) rows;
+    ``tunnels``, ``neutral_sections``: (from_m, to_m) rows; ``stations``: (name, at_m) rows; ``chainage``:
+    (at_m, km, descending) rows (kilometre posts), or None."""
     body = header(head)
     body += "schema: locoplan/route@1\n"
     body += f"name: {text(name)}\n"
@@ -63,33 +66,59 @@ def route_yaml(head: list[str], name: str, length_m: float, speed_limits, gradie
     body += sections("gradients", [(a, b, "permille", v) for a, b, v in gradients], "per mille, + = up-grade")
     if curves:
         body += sections("curves", [(a, b, "radius_m", v) for a, b, v in curves], "additional resistance 600 / R N/kN")
+    if tunnels:
+        body += "tunnels:\n" + "".join(f"  - {{from_m: {num(a)}, to_m: {num(b)}}}\n" for a, b in tunnels)
+    if neutral_sections:
+        body += "neutral_sections:  # no traction (nor electric brake) inside\n"
+        body += "".join(f"  - {{from_m: {num(a)}, to_m: {num(b)}}}\n" for a, b in neutral_sections)
+    if stations:
+        body += "stations:\n" + "".join(f"  - {{name: {text(n)}, at_m: {num(s)}}}\n" for n, s in stations)
+    if chainage:
+        body += "chainage:  # kilometre posts: from at_m on, the post reads km and counts up (or down)\n"
+        body += "".join(f"  - {{at_m: {num(s)}, km: {coef(km)}, descending: {'true' if d else 'false'}}}\n"
+                        for s, km, d in chainage)
     return body
 
 
-def curve_yaml(points: list[tuple[float, float]]) -> str:
-    return "\n".join(f"  - [{num(v)}, {num(f)}]" for v, f in points) + "\n"
+def journey_yaml(head: list[str], name: str, route_file: str, stations: list[tuple[str, float, bool]]) -> str:
+    """A ``locoplan/journey@1`` file over ``route_file``; ``stations``: (name, at_m, stop) in running order."""
+    body = header(head) + "schema: locoplan/journey@1\n"
+    body += f"name: {text(name)}\n"
+    body += f"route: {text(route_file)}\n"
+    body += "stations:\n"
+    body += "".join(f"  - {{name: {text(n)}, at_m: {num(s)}{'' if stop else ', stop: false'}}}\n"
+                    for n, s, stop in stations)
+    return body
+
+
+def curve_yaml(points: list[tuple[float, float]], exact: bool = False) -> str:
+    """Curve points; ``exact``: to 12 significant digits (converted units), else to the 3 decimals of ``num``."""
+    fmt = coef if exact else num
+    return "\n".join(f"  - [{fmt(v)}, {fmt(f)}]" for v, f in points) + "\n"
 
 
 def vehicle_yaml(head: list[str], name: str, kind: str, mass_t: float, length_m: float, max_speed_kmh: float,
                  resistance: tuple[float, float, float], rotating_mass_factor: float, max_load_t: float | None = None,
-                 traction_kn: list | None = None, brake_kn: list | None = None) -> str:
-    """A ``locoplan/vehicle@1`` file. Resistance coefficients keep full precision (they are derived)."""
+                 traction_kn: list | None = None, brake_kn: list | None = None, exact_curves: bool = False) -> str:
+    """A ``locoplan/vehicle@1`` file. Resistance coefficients keep full precision (they are derived); with
+    ``exact_curves`` so do the mass, length, top speed and force curves (converted from other units)."""
     a, b, c = resistance
     body = header(head)
     body += "schema: locoplan/vehicle@1\n"
     body += f"name: {text(name)}\n"
     body += f"kind: {kind}\n"
-    body += f"mass_t: {num(mass_t)}\n"
+    fmt = coef if exact_curves else num
+    body += f"mass_t: {fmt(mass_t)}\n"
     if max_load_t is not None:
         body += f"max_load_t: {num(max_load_t)}\n"
-    body += f"length_m: {num(length_m)}\n"
-    body += f"max_speed_kmh: {num(max_speed_kmh)}\n"
+    body += f"length_m: {fmt(length_m)}\n"
+    body += f"max_speed_kmh: {fmt(max_speed_kmh)}\n"
     body += f"resistance_n_per_kn: {{a: {coef(a)}, b: {coef(b)}, c: {coef(c)}}}   # w0 = a + b*v + c*v^2 [N/kN], v in km/h\n"
     body += f"rotating_mass_factor: {num(rotating_mass_factor)}\n"
     if traction_kn is not None:
-        body += "traction_kn:   # [speed km/h, max tractive effort kN], linear between points\n" + curve_yaml(traction_kn)
+        body += "traction_kn:   # [speed km/h, max tractive effort kN], linear between points\n" + curve_yaml(traction_kn, exact_curves)
     if brake_kn is not None:
-        body += "brake_kn:      # [speed km/h, max electric braking force kN]\n" + curve_yaml(brake_kn)
+        body += "brake_kn:      # [speed km/h, max electric braking force kN]\n" + curve_yaml(brake_kn, exact_curves)
     return body
 
 
