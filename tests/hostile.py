@@ -656,7 +656,7 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
 
 
 NOT_NUMBERS = {"NAME", "NAME,...", "STATION", "TAG", "ID", "FILE", "FILE|NAME", "DIR", "MODE", "time|energy", "traction|net", "ADDRESS", "csv|parquet|json", "EXPR",
-               "FIELD,...", "PLAN"}
+               "FIELD,...", "PLAN", "T|K|C|B"}
 """Metavars of text options that hold no number (``PLAN``, a --sequence, is checked against its route's length)."""
 
 

@@ -831,7 +831,7 @@ class TractionCalculator:
         def first_of(flags):
             return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
 
-        first_stop = first_of(stop)
+        first_stop = first_of(stop > 0)
         at = np.minimum(first_stop, n_cells - 1), np.arange(n)
         braking_at_stop = fB[at] + fE[at] > 0
         return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
