@@ -73,7 +73,7 @@ def test_help_names_values_not_types(path):
         if " / --no-" in entry or flag in ("--help", "--json", "--quiet", "--explain", "--all-legs", "--journey", "--thermal", "--version"):
             continue
         # an option taking a value shows a capitalised metavar right after the flag, or its choices
-        assert re.match(rf"^  {flag} [A-Z]", entry) or re.match(rf"^  {flag} (csv|time|traction)\|", entry), (path, entry, head)
+        assert re.match(rf"^  {flag} [A-Z]", entry) or re.match(rf"^  {flag} (csv|time|traction|km)\|", entry), (path, entry, head)
 
 
 @pytest.mark.parametrize("path", COMMANDS, ids=lambda p: " ".join(p))

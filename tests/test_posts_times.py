@@ -141,7 +141,7 @@ def optimized(root, tmp_path_factory):
 
 def test_optimize_table_gives_posts_and_stations(optimized):
     text, _, data = optimized
-    assert "from (km post)" in text and "100+000" in text
+    assert "km post" in text and "100+000" in text
     for c in data["sequence"]:  # each condition's start at its post, as the route's chainage counts it
         km = c["from_km_post"]
         assert f"{int(round(km * 1000)) // 1000}+{int(round(km * 1000)) % 1000:03d}" in text

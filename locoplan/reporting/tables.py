@@ -338,18 +338,18 @@ def sequence_table(runs: list[dict], width: int = 80, route=None, form: str = "k
     posts = has_chainage(route)
     named = route is not None and bool(route.stations)
     table = Table(title="condition sequence", title_justify="left")
-    cols = ("condition", "from [m]", "to [m]", "length [m]") + (("from (km post)",) if posts else ()) + (
+    cols = ("condition", "from [m]") + (("km post",) if posts else ()) + ("to [m]", "length [m]") + (
         ("stations",) if named else ())
     for col in cols:
         table.add_column(escape(col), justify="left" if col in ("condition", "stations") else "right")
     for i, r in enumerate(runs):
-        extra = (post_text(route, r["from_m"], form),) if posts else ()
-        if named:
-            extra += (escape(", ".join(st.name for st in stations_in(route, r["from_m"], r["to_m"], last=i == len(runs) - 1))
-                             or "-"),)
-        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", f"{r['to_m']:.0f}",
-                      f"{r['to_m'] - r['from_m']:.0f}", *extra)
-    return fit(table, width, drop=(3,) if posts or named else (), wrap=(len(cols) - 1,) if named else ())
+        post = (post_text(route, r["from_m"], form),) if posts else ()
+        names = (escape(", ".join(st.name for st in stations_in(route, r["from_m"], r["to_m"], last=i == len(runs) - 1))
+                        or "-"),) if named else ()
+        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", *post,
+                      f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}", *names)
+    return fit(table, width, drop=(cols.index("length [m]"),) if posts or named else (),
+               wrap=(len(cols) - 1,) if named else ())
 
 
 def _wrap_sequence(conds: list[str], room: int = 17) -> str:
