@@ -18,7 +18,7 @@ from rich.markup import escape
 from . import __version__
 from . import api, bounds
 from .api import ModelRequest
-from .cli_common import (ALGO, BUILDER, CHAINAGE, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, PLOT_TD, ROUTE, SEED, STOCK, TIME, TOL, plot_runs_td,
+from .cli_common import (ALGO, BUILDER, CHAINAGE, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, PLOT_TD, ROUTE, SEED, STOCK, TIME, TOL, departure_s, plot_runs_td,
                          WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
@@ -165,7 +165,7 @@ def simulate(route: Path = ROUTE,
             plot_runs_td(plot_td, [(summary["strategy"], plan.run.result.profile)],
                          run_title(r.name, train.name, summary["strategy"], summary), r, chainage)
     if not as_json:
-        show(out, summary_table(summary, out.width, r, chainage)
+        show(out, summary_table(summary, out.width, r, chainage, departure_s())
              + sequence_table(summary["sequence"], out.width, r, chainage))
     # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
     # T0 +- tolerance too; a --sequence, time-saving and energy-saving are measured, their punctuality reported
@@ -211,7 +211,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
             plot_runs_td(plot_td, [("proposed", run.result.profile)],
                          run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary), r, chainage)
     if not as_json:
-        show(out, summary_table(summary, out.width, r, chainage)
+        show(out, summary_table(summary, out.width, r, chainage, departure_s())
              + sequence_table(summary["sequence"], out.width, r, chainage))
     _fail_if(plan.failures)
 

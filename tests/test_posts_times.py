@@ -148,6 +148,8 @@ def test_optimize_table_gives_posts_and_stations(optimized):
     for name in STATIONS:
         assert name.split()[0] in text
     assert "Brook junction (102+400)" in " ".join(text.split())  # the summary's stations row
+    t = data["running_time_s"]
+    assert f"(departs 08:00:00, arrives 08:{int(round(t)) // 60:02d}:{int(round(t)) % 60:02d})" in text
 
 
 def test_profile_csv_has_posts_and_stations_after_its_columns(optimized, root):

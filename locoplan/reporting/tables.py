@@ -221,14 +221,15 @@ def e_min_origin(summary: dict) -> str:
     return ""
 
 
-def summary_table(summary: dict, width: int = 80, route=None, form: str = "km") -> list:
+def summary_table(summary: dict, width: int = 80, route=None, form: str = "km", depart_s: float | None = None) -> list:
     """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
     long for the table's value column follows the table on a line of its own, whole). With ``route``: its
-    stations, and positions with their kilometre posts (written in ``form``) where it has a chainage."""
+    stations, and positions with their kilometre posts (written in ``form``) where it has a chainage; with
+    ``depart_s`` (the departure's clock time, seconds since midnight), the run's departure and arrival clocks."""
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({escape(str(summary['reason']))})"
     rows = [("strategy", escape(summary["strategy"] + (f" ({summary['algorithm']}, seed {summary['seed']})" if summary.get("algorithm") else ""))),
             ("plan", escape(summary.get("plan") or "-")), ("feasible", feasible)]
-    rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
+    rows.append(("running time", _num(summary["running_time_s"], ".1f", " s") + _clocks(summary["running_time_s"], depart_s)))
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
     rows += energy_rows(summary)
@@ -261,6 +262,16 @@ def summary_table(summary: dict, width: int = 80, route=None, form: str = "km") 
         rows.append(("stations", ", ".join(escape(station_place(route, st, form)) for st in route.stations)))
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
+
+
+def _clocks(running_time_s, depart_s: float | None) -> str:
+    """`` (departs 08:00:00, arrives 08:09:09)`` for a run that departs at ``depart_s`` (seconds since midnight)."""
+    from ..bounds import clock_text
+
+    if depart_s is None or running_time_s is None or not math.isfinite(running_time_s):
+        return ""
+    return (f" (departs {clock_text(depart_s, with_seconds=True)}, arrives "
+            f"{clock_text(depart_s + running_time_s, with_seconds=True)})")
 
 
 def cycle_optimum_rows(summary: dict) -> list[tuple[str, str]]:
