@@ -826,7 +826,7 @@ MODEL = ModelGroup()
 """The model options of every planning command."""
 MODEL_NO_STRICT = ModelGroup(strict=False)
 """The model options of the drivers' simulation and of learning (no --strict-limits)."""
-TIME = typer.Option(None, "--time", help="Planned running time T0: seconds (1500, 1500s), minutes (25min), hours and minutes (1h05), h:mm:ss (0:25:00), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule; or --depart with --arrive).")
+TIME = typer.Option(None, "--time", help="Planned running time T0: seconds [s] (1500, 1500s), minutes (25min), hours and minutes (1h05), h:mm:ss (0:25:00), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule; or --depart with --arrive).")
 CHAINAGE = typer.Option("km", "--chainage", help="How kilometre posts are written where the route has a chainage: km (12.345 km) or plus (12+345).")
 PLOT_TD = typer.Option(None, "--plot-td", help="Time-distance diagram of the run: the line (kilometre posts where the route has a chainage) against the clock (--depart's, else since the departure), stations as lines; .png, .svg or .pdf.")
 DEPART = typer.Option(None, "--depart", help="Departure clock time hh:mm[:ss]: with --arrive, the planned running time is the time between them; the time-distance diagram reads this clock.", show_default=False)

@@ -96,7 +96,7 @@ def test_model_switches_are_pairs_with_their_default():
 
 def test_units_in_brackets_survive_and_defaults_show():
     opts = _options(_help(["optimize"]))
-    assert "25min" in opts["--time"] and opts["--time"].startswith("  --time TIME ")
+    assert "[s]" in opts["--time"] and "25min" in opts["--time"] and opts["--time"].startswith("  --time TIME ")
     assert opts["--depart"].startswith("  --depart HH:MM ") and opts["--arrive"].startswith("  --arrive HH:MM ")
     assert "[kWh]" in opts["--e-min"] and opts["--e-min"].startswith("  --e-min KWH ")
     assert "[m]" in opts["--step"] and "[default: 50.0]" in opts["--step"]

@@ -110,6 +110,11 @@ def test_bad_times_on_the_command_line_are_exit_2(root, monkeypatch, args, flag)
         assert flag in out and "Traceback" not in out
 
 
+def test_a_post_form_other_than_km_or_plus_is_exit_2(root, monkeypatch):
+    out = _run(root, monkeypatch, ["optimize", POSTS, "--chainage", "miles"], code=2)
+    assert "--chainage" in out and "12+345" in out
+
+
 def test_every_command_that_takes_time_takes_clocks(root, monkeypatch):
     for command in ("simulate", "optimize", "compare", "sweep", "study", "bound", "ocp", "advise", "journey"):
         out = _run(root, monkeypatch, [command, "--help"])
