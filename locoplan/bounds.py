@@ -12,6 +12,7 @@ memory would run out (ten million sweep runs), and each message says so.
 from __future__ import annotations
 
 import math
+import re
 
 from .errors import InputError, Problem
 from .model.common import number
@@ -391,13 +392,52 @@ def check_command(fn, kwargs: dict, given: list[str] | None = None) -> None:
                 check_text(flag, "" if str(v) == "." and _given_empty(flag, given or []) else str(v))
             else:
                 check_option(flag, v, command)
-TIME_FORMS = "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)"
-"""The forms a planned running time takes on the command line (and in a study file's ``times``)."""
+DURATION_FORMS = "seconds (1500, 1500s), minutes (25min), hours and minutes (1h05) or h:mm:ss (0:25:00)"
+"""The forms of a running time written as a duration."""
+TIME_FORMS = f"{DURATION_FORMS}, a factor of the fastest run (1.1x) or a supplement on it (+10%)"
+"""The forms a planned running time takes on the command line (``--time``, each item of ``--times``)."""
+CLOCK_FORMS = "a clock time hh:mm or hh:mm:ss (08:25, 08:25:30)"
+"""The forms of a clock time (``--depart``, ``--arrive``)."""
+
+_UNITS = {"h": 3600.0, "min": 60.0, "m": 60.0, "s": 1.0}
+_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)(h|min|m|s)?")
+_HMS = re.compile(r"(\d+):([0-5]\d):([0-5]\d(?:\.\d*)?)")
+
+
+def duration_s(text: str) -> float | None:
+    """A duration as people write it, in seconds: ``1500``, ``1500s``, ``25min`` (or ``25m``), ``1h05``
+    (1 h 5 min: a bare number after ``h`` is minutes, after ``min`` seconds), ``1h05m30s``, ``1.5h``,
+    ``0:25:00`` (h:mm:ss); spaces are ignored. None when ``text`` is none of these forms."""
+    t = str(text).strip().lower().replace(" ", "")
+    m = _HMS.fullmatch(t)
+    if m:
+        return int(m.group(1)) * 3600.0 + int(m.group(2)) * 60.0 + float(m.group(3))
+    if not t:
+        return None
+    total, pos, last, order = 0.0, 0, None, ("h", "min", "s")
+    while pos < len(t):
+        m = _DURATION.match(t, pos)
+        if m is None:
+            return None
+        number, unit = float(m.group(1)), m.group(2)
+        if unit is None:  # a bare number: seconds alone, or the next unit down after h (minutes) or min (seconds)
+            if m.end() != len(t):
+                return None
+            unit = {None: "s", "h": "min", "min": "s"}.get(last)
+            if unit is None:
+                return None
+        unit = "min" if unit == "m" else unit
+        if last is not None and order.index(unit) <= order.index(last):
+            return None  # each unit once, from hours down
+        total += number * _UNITS[unit]
+        last, pos = unit, m.end()
+    return total
 
 
 def time_request(text: str | float | None, option: str = "--time") -> tuple[str, float] | None:
-    """A planned running time as typed: ``('s', seconds)``, ``('x', factor of the fastest run)``; ``+10%``
-    (a running-time supplement on the fastest run, as timetables state it) is the factor 1.1.
+    """A planned running time as typed: ``('s', seconds)`` for a duration (:func:`duration_s`: ``1500``,
+    ``25min``, ``1h05``, ``0:25:00``), ``('x', factor of the fastest run)`` for ``1.1x``; ``+10%`` (a
+    running-time supplement on the fastest run, as timetables state it) is the factor 1.1.
     None stays None (the route's schedule). Raises ``InputError`` naming ``option`` and the forms."""
     if text is None:
         return None
@@ -413,9 +453,14 @@ def time_request(text: str | float | None, option: str = "--time") -> tuple[str,
                 raise ValueError
             kind, value = "x", 1.0 + float(t[1:-1]) / 100.0
         else:
-            kind, value = "s", float(t[:-1] if t.endswith("s") else t)
+            seconds = duration_s(t)
+            if seconds is None:  # a number of seconds out of bounds (-5, nan) is told its bound, as it was
+                seconds = float(t[:-1] if t.endswith("s") else t)
+            kind, value = "s", seconds
     except ValueError:
-        raise InputError(Problem(_where(option), option, f"expected {TIME_FORMS}, got {raw!r}")) from None
+        hint = (" (a clock time belongs in --depart / --arrive; a running time as h:mm:ss is 0:25:00)"
+                if re.fullmatch(r"\d+:\d+", t) else "")
+        raise InputError(Problem(_where(option), option, f"expected {TIME_FORMS}, got {raw!r}{hint}")) from None
     if kind == "s":
         return "s", planned_time(value, option)
     if not math.isfinite(value) or value < 1.0 or value > 10.0:
@@ -424,8 +469,71 @@ def time_request(text: str | float | None, option: str = "--time") -> tuple[str,
     return "x", value
 
 
+POST_FORMS = ("km", "plus")
+"""How a kilometre post is written (``--chainage``): ``12.345 km`` or ``12+345``."""
+
+
+def post_form(text: str, option: str = "--chainage") -> str:
+    """``km`` or ``plus`` (:data:`POST_FORMS`); else ``InputError`` naming ``option`` and both."""
+    if text not in POST_FORMS:
+        raise InputError(Problem(_where(option), option, f"expected km (kilometre posts as 12.345 km) or plus (as "
+                                 f"12+345), got {text!r}"))
+    return text
+
+
+DAY_S = 86_400.0
+
+
+def clock_s(text: str, option: str = "--depart") -> float:
+    """A clock time ``hh:mm`` or ``hh:mm:ss`` (00:00 .. 23:59:59) in seconds since midnight; else
+    ``InputError`` naming ``option`` and the forms."""
+    raw = str(text).strip()
+    m = re.fullmatch(r"(\d{1,2}):([0-5]\d)(?::([0-5]\d(?:\.\d*)?))?", raw)
+    if m is None or int(m.group(1)) > 23:
+        raise InputError(Problem(_where(option), option, f"expected {CLOCK_FORMS}, got {raw!r}"))
+    return int(m.group(1)) * 3600.0 + int(m.group(2)) * 60.0 + float(m.group(3) or 0.0)
+
+
+def clock_text(seconds: float, with_seconds: bool | None = None) -> str:
+    """Seconds since midnight as a clock ``hh:mm`` (``hh:mm:ss`` where the seconds are not 0, or with
+    ``with_seconds``); past midnight the clock starts again (a run overnight)."""
+    s = int(round(seconds)) % int(DAY_S)
+    h, rest = divmod(s, 3600)
+    m, sec = divmod(rest, 60)
+    if with_seconds or (with_seconds is None and sec):
+        return f"{h:02d}:{m:02d}:{sec:02d}"
+    return f"{h:02d}:{m:02d}"
+
+
+def clock_span_s(depart: str, arrive: str) -> float:
+    """The running time from a departure clock to an arrival clock [s] (``--depart 08:00 --arrive 08:25`` is
+    1500 s); an arrival before the departure is the next day's (a run over midnight). ``InputError`` naming
+    the option at fault."""
+    a, b = clock_s(depart, "--depart"), clock_s(arrive, "--arrive")
+    span = (b - a) % DAY_S
+    if span <= 0:
+        raise InputError(Problem(CMDLINE, "--arrive", f"{arrive.strip()} is the departure's own clock time: give a later "
+                                 "arrival (an earlier one is read as the next day's)"))
+    return planned_time(span, "--arrive")
+
+
+def clock_request(time: str | None, depart: str | None, arrive: str | None) -> str | None:
+    """``--time`` as the command reads it, given ``--depart`` / ``--arrive``: the running time from the
+    departure to the arrival in seconds (as text) when both are given, else ``time`` as given. ``--arrive``
+    needs ``--depart`` and excludes ``--time`` (two running times)."""
+    if arrive is None:
+        return time
+    if depart is None:
+        raise InputError(Problem(CMDLINE, "--arrive", "needs --depart: the running time is the arrival less the departure "
+                                 "(--depart 08:00 --arrive 08:25)"))
+    if time is not None:
+        raise InputError(Problem(CMDLINE, "--arrive", f"give --time or --arrive, not both (--time {time} and --depart "
+                                 f"{depart} --arrive {arrive} are two running times)"))
+    return f"{clock_span_s(depart, arrive):g}"
+
+
 TIMES_FORMS = ("start:stop:step in seconds (1400:1600:100), or a comma list of planned running times, each "
-               "seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%)")
+               f"{TIME_FORMS}")
 """The forms of a list of planned running times on the command line (``--times``)."""
 
 
@@ -433,7 +541,7 @@ def times_request(text: str, option: str = "--times") -> list[tuple[str, float]]
     """A list of planned running times as typed (``--times``): ``'1400:1600:100'`` (start:stop:step, seconds,
     inclusive) or a comma list whose items each take a :func:`time_request` form (``1400,1.1x,+20%``).
     Raises ``InputError`` naming ``option`` and the forms."""
-    if ":" in text:
+    if ":" in text and "," not in text and not _HMS.fullmatch(text.strip()):
         return [("s", v) for v in values(text, option, *LIMITS["time_s"], "s", "a planned running time")]
     items = text.split(",")
     if not text.strip():
@@ -467,6 +575,9 @@ _TIMES = (*LIMITS["time_s"], "s", "a planned running time")
 TEXT_NUMBERS = {
     "--time": time_request,
     "--times": times_request,
+    "--depart": clock_s,
+    "--chainage": post_form,
+    "--arrive": lambda text, flag: clock_s(text, flag),
     "drivers simulate --times": lambda text, flag: number_list(text, flag, *_TIMES),
     "--weights": weights,
     # sweep's --weights is the old name of --weight-grid: named as the grid, as the command reads it

@@ -18,7 +18,7 @@ from rich.markup import escape
 from . import __version__
 from . import api, bounds
 from .api import ModelRequest
-from .cli_common import (ALGO, BUILDER, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, ROUTE, SEED, STOCK, TIME, TOL,
+from .cli_common import (ALGO, BUILDER, CHAINAGE, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, PLOT_TD, ROUTE, SEED, STOCK, TIME, TOL, departure_s, plot_runs_td,
                          WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
@@ -139,9 +139,10 @@ def simulate(route: Path = ROUTE,
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile over the limits, .png, .svg or .pdf."),
+             plot_td: Optional[Path] = PLOT_TD,
              model: ModelRequest = MODEL,
              time_s: Optional[str] = TIME, e_min: Optional[float] = EMIN, seed: int = SEED, algorithm: str = ALGO,
-             builder: Optional[str] = BUILDER):
+             builder: Optional[str] = BUILDER, chainage: str = CHAINAGE):
     """Traction calculation of one plan: a built-in --strategy or a --sequence of conditions.
 
     Exit 1 when the plan is infeasible, or when a strategy that plans to the timetable (four-stage,
@@ -149,7 +150,7 @@ def simulate(route: Path = ROUTE,
     time-saving and energy-saving are measured, not planned to T0: how early or late they arrive, and
     whether inside the window, is reported (the table, --json "punctual"), with exit 0."""
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
-    _check_outputs(out_file, plot)
+    _check_outputs(out_file, plot, plot_td=plot_td)
     r, train, opts = _load(route, consist, stock_dir, model)
     plan = api.simulate(r, train, opts, strategy=strategy, sequence=sequence, e_min_kwh=e_min, seed=seed,
                         algorithm=algorithm, builder=builder, time_s=_time(time_s, (r, train), options=opts, quiet=as_json))
@@ -159,9 +160,13 @@ def simulate(route: Path = ROUTE,
         if plot:
             plot_profiles(plot, [(summary["strategy"], plan.run.result.profile)],
                           run_title(r.name, train.name, summary["strategy"], summary), route=r,
-                          coupler_limit_kn=train.coupler_limit_kn)
+                          coupler_limit_kn=train.coupler_limit_kn, form=chainage)
+        if plot_td:
+            plot_runs_td(plot_td, [(summary["strategy"], plan.run.result.profile)],
+                         run_title(r.name, train.name, summary["strategy"], summary), r, chainage)
     if not as_json:
-        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
+        show(out, summary_table(summary, out.width, r, chainage, departure_s())
+             + sequence_table(summary["sequence"], out.width, r, chainage))
     # one rule for every command: infeasible is exit 1; a timetabled strategy (proposed, four-stage...) outside
     # T0 +- tolerance too; a --sequence, time-saving and energy-saving are measured, their punctuality reported
     _fail_if(plan.failures)
@@ -174,9 +179,10 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
              consist: str = CONSIST, stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
              out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + profile as .json."),
              plot: Optional[Path] = typer.Option(None, "--plot", help="Speed profile and fitness convergence, .png, .svg or .pdf."),
+             plot_td: Optional[Path] = PLOT_TD,
              model: ModelRequest = MODEL,
              tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
-             objective: str = OBJECTIVE):
+             objective: str = OBJECTIVE, chainage: str = CHAINAGE):
     """The least-energy plan on time: a condition sequence built from the limits and grades, its switching
     points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
     optimisation of freight trains on complex lines (ISSA switching points)."""
@@ -185,7 +191,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     get_algorithm(algorithm)
     w = api.weights(weights)
     bounds.objective(objective)
-    _check_outputs(out_file, plot)
+    _check_outputs(out_file, plot, plot_td=plot_td)
     r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
@@ -200,9 +206,13 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
                           run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary),
                           histories=[(algorithm, run.outcome.history, None, summary.get("fitness"))]
                           if run.outcome.history is not None else None,
-                          route=r, coupler_limit_kn=train.coupler_limit_kn)
+                          route=r, coupler_limit_kn=train.coupler_limit_kn, form=chainage)
+        if plot_td:
+            plot_runs_td(plot_td, [("proposed", run.result.profile)],
+                         run_title(r.name, train.name, f"proposed ({algorithm}, seed {seed})", summary), r, chainage)
     if not as_json:
-        show(out, summary_table(summary, out.width) + sequence_table(summary["sequence"], out.width))
+        show(out, summary_table(summary, out.width, r, chainage, departure_s())
+             + sequence_table(summary["sequence"], out.width, r, chainage))
     _fail_if(plan.failures)
 
 
@@ -230,11 +240,12 @@ def compare(route: Path = ROUTE,
             stock_dir: Optional[Path] = STOCK, as_json: bool = JSON,
             out_file: Optional[Path] = typer.Option(None, "--out", help="Results as .json, or .csv: one row per strategy (columns: docs/cli.md)."),
             plot: Optional[Path] = typer.Option(None, "--plot", help="All strategies' speed profiles over the limits, .png, .svg or .pdf."),
+            plot_td: Optional[Path] = PLOT_TD,
             model: ModelRequest = MODEL,
             tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
             logs: Optional[list[Path]] = typer.Option(None, "--logs", help="Drivers' log folders (strategy 'drivers')."),
             patterns: Optional[Path] = typer.Option(None, "--patterns", help="Learned patterns.json (strategy 'advice')."),
-            workers: int = WORKERS, objective: str = OBJECTIVE):
+            workers: int = WORKERS, objective: str = OBJECTIVE, chainage: str = CHAINAGE):
     """Strategies side by side: sequence, switching points, running time, energy (every punctual plan's
     energy also at T0). Method: Li Wang et al., multi-objective optimisation of freight trains on complex
     lines (its Tables 8-9)."""
@@ -245,7 +256,7 @@ def compare(route: Path = ROUTE,
     names = _names(strategies or COMPARE_DEFAULT, "--strategies")
     w = api.weights(weights)
     bounds.objective(objective)
-    _check_outputs(out_file, plot)
+    _check_outputs(out_file, plot, plot_td=plot_td)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
@@ -258,7 +269,8 @@ def compare(route: Path = ROUTE,
     if explain and not as_json:
         show(out, explain_tables(proposed_sequence(load_route(route), load_train(consist, stock_dir), opts), out.width))
     with run_progress("compare runs", len(specs), not as_json) as progress:
-        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None, progress=progress)
+        batch = run_many(specs, make_executor(workers), keep_profiles=plot is not None or plot_td is not None,
+                         progress=progress)
     for x in batch.records:  # a reason about the route's own schedule names the file and line it came from
         if x.summary.get("reason"):
             x.summary["reason"] = locate_schedule(x.summary["reason"])
@@ -266,8 +278,13 @@ def compare(route: Path = ROUTE,
     if gap:  # every energy also at T0, so that plans arriving at different times within the window compare
         r_, train_ = load_route(route), load_train(consist, stock_dir)
         results["optimum_at_t0_kwh"] = energies_at_planned_time(results["results"], r_, train_, opts, objective)
+    line = load_route(route)
     with all_or_none():
-        _emit(results, as_json, out_file)
+        _emit(results, as_json, out_file, route=line)
+        if plot_td:
+            first = results["results"][0]
+            plot_runs_td(plot_td, [(x.summary["strategy"], x.profile) for x in batch.records if x.profile is not None],
+                         f"{first['route']} — {first['consist']}: strategies", line, chainage)
         if plot:
             recs = [x for x in batch.records if x.profile is not None]
             hist = [(x.summary["strategy"], x.history, history_quantity(x.summary["strategy"]),
@@ -276,11 +293,12 @@ def compare(route: Path = ROUTE,
             first = results["results"][0]
             plot_profiles(plot, [(x.summary["strategy"], x.profile) for x in recs],
                           f"{first['route']} — {first['consist']}: strategies", histories=hist or None,
-                          route=load_route(route))
+                          route=line, form=chainage)
     if not as_json:
         first = results["results"][0]
         show(out, compare_tables(results["results"], f"{first['route']} — {first['consist']}, T0 = {first['planned_time_s']:g} s"
-                                 if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width))
+                                 if first.get("planned_time_s") is not None else f"{first['route']} — {first['consist']}", out.width,
+                                 line, chainage))
     # named strategies fail by name; the default list fails only when no timetabled one is on time
     fail_on(api.compare_verdict([x.summary for x in batch.records], batch.failures, strategies is not None,
                                 strategy_names(timetabled=True),
@@ -299,7 +317,7 @@ def sweep(route: Path = ROUTE,
           plot: Optional[Path] = typer.Option(None, "--plot", help="The runs' speed profiles over the limits, .png, .svg or .pdf."),
           model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
-          workers: int = WORKERS):
+          workers: int = WORKERS, chainage: str = CHAINAGE):
     """The optimised plan across fitness weights or planned running times. Method: Li Wang et al.,
     multi-objective optimisation of freight trains on complex lines (its Tables 6-7)."""
     from .runs import make_executor, run_many
@@ -333,7 +351,7 @@ def sweep(route: Path = ROUTE,
         if plot:
             label = (lambda s: f"w_time {s['weights'][0]:g}") if weights else (lambda s: f"T0 {s['planned_time_s']:g} s")
             plot_profiles(plot, [(label(x.summary), x.profile) for x in batch.records if x.profile is not None],
-                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route))
+                          f"{rows[0]['route']} — {rows[0]['consist']}: sweep", route=load_route(route), form=chainage)
     if not as_json:
         show(out, sweep_table(rows, f"{rows[0]['route']}: {'Table 6, weights' if weights else 'Table 7, running times'}",
                               by_weights=bool(weights), width=out.width))
@@ -352,7 +370,7 @@ def study(route: Path = ROUTE,
           plot: Optional[Path] = typer.Option(None, "--plot", help="Best runs' speed profiles and convergence curves, .png, .svg or .pdf."),
           model: ModelRequest = MODEL,
           tolerance: Optional[float] = TOL, window: bool = WINDOW, builder: Optional[str] = BUILDER, gap: bool = GAP,
-          workers: int = WORKERS):
+          workers: int = WORKERS, chainage: str = CHAINAGE):
     """Each optimiser over several random seeds: best, worst, mean, punctual-and-best. Method: Li Wang et
     al., multi-objective optimisation of freight trains on complex lines (its Tables 10-12)."""
     from .runner import study_table as study_rows
@@ -388,7 +406,7 @@ def study(route: Path = ROUTE,
             plot_profiles(plot, [(f"{a} (seed {b.summary['seed']})", b.profile) for a, b in shown],
                           f"{first['route']} — {first['consist']}: best run of each optimiser",
                           histories=[(a, b.history) for a, b in shown if b.history is not None] or None,
-                          route=load_route(route))
+                          route=load_route(route), form=chainage)
     if not as_json:
         show(out, study_table(rows, f"{first['route']}: {runs} runs per optimiser (Tables 10-12), E_min "
                                     + ("-" if e_min_kwh is None else f"{e_min_kwh:.1f} kWh"), out.width))

@@ -152,7 +152,7 @@ ENVELOPE = ("verdict", "exit_code", "errors")
 :data:`~locoplan.reporting.writers.PROVENANCE`: version, inputs, input files with their hashes)."""
 
 _RUN: ContextVar[Optional[dict]] = ContextVar("locoplan_cli_run", default=None)
-_OUTPUTS = ("out_file", "plot", "boxplot", "out_dir")
+_OUTPUTS = ("out_file", "plot", "plot_td", "boxplot", "out_dir")
 
 
 def _inputs(kwargs: dict) -> dict:
@@ -254,6 +254,11 @@ def guarded(fn):
     groups = {name: p.default for name, p in signature.parameters.items() if isinstance(p.default, ModelGroup)}
     shown = [q for p in signature.parameters.values()
              for q in (p.default.parameters() if isinstance(p.default, ModelGroup) else [p])]
+    clocks = "depart" not in signature.parameters and _takes_time(signature)
+    if clocks:  # --depart / --arrive beside --time: the running time from two clock times
+        at = next(i for i, q in enumerate(shown) if q.name == "time_s") + 1
+        shown[at:at] = [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=info,
+                                          annotation=Optional[str]) for name, info in (("depart", DEPART), ("arrive", ARRIVE))]
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
@@ -261,6 +266,7 @@ def guarded(fn):
                "schedule_from": kwargs.get("route") if "time_s" in kwargs and kwargs.get("time_s") is None
                and kwargs.get("times") is None and isinstance(kwargs.get("route"), Path) else None}
         token = _RUN.set(run)
+        departure = _DEPARTURE.set(None)
         code = None
         streams = std_streams()
         streams.__enter__()  # stdout's errors named as stdout's, stderr's dropped (std_streams)
@@ -273,7 +279,10 @@ def guarded(fn):
                     with all_or_none(keep=lambda exc: isinstance(exc, typer.Exit)):
                         bounds.check_command(wrapper, kwargs, _given())  # every option's value, before any work
                         _check_outputs_not_inputs(run["command"], kwargs)
-                        result = fn(*args, **_grouped(kwargs, groups))
+                        call = _grouped(kwargs, groups)
+                        if clocks:
+                            call = _clocked(call, run)
+                        result = fn(*args, **call)
                 except typer.Exit:
                     _flush_stdout()
                     raise
@@ -309,6 +318,7 @@ def guarded(fn):
             raise typer.Exit(exc.exit_code) from None
         finally:
             _RUN.reset(token)
+            _DEPARTURE.reset(departure)
             try:
                 if code is not None and kwargs.get("as_json"):
                     _print_json(run, code)
@@ -320,7 +330,7 @@ def guarded(fn):
     return wrapper
 
 
-_WRITTEN = {"out_file": "--out", "plot": "--plot", "boxplot": "--boxplot"}
+_WRITTEN = {"out_file": "--out", "plot": "--plot", "plot_td": "--plot-td", "boxplot": "--boxplot"}
 """The parameters that name a file a command writes (besides the store of a command in :data:`_WRITES_STORE`)."""
 _WRITES_STORE = {"batch": ("store_path", "--store")}
 """Commands that write into a store they are given (the store is their output, not an input)."""
@@ -358,6 +368,39 @@ def _check_outputs_not_inputs(command: str, kwargs: dict) -> None:
             inputs[shown.get(name, name)] = paths
     check_distinct(outputs)
     check_not_inputs(outputs, inputs)
+
+
+def _takes_time(signature: inspect.Signature) -> bool:
+    """Whether a command takes ``--time`` (a parameter ``time_s`` declared as that option)."""
+    p = signature.parameters.get("time_s")
+    return p is not None and "--time" in (getattr(p.default, "param_decls", None) or ())
+
+
+_DEPARTURE: ContextVar[Optional[float]] = ContextVar("locoplan_departure", default=None)
+
+
+def departure_s() -> Optional[float]:
+    """The running command's ``--depart`` in seconds since midnight (None when not given): the clock its
+    time-distance diagram reads."""
+    return _DEPARTURE.get()
+
+
+def _clocked(call: dict, run: dict) -> dict:
+    """A command's arguments with ``--depart`` / ``--arrive`` turned into its ``--time`` (the running time between
+    them, :func:`locoplan.bounds.clock_request`) and the departure kept for the clock (:func:`departure_s`)."""
+    call = dict(call)
+    depart, arrive = call.pop("depart", None), call.pop("arrive", None)
+    call["time_s"] = bounds.clock_request(call.get("time_s"), depart, arrive)
+    if arrive is not None:
+        run["schedule_from"] = None  # the time is the clocks', not the route's schedule
+    set_departure(depart)
+    return call
+
+
+def set_departure(depart: Optional[str]) -> None:
+    """Keep ``--depart`` (hh:mm[:ss], checked) for the running command's clock (:func:`departure_s`)."""
+    if depart is not None:
+        _DEPARTURE.set(bounds.clock_s(depart, "--depart"))
 
 
 def _grouped(kwargs: dict, groups: dict) -> dict:
@@ -686,6 +729,11 @@ def fail_on(verdict: api.Verdict, notes: bool = False) -> None:
 
 
 def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=None, route=None) -> None:
+    """``--out`` and ``--json`` of a result; with ``route``, every position with its kilometre post and the
+    route's stations (:func:`locoplan.reporting.posts.with_posts`)."""
+    from .reporting.posts import with_posts
+
+    summary_or_results = with_posts(summary_or_results, route)
     if out_file:
         write_output(out_file, summary_or_results, profile, route)
     if as_json:
@@ -705,7 +753,8 @@ def check_outputs(**outputs: tuple[Optional[Path], tuple[str, ...]]) -> None:
     check_distinct({FLAGS.get(name, name): path for name, (path, _) in outputs.items()})
 
 
-def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True) -> None:
+def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool = True,
+                   plot_td: Optional[Path] = None) -> None:
     """Refuse bad output names (type, folder, writable) before any long computation."""
     from .reporting.plot import check_plot_path
 
@@ -713,7 +762,18 @@ def _check_outputs(out_file: Optional[Path], plot: Optional[Path], csv_ok: bool 
 
     check_output(out_file, "--out", (".csv", ".json") if csv_ok else (".json",))
     check_output(plot and check_plot_path(plot), "--plot")
-    check_distinct({"--out": out_file, "--plot": plot})
+    check_output(plot_td, "--plot-td", PLOT_SUFFIXES)
+    check_distinct({"--out": out_file, "--plot": plot, "--plot-td": plot_td})
+
+
+def plot_runs_td(path: Path, profiles: list, title: str, route, form: str) -> None:
+    """``--plot-td``: the time-distance diagram of plans (label, a calculator ``Profile``) on ``route``, on the
+    clock of ``--depart`` when given."""
+    from .reporting.plot_td import plot_time_distance, series_of
+
+    series = [(label, *series_of(profile)) for label, profile in profiles]
+    dep = departure_s()
+    plot_time_distance(path, series, title, route, form, dep)
 
 
 # Options shared by the commands (typer has no option groups; these keep them identical)
@@ -766,7 +826,11 @@ MODEL = ModelGroup()
 """The model options of every planning command."""
 MODEL_NO_STRICT = ModelGroup(strict=False)
 """The model options of the drivers' simulation and of learning (no --strict-limits)."""
-TIME = typer.Option(None, "--time", help="Planned running time T0 [s]: seconds (1500), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule).")
+TIME = typer.Option(None, "--time", help="Planned running time T0: seconds [s] (1500, 1500s), minutes (25min), hours and minutes (1h05), h:mm:ss (0:25:00), a factor of the fastest run (1.1x) or a supplement on it (+10%) (default: the route's schedule; or --depart with --arrive).")
+CHAINAGE = typer.Option("km", "--chainage", help="How kilometre posts are written where the route has a chainage: km (12.345 km) or plus (12+345).")
+PLOT_TD = typer.Option(None, "--plot-td", help="Time-distance diagram of the run: the line (kilometre posts where the route has a chainage) against the clock (--depart's, else since the departure), stations as lines; .png, .svg or .pdf.")
+DEPART = typer.Option(None, "--depart", help="Departure clock time hh:mm[:ss]: with --arrive, the planned running time is the time between them; the time-distance diagram reads this clock.", show_default=False)
+ARRIVE = typer.Option(None, "--arrive", help="Arrival clock time hh:mm[:ss] (with --depart, instead of --time; an arrival before the departure is the next day's).", show_default=False)
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy: fitness = w_time |T - T0| / T0 + w_energy |E - E_min| / E_min.")
 EMIN = typer.Option(None, "--e-min", help="E_min, the energy the fitness measures against [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")

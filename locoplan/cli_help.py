@@ -25,7 +25,7 @@ METAVARS = {
     "--out": "FILE", "--params": "FILE", "--params-dir": "DIR", "--patterns": "FILE", "--plot": "FILE",
     "--regen": "SHARE", "--repeats": "N", "--rotating-mass": "GAMMA", "--runs": "N", "--scheduler": "ADDRESS",
     "--seed": "N", "--seeds": "N,...", "--sequence": "PLAN", "--stage2": "MODE", "--state-nodes": "N", "--step": "M",
-    "--stock-dir": "DIR", "--store": "FILE", "--strategies": "NAME,...", "--strategy": "NAME", "--time": "S",
+    "--stock-dir": "DIR", "--store": "FILE", "--strategies": "NAME,...", "--strategy": "NAME", "--time": "TIME", "--depart": "HH:MM", "--arrive": "HH:MM", "--chainage": "km|plus", "--plot-td": "FILE",
     "--times": "A:B:STEP|S,...", "--tolerance": "S", "--weights": "W_TIME,W_ENERGY",
     "--weight-grid": "A:B:STEP|W,...", "--where": "EXPR", "--workers": "N",
 }

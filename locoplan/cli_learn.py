@@ -14,8 +14,8 @@ import typer
 from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .api import ModelRequest
-from .cli_common import (CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, err, fail_on, guarded,
-                         json_out, out, plain, step_progress, wrote)
+from .cli_common import (CHAINAGE, CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, departure_s, err,
+                         fail_on, guarded, json_out, out, plain, step_progress, wrote)
 from .reporting.learn_tables import fit_tables, groups_table, sections_table
 from .reporting.tables import fit, sequence_table, show, summary_table
 
@@ -112,7 +112,7 @@ def advise(route: Path = ROUTE,
            out_file: Optional[Path] = typer.Option(None, "--out", help="Profile as .csv, or summary + sections + profile as .json."),
            plot: Optional[Path] = typer.Option(None, "--plot", help="Advice over the limits with the learned pattern, .png, .svg or .pdf."),
            tolerance: Optional[float] = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance)."),
-           model: ModelRequest = MODEL):
+           model: ModelRequest = MODEL, chainage: str = CHAINAGE):
     """A plan from learned pattern curves (time shares, speed curve, operation sequence), checked by the
     calculator. Method: the patent on locomotive operation sequences from double-layer pattern curves."""
     from .cli_common import _emit, _fail_if
@@ -150,10 +150,11 @@ def advise(route: Path = ROUTE,
 
         from .reporting.plot import run_title
 
-        plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary))
+        plot_advice(plot, a, run_title(r.name, train.name, f"advice from {patterns.name}", summary), chainage)
     if not as_json:
-        show(out, summary_table(summary, out.width) + fit(sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
-             + sequence_table(summary["sequence"], out.width))
+        show(out, summary_table(summary, out.width, r, chainage, departure_s())
+             + fit(sections_table(summary["sections"]), out.width, drop=(7, 6, 5), wrap=(8,))
+             + sequence_table(summary["sequence"], out.width, r, chainage))
     _fail_if([schedule_verdict(ctx, RunResult("advice", outcome, a.result, summary), strict=True)])
 
 

@@ -55,7 +55,7 @@ def test_out_csv_profile_agrees_with_summary(tmp_path):
     rows = list(csv.DictReader(io.StringIO(out.read_text())))
     assert list(rows[0]) == ["s_m", "t_s", "v_kmh", "limit_kmh", "gradient_permille", "condition", "traction_kn", "brake_kn",
                              "coupler_tension_kn", "coupler_compression_kn", "air_brake", "air_event", "limit_file_kmh",
-                             "gradient_file_permille"]
+                             "gradient_file_permille", "km_post", "station"]
     # the air brake in each cell: applied where the plan follows a braking curve, an event where it begins / ends
     assert {r["air_brake"] for r in rows} == {"applied", "released", ""}
     events = [r["air_event"] for r in rows if r["air_event"]]

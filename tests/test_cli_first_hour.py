@@ -50,7 +50,7 @@ def test_time_in_seconds_still_works():
     assert json.loads(res.stdout)["planned_time_s"] == 1500
 
 
-@pytest.mark.parametrize("form, why", [("abc", "expected seconds (1500), a factor of the fastest run (1.1x)"),
+@pytest.mark.parametrize("form, why", [("abc", "expected seconds (1500, 1500s), minutes (25min), hours and minutes (1h05) or h:mm:ss (0:25:00), a factor of the fastest run (1.1x)"),
                                        ("0.9x", "not a factor of the fastest run in 1 .. 10"),
                                        ("-10%", "expected seconds"), ("0", "must be in")])
 def test_bad_time_forms_are_input_errors(form, why):
@@ -109,7 +109,7 @@ def test_planned_times_from_python(freight):
 
 
 @pytest.mark.parametrize("cmd", [["sweep", "--no-gap"], ["bound"], ["pareto"]])
-@pytest.mark.parametrize("value, why", [("abc,1500", "expected seconds (1500), a factor of the fastest run (1.1x)"),
+@pytest.mark.parametrize("value, why", [("abc,1500", "expected seconds (1500, 1500s), minutes (25min), hours and minutes (1h05) or h:mm:ss (0:25:00), a factor of the fastest run (1.1x)"),
                                         ("1500,0.5x", "not a factor of the fastest run in 1 .. 10"),
                                         ("1400:1.1x:100", "expected start:stop:step")])
 def test_bad_times_lists_are_input_errors(cmd, value, why):

@@ -73,7 +73,7 @@ def test_help_names_values_not_types(path):
         if " / --no-" in entry or flag in ("--help", "--json", "--quiet", "--explain", "--all-legs", "--journey", "--thermal", "--version"):
             continue
         # an option taking a value shows a capitalised metavar right after the flag, or its choices
-        assert re.match(rf"^  {flag} [A-Z]", entry) or re.match(rf"^  {flag} (csv|time|traction)\|", entry), (path, entry, head)
+        assert re.match(rf"^  {flag} [A-Z]", entry) or re.match(rf"^  {flag} (csv|time|traction|km)\|", entry), (path, entry, head)
 
 
 @pytest.mark.parametrize("path", COMMANDS, ids=lambda p: " ".join(p))
@@ -96,7 +96,8 @@ def test_model_switches_are_pairs_with_their_default():
 
 def test_units_in_brackets_survive_and_defaults_show():
     opts = _options(_help(["optimize"]))
-    assert "[s]" in opts["--time"] and opts["--time"].startswith("  --time S ")
+    assert "[s]" in opts["--time"] and "25min" in opts["--time"] and opts["--time"].startswith("  --time TIME ")
+    assert opts["--depart"].startswith("  --depart HH:MM ") and opts["--arrive"].startswith("  --arrive HH:MM ")
     assert "[kWh]" in opts["--e-min"] and opts["--e-min"].startswith("  --e-min KWH ")
     assert "[m]" in opts["--step"] and "[default: 50.0]" in opts["--step"]
     assert "[default: 1]" in opts["--seed"]

@@ -85,7 +85,7 @@ def test_the_command_reports_allocation_windows_and_comparisons(root, tmp_path, 
     assert d["allocations"][2]["leg_times_s"] == [172.0, 228.0]  # the timetable's: 172, then 430 - 172 - 30
     assert sum(d["allocations"][0]["leg_times_s"]) == pytest.approx(400.0, abs=0.2)
     lines = out.read_text().splitlines()
-    assert lines[0] == "leg,s_m,clock_s,v_kmh,condition,traction_kn,brake_kn,station,earliest_s,latest_s"
+    assert lines[0] == "leg,s_m,clock_s,v_kmh,condition,traction_kn,brake_kn,station,earliest_s,latest_s,km_post"
     assert png.stat().st_size > 10_000
     # the plan passes the summit (a timing point: the leg planners keep the leg's time, not a point's window)
     # before its window opens: the profile's own row at the summit says so, and so do the JSON and the exit code

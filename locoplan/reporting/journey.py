@@ -94,25 +94,44 @@ def journey_allocations_table(s: dict) -> Table:
     return t
 
 
-def journey_stations_table(s: dict) -> Table:
-    """Per station, on the clock since the departure (dwells included): its window, the optimum's time, the first
-    strategy's plan's (arrival at a stop, passing at a timing point) and whether it keeps the window; then its
-    position, kind, dwell, the timetable's and the fastest run's time (left out first on a narrow terminal)."""
+def journey_stations_table(s: dict, route=None, form: str = "km", depart_s: float | None = None) -> Table:
+    """Per station, on the clock since the departure (dwells included): its kilometre post where ``route`` has a
+    chainage (written in ``form``), its window, the optimum's time, the first strategy's plan's (arrival at a stop,
+    passing at a timing point; with ``depart_s``, seconds since midnight, also as a clock time) and whether it keeps
+    the window; then its position, kind, dwell, the timetable's and the fastest run's time (left out first on a
+    narrow terminal, :func:`stations_drops`)."""
+    from ..bounds import clock_text
+    from .posts import has_chainage, post_text
+
+    posts = has_chainage(route)
     main = next(iter(s["plans"]), None)
     t = Table(title="stations (clock since the departure, dwells included)", title_justify="left")
-    for col in ("station", "window [s]", "optimum [s]", f"{main} [s]" if main else "plan [s]", "kept",
-                "at [m]", "kind", "dwell [s]", "scheduled [s]", "fastest [s]"):
+    for col in ("station",) + (("km post",) if posts else ()) + (
+            "window [s]", "optimum [s]", f"{main} [s]" if main else "plan [s]", "kept",
+            "at [m]", "kind", "dwell [s]", "scheduled [s]", "fastest [s]"):
         t.add_column(escape(col), justify="left" if col in ("station", "kind", "kept") else "right")
     for r in s["stations"]:
         p = r["plans"].get(main, {}) if main else {}
         inside = p.get("in_window")
-        t.add_row(escape(r["station"]), _win(r["window_s"]), f"{r['optimum_s']:.1f}",
-                  "-" if p.get("clock_s") is None else f"{p['clock_s']:.1f}",
+        clock = "-" if p.get("clock_s") is None else f"{p['clock_s']:.1f}"
+        if depart_s is not None and p.get("clock_s") is not None:
+            clock += f"\n{clock_text(depart_s + p['clock_s'], with_seconds=True)}"
+        t.add_row(escape(r["station"]), *((post_text(route, r["at_m"], form),) if posts else ()),
+                  _win(r["window_s"]), f"{r['optimum_s']:.1f}", clock,
                   "-" if inside is None else "yes" if inside else "NO",
                   f"{r['at_m']:g}", "stop" if r["stop"] else "passes", f"{r['dwell_s']:g}",
                   "-" if r["scheduled_s"] is None else f"{r['scheduled_s']:g}",
                   "-" if r["fastest_s"] is None else f"{r['fastest_s']:.1f}")
     return t
+
+
+def stations_drops(route=None) -> tuple[int, ...]:
+    """The columns of :func:`journey_stations_table` left out first on a narrow terminal: position, timetable,
+    fastest run, dwell, kind (the kilometre post, where there is one, stays)."""
+    from .posts import has_chainage
+
+    k = 1 if has_chainage(route) else 0
+    return tuple(i + k for i in (5, 8, 9, 7, 6))
 
 
 def whole_run(result, strategy: str, journey=None):
@@ -151,26 +170,54 @@ def whole_run(result, strategy: str, journey=None):
     return rows
 
 
-def journey_profile_csv(result, strategy: str, journey) -> str:
-    """The whole run's profile (:func:`whole_run`) as CSV; the rows at a station give its name and window."""
+def journey_profile_csv(result, strategy: str, journey, route=None) -> str:
+    """The whole run's profile (:func:`whole_run`) as CSV; the rows at a station give its name and window; with
+    the line's ``route``, the last column ``km_post`` is each row's kilometre post [km] (its chainage, else the km
+    from the start)."""
+    from .posts import POST_DIGITS, post_km
+
     rows = whole_run(result, strategy, journey)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["leg", "s_m", "clock_s", "v_kmh", "condition", "traction_kn", "brake_kn", "station", "earliest_s",
-                "latest_s"])
+                "latest_s"] + (["km_post"] if route is not None else []))
     for r in rows or []:
         st = None if r[7] is None else journey.stations[r[7]]
         w.writerow([r[0], f"{r[1]:.3f}", f"{r[2]:.3f}", f"{r[3]:.4f}", r[4], f"{r[5]:.3f}", f"{r[6]:.3f}",
                     "" if st is None else st.name, "" if st is None or st.earliest_s is None else f"{st.earliest_s:g}",
-                    "" if st is None or st.latest_s is None else f"{st.latest_s:g}"])
+                    "" if st is None or st.latest_s is None else f"{st.latest_s:g}"]
+                   + ([f"{post_km(route, r[1]):.{POST_DIGITS}f}"] if route is not None else []))
     return buf.getvalue()
 
 
-def write_journey_csv(path: str | Path, result, strategy: str, journey) -> None:
-    atomic_write_text(Path(path), journey_profile_csv(result, strategy, journey))
+def write_journey_csv(path: str | Path, result, strategy: str, journey, route=None) -> None:
+    atomic_write_text(Path(path), journey_profile_csv(result, strategy, journey, route))
 
 
-def plot_journey(path: str | Path, result, journey, route, strategy: str) -> None:
+def journey_places(journey) -> list:
+    """The journey's stations for a time-distance diagram: stops and timing points with their windows."""
+    from .plot_td import Place
+
+    return [Place(st.name, st.at_m, st.stop, st.earliest_s, st.latest_s) for st in journey.stations]
+
+
+def plot_journey_td(path: str | Path, result, journey, route, strategies, form: str = "km",
+                    depart_s: float | None = None) -> None:
+    """The time-distance diagram of the journey: each strategy's plans end to end on the clock since the departure
+    (a stop's dwell a level stretch at its station), the journey's stations across it with their windows."""
+    from .plot_td import plot_time_distance
+
+    series = []
+    for name in strategies:
+        rows = whole_run(result, name)
+        if rows:
+            series.append((name, [r[1] for r in rows], [r[2] for r in rows]))
+    s = result.summary
+    plot_time_distance(path, series, f"{s['journey']} — {s['consist']}: time-distance diagram", route, form, depart_s,
+                       journey_places(journey))
+
+
+def plot_journey(path: str | Path, result, journey, route, strategy: str, form: str = "km") -> None:
     """The whole run: speed against the line with the limits and the stations, the clock against the line
     with every window, and the running time of each leg under the allocations as bars."""
     path = check_plot_path(path)
@@ -205,6 +252,10 @@ def plot_journey(path: str | Path, result, journey, route, strategy: str) -> Non
     ax.set_ylabel("speed [km/h]")
     axc.set_ylabel("clock [s]")
     axc.set_xlabel("position along the line [km]")
+    from .plot import posts_axis
+
+    for a in (ax, axc):
+        posts_axis(a.xaxis, route, form)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     axc.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     legs = np.arange(1, s["legs"] + 1)

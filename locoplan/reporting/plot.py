@@ -45,7 +45,8 @@ def run_title(route: str, train: str, label: str, summary: dict) -> str:
 
 
 def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: str,
-                  histories: list[tuple] | None = None, route=None, coupler_limit_kn: float | None = None) -> None:
+                  histories: list[tuple] | None = None, route=None, coupler_limit_kn: float | None = None,
+                  form: str = "km") -> None:
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
     equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
     (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
@@ -53,8 +54,9 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
     reports, drawn at the curve's end; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,
     written atomically. A plan that failed (stalled, overshot) is drawn up to where it failed. With
     ``route``, the file's own limit and gradient are drawn beside the train's, and the stations, neutral
-    sections, tunnels and curves are marked. A train of several vehicles has a panel of its largest coupler
-    forces along the route (tension up, compression down), with ``coupler_limit_kn`` if given."""
+    sections, tunnels and curves are marked, and the position axis reads the route's kilometre posts where it
+    has a chainage (written in ``form``: ``km`` or ``plus``). A train of several vehicles has a panel of its
+    largest coupler forces along the route (tension up, compression down), with ``coupler_limit_kn`` if given."""
     path = check_plot_path(path)
     import matplotlib
 
@@ -98,10 +100,11 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
         fig, (ax, axg, axk) = plt.subplots(3, 1, figsize=(11, 8.5), sharex=True, gridspec_kw={"height_ratios": [3, 1, 1]})
     else:
         fig, (ax, axg) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    draw_profiles(ax, axg, profiles, title, route)
+    draw_profiles(ax, axg, profiles, title, route, form)
     if couplers:
         axg.set_xlabel("")
         draw_couplers(axk, profiles, coupler_limit_kn)
+        axk.set_xlabel(axg.get_xlabel() or position_label(route, form))
     if not histories:
         fig.tight_layout()
     fmt = path.suffix.lower().lstrip(".")
@@ -142,7 +145,8 @@ FEATURES = (("neutral_sections", "neutral section", "#ff7f0e", 0.25), ("tunnels"
 
 
 def mark_line(ax, axg, route) -> None:
-    """Stations (the route's ends), neutral sections, tunnels and curves as bands over both panels."""
+    """Stations (the route's ends, and its named stations with their names over the panel), neutral sections,
+    tunnels and curves as bands over both panels."""
     for attr, label, colour, alpha in FEATURES:
         for k, sec in enumerate(getattr(route, attr)):
             for a in (ax, axg):
@@ -151,6 +155,74 @@ def mark_line(ax, axg, route) -> None:
     for k, at in enumerate((0.0, route.length_m)):
         ax.axvline(at / 1000, color="black", lw=1.0, ls=":", label="station (stop)" if k == 0 else None)
         ax.annotate("▼", (at / 1000, 1.0), xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=9)
+    inner = [st for st in route.stations if 1e-6 < st.at_m < route.length_m - 1e-6]
+    for k, st in enumerate(inner):
+        for a in (ax, axg):
+            a.axvline(st.at_m / 1000, color="#444444", lw=0.9, ls="-.", gid=f"station:{st.name}",
+                      label="station" if (k == 0 and a is ax) else None)
+    for st in route.stations:
+        ax.annotate(st.name, (st.at_m / 1000, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 12),
+                    textcoords="offset points", rotation=90, ha="center", va="bottom", fontsize=7)
+
+
+def station_pad(route) -> float:
+    """Title pad [pt] over a panel with the route's ends (▼) and its stations' names (rotated) above it."""
+    longest = max((len(st.name) for st in route.stations), default=0) if route is not None else 0
+    return STATION_TITLE_PAD + (12 + 4.6 * longest if longest else 0)
+
+
+def position_label(route, form: str = "km") -> str:
+    """The position axis's label: kilometre posts where the route has a chainage, else km from the start."""
+    from .posts import has_chainage
+
+    if has_chainage(route):
+        return "kilometre post" + (" [km]" if form == "km" else "")
+    return "position [km]"
+
+
+NICE_STEPS_KM = (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0)
+
+
+def post_ticks(route, lo_km: float, hi_km: float, n: int = 8) -> list[float]:
+    """Positions [km from the start] in ``lo_km`` .. ``hi_km`` where the route's kilometre post is a round number
+    (about ``n`` of them), and where each mileage change begins."""
+    changes = route.mileage()
+    step = next((x for x in NICE_STEPS_KM if (hi_km - lo_km) / x <= n), NICE_STEPS_KM[-1])
+    ends = [c.at_m / 1000 for c in changes[1:]] + [route.length_m / 1000]
+    ticks: list[float] = []
+    for c, end in zip(changes, ends):
+        a, b = max(c.at_m / 1000, lo_km), min(end, hi_km)
+        if b < a:
+            continue
+        sign = -1.0 if c.descending else 1.0
+        p0, p1 = sorted((c.km + sign * (a - c.at_m / 1000), c.km + sign * (b - c.at_m / 1000)))
+        posts = np.arange(np.ceil(p0 / step - 1e-9), np.floor(p1 / step + 1e-9) + 1) * step
+        at = c.at_m / 1000 + sign * (posts - c.km)
+        ticks += [x for x in at if a - 1e-9 <= x <= b + 1e-9]
+        if c is not changes[0] and lo_km <= c.at_m / 1000 <= hi_km:  # a mileage change: the post jumps here
+            ticks.append(c.at_m / 1000)
+    ticks = sorted(set(round(x, 9) for x in ticks))
+    out: list[float] = []
+    for x in ticks:  # no two labels on top of each other
+        if not out or x - out[-1] > step / 2:
+            out.append(x)
+    return out
+
+
+def posts_axis(axis, route, form: str = "km") -> None:
+    """A position axis (matplotlib ``XAxis`` / ``YAxis`` in km from the start) labelled with the route's kilometre
+    posts where it has a chainage (ticks at round posts and at each mileage change); as it was without one."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    from .posts import has_chainage, post_text
+
+    if not has_chainage(route):
+        axis.set_label_text(axis.get_label_text() or "position [km]")
+        return
+    lo, hi = 0.0, route.length_m / 1000
+    axis.set_major_locator(FixedLocator(post_ticks(route, lo, hi)))
+    axis.set_major_formatter(FuncFormatter(lambda x, pos: post_text(route, x * 1000, form, unit=False)))
+    axis.set_label_text(position_label(route, form))
 
 
 STATION_TITLE_PAD = 15
@@ -197,10 +269,11 @@ def fit_title(ax, text: str, **kw):
     return title
 
 
-def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, route=None) -> None:
+def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, route=None, form: str = "km") -> None:
     """Speed profiles over the limits on ``ax`` (one profile: coloured by condition), the equivalent
     gradient on ``axg``. With ``route``: the file's limit and gradient too (labelled as such, where they
-    differ from the train's), and the line's stations, neutral sections, tunnels and curves."""
+    differ from the train's), the line's stations, neutral sections, tunnels and curves, and its kilometre
+    posts on the position axis where it has a chainage (:func:`posts_axis`)."""
     from ..model.conditions import CONDITION_NAMES
     from ..sim.result import CONDITIONS
     from .writers import section_values
@@ -235,7 +308,7 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
                        label=f"air brake applied ({len(edges) // 2})" if j == 0 else None)
     ax.set_ylabel("speed [km/h]")
     ax.set_ylim(0, max(float(ref.limit_kmh.max()), max(float(np.nanmax(p.v_kmh)) for _, p in profiles)) * 1.12)
-    ax.set_title(title, wrap=True, pad=STATION_TITLE_PAD if route is not None else None)
+    ax.set_title(title, wrap=True, pad=station_pad(route) if route is not None else None)
     ax.grid(alpha=0.3)
     # beside the axes, never over the limit line
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
@@ -247,8 +320,10 @@ def draw_profiles(ax, axg, profiles: list[tuple[str, Profile]], title: str, rout
         axg.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
     axg.axhline(0, color="black", lw=0.6)
     axg.set_ylabel("gradient [‰]")
-    axg.set_xlabel("position [km]")
+    axg.set_xlabel(position_label(route, form))
     axg.grid(alpha=0.3)
+    if route is not None:
+        posts_axis(axg.xaxis, route, form)
 
 
 def draw_couplers(ax, profiles: list[tuple[str, Profile]], limit_kn: float | None = None) -> None:

@@ -101,7 +101,7 @@ def plot_fit(path: str | Path, learned: Learned) -> None:
     _save(fig, path)
 
 
-def plot_advice(path: str | Path, advice, title: str) -> None:
+def plot_advice(path: str | Path, advice, title: str, form: str = "km") -> None:
     """The advice's speed profile coloured by condition over the limits, with the learned pattern
     (as learned, and scaled to the time: the targets followed), both limits (the route file's and the
     train's), the line's stations, neutral sections, tunnels and curves, and the sections; gradient below."""
@@ -112,7 +112,7 @@ def plot_advice(path: str | Path, advice, title: str) -> None:
     fine = np.linspace(0, advice.line.route.length_m, 800)
     ax.plot(fine / 1000, smooth_curve(x, raw)(fine), color="#9467bd", lw=1, ls="--", label="learned pattern")
     ax.plot(x / 1000, advice.target_kmh, "o", color="#9467bd", ms=3, label=f"targets (pattern x {advice.scale:.3f})")
-    draw_profiles(ax, axg, [("advice", advice.result.profile)], title, advice.line.route)
+    draw_profiles(ax, axg, [("advice", advice.result.profile)], title, advice.line.route, form)
     ax.title.set_fontsize(10)
     for sec in advice.line.sections:
         ax.axvline(sec.from_m / 1000, color="grey", lw=0.5)

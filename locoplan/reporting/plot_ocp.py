@@ -192,7 +192,7 @@ def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
     path, fmt = _figure_path(path)
     plt = _pyplot()
     from ..physics.traction import max_force_kn
-    from .plot import STATION_TITLE_PAD, draw_limits, fit_title, mark_line
+    from .plot import draw_limits, fit_title, mark_line, position_label, posts_axis, station_pad
 
     sol = run.solution.solution
     grid = sol.grid
@@ -246,7 +246,11 @@ def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
                    + ("; yellow: traction cut under a neutral section)" if len(run.tep.spans_m) else ")"))
     axm.grid(alpha=0.3)
     fig.tight_layout()  # the legend beside the axes sets their width; the title is wrapped to it
-    fit_title(ax, title, **({"pad": STATION_TITLE_PAD} if route is not None else {}))
+    if route is not None:  # kilometre posts where the route has a chainage
+        label = axm.get_xlabel()
+        posts_axis(axm.xaxis, route)
+        axm.set_xlabel(label.replace("position [km]", position_label(route), 1))
+    fit_title(ax, title, **({"pad": station_pad(route)} if route is not None else {}))
     fig.tight_layout()
     _save(fig, path, fmt, plt)
 

@@ -221,13 +221,15 @@ def e_min_origin(summary: dict) -> str:
     return ""
 
 
-def summary_table(summary: dict, width: int = 80) -> list:
+def summary_table(summary: dict, width: int = 80, route=None, form: str = "km", depart_s: float | None = None) -> list:
     """One result (the SPEC's JSON object) as a two-column table; blocks for :func:`show` (a plan too
-    long for the table's value column follows the table on a line of its own, whole)."""
+    long for the table's value column follows the table on a line of its own, whole). With ``route``: its
+    stations, and positions with their kilometre posts (written in ``form``) where it has a chainage; with
+    ``depart_s`` (the departure's clock time, seconds since midnight), the run's departure and arrival clocks."""
     feasible = "[green]yes[/]" if summary["feasible"] else f"[red]no[/] ({escape(str(summary['reason']))})"
     rows = [("strategy", escape(summary["strategy"] + (f" ({summary['algorithm']}, seed {summary['seed']})" if summary.get("algorithm") else ""))),
             ("plan", escape(summary.get("plan") or "-")), ("feasible", feasible)]
-    rows.append(("running time", _num(summary["running_time_s"], ".1f", " s")))
+    rows.append(("running time", _num(summary["running_time_s"], ".1f", " s") + _clocks(summary["running_time_s"], depart_s)))
     rows.append(("traction energy", _num(summary["traction_energy_kwh"], ".2f", " kWh")
                  + ("" if summary["feasible"] or summary["traction_energy_kwh"] is None else " (until it failed)")))
     rows += energy_rows(summary)
@@ -252,10 +254,24 @@ def summary_table(summary: dict, width: int = 80) -> list:
         # (a plan that cycles its air brake: E* holds that descent with the air brake at will)
         rows.append(("E*", "relaxes the air brake to a continuous force (no cycle): a lower bound"))
     rows += cycle_optimum_rows(summary)
-    rows += coupler_rows(summary)
+    rows += coupler_rows(summary, route, form)
     rows += air_brake_rows(summary)
+    if route is not None and route.stations:
+        from .posts import station_place
+
+        rows.append(("stations", ", ".join(escape(station_place(route, st, form)) for st in route.stations)))
     rows.append(("solve time", _num(summary.get("solve_time_s"), ".3f", " s")))
     return key_value_table(f"{summary['route']}\n{summary['consist']}", rows, width)
+
+
+def _clocks(running_time_s, depart_s: float | None) -> str:
+    """`` (departs 08:00:00, arrives 08:09:09)`` for a run that departs at ``depart_s`` (seconds since midnight)."""
+    from ..bounds import clock_text
+
+    if depart_s is None or running_time_s is None or not math.isfinite(running_time_s):
+        return ""
+    return (f" (departs {clock_text(depart_s, with_seconds=True)}, arrives "
+            f"{clock_text(depart_s + running_time_s, with_seconds=True)})")
 
 
 def cycle_optimum_rows(summary: dict) -> list[tuple[str, str]]:
@@ -290,15 +306,17 @@ def energy_rows(summary: dict) -> list[tuple[str, str]]:
             ("net energy", net)]
 
 
-def coupler_rows(summary: dict) -> list[tuple[str, str]]:
-    """The largest coupler forces of a run (tension, compression) and where, with the consist's limit."""
+def coupler_rows(summary: dict, route=None, form: str = "km") -> list[tuple[str, str]]:
+    """The largest coupler forces of a run (tension, compression) and where (with its kilometre post where
+    ``route`` has a chainage), with the consist's limit."""
+    from .posts import where
     ten, com = summary.get("max_coupler_tension_kn"), summary.get("max_coupler_compression_kn")
     if ten is None and com is None:
         return []
     lim = summary.get("coupler_limit_kn")
 
     def one(value, at, side):
-        return f"- {side}" if value is None else f"{value:,.0f} kN {side} (at {at:,.0f} m)"
+        return f"- {side}" if value is None else f"{value:,.0f} kN {side} (at {where(route, at, form)})"
 
     text = (f"up to {one(ten, summary.get('max_coupler_tension_at_m'), 'tension')}, "
             f"{one(com, summary.get('max_coupler_compression_at_m'), 'compression')}"
@@ -322,14 +340,27 @@ def air_brake_rows(summary: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def sequence_table(runs: list[dict], width: int = 80) -> list:
-    """The applied condition sequence (a summary's ``sequence``)."""
+def sequence_table(runs: list[dict], width: int = 80, route=None, form: str = "km") -> list:
+    """The applied condition sequence (a summary's ``sequence``). With ``route``: where it has a chainage, the
+    kilometre post where each condition begins (written in ``form``); where it has stations, those each
+    condition runs past (the last one's the station at the stop too)."""
+    from .posts import has_chainage, post_text, stations_in
+
+    posts = has_chainage(route)
+    named = route is not None and bool(route.stations)
     table = Table(title="condition sequence", title_justify="left")
-    for col in ("condition", "from [m]", "to [m]", "length [m]"):
-        table.add_column(escape(col), justify="right" if col != "condition" else "left")
-    for r in runs:
-        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}")
-    return fit(table, width)
+    cols = ("condition", "from [m]") + (("km post",) if posts else ()) + ("to [m]", "length [m]") + (
+        ("stations",) if named else ())
+    for col in cols:
+        table.add_column(escape(col), justify="left" if col in ("condition", "stations") else "right")
+    for i, r in enumerate(runs):
+        post = (post_text(route, r["from_m"], form),) if posts else ()
+        names = (escape(", ".join(st.name for st in stations_in(route, r["from_m"], r["to_m"], last=i == len(runs) - 1))
+                        or "-"),) if named else ()
+        table.add_row(f"{r['condition']} {CONDITION_NAMES[r['condition']]}", f"{r['from_m']:.0f}", *post,
+                      f"{r['to_m']:.0f}", f"{r['to_m'] - r['from_m']:.0f}", *names)
+    return fit(table, width, drop=(cols.index("length [m]"),) if posts or named else (),
+               wrap=(len(cols) - 1,) if named else ())
 
 
 def _wrap_sequence(conds: list[str], room: int = 17) -> str:
@@ -346,14 +377,19 @@ def _wrap_sequence(conds: list[str], room: int = 17) -> str:
     return "\n".join(lines + [line])
 
 
-def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
+def compare_tables(rows: list[dict], title: str, width: int = 80, route=None, form: str = "km") -> list:
     """Seed 002 Table 8 (each strategy's planned sequence and switching points; the final B begins
     where the stop's braking curve does) and Table 9 (time and energy, re-simulated at the report grid),
-    then why any strategy has no plan, and each plan whole (to give ``simulate --sequence``)."""
+    then why any strategy has no plan, and each plan whole (to give ``simulate --sequence``). With a
+    ``route`` that has a chainage, the switching points are its kilometre posts (written in ``form``); its
+    stations, if any, are listed under Table 8."""
+    from .posts import has_chainage, post_text, station_place
+
+    posts = has_chainage(route)
     t8 = Table(title=escape(f"{title}\nTable 8: condition sequences and switching points"), title_justify="left")
     t8.add_column("strategy")
     t8.add_column("sequence")
-    t8.add_column(escape("switching points [m]"))
+    t8.add_column(escape("switching points (km posts)" if posts else "switching points [m]"))
     at_t0 = any(r.get("energy_at_t0_kwh") is not None for r in rows)
     net = any(r.get("objective") == "net" for r in rows)
     t9 = Table(title=f"Table 9: running time and {'net' if net else 'traction'} energy"
@@ -380,7 +416,8 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
         if conds[-1] == "B" and len(points) < len(conds) - 1 and s["sequence"]:
             points.append(s["sequence"][-1]["from_m"])  # where the final braking curve begins
         seq = _wrap_sequence(conds) + (f"\n(cruise {s['cruise_kmh']:g} km/h)" if s.get("cruise_kmh") else "")
-        t8.add_row(escape(s["strategy"]), seq, " ".join(f"{x:.0f}" for x in points) or "-")
+        shown = [post_text(route, x, form, unit=False) for x in points] if posts else [f"{x:.0f}" for x in points]
+        t8.add_row(escape(s["strategy"]), seq, " ".join(shown) or "-")
         late = _num(s["punctuality_error_s"], ".1f")
         if s.get("punctual") is False and s["running_time_s"] is not None:
             late += " [red]early[/]" if s["running_time_s"] < s["planned_time_s"] else " [red]late[/]"
@@ -397,6 +434,8 @@ def compare_tables(rows: list[dict], title: str, width: int = 80) -> list:
     # or traction), switches, coasts, the saving against the fastest run; the gap to E* stays longest
     first = (4, 3) if net else (4, 5)
     blocks = fit(t8, width, wrap=(0, 2))
+    if route is not None and route.stations:
+        blocks.append(Note("stations: " + ", ".join(station_place(route, st, form) for st in route.stations)))
     blocks += fit(t9, width, drop=first + (6 + k, 7 + k, 4 + k, 5 + k, 8 + k), wrap=(0,)) + notes
     if plans:
         blocks.append(Note("plans:"))

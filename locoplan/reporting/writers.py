@@ -132,6 +132,12 @@ a lower one) and its top speed, and the equivalent gradient (averaged over the t
 tunnels). Written when the route is known (simulate, optimize, advise, ocp --objective energy)."""
 
 
+PLACE_COLUMNS = ("km_post", "station")
+"""Where each node is as people on the line read it (written when the route is known, after every other
+column): its kilometre post [km] (the route's chainage, else the km from the start) and, at the node nearest
+each of the route's stations, the station's name (empty elsewhere)."""
+
+
 def section_values(sections, attr: str, s_m) -> np.ndarray:
     """The value ``attr`` of the contiguous ``sections`` (from_m, to_m) at each position ``s_m`` [m]
     (the section that starts at or before it; the last one holds at the end of the line)."""
@@ -145,7 +151,7 @@ def profile_columns(profile: Profile, route=None) -> tuple[str, ...]:
     """The columns of a profile's CSV: :data:`PROFILE_COLUMNS`, the coupler forces where the profile has them,
     the route file's own values where the route is known."""
     return (PROFILE_COLUMNS + (COUPLER_COLUMNS if profile.coupler_tension_kn is not None else ())
-            + (AIR_COLUMNS if profile.air is not None else ()) + (FILE_COLUMNS if route is not None else ()))
+            + (AIR_COLUMNS if profile.air is not None else ()) + (FILE_COLUMNS + PLACE_COLUMNS if route is not None else ()))
 
 
 def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
@@ -158,6 +164,10 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
         starts = profile.s_m[np.minimum(np.arange(len(profile.s_m)), n_cells - 1)]
         file_limit = section_values(route.speed_limits, "kmh", starts)
         file_grade = section_values(route.gradients, "permille", starts)
+        from .posts import POST_DIGITS, node_stations, post_km
+
+        posts = np.round(np.atleast_1d(post_km(route, profile.s_m)), POST_DIGITS)
+        stations = node_stations(route, profile.s_m)
     for k, s in enumerate(profile.s_m):
         if np.isnan(profile.v_kmh[plan, k]):  # a failed plan's profile ends where it failed
             break
@@ -177,7 +187,8 @@ def profile_rows(profile: Profile, plan: int = 0, route=None) -> list[dict]:
                 "coupler_compression_kn": 0.0 if last else round(float(profile.coupler_compression_kn[plan, c]), 1)}),
             **({} if profile.air is None else _air_cells(profile.air[plan, c], last)),
             **({} if route is None else {"limit_file_kmh": float(file_limit[k]),
-                                         "gradient_file_permille": round(float(file_grade[k]), 4)}),
+                                         "gradient_file_permille": round(float(file_grade[k]), 4),
+                                         "km_post": float(posts[k]), "station": stations.get(k, "")}),
         })
     return rows
 

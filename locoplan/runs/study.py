@@ -5,7 +5,7 @@ schema: locoplan/study@1          # optional
 routes: [routes/real/*.yaml]      # files or globs, relative to the study file's folder
 journeys: [routes/journeys/*-journey.yaml]   # journey files or globs (routes, journeys or both)
 consists: [HXD1-C80x30, HXD1-C80x50]   # catalogue names or files (default: HXD1-C80x50)
-times: [1.1x, 1.2x, 1500]         # planned running times: seconds, or factors of each route's fastest
+times: [1.1x, 1.2x, 1500]         # planned running times: seconds (1500, 25min, 1h05), or factors of each route's fastest
                                   # run with each consist (default: each route's schedule); for a journey
                                   # its total running time, dwells excluded, the factors of its fastest
                                   # total (default: the journey's own)
@@ -128,10 +128,13 @@ def _time_value(value, where: str) -> tuple[str, float]:
             raise ValueError(f"a factor of the fastest run must be at most 10, as on the command line (got {value!r}): "
                              "give seconds instead")
         return "x", f
-    try:
-        seconds = float(text)
-    except ValueError:
-        raise ValueError(f"expected seconds or a factor such as '1.1x', got {short(value)}") from None
+    seconds = bounds.duration_s(text)  # 1500, 1500s, 25min, 1h05, 0:25:00: as --time reads them
+    if seconds is None:
+        try:
+            seconds = float(text)
+        except ValueError:
+            raise ValueError(f"expected seconds (1500, 25min, 1h05, 0:25:00) or a factor such as '1.1x', got "
+                             f"{short(value)}") from None
     return _time_value(seconds, where)
 
 
