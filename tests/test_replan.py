@@ -42,7 +42,7 @@ def _setup(route: str, model: str):
     else:
         t0 = round(1.15 * TractionCalculator(r, train, opts).fastest_time_s)
         tol = api.punctuality_tolerance(r, t0, None)
-    return r, train, opts, t0, tol, Replanner(r, train, opts, planned_s=t0, tolerance_s=tol)
+    return r, train, opts, t0, tol, Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, cycle=False)
 
 
 @pytest.mark.parametrize("model", ["default", "point-mass"])
@@ -194,7 +194,7 @@ def test_the_closed_loop_arrives_on_time_near_the_optimum_in_hindsight(route, mo
         d = _disturbance(holds=[{"at_m": at, "s": 60}])
         t0 = round(1.1 * _with_a_stop_fastest_s(r, train, opts, at) + 60)
         tol = api.punctuality_tolerance(r, t0, None)
-        rp = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, prices=rp.prices)
+        rp = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, prices=rp.prices, cycle=False)
     res = drive(r, train, opts, d, planned_s=t0, tolerance_s=tol, replanner=rp).summary()
     closed, opened, best = res["closed_loop"], res["open_loop"], res["hindsight"]
     assert closed["inside_window"], res
