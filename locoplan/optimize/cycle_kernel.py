@@ -997,13 +997,14 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
     as node + the fraction of its cell, time [s], speed [km/h]; ``ev_k[i]`` ``EV_*``). Returns (time [s], traction
     work [kJ], the number of events); time inf when no drive reaches the stop."""
     s0 = CH if cc.zone[0] != 0 and not cc.relaxed else NA
+    w_nodes = np.empty(cc.h.shape[0] + 1)
     return _forward(cc, fo, price, V, tb, price, V, tb, cc.h.shape[0], 0, 0.0, 0.0, s0, 0.0, 0.0, controls, air,
-                    v_nodes, t_nodes, ev, ev_k)
+                    v_nodes, t_nodes, w_nodes, ev, ev_k)
 
 
 @njit(cache=True)
 def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
-                       v_nodes, t_nodes, ev, ev_k):
+                       v_nodes, t_nodes, w_nodes, ev, ev_k):
     """The drive from a train's state (on-board re-planning): ``x0`` [m] into cell ``k0`` at e0 = v^2/2, in air state
     ``s0`` (``CH`` charged, ``AF`` applied, ``R0`` recharging ``tau0`` [s] since its release; outside a zone any of
     them is ``NA``), an applied brake held at least ``hold0`` [s] more (its least hold); at the nodes before ``m``
@@ -1011,9 +1012,10 @@ def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, 
     recharge's deadlines its own), from ``m`` on at ``price2`` with ``V2``, ``tb2``. The rest of cell ``k0`` is one
     step under one control (``_to_node`` over the rest: from a charged brake, an application at the state is one,
     held its least hold on). As ``cycle_forward`` otherwise, times and work from the state; ``v_nodes``,
-    ``t_nodes`` [k] for k > k0, ``controls``, ``air`` [k] for k >= k0."""
+    ``t_nodes`` [k] for k > k0, ``controls``, ``air`` [k] for k >= k0; ``w_nodes`` [k] the traction work [kJ] from
+    the state to node k where a step or a path ends there (the nodes a path passes keep what they held)."""
     return _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
-                    v_nodes, t_nodes, ev, ev_k)
+                    v_nodes, t_nodes, w_nodes, ev, ev_k)
 
 
 @njit(cache=True, _nrt=False)
@@ -1116,7 +1118,7 @@ def _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, rec, controls, air, v_no
 
 @njit(cache=True)
 def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0, tau0, hold0, controls, air, v_nodes,
-             t_nodes, ev, ev_k):
+             t_nodes, w_nodes, ev, ev_k):
     """``cycle_forward`` and ``cycle_forward_from``'s loop."""
     n = cc.h.shape[0]
     none_i = np.zeros(1, dtype=np.int64)
@@ -1140,6 +1142,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
     n_ev = 0
     v_nodes[k0] = kmh_from_e(max(e0, 0.0))
     t_nodes[k0] = 0.0
+    w_nodes[k0] = 0.0
     s = s0
     k = k0
     o = -3  # (the first step: -3 none taken here, -2 the recharge held on)
@@ -1164,6 +1167,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
                 t, work, e, k, s = t2, w2, e2, j2, s2
                 v_nodes[k] = kmh_from_e(max(e, 0.0))
                 t_nodes[k] = t
+                w_nodes[k] = work
         if o == -1:
             return np.inf, np.inf, float(n_ev)
     if o >= 0:
@@ -1184,6 +1188,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
         k += 1
         v_nodes[k] = kmh_from_e(max(e, 0.0))
         t_nodes[k] = t
+        w_nodes[k] = work
         s = s1
         if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
             s = NA
@@ -1278,6 +1283,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
             k += 1
             v_nodes[k] = kmh_from_e(max(e, 0.0))
             t_nodes[k] = t
+            w_nodes[k] = work
         else:
             m = o - N_U
             n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
@@ -1289,6 +1295,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
             e = pe[m]
             k = pj[m]
             tau = pq[m]
+            w_nodes[k] = work
         s = s_next
         if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
             s = NA

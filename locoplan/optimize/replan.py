@@ -56,6 +56,8 @@ LADDER_FINE = 5
 """The prices next to the departure's: ``LADDER_FINE`` steps of ``LADDER_RATIO`` each way."""
 PRICE_RANGE = (1e-4, 50.0)
 """Beyond them, doubling steps out to these prices [kWh/s] (about the least-energy and the fastest run)."""
+PRICE_CLOSE = 1.05
+"""Where the air brake cycles, the departure's price is bisected to within this ratio (the cycle DP's drives)."""
 ON_TIME_S = 0.05
 """A drive arriving no more than this [s] after the planned arrival is on time (the DP's running times are sums
 of cell times: the search stops at the first drive within it)."""
@@ -113,7 +115,8 @@ class Replan:
     t_s: np.ndarray = field(repr=False)
     """The drive at the state and every later node: position [m], speed [km/h], clock since departure [s]."""
     energy_kwh: np.ndarray = field(repr=False)
-    """Traction energy from the state to each of those points [kWh]."""
+    """Traction energy from the state to each of those points [kWh] (where the air brake cycles: nan at the nodes
+    an application's or a recharge's path passes, whose ends alone the cycle DP's drive records)."""
     controls: np.ndarray = field(repr=False)
     """Each step's condition code (``model.conditions``), the first the rest of the state's cell."""
     prices_kwh_per_s: tuple[float, float]
@@ -446,8 +449,8 @@ class Replanner:
         pos = np.concatenate([[s], cy.s_nodes[k0 + 1:]])
         speeds = cy.v[k0:].copy()
         times = cy.t[k0:].copy()
-        works = np.full(len(pos), np.nan)
-        works[0], works[-1] = 0.0, w
+        works = cy.w[k0:].copy()  # (nan at the nodes a path of the air brake's cycle passes)
+        works[-1] = w
         controls = CYCLE_CONDITION[cy.controls[k0:n]]
         events = cy.events(int(n_ev), st.t_s)
         res = self._result(st, planned, pos, speeds, times, works, controls, first, second,
@@ -593,9 +596,7 @@ class CycleReplanner:
         sv = self.solver
         self.t_rec = float(sv.cells.t_rec)
         if prices is None:
-            slow, fast = sv.bracket(float(planned_s), close=1.02)
-            d = fast if fast is not None else slow
-            prices = _ladder(d.price_kwh_per_s if d is not None else 0.05)
+            prices = _ladder(self._price_for(float(planned_s)))
         self.prices = np.ascontiguousarray(prices, dtype=float)
         self.s_nodes = sv.s_m
         self.n = len(self.s_nodes) - 1
@@ -612,8 +613,28 @@ class CycleReplanner:
         self.air = np.zeros(n, dtype=np.int64)
         self.v = np.zeros(n + 1)
         self.t = np.zeros(n + 1)
+        self.w = np.zeros(n + 1)
         self.ev = np.zeros((4 * n + 16, 3))
         self.ev_k = np.zeros(4 * n + 16, dtype=np.int64)
+
+    def _price_for(self, t_s: float) -> float:
+        """The lowest price of time (within ``PRICE_CLOSE``) whose drive from rest takes no more than ``t_s``:
+        geometric bisection over ``PRICE_RANGE`` (the drive's time falls as the price rises, in steps)."""
+        lo, hi = PRICE_RANGE
+        d = self.solver.solve(hi)
+        if d is None or d.time_s > t_s:
+            return hi
+        d = self.solver.solve(lo)
+        if d is not None and d.time_s <= t_s:
+            return lo
+        while hi / lo > PRICE_CLOSE:
+            mid = math.sqrt(lo * hi)
+            d = self.solver.solve(mid)
+            if d is not None and d.time_s <= t_s:
+                hi = mid
+            else:
+                lo = mid
+        return hi
 
     def air_state(self, st: TrainState) -> tuple[int, float]:
         """The kernel's air state (``cycle_kernel.CH``, ``AF``, ``R0``) and the time since the release [s]."""
@@ -628,10 +649,11 @@ class CycleReplanner:
     def drive(self, k0: int, x0: float, e0: float, s0: int, tau0: float, first: int, second: int, m: int):
         """The forward pass from the state (``cycle_forward_from``): (time [s], traction work [kJ], events)."""
         sv = self.solver
+        self.w.fill(np.nan)
         t, w, n_ev = kernels().cycle_forward_from(sv.cells, sv.calc.forces, float(self.prices[first]), self.V[first],
                                                   self.tables[first], float(self.prices[second]), self.V[second],
                                                   self.tables[second], m, k0, x0, e0, s0, tau0, 0.0, self.controls,
-                                                  self.air, self.v, self.t, self.ev, self.ev_k)
+                                                  self.air, self.v, self.t, self.w, self.ev, self.ev_k)
         return float(t), float(w), n_ev
 
     def events(self, n_ev: int, t0_s: float) -> list:

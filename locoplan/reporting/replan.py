@@ -68,7 +68,7 @@ def replan_lines(d: dict) -> list[str]:
         lo, hi = g["stop_window_s"]
         win = "" if lo is None and hi is None else (f" (its window {'..' if lo is None else f'{lo:,.1f}'} .. "
                                                     f"{'' if hi is None else f'{hi:,.1f}'} s)")
-        lines.append(f"leg {g['index'] + 1}: {g['from']} - {g['to']}, at {g['to']} {g['arrival_s']:,.1f} s{win}")
+        lines.append(f"leg {g['leg']}: {g['from']} - {g['to']}, at {g['to']} {g['arrival_s']:,.1f} s{win}")
         if d.get("next_stops"):
             kept = ", ".join(f"{x['name']} {x['planned_arrival_s']:,.1f} s" for x in d["next_stops"][:4])
             lines.append("next stops kept as planned: " + kept + (", ..." if len(d["next_stops"]) > 4 else ""))

@@ -115,7 +115,7 @@ class JourneyReplanner:
         j = self.journey
         stop = j.stations[p.leg.last]
         lo, hi = p.window
-        d["leg"] = {"index": k, "from": j.stations[p.leg.first].name, "to": stop.name,
+        d["leg"] = {"leg": k + 1, "from": j.stations[p.leg.first].name, "to": stop.name,
                     "from_m": round(p.leg.from_m, 1), "stop_m": round(stop.at_m, 1),
                     "planned_departure_s": round(p.depart_s, 2), "arrival_s": d["arrival_s"],
                     "planned_arrival_s": d["planned_arrival_s"], "stop_window_s": [lo, hi],
