@@ -104,7 +104,10 @@ def test_a_state_that_cannot_keep_the_time_gets_the_fastest_remainder():
                               "--elapsed-s", str(t), "--json"])
     assert res.exit_code == 1
     d = json.loads(res.stdout)
-    assert d["late_s"] == pytest.approx(q.late_s, abs=0.01) and "late" in d["errors"][0]
+    # (the command tracks the air brake's cycle on this line: the cycle DP's fastest remainder, within the same bounds)
+    qc = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol).replan(TrainState(10_000.0, 50.0, t))
+    assert (r.length_m - 10_000) / top <= qc.arrival_s - t <= fastest
+    assert d["late_s"] == pytest.approx(qc.late_s, abs=0.01) and "late" in d["errors"][0]
 
 
 @pytest.mark.parametrize("state, why", [(["--at-m", "1000", "--speed-kmh", "80"], "over the speed limit"),
@@ -156,7 +159,8 @@ def test_a_restriction_in_the_stream_is_kept():
                         input="\n".join(json.dumps(x) for x in lines) + "\n")
     assert res.exit_code in (0, 1), res.output
     before, after = (json.loads(x) for x in res.stdout.splitlines())
-    assert after["arrival_s"] > before["arrival_s"]  # slower through the restriction
+    # slower through the restriction, or dearer in the same time (a restriction takes drives away, none added)
+    assert after["arrival_s"] > before["arrival_s"] or after["remaining_energy_kwh"] > before["remaining_energy_kwh"]
 
 
 def _disturbance(**kw) -> Disturbance:
