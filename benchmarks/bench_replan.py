@@ -3,7 +3,9 @@
     taskset -c 0 python benchmarks/bench_replan.py [--states 1000]
 
 Lines: routes/freight-20km.yaml (its schedule, 1500 +- 30 s) and the real lines joined end to end to 100 km
-(``scaling.joined_route``, planned at 1.15 x the fastest run, +- 1 %), HXD1 + 50 x C80, the default model. For each:
+(``scaling.joined_route``, planned at 1.15 x the fastest run, +- 1 %), HXD1 + 50 x C80, and routes/heavy-haul-60km.yaml
+with HXD1 x 2 + 100 x C80 (its schedule), the default model (where the air brake's cycle binds, the cycle DP's
+look-up, the brake's state on the departure drive given with each state; else the priced DP's). For each:
 the set-up in the process (the calculator, the DP's cost-to-go at every price of the ladder, the first advice), the
 wall time of ``locoplan replan ROUTE --stream`` from its start to its first line of advice (a new process: Python,
 imports, the compiled kernels loaded, the set-up), and the time per state over ``--states`` states drawn along the
@@ -53,18 +55,36 @@ def command_first_line_s(route_path: Path, time_arg: list[str]) -> float:
     return wall
 
 
+def air_at(plan, t_s: float, t_rec: float) -> tuple[str, float | None]:
+    """The air brake's state on a drive at clock ``t_s`` (its events): applied, recharging (and the time left) or
+    charged."""
+    before = [e for e in plan.air_events if e[1] <= t_s + 1e-9 and e[3] != "charged"]
+    if not before:
+        return "charged", None
+    if before[-1][3] == "apply":
+        return "applied", None
+    left = t_rec - (t_s - before[-1][1])
+    return ("recharging", left) if left > 1e-6 else ("charged", None)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--states", type=int, default=1000)
     args = ap.parse_args()
-    train = load_train(ROOT / "configs/consists/HXD1-C80x50.yaml")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for name in ("freight-20km", "100 km"):
+        for name in ("freight-20km", "heavy-haul-60km", "100 km"):
+            train = load_train(ROOT / "configs/consists/HXD1-C80x50.yaml")
             if name == "freight-20km":
                 path = ROOT / "routes/freight-20km.yaml"
                 route = load_route(path)
                 t0, tol, time_arg = 1500.0, 30.0, []
+            elif name == "heavy-haul-60km":
+                path = ROOT / "routes/heavy-haul-60km.yaml"
+                route = load_route(path)
+                train = load_train(ROOT / "configs/consists/HXD1x2-C80x100.yaml")
+                t0, tol = float(route.schedule.run_time_s), float(route.schedule.tolerance_s)
+                time_arg = ["--consist", str(ROOT / "configs/consists/HXD1x2-C80x100.yaml")]
             else:
                 route = joined_route(100)
                 path = Path(tmp) / "joined-100km.yaml"
@@ -77,13 +97,15 @@ def main() -> None:
             plan = rp.replan(TrainState(0.0, 0.0, 0.0))
             setup = time.perf_counter() - t
             wall = command_first_line_s(path, time_arg)
+            t_rec = rp.cyc.t_rec if rp.cyc is not None else 0.0
             rng = np.random.default_rng(1)
             ms, refused, late = [], 0, 0
             for _ in range(args.states):
                 i = int(rng.integers(0, len(plan.s_m) - 1))
                 f = float(rng.choice([0.9, 1.0, 1.1]))
+                air = air_at(plan, float(plan.t_s[i]), t_rec) if rp.cyc is not None else (None, None)
                 st = TrainState(float(plan.s_m[i]), float(plan.v_kmh[i]) * f,
-                                float(plan.t_s[i]) + float(rng.choice([0.0, 30.0])))
+                                float(plan.t_s[i]) + float(rng.choice([0.0, 30.0])), None, *air)
                 t = time.perf_counter()
                 try:
                     q = rp.replan(st)
@@ -92,7 +114,9 @@ def main() -> None:
                     refused += 1
                 ms.append(1e3 * (time.perf_counter() - t))
             ms = np.array(ms)
-            rows.append((name, len(rp.s_nodes) - 1, len(rp.prices), rp.V.nbytes / 1e6, setup, wall,
+            cells, nbytes = (rp.cyc.n, rp.cyc.V.nbytes) if rp.cyc is not None else (len(rp.s_nodes) - 1, rp.V.nbytes)
+            rows.append((f"{name} ({'cycle' if rp.cyc is not None else 'priced'} DP)", cells, len(rp.prices),
+                         nbytes / 1e6, setup, wall,
                          *np.percentile(ms, [50, 99]), ms.max(), refused, late))
     print("| line | DP cells | prices | cost-to-go [MB] | set-up [s] | command to first advice [s] | p50 [ms] | "
           "p99 [ms] | max [ms] | refused | late |")

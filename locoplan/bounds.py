@@ -285,6 +285,7 @@ OPTIONS: dict[str, tuple] = {
     "--speed-kmh": ("float", 0.0, 400.0, False, False, "km/h", "a train's speed"),
     "--elapsed-s": ("float", 0.0, _WEEK, False, False, "s", "the time since departure"),
     "--every": ("float", 1.0, 3600.0, False, False, "s", "the time between two re-plans"),
+    "--recharge-left-s": ("float", 0.0, 3600.0, False, False, "s", "the time left of the air brake's recharge"),
 }
 
 MAX_OPTION_CHARS = 10_000

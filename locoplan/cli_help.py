@@ -15,7 +15,7 @@ import typer
 
 METAVARS = {
     "--algorithm": "NAME", "--at-m": "M", "--speed-kmh": "KMH", "--elapsed-s": "S", "--every": "S",
-    "--condition": "T|K|C|B", "--disturb": "FILE", "--algorithms": "NAME,...", "--boxplot": "FILE", "--builder": "NAME", "--by": "FIELD,...",
+    "--condition": "T|K|C|B", "--air": "STATE", "--recharge-left-s": "S", "--disturb": "FILE", "--algorithms": "NAME,...", "--boxplot": "FILE", "--builder": "NAME", "--by": "FIELD,...",
     "--cap-kmh": "KMH", "--category": "NAME", "--from": "STATION", "--to": "STATION", "--via": "STATION",
     "--stop": "STATION", "--speed-tag": "TAG", "--mode": "MODE", "--track": "ID", "--comfort": "M/S2", "--consist": "FILE|NAME", "--divisions": "N", "--drivers": "N",
     "--e-min": "KWH", "--efficiency": "ETA|KMH:ETA,...", "--factors": "A:B:STEP|X,...", "--folds": "N",

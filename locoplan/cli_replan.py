@@ -29,12 +29,43 @@ def _setup(route: Path, consist: str, stock_dir: Optional[Path], model: ModelReq
     return r, train, opts, t0, tol
 
 
+def _is_journey(path: Path) -> bool:
+    """Whether a file given as the route is a journey (``schema: locoplan/journey@1``)."""
+    from .io.load import read_yaml
+    from .model.journey import JOURNEY_SCHEMA
+
+    try:
+        data, _ = read_yaml(path)
+    except LocoplanError:
+        return False  # (the route's loader says what is wrong)
+    return isinstance(data, dict) and data.get("schema") == JOURNEY_SCHEMA
+
+
+def _journey_setup(path: Path, consist: str, stock_dir: Optional[Path], model: ModelRequest, time_s: Optional[str],
+                   tolerance: Optional[float]):
+    from . import bounds
+    from .io.load import load_journey, load_train
+    from .runs.journey import journey_fastest_s
+    from .runs.replan_journey import JourneyReplanner
+
+    j, line = load_journey(path)
+    train = load_train(consist, stock_dir)
+    opts = model.options()
+    req = bounds.time_request(time_s, "--time")
+    total = None
+    if req is not None:
+        total = req[1] if req[0] == "s" else bounds.time_of(req, journey_fastest_s(j, line, train, opts))
+    return JourneyReplanner(j, line, train, opts, time_s=total, tolerance_s=tolerance, source=str(path)), j, train
+
+
 @guarded
 def replan(route: Path = ROUTE,
            at_m: Optional[float] = typer.Option(None, "--at-m", help="The train's head position [m] from the start of the line (required without --stream)."),
            speed_kmh: Optional[float] = typer.Option(None, "--speed-kmh", help="The train's speed [km/h] (required without --stream)."),
            elapsed_s: Optional[float] = typer.Option(None, "--elapsed-s", help="The time since departure [s] (required without --stream)."),
            condition: Optional[str] = typer.Option(None, "--condition", help="The condition in progress (T, K, C or B); default: none known. A change from it costs what the plan charges for a switch."),
+           air: Optional[str] = typer.Option(None, "--air", help="The air brake's state where the model has its cycle: charged (released and charged; the default), applied (its least hold over) or recharging (with --recharge-left-s)."),
+           recharge_left_s: Optional[float] = typer.Option(None, "--recharge-left-s", help="The time [s] left before the air brake's recharge is over (no application before); required with --air recharging, else none."),
            stream: bool = typer.Option(False, "--stream/--no-stream", help="Read one JSON state per line on stdin (keys s_m, v_kmh, t_s; optionally condition, planned_arrival_s, restriction with from_m, to_m, kmh) and write one JSON advice per line, each at once; a bad line gets an error line and the stream goes on."),
            time_s: Optional[str] = TIME, tolerance: Optional[float] = TOL, consist: str = CONSIST,
            stock_dir: Optional[Path] = STOCK, as_json: bool = JSON, model: ModelRequest = MODEL):
@@ -50,7 +81,8 @@ def replan(route: Path = ROUTE,
             raise InputError(Problem(api.CMDLINE, "--json", "--stream writes one JSON object per line already: leave "
                                                             "out --json"))
         given = [f for f, v in (("--at-m", at_m), ("--speed-kmh", speed_kmh), ("--elapsed-s", elapsed_s),
-                                ("--condition", condition)) if v is not None]
+                                ("--condition", condition), ("--air", air),
+                                ("--recharge-left-s", recharge_left_s)) if v is not None]
         if given:
             raise InputError(Problem(api.CMDLINE, given[0], "the states come on stdin with --stream"))
     else:
@@ -60,13 +92,28 @@ def replan(route: Path = ROUTE,
                                                               "--elapsed-s (or --stream)"))
         if condition is not None and condition not in ("T", "K", "C", "B"):
             raise InputError(Problem(api.CMDLINE, "--condition", f"one of T, K, C, B (got {condition!r})"))
-    r, train, opts, t0, tol = _setup(route, consist, stock_dir, model, time_s, tolerance, as_json or stream)
-    rp = api.replanner(r, train, opts, t0, tol)
-    if stream:
-        _stream(rp, r.name, train.name)
-        return
-    res = rp.replan(TrainState(float(at_m), float(speed_kmh), float(elapsed_s), condition))
-    d = {**replan_summary(res, r.name, train.name, tol, rp.cycle_relaxed), "setup_time_s": round(rp.setup_s, 3)}
+        if air is not None and air not in ("charged", "applied", "recharging"):
+            raise InputError(Problem(api.CMDLINE, "--air", f"one of charged, applied, recharging (got {air!r})"))
+        if (air == "recharging") != (recharge_left_s is not None):
+            raise InputError(Problem(api.CMDLINE, "--recharge-left-s" if air == "recharging" or air is None
+                                     else "--air", "--air recharging and --recharge-left-s go together (the time "
+                                                   "left of the recharge [s])"))
+    if _is_journey(route):
+        jr, j, train = _journey_setup(route, consist, stock_dir, model, time_s, tolerance)
+        if stream:
+            _stream(None, j.name, train.name, jr)
+            return
+        st = TrainState(float(at_m), float(speed_kmh), float(elapsed_s), condition, air, recharge_left_s)
+        res, k, rp, from_m, origin = jr.replan(st)
+        d = {**jr.summary(st, res, k, rp, from_m, origin, j.name, train.name), "setup_time_s": round(jr.setup_s, 3)}
+    else:
+        r, train, opts, t0, tol = _setup(route, consist, stock_dir, model, time_s, tolerance, as_json or stream)
+        rp = api.replanner(r, train, opts, t0, tol)
+        if stream:
+            _stream(rp, r.name, train.name)
+            return
+        res = rp.replan(TrainState(float(at_m), float(speed_kmh), float(elapsed_s), condition, air, recharge_left_s))
+        d = {**replan_summary(res, r.name, train.name, tol, rp.cycle_relaxed), "setup_time_s": round(rp.setup_s, 3)}
     if as_json:
         json_out(d)
     else:
@@ -75,7 +122,7 @@ def replan(route: Path = ROUTE,
     fail_on(api.replan_verdict(d))
 
 
-def _stream(rp, route_name: str, train_name: str) -> None:
+def _stream(rp, route_name: str, train_name: str, jr=None) -> None:
     """One advice per state line, flushed at once (module docstring of ``optimize.replan``; docs/replan.md)."""
     from .io.load import validate_model
     from .model.disturbance import StreamState
@@ -84,7 +131,7 @@ def _stream(rp, route_name: str, train_name: str) -> None:
     from .reporting.replan import replan_summary
 
     bad = 0
-    planned = rp.planned_s
+    planned = rp.planned_s if rp is not None else None
     for lineno, raw in enumerate(sys.stdin, start=1):
         if not raw.strip():
             continue
@@ -97,13 +144,25 @@ def _stream(rp, route_name: str, train_name: str) -> None:
                 raise InputError(Problem(f"<stdin>:{lineno}", "", "not a JSON object"))
             st = validate_model(StreamState, data, f"<stdin>:{lineno}", {})
             if st.planned_arrival_s is not None:
-                planned = float(st.planned_arrival_s)
-            if st.restriction is not None:
-                x = st.restriction
-                rp = Replanner(with_restriction(rp.route, x.from_m, x.to_m, x.kmh), rp.train, rp.options,
-                               planned_s=rp.planned_s, tolerance_s=rp.tolerance_s, prices=rp.prices)
-            res = rp.replan(TrainState(st.s_m, st.v_kmh, st.t_s, st.condition), planned)
-            d = replan_summary(res, route_name, train_name, rp.tolerance_s, rp.cycle_relaxed)
+                if jr is not None:  # (the arrival at the stop of the leg the state is in)
+                    jr.override[jr.leg_at(st.s_m)] = float(st.planned_arrival_s)
+                else:
+                    planned = float(st.planned_arrival_s)
+            state = TrainState(st.s_m, st.v_kmh, st.t_s, st.condition, st.air, st.recharge_left_s)
+            if jr is not None:
+                if st.restriction is not None:
+                    raise InputError(Problem(f"<stdin>:{lineno}", "restriction", "a restriction in a journey's "
+                                             "stream is not supported: re-plan the leg as a route (locoplan import "
+                                             "... --leg N)"))
+                res, k, lrp, from_m, origin = jr.replan(state)
+                d = jr.summary(state, res, k, lrp, from_m, origin, route_name, train_name)
+            else:
+                if st.restriction is not None:
+                    x = st.restriction
+                    rp = Replanner(with_restriction(rp.route, x.from_m, x.to_m, x.kmh), rp.train, rp.options,
+                                   planned_s=rp.planned_s, tolerance_s=rp.tolerance_s, prices=rp.prices)
+                res = rp.replan(state, planned)
+                d = replan_summary(res, route_name, train_name, rp.tolerance_s, rp.cycle_relaxed)
             code = api.replan_verdict(d).exit_code
             line = {"line": lineno, **{k: v for k, v in d.items() if k not in ("route", "consist")},
                     "exit_code": code}

@@ -655,8 +655,8 @@ def _every_numeric_option(cases: list[Case], tmp: Path) -> None:
                                   note="every numeric option through the bounds module"))
 
 
-NOT_NUMBERS = {"NAME", "NAME,...", "STATION", "TAG", "ID", "FILE", "FILE|NAME", "DIR", "MODE", "time|energy", "traction|net", "ADDRESS", "csv|parquet|json", "EXPR",
-               "FIELD,...", "PLAN", "T|K|C|B"}
+NOT_NUMBERS = {"NAME", "NAME,...", "STATE", "T|K|C|B", "STATION", "TAG", "ID", "FILE", "FILE|NAME", "DIR", "MODE", "time|energy", "traction|net", "ADDRESS", "csv|parquet|json", "EXPR",
+               "FIELD,...", "PLAN"}
 """Metavars of text options that hold no number (``PLAN``, a --sequence, is checked against its route's length)."""
 
 

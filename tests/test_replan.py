@@ -42,7 +42,7 @@ def _setup(route: str, model: str):
     else:
         t0 = round(1.15 * TractionCalculator(r, train, opts).fastest_time_s)
         tol = api.punctuality_tolerance(r, t0, None)
-    return r, train, opts, t0, tol, Replanner(r, train, opts, planned_s=t0, tolerance_s=tol)
+    return r, train, opts, t0, tol, Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, cycle=False)
 
 
 @pytest.mark.parametrize("model", ["default", "point-mass"])
@@ -104,7 +104,10 @@ def test_a_state_that_cannot_keep_the_time_gets_the_fastest_remainder():
                               "--elapsed-s", str(t), "--json"])
     assert res.exit_code == 1
     d = json.loads(res.stdout)
-    assert d["late_s"] == pytest.approx(q.late_s, abs=0.01) and "late" in d["errors"][0]
+    # (the command tracks the air brake's cycle on this line: the cycle DP's fastest remainder, within the same bounds)
+    qc = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol).replan(TrainState(10_000.0, 50.0, t))
+    assert (r.length_m - 10_000) / top <= qc.arrival_s - t <= fastest
+    assert d["late_s"] == pytest.approx(qc.late_s, abs=0.01) and "late" in d["errors"][0]
 
 
 @pytest.mark.parametrize("state, why", [(["--at-m", "1000", "--speed-kmh", "80"], "over the speed limit"),
@@ -156,7 +159,8 @@ def test_a_restriction_in_the_stream_is_kept():
                         input="\n".join(json.dumps(x) for x in lines) + "\n")
     assert res.exit_code in (0, 1), res.output
     before, after = (json.loads(x) for x in res.stdout.splitlines())
-    assert after["arrival_s"] > before["arrival_s"]  # slower through the restriction
+    # slower through the restriction, or dearer in the same time (a restriction takes drives away, none added)
+    assert after["arrival_s"] > before["arrival_s"] or after["remaining_energy_kwh"] > before["remaining_energy_kwh"]
 
 
 def _disturbance(**kw) -> Disturbance:
@@ -183,7 +187,7 @@ def test_the_closed_loop_arrives_on_time_near_the_optimum_in_hindsight(route, mo
     there, plus the hold, so that the time can be kept): the re-planned run arrives inside the window, no later than
     the open-loop run (late after a hold). With the heavier train it spends at most 2 % more than E* of the real
     train; after an unannounced hold it is not held to that (docs/replan.md: the catch-up after a hold the planner
-    could not foresee costs 0-10 % over E* in hindsight, which knew of it from the start)."""
+    could not foresee costs 0.3-25 % over E* in hindsight, which knew of it from the start)."""
     from locoplan.runs.drive import drive
 
     r, train, opts, t0, tol, rp = _setup(route, model)
@@ -194,7 +198,7 @@ def test_the_closed_loop_arrives_on_time_near_the_optimum_in_hindsight(route, mo
         d = _disturbance(holds=[{"at_m": at, "s": 60}])
         t0 = round(1.1 * _with_a_stop_fastest_s(r, train, opts, at) + 60)
         tol = api.punctuality_tolerance(r, t0, None)
-        rp = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, prices=rp.prices)
+        rp = Replanner(r, train, opts, planned_s=t0, tolerance_s=tol, prices=rp.prices, cycle=False)
     res = drive(r, train, opts, d, planned_s=t0, tolerance_s=tol, replanner=rp).summary()
     closed, opened, best = res["closed_loop"], res["open_loop"], res["hindsight"]
     assert closed["inside_window"], res

@@ -73,5 +73,7 @@ class StreamState(Strict):
     v_kmh: float
     t_s: float
     condition: Literal["T", "K", "C", "B"] | None = None
+    air: Literal["charged", "applied", "recharging"] | None = None
+    recharge_left_s: float | None = Field(default=None, ge=0)
     planned_arrival_s: float | None = Field(default=None, gt=0)
     restriction: Restriction | None = None

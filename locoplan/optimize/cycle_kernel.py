@@ -996,6 +996,130 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
     its control and air state (at its start), per node speed [km/h] and time [s], and the events (``ev[i]``: where,
     as node + the fraction of its cell, time [s], speed [km/h]; ``ev_k[i]`` ``EV_*``). Returns (time [s], traction
     work [kJ], the number of events); time inf when no drive reaches the stop."""
+    s0 = CH if cc.zone[0] != 0 and not cc.relaxed else NA
+    w_nodes = np.empty(cc.h.shape[0] + 1)
+    return _forward(cc, fo, price, V, tb, price, V, tb, cc.h.shape[0], 0, 0.0, 0.0, s0, 0.0, 0.0, controls, air,
+                    v_nodes, t_nodes, w_nodes, ev, ev_k)
+
+
+@njit(cache=True)
+def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
+                       v_nodes, t_nodes, w_nodes, ev, ev_k):
+    """The drive from a train's state (on-board re-planning): ``x0`` [m] into cell ``k0`` at e0 = v^2/2, in air state
+    ``s0`` (``CH`` charged, ``AF`` applied, ``R0`` recharging ``tau0`` [s] since its release; outside a zone any of
+    them is ``NA``), an applied brake held at least ``hold0`` [s] more (its least hold); at the nodes before ``m``
+    the options are priced at ``price1`` with ``V1``, ``tb1`` (a backward pass's cost-to-go and tables, the
+    recharge's deadlines its own), from ``m`` on at ``price2`` with ``V2``, ``tb2``. The rest of cell ``k0`` is one
+    step under one control (``_to_node`` over the rest: from a charged brake, an application at the state is one,
+    held its least hold on). As ``cycle_forward`` otherwise, times and work from the state; ``v_nodes``,
+    ``t_nodes`` [k] for k > k0, ``controls``, ``air`` [k] for k >= k0; ``w_nodes`` [k] the traction work [kJ] from
+    the state to node k where a step or a path ends there (the nodes a path passes keep what they held)."""
+    return _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
+                    v_nodes, t_nodes, w_nodes, ev, ev_k)
+
+
+@njit(cache=True, _nrt=False)
+def _first_part(cc, fo, price, V, tb, k, x0, e, s, tau, t, hold_until):
+    """The rest of cell k from x0 [m] at e in air state s (``cycle_forward_from``): the best single control over it
+    (the rules of ``_forward``'s cells; from a charged brake also an application at the state, U_B or U_K, held
+    its least hold on). Returns (control, e at the node, work [kJ], time [s], state there, since a release there
+    [s], the applied brake's least hold ends at [s]); control -1 where none is possible."""
+    rest = cc.h[k] - x0
+    zone = cc.zone[k] != 0 and not cc.relaxed
+    must_apply = zone and e >= cc.e_app[k]
+    desc = zone and _descending(e, k, cc, fo)
+    keep = zone and e <= cc.e_keep[k] * (1.0 + 1e-9)
+    held = s == AF and t < hold_until - 1e-9
+    best = np.inf
+    o, e_o, w_o, t_o, s_o, tau_o, hold_o = -1, 0.0, 0.0, 0.0, NA, 0.0, hold_until
+    for u in range(N_U):
+        if cc.relaxed and (u == U_E or u == U_K):
+            continue
+        on = u == U_B or u == U_K
+        apply_now = zone and on and s == CH
+        if apply_now:
+            e1, w, ok = _to_node(e, u, 0.0, cc.t_build[k], k, rest, cc, fo, False)
+        else:
+            e1, w, ok = _to_node(e, u, 1e9, 0.0, k, rest, cc, fo, cc.relaxed)
+        if ok == NO:
+            continue
+        dt = _part_time(e, e1, rest)
+        if not math.isfinite(dt):
+            continue
+        if must_apply and not (s == AF and u == U_B) and not apply_now:
+            continue
+        if held and not on:
+            continue
+        rec = s == R0 or (s == AF and not on)
+        if desc and rec and u != U_H:
+            continue
+        if zone and not on and ok == OK and e1 > cc.e_app[k] * (1.0 + 1e-9):
+            continue
+        if zone and rec and (e >= cc.e_rec[k] or e1 > cc.e_rec[k] * (1.0 + 1e-9)):
+            continue
+        c = w / KJ_PER_KWH + price * dt
+        i0, wx = _land(e1, k + 1, cc)
+        s1 = -1
+        tau1 = 0.0
+        hold1 = hold_until
+        if cc.relaxed or s == NA:
+            if ok == OK or cc.relaxed:
+                s1 = _arrive(k + 1, NA, cc)
+                c += _value(V, k + 1, s1, i0, wx, tb)
+        elif on:
+            if s == AF and (u == U_B or keep):
+                s1 = _arrive(k + 1, AF, cc)
+                c += _value(V, k + 1, s1, i0, wx, tb)
+            elif apply_now and (u == U_B or keep):
+                s1 = _arrive(k + 1, AF, cc)
+                hold1 = t + max(hold_s(k, cc), cc.t_build[k])
+                c += _value(V, k + 1, s1, i0, wx, tb)
+        elif s == CH:
+            if ok == OK:
+                s1 = _arrive(k + 1, CH, cc)
+                c += _value(V, k + 1, s1, i0, wx, tb)
+        elif ok == OK and (s == R0 or keep):
+            tau1 = (tau if s == R0 else 0.0) + dt
+            s1 = R0
+            c += _value_rec(V, k + 1, tau1, i0, wx, cc, tb)
+        if s1 >= 0 and c < best:
+            best = c
+            o, e_o, w_o, t_o, s_o, tau_o, hold_o = u, e1, w, dt, s1, tau1, hold1
+    if not math.isfinite(best):
+        o = -1
+    return o, e_o, w_o, t_o, s_o, tau_o, hold_o, best
+
+
+@njit(cache=True, _nrt=False)
+def _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, rec, controls, air, v_nodes, t_nodes, t_start, ev, ev_k, n_ev,
+                   part):
+    """A recharging train ``tau`` [s] since its release, ``x0`` [m] into cell k at e: held under H (the electric
+    brake, as the calculator holds a recharging train) until the recharge is over, then on under H to the node after,
+    charged there (``P_AR_H``'s rest: a state inside a recharge path, whose speed the grid's recharge deadlines would
+    not let go on). Returns (cost [kWh] incl. the cost-to-go there, end node, e there, time [s], work [kJ], the state
+    there, events recorded); cost inf where not possible; ``rec``: recorded from ``t_start``."""
+    j2, x2, er, tr, wr, st2 = _phase(e, k, x0, U_H, max(cc.t_rec - tau, 0.0), 0.0, True, cc, fo, tb, False, rec,
+                                     controls, air, v_nodes, t_nodes, t_start, part)
+    if st2 < 0:
+        return np.inf, -1, 0.0, 0.0, 0.0, NA, n_ev
+    if st2 > 0:  # (the zone, or the route, ended during the recharge)
+        i0, wx = _land(er, j2, cc)
+        return wr / KJ_PER_KWH + price * tr + _value(V, j2, NA, i0, wx, tb), j2, er, tr, wr, NA, n_ev
+    n_ev = _event(rec, ev, ev_k, n_ev, j2, x2, t_start + tr, er, EV_CHARGED, cc)
+    e1, dt, w, ok = _finish(er, j2, x2, U_H, 0.0, 0.0, CHARGED, cc, fo, tb, False, rec, v_nodes, t_nodes,
+                            t_start + tr)
+    if not ok:
+        return np.inf, -1, 0.0, 0.0, 0.0, NA, n_ev
+    s1 = _arrive(j2 + 1, CH, cc)
+    i0, wx = _land(e1, j2 + 1, cc)
+    c = (wr + w) / KJ_PER_KWH + price * (tr + dt) + _value(V, j2 + 1, s1, i0, wx, tb)
+    return c, j2 + 1, e1, tr + dt, wr + w, s1, n_ev
+
+
+@njit(cache=True)
+def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0, tau0, hold0, controls, air, v_nodes,
+             t_nodes, w_nodes, ev, ev_k):
+    """``cycle_forward`` and ``cycle_forward_from``'s loop."""
     n = cc.h.shape[0]
     none_i = np.zeros(1, dtype=np.int64)
     none_f = np.zeros(1)
@@ -1010,16 +1134,66 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
     pt = np.zeros(N_P)
     pw = np.zeros(N_P)
     pq = np.zeros(N_P)
-    e = 0.0
+    e = e0
     t = 0.0
-    tau = 0.0  # since the last release [s], in a recharge state (R0)
+    tau = tau0  # since the last release [s], in a recharge state (R0)
+    hold_until = hold0  # an applied brake's least hold ends then [s]
     work = 0.0
     n_ev = 0
-    v_nodes[0] = 0.0
-    t_nodes[0] = 0.0
-    s = CH if cc.zone[0] != 0 and not cc.relaxed else NA
-    k = 0
+    v_nodes[k0] = kmh_from_e(max(e0, 0.0))
+    t_nodes[k0] = 0.0
+    w_nodes[k0] = 0.0
+    s = s0
+    k = k0
+    o = -3  # (the first step: -3 none taken here, -2 the recharge held on)
+    e1, w1, dt1, s1, tau1, hold1, c1 = 0.0, 0.0, 0.0, NA, 0.0, hold0, np.inf
+    if cc.relaxed or (k < n and cc.zone[k] == 0):
+        s = NA
+    if k < n and s == R0 and tau >= cc.t_rec - 1e-9:
+        s = CH
+    if k < n and (x0 > 0.0 or s == R0):
+        price, V, tb = (price1, V1, tb1) if k < m_switch else (price2, V2, tb2)
+        o, e1, w1, dt1, s1, tau1, hold1, c1 = _first_part(cc, fo, price, V, tb, k, x0, e, s, tau, t, hold_until)
+        if s == R0:  # (or the recharge held on to its end: a state inside a recharge path)
+            c2, j2, e2, t2, w2, s2, _ = _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, False, controls, air,
+                                                       v_nodes, t_nodes, 0.0, ev, ev_k, 0, part)
+            if c2 < c1:
+                if x0 > 0.0:
+                    controls[k] = U_H
+                    air[k] = AIR_RECHARGE
+                n_ev = _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, True, controls, air, v_nodes, t_nodes, 0.0,
+                                      ev, ev_k, n_ev, part)[6]
+                o = -2
+                t, work, e, k, s = t2, w2, e2, j2, s2
+                v_nodes[k] = kmh_from_e(max(e, 0.0))
+                t_nodes[k] = t
+                w_nodes[k] = work
+        if o == -1:
+            return np.inf, np.inf, float(n_ev)
+    if o >= 0:
+        controls[k] = o
+        on = o == U_B or o == U_K
+        if cc.relaxed or not on:
+            air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
+            if s == AF and not cc.relaxed:  # released at the state
+                n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_RELEASE, cc)
+        else:
+            air[k] = AIR_CYCLE
+            if s == CH:  # applied at the state
+                n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_APPLY, cc)
+        tau, hold_until = tau1, hold1
+        t += dt1
+        work += w1
+        e = e1
+        k += 1
+        v_nodes[k] = kmh_from_e(max(e, 0.0))
+        t_nodes[k] = t
+        w_nodes[k] = work
+        s = s1
+        if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
+            s = NA
     while k < n:
+        price, V, tb = (price1, V1, tb1) if k < m_switch else (price2, V2, tb2)
         if cc.relaxed or cc.zone[k] == 0:
             s = NA
         elif s == NA and _zone_start(k, cc):
@@ -1027,10 +1201,11 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
         elif s == R0 and tau >= cc.t_rec - 1e-9:
             s = CH
             n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CHARGED, cc)
+        held = s == AF and t < hold_until - 1e-9  # (an application at the state: its least hold not over)
         _cells_at(e, k, cc, fo, se, sw, st, sok)
         for m in range(N_P):
             pj[m] = -1
-        if cc.zone[k] != 0 and not cc.relaxed and (s == CH or s == AF):
+        if cc.zone[k] != 0 and not cc.relaxed and (s == CH or (s == AF and not held)):
             _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
         c_best = np.inf
         o = -1
@@ -1045,6 +1220,8 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             on = u == U_B or u == U_K  # (the air brake applied through the cell)
             if must_apply and not (s == AF and u == U_B):
                 continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
+            if held and not on:
+                continue
             rec = s == R0 or (s == AF and not on)  # (recharging through the cell)
             if desc and rec and u != U_H:
                 continue
@@ -1106,6 +1283,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             k += 1
             v_nodes[k] = kmh_from_e(max(e, 0.0))
             t_nodes[k] = t
+            w_nodes[k] = work
         else:
             m = o - N_U
             n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq,
@@ -1117,6 +1295,7 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
             e = pe[m]
             k = pj[m]
             tau = pq[m]
+            w_nodes[k] = work
         s = s_next
         if k < n and (cc.zone[k] == 0 or cc.relaxed) and s == R0:
             s = NA

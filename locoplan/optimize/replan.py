@@ -56,6 +56,8 @@ LADDER_FINE = 5
 """The prices next to the departure's: ``LADDER_FINE`` steps of ``LADDER_RATIO`` each way."""
 PRICE_RANGE = (1e-4, 50.0)
 """Beyond them, doubling steps out to these prices [kWh/s] (about the least-energy and the fastest run)."""
+PRICE_CLOSE = 1.05
+"""Where the air brake cycles, the departure's price is bisected to within this ratio (the cycle DP's drives)."""
 ON_TIME_S = 0.05
 """A drive arriving no more than this [s] after the planned arrival is on time (the DP's running times are sums
 of cell times: the search stops at the first drive within it)."""
@@ -79,6 +81,14 @@ class TrainState:
     v_kmh: float
     t_s: float
     condition: str | None = None
+    air: str | None = None
+    """The air brake's state where the model has its cycle: ``charged`` (released and charged, the default),
+    ``applied`` (its least hold over: it may be released), ``recharging`` (released ``recharge_left_s`` [s] before
+    the recharge is over: no application before)."""
+    recharge_left_s: float | None = None
+
+
+AIR_STATES = ("charged", "applied", "recharging")
 
 
 @dataclass
@@ -105,12 +115,16 @@ class Replan:
     t_s: np.ndarray = field(repr=False)
     """The drive at the state and every later node: position [m], speed [km/h], clock since departure [s]."""
     energy_kwh: np.ndarray = field(repr=False)
-    """Traction energy from the state to each of those points [kWh]."""
+    """Traction energy from the state to each of those points [kWh] (where the air brake cycles: nan at the nodes
+    an application's or a recharge's path passes, whose ends alone the cycle DP's drive records)."""
     controls: np.ndarray = field(repr=False)
     """Each step's condition code (``model.conditions``), the first the rest of the state's cell."""
     prices_kwh_per_s: tuple[float, float]
     switch_node_m: float | None
     solve_time_s: float
+    air_events: list | None = None
+    """Where the model's air brake cycles (the cycle DP's drive): its events from the state on, each
+    ``(position [m], clock since departure [s], speed [km/h], "apply" | "release" | "charged")``; None otherwise."""
 
     @property
     def plan(self) -> str:
@@ -145,13 +159,26 @@ class Replanner:
     re-build skips the search for the departure's price)."""
 
     def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, *, planned_s: float,
-                 tolerance_s: float = 0.0, prices: np.ndarray | None = None, calc: TractionCalculator | None = None):
+                 tolerance_s: float = 0.0, prices: np.ndarray | None = None, calc: TractionCalculator | None = None,
+                 cycle: bool = True):
         t_start = time.perf_counter()
         self.route, self.train = route, train
         self.options = options or ModelOptions()
         self.planned_s, self.tolerance_s = float(planned_s), float(tolerance_s)
         self.calc = calc if calc is not None else TractionCalculator(route, train, self.options)
         calc = self.calc
+        from .cycle_dp import cycle_binds
+
+        binds = bool(calc.air_cycle is not None and cycle_binds(calc))
+        self.cycle_relaxed = binds and not cycle
+        """The cycle binds on the line but is not tracked (``cycle=False``: the air brake a continuous force)."""
+        self.cyc: CycleReplanner | None = None
+        if binds and cycle:
+            self.cyc = CycleReplanner(calc, self.planned_s, prices)
+            self.prices = self.cyc.prices
+            self._hint = len(self.prices) // 2
+            self.setup_s = time.perf_counter() - t_start
+            return
         fastest = calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
         penalty = SWITCH_PENALTY_SHARE * float(fastest) if np.isfinite(fastest) else 0.0
         self.solver = PricedDriveSolver(calc, speed_step_kmh=SPEED_STEP_KMH, switch_penalty_kwh=penalty,
@@ -179,9 +206,6 @@ class Replanner:
         self._works = np.zeros(n + 1)
         self._scratch = (np.zeros(n, dtype=np.int64), np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1))
         self._hint = len(self.prices) // 2
-        from .cycle_dp import cycle_binds
-
-        self.cycle_relaxed = bool(self.calc.air_cycle is not None and cycle_binds(self.calc))
         self.setup_s = time.perf_counter() - t_start
 
     # ------------------------------------------------------------------ the state
@@ -200,6 +224,7 @@ class Replanner:
             raise InputError(Problem(where, "t_s", "the time since departure is never negative"))
         if st.condition is not None and st.condition not in CONDITIONS[:4]:
             raise InputError(Problem(where, "condition", f"one of T, K, C, B (got {st.condition!r})"))
+        self._check_air(st, where)
         s = min(max(st.s_m, 0.0), L)
         lim = float(min(limit_kmh_at(self.route, s, self.train.length_m if self.options.strip else None),
                         self.train.max_speed_kmh))
@@ -211,6 +236,26 @@ class Replanner:
             ahead = "the stop" if s >= L - 1e-6 or env <= 0 else "a lower limit or the stop ahead"
             raise InputError(Problem(where, "v_kmh", f"beyond the braking curve: at most {v_env:.1f} km/h here to "
                                                      f"stop in time for {ahead}; brake"))
+
+    def _check_air(self, st: TrainState, where: str) -> None:
+        if st.air is not None and st.air not in AIR_STATES:
+            raise InputError(Problem(where, "air", f"one of {', '.join(AIR_STATES)} (got {st.air!r})"))
+        if st.recharge_left_s is not None:
+            if st.air != "recharging":
+                raise InputError(Problem(where, "recharge_left_s", "only with the air brake recharging (air: "
+                                                                   "recharging)"))
+            if not math.isfinite(st.recharge_left_s) or st.recharge_left_s < 0:
+                raise InputError(Problem(where, "recharge_left_s", "a time left is a number, never negative"))
+        elif st.air == "recharging":
+            raise InputError(Problem(where, "recharge_left_s", "a recharging air brake needs the time left of its "
+                                                               "recharge [s]"))
+        if st.air is not None and self.calc.air_cycle is None:
+            raise InputError(Problem(where, "air", "this model has no air brake's cycle (--no-air-brake, "
+                                                   "--point-mass or the cycle off): leave out the air brake's state"))
+        t_rec = float(self.calc.air_cycle.recharge_s) if self.calc.air_cycle is not None else 0.0
+        if st.recharge_left_s is not None and st.recharge_left_s > t_rec + 1e-9:
+            raise InputError(Problem(where, "recharge_left_s", f"the consist's recharge takes {t_rec:g} s: at most "
+                                                               "that is left"))
 
     # ------------------------------------------------------------------ the look-up
     def _drive(self, k0: int, h0: float, g0: float, e0: float, prev: int, first: int, second: int, m: int,
@@ -225,6 +270,8 @@ class Replanner:
         t_start = time.perf_counter()
         self.check(st)
         planned = self.planned_s if planned_arrival_s is None else float(planned_arrival_s)
+        if self.cyc is not None:
+            return self._replan_cycle(st, planned, t_start)
         L = self.route.length_m
         s = min(max(st.s_m, 0.0), L)
         n = len(self.s_nodes) - 1
@@ -322,6 +369,94 @@ class Replanner:
                   self._controls[k0:n].copy())
         return self._result(st, planned, *arrays, first, second,
                             float(self.s_nodes[m]) if first != second and m < n else None, bound, t_start)
+
+    def _replan_cycle(self, st: TrainState, planned: float, t_start: float) -> Replan:
+        """``replan`` where the air brake cycles: the cycle DP's look-up (``CycleReplanner``), the price searched as
+        in ``replan`` and the switch from the faster price to the slower at a node bisected (no switch inside a
+        cell: the drive arrives at most a cell's time early)."""
+        cy = self.cyc
+        L = self.route.length_m
+        s = min(max(st.s_m, 0.0), L)
+        if s >= L - 1e-6:
+            return self._at_stop(st, planned, t_start)
+        n = cy.n
+        k0 = min(max(int(np.searchsorted(cy.s_nodes, s, side="right")) - 1, 0), n - 1)
+        x0 = float(s - cy.s_nodes[k0])
+        if x0 <= 1e-6:
+            x0 = 0.0
+        e0 = float(kinetic_e(st.v_kmh))
+        s0, tau0 = cy.air_state(st)
+        t_rem = planned - st.t_s
+        P = len(self.prices)
+        cache: dict[int, tuple[float, float]] = {}
+
+        def run(first: int, second: int, m: int) -> tuple[float, float]:
+            return cy.drive(k0, x0, e0, s0, tau0, first, second, m)[:2]
+
+        def pure(i: int) -> float:
+            if i not in cache:
+                cache[i] = run(i, i, n)
+            return cache[i][0]
+
+        def on_time(i: int) -> bool:
+            t_i = pure(i)
+            return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
+
+        j = min(max(self._hint, 0), P - 1)
+        step = 1
+        if on_time(j):
+            hi, lo = j, j - 1
+            while lo >= 0 and on_time(lo):
+                hi, lo, step = lo, lo - step, 2 * step
+            lo = max(lo, -1)
+        else:
+            lo, hi = j, j + 1
+            while hi < P and not on_time(hi):
+                lo, hi, step = hi, hi + step, 2 * step
+            hi = min(hi, P)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if on_time(mid):
+                hi = mid
+            else:
+                lo = mid
+        m = n
+        if hi == P:
+            first = second = P - 1
+            if not math.isfinite(pure(P - 1)):
+                raise InfeasibleError(f"no drive that keeps the air brake's cycle reaches the stop from {s:.1f} m at "
+                                      f"{st.v_kmh:.1f} km/h with the air brake {st.air or 'charged'}")
+        elif lo < 0:
+            first = second = 0
+        else:
+            self._hint = hi
+            first, second = hi, lo
+            if math.isfinite(pure(lo)) and pure(hi) < t_rem - CLOSE_S:
+                a, b = k0, n  # m = a: the slower price's drive (late); m = b: the faster one's (on time)
+                t_b = pure(hi)
+                while b - a > 1 and t_b < t_rem - CLOSE_S:
+                    mid = (a + b) // 2
+                    t_mid = run(hi, lo, mid)[0]
+                    if math.isfinite(t_mid) and t_mid <= t_rem + ON_TIME_S:
+                        b, t_b = mid, t_mid
+                    else:
+                        a = mid
+                m = b
+        bound = self._optimum({i: cache[i] for i in (first, second) if i in cache}, t_rem) if hi < P else None
+        t, w, n_ev = cy.drive(k0, x0, e0, s0, tau0, first, second, m)
+        if not math.isfinite(t):
+            raise InfeasibleError(f"no drive that keeps the air brake's cycle reaches the stop from {s:.1f} m")
+        pos = np.concatenate([[s], cy.s_nodes[k0 + 1:]])
+        speeds = cy.v[k0:].copy()
+        times = cy.t[k0:].copy()
+        works = cy.w[k0:].copy()  # (nan at the nodes a path of the air brake's cycle passes)
+        works[-1] = w
+        controls = CYCLE_CONDITION[cy.controls[k0:n]]
+        events = cy.events(int(n_ev), st.t_s)
+        res = self._result(st, planned, pos, speeds, times, works, controls, first, second,
+                           float(cy.s_nodes[m]) if first != second and m < n else None, bound, t_start)
+        res.air_events = events
+        return res
 
     def _split(self, a: int, k0: int, s: float, h0: float, g0: float, e0: float, prev: int, hi: int, lo: int,
                t_rem: float):
@@ -440,3 +575,93 @@ class Replanner:
                       st.t_s + times, works / KJ_PER_KWH, controls,
                       (float(self.prices[first]), float(self.prices[second])), switch_m,
                       time.perf_counter() - t_start)
+
+
+CYCLE_CONDITION = np.array([0, 1, 2, 3, 4, 1], dtype=np.int64)
+"""The cycle DP's controls (``cycle_kernel.U_*``: T, H, C, B, E, K) as condition codes (T, K, C, B, E, K: the air
+brake kept on while the speed is held is a hold, K)."""
+
+
+class CycleReplanner:
+    """The look-up where the air brake cycles (``cycle_dp``): the cycle DP (``CycleDPSolver``, on cells of about
+    ``CELL_M`` and a speed grid of ``SPEED_STEP_KMH``) solved backward at a ladder of prices around the one whose
+    drive from rest takes ``planned_s``; every price's cost-to-go and recharge deadlines kept; a drive from any
+    state (position, speed, the air brake's state and time since its release) is ``cycle_kernel``'s forward pass
+    from it (``cycle_forward_from``), the faster price's cost-to-go to a node, the slower one's from it."""
+
+    def __init__(self, calc: TractionCalculator, planned_s: float, prices: np.ndarray | None = None):
+        from .cycle_dp import CycleDPSolver, grid_calculator
+
+        self.solver = CycleDPSolver(grid_calculator(calc, CELL_M), CELL_M, SPEED_STEP_KMH)
+        sv = self.solver
+        self.t_rec = float(sv.cells.t_rec)
+        if prices is None:
+            prices = _ladder(self._price_for(float(planned_s)))
+        self.prices = np.ascontiguousarray(prices, dtype=float)
+        self.s_nodes = sv.s_m
+        self.n = len(self.s_nodes) - 1
+        P = len(self.prices)
+        self.V = np.empty((P,) + sv._V.shape)
+        self.DL = np.empty((P,) + sv.tables.dl.shape)
+        k = kernels()
+        for i, p in enumerate(self.prices):
+            k.cycle_backward(sv.cells, sv.calc.forces, float(p), self.V[i], sv.tables)
+            self.DL[i] = sv.tables.dl
+        self.tables = [sv.tables._replace(dl=self.DL[i]) for i in range(P)]
+        n = self.n
+        self.controls = np.zeros(n, dtype=np.int64)
+        self.air = np.zeros(n, dtype=np.int64)
+        self.v = np.zeros(n + 1)
+        self.t = np.zeros(n + 1)
+        self.w = np.zeros(n + 1)
+        self.ev = np.zeros((4 * n + 16, 3))
+        self.ev_k = np.zeros(4 * n + 16, dtype=np.int64)
+
+    def _price_for(self, t_s: float) -> float:
+        """The lowest price of time (within ``PRICE_CLOSE``) whose drive from rest takes no more than ``t_s``:
+        geometric bisection over ``PRICE_RANGE`` (the drive's time falls as the price rises, in steps)."""
+        lo, hi = PRICE_RANGE
+        d = self.solver.solve(hi)
+        if d is None or d.time_s > t_s:
+            return hi
+        d = self.solver.solve(lo)
+        if d is not None and d.time_s <= t_s:
+            return lo
+        while hi / lo > PRICE_CLOSE:
+            mid = math.sqrt(lo * hi)
+            d = self.solver.solve(mid)
+            if d is not None and d.time_s <= t_s:
+                hi = mid
+            else:
+                lo = mid
+        return hi
+
+    def air_state(self, st: TrainState) -> tuple[int, float]:
+        """The kernel's air state (``cycle_kernel.CH``, ``AF``, ``R0``) and the time since the release [s]."""
+        from .cycle_kernel import AF, CH, R0
+
+        if st.air == "applied":
+            return AF, 0.0
+        if st.air == "recharging" and st.recharge_left_s is not None and st.recharge_left_s > 1e-9:
+            return R0, max(self.t_rec - float(st.recharge_left_s), 0.0)
+        return CH, 0.0
+
+    def drive(self, k0: int, x0: float, e0: float, s0: int, tau0: float, first: int, second: int, m: int):
+        """The forward pass from the state (``cycle_forward_from``): (time [s], traction work [kJ], events)."""
+        sv = self.solver
+        self.w.fill(np.nan)
+        t, w, n_ev = kernels().cycle_forward_from(sv.cells, sv.calc.forces, float(self.prices[first]), self.V[first],
+                                                  self.tables[first], float(self.prices[second]), self.V[second],
+                                                  self.tables[second], m, k0, x0, e0, s0, tau0, 0.0, self.controls,
+                                                  self.air, self.v, self.t, self.w, self.ev, self.ev_k)
+        return float(t), float(w), n_ev
+
+    def events(self, n_ev: int, t0_s: float) -> list:
+        """The last drive's air brake events as (position [m], clock [s], speed [km/h], kind)."""
+        from .cycle_kernel import EV_APPLY, EV_CHARGED, EV_RELEASE
+
+        names = {EV_APPLY: "apply", EV_RELEASE: "release", EV_CHARGED: "charged"}
+        m = int(n_ev)
+        where = self.solver._where(self.ev[:m, 0])
+        return [(float(where[i]), t0_s + float(self.ev[i, 1]), float(self.ev[i, 2]), names[int(self.ev_k[i])])
+                for i in range(m)]

@@ -17,7 +17,9 @@ def _r(x, digits=3):
 def replan_summary(r, route_name: str, train_name: str, tolerance_s: float, cycle_relaxed: bool) -> dict:
     """The --json object (and one --stream line) of a re-plan ``r`` (``optimize.replan.Replan``)."""
     d = {"route": route_name, "consist": train_name,
-         "state": {"s_m": r.state.s_m, "v_kmh": r.state.v_kmh, "t_s": r.state.t_s},
+         "state": {"s_m": r.state.s_m, "v_kmh": r.state.v_kmh, "t_s": r.state.t_s,
+                   **({"air": r.state.air} if r.state.air is not None else {}),
+                   **({"recharge_left_s": r.state.recharge_left_s} if r.state.recharge_left_s is not None else {})},
          "next_condition": r.next_condition, "next_switch_m": _r(r.next_switch_m, 1),
          "target_speed_kmh": _r(r.target_speed_kmh, 2), "arrival_s": _r(r.arrival_s, 2),
          "planned_arrival_s": _r(r.planned_arrival_s, 2),
@@ -25,6 +27,9 @@ def replan_summary(r, route_name: str, train_name: str, tolerance_s: float, cycl
          "late_s": _r(r.late_s, 2), "on_time": bool(r.on_time),
          "remaining_energy_kwh": _r(r.remaining_energy_kwh), "remaining_optimum_kwh": _r(r.remaining_optimum_kwh),
          "plan": r.plan, "solve_time_s": _r(r.solve_time_s, 6)}
+    if r.air_events is not None:
+        d["air_events"] = [{"at_m": _r(x, 1), "t_s": _r(t, 2), "v_kmh": _r(v, 2), "kind": k}
+                           for x, t, v, k in r.air_events]
     if cycle_relaxed:
         d["air_brake"] = "a continuous force in the re-plan (its cycle, which binds on this line, is not tracked)"
     return d
@@ -58,6 +63,19 @@ def replan_lines(d: dict) -> list[str]:
         lines.append(f"remaining traction energy {d['remaining_energy_kwh']:.2f} kWh"
                      + (f" (the least on the DP's grid in the remaining time: {opt:.2f} kWh)" if opt is not None else ""))
         lines.append(f"plan: {d['plan']}")
+    if d.get("leg") is not None:
+        g = d["leg"]
+        lo, hi = g["stop_window_s"]
+        win = "" if lo is None and hi is None else (f" (its window {'..' if lo is None else f'{lo:,.1f}'} .. "
+                                                    f"{'' if hi is None else f'{hi:,.1f}'} s)")
+        lines.append(f"leg {g['leg']}: {g['from']} - {g['to']}, at {g['to']} {g['arrival_s']:,.1f} s{win}")
+        if d.get("next_stops"):
+            kept = ", ".join(f"{x['name']} {x['planned_arrival_s']:,.1f} s" for x in d["next_stops"][:4])
+            lines.append("next stops kept as planned: " + kept + (", ..." if len(d["next_stops"]) > 4 else ""))
+    if d.get("air_events") is not None:
+        ev = d["air_events"]
+        shown = ", ".join(f"{x['kind']} {x['at_m']:,.1f} m" for x in ev[:4]) + (", ..." if len(ev) > 4 else "")
+        lines.append("air brake: " + (shown if ev else "not applied before the stop"))
     if d.get("air_brake"):
         lines.append(f"note: the air brake is {d['air_brake']}")
     return lines

@@ -142,7 +142,7 @@ class ClosedLoop(_Advisor):
             self.announced += 1
             route = with_restriction(self.rp.route, r.from_m, r.to_m, r.kmh)
             self.rp = Replanner(route, self.rp.train, self.rp.options, planned_s=self.rp.planned_s,
-                                tolerance_s=self.rp.tolerance_s, prices=self.rp.prices)
+                                tolerance_s=self.rp.tolerance_s, prices=self.rp.prices, cycle=False)
             event = True
         if event or t >= self.next_t:
             self.next_t = t + self.every_s
@@ -327,7 +327,7 @@ def hindsight_estar(route: Route, train: Train, options: ModelOptions, d: Distur
 def drive(route: Route, train: Train, options: ModelOptions, d: Disturbance, *, planned_s: float, tolerance_s: float,
           every_s: float = 30.0, replanner: Replanner | None = None) -> DriveResult:
     """The three runs of the module docstring."""
-    rp = replanner or Replanner(route, train, options, planned_s=planned_s, tolerance_s=tolerance_s)
+    rp = replanner or Replanner(route, train, options, planned_s=planned_s, tolerance_s=tolerance_s, cycle=False)
     departure = rp.replan(TrainState(0.0, 0.0, 0.0))
     sim = TractionCalculator(real_route(route, d), real_train(train, d), options)
     open_run = run_train("open loop", sim, OpenLoop(departure), d, planned_s)

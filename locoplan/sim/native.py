@@ -65,6 +65,9 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
                        (CycleCells, Forces, _F, _A3, CycleTables)),
     "cycle_forward": ("locoplan.optimize.cycle_kernel", "cycle_forward", "UniTuple(f8, 3)",
                       (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A2, "i8[:]")),
+    "cycle_forward_from": ("locoplan.optimize.cycle_kernel", "cycle_forward_from", "UniTuple(f8, 3)",
+                           (CycleCells, Forces, _F, _A3, CycleTables, _F, _A3, CycleTables, _I, _I, _F, _F, _I, _F, _F,
+                            "i8[:]", "i8[:]", _A1, _A1, _A1, _A2, "i8[:]")),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
                       ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
                        "i8[:]", _A1, "i8[:]")),
@@ -170,7 +173,7 @@ class _Namespace:
 
 def kernels() -> _Namespace:
     """The compiled entry points (``run_plans``, ``braking_envelope``, ``stall_boundary``, ``backward``,
-    ``forward``, the cycle DP's ``cycle_prepare``, ``cycle_backward``, ``cycle_forward``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
+    ``forward``, the cycle DP's ``cycle_prepare``, ``cycle_backward``, ``cycle_forward``, ``cycle_forward_from``, ``band_assemble``, ``band_factor``, ``band_solve``, E*'s
     ``cell_values``, ``cell_derivatives``, ``cell_hessian`` and the interior-point method's ``ipm_*``)."""
     global _kernels
     if _kernels is None:
