@@ -302,26 +302,7 @@ class Replanner:
             t_i = pure(i)
             return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
 
-        # the lowest price whose drive arrives on time (time falls as the price rises): from the last re-plan's,
-        # galloping out, then bisection; lo = -1: every price's drive does, hi = P: none does
-        j = min(max(self._hint, 0), P - 1)
-        step = 1
-        if on_time(j):
-            hi, lo = j, j - 1
-            while lo >= 0 and on_time(lo):
-                hi, lo, step = lo, lo - step, 2 * step
-            lo = max(lo, -1)
-        else:
-            lo, hi = j, j + 1
-            while hi < P and not on_time(hi):
-                lo, hi, step = hi, hi + step, 2 * step
-            hi = min(hi, P)
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if on_time(mid):
-                hi = mid
-            else:
-                lo = mid
+        lo, hi = lowest_on_time(on_time, self._hint, P)
         m = n
         a = b = -1
         t_a = t_b = math.inf
@@ -402,24 +383,7 @@ class Replanner:
             t_i = pure(i)
             return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
 
-        j = min(max(self._hint, 0), P - 1)
-        step = 1
-        if on_time(j):
-            hi, lo = j, j - 1
-            while lo >= 0 and on_time(lo):
-                hi, lo, step = lo, lo - step, 2 * step
-            lo = max(lo, -1)
-        else:
-            lo, hi = j, j + 1
-            while hi < P and not on_time(hi):
-                lo, hi, step = hi, hi + step, 2 * step
-            hi = min(hi, P)
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if on_time(mid):
-                hi = mid
-            else:
-                lo = mid
+        lo, hi = lowest_on_time(on_time, self._hint, P)
         m = n
         if hi == P:
             first = second = P - 1
@@ -665,3 +629,28 @@ class CycleReplanner:
         where = self.solver._where(self.ev[:m, 0])
         return [(float(where[i]), t0_s + float(self.ev[i, 1]), float(self.ev[i, 2]), names[int(self.ev_k[i])])
                 for i in range(m)]
+
+
+def lowest_on_time(on_time, hint: int, n_prices: int) -> tuple[int, int]:
+    """The lowest price index whose drive arrives on time (time falls as the price rises), as the bracket
+    (lo, hi) with hi that index: from ``hint`` (the last re-plan's), galloping out, then bisection; lo = -1:
+    every price's drive does, hi = ``n_prices``: none does."""
+    j = min(max(hint, 0), n_prices - 1)
+    step = 1
+    if on_time(j):
+        hi, lo = j, j - 1
+        while lo >= 0 and on_time(lo):
+            hi, lo, step = lo, lo - step, 2 * step
+        lo = max(lo, -1)
+    else:
+        lo, hi = j, j + 1
+        while hi < n_prices and not on_time(hi):
+            lo, hi, step = hi, hi + step, 2 * step
+        hi = min(hi, n_prices)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if on_time(mid):
+            hi = mid
+        else:
+            lo = mid
+    return lo, hi
