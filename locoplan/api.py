@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterable, Optional
 
 from . import bounds
+from .runner import punctuality_tolerance  # noqa: F401  (the window of a re-plan: cli_replan)
 from .errors import InputError, LocoplanError, Problem
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
@@ -493,19 +494,6 @@ def replay(runs: list, options: ModelOptions, level_permille: float = 2.0,
 
 
 # ------------------------------------------------------------------------------------------ on board
-def punctuality_tolerance(route, t0_s: float, tolerance_s: Optional[float]) -> float:
-    """The window's half width [s]: as given, else the route's schedule tolerance, else 1 % of T0 (as ``optimize``)."""
-    from .runner import DEFAULT_TOLERANCE_SHARE
-
-    if tolerance_s is not None:
-        if tolerance_s >= t0_s:
-            raise InputError(Problem(CMDLINE, "--tolerance", f"{tolerance_s:g} s is not below the planned time {t0_s:g} s"))
-        return float(tolerance_s)
-    if route.schedule is not None and route.schedule.tolerance_s is not None:
-        return float(route.schedule.tolerance_s)
-    return max(1.0, DEFAULT_TOLERANCE_SHARE * t0_s)
-
-
 def replanner(route, train, options: ModelOptions, t0_s: float, tolerance_s: float):
     """The set-up of on-board re-planning (``optimize.replan.Replanner``): the DP's cost-to-go at a ladder of
     prices around T0's; InfeasibleError where the train cannot run the line."""

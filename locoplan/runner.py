@@ -383,3 +383,14 @@ def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) 
                                             else round(float(np.mean([x["gap_to_optimum_percent"] for x in s])), 2)),
         })
     return rows
+
+
+def punctuality_tolerance(route, t0_s: float, tolerance_s: float | None) -> float:
+    """The window's half width [s]: as given, else the route's schedule tolerance, else 1 % of T0 (as ``optimize``)."""
+    if tolerance_s is not None:
+        if tolerance_s >= t0_s:
+            raise InputError(Problem(bounds.CMDLINE, "--tolerance", f"{tolerance_s:g} s is not below the planned time {t0_s:g} s"))
+        return float(tolerance_s)
+    if route.schedule is not None and route.schedule.tolerance_s is not None:
+        return float(route.schedule.tolerance_s)
+    return max(1.0, DEFAULT_TOLERANCE_SHARE * t0_s)

@@ -210,7 +210,7 @@ def test_compare_gives_switching_points_as_posts(root, monkeypatch):
 
 
 def test_journey_tables_csv_and_json_give_posts(root, monkeypatch, tmp_path):
-    args = ["journey", "tests/data/journeys/posts-journey.yaml", "--consist", "HXD1-C80x30", "--strategies",
+    args = ["journey", "tests/data/posts/posts-journey.yaml", "--consist", "HXD1-C80x30", "--strategies",
             "four-stage", "--chainage", "plus", "--depart", "08:00", "--arrive", "08:11"]
     out = _run(root, monkeypatch, [*args, "--out", str(tmp_path / "j.csv"), "--plot-td", str(tmp_path / "j.png")])
     assert "km post" in out and "102+400" in out and "46+200" in out and "44+350" in out
@@ -294,7 +294,7 @@ def test_journey_diagram_shows_the_dwell(root, monkeypatch, tmp_path):
     drawn = {}
     monkeypatch.setattr(plot_td, "plot_time_distance",
                         lambda path, series, title, route, form, depart_s, places: drawn.update(series=series, places=places))
-    _run(root, monkeypatch, ["journey", "tests/data/journeys/posts-journey.yaml", "--consist", "HXD1-C80x30",
+    _run(root, monkeypatch, ["journey", "tests/data/posts/posts-journey.yaml", "--consist", "HXD1-C80x30",
                              "--strategies", "four-stage", "--plot-td", str(tmp_path / "td.png")])
     (label, s, t), = drawn["series"]
     s, t = np.array(s), np.array(t)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..runner import punctuality_tolerance
 from ..errors import InputError, Problem
 from ..model.journey import Journey
 from ..model.route import Route
@@ -65,11 +66,9 @@ class JourneyReplanner:
 
     def replanner(self, k: int) -> Replanner:
         if k not in self._rp:
-            from .. import api
-
             p = self.legs[k]
             t_leg = p.arrive_s - p.depart_s
-            tol = api.punctuality_tolerance(p.leg.route, t_leg, self.tolerance_arg)
+            tol = punctuality_tolerance(p.leg.route, t_leg, self.tolerance_arg)
             rp = Replanner(p.leg.route, self.train, self.options, planned_s=t_leg, tolerance_s=tol)
             self._rp[k] = rp
             self.setup_s += rp.setup_s
