@@ -298,11 +298,7 @@ class Replanner:
                 cache[i] = self._drive(k0, h0, g0, e0, prev, i, i, n)
             return cache[i][0]
 
-        def on_time(i: int) -> bool:
-            t_i = pure(i)
-            return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
-
-        lo, hi = lowest_on_time(on_time, self._hint, P)
+        lo, hi = lowest_on_time(pure, t_rem, self._hint, P)
         m = n
         a = b = -1
         t_a = t_b = math.inf
@@ -379,11 +375,7 @@ class Replanner:
                 cache[i] = run(i, i, n)
             return cache[i][0]
 
-        def on_time(i: int) -> bool:
-            t_i = pure(i)
-            return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
-
-        lo, hi = lowest_on_time(on_time, self._hint, P)
+        lo, hi = lowest_on_time(pure, t_rem, self._hint, P)
         m = n
         if hi == P:
             first = second = P - 1
@@ -631,10 +623,15 @@ class CycleReplanner:
                 for i in range(m)]
 
 
-def lowest_on_time(on_time, hint: int, n_prices: int) -> tuple[int, int]:
-    """The lowest price index whose drive arrives on time (time falls as the price rises), as the bracket
-    (lo, hi) with hi that index: from ``hint`` (the last re-plan's), galloping out, then bisection; lo = -1:
-    every price's drive does, hi = ``n_prices``: none does."""
+def lowest_on_time(time_of, t_rem: float, hint: int, n_prices: int) -> tuple[int, int]:
+    """The lowest price index whose drive (``time_of(i)``: its running time [s]) arrives within ``t_rem`` [s]
+    (time falls as the price rises), as the bracket (lo, hi) with hi that index: from ``hint`` (the last
+    re-plan's), galloping out, then bisection; lo = -1: every price's drive does, hi = ``n_prices``: none does."""
+
+    def on_time(i: int) -> bool:
+        t_i = time_of(i)
+        return math.isfinite(t_i) and t_i <= t_rem + ON_TIME_S
+
     j = min(max(hint, 0), n_prices - 1)
     step = 1
     if on_time(j):

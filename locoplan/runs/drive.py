@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import numpy as np
 
@@ -33,7 +34,7 @@ from ..model.train import Train
 from ..optimize.dp_kernel import _step
 from ..optimize.replan import Replan, Replanner, TrainState
 from ..physics.units import KJ_PER_KWH, kinetic_e, kmh_from_e
-from ..sim.calculator import ModelOptions, TractionCalculator
+from ..sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at
 from ..sim.kernel import brake_kn, load_kn
 
 CATCH_UP_KMH = 10.0
@@ -103,18 +104,17 @@ class RunTrace:
         return d
 
 
-class _Advisor:
+class _Advisor(Protocol):
     """What the driver is told at a state: (condition, the advised speed for K [km/h])."""
 
-    def advise(self, s: float, v: float, t: float, applied: str, event: bool) -> tuple[str, float]:
-        raise NotImplementedError
+    def advise(self, s: float, v: float, t: float, applied: str, event: bool) -> tuple[str, float]: ...
 
 
 def _plan_speed(plan: Replan, s: float) -> float:
     return float(np.interp(s, plan.s_m, plan.v_kmh))
 
 
-class OpenLoop(_Advisor):
+class OpenLoop:
     def __init__(self, plan: Replan):
         self.plan = plan
 
@@ -126,7 +126,7 @@ class OpenLoop(_Advisor):
         return u, target
 
 
-class ClosedLoop(_Advisor):
+class ClosedLoop:
     def __init__(self, replanner: Replanner, every_s: float, d: Disturbance, first: Replan):
         self.rp, self.every_s, self.d = replanner, float(every_s), d
         self.plan = first
@@ -149,8 +149,6 @@ class ClosedLoop(_Advisor):
             # the model's limits: a real train over them (its braking differs) is planned from the highest it allows
             env = float(np.interp(s, self.rp.calc.s_m, self.rp.calc.e_envelope))
             v_plan = min(v, float(kmh_from_e(max(env, 0.0))))
-            from ..sim.calculator import limit_kmh_at
-
             lim = float(min(limit_kmh_at(self.rp.route, s, self.rp.train.length_m if self.rp.options.strip else None),
                             self.rp.train.max_speed_kmh))
             v_plan = min(v_plan, lim)
