@@ -496,7 +496,10 @@ def cycle_solver(calc: TractionCalculator, cell_m: float, speed_step_kmh: float 
     key = (id(calc), float(cell_m), float(speed_step_kmh), bool(relaxed))
     solver = _SOLVERS.get(key)
     if solver is None or solver.owner is not calc:
-        solver = CycleDPSolver(grid_calculator(calc, cell_m), cell_m, speed_step_kmh, relaxed=relaxed)
+        # the relaxed DP runs in E*'s model (``ocp.bound.relaxed``: no cycle, so no braking envelope the cycle's
+        # recharge shapes either): its drives then differ from E*'s by the DP's grid alone, which the estimate cancels
+        base = TractionCalculator(calc.route, calc.train, replace(calc.options, air_cycle=False)) if relaxed else calc
+        solver = CycleDPSolver(grid_calculator(base, cell_m), cell_m, speed_step_kmh, relaxed=relaxed)
         solver.owner = calc  # (held: the key's id stays this calculator's while the solver is cached)
         _SOLVERS[key] = solver
         while len(_SOLVERS) > SOLVER_CACHE:
