@@ -61,6 +61,10 @@ def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: floa
             + w_energy * np.abs(energy_kwh - e_min_kwh) / energy_scale_kwh(e_min_kwh))
 
 
+E_MIN_RUN_M = 50.0
+"""The shortest run of the electric brake alone (E) [m]."""
+
+
 @dataclass
 class SwitchingProblem:
     """Box-bounded switching-point problem over one calculator; ``evaluate`` takes the whole population.
@@ -112,6 +116,10 @@ class SwitchingProblem:
             raise InputError(Problem("", "bounds", "a switching point's window is empty (upper < lower)"))
         if self.min_gap_m is None:
             self.min_gap_m = self.calc.train.length_m / 2
+        # each run's least length [m] (run j from switching point j - 1 to j: the condition ``conditions[j]``); an
+        # electric brake run (E) may be as short as ``E_MIN_RUN_M``
+        self.run_gaps_m = np.array([min(E_MIN_RUN_M, self.min_gap_m) if c == "E" else self.min_gap_m
+                                    for c in self.conditions[:max(self.n_switches, 1)]], dtype=float)
         if not np.isfinite(self.e_min_kwh):
             raise InputError(Problem("", "e_min_kwh", f"must be a finite number of kWh (got {self.e_min_kwh:g})"))
         # an on-time plan's eq. 10 is at most w1 (|T - T0| < T0) + w2 (E_max + |E_min|) / scale, with E_max the
@@ -180,10 +188,10 @@ class SwitchingProblem:
         if not n_sw:
             return X
         X[:, :n_sw] = np.sort(X[:, :n_sw], axis=1)
-        gap = self.min_gap_m
+        gap = self.run_gaps_m
         for j in range(1, n_sw):  # forward pass, then a backward pass against the upper bounds
-            X[:, j] = np.maximum(X[:, j], X[:, j - 1] + gap)
+            X[:, j] = np.maximum(X[:, j], X[:, j - 1] + gap[j])
         X[:, n_sw - 1] = np.minimum(X[:, n_sw - 1], self.upper[n_sw - 1])
         for j in range(n_sw - 2, -1, -1):
-            X[:, j] = np.minimum(X[:, j], X[:, j + 1] - gap)
+            X[:, j] = np.minimum(X[:, j], X[:, j + 1] - gap[j + 1])
         return np.clip(X, self.lower, self.upper)

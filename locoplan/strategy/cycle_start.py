@@ -201,11 +201,48 @@ def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float
     names = [_condition(int(u), int(a), bool(r), bool(c), bool(g < 0.0))
              for u, a, r, c, g in zip(drive.controls, drive.air, in_region, at_cap, load)]
     codes = np.array([CODE[c] for c in names], dtype=np.int64)
-    view = SimpleNamespace(s_m=drive.s_m, controls=codes, time_s=drive.time_s, energy_kwh=drive.energy_kwh,
-                           price_kwh_per_s=drive.price_kwh_per_s)
     if min_run_m is None:
         min_run_m = MIN_RUN_CELLS * float(np.max(np.diff(drive.s_m)))
+    codes = chatter_as_hold(drive.s_m, codes, min_run_m)
+    view = SimpleNamespace(s_m=drive.s_m, controls=codes, time_s=drive.time_s, energy_kwh=drive.energy_kwh,
+                           price_kwh_per_s=drive.price_kwh_per_s)
     return sequence_from_drive(calc, view, min_run_m=min_run_m)
+
+
+CHATTER_RUNS = 3
+"""``chatter_as_hold``: at least this many short runs in a row make a chatter."""
+
+
+def chatter_as_hold(s_m: np.ndarray, codes: np.ndarray, min_run_m: float) -> np.ndarray:
+    """Per-cell condition codes ``codes`` (cells between the nodes ``s_m``) with each chatter read as a hold (K): a
+    DP holds a speed its grid has no node for by alternating controls cell by cell (T, C, T, C up a climb: the
+    mean of the two is the partial force that holds the speed), and a plan that read each short run as its
+    predecessor's condition would coast up the climb. A chatter is ``CHATTER_RUNS`` or more runs in a row each
+    shorter than ``min_run_m`` [m], traction or holding among them and no braking (B, E); it becomes one run of K,
+    which holds the speed at which it begins."""
+    codes = np.asarray(codes).copy()
+    n = len(codes)
+    if n == 0:
+        return codes
+    cut = np.flatnonzero(np.diff(codes)) + 1
+    starts = np.concatenate([[0], cut])
+    ends = np.concatenate([cut, [n]])
+    short = (s_m[ends] - s_m[starts]) < min_run_m
+    drive = (CODE["T"], CODE["K"])
+    j = 0
+    while j < len(starts):
+        if not short[j]:
+            j += 1
+            continue
+        k = j
+        while k + 1 < len(starts) and short[k + 1]:
+            k += 1
+        seg = codes[starts[j]:ends[k]]
+        if (k - j + 1 >= CHATTER_RUNS and np.isin(seg, drive).any()
+                and not np.isin(seg, (CODE["B"], CODE["E"])).any()):
+            codes[starts[j]:ends[k]] = CODE["K"]
+        j = k + 1
+    return codes
 
 
 def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[float, float, float], ...]:

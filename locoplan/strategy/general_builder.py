@@ -98,10 +98,14 @@ def _with_windows(conditions, nominal: np.ndarray, gap: float, L: float, spread:
             nominal[j] = min(nominal[j], nominal[j + 1] - gap)
         nominal = np.maximum(nominal, 0.0)
     edges = np.concatenate([[0.0], nominal, [L]])
-    lower = edges[:-2] + gap
-    if len(nominal):
+    from ..optimize.problem import E_MIN_RUN_M
+    # each run's least length: ``gap``, an electric brake run (E) ``E_MIN_RUN_M``
+    g = np.array([min(E_MIN_RUN_M, gap) if c == "E" else gap for c in conditions], dtype=float)
+    n = len(nominal)
+    lower = edges[:-2] + g[:n]
+    if n:
         lower[0] = min(gap, 0.5 * nominal[0])  # the departure run may be short
-    upper = np.minimum(edges[2:] - gap, L - gap)
+    upper = np.minimum(edges[2:] - g[1:n + 1], L - gap)
     return DriveSequence(tuple(conditions), nominal, lower, np.maximum(upper, lower), drive.time_s, drive.energy_kwh,
                          drive.price_kwh_per_s)
 

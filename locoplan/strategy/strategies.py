@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import InfeasibleError
 from ..model.plan import Plan
 from ..optimize.base import NoFeasibleCandidateError, OptimizerParams
-from ..optimize.problem import MARGIN_MIN, SwitchingProblem
+from ..optimize.problem import E_MIN_RUN_M, MARGIN_MIN, SwitchingProblem
 from ..optimize.registry import default_params, get_algorithm
 from ..sim.calculator import TractionCalculator
 from ..sim.result import AIR_APPLIED, BatchResult
@@ -665,7 +665,7 @@ def _electric_braking(ctx: StrategyContext, found, common: dict):
         for end in ELECTRIC_TRIES_M[0]:
             for length in ELECTRIC_TRIES_M[1]:
                 b, a = x_app + end, x_app + end - length
-                if length < gap or a <= gap or b >= calc.route.length_m - gap:
+                if length < min(E_MIN_RUN_M, gap) or a <= gap or b >= calc.route.length_m - gap:
                     continue
                 got = _insert_run(conditions, nominal, "E", a, b)
                 if got is not None:
@@ -733,7 +733,7 @@ ELECTRIC_MIN_GAIN_S = 1.0
 the first (3 s on the heavy-haul line, where the best E runs saved 0.04 s), and a few hundredths of a second buy
 next to no energy."""
 ELECTRIC_EPISODE_M = 2000.0
-ELECTRIC_TRIES_M = ((-300.0, -150.0, -50.0, 0.0, 50.0), (100.0, 200.0, 400.0, 800.0))
+ELECTRIC_TRIES_M = ((-300.0, -150.0, -50.0, 0.0, 50.0), (25.0, 50.0, 100.0, 200.0, 400.0, 800.0))
 """``_electric_braking``: the applications it tries to avoid (the first of each episode, applications more than
 ``ELECTRIC_EPISODE_M`` apart; at most ``ELECTRIC_RUNS`` episodes), and each E run's end relative to the
 application's cell [m] and its length [m] (at least the shortest run)."""
