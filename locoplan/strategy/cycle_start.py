@@ -203,23 +203,27 @@ def drive_sequence(calc: TractionCalculator, drive: CycleDrive, min_run_m: float
     codes = np.array([CODE[c] for c in names], dtype=np.int64)
     if min_run_m is None:
         min_run_m = MIN_RUN_CELLS * float(np.max(np.diff(drive.s_m)))
-    codes = chatter_as_hold(drive.s_m, codes, min_run_m)
+    codes = chatter_as_hold(drive.s_m, codes, min_run_m, drive.speed_kmh)
     view = SimpleNamespace(s_m=drive.s_m, controls=codes, time_s=drive.time_s, energy_kwh=drive.energy_kwh,
                            price_kwh_per_s=drive.price_kwh_per_s)
     return sequence_from_drive(calc, view, min_run_m=min_run_m)
 
 
 CHATTER_RUNS = 3
-"""``chatter_as_hold``: at least this many short runs in a row make a chatter."""
+CHATTER_KMH = 3.0
+"""``chatter_as_hold``: at least this many short runs in a row make a chatter, read as a hold where the speed gains
+no more than this over it [km/h]."""
 
 
-def chatter_as_hold(s_m: np.ndarray, codes: np.ndarray, min_run_m: float) -> np.ndarray:
+def chatter_as_hold(s_m: np.ndarray, codes: np.ndarray, min_run_m: float, v_kmh: np.ndarray) -> np.ndarray:
     """Per-cell condition codes ``codes`` (cells between the nodes ``s_m``) with each chatter read as a hold (K): a
     DP holds a speed its grid has no node for by alternating controls cell by cell (T, C, T, C up a climb: the
     mean of the two is the partial force that holds the speed), and a plan that read each short run as its
     predecessor's condition would coast up the climb. A chatter is ``CHATTER_RUNS`` or more runs in a row each
-    shorter than ``min_run_m`` [m], traction or holding among them and no braking (B, E); it becomes one run of K,
-    which holds the speed at which it begins."""
+    shorter than ``min_run_m`` [m], traction or holding among them and no braking (B, E), over which the speed
+    (``v_kmh`` at the nodes) gains no more than ``CHATTER_KMH``; it becomes one run of K, which holds the speed at
+    which it begins (a chatter that gains more, a partial force accelerating the train, would be held too slow: it
+    is left to the runs' own reading)."""
     codes = np.asarray(codes).copy()
     n = len(codes)
     if n == 0:
@@ -239,7 +243,8 @@ def chatter_as_hold(s_m: np.ndarray, codes: np.ndarray, min_run_m: float) -> np.
             k += 1
         seg = codes[starts[j]:ends[k]]
         if (k - j + 1 >= CHATTER_RUNS and np.isin(seg, drive).any()
-                and not np.isin(seg, (CODE["B"], CODE["E"])).any()):
+                and not np.isin(seg, (CODE["B"], CODE["E"])).any()
+                and float(v_kmh[ends[k]]) - float(v_kmh[starts[j]]) <= CHATTER_KMH):
             codes[starts[j]:ends[k]] = CODE["K"]
         j = k + 1
     return codes
