@@ -8,6 +8,7 @@ from scipy.integrate import solve_ivp
 
 from locoplan.io.load import load_route, load_train
 from locoplan.model.plan import parse_sequence
+from locoplan.optimize.problem import E_MIN_RUN_M
 from locoplan.physics.resistance import train_resistance_kn
 from locoplan.physics.traction import max_force_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
@@ -96,7 +97,10 @@ def test_the_proposed_plan_brakes_on_the_electric_brake_before_a_drop(root):
     speed the electric brake cannot follow, so the air brake applies and its least hold leaves the train about
     5 km/h under the new limit: the plan that waits for the curve was 94.5 kWh, 4.4 % over the optimum with the
     cycle. The proposed plan brakes on the electric brake alone (E) before the drop; each of its E runs, coasted
-    instead, runs slower (it is what saves the time), and the plan lies within 2 % of the cycle optimum."""
+    instead, runs slower (it is what saves the time), and the plan lies within 1 % of the cycle optimum. An E run
+    of the shortest run of other conditions (100 m) brakes the train some 3 km/h under the new limit where a touch of
+    the brake is all it needs: E runs may be as short as ``E_MIN_RUN_M`` (50 m), and the plan's is shorter than
+    100 m (with E runs of at least 100 m the plan lay 1.3 % over the cycle optimum)."""
     from locoplan.runner import make_context, run_strategy, schedule_verdict
 
     route = load_route(root / "tests/data/routes/falling-drops-37km.yaml")
@@ -118,4 +122,7 @@ def test_the_proposed_plan_brakes_on_the_electric_brake_before_a_drop(root):
         assert not alt.feasible[0] or alt.running_time_s[0] > res.running_time_s[0] + 1.0, (j, plan.text())
     co = s["optimum_with_cycle_kwh"]
     assert co is not None and s["optimum_kwh"] <= co
-    assert s["traction_energy_kwh"] <= 1.02 * co, (s["traction_energy_kwh"], co)
+    assert s["traction_energy_kwh"] <= 1.01 * co, (s["traction_energy_kwh"], co)
+    starts = [*plan.starts_m[1:]]
+    runs = [b - a for c, a, b in zip(plan.conditions, plan.starts_m, starts) if c == "E"]
+    assert runs and min(runs) >= E_MIN_RUN_M - 1e-6 and min(runs) < 100.0, plan.text()

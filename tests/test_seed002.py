@@ -94,6 +94,21 @@ def test_problem_repair_keeps_order_spacing_and_windows(freight):
     assert np.all(X >= prob.lower - 1e-9) and np.all(X <= prob.upper + 1e-9)
 
 
+def test_repair_lets_an_electric_brake_run_be_shorter(freight):
+    """Each run keeps the least spacing, but a run of the electric brake alone (E) only ``E_MIN_RUN_M``: a touch of
+    the electric brake before a lower limit."""
+    from locoplan.optimize.problem import E_MIN_RUN_M
+
+    route, train = freight
+    calc = TractionCalculator(route, train, ModelOptions(step_m=100))
+    conds = ("T", "C", "E", "C", "K", "B")
+    prob = SwitchingProblem(calc, conds, np.full(4, 0.0), np.full(4, 20000.0), t0_s=1500, e_min_kwh=580, min_gap_m=100.0)
+    X = prob.repair(np.array([[5000.0, 5010.0, 5020.0, 5030.0]]))
+    runs = np.diff(X[0])  # the runs of C, E and C between the switching points
+    assert runs[1] == pytest.approx(E_MIN_RUN_M) and runs[0] >= 100.0 - 1e-9 and runs[2] >= 100.0 - 1e-9
+    assert E_MIN_RUN_M < 100.0
+
+
 def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
     """With --strict-limits most random plans break a limit; the optimiser replaces them (seed 002
     section 3.2 step 5) and returns a feasible best."""
