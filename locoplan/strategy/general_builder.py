@@ -154,11 +154,11 @@ speed is full traction, T (full braking, B)."""
 FORCE_SHARE = 0.02
 """A force under this share of the consist's largest effort is none: the cell coasts (C)."""
 CAP_KMH = 0.3
+"""A cell whose two nodes are within this of the braking envelope [km/h] is held at a limit or follows a
+braking curve: whatever the plan's condition there, the calculator holds the train on the envelope."""
 HELD_SHARE = 0.1
 """A cell of the optimum with a partial force holds a speed where its net force is under this share of that
 force (or ``FORCE_SHARE`` of the largest effort): the grid's optimum holds a speed to within a few kN."""
-"""A cell whose two nodes are within this of the braking envelope [km/h] is held at a limit or follows a
-braking curve: whatever the plan's condition there, the calculator holds the train on the envelope."""
 
 
 @dataclass(frozen=True)
@@ -170,8 +170,6 @@ class _Drive:
     time_s: float
     energy_kwh: float
     price_kwh_per_s: float
-
-
 
 
 def optimum_controls(grid: TractionCalculator, sol) -> np.ndarray:
