@@ -704,7 +704,8 @@ def _without_idle_electric(ctx: StrategyContext, found, common: dict, drive):
     conds, sw, margins = list(seq.conditions), list(np.asarray(x, dtype=float)[:problem.n_switches]), \
         np.asarray(x, dtype=float)[problem.n_switches:]
     plan = _plan(conds, x, problem)
-    base = calc.evaluate(plan.conditions, plan.switches_m, **plan.cycle_kwargs())
+    net = ctx.objective == "net"  # (the net energy needs the recovered energy)
+    base = calc.evaluate(plan.conditions, plan.switches_m, recovered=net, **plan.cycle_kwargs())
     changed = False
     for j in range(n - 1, 0, -1):
         if conds[j] != "E" or j + 1 >= len(conds) - 1 or conds[j - 1] != conds[j + 1]:
@@ -712,7 +713,7 @@ def _without_idle_electric(ctx: StrategyContext, found, common: dict, drive):
         c2 = conds[:j] + conds[j + 2:]
         s2 = sw[:j - 1] + sw[j + 1:]
         trial = Plan(tuple(c2), (0.0, *s2, float("nan")), plan.release_margins)
-        r = calc.evaluate(trial.conditions, trial.switches_m, **trial.cycle_kwargs())
+        r = calc.evaluate(trial.conditions, trial.switches_m, recovered=net, **trial.cycle_kwargs())
         t = float(r.running_time_s[0])
         on_time = not ctx.tolerance_s or abs(t - ctx.t0_s) <= ctx.tolerance_s
         if r.feasible[0] and on_time and float(r.energy_kwh(ctx.objective)[0]) <= float(base.energy_kwh(ctx.objective)[0]) + 1e-9:
