@@ -136,6 +136,11 @@ class _Checked:
     def __init__(self, name: str, fn, arg_types: tuple):
         self.name, self.fn = name, fn
         self.spec = [self._spec(a) for a in arg_types]
+        self._checked: dict[int, tuple] = {}  # id -> (record, its checked copy): the records last passed
+
+    RECORDS_KEPT = 16
+    """Records (immutable tuples of arrays) checked once and kept, with a reference so that their ids stay theirs:
+    a re-planner passes the same cells, forces and tables to thousands of calls."""
 
     @classmethod
     def _spec(cls, a):
@@ -152,9 +157,16 @@ class _Checked:
     def _convert(self, a, spec, where: str):
         kind, rank = spec
         if isinstance(rank, list):  # a record
+            kept = self._checked.get(id(a))
+            if kept is not None and kept[0] is a:
+                return kept[1]
             if type(a) is not kind:
                 raise TypeError(f"{self.name}: {where} must be a {kind.__name__}, not {type(a).__name__}")
-            return kind(*(self._convert(x, s, f"{where}.{f}") for x, s, f in zip(a, rank, kind._fields)))
+            out = kind(*(self._convert(x, s, f"{where}.{f}") for x, s, f in zip(a, rank, kind._fields)))
+            if len(self._checked) >= self.RECORDS_KEPT:
+                self._checked.pop(next(iter(self._checked)))
+            self._checked[id(a)] = (a, out)
+            return out
         if rank:
             if not (isinstance(a, np.ndarray) and a.dtype == kind and a.ndim == rank and a.flags.c_contiguous
                     and a.flags.aligned):
