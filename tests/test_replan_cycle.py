@@ -190,3 +190,34 @@ def test_a_replan_inside_a_journeys_leg_keeps_the_next_stops():
     d = json.loads(res.stdout)
     assert res.exit_code == 0 and d["leg"]["leg"] == k + 1
     assert d["arrival_s"] == pytest.approx(clock[k], abs=max(d["window_s"][1] - clock[k], 0.5))
+
+
+@pytest.mark.parametrize("line", list(LINES))
+def test_a_switch_probed_from_a_nodes_state_is_the_whole_drive(line):
+    """A re-plan places the switch from the faster price to the slower by probing drives that go on from the faster
+    drive's state at a node it decides at (``CycleReplanner.drive_on``): each probe's arrival equals that of the
+    whole drive with the switch at that node, run from the train's state (to 1e-6 s), at every such node tried, from
+    states along and beside the departure drive, in every air state the drive has there."""
+    r, train, opts, rp, plan = _setup(line)
+    cy = rp.cyc
+    n, P = cy.n, len(rp.prices)
+    rng = np.random.default_rng(3)
+    checked = 0
+    for i in rng.choice(len(plan.s_m) - 1, size=8, replace=False):
+        st = TrainState(float(plan.s_m[i]), 0.95 * float(plan.v_kmh[i]), float(plan.t_s[i]), None,
+                        *_air_at(plan, float(plan.t_s[i]), cy.t_rec))
+        k0 = min(max(int(np.searchsorted(cy.s_nodes, st.s_m, side="right")) - 1, 0), n - 1)
+        x0 = max(float(st.s_m - cy.s_nodes[k0]), 0.0)
+        e0 = (st.v_kmh / 3.6) ** 2 / 2
+        s0, tau0 = cy.air_state(st)
+        hi = int(rng.integers(1, P))
+        if not np.isfinite(cy.drive(k0, x0, e0, s0, tau0, hi, hi, n)[0]):
+            continue
+        t_fast, nodes = cy.t.copy(), cy.nodes.copy()
+        decides = np.flatnonzero(nodes[k0 + 1:n, 0] >= 0.0) + k0 + 1
+        for k in rng.choice(decides, size=min(3, len(decides)), replace=False):
+            t_on, w_on = cy.drive_on(int(k), (nodes[k], t_fast[k]), hi - 1)
+            whole = cy.drive(k0, x0, e0, s0, tau0, hi, hi - 1, int(k))[0]
+            assert t_fast[k] + t_on == pytest.approx(whole, abs=1e-6) or not (np.isfinite(t_on) or np.isfinite(whole))
+            checked += 1
+    assert checked >= 12

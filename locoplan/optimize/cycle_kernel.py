@@ -998,13 +998,14 @@ def cycle_forward(cc, fo, price, V, tb, controls, air, v_nodes, t_nodes, ev, ev_
     work [kJ], the number of events); time inf when no drive reaches the stop."""
     s0 = CH if cc.zone[0] != 0 and not cc.relaxed else NA
     w_nodes = np.empty(cc.h.shape[0] + 1)
-    return _forward(cc, fo, price, V, tb, price, V, tb, cc.h.shape[0], 0, 0.0, 0.0, s0, 0.0, 0.0, controls, air,
-                    v_nodes, t_nodes, w_nodes, ev, ev_k)
+    nodes = np.empty((cc.h.shape[0] + 1, 4))
+    return _forward(cc, fo, price, V, tb, price, V, tb, cc.h.shape[0], 0, 0.0, 0.0, s0, 0.0, 0.0, 0, controls, air,
+                    v_nodes, t_nodes, w_nodes, nodes, ev, ev_k)
 
 
 @njit(cache=True)
-def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
-                       v_nodes, t_nodes, w_nodes, ev, ev_k):
+def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, at_node, controls,
+                       air, v_nodes, t_nodes, w_nodes, nodes, ev, ev_k):
     """The drive from a train's state (on-board re-planning): ``x0`` [m] into cell ``k0`` at e0 = v^2/2, in air state
     ``s0`` (``CH`` charged, ``AF`` applied, ``R0`` recharging ``tau0`` [s] since its release; outside a zone any of
     them is ``NA``), an applied brake held at least ``hold0`` [s] more (its least hold); at the nodes before ``m``
@@ -1013,9 +1014,13 @@ def cycle_forward_from(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, 
     step under one control (``_to_node`` over the rest: from a charged brake, an application at the state is one,
     held its least hold on). As ``cycle_forward`` otherwise, times and work from the state; ``v_nodes``,
     ``t_nodes`` [k] for k > k0, ``controls``, ``air`` [k] for k >= k0; ``w_nodes`` [k] the traction work [kJ] from
-    the state to node k where a step or a path ends there (the nodes a path passes keep what they held)."""
-    return _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, controls, air,
-                    v_nodes, t_nodes, w_nodes, ev, ev_k)
+    the state to node k where a step or a path ends there (the nodes a path passes keep what they held).
+    ``nodes`` [k] the drive's state at each node where it decides (not inside a path): (air state, time since a
+    release [s], the applied brake's least hold ends at [s], e), the air state -1 at the other nodes. ``at_node`` 1:
+    the state (``x0`` 0) is one a drive decided at (``nodes``' row of node ``k0``, the hold's end relative to it):
+    the drive goes on from it as that drive would have (a re-plan's probe of a switch at node ``k0``)."""
+    return _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m, k0, x0, e0, s0, tau0, hold0, at_node, controls, air,
+                    v_nodes, t_nodes, w_nodes, nodes, ev, ev_k)
 
 
 @njit(cache=True, _nrt=False)
@@ -1117,8 +1122,8 @@ def _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, rec, controls, air, v_no
 
 
 @njit(cache=True)
-def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0, tau0, hold0, controls, air, v_nodes,
-             t_nodes, w_nodes, ev, ev_k):
+def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0, tau0, hold0, at_node, controls, air,
+             v_nodes, t_nodes, w_nodes, nodes, ev, ev_k):
     """``cycle_forward`` and ``cycle_forward_from``'s loop."""
     n = cc.h.shape[0]
     none_i = np.zeros(1, dtype=np.int64)
@@ -1147,11 +1152,13 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
     k = k0
     o = -3  # (the first step: -3 none taken here, -2 the recharge held on)
     e1, w1, dt1, s1, tau1, hold1, c1 = 0.0, 0.0, 0.0, NA, 0.0, hold0, np.inf
-    if cc.relaxed or (k < n and cc.zone[k] == 0):
+    for j in range(k0, n + 1):
+        nodes[j, 0] = -1.0
+    if at_node == 0 and (cc.relaxed or (k < n and cc.zone[k] == 0)):
         s = NA
-    if k < n and s == R0 and tau >= cc.t_rec - 1e-9:
+    if at_node == 0 and k < n and s == R0 and tau >= cc.t_rec - 1e-9:
         s = CH
-    if k < n and (x0 > 0.0 or s == R0):
+    if at_node == 0 and k < n and (x0 > 0.0 or s == R0):
         price, V, tb = (price1, V1, tb1) if k < m_switch else (price2, V2, tb2)
         o, e1, w1, dt1, s1, tau1, hold1, c1 = _first_part(cc, fo, price, V, tb, k, x0, e, s, tau, t, hold_until)
         if s == R0:  # (or the recharge held on to its end: a state inside a recharge path)
@@ -1194,6 +1201,10 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
             s = NA
     while k < n:
         price, V, tb = (price1, V1, tb1) if k < m_switch else (price2, V2, tb2)
+        nodes[k, 0] = float(s)
+        nodes[k, 1] = tau
+        nodes[k, 2] = hold_until
+        nodes[k, 3] = e
         if cc.relaxed or cc.zone[k] == 0:
             s = NA
         elif s == NA and _zone_start(k, cc):

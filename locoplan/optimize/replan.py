@@ -64,6 +64,7 @@ of cell times: the search stops at the first drive within it)."""
 CLOSE_S = 0.3
 """A drive arriving no more than this [s] before the planned arrival is close enough (the search for the switch
 node stops there)."""
+
 SPLIT_SHARES = 8
 SPLIT_BISECT = 5
 """A switch inside a cell: tried at ``1 / SPLIT_SHARES`` .. of the cell, then refined by ``SPLIT_BISECT`` halvings."""
@@ -370,9 +371,12 @@ class Replanner:
         def run(first: int, second: int, m: int) -> tuple[float, float]:
             return cy.drive(k0, x0, e0, s0, tau0, first, second, m)[:2]
 
+        kept: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # per price: its drive's node times and states
+
         def pure(i: int) -> float:
             if i not in cache:
                 cache[i] = run(i, i, n)
+                kept[i] = (cy.t.copy(), cy.nodes.copy())
             return cache[i][0]
 
         lo, hi = lowest_on_time(pure, t_rem, self._hint, P)
@@ -388,16 +392,27 @@ class Replanner:
             self._hint = hi
             first, second = hi, lo
             if math.isfinite(pure(lo)) and pure(hi) < t_rem - CLOSE_S:
-                a, b = k0, n  # m = a: the slower price's drive (late); m = b: the faster one's (on time)
+                # the faster price's drive (kept), with its state at each node it decides at; a switch at such a node
+                # is that drive to it and the slower price's on from its state there (a switch inside a path acts
+                # at the path's end): bisected over those nodes, each probe a pass over the rest of the line alone
+                t_fast, nodes = kept[hi]
+                decides = np.flatnonzero(nodes[k0 + 1:n, 0] >= 0.0) + k0 + 1
+                rows = nodes[decides]
+
+                def switched(j: int) -> float:
+                    t_on = cy.drive_on(int(decides[j]), (rows[j], t_fast[decides[j]]), lo)[0]
+                    return t_fast[decides[j]] + t_on if math.isfinite(t_on) else math.inf
+
+                a, b = -1, len(decides)  # j = a: the slower price's drive (late); j = b: the faster one's (on time)
                 t_b = pure(hi)
                 while b - a > 1 and t_b < t_rem - CLOSE_S:
                     mid = (a + b) // 2
-                    t_mid = run(hi, lo, mid)[0]
+                    t_mid = switched(mid)
                     if math.isfinite(t_mid) and t_mid <= t_rem + ON_TIME_S:
                         b, t_b = mid, t_mid
                     else:
                         a = mid
-                m = b
+                m = int(decides[b]) if b < len(decides) else n
         bound = self._optimum({i: cache[i] for i in (first, second) if i in cache}, t_rem) if hi < P else None
         t, w, n_ev = cy.drive(k0, x0, e0, s0, tau0, first, second, m)
         if not math.isfinite(t):
@@ -570,6 +585,7 @@ class CycleReplanner:
         self.v = np.zeros(n + 1)
         self.t = np.zeros(n + 1)
         self.w = np.zeros(n + 1)
+        self.nodes = np.zeros((n + 1, 4))
         self.ev = np.zeros((4 * n + 16, 3))
         self.ev_k = np.zeros(4 * n + 16, dtype=np.int64)
 
@@ -608,9 +624,21 @@ class CycleReplanner:
         self.w.fill(np.nan)
         t, w, n_ev = kernels().cycle_forward_from(sv.cells, sv.calc.forces, float(self.prices[first]), self.V[first],
                                                   self.tables[first], float(self.prices[second]), self.V[second],
-                                                  self.tables[second], m, k0, x0, e0, s0, tau0, 0.0, self.controls,
-                                                  self.air, self.v, self.t, self.w, self.ev, self.ev_k)
+                                                  self.tables[second], m, k0, x0, e0, s0, tau0, 0.0, 0, self.controls,
+                                                  self.air, self.v, self.t, self.w, self.nodes, self.ev, self.ev_k)
         return float(t), float(w), n_ev
+
+    def drive_on(self, k: int, state, price: int) -> tuple[float, float]:
+        """The drive at price index ``price`` on from node ``k`` in the state another drive decided at there
+        (``state``: its row of ``nodes`` and its time at k [s]): (time [s], traction work [kJ]) from node k."""
+        sv = self.solver
+        (s, tau, hold, e), t_k = state
+        self.w.fill(np.nan)
+        p, V, tb = float(self.prices[price]), self.V[price], self.tables[price]
+        t, w, _ = kernels().cycle_forward_from(sv.cells, sv.calc.forces, p, V, tb, p, V, tb, k, k, 0.0, float(e),
+                                               int(s), float(tau), float(hold - t_k), 1, self.controls, self.air,
+                                               self.v, self.t, self.w, self.nodes, self.ev, self.ev_k)
+        return float(t), float(w)
 
     def events(self, n_ev: int, t0_s: float) -> list:
         """The last drive's air brake events as (position [m], clock [s], speed [km/h], kind)."""

@@ -67,7 +67,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
                       (CycleCells, Forces, _F, _A3, CycleTables, "i8[:]", "i8[:]", _A1, _A1, _A2, "i8[:]")),
     "cycle_forward_from": ("locoplan.optimize.cycle_kernel", "cycle_forward_from", "UniTuple(f8, 3)",
                            (CycleCells, Forces, _F, _A3, CycleTables, _F, _A3, CycleTables, _I, _I, _F, _F, _I, _F, _F,
-                            "i8[:]", "i8[:]", _A1, _A1, _A1, _A2, "i8[:]")),
+                            _I, "i8[:]", "i8[:]", _A1, _A1, _A1, _A2, _A2, "i8[:]")),
     "band_assemble": ("locoplan.ocp.band_kernel", "band_assemble", "void",
                       ("f8[:, :]", _I, "i8[:, :]", "f8[:, :, :]", "f8[:, :, :]", "f8[:, :]", "f8[:, :]", "i8[:]", _A1,
                        "i8[:]", _A1, "i8[:]")),
