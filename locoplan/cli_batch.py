@@ -54,6 +54,20 @@ def _progress_printer(err, enabled: bool, label: str = "batch runs"):
     return line, lambda: None
 
 
+def _note_two_contents(err, rows: list[dict]) -> None:
+    """Say each name that covered two contents among ``rows`` (``runs.results.two_contents``): the summary shows
+    them apart, each as NAME @ HASH."""
+    from rich.markup import escape
+
+    from .runs.results import two_contents
+
+    for (field, name), shas in two_contents(rows).items():
+        apart = ", ".join(f"'{name} @ {h[:8]}'" for h in shas)
+        text = (f"{field} {name!r} names {len(shas)} different contents among these runs (a file edited between "
+                f"batches, or two files of one name): summarised apart as {apart}")
+        err.print(f"[bold yellow]note:[/] {escape(text)}", highlight=False, markup=True, soft_wrap=True)
+
+
 def _warn_damaged(err, store, then: str, limit: int = 10) -> None:
     """Name each damaged record of ``store`` (its key, what is wrong) and what was done about it; at most
     ``limit`` lines, then how many more."""
@@ -113,6 +127,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
         rows = rows_of(result.records)
         by = default_by(rows)
         show(out, store_summary_table(summarize_rows(rows, by), by, f"{study_file}: {n} runs", out.width))
+        _note_two_contents(err, rows)
         out.print(f"{n} runs: {result.reused} from the store, {ran} run now on {executor.workers} "
                   f"{executor.name} worker{'s' if executor.workers != 1 else ''} in {wall:.1f} s"
                   + (f" ({ran / wall:.2f} runs/s)" if ran else "") + f"; {len(result.failures)} fail their job "
@@ -157,6 +172,8 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
         if rows:
             api.check_fields(group, fields, "by")
         summary = summarize_rows(rows, group) if fmt is None else []
+        if fmt is None:
+            _note_two_contents(err, rows)
 
         def again():  # the second pass: the rows of the first (up to its last row id), a row at a time
             return iter_rows(store.iter_records(upto=store.last_rowid), where)

@@ -373,3 +373,31 @@ def test_results_exports_are_written_a_row_at_a_time_as_made_whole(filled_store,
     export_to_file(iter(rows), shape, tmp_path / "r.parquet")
     whole = pa.table({c: [_flat(clean(r.get(c))) for r in rows] for c in shape.columns})
     assert pq.read_table(tmp_path / "r.parquet").equals(whole)
+
+
+def test_a_route_edited_between_batches_is_summarised_apart(tmp_path):
+    """Runs are grouped by what they ran, not by its name: a route file edited between two batches into one store
+    (a limit lowered) gives two groups, each named with its content hash, and a note says why; the store keeps
+    every run (one per content), and the unedited route's summary has no such note."""
+    route = tmp_path / "line.yaml"
+    text = ROUTE.read_text()
+    route.write_text(text)
+    study = tmp_path / "study.yaml"
+    study.write_text(f"schema: locoplan/study@1\nroutes: [{route}]\nconsists: [HXD1-C80x30]\ntimes: [1.2x]\n"
+                     "algorithms: [issa]\nseeds: [1]\n")
+    store = tmp_path / "runs.sqlite"
+    first = cli.invoke(app, ["batch", str(study), "--store", str(store), "--workers", "1", "--quiet"])
+    assert first.exit_code == 0, first.output
+    assert "different contents" not in first.stderr
+    lowered = text.replace("kmh: 80", "kmh: 70", 1)
+    assert lowered != text  # the premise: the line has an 80 km/h limit to lower
+    route.write_text(lowered)
+    second = cli.invoke(app, ["batch", str(study), "--store", str(store), "--workers", "1", "--quiet"])
+    assert second.exit_code == 0, second.output
+    res = cli.invoke(app, ["results", str(store), "--json"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)["summary"]
+    assert len(summary) == 2 and all(g["runs"] == 1 for g in summary)
+    names = sorted(g["route"] for g in summary)
+    assert names[0] != names[1] and all(" @ " in n for n in names)
+    assert "names 2 different contents" in " ".join(res.stderr.split())

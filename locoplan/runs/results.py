@@ -121,7 +121,8 @@ def rows_of(records, where: list[str] | None = None) -> list[dict]:
     return rows
 
 
-SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent", *JOURNEY_BY)
+SUMMARY_FIELDS = ("feasible", "punctual", "traction_energy_kwh", "running_time_s", "gap_to_optimum_percent", *JOURNEY_BY,
+                  "kind", "route", "consist", "route_sha", "consist_sha")
 """The fields :func:`summarize_rows` reads besides its ``by`` fields."""
 
 PLOT_FIELDS = ("feasible", "route", "journey", "consist", "planned_time_s", "strategy", "algorithm", "running_time_s",
@@ -333,14 +334,41 @@ def _group_order(key: tuple) -> tuple:
     return tuple((x is None, not isinstance(x, (int, float)), x if isinstance(x, (int, float)) else str(x)) for x in key)
 
 
+CONTENT_OF = {"route": "route_sha", "journey": "route_sha", "consist": "consist_sha"}
+"""The fields that name an input, and the field holding the content hash of what they named in each run."""
+
+
+def two_contents(rows: list[dict]) -> dict[tuple[str, str], list[str]]:
+    """The names that covered more than one content among ``rows`` (a route edited between two batches, two files
+    of one name): {(field, name): [content hashes]} (runs stored before contents were recorded count as one
+    content of their own only where no other is known)."""
+    seen: dict[tuple[str, str], set] = {}
+    for r in rows:
+        for f, sha in CONTENT_OF.items():
+            if r.get(f) is not None and r.get(sha) is not None and (f != "route" or r.get("kind", "route") == "route"):
+                seen.setdefault((f, str(r[f])), set()).add(r[sha])
+    return {k: sorted(v) for k, v in seen.items() if len(v) > 1}
+
+
 def summarize_rows(rows: list[dict], by: list[str] | None = None) -> list[dict]:
     """One row per group of ``by`` fields (None: :func:`default_by`): runs, feasible and punctual runs, energy mean / best / sd,
     time mean / sd (over the feasible runs), and the gap to the optimum (mean, best) where the records
-    have one (``gap_to_optimum_percent``; none until an optimum is known)."""
+    have one (``gap_to_optimum_percent``; none until an optimum is known). Runs are grouped by what they ran, not
+    by its name: where a route, journey or consist name covered two contents (``two_contents``), each content is a
+    group of its own, named ``NAME @ HASH`` (the first 8 digits of its content hash)."""
     by = default_by(rows) if by is None else by
+    split = two_contents(rows)
+
+    def value(r: dict, k: str):
+        v = r.get(k)
+        sha = CONTENT_OF.get(k)
+        if sha is not None and v is not None and (k, str(v)) in split:
+            return f"{v} @ {str(r.get(sha))[:8]}"
+        return v
+
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        groups.setdefault(tuple(r.get(k) for k in by), []).append(r)
+        groups.setdefault(tuple(value(r, k) for k in by), []).append(r)
     out = []
     for key in sorted(groups, key=_group_order):
         rs = groups[key]

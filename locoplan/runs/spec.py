@@ -361,8 +361,9 @@ class RunRecord:
         tags = self.spec.get("tags") or {}
         journey = {"journey_file": self.spec["journey"]} if self.spec.get("journey") else {}
         return {**self.summary, "kind": self.summary.get("kind", "route"), "key": self.key,
-                "route_file": self.spec.get("route"), **journey,
-                "consist_file": self.spec.get("consist"), "time_spec": tags.get("time"),
+                "route_file": self.spec.get("route"), **journey, "route_sha": self.spec.get("route_sha"),
+                "consist_file": self.spec.get("consist"), "consist_sha": self.spec.get("consist_sha"),
+                "time_spec": tags.get("time"),
                 "verdict": self.verdict, "wall_time_s": self.wall_time_s, "cpu_time_s": self.cpu_time_s, "worker": self.worker,
                 "locoplan_version": self.versions.get("locoplan")}
 
@@ -466,8 +467,18 @@ def execute(task: Task) -> RunRecord:
         verdict = schedule_verdict(ctx, run, strict=spec.strict)
         if task.keep_profile:
             profile, history = run.result.profile, run.outcome.history
-    return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
+    return RunRecord(task.key, summary, _spec_dict(task), verdict, round(time.perf_counter() - t, 4), versions(),
                      _worker_name(), profile, history, round(time.process_time() - cpu, 4))
+
+
+def _spec_dict(task: Task) -> dict:
+    """The record's spec: the spec as written, with the content hashes of the route (or the journey's line) and the
+    train it ran (``route_sha``, ``consist_sha``, 12 hex digits): a name or a path may cover two contents."""
+    return {**task.spec.to_dict(), "route_sha": task.route_hash[:CONTENT_DIGITS],
+            "consist_sha": task.train_hash[:CONTENT_DIGITS]}
+
+
+CONTENT_DIGITS = 12
 
 
 def execute_journey(task: Task) -> RunRecord:
@@ -490,7 +501,7 @@ def execute_journey(task: Task) -> RunRecord:
     else:
         summary = journey_run_summary(result, task.journey, spec.strategy)
         verdict = "; ".join(dict.fromkeys(result.failures)) or None
-    return RunRecord(task.key, summary, spec.to_dict(), verdict, round(time.perf_counter() - t, 4), versions(),
+    return RunRecord(task.key, summary, _spec_dict(task), verdict, round(time.perf_counter() - t, 4), versions(),
                      _worker_name(), None, None, round(time.process_time() - cpu, 4))
 
 
