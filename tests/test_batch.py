@@ -401,3 +401,15 @@ def test_a_route_edited_between_batches_is_summarised_apart(tmp_path):
     names = sorted(g["route"] for g in summary)
     assert names[0] != names[1] and all(" @ " in n for n in names)
     assert "names 2 different contents" in " ".join(res.stderr.split())
+
+
+def test_a_route_glob_passes_over_study_files(tmp_path):
+    """A route glob takes route files only: the study file itself, which the glob matches, and a journey file beside
+    it are passed over (a study lists its own folder's routes with '*.yaml')."""
+    (tmp_path / "line.yaml").write_text(ROUTE.read_text())
+    (tmp_path / "trip-journey.yaml").write_text((ROOT / "routes/journeys/CH_Stadelhofen_Altstetten-journey.yaml").read_text())
+    study = tmp_path / "study.yaml"
+    study.write_text("schema: locoplan/study@1\nroutes: ['*.yaml']\nconsists: [HXD1-C80x30]\ntimes: [1.2x]\n"
+                     "algorithms: [issa]\nseeds: [1]\n")
+    specs = load_study(study).specs
+    assert [Path(s.route).name for s in specs] == ["line.yaml"]

@@ -307,7 +307,8 @@ def _declared(path: Path) -> str | None:
 
 def _study_files(name: str, key: str, patterns: list[str], base: Path, where, problems: list[Problem]) -> list[tuple[Path, int]]:
     """The files of a study's ``routes`` or ``journeys`` entries (files or globs, relative to the study's folder),
-    each with the index of the entry that named it. A glob takes the files of its kind; a file named outright
+    each with the index of the entry that named it. A glob takes the files of its kind (passing over the other
+    locoplan kinds, study files among them: a glob may match the study itself); a file named outright
     that is another locoplan kind (a journey under routes) is a problem naming the entry."""
     what, schema, other = _KINDS[key]
     out: list[tuple[Path, int]] = []
@@ -319,7 +320,7 @@ def _study_files(name: str, key: str, patterns: list[str], base: Path, where, pr
             except ValueError as exc:
                 problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r}: {exc}", where(key, i)))
                 continue
-            found = [f for f in found if _declared(f) not in set(SCHEMAS) - {schema}]
+            found = [f for f in found if _declared(f) not in (set(SCHEMAS) | {STUDY_SCHEMA}) - {schema}]
             if not found:
                 problems.append(Problem(name, f"{key}[{i}]", f"{pattern!r} matches no {what} file (looked in {full.parent})",
                                         where(key, i)))
