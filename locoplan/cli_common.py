@@ -610,6 +610,9 @@ def _os_problem(exc: OSError) -> LocoplanError:
         _silence_stdout()
         return _StdoutClosed()
     why = exc.strerror or str(exc)
+    if exc.filename is None and "shared object" in why:  # a library that did not load: most often no memory for it
+        return LocoplanError(f"could not load a compiled library: {why.split('. ')[0]} (out of memory, e.g. under an "
+                      "address-space limit (ulimit -v), or a broken install)")
     if exc.filename is None:  # a write whose file the system does not name (a file object's write, a library's)
         return InputError(Problem("<unnamed file>", "", f"cannot read or write a file: {why} (the system did not say "
                                   "which file; a full disk, a file-size limit (ulimit -f)?)"))

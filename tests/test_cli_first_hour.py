@@ -740,3 +740,16 @@ def test_an_empty_path_option_is_empty_not_the_current_folder(args):
     """A path option given '' arrives as the folder '.': it is refused as empty, before any work."""
     r = runner.invoke(app, args, catch_exceptions=False)
     assert r.exit_code == 2 and "is empty ('')" in r.output and "is a folder" not in r.output
+
+
+def test_a_library_that_does_not_load_is_named_with_the_likely_cause():
+    """Under an address-space limit numba's llvmlite fails to load with an OSError that names no file: the message
+    says a compiled library did not load and why that most often happens, not 'cannot read or write a file'."""
+    from locoplan.cli_common import _os_problem
+
+    exc = OSError("Could not find/load shared object file 'libllvmlite.so' from resource location: "
+                  "'llvmlite.binding'. This could mean that the library literally cannot be found")
+    err = _os_problem(exc)
+    assert err.exit_code == 2
+    assert "could not load a compiled library" in str(err) and "ulimit -v" in str(err)
+    assert "cannot read or write" not in str(err)
