@@ -1,5 +1,5 @@
-"""What a railway engineer meets in the first hour: time forms, exit codes, JSON on failure, CSV that
-a spreadsheet reads, readable output at 80 columns, and commands that work as documented."""
+"""The conventions every command keeps: time forms, exit codes, JSON on failure, CSV that a spreadsheet reads,
+readable output at 80 columns, output folders, and commands that work as documented."""
 
 import json
 import re

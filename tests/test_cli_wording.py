@@ -1,4 +1,4 @@
-"""What a walk through the README's examples at 80 columns found: outputs that speak of the papers by
+"""Outputs that read well at 80 columns: none speaks of the papers by
 section number ("seed 001", "eq. 10", "Table 2" of "Seed 000"), tables that spend lines on a repeated
 name or break a sequence early, legends over lines and titles over the station marks, and a progress
 line without count or ETA."""
