@@ -1,7 +1,6 @@
-"""Outputs that read well at 80 columns: none speaks of the papers by
-section number ("seed 001", "eq. 10", "Table 2" of "Seed 000"), tables that spend lines on a repeated
-name or break a sequence early, legends over lines and titles over the station marks, and a progress
-line without count or ETA."""
+"""Outputs that read well at 80 columns: no paper named by its section number ("seed 001", "eq. 10", "Table 2"
+of "Seed 000"), no table that spends lines on a repeated name or breaks a sequence early, no legend over lines or
+title over the station marks, no progress line without a count or an ETA."""
 
 import ast
 import re
