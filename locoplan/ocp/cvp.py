@@ -43,6 +43,72 @@ class CvpSolution:
     substeps: int
 
 
+def _augmented(dynamics, lagrange, path, n_path: int, nx: int, nu: int):
+    """The dynamics with the running cost as one more state (``f(x, u, t)``, nx + 1 rows), and the path constraints
+    as a CasADi function (None without)."""
+    xs_, us_, t_ = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t")
+    rhs = as_column(dynamics(xs_, us_, t_), nx, "dynamics")
+    if lagrange is not None:
+        rhs = ca.vertcat(rhs, as_column(lagrange(xs_, us_, t_), 1, "lagrange"))
+    else:
+        rhs = ca.vertcat(rhs, 0)
+    f_aug = ca.Function("f", [xs_, us_, t_], [rhs])
+    path_fun = None
+    if path is not None:
+        path_fun = ca.Function("p", [xs_, us_, t_], [as_column(path(xs_, us_, t_), n_path, "path")])
+    return f_aug, path_fun
+
+
+def _interval(f_aug, nx: int, nu: int, substeps: int):
+    """One grid interval: ``substeps`` classical RK4 steps of the augmented system with the control going linearly
+    from u0 to u1; the augmented state after every step (nx + 1 x substeps)."""
+    xa, ua0, ua1, th, hh = ca.SX.sym("xa", nx + 1), ca.SX.sym("u0", nu), ca.SX.sym("u1", nu), ca.SX.sym("t"), ca.SX.sym("h")
+    um = 0.5 * (ua0 + ua1)
+    k1 = f_aug(xa[:nx], ua0, th)
+    k2 = f_aug(xa[:nx] + 0.5 * hh * k1[:nx], um, th + 0.5 * hh)
+    k3 = f_aug(xa[:nx] + 0.5 * hh * k2[:nx], um, th + 0.5 * hh)
+    k4 = f_aug(xa[:nx] + hh * k3[:nx], ua1, th + hh)
+    rk4 = ca.Function("rk4", [xa, ua0, ua1, th, hh], [xa + hh / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    xi, ui0, ui1, ti, hi = ca.SX.sym("x", nx + 1), ca.SX.sym("u0", nu), ca.SX.sym("u1", nu), ca.SX.sym("t"), ca.SX.sym("h")
+    cols, xc = [], xi
+    for i in range(substeps):
+        a, b = i / substeps, (i + 1) / substeps
+        xc = rk4(xc, (1 - a) * ui0 + a * ui1, (1 - b) * ui0 + b * ui1, ti + i * hi, hi)
+        cols.append(xc)
+    return ca.Function("interval", [xi, ui0, ui1, ti, hi], [ca.horzcat(*cols)])
+
+
+def _path_rows(path_fun, p_phys, states, h, m: int, substeps: int, n_path: int):
+    """The path constraints at every RK4 step's end (the control there interpolated linearly between the grid
+    values): (g, lower, upper)."""
+    n_steps = (m - 1) * substeps
+    step_t = h * ca.DM(np.arange(1, n_steps + 1)).T
+    frac = np.arange(1, n_steps + 1) / substeps  # position in grid units
+    jj = np.minimum(np.floor(frac - 1e-12).astype(int), m - 2)
+    aa = frac - jj
+    w_mat = np.zeros((m, n_steps))
+    w_mat[jj, np.arange(n_steps)] = 1 - aa
+    w_mat[jj + 1, np.arange(n_steps)] = aa
+    u_steps = p_phys @ ca.DM(w_mat)
+    return (ca.vec(path_fun.map(n_steps)(states, u_steps, step_t)), np.full(n_path * n_steps, -np.inf),
+            np.zeros(n_path * n_steps))
+
+
+def _start(problem: MultiPhaseProblem, phase, guess: Guess, su, ts: float, m: int):
+    """The NLP's start and bounds (the final time scaled by ``ts``, the control values by ``su``): (x0, lbx, ubx,
+    the grid on [0, 1])."""
+    tf_lo, tf_hi = (float(v) for v in problem.free_end)
+    tf0 = float(np.clip(guess.final_time, tf_lo, tf_hi))
+    grid_sigma = np.linspace(0.0, 1.0, m)
+    u_lo = np.array(phase.control_lower, dtype=float) / su
+    u_hi = np.array(phase.control_upper, dtype=float) / su
+    p0 = np.clip(guess.control_at(grid_sigma) / su[:, None], u_lo[:, None], u_hi[:, None])
+    lbx = np.concatenate(([tf_lo / ts], np.repeat(u_lo[:, None], m, 1).ravel(order="F")))
+    ubx = np.concatenate(([tf_hi / ts], np.repeat(u_hi[:, None], m, 1).ravel(order="F")))
+    x0 = np.concatenate(([tf0 / ts], p0.ravel(order="F")))
+    return x0, lbx, ubx, grid_sigma
+
+
 def solve_cvp(
     problem: MultiPhaseProblem,
     n_params: int,
@@ -65,36 +131,8 @@ def solve_cvp(
     if any(v is None for v in problem.initial_state):
         raise InputError("CVP (single shooting) needs every initial state fixed")
     phase, dynamics, lagrange, path, n_path, nx, nu, sx, su, ts = phase_functions(problem)
-
-    xs_, us_, t_ = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t")
-    rhs = as_column(dynamics(xs_, us_, t_), nx, "dynamics")
-    if lagrange is not None:
-        rhs = ca.vertcat(rhs, as_column(lagrange(xs_, us_, t_), 1, "lagrange"))
-    else:
-        rhs = ca.vertcat(rhs, 0)
-    f_aug = ca.Function("f", [xs_, us_, t_], [rhs])
-    path_fun = None
-    if path is not None:
-        path_fun = ca.Function("p", [xs_, us_, t_], [as_column(path(xs_, us_, t_), n_path, "path")])
-
-    # one RK4 step of the augmented system with a linearly varying control u0 -> u1 over [t, t + h]
-    xa, ua0, ua1, th, hh = ca.SX.sym("xa", nx + 1), ca.SX.sym("u0", nu), ca.SX.sym("u1", nu), ca.SX.sym("t"), ca.SX.sym("h")
-    um = 0.5 * (ua0 + ua1)
-    k1 = f_aug(xa[:nx], ua0, th)
-    k2 = f_aug(xa[:nx] + 0.5 * hh * k1[:nx], um, th + 0.5 * hh)
-    k3 = f_aug(xa[:nx] + 0.5 * hh * k2[:nx], um, th + 0.5 * hh)
-    k4 = f_aug(xa[:nx] + hh * k3[:nx], ua1, th + hh)
-    rk4 = ca.Function("rk4", [xa, ua0, ua1, th, hh], [xa + hh / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)])
-
-    # one grid interval: ``substeps`` RK4 steps with u going linearly from u0 to u1; returns the
-    # augmented state after every step (nx+1 x substeps)
-    xi, ui0, ui1, ti, hi = ca.SX.sym("x", nx + 1), ca.SX.sym("u0", nu), ca.SX.sym("u1", nu), ca.SX.sym("t"), ca.SX.sym("h")
-    cols, xc = [], xi
-    for i in range(substeps):
-        a, b = i / substeps, (i + 1) / substeps
-        xc = rk4(xc, (1 - a) * ui0 + a * ui1, (1 - b) * ui0 + b * ui1, ti + i * hi, hi)
-        cols.append(xc)
-    interval = ca.Function("interval", [xi, ui0, ui1, ti, hi], [ca.horzcat(*cols)])
+    f_aug, path_fun = _augmented(dynamics, lagrange, path, n_path, nx, nu)
+    interval = _interval(f_aug, nx, nu, substeps)
 
     tf_s = ca.MX.sym("tf")
     p_s = ca.MX.sym("P", nu, m)
@@ -103,8 +141,6 @@ def solve_cvp(
     dt = tf / (m - 1)
     h = dt / substeps
     x = ca.vertcat(ca.DM([float(v) for v in problem.initial_state]), 0.0)
-    x_lo = np.array(phase.state_lower, dtype=float) / sx
-    x_hi = np.array(phase.state_upper, dtype=float) / sx
     traj = [x]
     for j in range(m - 1):
         steps = interval(x, p_phys[:, j], p_phys[:, j + 1], j * dt, h)
@@ -114,24 +150,16 @@ def solve_cvp(
     states = traj_m[:nx, 1:]
     n_steps = (m - 1) * substeps
     g_parts = [ca.vec(ca.diag(ca.DM(1.0 / sx)) @ states)]
-    lo_all = np.repeat(x_lo[:, None], n_steps, 1)
-    hi_all = np.repeat(x_hi[:, None], n_steps, 1)
+    lo_all = np.repeat((np.array(phase.state_lower, dtype=float) / sx)[:, None], n_steps, 1)
+    hi_all = np.repeat((np.array(phase.state_upper, dtype=float) / sx)[:, None], n_steps, 1)
     f_lo, f_hi = final_bounds(problem)  # the final conditions replace the last bound column
     lo_all[:, -1], hi_all[:, -1] = f_lo / sx, f_hi / sx
     lbg, ubg = [lo_all.ravel(order="F")], [hi_all.ravel(order="F")]
     if path_fun is not None:
-        step_t = h * ca.DM(np.arange(1, n_steps + 1)).T
-        # control at every step end (linear interpolation of the grid values)
-        frac = np.arange(1, n_steps + 1) / substeps  # position in grid units
-        jj = np.minimum(np.floor(frac - 1e-12).astype(int), m - 2)
-        aa = frac - jj
-        w_mat = np.zeros((m, n_steps))
-        w_mat[jj, np.arange(n_steps)] = 1 - aa
-        w_mat[jj + 1, np.arange(n_steps)] = aa
-        u_steps = p_phys @ ca.DM(w_mat)
-        g_parts.append(ca.vec(path_fun.map(n_steps)(states, u_steps, step_t)))
-        lbg.append(np.full(n_path * n_steps, -np.inf))
-        ubg.append(np.zeros(n_path * n_steps))
+        g, lo, hi = _path_rows(path_fun, p_phys, states, h, m, substeps, n_path)
+        g_parts.append(g)
+        lbg.append(lo)
+        ubg.append(hi)
 
     objective = x[nx]
     if problem.mayer is not None:
@@ -142,15 +170,7 @@ def solve_cvp(
     solver = ipopt_solver("cvp", nlp, ipopt_options)
     build_time = _time.perf_counter() - t_build
 
-    tf_lo, tf_hi = (float(v) for v in problem.free_end)
-    tf0 = float(np.clip(guess.final_time, tf_lo, tf_hi))
-    grid_sigma = np.linspace(0.0, 1.0, m)
-    u_lo = np.array(phase.control_lower, dtype=float) / su
-    u_hi = np.array(phase.control_upper, dtype=float) / su
-    p0 = np.clip(guess.control_at(grid_sigma) / su[:, None], u_lo[:, None], u_hi[:, None])
-    lbx = np.concatenate(([tf_lo / ts], np.repeat(u_lo[:, None], m, 1).ravel(order="F")))
-    ubx = np.concatenate(([tf_hi / ts], np.repeat(u_hi[:, None], m, 1).ravel(order="F")))
-    x0 = np.concatenate(([tf0 / ts], p0.ravel(order="F")))
+    x0, lbx, ubx, grid_sigma = _start(problem, phase, guess, su, ts, m)
     t_solve = _time.perf_counter()
     sol = solve_nlp(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solve_time = _time.perf_counter() - t_solve
