@@ -369,14 +369,42 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
        ``max_degree`` they are cut into pieces of ``min_degree``.
     """
     ivs = list(mesh.intervals)
-    n_iv = len(ivs)
     done = {"split": 0, "raised": 0, "moving": 0}
     target = settings.margin * settings.tol  # aim below the tolerance: the next solve moves the optimum a little
     bad = errors > target
-    interval_of = np.repeat(np.arange(n_iv), np.diff(offsets))
+    cuts, freed = _switch_points(ivs, bad, s_col, u_scaled, offsets, settings, at_lower, at_upper)
+    out: list[Interval] = []
+    origin: list[int] = []  # the old interval each new one comes from
+    for i, iv in enumerate(ivs):
+        if i in freed:
+            iv = replace(iv, free_start=freed[i])
+            done["moving"] += 1
+        if i in cuts:
+            pieces = _cut_at_switches(iv, sorted(cuts[i])[:3], settings)
+            done["split"] += 1
+            done["moving"] += len(pieces) - 1
+        elif not bad[i]:
+            pieces = [replace(iv, last_error=None) if iv.last_error is not None else iv]
+        else:
+            pieces = _raised_or_cut(iv, errors[i], target, s_col[offsets[i]:offsets[i + 1]],
+                                    u_scaled[:, offsets[i]:offsets[i + 1]], settings)
+            done["raised" if len(pieces) == 1 else "split"] += 1
+        out += pieces
+        origin += [i] * len(pieces)
+    if at_lower is not None:
+        _arcs_beside_moving_points(out, origin, ivs, s_col, offsets, at_lower, at_upper, on_state_bound)
+    _bound_moving_points(out, settings)
+    return Mesh(tuple(out)), done
+
+
+def _switch_points(ivs: list, bad: np.ndarray, s_col, u_scaled, offsets, settings: RefineSettings, at_lower, at_upper):
+    """Step 1 of ``refine``: each switch between two neighbouring points next to an interval above the tolerance,
+    as a cut inside its interval ({interval: [(cut, lo, hi, gap)]}) or, at an existing boundary, that boundary freed
+    ({interval whose start becomes free: (lo, hi)})."""
+    interval_of = np.repeat(np.arange(len(ivs)), np.diff(offsets))
     gaps = _switch_gaps(u_scaled, at_lower, at_upper, settings.jump)
-    cuts: dict[int, list[tuple[float, float, float, int]]] = {}  # interval -> (cut, lo, hi, gap)
-    freed: dict[int, tuple[tuple[float, float], int]] = {}  # interval whose start becomes free -> (bounds, gap)
+    cuts: dict[int, list[tuple[float, float, float, int]]] = {}
+    freed: dict[int, tuple[float, float]] = {}
     for k in np.nonzero(gaps)[0]:
         a, b = interval_of[k], interval_of[k + 1]
         if ivs[a].phase != ivs[b].phase or not (bad[a] or bad[b]):
@@ -387,87 +415,90 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
             if c - iv.s_a > settings.min_length and iv.s_b - c > settings.min_length:
                 cuts.setdefault(a, []).append((c, float(s_col[k]), float(s_col[k + 1]), int(k)))
         elif b > 0 and ivs[b].free_start is None:  # the switch is at an existing boundary
-            freed[b] = ((float(s_col[k]), _node(ivs[b], 1)), int(k))
-    out: list[Interval] = []
-    origin: list[int] = []  # the old interval each new one comes from
-    switch_gap: dict[int, int] = {}  # new interval with a moving start -> the gap of its switch
-    for i, iv in enumerate(ivs):
-        if i in freed:
-            iv = replace(iv, free_start=freed[i][0])
-            switch_gap[len(out)] = freed[i][1]
-            done["moving"] += 1
-        if i in cuts:
-            cs = sorted(cuts[i])[:3]
-            edges = [iv.s_a, *[c[0] for c in cs], iv.s_b]
-            done["split"] += 1
-            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-                mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
-                free = iv.free_start if k == 0 else (cs[k - 1][1] + settings.min_length, cs[k - 1][2] - settings.min_length)
-                if k > 0:
-                    switch_gap[len(out)] = cs[k - 1][3]
-                    done["moving"] += 1
-                degree = settings.min_degree + (1 if mapping != "linear" else 0)
-                out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=iv.regime))
-                origin.append(i)
+            freed[b] = (float(s_col[k]), _node(ivs[b], 1))
+    return cuts, freed
+
+
+def _piece_mapping(iv: Interval, k: int, n_pieces: int) -> str:
+    """The mapping of piece ``k`` of ``n_pieces`` cut from ``iv``: its own at a mapped end, else linear."""
+    if (k == 0 and iv.mapping == "start") or (k == n_pieces - 1 and iv.mapping == "end"):
+        return iv.mapping
+    return "linear"
+
+
+def _cut_at_switches(iv: Interval, cs: list, settings: RefineSettings) -> list[Interval]:
+    """``iv`` cut at each switch of ``cs`` ((cut, lo, hi, gap), at most three), each cut a moving point free between
+    the two collocation points that bracket its switch."""
+    edges = [iv.s_a, *[c[0] for c in cs], iv.s_b]
+    out = []
+    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+        mapping = _piece_mapping(iv, k, len(edges) - 1)
+        free = iv.free_start if k == 0 else (cs[k - 1][1] + settings.min_length, cs[k - 1][2] - settings.min_length)
+        degree = settings.min_degree + (1 if mapping != "linear" else 0)
+        out.append(Interval(iv.phase, float(a), float(b), degree, mapping, free, regime=iv.regime))
+    return out
+
+
+def _raised_or_cut(iv: Interval, e: float, target: float, s_cols, u_cols, settings: RefineSettings) -> list[Interval]:
+    """Step 3 of ``refine`` for an interval above the tolerance: a higher degree (GPOPS-II eq. 29), or where that
+    did not halve its error at the last refinement, cut at its kink (each piece keeping its density of points), or
+    beyond ``max_degree`` cut into pieces of ``min_degree``: one interval (raised) or the pieces."""
+    p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
+    stalled = iv.last_error is not None and e > 0.5 * iv.last_error
+    kink = _kink(s_cols, u_cols, settings.kink) if stalled else None
+    if kink is not None and (kink - iv.s_a <= settings.min_length or iv.s_b - kink <= settings.min_length):
+        kink = None
+    if kink is None and (iv.n + p <= settings.max_degree or iv.length <= 2 * settings.min_length):
+        return [replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e)]
+    if kink is not None:  # either side of a corner the control is smooth: each piece keeps the density
+        edges = [iv.s_a, kink, iv.s_b]
+    else:
+        pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
+        edges = list(np.linspace(iv.s_a, iv.s_b, pieces + 1))
+    out = []
+    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
+        mapping = _piece_mapping(iv, k, len(edges) - 1)
+        degree = settings.min_degree + (1 if mapping != "linear" else 0)
+        if kink is not None:
+            degree = max(degree, min(settings.max_degree, math.ceil(iv.n * (b - a) / iv.length)))
+        out.append(Interval(iv.phase, float(a), float(b), degree, mapping, iv.free_start if k == 0 else None,
+                            regime=iv.regime))
+    return out
+
+
+def _arcs_beside_moving_points(out: list, origin: list, ivs: list, s_col, offsets, at_lower, at_upper,
+                               on_state_bound) -> None:
+    """Step 2 of ``refine``, in place: the arc either side of every moving point, from the old points inside each
+    side's interval, leaving out the one next to each of its moving ends (its value may be a compromise between two
+    arcs) and those where a state is on its bound; a side with no other point keeps the arc it had, or, having
+    none, takes the arc of the points it has."""
+    for j, iv in enumerate(out):
+        moving_start = j > 0 and iv.free_start is not None
+        moving_end = j + 1 < len(out) and out[j + 1].free_start is not None
+        if not (moving_start or moving_end):
             continue
-        if not bad[i]:
-            out.append(replace(iv, last_error=None) if iv.last_error is not None else iv)
-            origin.append(i)
-            continue
-        e = errors[i]
-        p = max(1, math.ceil(math.log(e / target) / math.log(max(iv.n, 2))))
-        stalled = iv.last_error is not None and e > 0.5 * iv.last_error
-        cols = slice(offsets[i], offsets[i + 1])
-        kink = _kink(s_col[cols], u_scaled[:, cols], settings.kink) if stalled else None
-        if kink is not None and (kink - iv.s_a <= settings.min_length or iv.s_b - kink <= settings.min_length):
-            kink = None
-        if kink is None and (iv.n + p <= settings.max_degree or iv.length <= 2 * settings.min_length):
-            out.append(replace(iv, n=min(iv.n + p, settings.max_degree), last_error=e))
-            origin.append(i)
-            done["raised"] += 1
-            continue
-        if kink is not None:  # either side of a corner the control is smooth: each piece keeps the density
-            edges = [iv.s_a, kink, iv.s_b]
+        o = origin[j]
+        cols = np.arange(offsets[o], offsets[o + 1])
+        cols = cols[(s_col[cols] >= iv.s_a - 1e-9) & (s_col[cols] <= iv.s_b + 1e-9)]
+        if on_state_bound is not None:
+            cols = cols[~on_state_bound[cols]]
+        keep = np.ones(cols.size, dtype=bool)
+        if cols.size:
+            keep[0] &= not moving_start
+            keep[-1] &= not moving_end
+        if keep.any():
+            reg = _arc(at_lower[:, cols[keep]], at_upper[:, cols[keep]])
+        elif ivs[o].regime is not None:
+            reg = ivs[o].regime
         else:
-            pieces = max(2, math.ceil((iv.n + p) / settings.min_degree))
-            edges = list(np.linspace(iv.s_a, iv.s_b, pieces + 1))
-        done["split"] += 1
-        for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-            mapping = iv.mapping if (k == 0 and iv.mapping == "start") or (k == len(edges) - 2 and iv.mapping == "end") else "linear"
-            degree = settings.min_degree + (1 if mapping != "linear" else 0)
-            if kink is not None:
-                degree = max(degree, min(settings.max_degree, math.ceil(iv.n * (b - a) / iv.length)))
-            out.append(Interval(iv.phase, float(a), float(b), degree, mapping, iv.free_start if k == 0 else None,
-                                regime=iv.regime))
-            origin.append(i)
-    # arcs either side of every moving point, from the old points inside each side's interval, leaving
-    # out the one next to each of its moving ends (its value may be a compromise between two arcs); a
-    # side with no other point keeps the arc it had, or, having none, takes the arc of the points it has
-    if at_lower is not None:
-        for j, iv in enumerate(out):
-            moving_start = j > 0 and iv.free_start is not None
-            moving_end = j + 1 < len(out) and out[j + 1].free_start is not None
-            if not (moving_start or moving_end):
-                continue
-            o = origin[j]
-            cols = np.arange(offsets[o], offsets[o + 1])
-            cols = cols[(s_col[cols] >= iv.s_a - 1e-9) & (s_col[cols] <= iv.s_b + 1e-9)]
-            if on_state_bound is not None:
-                cols = cols[~on_state_bound[cols]]
-            keep = np.ones(cols.size, dtype=bool)
-            if cols.size:
-                keep[0] &= not moving_start
-                keep[-1] &= not moving_end
-            if keep.any():
-                reg = _arc(at_lower[:, cols[keep]], at_upper[:, cols[keep]])
-            elif ivs[o].regime is not None:
-                reg = ivs[o].regime
-            else:
-                reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else None
-            if reg is not None:
-                out[j] = replace(iv, regime=reg)
-    # moving points between alike arcs track nothing: fix them; the others get bounds from the
-    # collocation points around them
+            reg = _arc(at_lower[:, cols], at_upper[:, cols]) if cols.size else None
+        if reg is not None:
+            out[j] = replace(iv, regime=reg)
+
+
+def _bound_moving_points(out: list, settings: RefineSettings) -> None:
+    """In place: a moving point between alike arcs tracks nothing and is fixed; the others get bounds from the
+    collocation points around them."""
     for j, iv in enumerate(out):
         if iv.free_start is None:
             continue
@@ -481,4 +512,3 @@ def refine(mesh: Mesh, errors: np.ndarray, s_col: np.ndarray, u_scaled: np.ndarr
         if not lo < iv.s_a < hi:
             lo, hi = min(lo, iv.s_a - settings.min_length), max(hi, iv.s_a + settings.min_length)
         out[j] = replace(iv, free_start=(lo, hi))
-    return Mesh(tuple(out)), done
