@@ -233,8 +233,7 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
     L = float(calc.route.length_m)
     m = calc.m_eff_t
     nodes, limit, allowed = tables.s_m, tables.limit_kmh, tables.allowed
-    e_brake, e_coast = tables.e_brake, tables.e_coast
-    to_up, on_up, to_down, down_gain = tables.to_up_m, tables.on_up, tables.to_down_m, tables.down_gain_kmh
+    e_brake = tables.e_brake
     n_cells = len(limit)
     n_steps = noise.shape[1]
     depth = 9
@@ -249,8 +248,6 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
     failed = np.zeros(n, dtype=bool)
     reason = [""] * n
     stopping = np.zeros(n, dtype=bool)
-    half_margin = 0.5 * p.margin_kmh
-    coast_share, brake_share = p.anticipation, 1.0 - p.anticipation
     if record:
         rec_t = np.zeros((n, n_steps + 1))
         rec_s = np.zeros((n, n_steps + 1))
@@ -265,25 +262,9 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         v_kmh = kmh(v)
         f_max, b_max, load = calc.forces_kn(v, k)
         lim = limit[k]
-        # --- the target speed the driver has in mind
-        look = s + v * p.reaction_s
-        e_ant = coast_share * np.interp(look, nodes, e_coast) + brake_share * np.interp(look, nodes, e_brake)
-        base = np.where(on_up[k] | (to_up[k] < p.charge_up_m), lim, cruise_kmh)  # power on up a long up-grade
-        base = np.where(to_down[k] < p.coast_down_m, np.minimum(base, cruise_kmh - 0.7 * down_gain[k]), base)
-        v_tgt = np.minimum(np.minimum(base, lim - p.margin_kmh), kmh_from_e(e_ant) - half_margin)
-        # --- the handle: accelerate, hold, coast or brake, on the speed as the driver judges it
-        v_seen = v_kmh + noise[:, i]
-        err = v_tgt - v_seen
-        brake_at = np.minimum(v_tgt + p.brake_over_kmh, lim - half_margin)
-        accel = err > p.band_kmh
-        brake = ~accel & (v_seen > brake_at) & (v_kmh > 1.0)
-        hold = ~accel & ~brake & (err > -p.band_kmh)
-        n_acc = np.maximum(_quantise(np.minimum(np.ceil(p.gain_notch_per_kmh * err), p.accel_notch), p.notch_step), p.notch_step)
-        n_hold = _quantise(np.where(load > 0, NOTCHES * load / f_max, 0.0), p.notch_step)
-        n_brk = np.maximum(_quantise(np.ceil(p.gain_notch_per_kmh * (v_seen - brake_at)), p.notch_step), p.notch_step)
+        v_tgt = _target_kmh(tables, p, k, s, v, lim, cruise_kmh)
         slot = i % depth
-        hist[:, slot] = np.where(accel, n_acc, np.where(hold, n_hold, np.where(brake, -n_brk, 0.0)))
-        hist_label[:, slot] = np.where(accel, 0, np.where(hold, 1, np.where(brake, 3, 2)))
+        hist[:, slot], hist_label[:, slot] = _handle(p, v_tgt, v_kmh + noise[:, i], v_kmh, lim, load, f_max)
         back = (slot - delay) % depth
         notch = hist[rows, back]
         act = hist_label[rows, back]
@@ -299,15 +280,8 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
                               np.maximum(-notch, 0.0) / NOTCHES)
         # --- supervision (the train-protection curve): where the handle would take the train over the
         # braking envelope within this step, it brakes (or cuts traction) just enough, up to full braking
-        e_now = 0.5 * v * v
-        e_cap = np.interp(s + v * DT_S, nodes, e_brake) - 0.5
-        reach = np.maximum(v, 0.1) * DT_S
-        guard = live & (v > 0) & (e_now + (trac_frac * f_max - brake_frac * b_max - load) / m * reach > e_cap)
-        if guard.any():
-            f_need = m * (e_cap - e_now) / reach + load  # net force F - B that meets the cap
-            trac_frac = np.where(guard, np.minimum(np.maximum(f_need / f_max, 0.0), trac_frac), trac_frac)
-            brake_frac = np.where(guard, np.minimum(np.maximum(-f_need / b_max, brake_frac), 1.0), brake_frac)
-            guard &= brake_frac > 0
+        trac_frac, brake_frac, guard = _supervise(live, s, v, trac_frac, brake_frac, f_max, b_max, load, m, nodes,
+                                                  e_brake)
         act = np.where(stopping | guard, np.where(brake_frac > 0, 3, 2), np.where((act == 0) & (trac_frac == 0), 2, act))
         a0 = (trac_frac * f_max - brake_frac * b_max - load) / m
         v_mid = np.maximum(v + 0.5 * DT_S * a0, 0.0)
@@ -362,17 +336,67 @@ def _simulate(calc, tables, p, cruise_kmh, noise, max_time_s, record):
         failed[r] = True
         reason[r] = f"did not arrive within {n_steps} steps"
     running = np.where(done, t, np.inf)
-    logs = None
-    if record:
-        logs = []
-        names = np.array(["T", "K", "C", "B"])
-        for r in range(n):
-            j = length[r]
-            rec_t[r, j], rec_s[r, j], rec_v[r, j], rec_f[r, j], rec_notch[r, j], rec_label[r, j] = t[r], s[r], 0.0, 0.0, 0, 3
-            sl = slice(0, j + 1)
-            logs.append(LogData(rec_t[r, sl].copy(), rec_s[r, sl].copy(), rec_v[r, sl].copy(), rec_f[r, sl].copy(),
-                                rec_notch[r, sl].copy(), names[rec_label[r, sl]]))
+    logs = _logs(t, s, length, rec_t, rec_s, rec_v, rec_f, rec_notch, rec_label) if record else None
     return SimOutcome(running, reason, logs)
+
+
+def _target_kmh(tables, p, k, s, v, lim, cruise_kmh):
+    """The speed each driver has in mind [km/h]: the cruise speed (the limit up a long up-grade, less before a
+    descent), under the limit by the driver's margin, and under what the driver anticipates ahead (a blend of the
+    coasting and braking curves, looked ahead by the reaction time)."""
+    nodes = tables.s_m
+    look = s + v * p.reaction_s
+    e_ant = (p.anticipation * np.interp(look, nodes, tables.e_coast)
+             + (1.0 - p.anticipation) * np.interp(look, nodes, tables.e_brake))
+    base = np.where(tables.on_up[k] | (tables.to_up_m[k] < p.charge_up_m), lim, cruise_kmh)  # power on up a long climb
+    base = np.where(tables.to_down_m[k] < p.coast_down_m, np.minimum(base, cruise_kmh - 0.7 * tables.down_gain_kmh[k]),
+                    base)
+    return np.minimum(np.minimum(base, lim - p.margin_kmh), kmh_from_e(e_ant) - 0.5 * p.margin_kmh)
+
+
+def _handle(p, v_tgt, v_seen, v_kmh, lim, load, f_max):
+    """The handle each driver sets on the speed as judged (``v_seen``): accelerate, hold, coast or brake, as a notch
+    (+ traction, - braking) and its label (0 T, 1 K, 2 C, 3 B)."""
+    err = v_tgt - v_seen
+    brake_at = np.minimum(v_tgt + p.brake_over_kmh, lim - 0.5 * p.margin_kmh)
+    accel = err > p.band_kmh
+    brake = ~accel & (v_seen > brake_at) & (v_kmh > 1.0)
+    hold = ~accel & ~brake & (err > -p.band_kmh)
+    n_acc = np.maximum(_quantise(np.minimum(np.ceil(p.gain_notch_per_kmh * err), p.accel_notch), p.notch_step),
+                       p.notch_step)
+    n_hold = _quantise(np.where(load > 0, NOTCHES * load / f_max, 0.0), p.notch_step)
+    n_brk = np.maximum(_quantise(np.ceil(p.gain_notch_per_kmh * (v_seen - brake_at)), p.notch_step), p.notch_step)
+    notch = np.where(accel, n_acc, np.where(hold, n_hold, np.where(brake, -n_brk, 0.0)))
+    return notch, np.where(accel, 0, np.where(hold, 1, np.where(brake, 3, 2)))
+
+
+def _supervise(live, s, v, trac_frac, brake_frac, f_max, b_max, load, m, nodes, e_brake):
+    """The supervision (the train-protection curve): where the handle would take the train over the braking envelope
+    within the step, it brakes (or cuts traction) just enough, up to full braking. Returns the traction and braking
+    fractions, and where the supervision brakes."""
+    e_now = 0.5 * v * v
+    e_cap = np.interp(s + v * DT_S, nodes, e_brake) - 0.5
+    reach = np.maximum(v, 0.1) * DT_S
+    guard = live & (v > 0) & (e_now + (trac_frac * f_max - brake_frac * b_max - load) / m * reach > e_cap)
+    if guard.any():
+        f_need = m * (e_cap - e_now) / reach + load  # net force F - B that meets the cap
+        trac_frac = np.where(guard, np.minimum(np.maximum(f_need / f_max, 0.0), trac_frac), trac_frac)
+        brake_frac = np.where(guard, np.minimum(np.maximum(-f_need / b_max, brake_frac), 1.0), brake_frac)
+        guard &= brake_frac > 0
+    return trac_frac, brake_frac, guard
+
+
+def _logs(t, s, length, rec_t, rec_s, rec_v, rec_f, rec_notch, rec_label) -> list:
+    """Each run's recorded log, closed by a last row at rest where it ended."""
+    logs = []
+    names = np.array(["T", "K", "C", "B"])
+    for r in range(len(t)):
+        j = length[r]
+        rec_t[r, j], rec_s[r, j], rec_v[r, j], rec_f[r, j], rec_notch[r, j], rec_label[r, j] = t[r], s[r], 0.0, 0.0, 0, 3
+        sl = slice(0, j + 1)
+        logs.append(LogData(rec_t[r, sl].copy(), rec_s[r, sl].copy(), rec_v[r, sl].copy(), rec_f[r, sl].copy(),
+                            rec_notch[r, sl].copy(), names[rec_label[r, sl]]))
+    return logs
 
 
 BLOCK_BYTES = 64 * 2**20
