@@ -2,8 +2,8 @@
 
 Rows are :meth:`RunRecord.row` dicts: the ``--json`` summary's field names (``route``, ``strategy``,
 ``algorithm``, ``seed``, ``planned_time_s``, ``running_time_s``, ``traction_energy_kwh``, ...) plus
-``kind`` (``route`` or ``journey``), ``key``, ``route_file``, ``time_spec``, ``verdict``, ``wall_time_s``,
-``worker``, ``locoplan_version``; a journey run's row has the journey's totals (``journey``,
+``kind`` (``route`` or ``journey``), ``key``, ``route_file``, ``route_sha``, ``consist_sha`` (the contents' hashes),
+``time_spec``, ``verdict``, ``wall_time_s``, ``worker``, ``locoplan_version``; a journey run's row has the journey's totals (``journey``,
 ``optimum_kwh``, ``legs``, ``windows_missed``, ...) and ``journey_file``.
 """
 
