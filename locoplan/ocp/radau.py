@@ -282,33 +282,7 @@ class RadauTranscription:
         f_con, f_jac, f_obj, f_hess = _point_functions(model, tuple(names))
 
         # ---- local variables from the NLP's: wloc = E w + c (column k*m + j: variable j of point k)
-        rows, cols, vals = [], [], []
-        c = np.zeros(m * n)
-        k_idx = np.arange(n)
-        for j in range(nx):
-            rows.append(k_idx * m + j)
-            cols.append(j + nx * k_idx)
-            vals.append(np.full(n, sx[j]))
-        for j in range(nu):
-            rows.append(k_idx * m + nx + j)
-            cols.append(nx * (n + 1) + j + nu * k_idx)
-            vals.append(np.full(n, su[j]))
-        c[k_idx * m + nx + nu] = grid.s_col
-        c[k_idx * m + nx + nu + 1] = grid.jacobian
-        if nf:
-            lo, hi = grid.free_bounds[:, 0], grid.free_bounds[:, 1]
-            width = hi - lo
-            # s = s_a + (s_b - s_a) g, J = (s_b - s_a) g', s_a = a0 + Aa z, s_b = b0 + Ab z, z = lo + width Z
-            ds = grid.Aa * (1 - grid.g)[:, None] + grid.Ab * grid.g[:, None]
-            dj = (grid.Ab - grid.Aa) * grid.dg[:, None]
-            c[k_idx * m + nx + nu] = grid.a0 + (grid.b0 - grid.a0) * grid.g + ds @ lo
-            c[k_idx * m + nx + nu + 1] = (grid.b0 - grid.a0) * grid.dg + dj @ lo
-            for mat, off in ((ds, nx + nu), (dj, nx + nu + 1)):
-                r, q = np.nonzero(mat)
-                rows.append(r * m + off)
-                cols.append(nx * (n + 1) + nu * n + q)
-                vals.append(mat[r, q] * width[q])
-        E_np = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, n_vars))
+        E_np, c = _local_map(grid, nx, nu, sx, su, n_vars)
         E = _sparse(E_np)
         w = ca.MX.sym("w", n_vars)
         wloc = ca.reshape(ca.mtimes(E, w) + ca.DM(c), m, n)
@@ -322,18 +296,7 @@ class RadauTranscription:
         # pointwise constraints
         xl, xu, ul, uu = _bounds_per_point(problem, grid)
         path_lo = np.full((max(npath, 1), n), -np.inf)
-        for i, iv in enumerate(mesh.intervals):  # arcs fixed next to a moving point
-            if iv.regime is None:
-                continue
-            cc = grid.cols_of(i)
-            for j, r in enumerate(iv.regime):
-                row = model.control_paths[j] if j < len(model.control_paths) else None
-                if r == "lower":
-                    uu[j, cc] = ul[j, cc]
-                elif r == "upper" and row is not None:
-                    path_lo[row, cc] = 0.0
-                elif r == "upper":
-                    ul[j, cc] = uu[j, cc]
+        _fix_arcs(mesh, model, grid, ul, uu, path_lo)
         Lin_dm = _sparse(Lin)
         con_all = ca.vec(f_con.map(n)(*call)) + ca.mtimes(Lin_dm, w)
         jac_all = ca.MX(_block_diagonal(nc, m, n), ca.vec(f_jac.map(n)(*call)))
@@ -587,3 +550,56 @@ def carry_multipliers(old: RadauSolution, new: "RadauTranscription") -> tuple[np
     du = np.array([np.interp(ng.s_col, og.s_col, r / (wo * jo)) for r in lu]) * (wn * jn)
     lam_x[nx * (ng.n_col + 1): nx * (ng.n_col + 1) + nu * ng.n_col] = du.ravel(order="F")
     return lam_x, lam_g
+
+
+def _local_map(grid: Grid, nx: int, nu: int, sx: np.ndarray, su: np.ndarray, n_vars: int):
+    """Each collocation point's local variables (its states, controls, position and the interval's jacobian: m =
+    nx + nu + 2 of them) from the NLP's scaled variables: wloc = E w + c, column k * m + j variable j of point k;
+    a moving mesh point's position enters through its scaled variable in [0, 1]. Returns (E as scipy CSC, c)."""
+    n = grid.n_col
+    m = nx + nu + 2
+    rows, cols, vals = [], [], []
+    c = np.zeros(m * n)
+    k_idx = np.arange(n)
+    for j in range(nx):
+        rows.append(k_idx * m + j)
+        cols.append(j + nx * k_idx)
+        vals.append(np.full(n, sx[j]))
+    for j in range(nu):
+        rows.append(k_idx * m + nx + j)
+        cols.append(nx * (n + 1) + j + nu * k_idx)
+        vals.append(np.full(n, su[j]))
+    c[k_idx * m + nx + nu] = grid.s_col
+    c[k_idx * m + nx + nu + 1] = grid.jacobian
+    if len(grid.free):
+        lo, hi = grid.free_bounds[:, 0], grid.free_bounds[:, 1]
+        width = hi - lo
+        # s = s_a + (s_b - s_a) g, J = (s_b - s_a) g', s_a = a0 + Aa z, s_b = b0 + Ab z, z = lo + width Z
+        ds = grid.Aa * (1 - grid.g)[:, None] + grid.Ab * grid.g[:, None]
+        dj = (grid.Ab - grid.Aa) * grid.dg[:, None]
+        c[k_idx * m + nx + nu] = grid.a0 + (grid.b0 - grid.a0) * grid.g + ds @ lo
+        c[k_idx * m + nx + nu + 1] = (grid.b0 - grid.a0) * grid.dg + dj @ lo
+        for mat, off in ((ds, nx + nu), (dj, nx + nu + 1)):
+            r, q = np.nonzero(mat)
+            rows.append(r * m + off)
+            cols.append(nx * (n + 1) + nu * n + q)
+            vals.append(mat[r, q] * width[q])
+    E_np = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, n_vars))
+    return E_np, c
+
+
+def _fix_arcs(mesh: Mesh, model, grid: Grid, ul: np.ndarray, uu: np.ndarray, path_lo: np.ndarray) -> None:
+    """In place: on each interval next to a moving point, the arc the refinement fixed (``Interval.regime``): a
+    control on its lower bound, or on its upper bound (through its path row where the upper bound is one)."""
+    for i, iv in enumerate(mesh.intervals):
+        if iv.regime is None:
+            continue
+        cc = grid.cols_of(i)
+        for j, r in enumerate(iv.regime):
+            row = model.control_paths[j] if j < len(model.control_paths) else None
+            if r == "lower":
+                uu[j, cc] = ul[j, cc]
+            elif r == "upper" and row is not None:
+                path_lo[row, cc] = 0.0
+            elif r == "upper":
+                ul[j, cc] = uu[j, cc]
