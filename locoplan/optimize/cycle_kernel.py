@@ -1062,37 +1062,42 @@ def _first_part(cc, fo, price, V, tb, k, x0, e, s, tau, t, hold_until):
             continue
         if zone and rec and (e >= cc.e_rec[k] or e1 > cc.e_rec[k] * (1.0 + 1e-9)):
             continue
-        c = w / KJ_PER_KWH + price * dt
-        i0, wx = _land(e1, k + 1, cc)
-        s1 = -1
-        tau1 = 0.0
-        hold1 = hold_until
-        if cc.relaxed or s == NA:
-            if ok == OK or cc.relaxed:
-                s1 = _arrive(k + 1, NA, cc)
-                c += _value(V, k + 1, s1, i0, wx, tb)
-        elif on:
-            if s == AF and (u == U_B or keep):
-                s1 = _arrive(k + 1, AF, cc)
-                c += _value(V, k + 1, s1, i0, wx, tb)
-            elif apply_now and (u == U_B or keep):
-                s1 = _arrive(k + 1, AF, cc)
-                hold1 = t + max(hold_s(k, cc), cc.t_build[k])
-                c += _value(V, k + 1, s1, i0, wx, tb)
-        elif s == CH:
-            if ok == OK:
-                s1 = _arrive(k + 1, CH, cc)
-                c += _value(V, k + 1, s1, i0, wx, tb)
-        elif ok == OK and (s == R0 or keep):
-            tau1 = (tau if s == R0 else 0.0) + dt
-            s1 = R0
-            c += _value_rec(V, k + 1, tau1, i0, wx, cc, tb)
+        s1, value, tau1 = _successor(V, tb, cc, k, s, u, ok, keep, apply_now, e1, tau, dt)
+        c = w / KJ_PER_KWH + price * dt + value
+        hold1 = t + max(hold_s(k, cc), cc.t_build[k]) if apply_now else hold_until
         if s1 >= 0 and c < best:
             best = c
             o, e_o, w_o, t_o, s_o, tau_o, hold_o = u, e1, w, dt, s1, tau1, hold1
     if not math.isfinite(best):
         o = -1
     return o, e_o, w_o, t_o, s_o, tau_o, hold_o, best
+
+
+@njit(cache=True, _nrt=False)
+def _successor(V, tb, cc, k, s, u, ok, keep, apply_now, e1, tau, dt):
+    """The state a step under control ``u`` from air state ``s`` arrives in at node k + 1 (at e1 = v^2/2, after
+    ``dt`` [s]; ``ok`` the step's outcome, ``keep`` the speed low enough to keep an application on, ``apply_now`` an
+    application made at the step's start from a charged brake), and that state's cost-to-go: (state, value, time
+    since the release there [s]); state -1 where the rules allow no such step (a released brake is applied, an
+    applied one stays on or is released, a recharging one recharges, outside the zones no state)."""
+    i0, wx = _land(e1, k + 1, cc)
+    on = u == U_B or u == U_K
+    if cc.relaxed or s == NA:
+        if ok == OK or cc.relaxed:
+            s1 = _arrive(k + 1, NA, cc)
+            return s1, _value(V, k + 1, s1, i0, wx, tb), 0.0
+    elif on:
+        if (s == AF or apply_now) and (u == U_B or keep):
+            s1 = _arrive(k + 1, AF, cc)
+            return s1, _value(V, k + 1, s1, i0, wx, tb), 0.0
+    elif s == CH:
+        if ok == OK:
+            s1 = _arrive(k + 1, CH, cc)
+            return s1, _value(V, k + 1, s1, i0, wx, tb), 0.0
+    elif ok == OK and (s == R0 or keep):  # recharging, or released here from AF
+        tau1 = (tau if s == R0 else 0.0) + dt
+        return R0, _value_rec(V, k + 1, tau1, i0, wx, cc, tb), tau1
+    return -1, 0.0, 0.0
 
 
 @njit(cache=True, _nrt=False)
@@ -1240,25 +1245,8 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
                 continue  # (released, it would pass the apply speed within the cell)
             if zone and rec and (e >= cc.e_rec[k] or se[u] > cc.e_rec[k] * (1.0 + 1e-9)):
                 continue  # (recharging, it would come near the apply speed: the calculator would not release)
-            c = sw[u] / KJ_PER_KWH + price * st[u]
-            i0, wx = _land(se[u], k + 1, cc)
-            s1 = -1
-            if cc.relaxed or s == NA:
-                if sok[u] == OK or cc.relaxed:
-                    s1 = _arrive(k + 1, NA, cc)
-                    c += _value(V, k + 1, s1, i0, wx, tb)
-            elif on:
-                if s == AF and (u == U_B or keep):
-                    s1 = _arrive(k + 1, AF, cc)
-                    c += _value(V, k + 1, s1, i0, wx, tb)
-            elif s == CH:
-                if sok[u] == OK:
-                    s1 = _arrive(k + 1, CH, cc)
-                    c += _value(V, k + 1, s1, i0, wx, tb)
-            elif sok[u] == OK and (s == R0 or keep):  # recharging, or released here from AF
-                t_since = (tau if s == R0 else 0.0) + st[u]
-                s1 = R0
-                c += _value_rec(V, k + 1, t_since, i0, wx, cc, tb)
+            s1, value, _ = _successor(V, tb, cc, k, s, u, sok[u], keep, False, se[u], tau, st[u])
+            c = sw[u] / KJ_PER_KWH + price * st[u] + value
             if s1 >= 0 and c < c_best:
                 c_best, o, s_next = c, u, s1
         if zone:
