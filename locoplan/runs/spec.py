@@ -471,14 +471,15 @@ def execute(task: Task) -> RunRecord:
                      _worker_name(), profile, history, round(time.process_time() - cpu, 4))
 
 
+CONTENT_DIGITS = 12
+"""The digits of a content hash a record keeps."""
+
+
 def _spec_dict(task: Task) -> dict:
     """The record's spec: the spec as written, with the content hashes of the route (or the journey's line) and the
     train it ran (``route_sha``, ``consist_sha``, 12 hex digits): a name or a path may cover two contents."""
     return {**task.spec.to_dict(), "route_sha": task.route_hash[:CONTENT_DIGITS],
             "consist_sha": task.train_hash[:CONTENT_DIGITS]}
-
-
-CONTENT_DIGITS = 12
 
 
 def execute_journey(task: Task) -> RunRecord:

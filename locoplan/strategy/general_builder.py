@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.conditions import CODE, CONDITIONS
+from ..optimize.problem import E_MIN_RUN_M
 from ..physics.braking import full_brake_kn
 from ..physics.traction import max_force_kn
 from ..physics.units import kmh, kmh_from_e
@@ -98,7 +99,6 @@ def _with_windows(conditions, nominal: np.ndarray, gap: float, L: float, spread:
             nominal[j] = min(nominal[j], nominal[j + 1] - gap)
         nominal = np.maximum(nominal, 0.0)
     edges = np.concatenate([[0.0], nominal, [L]])
-    from ..optimize.problem import E_MIN_RUN_M
     # each run's least length: ``gap``, an electric brake run (E) ``E_MIN_RUN_M``
     g = np.array([min(E_MIN_RUN_M, gap) if c == "E" else gap for c in conditions], dtype=float)
     n = len(nominal)
