@@ -1,8 +1,7 @@
-"""Plan evaluations per second of the batch traction calculator on routes/freight-20km.yaml, old (the
-numpy loop, ``backend="numpy"``) against new (the compiled kernel, the default: numba's JIT function and
-the same function compiled ahead of time, ``locoplan.sim.native``, which the commands load), for batches of
-1, 10, 50 and 200 plans, and peak memory. Targets (issue 12): >= 20,000 plans/s for batches of 50 and
->= 5,000 plans/s for single plans, on one core.
+"""Plan evaluations per second of the batch traction calculator on routes/freight-20km.yaml: its compiled
+kernel as numba's JIT function and as the same function compiled ahead of time (``locoplan.sim.native``,
+which the commands load), for batches of 1, 10, 50 and 200 plans, and peak memory. Targets: >= 20,000
+plans/s for batches of 50 and >= 5,000 plans/s for single plans, on one core.
 
     taskset -c 0 python benchmarks/bench_calculator.py [--repeat 40] [--step 50]
 """
@@ -35,26 +34,23 @@ def main() -> None:
     route = load_route(ROOT / "routes/freight-20km.yaml")
     train = load_train(ROOT / "configs/consists/HXD1-C80x50.yaml")
     opts = ModelOptions() if args.step is None else ModelOptions(step_m=args.step)
+    kernels = {"numba JIT": native._jit("benchmark"), "ahead of time": native.kernels()}
+    if not kernels["ahead of time"].source.startswith("native"):
+        print(f"ahead-of-time kernels unavailable: {kernels['ahead of time'].source}")
+        del kernels["ahead of time"]
     t0 = time.perf_counter()
-    calcs = {"old (numpy)": TractionCalculator(route, train, opts, backend="numpy")}
+    calc = TractionCalculator(route, train, opts)
     setup_s = time.perf_counter() - t0
-    new = TractionCalculator(route, train, opts)
-    kernels = {"new (numba JIT)": native._jit("benchmark"), "new (ahead of time)": native.kernels()}
-    if not kernels["new (ahead of time)"].source.startswith("native"):
-        print(f"ahead-of-time kernels unavailable: {kernels['new (ahead of time)'].source}")
-        del kernels["new (ahead of time)"]
-    calcs.update({name: new for name in kernels})
-    seq = tuple("TKTCTCKCB")  # seed 002's proposed sequence: 8 switching points
-    print(f"route freight-20km, {train.name}, default train model, grid {len(calcs['old (numpy)'].h_m)} cells "
+    seq = tuple("TKTCTCKCB")  # the ISSA paper's proposed sequence: 8 switching points
+    print(f"route freight-20km, {train.name}, default train model, grid {len(calc.h_m)} cells "
           f"(step {opts.step_m:g} m), route set-up {setup_s * 1e3:.0f} ms")
     print(f"{'batch':>6} {'backend':>20} {'ms / batch':>11} {'plans / s':>10} {'peak MiB':>9}")
     for batch in (1, 10, 50, 200):
         X = np.sort(np.random.default_rng(batch).uniform(0, route.length_m, (batch, len(seq) - 1)), axis=1)
-        for name, calc in calcs.items():
-            if name in kernels:
-                native._kernels = kernels[name]
+        for name, kernel in kernels.items():
+            native._kernels = kernel
             calc.evaluate(seq, X)  # warm-up (and, the first time on a machine, the kernel's compile)
-            repeat = args.repeat * (20 if name.startswith("new") else 1)
+            repeat = args.repeat * 20
             t0 = time.perf_counter()
             for _ in range(repeat):
                 calc.evaluate(seq, X)

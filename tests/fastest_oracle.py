@@ -1,4 +1,4 @@
-"""An independent fastest run: fine-step RK4 in e = v^2/2, written without locoplan's dynamics.
+"""An independent fastest run and plan run: fine-step RK4 in e = v^2/2, written without locoplan's dynamics.
 
 What the line *is* comes in as plain arrays (cell edges, the gravity force, the speed limit and whether
 the catenary is live, per cell), so that the tests can write them out by hand and the benchmark can take
@@ -68,6 +68,11 @@ class FastestOracle:
         v = math.sqrt(2.0 * max(e, 0.0)) * 3.6
         return (self.brake_kn(v, k) + self._resistance(v) + self.grav[k]) / self.m
 
+    def _electric_decel(self, e: float, k: int) -> float:
+        """-de/ds under the electric brake alone [m/s^2]."""
+        v = math.sqrt(2.0 * max(e, 0.0)) * 3.6
+        return (_interp(v, *self.el) * self.powered[k] + self._resistance(v) + self.grav[k]) / self.m
+
     def _accel(self, e: float, k: int) -> float:
         """de/ds under full traction [m/s^2]."""
         v = math.sqrt(2.0 * max(e, 0.0)) * 3.6
@@ -133,3 +138,71 @@ class FastestOracle:
             if best[0] > 0 and v < lim:
                 break
         return best
+
+    def _hold_accel(self, e: float, k: int, traction: bool = True) -> float:
+        """de/ds holding the speed (cruise): the force that cancels resistance and gravity, within what
+        traction gives (none with ``traction`` False) and full braking takes; 0 where that suffices."""
+        v = math.sqrt(2.0 * max(e, 0.0)) * 3.6
+        load = self._resistance(v) + self.grav[k]
+        force = min(max(load, -self.brake_kn(v, k)), _interp(v, *self.tr) * self.powered[k] if traction else 0.0)
+        return (force - load) / self.m
+
+    def _traction_kn(self, e: float, k: int) -> float:
+        return _interp(math.sqrt(2.0 * max(e, 0.0)) * 3.6, *self.tr) * self.powered[k]
+
+    def drive(self, conditions, switches_m, cruise_kmh: float | None = None, trace: list | None = None) -> tuple[float, float]:
+        """A driving plan: (running time [s], traction work [kWh]); time nan where it comes to rest before the
+        end. ``conditions`` T (full traction), K (hold the speed), C (coast), B (full braking), E (the electric
+        brake alone), each from the
+        previous switch (the first from 0 m) to the next (nan: never; the previous condition runs on).
+
+        What the plan may not do it is kept from by the envelope (a limit reached is held, a braking curve
+        is followed by braking, as speed supervision would); ``cruise_kmh`` caps T and K at that speed (held
+        there; above it, braked to it by full braking, as far as that can). Per fine step: RK4 in e, the traction work of T at the step's mean of the RK4 stages' force
+        (Simpson's rule over the step), of K the holding force where it is traction."""
+        if not hasattr(self, "_env"):  # the line's, the same for every plan
+            self._env, self._s = self.envelope(), self.positions()
+        env, s = self._env, self._s
+        starts = [0.0] + [math.inf if x != x else float(x) for x in switches_m]
+        e_cruise = math.inf if cruise_kmh is None else (cruise_kmh / 3.6) ** 2 / 2
+        e, v, t, work = 0.0, 0.0, 0.0, 0.0
+        last = len(self.pieces) - 1
+        for j, (k, d) in enumerate(self.pieces):
+            mid = s[j] + 0.5 * d
+            c = conditions[max(i for i, a in enumerate(starts) if a <= mid)]
+            cap = env[j + 1]
+            if c == "T":
+                e1 = self._rk4(lambda x: self._accel(x, k), e, d)
+                e_half = max(e + 0.5 * d * self._accel(e, k), 0.0)
+                f = (self._traction_kn(e, k) + 4 * self._traction_kn(e_half, k) + self._traction_kn(max(e1, 0.0), k)) / 6
+            elif c == "K":
+                e1 = self._rk4(lambda x: self._hold_accel(x, k), e, d)
+                vk = math.sqrt(2.0 * max(e, 0.0)) * 3.6
+                f = max(min(self._resistance(vk) + self.grav[k], _interp(vk, *self.tr) * self.powered[k]), 0.0)
+            elif c == "C":
+                e1 = self._rk4(lambda x: (-self._resistance(math.sqrt(2 * max(x, 0)) * 3.6) - self.grav[k]) / self.m, e, d)
+                f = 0.0
+            elif c == "E":
+                e1 = self._rk4(lambda x: -self._electric_decel(x, k), e, d)
+                f = 0.0
+            else:
+                e1 = self._rk4(lambda x: -self._decel(x, k), e, d)
+                f = 0.0
+            if c in "TK" and e > e_cruise:  # above the cruise speed: braked to it, as to a limit (full braking,
+                e1, f = max(self._rk4(lambda x: -self._decel(x, k), e, d), e_cruise), 0.0  # as far as it can)
+            elif c in "TK" and e1 > e_cruise:  # reaching the cruise speed: held there, as far as full braking can
+                cap = min(cap, max(e_cruise, self._rk4(lambda x: -self._decel(x, k), e, d)))
+            if e1 > cap:  # held at the cap: the traction the step to it takes, if any (braking does the rest)
+                if f > 0.0:
+                    vm = math.sqrt(e + cap) * 3.6  # sqrt(2 (e + cap) / 2): the step's mean e
+                    f = min(max(self.m * (cap - e) / d + self._resistance(vm) + self.grav[k], 0.0), f)
+                e1 = cap
+            work += f * d
+            if trace is not None:  # (position [m], speed [km/h], traction work so far [kWh]) after each step
+                trace.append((s[j + 1], math.sqrt(2.0 * max(e1, 0.0)) * 3.6, work / 3600.0))
+            if e1 <= 0.0 and j < last:
+                return float("nan"), work / 3600.0
+            v1 = math.sqrt(2.0 * max(e1, 0.0))
+            t += 2.0 * d / (v + v1)
+            e, v = e1, v1
+        return t, work / 3600.0

@@ -380,27 +380,26 @@ def test_each_descent_releases_where_its_margin_says(c80x50):
     """The release margin of one descent moves that descent's releases only. Margin 3 on the second descent: the
     release speed lies 3 x 3.6 x a_up(60) x 60 s = 27.1 km/h below the apply speed (59.0 km/h): about 31.9 km/h
     (below it, as releases are made at a cell's start); the first descent keeps the rule's 1.25 (release above
-    45 km/h), exactly as with no margins given. Both backends alike."""
-    for backend in ("numba", "numpy"):
-        calc = TractionCalculator(two_descents(), c80x50, backend=backend)
-        regions = calc.cycle_regions_m
-        assert len(regions) == 2
-        assert 2000 <= regions[0, 0] < 3000 and 9000 <= regions[0, 1] < 9700  # (the train's 635 m on the grade)
-        assert 18000 <= regions[1, 0] < 19000 and 25000 <= regions[1, 1] < 25700
-        rule = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
-        res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_margin=[[0.0, 3.0]],
-                            margin_regions_m=regions)
-        assert res.feasible[0] and rule.feasible[0], res.reason(0)
-        p, q = res.profile, rule.profile
-        first = p.s_m[:-1] < 12000
-        np.testing.assert_array_equal(p.air[0, first], q.air[0, first])
-        np.testing.assert_allclose(p.v_kmh[0, :-1][first], q.v_kmh[0, :-1][first], rtol=1e-12)
-        rel = np.flatnonzero(p.air[0] == AIR_RELEASED)
-        v_first, v_second = p.v_kmh[0, rel[p.s_m[rel] < 12000]], p.v_kmh[0, rel[(p.s_m[rel] > 18000) & (p.s_m[rel] < 25000)]]
-        drop = 3.0 * 3.6 * a_up(60) * RECHARGE_S
-        assert drop == pytest.approx(27.11, abs=0.01)
-        assert v_first.size >= 2 and (v_first > 45.0).all()
-        assert v_second.size >= 1 and (v_second <= 59.0 - drop + 0.05).all() and (v_second > 59.0 - drop - 3.0).all()
+    45 km/h), exactly as with no margins given."""
+    calc = TractionCalculator(two_descents(), c80x50)
+    regions = calc.cycle_regions_m
+    assert len(regions) == 2
+    assert 2000 <= regions[0, 0] < 3000 and 9000 <= regions[0, 1] < 9700  # (the train's 635 m on the grade)
+    assert 18000 <= regions[1, 0] < 19000 and 25000 <= regions[1, 1] < 25700
+    rule = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
+    res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True, release_margin=[[0.0, 3.0]],
+                        margin_regions_m=regions)
+    assert res.feasible[0] and rule.feasible[0], res.reason(0)
+    p, q = res.profile, rule.profile
+    first = p.s_m[:-1] < 12000
+    np.testing.assert_array_equal(p.air[0, first], q.air[0, first])
+    np.testing.assert_allclose(p.v_kmh[0, :-1][first], q.v_kmh[0, :-1][first], rtol=1e-12)
+    rel = np.flatnonzero(p.air[0] == AIR_RELEASED)
+    v_first, v_second = p.v_kmh[0, rel[p.s_m[rel] < 12000]], p.v_kmh[0, rel[(p.s_m[rel] > 18000) & (p.s_m[rel] < 25000)]]
+    drop = 3.0 * 3.6 * a_up(60) * RECHARGE_S
+    assert drop == pytest.approx(27.11, abs=0.01)
+    assert v_first.size >= 2 and (v_first > 45.0).all()
+    assert v_second.size >= 1 and (v_second <= 59.0 - drop + 0.05).all() and (v_second > 59.0 - drop - 3.0).all()
 
 
 @pytest.mark.parametrize("strategy", ["time-saving", "energy-saving", "four-stage", "proposed"])

@@ -35,9 +35,8 @@ def train():
     return load_train("configs/consists/HXD1x2-C80x100.yaml")
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_an_application_it_cannot_release_brings_the_train_to_rest_in_the_span(train, backend):
-    calc = TractionCalculator(_line(True), train, ModelOptions(), backend=backend)
+def test_an_application_it_cannot_release_brings_the_train_to_rest_in_the_span(train):
+    calc = TractionCalculator(_line(True), train, ModelOptions())
     assert calc.air_cycle is not None
     cut = calc.traction_allowed == 0.0
     mid = 0.5 * (calc.s_m[1:] + calc.s_m[:-1])

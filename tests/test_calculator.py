@@ -203,13 +203,12 @@ def test_cannot_hold_when_full_braking_is_too_weak(freight):
     route, train = freight
     steep = route.model_copy(update={"gradients": [route.gradients[0].model_copy(update={"to_m": 20000.0, "permille": -25.0})]})
     assert 5200 * 9.81 * 0.025 > 461 + 47.8728 + 80 * (0.2429 + 0.00672 * 80)
-    for backend in ("numba", "numpy"):
-        calc = TractionCalculator(steep, train, ModelOptions.seeds(), backend=backend)
-        res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 9000.0], [0.0, 1000.0]]))
-        assert (res.reason_code == IMPOSSIBLE).all() and not res.feasible.any()
-        assert np.isnan(res.running_time_s).all()
-        assert res.reason(0).startswith("full braking (461 kN) cannot hold ")
-        assert "on -25.0 per mille: even entering at 0 km/h at 0 m, full braking reaches " in res.reason(0)
+    calc = TractionCalculator(steep, train, ModelOptions.seeds())
+    res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 9000.0], [0.0, 1000.0]]))
+    assert (res.reason_code == IMPOSSIBLE).all() and not res.feasible.any()
+    assert np.isnan(res.running_time_s).all()
+    assert res.reason(0).startswith("full braking (461 kN) cannot hold ")
+    assert "on -25.0 per mille: even entering at 0 km/h at 0 m, full braking reaches " in res.reason(0)
 
 
 def test_neutral_section_cuts_traction_with_its_coasting_margins(freight):

@@ -59,8 +59,7 @@ def test_hand_worked_forces():
     assert M_T * G * 0.012 - resistance_kn(60.0) - 461.0 == pytest.approx(64.5, abs=0.1)
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_entry_speed_of_a_descent_braking_cannot_hold(freight, backend):
+def test_entry_speed_of_a_descent_braking_cannot_hold(freight):
     """The train must be at the entry speed at the top, 3000 m, from which full braking over the 2 km
     descent ends at 60 km/h at its foot: dv/ds = -(B + R(v) + G) / (M v) (G < 0 here) integrated backwards from
     60 km/h at 5000 m (solve_ivp, rtol 1e-10) gives about 54.1 km/h; the envelope and the fastest run
@@ -70,7 +69,7 @@ def test_entry_speed_of_a_descent_braking_cannot_hold(freight, backend):
     sol = solve_ivp(dv_ds, (5000.0, 3000.0), [60 / 3.6], rtol=1e-10, atol=1e-12)  # backwards in s
     entry_kmh = sol.y[0, -1] * 3.6
     assert entry_kmh == pytest.approx(54.1, abs=0.05)
-    calc = TractionCalculator(hand_case(), train, SEEDS, backend=backend)
+    calc = TractionCalculator(hand_case(), train, SEEDS)
     i = int(np.searchsorted(calc.s_m, 3000.0))
     assert calc.s_m[i] == 3000.0
     assert math.sqrt(2 * calc.e_envelope[i]) * 3.6 == pytest.approx(entry_kmh, abs=0.02)
@@ -85,8 +84,7 @@ def test_entry_speed_of_a_descent_braking_cannot_hold(freight, backend):
     assert set(p.condition[0, on_grade].tolist()) == {3}  # shown as braking (B), not as a cruise
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-def test_fastest_time_of_the_descent_case(freight, backend):
+def test_fastest_time_of_the_descent_case(freight):
     """The fastest run of the hand case against the independent fine-step (1 m, RK4) computation:
     within 0.05 %; the oracle's entry speed agrees with the backward integration above."""
     _, train = freight
@@ -95,7 +93,7 @@ def test_fastest_time_of_the_descent_case(freight, backend):
     t_ref, v_ref = ref.fastest()
     assert v_ref[3000] == pytest.approx(54.1, abs=0.05)
     assert max(v_ref) <= 60.0 + 1e-9
-    t = TractionCalculator(route, train, SEEDS, backend=backend).fastest_time_s
+    t = TractionCalculator(route, train, SEEDS).fastest_time_s
     assert t == pytest.approx(t_ref, rel=5e-4)
 
 
@@ -114,15 +112,14 @@ def test_impossible_descent_says_so_with_numbers(freight):
                     rtol=1e-10, atol=1e-12)
     foot_kmh = sol.y[0, -1] * 3.6
     assert 80 < foot_kmh < 100
-    for backend in ("numba", "numpy"):
-        calc = TractionCalculator(route, train, SEEDS, backend=backend)
-        res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 1500.0], [0.0, 8000.0]]))
-        assert not res.feasible.any() and (res.reason_code == IMPOSSIBLE).all()
-        msg = res.reason(0)
-        m = re.fullmatch(r"full braking \(461 kN\) cannot hold 60 km/h on -15\.0 per mille: even entering at 0 km/h at "
-                         r"2,000 m, full braking reaches ([\d.]+) km/h > 60 km/h at 9,000 m", msg)
-        assert m, msg
-        assert float(m.group(1)) == pytest.approx(foot_kmh, abs=0.1)
+    calc = TractionCalculator(route, train, SEEDS)
+    res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 1500.0], [0.0, 8000.0]]))
+    assert not res.feasible.any() and (res.reason_code == IMPOSSIBLE).all()
+    msg = res.reason(0)
+    m = re.fullmatch(r"full braking \(461 kN\) cannot hold 60 km/h on -15\.0 per mille: even entering at 0 km/h at "
+                     r"2,000 m, full braking reaches ([\d.]+) km/h > 60 km/h at 9,000 m", msg)
+    assert m, msg
+    assert float(m.group(1)) == pytest.approx(foot_kmh, abs=0.1)
     # the oracle says the same
     ref = oracle(route, lambda m: -15.0 if 2000 < m < 9000 else 0.0)
     excess, where = ref.rest_excess(2000.0)
@@ -195,10 +192,9 @@ def test_a_stop_full_braking_cannot_reach(freight):
     sol = solve_ivp(accel, (4600.0 + v0 ** 2 / 2 / a0, 5000.0), [v0], rtol=1e-10, atol=1e-12)
     end_kmh = sol.y[0, -1] * 3.6
     assert 20 < end_kmh < 60
-    for backend in ("numba", "numpy"):
-        res = TractionCalculator(route, train, SEEDS, backend=backend).evaluate(("T",), np.zeros((1, 0)))
-        assert res.reason_code[0] == IMPOSSIBLE
-        m = re.fullmatch(r"full braking \(461 kN at rest\) cannot stop the train on -20\.0 per mille: even entering at "
-                         r"0 km/h at 4,600 m, full braking reaches the stop at 5,000 m at ([\d.]+) km/h", res.reason(0))
-        assert m, res.reason(0)
-        assert float(m.group(1)) == pytest.approx(end_kmh, abs=0.1)
+    res = TractionCalculator(route, train, SEEDS).evaluate(("T",), np.zeros((1, 0)))
+    assert res.reason_code[0] == IMPOSSIBLE
+    m = re.fullmatch(r"full braking \(461 kN at rest\) cannot stop the train on -20\.0 per mille: even entering at "
+                     r"0 km/h at 4,600 m, full braking reaches the stop at 5,000 m at ([\d.]+) km/h", res.reason(0))
+    assert m, res.reason(0)
+    assert float(m.group(1)) == pytest.approx(end_kmh, abs=0.1)

@@ -221,9 +221,8 @@ def test_coasting_up_to_the_stop_must_reach_it(root):
     conds = tuple("TCKCBKCKTCB")
     x = np.array([[543.5, 3928.1, 6256.6, 7594.8, 8640.0, 18706.6, 22242.8, 26669.8, 27451.4, np.nan]])
     for step in (50.0, 25.0, 10.0):
-        for backend in ("numba", "numpy"):
-            r = TractionCalculator(route, train, ModelOptions(step_m=step), backend=backend).evaluate(conds, x)
-            assert not r.feasible[0] and r.reason(0).startswith(("did not stop at the end", "stalled at 27,6")), r.reason(0)
+        r = TractionCalculator(route, train, ModelOptions(step_m=step)).evaluate(conds, x)
+        assert not r.feasible[0] and r.reason(0).startswith(("did not stop at the end", "stalled at 27,6")), r.reason(0)
 
 
 def test_a_falling_line_with_rises_spends_its_spare_time_braking_not_pulling(root):

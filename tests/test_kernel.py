@@ -1,13 +1,26 @@
-"""The compiled loop (numba, the default backend) against the numpy loop it replaced: same arithmetic,
-so every number agrees to 1e-9 relative on random plans, every model option and every verdict."""
+"""The compiled loop (``sim/kernel.py``) against computations that share none of its code:
+
+- a fine-step integration of the same plans (``fastest_oracle.FastestOracle.drive``: RK4 in e over 5 m steps,
+  its own interpolation, resistance and braking envelope) in every model without the air brake's cycle:
+  running time within 0.3 %, traction energy within 0.1 %, and the same verdict (arrives or comes to rest);
+- the energy balance of runs that cycle the air brake: the work of traction, brakes, resistance and gravity
+  cell by cell adds up to the change of kinetic energy.
+"""
 
 import numpy as np
 import pytest
 
+from fastest_oracle import FastestOracle
 from locoplan.model.route import Route
+from locoplan.physics.resistance import train_resistance_kn
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
-RTOL = 1e-9
+TIME_RTOL = 3e-3
+"""The loop takes each cell (50 m by default) in one second-order step with the conditions mixed by their shares
+of it; the oracle 5 m RK4 steps. Measured: 0.1 % at most, 0.02 % typically (0.25 % on a plan that crawls)."""
+ENERGY_RTOL = 2e-3
+"""Measured: 0.11 % at most, where a train braked back to its cruise speed after a descent its brakes cannot hold
+reaches it within one cell using its surplus kinetic energy (the oracle brakes at once); 0.06 % elsewhere."""
 
 
 def _hilly(freight):
@@ -19,95 +32,88 @@ def _hilly(freight):
     return Route.model_validate(data)
 
 
-CASES = [("default", ModelOptions()), ("seeds", ModelOptions.seeds()), ("strict", ModelOptions(strict_limits=True)),
-         ("rotating", ModelOptions(rotating_mass=0.06, step_m=20.0)), ("no-air-brake", ModelOptions(air_brake=False))]
-"""On the hilly line the seeds' model and the electric brake alone cannot hold the limit down the -16 per mille
-descent: the envelope falls below it there (the train enters slower), in both backends alike."""
+def oracle_for(calc: TractionCalculator, ds_m: float) -> FastestOracle:
+    """The independent integration over the calculator's line tables (cells, gravity, limits, spans)."""
+    tr = calc.train
+    return FastestOracle(calc.s_m, calc.gravity_kn, calc.limit_kmh, calc.traction_allowed,
+                         (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
+                         (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, ds_m)
+
+
+CASES = [("seeds", ModelOptions.seeds()), ("no-air-brake", ModelOptions(air_brake=False)),
+         ("air-brake-modulated", ModelOptions(air_cycle=False))]
 
 
 @pytest.mark.parametrize("name,options", CASES, ids=[c[0] for c in CASES])
-@pytest.mark.parametrize("hilly", [False, True], ids=["freight-20km", "hilly-ns"])
-@pytest.mark.slow
-def test_backends_agree(freight, name, options, hilly):
+@pytest.mark.parametrize("hilly", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["freight-20km", "hilly-ns"])
+def test_plans_agree_with_a_fine_step_integration(freight, name, options, hilly):
     route, train = freight
     if hilly:
         route = _hilly(freight)
-    ref = TractionCalculator(route, train, options, backend="numpy")
-    new = TractionCalculator(route, train, options)
-    # the braking envelope too is computed by each backend (Python loop / kernel.braking_envelope)
-    np.testing.assert_array_equal(ref.s_m, new.s_m)
-    np.testing.assert_allclose(ref.e_envelope, new.e_envelope, rtol=1e-12, atol=1e-12)
-    if hilly and not options.air_brake:
-        assert not ref.brake_holds_limit.all() and ref.impossible is None
-    rng = np.random.default_rng(11)
-    n = 120
-    for seq, n_sw, cruise in ((tuple("TKTCTCKCB"), 7, None), (("T", "C", "B"), 1, rng.uniform(40, 80, n)),
-                              (("T", "K", "C", "B"), 3, None)):
-        X = np.sort(rng.uniform(0, route.length_m, (n, n_sw)), axis=1)
-        if seq[-1] == "B" and n_sw == len(seq) - 2:  # the final bare B: brake where the braking curve begins
-            X = np.concatenate([X, np.full((n, 1), np.nan)], axis=1)
-        a = ref.evaluate(seq, X, profile=True, cruise_kmh=cruise)
-        b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise)
-        if name == "default" and len(seq) > 4:
-            assert 0 < b.feasible.sum() < n  # the sample mixes verdicts
-        np.testing.assert_allclose(a.failure_m, b.failure_m, equal_nan=True)
-        _same_runs(a, b)
-
-
-def _same_runs(a, b):
-    """Two backends' results of one batch alike: verdicts, times, energies, the profiles and the air brake's cycle."""
-    np.testing.assert_array_equal(a.reason_code, b.reason_code)
-    np.testing.assert_allclose(a.running_time_s, b.running_time_s, rtol=RTOL, equal_nan=True)
-    np.testing.assert_allclose(a.traction_energy_kwh, b.traction_energy_kwh, rtol=RTOL)
-    for field in ("t_s", "v_kmh", "traction_kn", "brake_kn", "event_m"):
-        np.testing.assert_allclose(getattr(a.profile, field), getattr(b.profile, field), rtol=RTOL, atol=1e-9,
-                                   equal_nan=True, err_msg=field)
-    np.testing.assert_array_equal(a.profile.condition, b.profile.condition)
-    _same_cycles(a, b)
-
-
-def _same_cycles(a, b):
-    """The air brake's cycle alike in both backends: its state per cell, applications and recharge margins."""
-    assert (a.profile.air is None) == (b.profile.air is None)
-    if a.profile.air is not None:
-        np.testing.assert_array_equal(a.profile.air, b.profile.air)
-        np.testing.assert_array_equal(a.air_applications, b.air_applications)
-        np.testing.assert_allclose(a.air_margin_s, b.air_margin_s, rtol=RTOL, atol=1e-9)
-        np.testing.assert_allclose(a.air_wait_s, b.air_wait_s, rtol=RTOL, atol=1e-9, equal_nan=True)
+    calc = TractionCalculator(route, train, options)
+    oracle = oracle_for(calc, 5.0)
+    rng = np.random.default_rng(3)
+    arrived = stopped = 0
+    for seq, n_sw, cruise in ((tuple("TCTKCB"), 4, None), (("T", "C", "B"), 1, 60.0), (tuple("TKCTCB"), 4, None)):
+        for _ in range(4):
+            x = np.concatenate([np.sort(rng.uniform(0, route.length_m, n_sw)), [np.nan]])  # bare B: at the curve
+            res = calc.evaluate(seq, x[None, :], cruise_kmh=None if cruise is None else [cruise])
+            t_ref, w_ref = oracle.drive(seq, x, cruise)
+            assert bool(res.feasible[0]) == (t_ref == t_ref), (seq, x, res.reason(0), t_ref)
+            if res.feasible[0]:
+                arrived += 1
+                assert res.running_time_s[0] == pytest.approx(t_ref, rel=TIME_RTOL), (seq, x)
+                assert res.traction_energy_kwh[0] == pytest.approx(w_ref, rel=ENERGY_RTOL), (seq, x)
+            else:
+                stopped += 1
+    assert arrived >= 4 and stopped >= 1  # the sample holds both verdicts
 
 
 @pytest.mark.slow
-def test_backends_agree_on_air_brake_cycles(heavy_haul):
+def test_runs_that_cycle_the_air_brake_balance_their_energy(heavy_haul):
     """The heavy-haul line's 30.5 km at -12 per mille, which the two HXD1s' electric brake cannot hold: random
-    plans (some with a cruise speed, some with their own release margin) cycle the air brake, some are refused
-    for applying it again before its recharge is over, in both backends alike."""
+    plans cycle the air brake (applied, released, recharged); over each run as far as it goes, traction less
+    braking, resistance and gravity work equals the change of kinetic energy (to 5e-4 of the work done), and
+    in every cell to 3 % (the loop takes the resistance at its predicted mid-speed, the balance at the mean e)."""
     route, train = heavy_haul
-    ref = TractionCalculator(route, train, backend="numpy")
-    new = TractionCalculator(route, train)
+    calc = TractionCalculator(route, train)
     rng = np.random.default_rng(5)
     n = 40
-    for seq, n_sw, cruise, drop in ((("T", "K", "C", "B"), 3, None, None), (("T", "C", "K", "B"), 3, None,
-                                                                            rng.uniform(-0.3, 2.5, n)),
+    cycled = 0
+    for seq, n_sw, cruise, drop in ((("T", "K", "C", "B"), 3, None, None),
+                                    (("T", "C", "K", "B"), 3, None, rng.uniform(-0.3, 2.5, n)),
                                     (("T", "K", "B"), 2, rng.uniform(50, 80, n), None)):
-        X = np.sort(rng.uniform(0, route.length_m, (n, n_sw)), axis=1)
-        a = ref.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_margin=drop)
-        b = new.evaluate(seq, X, profile=True, cruise_kmh=cruise, release_margin=drop)
-        _same_runs(a, b)
-        assert (b.air_applications >= 2).sum() > n // 4  # cycles, not single applications
+        x = np.sort(rng.uniform(0, route.length_m, (n, n_sw)), axis=1)
+        res = calc.evaluate(seq, x, profile=True, cruise_kmh=cruise, release_margin=drop)
+        p = res.profile
+        cycled += int((res.air_applications >= 2).sum())
+        for i in range(n):
+            e = (p.v_kmh[i] / 3.6) ** 2 / 2
+            ran = np.isfinite(e[1:]) & np.isfinite(e[:-1]) & (e[1:] + e[:-1] > 0)
+            if res.failure_m[i] == res.failure_m[i]:  # up to the cell where it fails (comes to rest) only
+                ran &= calc.s_m[1:] < res.failure_m[i]
+            v_mid = np.sqrt(e[1:] + e[:-1]) * 3.6
+            forces = (p.traction_kn[i], -p.brake_kn[i], -train_resistance_kn(v_mid, train.resistance_kn),
+                      -calc.gravity_kn)
+            work = calc.h_m * sum(forces)
+            gained = calc.m_eff_t * np.diff(e)
+            scale = calc.h_m * sum(np.abs(f) for f in forces)
+            assert np.abs(gained - work)[ran].sum() <= 5e-4 * scale[ran].sum(), i
+            assert np.all(np.abs(gained - work)[ran] <= 0.03 * scale[ran]), i
+    assert cycled > n // 2  # cycles, not single applications
 
 
 @pytest.mark.slow
 def test_a_plan_does_not_depend_on_its_batch(freight):
-    """A stalled plan creeping at the speed floor used to take its time from its neighbours' arithmetic in
-    the numpy loop; both backends now give each plan the numbers it gets alone."""
+    """A stalled plan creeping at the speed floor takes no number from its neighbours in the batch: each plan
+    gets the numbers it gets alone."""
     route, train = freight
     seq = tuple("TKTCTCKCB")
     X = np.sort(np.random.default_rng(1).uniform(0, 20000, (60, 7)), axis=1)
     X = np.concatenate([X, np.full((60, 1), np.nan)], axis=1)
-    for backend in ("numpy", "numba"):
-        calc = TractionCalculator(route, train, ModelOptions(strict_limits=True), backend=backend)
-        batch = calc.evaluate(seq, X)
-        for i in range(len(X)):
-            one = calc.evaluate(seq, X[i:i + 1])
-            assert one.reason_code[0] == batch.reason_code[i]
-            np.testing.assert_allclose(one.running_time_s[0], batch.running_time_s[i], rtol=1e-12, equal_nan=True)
+    calc = TractionCalculator(route, train, ModelOptions(strict_limits=True))
+    batch = calc.evaluate(seq, X)
+    for i in range(len(X)):
+        one = calc.evaluate(seq, X[i:i + 1])
+        assert one.reason_code[0] == batch.reason_code[i]
+        np.testing.assert_allclose(one.running_time_s[0], batch.running_time_s[i], rtol=1e-12, equal_nan=True)

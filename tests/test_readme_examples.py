@@ -392,6 +392,7 @@ def ran(request, tmp_path_factory):
 
 @pytest.mark.parametrize("example", [pytest.param(e, marks=pytest.mark.slow) if e.slow else e for e in EXAMPLES],
                          ids=lambda e: f"{e.page}:{e.line}:{e.command[:50]}")
+@pytest.mark.xdist_group("examples")  # one worker runs them all: ``ran`` runs every chosen block where it is set up
 def test_example(example, ran, request):
     if example.slow and not request.config.getoption("--run-slow"):
         pytest.skip("a slow example (# slow): python -m pytest --run-slow runs it")

@@ -233,7 +233,7 @@ def apply_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
     e = np.full(n_calc, np.inf)
     short = np.flatnonzero(calc.next_short == np.arange(n_calc))
     for k in short:
-        e[k] = float(calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), int(k), np.zeros(1))[0][0])
+        e[k] = calc.cycle_speeds(calc.e_limit_cell[k], int(k))[0]
     return np.minimum.reduceat(e, idx[:-1])
 
 
@@ -248,7 +248,7 @@ def keep_speeds(calc: TractionCalculator, idx: np.ndarray) -> np.ndarray:
     e = np.full(n_calc, np.inf)
     short = np.flatnonzero(calc.next_short == np.arange(n_calc))
     for k in short:
-        e[k] = float(calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), int(k), np.array([MARGIN_MIN]))[1][0])
+        e[k] = calc.cycle_speeds(calc.e_limit_cell[k], int(k), MARGIN_MIN)[1]
     return np.maximum.reduceat(e, idx[:-1])
 
 

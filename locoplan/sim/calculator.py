@@ -32,7 +32,7 @@ import numpy as np
 
 from .. import bounds
 from ..errors import InputError, Problem
-from ..model.conditions import CODE, N_CONDITIONS
+from ..model.conditions import CODE
 from ..model.route import Route
 from ..model.train import Train, shorter_than_train
 from ..physics.braking import full_brake_kn
@@ -40,11 +40,10 @@ from ..physics.couplers import (CouplerBound, VehicleLine, coupler_bound, couple
                                 vehicle_gravity_kn)
 from ..physics.energy import recovered_energy_kwh
 from ..physics.gradient import equivalent_gradient_permille
-from ..physics.resistance import running_load_kn, train_resistance_kn
+from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
-from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
-from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL, E_FLOOR,
-                        ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
+from ..physics.units import kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
+from .constants import ARRIVE_AFTER_S, E_FLOOR, ELECTRIC_CURVE_SHARE
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import (AIR_HELD, AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
@@ -194,11 +193,8 @@ class TractionCalculator:
     ``evaluate(conditions, switches_m)`` runs a batch; see its docstring.
     """
 
-    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None, backend: str = "numba",
+    def __init__(self, route: Route, train: Train, options: ModelOptions | None = None,
                  extra_nodes_m: np.ndarray | None = None, graded_departure: bool = True):
-        if backend not in ("numba", "numpy"):
-            raise ValueError(f"backend must be 'numba' or 'numpy', not {backend!r}")
-        self.backend = backend
         self.route, self.train = route, train
         self.options = options or ModelOptions()
         if train.length_m >= route.length_m:  # first: a grid message would not say what is wrong
@@ -477,47 +473,18 @@ class TractionCalculator:
         lim_node = self.e_limit_node if limit_node is None else limit_node
         lim_cell = self.e_limit_cell if limit_cell is None else limit_cell
         n_sub = ENVELOPE_SUBSTEPS
-        m = self.m_eff_t
         forces, holds_all = self.forces, self.brake_holds_limit
         reset = np.zeros(len(self.h_m), dtype=np.int64)
         if electric_only:
             forces = forces._replace(af=np.zeros_like(forces.af), ef=ELECTRIC_CURVE_SHARE * forces.ef)
             holds_all = ~self._short_at_limit
             reset = self._short_at_limit.astype(np.int64)
-        if self.backend == "numba":  # the same loop compiled (kernel.braking_envelope)
-            e_env = np.empty_like(lim_node)
-            found = np.empty(len(self.h_m))
-            cells = contiguous(self._cells(lim_node, holds_all, holds_all)._replace(  # (e_env, holds_limit not read)
-                e_limit_node=lim_node, e_limit_cell=lim_cell))
-            count = kernels().braking_envelope(cells, forces, n_sub, e_env, found, reset)
-            return e_env, found[:count].copy()
-        e_env = lim_node.copy()
-        entries = []
-        for k in range(len(self.h_m) - 1, -1, -1):
-            if reset[k]:
-                e_env[k] = np.inf
-                continue
-            e = e_env[k + 1]
-            cap = lim_cell[k]
-            if electric_only:
-                decel = lambda e_: float(self.electric_decel(kmh_from_e(max(e_, 0.0)), k))  # noqa: E731
-            else:
-                decel = lambda e_: float(sum(self.forces_kn(ms_from_e(max(e_, 0.0)), k)[1:])) / m  # noqa: E731 -de/ds [m/s^2]
-            holds = bool(holds_all[k])
-            if e >= cap:
-                if holds:  # no braking curve runs through this cell: the limit itself bounds it
-                    continue
-                e = cap  # full braking cannot hold the limit here: the train must enter the cell slower
-            d = self.h_m[k] / n_sub
-            for i in range(n_sub):
-                e_next = e + d * decel(e + 0.5 * d * decel(e))
-                if holds and e < cap <= e_next:  # the curve rises through the limit: its entry point
-                    entries.append(self.s_m[k + 1] - d * (i + (cap - e) / (e_next - e)))
-                    e = e_next
-                    break
-                e = min(max(e_next, 0.0), cap) if not holds else e_next
-            e_env[k] = min(e_env[k], max(e, 0.0))
-        return e_env, np.array(entries)
+        e_env = np.empty_like(lim_node)
+        found = np.empty(len(self.h_m))
+        cells = contiguous(self._cells(lim_node, holds_all, holds_all)._replace(  # (e_env, holds_limit not read)
+            e_limit_node=lim_node, e_limit_cell=lim_cell))
+        count = kernels().braking_envelope(cells, forces, n_sub, e_env, found, reset)
+        return e_env, found[:count].copy()
 
     def _impossible_descent(self) -> str | None:
         """Why no plan can keep the limits, or None: where the envelope falls to rest before the end, even a
@@ -594,29 +561,6 @@ class TractionCalculator:
                               f"even at full traction: {why}; no planned time can be kept on this line with this train")
 
     # ----------------------------------------------------------------- plans
-    def condition_fractions(self, conditions: tuple[str, ...], switches_m: np.ndarray) -> np.ndarray:
-        """Share of each cell under each condition, shape (N_CONDITIONS, n_plans, n_cells).
-
-        Condition j runs from ``starts[j]`` (0 for the first, then the switches) to the next start. A
-        NaN switch means 'never': the previous condition runs on until a braking curve takes over.
-        """
-        n = switches_m.shape[0]
-        starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(switches_m), np.inf, switches_m)], axis=1)
-        ends = np.concatenate([starts[:, 1:], np.full((n, 1), np.inf)], axis=1)
-        s = self.s_m
-        # covered(x) = length of [start_j, end_j) left of x; cell share = difference over the cell
-        cov = np.clip(s[None, None, :] - starts[:, :, None], 0.0, None)
-        with np.errstate(invalid="ignore"):  # inf - inf for 'never' starts, masked right here
-            span = np.where(np.isinf(starts), 0.0, ends - starts)
-        cov = np.minimum(cov, span[:, :, None])
-        share = np.diff(cov, axis=2) / self.h_m  # (n, n_cond, n_cells)
-        frac = np.zeros((N_CONDITIONS, n, len(self.h_m)))
-        codes = np.array([CODE[c] for c in conditions])
-        for code in range(N_CONDITIONS):
-            sel = codes == code
-            if sel.any():
-                frac[code] = share[:, sel, :].sum(axis=1)
-        return frac
 
     def evaluate(self, conditions, switches_m, profile: bool = False, cruise_kmh=None,
                  recovered: bool = False, release_margin=None, margin_regions_m=None,
@@ -653,10 +597,7 @@ class TractionCalculator:
             cap = np.ascontiguousarray(kinetic_e(np.broadcast_to(np.asarray(cruise_kmh, dtype=float), (sw.shape[0],))))
         want = profile or recovered or self.checks_forces
         margin, region = self._margins(sw.shape[0], release_margin, margin_regions_m)
-        if self.backend == "numba":
-            res = self._run_kernel(conditions, sw, want, cap, margin, region)
-        else:
-            res = self._integrate(self.condition_fractions(conditions, sw), want, sw, cap, margin, region)
+        res = self._run_kernel(conditions, sw, want, cap, margin, region)
         if not profile:
             return replace(res, profile=None) if want else res
         if self.vehicle_line is not None and couplers:  # the coupler forces of every cell, for the report
@@ -703,9 +644,17 @@ class TractionCalculator:
                 spans.append([s[k], s[k + 1]])
         return np.array(spans)
 
+    def cycle_speeds(self, e_hold: float, k: int, margin: float = 0.0) -> tuple[float, float]:
+        """The air brake's cycle under the speed ``e_hold`` (e = v^2/2: a limit, a cruise speed) in cell ``k``, as the
+        plans are run (``kernel.cycle_speeds``): (e to apply at, e to release at); ``margin`` the release margin (<= 0:
+        the rule's). Needs ``air_cycle``."""
+        return kernels().cycle_speeds(float(e_hold), float(self.gravity_kn[k]), float(self.traction_allowed[k]),
+                                      float(self.t_build_s[k]), float(self.air_cycle.recharge_s), float(margin),
+                                      self.forces)
+
     def _run_kernel(self, conditions, sw: np.ndarray, want_profile: bool, cruise_e: np.ndarray | None,
                     margin: np.ndarray, region: np.ndarray) -> BatchResult:
-        """The compiled loop (``kernel.run_plans``): same arithmetic as ``_loop``, one plan at a time."""
+        """The compiled loop (``kernel.run_plans``), one plan at a time."""
         n, n_cells = sw.shape[0], len(self.h_m)
         starts = np.concatenate([np.zeros((n, 1)), np.where(np.isnan(sw), np.inf, sw)], axis=1)
         ends = np.concatenate([starts[:, 1:], np.full((n, 1), np.inf)], axis=1)
@@ -736,396 +685,11 @@ class TractionCalculator:
         return self._verdict(never(over_at), never(stop_at), never(hold_at), fb_at == 1, t, work, prof, sw, airs,
                              held_at_stop=fb_at == 2)
 
-    def _release_safe(self, k: int, e: float, frac_i: np.ndarray, cruise: float, s_air: float) -> bool:
-        """``kernel.release_safe`` for one plan (the same arithmetic): ``frac_i`` its condition shares (N_CONDITIONS, cells),
-        ``cruise`` its cruise speed's e (inf: none), ``s_air`` [m] the curve it waits for (inf: none)."""
-        h, env, nxt = self.h_m, self.e_envelope, self.next_air_curve
-        fo, t_rec = self.forces, self.air_cycle.recharge_s
-        T_, K_, C_, B_, E_ = CODE["T"], CODE["K"], CODE["C"], CODE["B"], CODE["E"]
-        t, j, n = 0.0, k, len(h)
-        while j < n and t < t_rec:
-            if frac_i[B_, j] > 0.0:
-                return False
-            e1, b_el, load = e, 0.0, 0.0
-            for _ in range(2):
-                v_kmh = float(kmh_from_e(max(0.5 * (e + e1), 0.0)))
-                b_el = float(_interp(v_kmh, fo.ev, fo.ef)) * self.traction_allowed[j]
-                load = float(running_load_kn(v_kmh, fo.ra, fo.rb, fo.rc, self.gravity_kn[j]))
-                if load < 0.0:
-                    gain = max(-(b_el + load), 0.0)
-                else:
-                    f_max = float(_interp(v_kmh, fo.tv, fo.tf)) * self.traction_allowed[j]
-                    gain = frac_i[T_, j] * f_max + frac_i[K_, j] * min(max(load, -b_el), f_max) - frac_i[E_, j] * b_el - load
-                e1 = e + (h[j] / fo.m) * gain
-            if e1 <= E_FLOOR:
-                return True
-            if frac_i[T_, j] + frac_i[K_, j] > 0.0 and e1 > cruise:
-                e1 = max(cruise, min(e, e1))
-            if s_air < np.inf:
-                e_time = 0.5 * ((s_air - self.s_m[j]) / (t_rec + ARRIVE_AFTER_S - t)) ** 2 if s_air > self.s_m[j] else 0.0
-                a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / fo.m
-                e1 = min(e1, max(self.e_envelope_el[j + 1], max(e_time, e - h[j] * a_el)))
-            if b_el + load < 0.0:
-                e_hold = self.e_limit_cell[j]
-                if frac_i[C_, j] == 0.0 and cruise < e_hold:
-                    e_hold = cruise
-                e_app = float(self._cycle_speeds(np.array([e_hold]), j, np.zeros(1))[0][0])
-                if float(kmh_from_e(e1)) >= float(kmh_from_e(e_app)) - LOOKAHEAD_MARGIN_KMH:
-                    return False
-            if e1 > env[j + 1] * (1.0 + 1e-9) + 1e-9:
-                if nxt[j] == j or b_el + load < 0.0:
-                    return False
-                e1 = env[j + 1]
-            t += 2.0 * h[j] / (float(ms_from_e(e)) + float(ms_from_e(e1)) + 1e-12)
-            e = e1
-            j += 1
-        return True
-
     @property
     def _min_hold_s(self) -> float:
         """The air brake's least hold time [s] as the loops take it (< 0: each application's build-up time)."""
         cyc = self.air_cycle
         return -1.0 if cyc is None or cyc.min_hold_s is None else float(cyc.min_hold_s)
-
-    def _cycle_speeds(self, e_hold, k: int, margin: np.ndarray):
-        """``kernel.cycle_speeds`` for every plan at once (the same arithmetic): (e to apply at, e to release at)."""
-        m, fo = self.m_eff_t, self.forces
-        v_h = kmh_from_e(e_hold)
-        a_up = -(running_load_kn(v_h, fo.ra, fo.rb, fo.rc, self.gravity_kn[k])
-                 + _interp(v_h, fo.ev, fo.ef) * self.traction_allowed[k]) / m
-        a_air = _interp(v_h, fo.av, fo.af) / m
-        t_b, t_rec = self.t_build_s[k], self.air_cycle.recharge_s
-        with np.errstate(divide="ignore", invalid="ignore"):
-            over = np.where(a_air > a_up, a_up * a_up * t_b / (2.0 * a_air), a_up * t_b)
-        v_app = np.maximum(v_h - np.maximum(APPLY_MIN_KMH, CYCLE_MARGIN * 3.6 * over), 0.0)
-        d = np.where(margin > 0.0, margin, CYCLE_MARGIN) * 3.6 * a_up * t_rec
-        v_rel = np.maximum(v_app - d, RELEASE_FLOOR * v_app)
-        up = a_up > 0.0
-        return np.where(up, kinetic_e(v_app), np.inf), np.where(up, kinetic_e(v_rel), e_hold)
-
-    def _integrate(self, frac: np.ndarray, want_profile: bool, switches_m: np.ndarray,
-                   cruise_e: np.ndarray | None = None, margin: np.ndarray | None = None,
-                   region: np.ndarray | None = None) -> BatchResult:
-        n, n_cells = frac.shape[1:]
-        m = self.m_eff_t
-        # per-cell rows, contiguous, so that each step reads plain vectors
-        fT, fK, fB, fE = (np.ascontiguousarray(frac[c].T) for c in (CODE["T"], CODE["K"], CODE["B"], CODE["E"]))
-        # only coasting or a cruise that cannot hold may break a limit; traction is held at it (a cell
-        # that mixes traction in is judged by the next one)
-        may_exceed = np.ascontiguousarray(((frac[CODE["C"]] + frac[CODE["K"]] > 0) & (frac[CODE["T"]] == 0)).T)
-        cruise_cap = None
-        if cruise_e is not None:  # per plan and cell: the cruise speed caps T and K, not C
-            cruise_cap = np.where(np.ascontiguousarray(frac[CODE["C"]].T) > 0, np.inf, cruise_e[None, :])
-        over = np.zeros((n_cells, n), dtype=bool)  # coasting / cruising above the static limit
-        stop = np.zeros((n_cells, n), dtype=np.int8)  # at rest before the end (2: under an application kept on)
-        nohold = np.zeros((n_cells, n), dtype=bool)  # full braking cannot hold the train at a limit
-        # de/ds at the start (from rest, in cell 0), to extrapolate the first cell's mid-speed; later
-        # cells use the previous cell's mean slope
-        f0, b0, l0 = (float(x) for x in self.forces_kn(np.float64(0.0), 0))
-        e0 = float(_interp(0.0, self.electric_brake_speed_kmh, self.electric_brake_kn)) * self.traction_allowed[0]
-        slope = np.maximum((fT[0] * f0 - fB[0] * b0 - fE[0] * e0 + fK[0] * min(max(l0, -b0), f0) - l0) / m, 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):  # masked divisions in the loop
-            t, work, prof, airs = self._loop(fT, fK, fB, fE, frac, may_exceed, over, stop, nohold, slope, cruise_e,
-                                             cruise_cap, want_profile, np.zeros((n, 1)) if margin is None else margin,
-                                             np.zeros(n_cells, dtype=np.int64) if region is None else region)
-        def first_of(flags):
-            return np.where(flags.any(axis=0), flags.argmax(axis=0), n_cells)
-
-        first_stop = first_of(stop > 0)
-        at = np.minimum(first_stop, n_cells - 1), np.arange(n)
-        braking_at_stop = fB[at] + fE[at] > 0
-        return self._verdict(first_of(over), first_stop, first_of(nohold), braking_at_stop, t, work, prof, switches_m,
-                             airs, held_at_stop=stop[at] == 2)
-
-    def _loop(self, fT, fK, fB, fE, frac, may_exceed, over, stop, nohold, slope, cruise_e, cruise_cap, want_profile, margin,
-              region):
-        """The distance loop: one pass over the cells, every plan advanced at once."""
-        n_cells, n = fT.shape
-        h, m, e_env = self.h_m, self.m_eff_t, self.e_envelope
-        e = np.zeros(n)
-        v = np.zeros(n)
-        t = np.zeros(n)
-        work = np.zeros(n)  # traction work [kJ]
-        if want_profile:
-            t_nodes = np.zeros((n, n_cells + 1))
-            v_nodes = np.zeros((n, n_cells + 1))
-            cond = np.zeros((n, n_cells), dtype=np.int8)
-            trac = np.zeros((n, n_cells))
-            brk = np.zeros((n, n_cells))
-            event = np.full((n, n_cells), np.nan)
-        last = n_cells - 1
-        strict = self.options.strict_limits
-        e_over = self.e_limit_cell * (1 + 1e-9) + 1e-9
-        tv, tf = self.train.traction_speed_kmh, self.train.traction_kn
-        ev, ef = self.electric_brake_speed_kmh, self.electric_brake_kn
-        av, af = self.air_brake_speed_kmh, self.air_brake_kn
-        ra, rb, rc = self.train.resistance_kn
-        grav = self.gravity_kn
-        allowed = self.traction_allowed
-        hold_check = self.holds_limit
-        # a speed held above this at a node is beyond the limit (or its braking curve): not holdable
-        e_hold_max = e_env * (1 + 1e-9) + 1e-9
-        at_rest = np.zeros(n, dtype=bool)  # plans that have come to rest (stalled): verdict made
-        cyc = self.air_cycle
-        if cyc is not None:  # the air brake's cycle (kernel.run_plans): per plan its state
-            t_rec, min_hold = cyc.recharge_s, self._min_hold_s
-            air_on, released, curve_prev, curve_kind, el_cap = (np.zeros(n, dtype=bool) for _ in range(5))
-            t_app, t_rel, tb_app, hold_app, s_air = (np.zeros(n) for _ in range(5))
-            air_at = np.full(n, n_cells, dtype=np.int64)
-            air_wait = np.full(n, np.nan)
-            air_apps = np.zeros(n, dtype=np.int64)
-            air_margin = np.full(n, np.inf)
-            air_prof = np.zeros((n, n_cells), dtype=np.int8) if want_profile else None
-
-            def apply(mask, t_at, state, curve=False):
-                """Applications by the plans in ``mask`` at times ``t_at``: each judged against its recharge and held
-                at least the least hold. A ``curve`` application follows a braking curve (released where the curve
-                ends, once held that long)."""
-                wait = t_at - t_rel
-                again = mask & released
-                np.minimum(air_margin, np.where(again, wait - t_rec, np.inf), out=air_margin)
-                early = again & (wait < t_rec - 1e-9) & (air_at == n_cells)
-                air_at[early] = k
-                air_wait[early] = wait[early]
-                air_apps[mask] += 1
-                air_on[mask] = True
-                curve_kind[mask] = curve
-                t_app[mask] = t_at[mask]
-                tb_app[mask] = self.t_build_s[k]
-                hold_app[mask] = min_hold if min_hold >= 0.0 else self.t_build_s[k]
-                state[mask] = AIR_APPLIED
-        for k in range(n_cells):
-            hk = h[k]
-            c0, c1 = e_env[k], e_env[k + 1]
-            c1_env = c1
-            # mid-cell speed for the forces: extrapolated, but not beyond halfway to the cap line, so
-            # an acceleration that ends at a limit inside the cell is taken at its own mid-speed
-            e_mid = np.minimum(e + (0.5 * hk) * slope, 0.5 * (e + c1))
-            if cruise_e is not None:
-                c0, c1 = np.minimum(c0, cruise_cap[k]), np.minimum(c1, cruise_cap[k])
-            v_kmh = np.sqrt(np.maximum(e_mid, 0.0) * KMH2_PER_E)
-            f_max = _interp(v_kmh, tv, tf) * allowed[k]
-            el_k, air_k = _interp(v_kmh, ev, ef), _interp(v_kmh, av, af)
-            b_max = full_brake_kn(el_k, air_k, allowed[k])
-            load = running_load_kn(v_kmh, ra, rb, rc, grav[k])
-            fT_k, fk, fB_k, fE_k, b_use, may_ex = fT[k], fK[k], fB[k], fE[k], b_max, may_exceed[k]
-            ov = band = hold_cap = kept = None
-            if cyc is not None:
-                b_el = el_k * allowed[k]
-                short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
-                state = np.zeros(n, dtype=np.int8)
-                e_hold = self.e_limit_cell[k] if cruise_e is None else np.minimum(self.e_limit_cell[k], cruise_cap[k])
-                e_hold = np.broadcast_to(e_hold, (n,))
-                e_app, e_r = np.full(n, np.inf), np.zeros(n)
-                if short.any():
-                    e_app, e_r = self._cycle_speeds(e_hold, k, margin[:, region[k]])
-                    e_app, e_r = np.where(short, e_app, np.inf), np.where(short, e_r, 0.0)
-                # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
-                rel = air_on & (fB_k == 0.0) & (~curve_prev | (self.next_air_curve[k] != k)) & (t - t_app >= hold_app - 1e-9)
-                ja = self.next_air_curve[k]
-                near = ja >= 0 and self.s_m[ja] - self.s_m[k] < ms_from_e(self.e_limit_cell[k]) * t_rec
-                a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
-                if near:  # a braking curve that needs the air brake within the recharge: not released above
-                    # the electric brake's own curves, unless it can slow the train to reach it recharged
-                    rel &= (((e <= self.e_envelope_el[k]) & (e <= self.e_envelope_el[k + 1]))
-                            | late_enough(v, self.s_m[ja] - self.s_m[k], a_el, t_rec + ARRIVE_AFTER_S))
-                j = self.next_short[k]
-                e_rel_now = np.where(short, e_r, np.inf)
-                if air_on.any() and j >= 0:  # a grade it cannot hold within the recharge: released at its release speed
-                    e_hold_j = self.e_limit_cell[j] if cruise_e is None else np.minimum(self.e_limit_cell[j], cruise_cap[k])
-                    ahead = ~short & (self.s_m[j] - self.s_m[k] < v * t_rec)
-                    e_r_j = self._cycle_speeds(np.broadcast_to(e_hold_j, (n,)), j, margin[:, region[j]])[1]
-                    e_rel_now = np.where(ahead, e_r_j, e_rel_now)
-                rel &= e <= e_rel_now
-                for i in np.flatnonzero(rel):  # and only where it can recharge before it is needed again
-                    rel[i] = self._release_safe(k, float(e[i]), frac[:, i, :],
-                                                np.inf if cruise_e is None else float(cruise_e[i]),
-                                                float(self.s_m[ja]) if near else np.inf)
-                if rel.any():
-                    air_on &= ~rel
-                    released |= rel
-                    el_cap[rel] = near
-                    if near:
-                        s_air[rel] = self.s_m[ja]
-                    t_rel = np.where(rel, t, t_rel)
-                    state[rel] = AIR_RELEASED
-                curve_kind &= ~(air_on & ~curve_prev)  # past its curve and still needed: a cycle's now
-                app = ~air_on & ((fB_k > 0.0) | (e >= e_app))
-                applied_b = app & (fB_k > 0.0)
-                if app.any():
-                    apply(app, t, state)
-                state[air_on & (state != AIR_APPLIED)] = AIR_ON
-                t_mid = t + hk / (v + ms_from_e(np.maximum(e_mid, 0.0)) + 1e-12)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    ramp = np.where(tb_app <= 0.0, 1.0, np.minimum(np.maximum((t_mid - t_app) / tb_app, 0.0), 1.0))
-                lvl = np.where(air_on, ramp, 0.0)
-                ov = air_on & ~applied_b & ~curve_kind  # it brakes the whole cell, whatever the plan's condition:
-                # down to a cycle's release speed at full; below it kept on (its least hold, or no safe release
-                # yet), the speed held, the electric brake eased down to the air brake alone
-                kept = ov & (e <= e_rel_now) & (fB_k == 0.0)
-                # in the cycle's band, or recharging on a descent: held by the electric brake alone (at full
-                # where it cannot hold), whatever the plan's condition
-                band = ~air_on & ((short & (e >= e_r)) | (released & (t - t_rel < t_rec) & (load < 0.0)))
-                both = ov | band
-                hold_k = band | kept
-                fT_k = np.where(both, 0.0, fT_k)
-                fE_k = np.where(both, 0.0, fE_k)
-                fk = np.where(hold_k, 1.0, np.where(ov, 0.0, fk))
-                fB_k = np.where(ov & ~kept, 1.0, np.where(kept, 0.0, fB_k))
-                may_ex = may_ex & ~both
-                b_use = b_el + lvl * air_k
-                hold_cap = np.where(kept, -lvl * air_k, f_max)
-                rech = el_cap & released & ~air_on & (t - t_rel < t_rec)
-                if rech.any():  # recharging, a curve that needs the air was near at the release: the electric
-                    # brake's own curves, or the speed that reaches it recharged (kernel.run_plans)
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        e_time = np.where(s_air > self.s_m[k],
-                                          0.5 * ((s_air - self.s_m[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2, 0.0)
-                    c0 = np.where(rech, np.minimum(c0, np.maximum(self.e_envelope_el[k], np.maximum(e_time, e))), c0)
-                    c1 = np.where(rech, np.minimum(c1, np.maximum(self.e_envelope_el[k + 1],
-                                                                  np.maximum(e_time, e - hk * a_el))), c1)
-            hold = np.minimum(np.maximum(load, -b_use), f_max if hold_cap is None else hold_cap)  # cruise: the force that keeps the speed
-            full = fT_k * f_max
-            tr = full + fk * np.maximum(hold, 0.0)
-            b_e = el_k * allowed[k]  # the electric brake alone (E)
-            e_pred = e + (hk / m) * (full - fB_k * b_use - fE_k * b_e + fk * hold - load)
-            if strict:  # by default the train is held at the limit by braking instead
-                over[k] = (e_pred > e_over[k]) & may_ex
-            capped = e_pred > c1
-            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest), never
-            # braking: an application kept on slows the train by the air brake alone, as at any speed
-            # (in the last cell too: coasting up to the stop must reach it)
-            # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
-            crawl = np.zeros(n, dtype=bool)
-            if k > 0:
-                crawl = ~capped & (fB_k == 0.0) & (fE_k == 0.0) & (e_pred < e) & (np.minimum(e, e_pred) < E_CRAWL) & ~at_rest
-                if band is not None:  # (held by the electric brake, or an application kept on: braking)
-                    crawl &= ~band & ~kept
-            if crawl.any():
-                e_c, t_c, w_c = self._crawl(k, e[crawl], np.broadcast_to(fT_k, (n,))[crawl],
-                                            np.broadcast_to(fk, (n,))[crawl], k == last)
-                e_pred = e_pred.copy()
-                e_pred[crawl] = e_c
-            if capped.any():
-                # The plan's force acts up to where its straight line in e(s) meets the cap line (a
-                # limit, a cruise speed or a braking curve) at fraction phi of the cell; then the train
-                # follows the cap, with the force that takes, if the consist has it.
-                gap = np.maximum(c0 - e, 0.0)
-                phi = np.where(capped, gap / (e_pred - c1 + gap), 1.0)
-                one_minus = 1.0 - phi
-                e_phi = e + (e_pred - e) * phi
-                e_new = np.where(capped, c1, e_pred)
-                if hold_check[k] or cruise_e is not None:
-                    # holding a speed (a limit, a cruise speed) on a descent takes braking: no more than
-                    # full braking, else the speed rises past the cap. (A braking curve was built with
-                    # full braking, so it can be followed by construction.)
-                    e_fb = e_phi + (hk * one_minus / m) * (-b_max - load)
-                    slip = capped & (e_fb > c1) & (hold_check[k] | (c1 < c1_env))
-                    if slip.any():
-                        if self.brake_holds_limit[k]:
-                            e_new = np.where(slip, e_fb, e_new)
-                            nohold[k] = slip & (e_fb > e_hold_max[k + 1])
-                        else:  # under the envelope full braking keeps every limit ahead: it caps the slip
-                            e_new = np.where(slip, np.minimum(e_fb, c1_env), e_new)
-            else:  # no plan meets a cap in this cell: phi = 1 throughout
-                phi = 1.0
-                e_new = e_pred
-            if k < last:
-                rest = e_new <= E_FLOOR
-                stop[k] = rest if kept is None else np.where(rest, np.where(kept, 2, 1), 0)
-                at_rest |= stop[k] > 0
-                e_new = np.maximum(e_new, E_FLOOR)
-                v_new = ms_from_e(e_new)
-            else:  # at rest before the end of the last cell (coasting up to the stop): short of it
-                stop[k] = crawl & (e_new == E_FLOOR)
-                v_new = ms_from_e(np.maximum(e_new, 0.0))
-            t_start = t.copy()
-            if capped.any():
-                # (plans not capped here: phi = 1 and their own end speed, so that no plan's numbers
-                # depend on the others in its batch)
-                v_phi = np.where(capped, ms_from_e(np.maximum(e_phi, 0.0)), v_new)
-                t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + one_minus / (v_phi + v_new + 1e-12))
-                # net work the cap part needs [kJ]: > 0 traction holding a limit, < 0 braking
-                cap_work = np.where(capped, m * (e_new - e_phi) + (hk * one_minus) * load, 0.0)
-                w_tr = (tr * hk) * phi + np.maximum(cap_work, 0.0)
-            else:
-                cap_work = 0.0
-                t += (2.0 * hk) / (v + v_new + 1e-12)
-                w_tr = tr * hk
-            if crawl.any():  # the crawling plans' own time and work, from their sub-steps
-                step_t = (2.0 * hk) / (v + v_new + 1e-12)
-                t[crawl] += t_c - step_t[crawl]
-                w_tr = np.broadcast_to(w_tr, (n,)).copy()
-                w_tr[crawl] = w_c
-            work += w_tr
-            if cyc is not None:
-                # following a limit or a braking curve with more than the electric brake: an application too
-                on_cap = np.zeros(n, dtype=bool)
-                if capped.any():
-                    part = capped & (np.asarray(phi) < 1.0)
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        need = np.where(part, -cap_work / (hk * (1.0 - phi)), -np.inf)
-                    on_cap = part & (need > b_el * (1.0 + 1e-9) + 1e-6)
-                new_cap = on_cap & ~air_on
-                if new_cap.any():  # judged by the recharge like any application
-                    apply(new_cap, t_start, state, curve=True)
-                curve_prev = on_cap
-                if want_profile:
-                    air_prof[:, k] = state
-            if want_profile:
-                t_nodes[:, k + 1] = t
-                v_nodes[:, k + 1] = kmh(v_new)
-                trac[:, k] = w_tr / hk
-                brk[:, k] = (fB_k * b_use + fE_k * b_e - fk * np.minimum(hold, 0.0)) * phi + np.maximum(-cap_work, 0.0) / hk
-                dominant = np.argmax(frac[:, :, k], axis=0)
-                if not allowed[k]:  # no traction in a neutral section: what was T is coasting
-                    dominant = np.where(dominant == CODE["T"], CODE["C"], dominant)
-                if ov is not None:  # the air brake applied: braking; in a cycle's band held by the electric brake
-                    dominant = np.where(ov, CODE["B"], np.where(band & (allowed[k] > 0.0), CODE["K"], dominant))
-                on_cap = capped & (np.asarray(phi) < 0.5)
-                # on a falling braking curve the train brakes (B); on a level cap it holds the limit (K)
-                falling = c1 < c0 - 1e-5 * np.maximum(c0, 1.0)  # a braking curve, not round-off at its entry node
-                falling = falling | ~self.brake_holds_limit[k]  # a descent full braking cannot hold
-                cond[:, k] = np.where(on_cap, np.where(falling, CODE["B"], CODE["K"]), dominant)
-                event[:, k] = np.where(capped & (np.asarray(phi) > 0) & (np.asarray(phi) < 1), self.s_m[k] + phi * hk, np.nan)
-            slope = (e_new - e) / hk
-            e, v = e_new, v_new
-        airs = None if cyc is None else (air_at, air_wait, air_apps, air_margin, air_prof)
-        return t, work, ((t_nodes, v_nodes, cond, trac, brk, event) if want_profile else None), airs
-
-    def _crawl(self, k: int, e: np.ndarray, fT: np.ndarray, fK: np.ndarray, last: bool):
-        """Cell ``k`` again for crawling plans, in sub-steps of at most ``CRAWL_STEP_M`` (midpoint rule in
-        e): (e at the cell's end, time, traction work); e = E_FLOOR where a plan comes to rest inside it,
-        except in the route's ``last`` cell within its last sub-step: that is arriving (e = 0)."""
-        n_sub = int(math.ceil(self.h_m[k] / CRAWL_STEP_M - 1e-9))
-        hs = self.h_m[k] / n_sub
-        m = self.m_eff_t
-
-        def accel(e_):
-            f_max, b_max, load = self.forces_kn(ms_from_e(e_), k)
-            hold = np.minimum(np.maximum(load, -b_max), f_max)
-            return (fT * f_max + fK * hold - load) / m, fT * f_max + fK * np.maximum(hold, 0.0)
-
-        t = np.zeros_like(e)
-        w = np.zeros_like(e)
-        alive = np.ones(len(e), dtype=bool)
-        for j in range(n_sub):
-            v0 = ms_from_e(e)
-            e_half = e + 0.5 * hs * accel(e)[0]
-            a, tr = accel(np.maximum(e_half, 0.0))
-            e1 = e + hs * a
-            w = np.where(alive, w + tr * hs, w)
-            stalled = alive & (e1 <= E_FLOOR)
-            if last and j == n_sub - 1:  # at rest within the last sub-step of the route: arrived
-                t = np.where(stalled, t + 2.0 * hs / (v0 + 1e-12), t)
-                e = np.where(stalled, 0.0, e)
-                alive &= ~stalled
-                stalled[:] = False
-            e1 = np.where(stalled, E_FLOOR, e1)
-            t = np.where(alive & ~stalled, t + 2.0 * hs / (v0 + ms_from_e(e1) + 1e-12), t)
-            e = np.where(alive, e1, e)
-            alive &= ~stalled
-        return e, t, w
 
     def _verdict(self, first_over, first_stop, first_hold, braking_at_stop, t, work, prof, switches_m,
                  airs=None, held_at_stop=None) -> BatchResult:

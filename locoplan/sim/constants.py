@@ -1,5 +1,5 @@
-"""Numbers shared by the calculator's numpy loop (``calculator.py``) and its compiled kernel
-(``kernel.py``). A plain module without numba, so that the calculator imports it at no cost; the kernel
+"""Numbers shared by the calculator (``calculator.py``) and its compiled kernels (``kernel.py`` and the
+optimisers' kernels). A plain module without numba, so that the calculator imports it at no cost; the kernel
 reads them as compile-time constants, so this file is part of the compiled module's hash
 (``locoplan.sim.native``): changing a number here rebuilds the kernels."""
 
@@ -15,7 +15,7 @@ CRAWL_STEP_M = 5.0
 E_CRAWL = kinetic_e(CRAWL_KMH)
 """``CRAWL_KMH`` as e = v^2/2 [m^2/s^2]."""
 
-# The air brake's cycle on a long descent (``kernel.run_plans``, ``calculator._loop``; docs/model.md).
+# The air brake's cycle on a long descent (``kernel.run_plans``; docs/model.md).
 CYCLE_MARGIN = 1.25
 """Safety factor of the cycle's rules: the release speed lies this many times the recharge time's speed gain
 (full electric brake, the grade of the application) below the apply speed, and the apply speed this many

@@ -1,8 +1,8 @@
 """The calculator's distance loop, compiled (numba, cached on disk once per machine).
 
-Same arithmetic as the vectorised numpy loop in ``calculator.py`` (``backend="numpy"``), written per
-plan and per cell with scalar branches: a cell costs a few dozen floating-point operations instead of
-dozens of numpy calls. ``tests/test_kernel.py`` holds the two backends to 1e-9 relative on random plans.
+Written per plan and per cell with scalar branches: a cell costs a few dozen floating-point operations.
+``tests/test_kernel.py`` holds it to a fine-step integration of the same plans that shares none of its code
+(``tests/fastest_oracle.py``) and, where the air brake cycles, to the energy balance of every run.
 
 Inputs are records of arrays (``records.py``: the train's ``Forces``, the grid's ``Cells``, the batch's
 ``Plans`` and its ``Outputs``); per plan the kernel walks its condition runs alongside the cells, so the
@@ -23,7 +23,7 @@ from ..physics.units import KMH2_PER_E
 from .constants import (AIR_APPLIED, AIR_OFF, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, ARRIVE_AFTER_S, CRAWL_STEP_M,
                         CYCLE_MARGIN, E_CRAWL, E_FLOOR, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
 
-# the physics functions, compiled (plain arithmetic: the same source the numpy loop runs)
+# the physics functions, compiled (plain arithmetic: the same source the numpy callers run)
 full_brake_kn = njit(cache=True)(braking.full_brake_kn)
 running_load_kn = njit(cache=True)(resistance.running_load_kn)
 davis_kn = njit(cache=True)(resistance.davis_kn)
@@ -345,6 +345,11 @@ def run_plans(ce_, fo, pl, out):
                 c0 = ce
             if ce < c1:
                 c1 = ce
+            if has_cruise and fC > 0.0 and fT + fK > 0.0 and e >= cruise_e[i] * (1.0 - 1e-9):
+                # traction or cruise sharing a cell with coasting, at the cruise speed already: they hold it (the
+                # cap that would keep them there is off for the coasting share)
+                fK += fT
+                fT = 0.0
             v_kmh = math.sqrt(max(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
             el_k = _interp(v_kmh, fo.ev, fo.ef)

@@ -51,6 +51,7 @@ ENTRY_POINTS: dict[str, tuple[str, str, str, tuple]] = {
     # name: (module, function, return type, argument types: a type string or a record class)
     "run_plans": ("locoplan.sim.kernel", "run_plans", "void", (Cells, Forces, Plans, Outputs)),
     "braking_envelope": ("locoplan.sim.kernel", "braking_envelope", "i8", (Cells, Forces, _I, _A1, _A1, "i8[:]")),
+    "cycle_speeds": ("locoplan.sim.kernel", "cycle_speeds", "UniTuple(f8, 2)", (_F, _F, _F, _F, _F, _F, Forces)),
     "stall_boundary": ("locoplan.optimize.dp_kernel", "_stall_boundary", "void", (DPCells, Forces, _A1)),
     "backward": ("locoplan.optimize.dp_kernel", "_backward", "void", (DPCells, Forces, _F, _F, _F, _A4, _A1)),
     "forward": ("locoplan.optimize.dp_kernel", "_forward", "UniTuple(f8, 2)",

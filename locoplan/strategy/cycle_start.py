@@ -270,8 +270,8 @@ def release_margins(calc: TractionCalculator, drive: CycleDrive) -> tuple[tuple[
             x = ev_m[i]
             k = int(np.clip(np.searchsorted(mid, x), 0, len(mid) - 1))
             v_rel = float(v_ev[i])
-            e_app, e_one = calc._cycle_speeds(np.array([calc.e_limit_cell[k]]), k, np.array([1.0]))
-            v_app, v_one = float(kmh_from_e(e_app[0])), float(kmh_from_e(e_one[0]))
+            e_app, e_one = calc.cycle_speeds(calc.e_limit_cell[k], k, 1.0)
+            v_app, v_one = float(kmh_from_e(e_app)), float(kmh_from_e(e_one))
             if not (math.isfinite(v_app) and v_app - v_one > 1e-9):
                 continue
             margins.append((v_app - v_rel) / (v_app - v_one))
