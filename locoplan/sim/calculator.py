@@ -43,6 +43,7 @@ from ..physics.gradient import equivalent_gradient_permille
 from ..physics.resistance import running_load_kn, train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import KMH2_PER_E, kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
+from .defaults import DEFAULT_STEP_M
 from .constants import (AIR_APPLIED, AIR_ON, AIR_RELEASED, APPLY_MIN_KMH, CRAWL_STEP_M, CYCLE_MARGIN, E_CRAWL, E_FLOOR,
                         ARRIVE_AFTER_S, ELECTRIC_CURVE_SHARE, LOOKAHEAD_MARGIN_KMH, RELEASE_FLOOR)
 from .native import kernels
@@ -50,9 +51,6 @@ from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import (AIR_HELD, AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
                      STALLED, STOPPED_SHORT, BatchResult, Profile)
 
-DEFAULT_STEP_M = 50.0
-"""Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
-0.05 % / 0.1 % (tests/test_calculator.py::test_step_convergence; README, 'step size')."""
 
 ENVELOPE_SUBSTEPS = 20
 """Sub-steps per cell for the braking envelope (computed once per route, so it can afford them)."""
