@@ -310,7 +310,8 @@ def guarded(fn):
                         call = _grouped(kwargs, groups)
                         if clocks:
                             call = _clocked(call, run)
-                        result = fn(*args, **call)
+                        with _out_to_stdout(run["command"], call):
+                            result = fn(*args, **call)
                 except typer.Exit:
                     _flush_stdout()
                     raise
@@ -356,6 +357,35 @@ def guarded(fn):
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
+
+
+_JSON_OUT = {"learn", "pareto"}
+"""Commands whose ``--out`` is a .json file only: ``--out -`` writes that JSON (every other command's is CSV)."""
+
+
+@contextmanager
+def _out_to_stdout(command: str, call: dict):
+    """``--out -``: the command's output file on stdout, in its ``--format`` where it has one, else CSV (JSON where
+    ``--out`` takes .json alone); the tables it prints go to stderr, so that stdout holds the output alone.
+    With ``--json`` (its object on stdout too) the combination is refused: exit 2."""
+    from .reporting.files import STDOUT as DASH, stdout_output
+
+    path = call.get("out_file")
+    if path is None or str(path) != DASH:
+        yield
+        return
+    if call.get("as_json"):
+        raise InputError(Problem("<command line>", "--out", "- writes the output to stdout, where --json writes its "
+                                 "object: give --out - or --json, not both (or --out FILE with --json)"))
+    suffix = f".{call['fmt']}" if call.get("fmt") else ".json" if command in _JSON_OUT else ".csv"
+    with stdout_output(suffix) as name:
+        call["out_file"] = name
+        was = out.stderr
+        out.stderr = True
+        try:
+            yield
+        finally:
+            out.stderr = was
 
 
 _WRITTEN = {"out_file": "--out", "plot": "--plot", "plot_td": "--plot-td", "boxplot": "--boxplot"}
