@@ -15,16 +15,9 @@ from typing import Callable, Iterable, Optional
 from . import bounds
 from .runner import punctuality_tolerance  # noqa: F401  (the window of a re-plan: cli_replan)
 from .errors import InputError, LocoplanError, Problem
+from .errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID, EXIT_OK, EXIT_RULE, VERDICTS
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
-EXIT_OK, EXIT_FAILED, EXIT_INVALID = 0, 1, 2
-EXIT_INTERRUPTED = 130
-"""Ctrl-C (128 + SIGINT, the shells' convention): the command stopped, nothing written."""
-"""Exit codes (SPEC section 3): every result does its job; a valid request whose result does not (no
-feasible plan, a timetabled plan outside its window, an optimum not confirmed); invalid input."""
-
-VERDICTS = {EXIT_OK: "ok", EXIT_FAILED: "failed", EXIT_INVALID: "invalid input"}
-"""Exit code -> the ``verdict`` of every --json object."""
 
 CMDLINE = bounds.CMDLINE
 
@@ -165,13 +158,6 @@ def validate_files(files: Iterable, stock_dir=None) -> Validation:
     return report
 
 
-EXIT_RULE = ("Exit codes, the same for every command: 0 every result does its job; 1 a valid request whose "
-             "result does not (no feasible plan, a planned time below the fastest run, or a plan made to keep the "
-             "timetable outside T0 +- tolerance; a --sequence, time-saving and energy-saving are measured, their "
-             "earliness or lateness reported, never exit 1 for it); 2 invalid input; 130 interrupted (Ctrl-C), nothing "
-             "written. With --json, stdout holds one JSON object whatever the outcome (but an interruption), with "
-             "verdict, exit_code and errors.")
-"""The exit-code rule, as ``locoplan --help`` states it (docs/cli.md, 'Exit codes')."""
 
 
 # ------------------------------------------------------------------------------------------ planned time

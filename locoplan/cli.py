@@ -10,22 +10,22 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from rich.markup import escape
 
 from . import __version__
-from . import api, bounds
-from .api import ModelRequest
 from .cli_common import (ALGO, BUILDER, CHAINAGE, COMMAND_LINE, COMMAND_PARAMS, CONSIST, EMIN, GAP, JSON, MODEL, OBJECTIVE, PARAMS, PLOT_TD, ROUTE, SEED, STOCK, TIME, TOL, departure_s, plot_runs_td,
                          WEIGHTS,
                          WINDOW, WORKERS, _check_outputs, _emit, _fail_if, _load, _time, _times, fail_on, json_out, locate_schedule,
                          _names, _range, all_or_none, err, guarded, out, run_progress, MAX_PROBLEMS, plain)
-from .io.load import check_folder, load_route, load_train
-from .reporting.plot import history_quantity, plot_profiles, run_title
-from .reporting.tables import compare_tables, explain_tables, sequence_table, show, summary_table, study_table, sweep_table
+from .cli_common import api, bounds  # imported when a command runs (cli_common.LazyModule)
+from .errors import EXIT_RULE
 from .strategy.registry import STRATEGIES, names as strategy_names
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 class _Group(typer.core.TyperGroup):
     """The command group: a usage error (an option's value of the wrong type, an unknown option) with
@@ -58,7 +58,7 @@ class _Group(typer.core.TyperGroup):
 
 app = typer.Typer(cls=_Group, add_completion=True, no_args_is_help=True, rich_markup_mode=None,  # help text is plain: "[m]" stays
                   help="Driving-strategy planner for heavy freight trains (traction calculation, optimisation, optimal control).",
-                  epilog=api.EXIT_RULE)
+                  epilog=EXIT_RULE)
 
 
 def _version(value: bool):
@@ -149,6 +149,9 @@ def simulate(route: Path = ROUTE,
     proposed, mpoc, sfs) arrives outside T0 +- tolerance, as optimize and compare do. A --sequence,
     time-saving and energy-saving are measured, not planned to T0: how early or late they arrive, and
     whether inside the window, is reported (the table, --json "punctual"), with exit 0."""
+    from .reporting.plot import plot_profiles, run_title
+    from .reporting.tables import sequence_table, show, summary_table
+
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot, plot_td=plot_td)
     r, train, opts = _load(route, consist, stock_dir, model)
@@ -187,6 +190,8 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     points searched by ISSA (improved sparrow search; or SSA / PSO). Method: Li Wang et al., multi-objective
     optimisation of freight trains on complex lines (ISSA switching points)."""
     from .optimize.registry import get_algorithm
+    from .reporting.plot import plot_profiles, run_title
+    from .reporting.tables import sequence_table, show, summary_table
 
     get_algorithm(algorithm)
     w = api.weights(weights)
@@ -249,6 +254,9 @@ def compare(route: Path = ROUTE,
     """Strategies side by side: sequence, switching points, running time, energy (every punctual plan's
     energy also at T0). Method: Li Wang et al., multi-objective optimisation of freight trains on complex
     lines (its Tables 8-9)."""
+    from .io.load import load_route, load_train
+    from .reporting.plot import history_quantity, plot_profiles
+    from .reporting.tables import compare_tables, explain_tables, show
     from .runner import proposed_sequence
     from .runs import make_executor, run_many
     from .runs.plans import compare_fields, compare_specs, energies_at_planned_time
@@ -320,6 +328,9 @@ def sweep(route: Path = ROUTE,
           workers: int = WORKERS, chainage: str = CHAINAGE):
     """The optimised plan across fitness weights or planned running times. Method: Li Wang et al.,
     multi-objective optimisation of freight trains on complex lines (its Tables 6-7)."""
+    from .io.load import load_route
+    from .reporting.plot import plot_profiles
+    from .reporting.tables import show, sweep_table
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, energy_reduction, time_specs, weight_specs
 
@@ -373,6 +384,9 @@ def study(route: Path = ROUTE,
           workers: int = WORKERS, chainage: str = CHAINAGE):
     """Each optimiser over several random seeds: best, worst, mean, punctual-and-best. Method: Li Wang et
     al., multi-objective optimisation of freight trains on complex lines (its Tables 10-12)."""
+    from .io.load import check_folder, load_route
+    from .reporting.plot import plot_profiles
+    from .reporting.tables import show, study_table
     from .runner import study_table as study_rows
     from .runs import make_executor, run_many
     from .runs.plans import check_time_possible, study_specs

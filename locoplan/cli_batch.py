@@ -7,15 +7,16 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
-from . import api, bounds
-from .api import ModelRequest
+from .cli_common import api, bounds  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import (ALGO, BUILDER, CONSIST, JSON, MODEL, PLOT_SUFFIXES, STOCK, TOL, WINDOW, _names,
                          _range, _times, all_or_none, check_outputs, err, fail_on, guarded, json_out, out)
-from .reporting.tables import show
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register"]
 
@@ -94,7 +95,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
     """Run a study file's product of runs on a process pool or a Dask cluster, into a resumable store."""
     from dataclasses import replace
 
-    from .reporting.tables import store_summary_table
+    from .reporting.tables import show, store_summary_table
     from .runs import Store, make_executor, run_many
     from .runs.results import default_by, rows_of, summarize_rows
     from .runs.study import load_study
@@ -146,7 +147,7 @@ def results(store_path: Path = typer.Argument(..., metavar="STORE", help="Result
     import sys
 
     from .reporting.plot_runs import plot_boxes, plot_energy_time
-    from .reporting.tables import store_summary_table
+    from .reporting.tables import show, store_summary_table
     from .runs import Store
     from .runs.results import (DEFAULT_BY, FORMATS, JOURNEY_BY, PLOT_FIELDS, SUMMARY_FIELDS, ExportShape, check_format,
                                default_by, export, export_to_file, iter_rows, stream_rows, summarize_rows, write_export)
@@ -223,7 +224,7 @@ def pareto(route: Path = typer.Argument(..., metavar="ROUTE|JOURNEY", help="Rout
     from .io.load import file_schema
     from .model.journey import JOURNEY_SCHEMA
     from .reporting.plot_runs import plot_pareto
-    from .reporting.tables import pareto_table
+    from .reporting.tables import pareto_table, show
     from .reporting.writers import with_provenance, write_json
     from .runs import make_executor
     from .runs.pareto import pareto as run_pareto

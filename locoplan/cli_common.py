@@ -6,24 +6,46 @@ them imports another (the app lives in ``cli.py``, which registers the others' c
 from __future__ import annotations
 
 import functools
+import importlib
 import inspect
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from rich.console import Console
 from rich.markup import escape
 
-from . import __version__, api, bounds
-from .api import ModelRequest
+from . import __version__
 from .catalogue import DEFAULT_CONSIST_FILE
-from .errors import InputError, LocoplanError, Problem
+from .errors import EXIT_INTERRUPTED, VERDICTS, InputError, LocoplanError, Problem
+from .optimize.names import ALGORITHM_NAMES
 from .reporting.files import all_or_none, check_output, check_output_path
-from .reporting.writers import provenance, provenance_fields, to_json, write_output
-from .optimize.registry import ALGORITHMS
-from .sim.calculator import DEFAULT_STEP_M, ModelOptions
+from .sim.defaults import DEFAULT_STEP_M
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
+    from .sim.calculator import ModelOptions
+
+
+class LazyModule:
+    """A module imported when one of its names is first used: the command modules' ``api`` and ``bounds``
+    (``from .cli_common import api``), so that importing the command line, and ``locoplan --help``, load
+    none of the planner (numpy, pydantic, the calculator); a command loads what it runs."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr: str):
+        return getattr(importlib.import_module(self._name), attr)
+
+    def __repr__(self) -> str:
+        return f"<module {self._name!r}, imported on first use>"
+
+
+api = LazyModule("locoplan.api")
+bounds = LazyModule("locoplan.bounds")
 
 MIN_COLUMNS = 40
 """The least width tables and messages are laid out for: ``COLUMNS=0`` or ``1`` (or a terminal that narrow) would
@@ -145,8 +167,6 @@ def as_flags(problem: Problem) -> Problem:
     return problem
 
 
-VERDICTS = api.VERDICTS
-
 ENVELOPE = ("verdict", "exit_code", "errors")
 """Keys every --json object on stdout has besides what a --out .json file holds (the result and its
 :data:`~locoplan.reporting.writers.PROVENANCE`: version, inputs, input files with their hashes)."""
@@ -174,12 +194,16 @@ def json_out(obj: dict) -> None:
     (see :func:`guarded`). Outside a guarded command it is printed at once."""
     run = _RUN.get()
     if run is None:
+        from .reporting.writers import to_json
+
         print(to_json(obj))
     else:
         run["json"] = obj
 
 
 def _finish_json(run: dict, code: int) -> None:
+    from .reporting.writers import provenance_fields, to_json
+
     obj = run["json"]
     if obj is None:  # nothing was computed: the object says why
         obj = {"command": run["command"], "reason": "\n".join(run["errors"]) or None}
@@ -225,9 +249,6 @@ def locate_schedule(text: str) -> str:
     return re.sub(r"planned running time (\S+) s", said, text, count=1)
 
 
-group_reasons = api.group_reasons
-
-
 COMMAND_LINE: ContextVar[tuple[str, ...]] = ContextVar("locoplan_command_line", default=())
 """The command line as typed, set by the command group while it runs a command (empty when a command runs on
 its own)."""
@@ -243,6 +264,11 @@ def _given() -> list[str]:
     return list(COMMAND_LINE.get())
 
 
+_LATER = {"ModelRequest": "ModelRequest"}
+"""Annotations :func:`guarded` leaves as written: a model group's type (``model: ModelRequest = MODEL``) is in
+:mod:`locoplan.api`, imported when a command runs; typer never reads it (the group's options stand in its place)."""
+
+
 def guarded(fn):
     """Turn a user's mistake (LocoplanError) into a red message on stderr and its exit code; with --json
     (an ``as_json`` argument) stdout gets one JSON object whatever the outcome (:func:`json_out`).
@@ -250,7 +276,7 @@ def guarded(fn):
     A parameter whose default is a :class:`ModelGroup` (``model: ModelRequest = MODEL``) stands for the
     model options: the command line shows the group's options in its place, and ``fn`` gets them as one
     :class:`~locoplan.api.ModelRequest`."""
-    signature = inspect.signature(fn, eval_str=True)
+    signature = inspect.signature(fn, eval_str=True, locals=_LATER)
     groups = {name: p.default for name, p in signature.parameters.items() if isinstance(p.default, ModelGroup)}
     shown = [q for p in signature.parameters.values()
              for q in (p.default.parameters() if isinstance(p.default, ModelGroup) else [p])]
@@ -262,6 +288,8 @@ def guarded(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from .reporting.writers import provenance
+
         run = {"json": None, "errors": [], "command": fn.__name__.replace("_", "-"), "inputs": _inputs(kwargs),
                "schedule_from": kwargs.get("route") if "time_s" in kwargs and kwargs.get("time_s") is None
                and kwargs.get("times") is None and isinstance(kwargs.get("route"), Path) else None}
@@ -282,7 +310,8 @@ def guarded(fn):
                         call = _grouped(kwargs, groups)
                         if clocks:
                             call = _clocked(call, run)
-                        result = fn(*args, **call)
+                        with _out_to_stdout(run["command"], call):
+                            result = fn(*args, **call)
                 except typer.Exit:
                     _flush_stdout()
                     raise
@@ -301,7 +330,7 @@ def guarded(fn):
                 err.print("[bold red]interrupted:[/] nothing written", highlight=False, markup=True, soft_wrap=True)
             except OSError:
                 pass
-            raise typer.Exit(api.EXIT_INTERRUPTED) from None
+            raise typer.Exit(EXIT_INTERRUPTED) from None
         except LocoplanError as exc:
             problems = getattr(exc, "problems", None)
             # an infeasible request has no file
@@ -328,6 +357,35 @@ def guarded(fn):
     wrapper.__signature__ = signature.replace(parameters=shown)  # what typer reads (inspect's public protocol)
     wrapper.__annotations__ = {p.name: p.annotation for p in shown}
     return wrapper
+
+
+_JSON_OUT = {"learn", "pareto"}
+"""Commands whose ``--out`` is a .json file only: ``--out -`` writes that JSON (every other command's is CSV)."""
+
+
+@contextmanager
+def _out_to_stdout(command: str, call: dict):
+    """``--out -``: the command's output file on stdout, in its ``--format`` where it has one, else CSV (JSON where
+    ``--out`` takes .json alone); the tables it prints go to stderr, so that stdout holds the output alone.
+    With ``--json`` (its object on stdout too) the combination is refused: exit 2."""
+    from .reporting.files import STDOUT as DASH, stdout_output
+
+    path = call.get("out_file")
+    if path is None or str(path) != DASH:
+        yield
+        return
+    if call.get("as_json"):
+        raise InputError(Problem("<command line>", "--out", "- writes the output to stdout, where --json writes its "
+                                 "object: give --out - or --json, not both (or --out FILE with --json)"))
+    suffix = f".{call['fmt']}" if call.get("fmt") else ".json" if command in _JSON_OUT else ".csv"
+    with stdout_output(suffix) as name:
+        call["out_file"] = name
+        was = out.stderr
+        out.stderr = True
+        try:
+            yield
+        finally:
+            out.stderr = was
 
 
 _WRITTEN = {"out_file": "--out", "plot": "--plot", "plot_td": "--plot-td", "boxplot": "--boxplot"}
@@ -634,6 +692,8 @@ def _os_problem(exc: OSError) -> LocoplanError:
     return InputError(Problem(str(exc.filename or "<command line>"), "", f"cannot read or write: {why}"))
 def usage_error_json(exc, args: list[str]) -> None:
     """The --json object of a command line click refused before the command ran (exit 2)."""
+    from .reporting.writers import to_json
+
     option = next((p.opts[0] for p in [getattr(exc, "param", None)] if p is not None and getattr(p, "opts", None)), "")
     message = exc.format_message()
     command = next((a for a in args if not a.startswith("-")), "")
@@ -694,6 +754,7 @@ def _times(requests: Optional[list], route, consist: str = DEFAULT_CONSIST, stoc
     def journey_fastest() -> float:
         from .io.load import load_journey, load_train
         from .runs.journey import journey_fastest_s
+        from .sim.calculator import ModelOptions
 
         j, line = load_journey(journey)
         return journey_fastest_s(j, line, load_train(consist, stock_dir), options or ModelOptions())
@@ -735,6 +796,7 @@ def _emit(summary_or_results, as_json: bool, out_file: Optional[Path], profile=N
     """``--out`` and ``--json`` of a result; with ``route``, every position with its kilometre post and the
     route's stations (:func:`locoplan.reporting.posts.with_posts`)."""
     from .reporting.posts import with_posts
+    from .reporting.writers import write_output
 
     summary_or_results = with_posts(summary_or_results, route)
     if out_file:
@@ -820,6 +882,8 @@ class ModelGroup:
 
     def request(self, kwargs: dict) -> ModelRequest:
         """The group's values, taken out of a command's ``kwargs``, as one request."""
+        from .api import ModelRequest
+
         values = {name: kwargs.pop(name) for name in self.options}
         return ModelRequest(step_m=values["step"], point_mass=values["point_mass"], air_brake=values["air_brake"],
                             rotating_mass=values["rotating_mass"], strict_limits=values.get("strict_limits", False))
@@ -837,7 +901,7 @@ ARRIVE = typer.Option(None, "--arrive", help="Arrival clock time hh:mm[:ss] (wit
 WEIGHTS = typer.Option("0.5,0.5", "--weights", help="Fitness weights w_time,w_energy: fitness = w_time |T - T0| / T0 + w_energy |E - E_min| / E_min.")
 EMIN = typer.Option(None, "--e-min", help="E_min, the energy the fitness measures against [kWh] (default: the energy-saving strategy's energy, computed only when needed; deterministic: the same for every --seed and --algorithm, since its search (--builder seed002) always starts from its own fixed seed, and the general builder's comes from the deterministic least-price drive).")
 SEED = typer.Option(1, "--seed", help="Random seed: the same seed gives the same result.")
-ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHMS)}.")
+ALGO = typer.Option("issa", "--algorithm", help=f"Optimiser: {', '.join(ALGORITHM_NAMES)}.")
 TOL = typer.Option(None, "--tolerance", help="Punctuality window +- [s] (default: the route's schedule tolerance).")
 BUILDER = typer.Option(None, "--builder", help="Sequence builder: general (the default, in every train model; any line) or seed002 (the ISSA paper's own rules to the letter: with --point-mass it reproduces the paper's tables).", show_default=False)
 WINDOW = typer.Option(True, "--window/--no-window", help="Keep plans inside T0 +- tolerance; --no-window ranks by the fitness alone.")

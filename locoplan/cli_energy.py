@@ -8,14 +8,16 @@ to a typer app, :func:`run_energy_ocp` is what ``ocp`` calls for ``--objective e
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from rich.markup import escape
 
-from . import api
-from .api import ModelRequest
+from .cli_common import api  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import CONSIST, JSON, MODEL, OBJECTIVE, ROUTE, STOCK, TIME, _check_outputs, _load, _time, _times, fail_on, guarded, json_out, out, record_error
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register", "run_energy_ocp"]
 

@@ -1,7 +1,7 @@
 """``locoplan import FORMAT FILES... --out DIR``: public track and train formats to locoplan files.
 
 Thin command over :func:`locoplan.importer.run_import`; the formats come from
-:data:`locoplan.io.readers.READERS`. :func:`register` adds the command to a typer app.
+:data:`locoplan.io.readers.FORMATS`. :func:`register` adds the command to a typer app.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import typer
 from rich.markup import escape
 
 from .cli_common import err, guarded, json_out, out, wrote
-from .io.readers import READERS
+from .io.readers import FORMATS
 
 __all__ = ["register"]
 
@@ -25,7 +25,7 @@ def _command(fmt: str, sources: list[Path], out_dir: Path, flags: list[str]) -> 
     return " ".join(shlex.quote(w) for w in words)
 
 
-formats = "; ".join(f"{name}: {r.description}" for name, r in READERS.items())
+formats = "; ".join(f"{name}: {f.description}" for name, f in FORMATS.items())
 
 
 @guarded

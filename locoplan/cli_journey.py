@@ -6,14 +6,16 @@ A thin command over :mod:`locoplan.runs.journey` (tables and files in :mod:`loco
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
-from . import api, bounds
-from .api import ModelRequest
+from .cli_common import api, bounds  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import (ALGO, CHAINAGE, CONSIST, JSON, MODEL, SEED, STOCK, _check_outputs, err, fail_on, guarded, json_out,
                          departure_s, out, set_departure)
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register"]
 

@@ -7,17 +7,17 @@ strategies of ``compare``) to a typer app.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
-from . import api
 from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
-from .api import ModelRequest
+from .cli_common import api  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import (CHAINAGE, CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, departure_s, err,
                          fail_on, guarded, json_out, out, plain, step_progress, wrote)
-from .reporting.learn_tables import fit_tables, groups_table, sections_table
-from .reporting.tables import fit, sequence_table, show, summary_table
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register"]
 
@@ -37,6 +37,7 @@ def simulate(route: Path = ROUTE,
     from .errors import InputError, Problem
     from .io.load import load_consist, load_route
     from .learn.drivers import SimulationSpec
+    from .reporting.learn_tables import groups_table
     from .reporting.logs import check_out_dir, simulate_drivers
 
     api.check_counts(drivers=drivers, runs=runs)
@@ -78,6 +79,8 @@ def learn(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.yam
     """Learn pattern curves (time shares per section, speeds inside them) from the good drivers' logs.
     Method: the patent on locomotive operation sequences from double-layer pattern curves."""
     from .io.logs import load_logs
+    from .reporting.learn_tables import fit_tables
+    from .reporting.tables import fit, show
     from .reporting.writers import with_provenance, write_json
     from .learn.patterns import LearnSettings
     from .learn.patterns import learn as run_learn
@@ -123,6 +126,8 @@ def advise(route: Path = ROUTE,
     from .io.patterns import read_patterns_file
     from .learn.patterns import Patterns
     from .runner import make_context, schedule_verdict, summarize, RunResult
+    from .reporting.learn_tables import sections_table
+    from .reporting.tables import fit, sequence_table, show, summary_table
     from .strategy.strategies import StrategyOutcome
 
     _check_outputs(out_file, plot)
@@ -169,6 +174,7 @@ def replay(logs: list[Path] = typer.Argument(..., help="Log folders (manifest.ya
     at the optimum would have saved."""
     from .io.logs import load_logs
     from .reporting.learn_tables import replay_tables
+    from .reporting.tables import show
     from .reporting.writers import rows_csv, with_provenance, write_json
     from .reporting.files import atomic_write_text
 

@@ -7,13 +7,12 @@ app in :mod:`locoplan.cli`, or a fresh one in tests).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from rich.markup import escape
 
-from . import api
-from .api import ModelRequest
+from .cli_common import api  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import ModelGroup, err, guarded, json_out, out, record_error
 from .ocp.registry import (
     DEFAULT_ENERGY_CONSIST,
@@ -23,6 +22,9 @@ from .ocp.registry import (
     OCP_METHODS,
     STAGE2_MODES,
 )
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register"]
 

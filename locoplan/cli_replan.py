@@ -6,15 +6,17 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 
-from . import api
-from .api import ModelRequest
+from .cli_common import api  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import (CONSIST, JSON, MODEL, ROUTE, STOCK, TIME, TOL, _check_outputs, _load, _time, err, fail_on,
                          guarded, json_out, out)
 from .errors import InputError, LocoplanError, Problem
+
+if TYPE_CHECKING:
+    from .api import ModelRequest
 
 __all__ = ["register"]
 

@@ -1,8 +1,26 @@
-"""Exceptions that the CLI turns into a clear message and an exit code (library code never exits)."""
+"""Exceptions that the CLI turns into a clear message and an exit code (library code never exits), and the
+exit codes themselves (:mod:`locoplan.api` re-exports them; here they load without the planner, for ``--help``)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+EXIT_OK, EXIT_FAILED, EXIT_INVALID = 0, 1, 2
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (128 + SIGINT, the shells' convention): the command stopped, nothing written."""
+"""Exit codes (SPEC section 3): every result does its job; a valid request whose result does not (no
+feasible plan, a timetabled plan outside its window, an optimum not confirmed); invalid input."""
+
+VERDICTS = {EXIT_OK: "ok", EXIT_FAILED: "failed", EXIT_INVALID: "invalid input"}
+"""Exit code -> the ``verdict`` of every --json object."""
+
+EXIT_RULE = ("Exit codes, the same for every command: 0 every result does its job; 1 a valid request whose "
+             "result does not (no feasible plan, a planned time below the fastest run, or a plan made to keep the "
+             "timetable outside T0 +- tolerance; a --sequence, time-saving and energy-saving are measured, their "
+             "earliness or lateness reported, never exit 1 for it); 2 invalid input; 130 interrupted (Ctrl-C), nothing "
+             "written. With --json, stdout holds one JSON object whatever the outcome (but an interruption), with "
+             "verdict, exit_code and errors.")
+"""The exit-code rule, as ``locoplan --help`` states it (docs/cli.md, 'Exit codes')."""
 
 
 class LocoplanError(Exception):

@@ -211,6 +211,17 @@ def test_running_times_agree_with_trainruns_within_its_own_tolerance(path):
 
 
 # ------------------------------------------------------------------------------------------ CLI
+def test_every_format_has_its_reader_and_the_help_lists_them_all():
+    """FORMATS (plain data, what ``locoplan import --help`` lists) and READERS (the reader objects) name the same
+    formats, in the same order, each reader under its own name."""
+    from locoplan.io.readers import FORMATS, READERS
+
+    assert list(READERS) == list(FORMATS) == ["ttobench", "railtoolkit", "osrd", "osrd-train", "railml"]
+    assert all(reader.name == name for name, reader in READERS.items())
+    shown = " ".join(CliRunner().invoke(app, ["import", "--help"]).output.split())  # the help's lines joined
+    assert all(f"{name}: {fmt.description}" in shown for name, fmt in FORMATS.items())
+
+
 def test_cli_import_ttobench_one_leg(tmp_path):
     track = {"metadata": {"id": "T1", "library version": "TTOBench v1.1"},
              "stops": {"unit": "m", "values": [0.0, 1000.0, 2500.0]},

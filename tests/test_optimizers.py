@@ -307,7 +307,10 @@ def test_problem_protocol_runtime_checkable():
 
 
 def test_registry_names_and_unknown_name():
+    from locoplan.optimize.names import ALGORITHM_NAMES
+
     assert set(ALGORITHMS) == {"issa", "ssa", "pso"}
+    assert tuple(ALGORITHMS) == ALGORITHM_NAMES  # the help's list (read without loading the optimisers) is the registry's
     assert get_algorithm("ISSA") is issa.ISSA and get_algorithm("pso") is pso.PSO
     with pytest.raises(InputError) as info:
         get_algorithm("ga")

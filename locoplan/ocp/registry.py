@@ -8,7 +8,6 @@ from importlib import resources
 
 from ..catalogue import DEFAULT_CONSIST_FILE
 from ..errors import InputError, Problem
-from . import nodes as _nodes
 
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
 """The seed 000 test train: the default of ``--objective time``."""
@@ -91,6 +90,8 @@ def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective
     """Validate the options of :func:`solve_ocp` before any file is read or NLP built; returns the
     control-node count (the method's seed default if ``None``) and the state-node count (or ``None``).
     Every problem is reported at once as an :class:`InputError` naming the option."""
+    from . import nodes as _nodes  # numpy: loaded when a command runs, not for its help
+
     problems: list[Problem] = []
     if objective not in OBJECTIVES:
         problems.append(Problem(SOURCE, "--objective", f"unknown objective {objective!r}; choose one of {', '.join(OBJECTIVES)}"))

@@ -8,7 +8,8 @@ objects; reading a parameter file is :func:`locoplan.runner.load_optimizer_param
     result = get_algorithm("issa")().setup(problem, rng, **params.model_dump()).run()
 
 Adding an optimiser is one module (an ``Optimizer`` with its ``Params`` model), one line in
-:data:`ALGORITHMS` and its shipped parameter file in ``locoplan/catalogue/optimizers/``.
+:data:`ALGORITHMS` (its name also in :data:`~locoplan.optimize.names.ALGORITHM_NAMES`, which the help
+reads) and its shipped parameter file in ``locoplan/catalogue/optimizers/``.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from .ssa import SSA
 __all__ = ["ALGORITHMS", "default_params", "get_algorithm"]
 
 ALGORITHMS: dict[str, type[Optimizer]] = {"issa": ISSA, "ssa": SSA, "pso": PSO}
+"""Name -> class, the names of :data:`~locoplan.optimize.names.ALGORITHM_NAMES` in its order (tests/test_optimizers.py)."""
 
 
 def get_algorithm(name: str) -> type[Optimizer]:

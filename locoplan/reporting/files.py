@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import stat
+import sys
 import tempfile
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -15,6 +16,30 @@ from ..errors import InputError, Problem
 
 
 _PENDING: ContextVar[list[tuple[str, Path]] | None] = ContextVar("locoplan_pending_outputs", default=None)
+
+STDOUT = "-"
+"""The output name that means stdout (``--out -``)."""
+
+_STDOUT: ContextVar[frozenset[str]] = ContextVar("locoplan_stdout_outputs", default=frozenset())
+
+
+@contextmanager
+def stdout_output(suffix: str):
+    """An output that goes to stdout: yields the name to write it under, ``-`` with ``suffix`` (the writers choose
+    the format by the suffix, ``.csv``, ``.json``...). What :func:`atomic_write` writes under that name is staged
+    in a temporary file and written to stdout where a file would be moved into place (so, inside
+    :func:`all_or_none`, only when the command's outputs are complete); no file of that name is made."""
+    name = STDOUT + suffix
+    token = _STDOUT.set(_STDOUT.get() | {name})
+    try:
+        yield Path(name)
+    finally:
+        _STDOUT.reset(token)
+
+
+def is_stdout(path: str | Path | None) -> bool:
+    """True when ``path`` is the name :func:`stdout_output` gave: written to stdout, not to a file."""
+    return path is not None and str(Path(path)) in _STDOUT.get()
 
 
 def existing_folder(folder: Path, name: str, option: str) -> Path:
@@ -46,6 +71,11 @@ def check_output(path: str | Path | None, option: str, suffixes: tuple[str, ...]
     if path is None:
         return None
     path = Path(path)
+    if is_stdout(path):  # no file: only its format is checked
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise InputError(Problem("<command line>", option, f"-: stdout takes {path.suffix} here, and this output "
+                                     "is " + " or ".join(suffixes)))
+        return path
     try:
         return _check_output(path, option, suffixes)
     except OSError as exc:  # a name too long, a loop of links, ...
@@ -138,6 +168,8 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
     A failure leaves no partial file behind; a missing folder is created (with its parents).
     """
     path = Path(path)
+    if is_stdout(path):
+        return _stage_stdout(path, write)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         existing_folder(folder, str(path), "")
@@ -165,6 +197,41 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> None:
         if isinstance(exc, OSError):
             raise InputError(Problem(str(path), "", f"cannot write: {exc.strerror or exc}")) from None
         raise
+
+
+def _stage_stdout(path: Path, write: Callable[[Path], None]) -> None:
+    """:func:`atomic_write` of an output that goes to stdout: staged in the system's temporary folder."""
+    fd, tmp = tempfile.mkstemp(prefix="locoplan-stdout.", suffix=path.suffix[:16])
+    os.close(fd)
+    try:
+        write(Path(tmp))
+    except BaseException:
+        _discard([tmp])
+        raise
+    pending = _PENDING.get()
+    if pending is None:
+        _commit([(tmp, path)])
+    else:
+        pending.append((tmp, path))
+
+
+def _to_stdout(tmp: str) -> None:
+    """A staged output, written to stdout as it is (text, or bytes: a parquet export), then removed."""
+    try:
+        with open(tmp, "rb") as fh:
+            data = fh.read()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = None
+        sys.stdout.flush()
+        if text is not None:
+            sys.stdout.write(text)
+        else:
+            sys.stdout.buffer.write(data)
+        sys.stdout.flush()
+    finally:
+        _discard([tmp])
 
 
 @contextmanager
@@ -211,7 +278,20 @@ def _read_by_this_command(path: Path) -> str | None:
 def _commit(pending: list[tuple[str, Path]]) -> None:
     """Move every staged output into place together: none replaces a file the command read, and when one move
     fails the ones before it are undone (each replaced file is kept as a hard link until every move is done), so
-    the outputs appear all or none."""
+    the outputs appear all or none. An output to stdout (:func:`stdout_output`) is written there once the files
+    are in place."""
+    to_stdout = [tmp for tmp, path in pending if is_stdout(path)]
+    pending = [(tmp, path) for tmp, path in pending if not is_stdout(path)]
+    try:
+        _commit_files(pending)
+    except BaseException:
+        _discard(to_stdout)
+        raise
+    for tmp in to_stdout:
+        _to_stdout(tmp)
+
+
+def _commit_files(pending: list[tuple[str, Path]]) -> None:
     for _tmp, path in pending:
         source = _read_by_this_command(path)
         if source is not None:

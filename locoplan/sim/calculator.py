@@ -44,14 +44,12 @@ from ..physics.resistance import train_resistance_kn
 from ..physics.traction import gradient_force_kn, max_force_kn
 from ..physics.units import kinetic_e, kmh, kmh_from_e, kwh, ms, ms_from_e
 from .constants import ARRIVE_AFTER_S, E_FLOOR, ELECTRIC_CURVE_SHARE
+from .defaults import DEFAULT_STEP_M
 from .native import kernels
 from .records import Cells, Forces, Outputs, Plans, contiguous
 from .result import (AIR_HELD, AIR_RECHARGE, CANNOT_HOLD, COUPLER_LIMIT, FORCE_RATE, IMPOSSIBLE, LIMIT_EXCEEDED, NEVER_ARRIVED, OK,
                      STALLED, STOPPED_SHORT, BatchResult, Profile)
 
-DEFAULT_STEP_M = 50.0
-"""Default grid spacing [m]. Halving it changes time and energy on freight-20km by far less than
-0.05 % / 0.1 % (tests/test_calculator.py::test_step_convergence; README, 'step size')."""
 
 ENVELOPE_SUBSTEPS = 20
 """Sub-steps per cell for the braking envelope (computed once per route, so it can afford them)."""

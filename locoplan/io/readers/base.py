@@ -87,11 +87,10 @@ class Imported:
 
 
 class Reader(Protocol):
-    """A source format. ``options``: the ``ImportOptions`` fields it uses (others are refused);
-    ``min_files``/``max_files``: how many source files it takes."""
+    """A source format (its description is its line in ``FORMATS``). ``options``: the ``ImportOptions``
+    fields it uses (others are refused); ``min_files``/``max_files``: how many source files it takes."""
 
     name: str
-    description: str
     options: frozenset[str]
     min_files: int
     max_files: int

@@ -420,7 +420,6 @@ def _applies(d_range: int, d_run: int) -> bool:
 
 class OsrdInfraReader:
     name = "osrd"
-    description = "OSRD RailJSON infrastructure: the path between two operational points, as a route and a journey"
     options = frozenset({"cap_kmh", "from_station", "to_station", "via", "stops", "speed_tag", "thermal"})
     min_files = 1
     max_files = 1
@@ -664,7 +663,6 @@ OSRD rolling stock (a whole trainset) becomes that many equal units."""
 
 class OsrdTrainReader:
     name = "osrd-train"
-    description = "OSRD RailJSON rolling stock: a vehicle and a consist file each"
     options = frozenset({"mode"})
     min_files = 1
     max_files = 50

@@ -167,7 +167,6 @@ def _dir(el) -> int:
 
 class RailmlReader:
     name = "railml"
-    description = "railML 2.x infrastructure (XML): tracks, or the path between two operational points, as a route and a journey"
     options = frozenset({"cap_kmh", "from_station", "to_station", "via", "stops", "tracks", "category"})
     min_files = 1
     max_files = 1

@@ -91,7 +91,6 @@ def _open(path: Path) -> tuple[dict, SourceChecker, str]:
 
 class RailtoolkitReader:
     name = "railtoolkit"
-    description = "railtoolkit running paths and rolling stock (YAML, schema 2022.05): routes, vehicles, consists"
     options = frozenset({"cap_kmh", "load_fraction"})
     min_files = 1
     max_files = 50

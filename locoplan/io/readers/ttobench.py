@@ -166,7 +166,6 @@ def curves_on_leg(starts: list[float], k_start: list[float], k_end: list[float],
 
 class TTOBenchReader:
     name = "ttobench"
-    description = "TTOBench track (JSON): one route file per stop-to-stop leg"
     options = frozenset({"cap_kmh", "leg", "all_legs", "journey"})
     min_files = 1
     max_files = 1
