@@ -39,22 +39,27 @@ ForceCurve = list[Annotated[list[float], Field(min_length=2, max_length=2)]]
 """[[speed_kmh, force_kn], ...], linear between points."""
 
 
-def _curve_problems(field: tuple, curve: ForceCurve | None) -> list[tuple[tuple, str]]:
+def _curve_problems(field: tuple, curve: ForceCurve | None, what: str = "force_kn",
+                    bounds: tuple[float, float] | None = None) -> list[tuple[tuple, str]]:
+    """What is wrong with a curve [[speed_kmh, value], ...]: a force [kN] (``what`` = "force_kn"), or another
+    quantity within ``bounds`` (e.g. an adhesion coefficient, "mu" in (0, 1])."""
     out: list[tuple[tuple, str]] = []
     if curve is None:
         return out
     if len(curve) < 2:
-        out.append((field, "needs at least two [speed_kmh, force_kn] points"))
+        out.append((field, f"needs at least two [speed_kmh, {what}] points"))
     for i, (v, f) in enumerate(curve):
         if not (v == v and f == f) or v in (float("inf"), float("-inf")) or f in (float("inf"), float("-inf")):
-            out.append((field + (i,), f"speed and force must be finite numbers (got [{v:g}, {f:g}])"))
+            out.append((field + (i,), f"speed and {what} must be finite numbers (got [{v:g}, {f:g}])"))
             continue
         if v < 0 or f < 0:
-            out.append((field + (i,), f"speed and force must be >= 0 (got [{v:g}, {f:g}])"))
+            out.append((field + (i,), f"speed and {what} must be >= 0 (got [{v:g}, {f:g}])"))
         if v > PLAUSIBLE["speed_kmh"]:
             out.append((field + (i,), f"speed {v:g} km/h is implausible (no train runs above {PLAUSIBLE['speed_kmh']:g} km/h)"))
-        if f > PLAUSIBLE["force_kn"]:
+        if bounds is None and f > PLAUSIBLE["force_kn"]:
             out.append((field + (i,), f"force {f:g} kN is implausible for one vehicle (limit {PLAUSIBLE['force_kn']:g} kN)"))
+        if bounds is not None and not bounds[0] < f <= bounds[1]:
+            out.append((field + (i,), f"{what} {f:g} must lie in ({bounds[0]:g}, {bounds[1]:g}]"))
         if i and v <= curve[i - 1][0]:
             out.append((field + (i,), f"speeds must increase ({v:g} after {curve[i - 1][0]:g})"))
     return out
@@ -101,10 +106,14 @@ class Vehicle(Strict):
     air_brake: AirBrake | None = None
     regen_efficiency: float | None = Field(default=None, gt=0, le=1, description=(
         "locomotives: share of the electric brake's work at the wheel returned to the line [-]"))
+    adhesion_mu: ForceCurve | None = Field(default=None, description=(
+        "locomotives: adhesion coefficient against speed [[speed_kmh, mu], ...]; traction and the electric brake "
+        "are each at most mu(v) x mass_t x g (every axle driven); without it they are their curves"))
 
     @model_validator(mode="after")
     def _check(self) -> "Vehicle":
         problems = _curve_problems(("traction_kn",), self.traction_kn) + _curve_problems(("brake_kn",), self.brake_kn)
+        problems += _curve_problems(("adhesion_mu",), self.adhesion_mu, "mu", (0.0, 1.0))
         lo, hi = PLAUSIBLE["vehicle_mass_t"]
         if not lo <= self.mass_t <= hi:
             problems.append((("mass_t",), f"{self.mass_t:g} t is implausible for one vehicle (expected {lo:g} .. {hi:g} t)"))
@@ -122,6 +131,9 @@ class Vehicle(Strict):
         else:
             if self.regen_efficiency is not None:
                 problems.append((("regen_efficiency",), "a wagon has no electric brake to regenerate with"))
+            if self.adhesion_mu is not None:
+                problems.append((("adhesion_mu",), "a wagon has no driven wheels (adhesion limits a locomotive's "
+                                 "traction and electric brake)"))
             for field in ("traction_kn", "brake_kn"):
                 if getattr(self, field) is not None:
                     what = "traction" if field == "traction_kn" else "an electric brake"

@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError, Problem
+from ..physics.adhesion import adhesion_limited
 from ..physics.braking import air_brake_curve_kn
 from ..physics.resistance import unit_to_train_coefficients_kn
 from .consist import PLAUSIBLE, Consist, Vehicle
@@ -124,7 +125,7 @@ class Train:
         n = 0
         n_braked_wagons = 0
         vmax = np.inf
-        locos: list[tuple[Vehicle, int]] = []
+        locos: list[tuple] = []  # (traction, electric brake, regen_efficiency, count)
         air: list[tuple[np.ndarray, int]] = []
         layout = []
         for entry in consist.vehicles:
@@ -137,8 +138,9 @@ class Train:
             coeffs += np.array(unit_to_train_coefficients_kn(r.a, r.b, r.c, entry.count * m))
             vmax = min(vmax, veh.max_speed_kmh)
             n += entry.count
+            traction, electric = _driven_curves(veh)
             if veh.kind == "locomotive":
-                locos.append((veh, entry.count))
+                locos.append((traction, electric, veh.regen_efficiency, entry.count))
             curve = None
             if veh.air_brake is not None:
                 ab = veh.air_brake
@@ -150,15 +152,15 @@ class Train:
             layout.append(VehicleGroup(
                 veh.kind, entry.count, float(m), float(veh.rotating_mass_factor), float(veh.length_m),
                 tuple(float(x) for x in unit_to_train_coefficients_kn(r.a, r.b, r.c, m)),
-                _pairs(veh.traction_kn), _pairs(veh.brake_kn),
+                _pairs(traction), _pairs(electric),
                 () if curve is None or consist.brake_deceleration_ms2 is not None
                 else _pairs(np.column_stack([curve[:, 0], curve[:, 1] * consist.service_brake_coefficient]))))
         # regeneration weighted by each locomotive group's peak electric brake force
-        weights = np.array([c * max(f for _, f in v.brake_kn) for v, c in locos], dtype=float)
-        shares = np.array([v.regen_efficiency or 0.0 for v, _ in locos], dtype=float)
+        weights = np.array([c * max(e[:, 1]) for _, e, _, c in locos], dtype=float)
+        shares = np.array([eta or 0.0 for _, _, eta, _ in locos], dtype=float)
         regen = float(weights @ shares / weights.sum()) if weights.sum() > 0 else 0.0
-        tv, tf = _sum_curves([(v.traction_kn, c) for v, c in locos])
-        ev, ef = _sum_curves([(v.brake_kn, c) for v, c in locos])
+        tv, tf = _sum_curves([(t, c) for t, _, _, c in locos])
+        ev, ef = _sum_curves([(e, c) for _, e, _, c in locos])
         av, af = _sum_curves(air)
         af = af * consist.service_brake_coefficient
         if consist.brake_deceleration_ms2 is not None:
@@ -177,6 +179,19 @@ class Train:
         return cls(consist.name, mass, length, float(vmax), tuple(float(x) for x in coeffs),
                    tv, tf, ev, ef, av, af, n, inertial, float(regen), tuple(layout), consist.coupler_limit_kn,
                    consist.force_rate_limit_kn_per_s, cycle)
+
+
+def _driven_curves(veh: Vehicle) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """A vehicle's traction and electric-brake curves as the train has them: each capped by the adhesion of its
+    driven wheels where the vehicle gives ``adhesion_mu`` (``physics.adhesion``); None where it has none."""
+    curves = []
+    for curve in (veh.traction_kn, veh.brake_kn):
+        if curve is not None:
+            curve = np.asarray(curve, dtype=float)
+            if veh.adhesion_mu is not None:
+                curve = adhesion_limited(curve, np.asarray(veh.adhesion_mu, dtype=float), veh.mass_t)
+        curves.append(curve)
+    return curves[0], curves[1]
 
 
 def _pairs(curve) -> tuple:
