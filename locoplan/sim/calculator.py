@@ -161,28 +161,52 @@ def departure_nodes_m(length_m: float) -> np.ndarray:
     return (np.arange(1, DEPARTURE_NODES + 1) / DEPARTURE_NODES) ** 2 * span
 
 
-def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None, graded: bool = True) -> np.ndarray:
+MERGED_ENDS_PER_CELL = 5
+"""Section ends per cell above which they are merged into the cells (``_grid``)."""
+
+
+def _section_ends_m(route: Route, train: Train, options: ModelOptions) -> np.ndarray:
+    """Where the equivalent gradient changes (or, in strip mode, bends): the ends of the gradient sections, curves
+    and tunnels, a short curve's spread over one train length, and in strip mode each of these one train length on."""
+    points = [x for sections in (route.gradients, route.curves, route.tunnels) for sec in sections
+              for x in (sec.from_m, sec.to_m)]
+    points += [c.from_m + train.length_m for c in route.curves]  # the ISSA paper's claim: a short curve is spread
+    if options.strip:  # over one train length
+        points += [p + train.length_m for p in list(points)]
+    return np.unique(np.clip(points, 0.0, route.length_m))
+
+
+def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None,
+          graded: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """Node positions: a uniform grid merged with every route breakpoint (and +L in strip mode), with ``graded``
-    the departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given."""
+    the departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given.
+
+    On a line whose gradient, curve and tunnel sections are on average shorter than a fifth of a cell (more
+    than ``MERGED_ENDS_PER_CELL`` section ends per cell: 10 m at the default 50 m step, where validate warns),
+    those ends are not made nodes: the cells take the exact mean of the equivalent gradient over them instead
+    (returned as the second value, the section ends to integrate over; None: every end is a node), so that the
+    grid's size, and every method's cost, stays within a few times the uniform grid's, whatever the number of
+    sections."""
     L = route.length_m
+    n = max(1, math.ceil(L / options.step_m - 1e-9))
+    ends = _section_ends_m(route, train, options)
+    dense = len(ends) > MERGED_ENDS_PER_CELL * n
     points = [0.0, L, *(departure_nodes_m(L) if graded else ())]
-    for sections in (route.speed_limits, route.gradients, route.curves, route.tunnels):
-        for sec in sections:
-            points += [sec.from_m, sec.to_m]
-    for c in route.curves:  # seed 004 claim 6: a short curve is spread over one train length
-        points.append(c.from_m + train.length_m)
+    for sec in route.speed_limits:
+        points += [sec.from_m, sec.to_m]
     for a, b in neutral_spans_m(route, train.length_m if options.strip else 0.0):
         points += [a, b]
     if options.strip:
         points += [p + train.length_m for p in list(points)]
+    if not dense:
+        points += list(ends)
     if extra_nodes_m is not None:
         points += list(np.asarray(extra_nodes_m, dtype=float))
-    n = max(1, math.ceil(L / options.step_m - 1e-9))
     s = np.union1d(np.linspace(0.0, L, n + 1), np.clip(points, 0.0, L))
     keep = np.concatenate([[True], np.diff(s) > 1e-6])
     s = s[keep]
     s[-1] = L
-    return s
+    return s, (ends if dense else None)
 
 
 class TractionCalculator:
@@ -213,7 +237,7 @@ class TractionCalculator:
                                         self.electric_brake_speed_kmh, self.electric_brake_kn, self.air_brake_speed_kmh,
                                         self.air_brake_kn, *train.resistance_kn))
         """The train's force model as the compiled loops take it (``records.Forces``)."""
-        s = _grid(route, train, self.options, extra_nodes_m, graded_departure)
+        s, self._merged_ends_m = _grid(route, train, self.options, extra_nodes_m, graded_departure)
         self._build(s)
         kinks = self._braking_curve_entries()
         if kinks.size:  # make every braking-curve entry a node, then rebuild on the finer grid
@@ -227,8 +251,9 @@ class TractionCalculator:
         self.h_m = np.diff(s)
         mid = 0.5 * (s[1:] + s[:-1])
         # Cell means: the point gradient is constant in each cell, the strip gradient linear, so the
-        # midpoint value is the exact mean in both modes.
-        self.gradient_permille = equivalent_gradient_permille(route, mid, train.length_m, self.options.strip)
+        # midpoint value is the exact mean in both modes; where section ends lie inside cells (a line of sections
+        # shorter than a cell, ``_grid``), the mean over the pieces between them, exact the same way
+        self.gradient_permille = self._cell_mean_gradient(s, self._merged_ends_m)
         self.limit_kmh = np.minimum(self._limit_at(mid), train.max_speed_kmh)
         self.gravity_kn = gradient_force_kn(self.gradient_permille, train.mass_t)
         # the air brake's build-up time of an application made in each cell [s]
@@ -269,6 +294,21 @@ class TractionCalculator:
         self.impossible = self._impossible_descent()
         self.cells = self._cells(self.e_envelope, self.holds_limit)
         """The grid as the compiled loops take it."""
+
+    def _cell_mean_gradient(self, s: np.ndarray, ends_m: np.ndarray | None) -> np.ndarray:
+        """The equivalent gradient's mean over each cell between nodes ``s`` [per mille]: at the cell's midpoint, or,
+        with section ends ``ends_m`` inside the cells, summed over the pieces between them (each piece's midpoint
+        value is its exact mean: constant in the point model, linear in the strip model)."""
+        route, train, strip = self.route, self.train, self.options.strip
+        if ends_m is None:
+            return equivalent_gradient_permille(route, 0.5 * (s[1:] + s[:-1]), train.length_m, strip)
+        cuts = np.union1d(s, ends_m)
+        cuts = cuts[np.concatenate([[True], np.diff(cuts) > 1e-9])]
+        cuts[-1] = s[-1]
+        piece = np.diff(cuts)
+        g = equivalent_gradient_permille(route, 0.5 * (cuts[1:] + cuts[:-1]), train.length_m, strip)
+        first = np.minimum(np.searchsorted(cuts, s[:-1] - 1e-9), len(piece) - 1)  # each cell's first piece
+        return np.add.reduceat(g * piece, first) / np.diff(s)
 
     def _cells(self, e_env: np.ndarray, holds_limit: np.ndarray, brake_holds: np.ndarray | None = None) -> Cells:
         e_el, nxt = getattr(self, "e_envelope_el", None), getattr(self, "next_air_curve", None)
