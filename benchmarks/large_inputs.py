@@ -3,7 +3,7 @@ speed limits), HXD1 + 50 x C80 at 1.2 x its fastest run, each command a fresh pr
 (the process's largest resident set) and exit code, E* solved afresh by each command, for N = 400 (50 m sections, the reference), 4,000, 8,000
 and 12,000.
 
-    python benchmarks/large_inputs.py [--sections 400,4000,8000,12000] [--commands validate,simulate,bound,optimize]
+    python benchmarks/large_inputs.py [--sections 400,4000,8000,12000] [--commands validate,simulate,bound,optimize,mpoc,ocp-energy]
 """
 
 from __future__ import annotations
@@ -62,7 +62,10 @@ def main() -> None:
                 argv = {"validate": ["validate", str(route)],
                         "simulate": ["simulate", str(route), "--consist", CONSIST],
                         "bound": ["bound", str(route), "--consist", CONSIST, "--time", "1.2x"],
-                        "optimize": ["optimize", str(route), "--consist", CONSIST, "--time", "1.2x"]}[cmd]
+                        "optimize": ["optimize", str(route), "--consist", CONSIST, "--time", "1.2x"],
+                        "mpoc": ["compare", str(route), "--consist", CONSIST, "--time", "1.2x", "--strategies", "mpoc"],
+                        "ocp-energy": ["ocp", str(route), "--consist", CONSIST, "--objective", "energy",
+                                       "--time", "1.2x"]}[cmd]
                 wall, mib, code = run(argv, tmp, tmp / f"cache-{n}-{cmd}")  # (a cold E* each time)
                 print(f"| {n:,} | `{cmd}` | {code} | {wall:.1f} s | {mib:.0f} MiB |", flush=True)
 
