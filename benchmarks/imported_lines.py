@@ -57,7 +57,7 @@ def main() -> None:
     for path in sorted((ROOT / "routes/real").glob("*.yaml")):
         route = load_route(path)
         default = [fastest(route, t, ModelOptions()) for t in trains]
-        seeds = [fastest(route, t, ModelOptions.seeds()) for t in trains]
+        seeds = [fastest(route, t, ModelOptions.papers()) for t in trains]
         seeds_text = ", ".join(f"{t.mass_t:g} t {s}" for t, s in zip(trains, seeds) if s.startswith("infeasible"))
         print(f"{path.stem:<38} {route.length_m / 1000:>6.2f} {default[0]:>8} {default[1]:>8}   {seeds_text or 'both feasible'}")
 

@@ -27,7 +27,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import load_route, load_train
 from locoplan.ocp.registry import DEFAULT_OCP_CONSIST, study_route_files
-from locoplan.ocp.seed000 import run_study
+from locoplan.ocp.min_time_study import run_study
 from locoplan.reporting.ocp_study import study_markdown
 
 ROOT = Path(__file__).resolve().parents[1]

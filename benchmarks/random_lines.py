@@ -231,7 +231,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7, help="with --fastest: the generator's seed")
     ap.add_argument("--only", default="", help="run only these cases (comma-separated 'seed:line:train', e.g. 7:3:1)")
     args = ap.parse_args()
-    options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+    options = (ModelOptions.papers() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
                else ModelOptions())
     if args.fastest:
         return fastest_cases(args, np.random.default_rng(args.seed), options)

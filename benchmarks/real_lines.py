@@ -73,7 +73,7 @@ def main() -> None:
     model.add_argument("--continuous-air-brake", action="store_true",
                        help="the air brake as a continuous force, not cycled (ModelOptions(air_cycle=False))")
     args = ap.parse_args()
-    args.options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+    args.options = (ModelOptions.papers() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
                     else ModelOptions(air_cycle=False) if args.continuous_air_brake else ModelOptions())
     if args.continuous_air_brake and args.compare:
         ap.error("--continuous-air-brake is not a command-line option of locoplan compare")

@@ -37,7 +37,7 @@ def main() -> None:
                     help="the seeds' model and seed 002's own builder (reproduces the study as first measured)")
     args = ap.parse_args()
     route = load_route(ROOT / "routes/freight-20km.yaml")
-    options = ModelOptions.seeds() if args.point_mass else ModelOptions()
+    options = ModelOptions.papers() if args.point_mass else ModelOptions()
     spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options,
                    builder="seed002" if args.point_mass else None)
     t0 = time.perf_counter()

@@ -103,9 +103,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         if tolerance_s is not None and tol >= t0:  # as a route file's schedule.tolerance_s is refused (model/route.py)
             raise InputError(Problem("", "tolerance_s", f"a punctuality window of +-{tol:g} s is not below the planned "
                                      f"running time {t0:g} s: the window would open at or before departure"))
-    if builder is None:  # the model (--point-mass) does not choose the method: seed 002's own is asked for by name
+    if builder is None:  # the model (--point-mass) does not choose the method: the ISSA paper's is asked for by name
         builder = "general"
     registry.check_builder(builder)
+    builder = registry.builder_name(builder)
     if params is None and params_path is not None:
         params = load_optimizer_params(algorithm, params_path)
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,

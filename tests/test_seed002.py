@@ -18,7 +18,7 @@ from locoplan.strategy.sequence import build_sequence, classify_grades, classify
 from routes import hand_made_route
 
 runner = CliRunner()
-SEEDS = ModelOptions.seeds()
+SEEDS = ModelOptions.papers()
 """Seed 002's own train model (point mass, HXD1 electric brake alone): the builder's classification and
 the strategies' order are checked as the seed states them."""
 
@@ -82,7 +82,7 @@ def test_fitness_eq10_by_hand():
 
 def _problem(freight, strict=False):
     route, train = freight
-    calc = TractionCalculator(route, train, ModelOptions.seeds(step_m=100, strict_limits=strict))
+    calc = TractionCalculator(route, train, ModelOptions.papers(step_m=100, strict_limits=strict))
     seq = build_sequence(calc)
     return SwitchingProblem(calc, seq.conditions, seq.lower_m, seq.upper_m, t0_s=1500, e_min_kwh=580)
 

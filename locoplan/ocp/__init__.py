@@ -13,7 +13,7 @@ Layers, each using only the ones before it:
 * train problems: :mod:`~locoplan.ocp.min_time` (seed 000) and :mod:`~locoplan.ocp.train_energy`
   (seed 001), both on ``physics``' formulas (``physics.motion`` for the equation of motion);
 * solving: :mod:`~locoplan.ocp.solve` (``solve_min_time``, ``resimulate``),
-  :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.seed000`
+  :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.min_time_study`
   (Tables 2-3); :mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.to_plan`
   (drivable plan, checked by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and
   :mod:`~locoplan.ocp.bound` (the yardstick E*).
@@ -23,7 +23,7 @@ Rendering lives in :mod:`locoplan.reporting.ocp_study`.
 
 import importlib
 
-_LAZY = {"MinTimeTrainProblem": "min_time", "davis_resistance_kn": "min_time", "seed000_problem": "min_time",
+_LAZY = {"MinTimeTrainProblem": "min_time", "davis_resistance_kn": "min_time", "gauss_paper_problem": "min_time",
          "METHODS": "solve", "OcpSolution": "solve", "Resimulation": "solve", "resimulate": "solve",
          "solve_min_time": "solve"}
 
@@ -42,6 +42,6 @@ __all__ = [
     "Resimulation",
     "davis_resistance_kn",
     "resimulate",
-    "seed000_problem",
+    "gauss_paper_problem",
     "solve_min_time",
 ]

@@ -40,7 +40,7 @@ from .nlp import Guess
 from .phase import MultiPhaseProblem, Phase, PhaseModel
 
 __all__ = ["ExactMinimum", "MinTimeTrainProblem", "bounds_note", "davis_resistance_kn", "exact_minimum",
-           "exact_minimum_time", "seed000_problem", "train_problem"]
+           "exact_minimum_time", "gauss_paper_problem", "train_problem"]
 
 
 def davis_resistance_kn(vehicles) -> tuple[float, float, float]:
@@ -212,7 +212,7 @@ class MinTimeTrainProblem:
         return Guess(sigma=t / tf, states=np.vstack([s, speed]), controls=np.zeros((1, m)), final_time=tf)
 
 
-def seed000_problem(gradient_permille: float = 0.0) -> MinTimeTrainProblem:
+def gauss_paper_problem(gradient_permille: float = 0.0) -> MinTimeTrainProblem:
     """Seed 000, Table 1: HXD1 (200 t, w0 = 2.23 + 0.0053 V + 0.000675 V^2 N/kN) + C64 (84 t,
     w0 = 0.92 + 0.0048 V + 0.000125 V^2 N/kN), -461 kN <= F_u <= 532 kN, 1500 m, 0 <= v <= 11.1 m/s
     (39.96 km/h). Test 1 is level track, test 2 a 30 per mille grade."""

@@ -123,7 +123,7 @@ def plot_run(path, run, title: str | None = None) -> None:
 
 
 def plot_study(path, study) -> None:
-    """Draw a :class:`~locoplan.ocp.seed000.Study`: for each table the control curves of its first
+    """Draw a :class:`~locoplan.ocp.min_time_study.Study`: for each table the control curves of its first
     CVP, GPM and two-stage (hp) rows (node values joined by straight lines, as the seed's Fig. 5/7),
     and the measured median solve times per row (hatched: not confirmed by re-simulation)."""
     path, fmt = _figure_path(path)

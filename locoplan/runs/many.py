@@ -60,7 +60,7 @@ def needs_e_min(spec: RunSpec) -> bool:
     shares one (its energy-saving run's, whatever the time); with the general builder E_min is E* at the run's
     own window's end, which each run finds (from E*'s cache); a journey run's legs find their own."""
     entry = registry.lookup(spec.strategy)
-    return (spec.journey is None and spec.e_min_kwh is None and spec.resolved_builder == "seed002"
+    return (spec.journey is None and spec.e_min_kwh is None and spec.resolved_builder == "issa-paper"
             and (spec.fitness or (entry is not None and entry.needs_e_min)))
 
 

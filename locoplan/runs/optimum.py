@@ -40,7 +40,7 @@ def optimum_energy_kwh(route, train, options, time_s: float) -> float | None:
 
 
 @register_optimum("minimum-energy optimal control (the bound command)")
-def _seed001_bound(route, train, options, time_s: float) -> float | None:
+def _mpoc_bound(route, train, options, time_s: float) -> float | None:
     from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
 
     try:

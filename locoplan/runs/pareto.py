@@ -31,9 +31,9 @@ from .spec import RunSpec
 
 DEFAULT_FACTORS = tuple(round(1.05 + 0.05 * i, 2) for i in range(12))
 """1.05 .. 1.6 times the fastest run: from a tight timetable to one with a third more time."""
-PLANNED = registry.names(source=registry.SEED002, timetabled=True)
+PLANNED = registry.names(source=registry.ISSA_PAPER, timetabled=True)
 """The strategies planned at each time by default: seed 002's timetabled ones (four-stage, proposed)."""
-ENDS = registry.names(source=registry.SEED002, needs_time=False)
+ENDS = registry.names(source=registry.ISSA_PAPER, needs_time=False)
 """The two ends of the front: seed 002's strategies that ignore the timetable (time-saving, energy-saving)."""
 
 

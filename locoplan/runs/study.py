@@ -190,7 +190,7 @@ def load_study(path: str | Path) -> Study:
         if a not in ALGORITHMS:
             problems.append(Problem(name, f"algorithms[{i}]", f"unknown optimiser {a!r} (one of: {', '.join(ALGORITHMS)})",
                                     where("algorithms", i)))
-    if study.builder is not None and study.builder not in registry.BUILDERS:
+    if study.builder is not None and registry.builder_name(study.builder) not in registry.BUILDERS:
         problems.append(Problem(name, "builder", registry.builder_message(study.builder), where("builder")))
     if study.objective not in OBJECTIVES:
         problems.append(Problem(name, "objective", f"unknown objective {study.objective!r}: use one of "

@@ -91,8 +91,8 @@ class ModelOptions:
         return not self.point_mass
 
     @classmethod
-    def seeds(cls, **kw) -> "ModelOptions":
-        """The seeds' train model: point mass, electric brake alone."""
+    def papers(cls, **kw) -> "ModelOptions":
+        """The papers' train model (``--point-mass``): point mass, electric brake alone."""
         return cls(point_mass=True, air_brake=False, **kw)
 
 

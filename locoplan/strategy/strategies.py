@@ -94,7 +94,7 @@ class StrategyContext:
         if self.e_min_kwh is not None:
             return self.e_min_kwh
         if "e" not in self._e_min_cache:
-            e = self._e_min_optimum() if self.builder != "seed002" else None
+            e = self._e_min_optimum() if self.builder != "issa-paper" else None
             if e is not None:
                 self._e_min_cache["e"], self._e_min_cache["source"] = e, "optimum"
             else:
@@ -268,7 +268,7 @@ def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
     if cached is not None:
         return cached
     t = time.perf_counter()
-    if ctx.builder == "seed002":
+    if ctx.builder == "issa-paper":
         conditions, _, lower, upper = energy_saving_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy", energy=ctx.objective)
         result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED)
@@ -333,7 +333,7 @@ def four_stage(ctx: StrategyContext) -> StrategyOutcome:
     calc = ctx.search
     L = calc.route.length_m
     v_top = float(calc.limit_kmh.max())
-    general = ctx.builder != "seed002"
+    general = ctx.builder != "issa-paper"
     v_grid = np.arange(10.0 if general else 30.0, v_top + 0.5, 1.0)
     x_grid = np.arange(100.0 if general else L / 2, L - 50.0, 100.0)
     best = span = None
@@ -394,7 +394,7 @@ def proposed(ctx: StrategyContext) -> StrategyOutcome:
     t = time.perf_counter()
     common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s,
                   energy=ctx.objective)
-    if ctx.builder == "seed002":
+    if ctx.builder == "issa-paper":
         seq = build_sequence(ctx.search)
         problem = _problem(ctx, ctx.search, seq, common, centred=False)
         result = _optimise(ctx, problem, salt=1)

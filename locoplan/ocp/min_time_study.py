@@ -19,7 +19,7 @@ from .min_time_run import SOURCE, solve_ocp
 from .registry import OCP_METHODS
 from .solve import solve_min_time
 
-__all__ = ["SEED000_CLAIMS", "SEED000_TABLES", "STUDY_RUNS", "Study", "run_study"]
+__all__ = ["PAPER_CLAIMS", "PAPER_TABLES", "STUDY_RUNS", "Study", "run_study"]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -34,7 +34,7 @@ STUDY_RUNS: tuple[tuple[str, int, str | None], ...] = (
 )
 """(method, control nodes, stage 2) of every row, per experiment, in the seed's order."""
 
-SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, int] | None]]] = {
+PAPER_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, int] | None]]] = {
     # table -> (method, nodes) -> (objective [s], solve time [s], stage-2 (control, state) nodes)
     2: {("cvp", 20): (142.25, 50.41, None), ("cvp", 40): (141.81, 210.63, None),
         ("gpm", 34): (141.81, 8.12, None), ("gpm", 48): (141.62, 19.19, None),
@@ -45,7 +45,7 @@ SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, i
 }
 """Seed 000 Tables 2 (level, test 1) and 3 (30 per mille, test 2) as printed."""
 
-SEED000_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
+PAPER_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
 """The seed's abstract / conclusion: two-stage solve time lower than CVP / GPM by this many per cent."""
 
 @dataclass(frozen=True)
@@ -116,7 +116,7 @@ def run_study(train, routes: dict, *, runs=STUDY_RUNS, repeats: int = 1, warmup:
                 times.append(solve_min_time(problem, method, nodes, **kwargs).solve_time_s)
             row = dict(first.summary)
             row.pop("sequence", None)
-            seed = SEED000_TABLES.get(table, {}).get((method, nodes))
+            seed = PAPER_TABLES.get(table, {}).get((method, nodes))
             row.update({
                 "table": table, "test": test, "label": _label(method, stage2),
                 "solve_time_s": round(statistics.median(times), 4),
@@ -142,7 +142,7 @@ def _ratios(rows: list[dict]) -> list[dict]:
                     b = by.get((table, other, n_other, None))
                     if a is None or b is None:
                         continue
-                    seed_t = SEED000_TABLES.get(table, {})
+                    seed_t = PAPER_TABLES.get(table, {})
                     seed_pct = None
                     if ("two-stage", n_ts) in seed_t and (other, n_other) in seed_t:
                         seed_pct = round(_reduction(seed_t["two-stage", n_ts][1], seed_t[other, n_other][1]), 2)
@@ -158,6 +158,6 @@ def _ratios(rows: list[dict]) -> list[dict]:
                 "per_test": per_test,
                 "mean_percent": round(statistics.fmean(p["percent"] for p in per_test), 2),
                 "seed_tables_mean_percent": round(statistics.fmean(seeds), 2) if seeds else None,
-                "seed_claim_percent": SEED000_CLAIMS[other],
+                "seed_claim_percent": PAPER_CLAIMS[other],
             })
     return out
