@@ -7,7 +7,7 @@ Table 1: locoplan's fastest run (time-saving) of the imported TrainRuns.jl freig
 Fr100: DB V90 + 10 loaded Facs 124, 920 t) over the four shipped railtoolkit paths, against the
 running times TrainRuns.jl's own test suite expects (test/highlevel_test.jl, default settings: mass
 point, 20 m distance steps). Table 2: time-saving on every routes/real file with HXD1 + 30 x C80
-(3200 t) and HXD1 + 50 x C80 (5200 t), in the default model and in the seeds' model (point mass,
+(3200 t) and HXD1 + 50 x C80 (5200 t), in the default model and in the papers' model (point mass,
 electric brake only).
 """
 

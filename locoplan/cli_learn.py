@@ -1,4 +1,4 @@
-"""``locoplan drivers simulate``, ``locoplan learn`` and ``locoplan advise``: seed 004 on the command line.
+"""``locoplan drivers simulate``, ``locoplan learn`` and ``locoplan advise``: the pattern-curve patent on the command line.
 
 Thin commands over :mod:`locoplan.learn`; :func:`register` adds them (and the ``drivers`` / ``advice``
 strategies of ``compare``) to a typer app.

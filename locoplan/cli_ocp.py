@@ -1,4 +1,4 @@
-"""``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (seeds 000, 001).
+"""``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (the two-stage Gauss paper's minimum time, the MPOC paper's minimum energy).
 
 Thin commands over :mod:`locoplan.ocp.min_time_run` and :mod:`locoplan.ocp.min_time_study`; :func:`register` adds them to a typer app (the main
 app in :mod:`locoplan.cli`, or a fresh one in tests).
@@ -36,7 +36,7 @@ ENERGY_MODEL = ModelGroup({
     "strict_limits": "Energy: the checking calculator fails a plan that coasts up to a limit.",
 }, step_m=50.0)
 """``ocp``'s model options: they shape the energy objective's train (the minimum-time problem is the
-seed's point mass on one gradient)."""
+paper's point mass on one gradient)."""
 
 
 methods = ", ".join(OCP_METHODS)

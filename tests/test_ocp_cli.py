@@ -82,7 +82,7 @@ def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
         assert key in data, key
     assert data["strategy"] == "ocp" and data["algorithm"] == "two-stage" and data["stage2"] == "hp"
     assert data["feasible"] is True and data["reason"] is None
-    assert data["consist"] == "HXD1-C64 (seed 000)" and data["gradient_permille"] == grade
+    assert data["consist"] == "HXD1-C64 (two-stage Gauss paper)" and data["gradient_permille"] == grade
     assert (data["control_nodes"], data["state_nodes"]) == (17, 34)  # stage 1 as in the seed
     assert data["stages"][0]["control_nodes"] == 17 and data["final_control_nodes"] < 17
     _, sa, _, sb, exact, cruise_kn = seed000_exact(grade)

@@ -1,4 +1,4 @@
-"""Rendering and writing of the optimal-control results of seed 000: the study's table cells and
+"""Rendering and writing of the optimal-control results of the two-stage Gauss paper: the study's table cells and
 markdown, and the files of ``ocp --out`` and ``ocp-study --out``.
 
 The library (:mod:`locoplan.ocp.min_time_run`, :mod:`locoplan.ocp.min_time_study`) computes and returns

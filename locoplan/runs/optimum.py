@@ -2,7 +2,7 @@
 
 A provider is a function ``(route, train, options, time_s) -> E* [kWh] or None`` registered with
 :func:`register_optimum`; ``pareto`` asks :func:`optimum_energy_kwh` at each planned time. The one
-registered here is seed 001's minimum-energy optimal control (``ocp.bound.energy_bound``, the
+registered here is the MPOC paper's minimum-energy optimal control (``ocp.bound.energy_bound``, the
 ``bound`` command). Where no provider knows E* (none registered, or the solve fails) the answer is
 None, and ``pareto`` and the store's summary say it is not known rather than inventing one.
 """

@@ -64,8 +64,8 @@ class RunSpec:
     ``time_s`` its total running time, dwells excluded (None: the journey's own). consist: catalogue name or consist file. strategy: a name of
     ``strategy.registry.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
     parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
-    schedule). weights: (w_time, w_energy) of seed 002 eq. 10. tolerance_s: punctuality window +- [s]
-    (None: the route's, else 1 % of T0). window: rank inside the window (seed 002 eq. 3). builder:
+    schedule). weights: (w_time, w_energy) of the ISSA paper's eq. 10. tolerance_s: punctuality window +- [s]
+    (None: the route's, else 1 % of T0). window: rank inside the window (the ISSA paper's eq. 3). builder:
     sequence builder (None: the default for the options). e_min_kwh: E_min of eq. 11 given by the
     user (None: the energy-saving strategy's, computed once per route, consist and options and passed
     to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window

@@ -14,7 +14,7 @@ algorithms: [issa, ssa, pso]      # default: issa
 seeds: [1, 2, 3, 4, 5]            # default: 1
 ```
 Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``tolerance_s``, ``window``,
-``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, seed 001's bound at
+``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, the MPOC paper's bound at
 the plan's own running time, seconds per run), ``objective`` (``traction``, the default, or ``net``: what
 the energy terms count, as ``--objective``), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).

@@ -72,19 +72,19 @@ def _resolve(target):
 ISSA_PAPER, MPOC_PAPER, PATTERN_PATENT = "the ISSA paper", "the MPOC paper", "the pattern-curve patent"
 
 BUILT_IN: tuple[StrategyEntry, ...] = (
-    # seed 002 (Tables 8-9): the fastest run, the least energy, four-stage and the proposed method
+    # the ISSA paper (Tables 8-9): the fastest run, the least energy, four-stage and the proposed method
     StrategyEntry("time-saving", "locoplan.strategy.strategies:time_saving", ISSA_PAPER, needs_time=False),
     StrategyEntry("energy-saving", "locoplan.strategy.strategies:energy_saving", ISSA_PAPER, needs_time=False),
     StrategyEntry("four-stage", "locoplan.strategy.strategies:four_stage", ISSA_PAPER, timetabled=True,
                   refuses_impossible_time=True),
     StrategyEntry("proposed", "locoplan.strategy.strategies:proposed", ISSA_PAPER, timetabled=True, needs_e_min=True,
                   seeded=True, refuses_impossible_time=True),
-    # seed 001 (Tables 3-5): the multi-phase optimum three ways, and standard four-stage with neutral sections
+    # the MPOC paper (Tables 3-5): the multi-phase optimum three ways, and standard four-stage with neutral sections
     StrategyEntry("mpoc", "locoplan.strategy.optimal:mpoc", MPOC_PAPER, timetabled=True),
     StrategyEntry("mpoc-n", "locoplan.strategy.optimal:mpoc_n", MPOC_PAPER, timetabled=True),
     StrategyEntry("mpoc-c", "locoplan.strategy.optimal:mpoc_c", MPOC_PAPER, timetabled=True),
     StrategyEntry("sfs", "locoplan.strategy.optimal:sfs", MPOC_PAPER, timetabled=True),
-    # seed 004: what the drivers' logs say, and the learned patterns' advice
+    # the pattern-curve patent: what the drivers' logs say, and the learned patterns' advice
     StrategyEntry("drivers", "locoplan.learn.strategies:drivers", PATTERN_PATENT, inputs=(("logs", "locoplan.io.logs:load_logs"),)),
     StrategyEntry("advice", "locoplan.learn.strategies:advice", PATTERN_PATENT, timetabled=True,
                   inputs=(("patterns", "locoplan.io.patterns:read_patterns_file"),)),
