@@ -21,7 +21,7 @@ def _in_repo(root, monkeypatch):
     monkeypatch.chdir(root)
 
 
-@pytest.mark.parametrize("builder, point_mass", [("general", False), ("seed002", False), ("seed002", True)])
+@pytest.mark.parametrize("builder, point_mass", [("general", False), ("issa-paper", False), ("issa-paper", True)])
 @pytest.mark.slow
 def test_e_min_does_not_depend_on_the_seed(freight, builder, point_mass):
     """The issue measured 580.66, 572.87, 587.05 kWh for seeds 1, 2, 3: E_min, and so every fitness,

@@ -165,7 +165,7 @@ def test_the_table_and_json_say_which_e_min(freight, tmp_path):
     e = ctx.e_min()
     assert ctx.e_min_source == "optimum" and ctx.e_min_time_s == pytest.approx(1530.0)
     assert e == pytest.approx(energy_bound(route, train, ModelOptions(), 1530.0).energy_kwh)
-    seed = make_context(route, train, ModelOptions.papers(), time_s=1500.0, builder="seed002")
+    seed = make_context(route, train, ModelOptions.papers(), time_s=1500.0, builder="issa-paper")
     seed.e_min()
     assert seed.e_min_source == "energy-saving"
     given = make_context(route, train, ModelOptions(), time_s=1500.0, e_min_kwh=600.0)
