@@ -19,14 +19,14 @@ DEFAULT_ENERGY_CONSIST = DEFAULT_CONSIST_FILE
 class OcpMethod:
     """One transcription of the minimum-time problem (see :mod:`locoplan.ocp.solve`).
 
-    ``seed_nodes``: the two control-node counts of the paper's Tables 2-3 (the first is the default).
+    ``paper_nodes``: the two control-node counts of the paper's Tables 2-3 (the first is the default).
     ``has_stage2``: the method reads ``stage2``; ``has_state_nodes``: ``state_nodes`` may be given;
     ``objectives``: the objectives it solves.
     """
 
     key: str
     label: str
-    seed_nodes: tuple[int, int]
+    paper_nodes: tuple[int, int]
     description: str
     has_stage2: bool = False
     has_state_nodes: bool = False
@@ -143,7 +143,7 @@ def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective
         if method == "two-stage" and m is not None and n is None:
             n = m // 2
         if n is None:
-            n = spec.seed_nodes[0]
+            n = spec.paper_nodes[0]
     if stage2 not in STAGE2_MODES:
         problems.append(Problem(SOURCE, "--stage2", f"unknown stage-2 mode {stage2!r}; choose one of {', '.join(STAGE2_MODES)}"))
     if problems:
