@@ -1,4 +1,4 @@
-"""Seed 001's minimum-energy optimal control (MPOC): accuracy against an independent fine-grid check,
+"""The MPOC paper's minimum-energy optimal control (MPOC): accuracy against an independent fine-grid check,
 re-simulation by the traction calculator, and solve time (building included).
 
     python benchmarks/bench_mpoc.py [--repeat 3] [--oracle-steps 10,5] [--skip-long] [--warm-jit]

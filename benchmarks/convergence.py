@@ -1,5 +1,5 @@
 """Step-size convergence of the traction calculator on routes/freight-20km.yaml (issue 2: halving the
-step must change time by < 0.05 % and energy by < 0.1 %), and the seed 000 exact minimum time.
+step must change time by < 0.05 % and energy by < 0.1 %), and the two-stage Gauss paper exact minimum time.
 
     python benchmarks/convergence.py
 """
@@ -34,9 +34,9 @@ def main() -> None:
             d = ("", "") if prev is None else (f"{100 * (prev[0] / t - 1):+.4f}", f"{100 * (prev[1] / e - 1):+.4f}")
             print(f"{text:<58} {step:>6g} {len(calc.h_m):>5} {t:>10.3f} {e:>11.3f} {d[0]:>8} {d[1]:>8}")
             prev = (t, e)
-    seed_train = load_train(ROOT / "configs/consists/HXD1-C64-seed000.yaml")
+    paper_train = load_train(ROOT / "configs/consists/HXD1-C64-seed000.yaml")
     for name in ("seed000-flat", "seed000-grade30"):
-        calc = TractionCalculator(load_route(ROOT / f"routes/{name}.yaml"), seed_train)
+        calc = TractionCalculator(load_route(ROOT / f"routes/{name}.yaml"), paper_train)
         print(f"fastest run on {name} (default step): {calc.fastest_time_s:.3f} s")
 
 

@@ -32,7 +32,7 @@ from fastest_oracle import FastestOracle  # noqa: E402
 from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
 
-MODELS = {"point-mass": ModelOptions.seeds(), "no-air-brake": ModelOptions(air_brake=False), "default": ModelOptions()}
+MODELS = {"point-mass": ModelOptions.papers(), "no-air-brake": ModelOptions(air_brake=False), "default": ModelOptions()}
 TARGET_PERCENT = 0.05
 
 

@@ -7,7 +7,7 @@ Table 1: locoplan's fastest run (time-saving) of the imported TrainRuns.jl freig
 Fr100: DB V90 + 10 loaded Facs 124, 920 t) over the four shipped railtoolkit paths, against the
 running times TrainRuns.jl's own test suite expects (test/highlevel_test.jl, default settings: mass
 point, 20 m distance steps). Table 2: time-saving on every routes/real file with HXD1 + 30 x C80
-(3200 t) and HXD1 + 50 x C80 (5200 t), in the default model and in the seeds' model (point mass,
+(3200 t) and HXD1 + 50 x C80 (5200 t), in the default model and in the papers' model (point mass,
 electric brake only).
 """
 
@@ -57,7 +57,7 @@ def main() -> None:
     for path in sorted((ROOT / "routes/real").glob("*.yaml")):
         route = load_route(path)
         default = [fastest(route, t, ModelOptions()) for t in trains]
-        seeds = [fastest(route, t, ModelOptions.seeds()) for t in trains]
+        seeds = [fastest(route, t, ModelOptions.papers()) for t in trains]
         seeds_text = ", ".join(f"{t.mass_t:g} t {s}" for t, s in zip(trains, seeds) if s.startswith("infeasible"))
         print(f"{path.stem:<38} {route.length_m / 1000:>6.2f} {default[0]:>8} {default[1]:>8}   {seeds_text or 'both feasible'}")
 

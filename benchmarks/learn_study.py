@@ -1,6 +1,6 @@
-"""Seed 004 end to end: simulate drivers, learn the double-layer patterns, and measure the advice on
+"""The pattern-curve patent end to end: simulate drivers, learn the double-layer patterns, and measure the advice on
 runs held out from learning (other masses and times, and a line not learned from) against the
-drivers, the good drivers, the best driver, and seed 002's proposed plan (ISSA).
+drivers, the good drivers, the best driver, and the ISSA paper's proposed plan (ISSA).
 
     python benchmarks/learn_study.py [--drivers 40] [--runs 2] [--seed 1] [--workdir DIR] [--out study.json]
 
@@ -48,7 +48,7 @@ def simulate(route: str, masses, times, folder: Path, args, base) -> Path:
 
 
 def optimum_kwh(route, train, options, time_s: float):
-    """E*, the least traction energy in ``time_s`` (seed 001's optimal control), or None where it does not
+    """E*, the least traction energy in ``time_s`` (the MPOC paper's optimal control), or None where it does not
     solve and confirm (the table then shows "-")."""
     from locoplan.errors import LocoplanError
     from locoplan.ocp.bound import energy_bound

@@ -1,13 +1,13 @@
-"""Seed 000 Tables 2-3 on this machine: every method several times, median solve time, as markdown.
+"""The two-stage Gauss paper's Tables 2-3 on this machine: every method several times, median solve time, as markdown.
 
     python benchmarks/ocp_study.py [--repeats 7] [--out docs/ocp-study.md]
 
-CVP 20 / 40, GPM 34 / 48, two-stage 17 / 24 (stage 2 "hp" and the seed's "global") on
+CVP 20 / 40, GPM 34 / 48, two-stage 17 / 24 (stage 2 "hp" and the paper's "global") on
 routes/seed000-flat.yaml (Table 2) and routes/seed000-grade30.yaml (Table 3) with
 configs/consists/HXD1-C64-seed000.yaml. Each row is solved ``--repeats`` times after one untimed
 warm-up solve; the solve time is the median wall time of ``solve_min_time`` (building the CasADi NLPs
 and running IPOPT, every stage). Objectives and the re-simulation check come from the first solve.
-Prints the machine, the table, the exact minima, the solve-time ratios next to the seed's, and why the
+Prints the machine, the table, the exact minima, the solve-time ratios next to the paper's, and why the
 unconfirmed rows are unconfirmed (the same markdown as ``locoplan ocp-study --out FILE.md``).
 """
 
@@ -27,7 +27,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import load_route, load_train
 from locoplan.ocp.registry import DEFAULT_OCP_CONSIST, study_route_files
-from locoplan.ocp.seed000 import run_study
+from locoplan.ocp.min_time_study import run_study
 from locoplan.reporting.ocp_study import study_markdown
 
 ROOT = Path(__file__).resolve().parents[1]

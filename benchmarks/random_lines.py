@@ -1,4 +1,4 @@
-"""Seed 002 on lines and trains nobody tuned it on: randomly generated routes x randomly sized consists.
+"""The ISSA paper on lines and trains nobody tuned it on: randomly generated routes x randomly sized consists.
 
     python benchmarks/random_lines.py [--cases 40] [--seed 7] [--no-gap] [--json out.json]
                                       [--max-grade 20] [--point-mass | --no-air-brake] [--fastest]
@@ -9,7 +9,7 @@ tunnels, up to two neutral sections) and a train (HXD1 + 15-60 C80 at 50-80 t lo
 or V 90 + 5-15 Facs 124 braking at 0.225 m/s^2 as Fr100), then T0 = factor x the fastest run with factor 1.05-1.6. If not even the
 fastest run reaches the stop the case is "impossible" (the commands refuse it, exit 1). Otherwise the
 proposed plan (ISSA seed 1, window +-1 % of T0), whether it is on time, and the gap to the optimum E*
-(seed 001) at its own running time. Prints one line per case and a summary: on time, failures (with
+(the MPOC paper) at its own running time. Prints one line per case and a summary: on time, failures (with
 their reasons), gap max and median. Expected: every possible case on time, no failure, gaps like the
 real lines' (docs/real-lines.md).
 
@@ -220,18 +220,18 @@ def main() -> None:
     ap.add_argument("--seeds", default="7,11", help="comma-separated generator seeds")
     ap.add_argument("--characters", default=",".join(CHARACTERS),
                     help=f"the lines' characters in turn (of {', '.join(CHARACTERS)})")
-    ap.add_argument("--no-gap", action="store_true", help="skip E* (seed 001's optimum)")
+    ap.add_argument("--no-gap", action="store_true", help="skip E* (the MPOC paper's optimum)")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--max-grade", type=float, default=20.0, help="scale of the gradients [per mille]")
     model = ap.add_mutually_exclusive_group()
-    model.add_argument("--point-mass", action="store_true", help="the seeds' model: point mass, electric brake alone")
+    model.add_argument("--point-mass", action="store_true", help="the papers' model: point mass, electric brake alone")
     model.add_argument("--no-air-brake", action="store_true", help="the train-length model, electric brake alone")
     ap.add_argument("--fastest", action="store_true", help="check the fastest run against the fine-step oracle only")
     ap.add_argument("--cases", type=int, default=40, help="with --fastest: lines to check")
     ap.add_argument("--seed", type=int, default=7, help="with --fastest: the generator's seed")
     ap.add_argument("--only", default="", help="run only these cases (comma-separated 'seed:line:train', e.g. 7:3:1)")
     args = ap.parse_args()
-    options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+    options = (ModelOptions.papers() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
                else ModelOptions())
     if args.fastest:
         return fastest_cases(args, np.random.default_rng(args.seed), options)

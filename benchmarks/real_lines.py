@@ -1,4 +1,4 @@
-"""Seed 002 on real lines: `optimize` on the six TTOBench lines x two trains x two times, in any train model.
+"""The ISSA paper on real lines: `optimize` on the six TTOBench lines x two trains x two times, in any train model.
 
     python benchmarks/real_lines.py [--lines ...] [--consists HXD1-C80x30,HXD1-C80x50] [--factors 1.1,1.2]
                                     [--point-mass | --no-air-brake | --continuous-air-brake] [--json out.json]
@@ -6,9 +6,9 @@
 For every case: the fastest run, T0 = factor x fastest, the proposed plan (ISSA seed 1, window +-1 % of
 T0) with its running time, energy and whether it is on time, four-stage beside it, and the gap to the
 optimum, (E - E*) / E*, with E* the minimum traction energy at the plan's own running time from
-`locoplan.ocp` (seed 001's optimal control) when it is installed. Prints a table and the maximum and
+`locoplan.ocp` (the MPOC paper's optimal control) when it is installed. Prints a table and the maximum and
 median gap. Targets: every case on time and within 1 % of T0, gap <= 3 % everywhere, median <= 1.5 %.
-``--point-mass`` runs the seeds' train model (point mass, electric brake alone), ``--no-air-brake`` the
+``--point-mass`` runs the papers' train model (point mass, electric brake alone), ``--no-air-brake`` the
 train-length model with the electric brake alone: the locomotive then holds long descents by itself, and
 plans enter them slower where it cannot (the braking envelope, docs/model.md). ``--continuous-air-brake``
 lets the plans modulate the wagons' air brake at will instead of cycling it (what E* relaxes it to).
@@ -47,9 +47,9 @@ LINES = ["00_var_speed_limit_100", "CH_Fribourg_Bern", "CH_StGallen_Wil", "CH_St
 
 
 def optimum_kwh(route, train, time_s: float, options=None):
-    """E* at ``time_s`` from seed 001's optimal control, or None where it is not available."""
+    """E* at ``time_s`` from the MPOC paper's optimal control, or None where it is not available."""
     try:
-        from locoplan.ocp.bound import energy_bound  # noqa: PLC0415  (seed 001: optional here)
+        from locoplan.ocp.bound import energy_bound  # noqa: PLC0415  (the MPOC paper: optional here)
     except ImportError:
         return None
     try:
@@ -68,12 +68,12 @@ def main() -> None:
     ap.add_argument("--compare", action="store_true", help="run `locoplan compare` on every case instead")
     ap.add_argument("--strategies", default="time-saving,energy-saving,four-stage,proposed")
     model = ap.add_mutually_exclusive_group()
-    model.add_argument("--point-mass", action="store_true", help="the seeds' model: point mass, electric brake alone")
+    model.add_argument("--point-mass", action="store_true", help="the papers' model: point mass, electric brake alone")
     model.add_argument("--no-air-brake", action="store_true", help="the train-length model, electric brake alone")
     model.add_argument("--continuous-air-brake", action="store_true",
                        help="the air brake as a continuous force, not cycled (ModelOptions(air_cycle=False))")
     args = ap.parse_args()
-    args.options = (ModelOptions.seeds() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
+    args.options = (ModelOptions.papers() if args.point_mass else ModelOptions(air_brake=False) if args.no_air_brake
                     else ModelOptions(air_cycle=False) if args.continuous_air_brake else ModelOptions())
     if args.continuous_air_brake and args.compare:
         ap.error("--continuous-air-brake is not a command-line option of locoplan compare")

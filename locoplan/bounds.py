@@ -119,7 +119,7 @@ def planned_time(time_s: float, option: str = "--time") -> float:
 
 
 def weights(text: str, option: str = "--weights") -> tuple[float, float]:
-    """'w_time,w_energy': two finite, non-negative weights summing to 1 (seed 002 eq. 10)."""
+    """'w_time,w_energy': two finite, non-negative weights summing to 1 (the ISSA paper's eq. 10)."""
     try:
         parts = [float(x) for x in text.split(",")]
     except ValueError:

@@ -427,10 +427,10 @@ def study(route: Path = ROUTE,
     _fail_if(list(dict.fromkeys(batch.failures)))
 
 
-from .cli_ocp import register as _register_ocp  # noqa: E402  (seed 000 commands: ocp, ocp-study)
+from .cli_ocp import register as _register_ocp  # noqa: E402  (the two-stage Gauss paper's commands: ocp, ocp-study)
 
 _register_ocp(app)
-from .cli_learn import register as _register_learn  # noqa: E402  (seed 004 commands: drivers, learn, advise)
+from .cli_learn import register as _register_learn  # noqa: E402  (the pattern-curve patent's commands: drivers, learn, advise)
 
 _register_learn(app)
 
@@ -438,7 +438,7 @@ from .cli_import import register as _register_import  # noqa: E402  (locoplan im
 
 _register_import(app)
 
-from .cli_energy import register as _register_energy  # noqa: E402  (seed 001's yardstick: bound)
+from .cli_energy import register as _register_energy  # noqa: E402  (the MPOC paper's yardstick: bound)
 
 _register_energy(app)
 

@@ -1,4 +1,4 @@
-"""``locoplan ocp --objective energy`` and ``locoplan bound``: seed 001's optimum on the command line.
+"""``locoplan ocp --objective energy`` and ``locoplan bound``: the MPOC paper's optimum on the command line.
 
 Thin commands over :mod:`locoplan.ocp.mpoc` and :mod:`locoplan.ocp.bound` (checks and the energy curve
 in :mod:`locoplan.api`, tables in :mod:`locoplan.reporting.ocp_tables`); :func:`register` adds ``bound``

@@ -1,4 +1,4 @@
-"""``locoplan drivers simulate``, ``locoplan learn`` and ``locoplan advise``: seed 004 on the command line.
+"""``locoplan drivers simulate``, ``locoplan learn`` and ``locoplan advise``: the pattern-curve patent on the command line.
 
 Thin commands over :mod:`locoplan.learn`; :func:`register` adds them (and the ``drivers`` / ``advice``
 strategies of ``compare``) to a typer app.
@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Optional
 
 import typer
 
-from . import learn as _seed004  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
+from . import learn as _pattern_curves  # noqa: F401  (its import registers compare's 'drivers' and 'advice')
 from .cli_common import api  # imported when a command runs (cli_common.LazyModule)
 from .cli_common import (CHAINAGE, CONSIST, JSON, MODEL, MODEL_NO_STRICT, ROUTE, STOCK, TIME, _check_outputs, departure_s, err,
                          fail_on, guarded, json_out, out, plain, step_progress, wrote)

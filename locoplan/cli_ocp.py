@@ -1,6 +1,6 @@
-"""``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (seeds 000, 001).
+"""``locoplan ocp`` and ``locoplan ocp-study``: optimal control on the command line (the two-stage Gauss paper's minimum time, the MPOC paper's minimum energy).
 
-Thin commands over :mod:`locoplan.ocp.min_time_run` and :mod:`locoplan.ocp.seed000`; :func:`register` adds them to a typer app (the main
+Thin commands over :mod:`locoplan.ocp.min_time_run` and :mod:`locoplan.ocp.min_time_study`; :func:`register` adds them to a typer app (the main
 app in :mod:`locoplan.cli`, or a fresh one in tests).
 """
 
@@ -36,7 +36,7 @@ ENERGY_MODEL = ModelGroup({
     "strict_limits": "Energy: the checking calculator fails a plan that coasts up to a limit.",
 }, step_m=50.0)
 """``ocp``'s model options: they shape the energy objective's train (the minimum-time problem is the
-seed's point mass on one gradient)."""
+paper's point mass on one gradient)."""
 
 
 methods = ", ".join(OCP_METHODS)
@@ -122,7 +122,7 @@ def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help
     global stage 2), side by side. Method: Liu Ping et al., optimal operation of electric locomotives by a
     two-stage adaptive Gauss collocation pseudospectral method (its Tables 2-3)."""
     from .io.load import load_route, load_train
-    from .ocp.seed000 import run_study
+    from .ocp.min_time_study import run_study
     from .reporting.ocp_study import check_output_path, write_study_output
 
     from .bounds import count
@@ -132,7 +132,7 @@ def ocp_study(consist: str = typer.Option(DEFAULT_OCP_CONSIST, "--consist", help
     check_output_path(plot, "--plot", (".png", ".svg", ".pdf"))
     from .cli_common import step_progress
     from .ocp.registry import STUDY_ROUTES, study_route_files
-    from .ocp.seed000 import STUDY_RUNS
+    from .ocp.min_time_study import STUDY_RUNS
 
     with step_progress("ocp-study solves", len(STUDY_RUNS) * len(STUDY_ROUTES),
                        not as_json) as step:

@@ -67,10 +67,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
     """Calculators (reporting grid and search grid) and the optimisation settings.
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
-    ``window=False`` the optimiser ranks by eq. 10 alone, as seed 002's own tables evidently did.
+    ``window=False`` the optimiser ranks by eq. 10 alone, as the ISSA paper's own tables evidently did.
     ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
     options, to reuse (a batch's runs share them). ``params``: the optimiser's parameters, or
-    ``params_path`` a file to read them from (neither: the algorithm's defaults, seed 002 Table 5).
+    ``params_path`` a file to read them from (neither: the algorithm's defaults, the ISSA paper's Table 5).
     ``objective``: what the energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
     Errors name the argument (``time_s``, ``e_min_kwh``...)."""
     options = options or ModelOptions()
@@ -103,9 +103,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         if tolerance_s is not None and tol >= t0:  # as a route file's schedule.tolerance_s is refused (model/route.py)
             raise InputError(Problem("", "tolerance_s", f"a punctuality window of +-{tol:g} s is not below the planned "
                                      f"running time {t0:g} s: the window would open at or before departure"))
-    if builder is None:  # the model (--point-mass) does not choose the method: seed 002's own is asked for by name
+    if builder is None:  # the model (--point-mass) does not choose the method: the ISSA paper's is asked for by name
         builder = "general"
     registry.check_builder(builder)
+    builder = registry.builder_name(builder)
     if params is None and params_path is not None:
         params = load_optimizer_params(algorithm, params_path)
     return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,
@@ -164,7 +165,7 @@ def _evaluate(ctx: StrategyContext, outcome: StrategyOutcome) -> BatchResult:
 
 
 def gap_to_optimum(ctx: StrategyContext, res: BatchResult):
-    """The plan against E*, the least energy at its own running time (seed 001): ``ocp.bound.Gap`` or None."""
+    """The plan against E*, the least energy at its own running time (the MPOC paper): ``ocp.bound.Gap`` or None."""
     if not ctx.yardstick or not res.feasible[0]:
         return None
     from .ocp.bound import gap_to_optimum as gap
@@ -269,7 +270,7 @@ def cycle_gap(ctx: StrategyContext, res: BatchResult) -> dict:
 def air_brake_summary(res: BatchResult) -> dict:
     """The air brake's cycle in a run: its applications, the shortest recharge margin [s] (time from a release
     to the next application less the recharge time; None when no application follows a release) and the
-    recharge time; all None without the cycle (the electric brake alone, the seeds' model)."""
+    recharge time; all None without the cycle (the electric brake alone, the papers' model)."""
     if res.air_applications is None:
         return {"air_applications": None, "min_recharge_margin_s": None, "recharge_s": None}
     margin = float(res.air_margin_s[0])
@@ -351,7 +352,7 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
 
 
 def proposed_sequence(route: Route, train: Train, options: ModelOptions | None = None, builder: str | None = None):
-    """The limit and grade classification behind seed 002's proposed sequence, with its nominal switching
+    """The limit and grade classification behind the ISSA paper's proposed sequence, with its nominal switching
     points (``compare --explain``), on the optimisers' search grid."""
     return build_sequence(make_context(route, train, options, need_time=False, builder=builder).search)
 

@@ -84,7 +84,7 @@ def test_the_calculator_pulls_and_brakes_within_the_adhesion(wet, dry):
     assert calc.fastest_time_s > dry_calc.fastest_time_s + 5.0
 
 
-@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions.seeds()], ids=["default", "point-mass"])
+@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions.papers()], ids=["default", "point-mass"])
 def test_estar_honours_the_adhesion_and_stays_below_every_plan(wet, dry, options):
     """At 1.1 x the wet-rail fastest run: E* on the wet rail is above E* on the dry rail at the same time (less
     force can only cost energy; the DP and the strategies read the same curves), and below the energy of every

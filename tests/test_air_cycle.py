@@ -235,7 +235,7 @@ def test_models_without_the_cycle_are_unchanged(c80x50):
     """The electric brake alone (--no-air-brake, the seeds' model) has no cycle; and a descent the electric
     brake holds needs no application: freight-20km's fastest run is the same with or without the cycle."""
     route = descent_line()
-    for opts in (ModelOptions(air_brake=False), ModelOptions.seeds()):
+    for opts in (ModelOptions(air_brake=False), ModelOptions.papers()):
         res = TractionCalculator(route, c80x50, opts).evaluate(("T",), np.zeros((1, 0)), profile=True)
         assert res.air_applications is None and res.profile.air is None
     from locoplan.io.load import load_route

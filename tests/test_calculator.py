@@ -203,7 +203,7 @@ def test_cannot_hold_when_full_braking_is_too_weak(freight):
     route, train = freight
     steep = route.model_copy(update={"gradients": [route.gradients[0].model_copy(update={"to_m": 20000.0, "permille": -25.0})]})
     assert 5200 * 9.81 * 0.025 > 461 + 47.8728 + 80 * (0.2429 + 0.00672 * 80)
-    calc = TractionCalculator(steep, train, ModelOptions.seeds())
+    calc = TractionCalculator(steep, train, ModelOptions.papers())
     res = calc.evaluate(("T", "C", "B"), np.array([[0.0, 9000.0], [0.0, 1000.0]]))
     assert (res.reason_code == IMPOSSIBLE).all() and not res.feasible.any()
     assert np.isnan(res.running_time_s).all()

@@ -21,13 +21,13 @@ def _in_repo(root, monkeypatch):
     monkeypatch.chdir(root)
 
 
-@pytest.mark.parametrize("builder, point_mass", [("general", False), ("seed002", False), ("seed002", True)])
+@pytest.mark.parametrize("builder, point_mass", [("general", False), ("issa-paper", False), ("issa-paper", True)])
 @pytest.mark.slow
 def test_e_min_does_not_depend_on_the_seed(freight, builder, point_mass):
     """The issue measured 580.66, 572.87, 587.05 kWh for seeds 1, 2, 3: E_min, and so every fitness,
     must be one number per route, train, options and builder."""
     route, train = freight
-    opts = ModelOptions.seeds() if point_mass else ModelOptions()
+    opts = ModelOptions.papers() if point_mass else ModelOptions()
     values = set()
     for seed in (1, 2, 3):
         ctx = make_context(route, train, opts, seed=seed, algorithm="pso" if seed == 3 else "issa", builder=builder,

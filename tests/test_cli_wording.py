@@ -37,7 +37,7 @@ def _docstrings(tree) -> set[int]:
     return found
 
 
-# the strategy registry's source keys ("seed 002") select strategies and are never printed; the ISSA
+# the strategy registry's source keys ("the ISSA paper") select strategies and are never printed; the ISSA
 # parameters' descriptions document a parameter file by the paper's equations
 ALLOWED = {"locoplan/strategy/registry.py", "locoplan/optimize/issa.py"}
 

@@ -255,7 +255,7 @@ def test_no_cycle_no_solve(freight, root):
     relaxed) or on a line where it cannot bind (one place needs the air brake: the stop), the cycle optimum is E*
     itself: nothing is solved and nothing is reported."""
     route, train = freight
-    for opts in (ModelOptions.seeds(), ModelOptions(air_brake=False), ModelOptions(air_cycle=False)):
+    for opts in (ModelOptions.papers(), ModelOptions(air_brake=False), ModelOptions(air_cycle=False)):
         co = cycle_optimum(route, train, opts, 1500.0)
         assert not co.cycles and co.energy_kwh is None and co.drive is None
     gentle = hand_made_route([(10000, 60.0)], [(10000, 0.0)], 10000)

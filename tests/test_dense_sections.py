@@ -28,13 +28,13 @@ def test_the_grid_follows_the_length_and_the_limits(line, freight):
     """12,000 sections of 1.67 m: the grid has the uniform 50 m nodes, the limits' ends (and one train length on, in
     the strip model) and the departure's graded nodes, not 12,000 nodes; a line of 50 m sections keeps its ends."""
     _, train = freight
-    for options in (ModelOptions(), ModelOptions.seeds()):
+    for options in (ModelOptions(), ModelOptions.papers()):
         calc = TractionCalculator(line, train, options)
         assert len(calc.s_m) < 2 * (line.length_m / options.step_m)
         assert {8000.0, 12000.0} <= set(calc.s_m.tolist())
     coarse = _dense(400)  # 50 m sections: below MERGED_ENDS_PER_CELL ends per cell, each end a node
     assert 400 < MERGED_ENDS_PER_CELL * 400
-    assert set(np.linspace(0, 20000, 401).tolist()) <= set(TractionCalculator(coarse, train, ModelOptions.seeds()).s_m.tolist())
+    assert set(np.linspace(0, 20000, 401).tolist()) <= set(TractionCalculator(coarse, train, ModelOptions.papers()).s_m.tolist())
 
 
 def test_each_cell_takes_the_exact_mean_of_its_sections(line, freight):
@@ -43,7 +43,7 @@ def test_each_cell_takes_the_exact_mean_of_its_sections(line, freight):
     strip gradient over each cell, by a 20,000-point midpoint sum, to 1e-6 per mille. Both: the gravity work over the line
     equals m g times the height difference."""
     _, train = freight
-    calc = TractionCalculator(line, train, ModelOptions.seeds())
+    calc = TractionCalculator(line, train, ModelOptions.papers())
     a, b = calc.s_m[:-1], calc.s_m[1:]
     want = train.mass_t * G_MS2 * mean_gradient_permille(line, a, b) / 1000.0
     np.testing.assert_allclose(calc.gravity_kn, want, rtol=0, atol=1e-9 * float(np.max(np.abs(want))))
@@ -61,7 +61,7 @@ def test_the_fastest_run_is_the_sections_own(line, freight):
     """The fastest run on the merged cells within 0.2 % of an independent fine-step integration over the sections
     themselves (tests/fastest_oracle.py, 1 m steps, each section its own gravity), point model."""
     _, train = freight
-    calc = TractionCalculator(line, train, ModelOptions.seeds())
+    calc = TractionCalculator(line, train, ModelOptions.papers())
     edges = [0.0] + [g.to_m for g in line.gradients]
     mids = 0.5 * (np.array(edges[1:]) + np.array(edges[:-1]))
     limit = np.interp(mids, [0, 8000, 8000.001, 12000, 12000.001, 20000], [80, 80, 60, 60, 80, 80])

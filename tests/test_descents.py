@@ -31,7 +31,7 @@ DAVIS = (200 * G / 1000 * 1.40 + 5000 * G / 1000 * 0.92,  # kN, kN/(km/h), kN/(k
          200 * G / 1000 * 0.0003 + 5000 * G / 1000 * 0.000125)
 TRACTION = ([0, 45.47, 50, 55, 60, 65, 70, 75, 80], [760, 760, 691.2, 628.4, 576, 531.7, 493.7, 460.8, 432])
 ELECTRIC = ([0, 74.97, 80, 90, 100], [461, 461, 432, 384, 345.6])
-SEEDS = ModelOptions.seeds()
+SEEDS = ModelOptions.papers()
 
 
 def resistance_kn(v_kmh):
@@ -167,16 +167,37 @@ def test_every_model_plans_the_hand_case(root, monkeypatch, options):
 
 
 def test_point_mass_chooses_the_model_not_the_method(freight):
-    """--point-mass is the seeds' train model; the sequence builder stays the general one unless seed 002's
-    own is named (it cannot run most real lines), in a context and in a batch run alike."""
+    """--point-mass is the papers' train model; the sequence builder stays the general one unless the ISSA
+    paper's own is named (it cannot run most real lines), in a context and in a batch run alike."""
     from locoplan.runner import make_context
     from locoplan.runs.spec import RunSpec
 
     route, train = freight
     assert make_context(route, train, SEEDS).builder == "general"
-    assert make_context(route, train, SEEDS, builder="seed002").builder == "seed002"
+    assert make_context(route, train, SEEDS, builder="issa-paper").builder == "issa-paper"
     assert RunSpec("r.yaml", "c.yaml", options=SEEDS).resolved_builder == "general"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "seed002"
+    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="issa-paper").resolved_builder == "issa-paper"
+    # the builder's earlier name is an alias: the same context, the same resolved builder, the same store key name
+    assert make_context(route, train, SEEDS, builder="seed002").builder == "issa-paper"
+    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "issa-paper"
+    from locoplan.strategy import registry
+    assert registry.builder_key("issa-paper") == "seed002" and registry.builder_key("general") == "general"
+
+
+def test_study_file_takes_the_builder_by_either_name(root, tmp_path):
+    """A study file's ``builder``: ``issa-paper`` or its alias ``seed002`` (the same runs); another name is refused."""
+    from locoplan.errors import InputError
+    from locoplan.runs.study import load_study
+
+    def specs(builder):
+        p = tmp_path / f"{builder}.yaml"
+        p.write_text(f"schema: locoplan/study@1\nroutes: [{root / 'routes/freight-20km.yaml'}]\nconsists: [HXD1-C80x50]\n"
+                     f"times: [1500]\nstrategies: [four-stage]\nbuilder: {builder}\n", encoding="utf-8")
+        return load_study(p).specs
+
+    assert [s.resolved_builder for s in specs("seed002")] == [s.resolved_builder for s in specs("issa-paper")] == ["issa-paper"]
+    with pytest.raises(InputError, match="unknown sequence builder 'seed003'"):
+        specs("seed003")
 
 
 def test_a_stop_full_braking_cannot_reach(freight):

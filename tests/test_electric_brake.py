@@ -69,7 +69,7 @@ def test_e_brakes_on_the_electric_curve_alone(level):
     assert set(res.profile.condition[0][cells]) == {CODE["E"]}
 
 
-@pytest.mark.parametrize("options", [ModelOptions.seeds(), ModelOptions(air_brake=False)], ids=["point-mass", "no-air-brake"])
+@pytest.mark.parametrize("options", [ModelOptions.papers(), ModelOptions(air_brake=False)], ids=["point-mass", "no-air-brake"])
 def test_e_is_b_where_the_electric_brake_is_the_only_brake(level, options):
     route, train = level
     calc = TractionCalculator(route, train, options)
@@ -80,7 +80,7 @@ def test_e_is_b_where_the_electric_brake_is_the_only_brake(level, options):
     assert r_e.traction_energy_kwh[0] == pytest.approx(r_b.traction_energy_kwh[0], rel=1e-12)
 
 
-@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions.seeds(), ModelOptions(air_brake=False)],
+@pytest.mark.parametrize("options", [ModelOptions(), ModelOptions.papers(), ModelOptions(air_brake=False)],
                          ids=["default", "point-mass", "no-air-brake"])
 def test_e_against_a_fine_step_integration(level, options):
     """E runs as an independent fine-step integration of the electric brake alone says (tests/fastest_oracle.py,

@@ -81,7 +81,7 @@ def test_cruise_on_a_descent_uses_no_more_than_full_braking(freight):
     HXD1 gives 461 kN. So the train enters the 3 km descent slower, brakes with all it has and no more
     down the grade, and reaches 60 km/h only at its foot (tests/test_descents.py has the numbers)."""
     _, train = freight
-    calc = TractionCalculator(descent(-15.0), train, ModelOptions.seeds())
+    calc = TractionCalculator(descent(-15.0), train, ModelOptions.papers())
     assert not calc.brake_holds_limit[(calc.s_m[:-1] >= 2000) & (calc.s_m[1:] <= 5000)].any()
     res = calc.evaluate(("T",), np.zeros((1, 0)), profile=True)
     assert res.feasible[0], res.reason(0)
@@ -136,7 +136,7 @@ def test_speed_rises_on_a_descent_braking_cannot_hold(freight):
     the calculator's speed at 4000 m equals an independent ODE integration from its speed at 2000 m."""
     _, train = freight
     route = descent(-15.0, limit_kmh=80.0, end_m=4000.0)
-    calc = TractionCalculator(route, train, ModelOptions.seeds())
+    calc = TractionCalculator(route, train, ModelOptions.papers())
     plan = parse_sequence("T:0,K:1000,C:9000,B", 10000)
     res = calc.evaluate(plan.conditions, plan.switches_m, profile=True)
     assert res.feasible[0]
@@ -164,7 +164,7 @@ def test_a_700_m_train_accelerates_only_once_its_tail_clears_a_limit_rise(tmp_pa
     train = load_train(tmp_path / "c.yaml")
     assert train.length_m == pytest.approx(695.2)
     route = hand_made_route([(2000, 40), (8000, 80)], [(8000, 0.0)], 8000)
-    for options, release in ((ModelOptions(), 2695.2), (ModelOptions.seeds(), 2000.0)):
+    for options, release in ((ModelOptions(), 2695.2), (ModelOptions.papers(), 2000.0)):
         p = TractionCalculator(route, train, options).evaluate(("T",), np.zeros((1, 0)), profile=True).profile
         s, v = p.s_m, p.v_kmh[0]
         k = int(np.argmin(np.abs(s - release)))
@@ -324,7 +324,7 @@ def test_a_neutral_section_cuts_the_electric_brake_not_the_air_brake(freight):
     in the span; in the seeds' model (electric brake only) nothing is left there: coasting."""
     _, train = freight
     route = _neutral_before_a_drop()
-    for options, powered, unpowered in ((ModelOptions(), B60_KN, B60_KN - 461.0), (ModelOptions.seeds(), 461.0, 0.0)):
+    for options, powered, unpowered in ((ModelOptions(), B60_KN, B60_KN - 461.0), (ModelOptions.papers(), 461.0, 0.0)):
         calc = TractionCalculator(route, train, options)
         span = np.flatnonzero(calc.traction_allowed == 0.0)
         assert len(span) and calc.traction_allowed[0] == 1.0

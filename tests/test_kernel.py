@@ -40,7 +40,7 @@ def oracle_for(calc: TractionCalculator, ds_m: float) -> FastestOracle:
                          (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, ds_m)
 
 
-CASES = [("seeds", ModelOptions.seeds()), ("no-air-brake", ModelOptions(air_brake=False)),
+CASES = [("seeds", ModelOptions.papers()), ("no-air-brake", ModelOptions(air_brake=False)),
          ("air-brake-modulated", ModelOptions(air_cycle=False))]
 
 

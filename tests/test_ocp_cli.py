@@ -22,11 +22,11 @@ from typer.testing import CliRunner
 
 from locoplan.errors import InputError
 from locoplan.io.load import load_route, load_train
-from locoplan.ocp import seed000_problem
+from locoplan.ocp import gauss_paper_problem
 from locoplan.ocp.min_time import exact_minimum, exact_minimum_time, train_problem
 from locoplan.ocp.min_time_run import run_ocp
 from locoplan.ocp.registry import OCP_METHODS
-from locoplan.ocp.seed000 import SEED000_TABLES
+from locoplan.ocp.min_time_study import PAPER_TABLES
 from oracles import LIMIT, seed000_exact
 
 runner = CliRunner()
@@ -82,7 +82,7 @@ def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
         assert key in data, key
     assert data["strategy"] == "ocp" and data["algorithm"] == "two-stage" and data["stage2"] == "hp"
     assert data["feasible"] is True and data["reason"] is None
-    assert data["consist"] == "HXD1-C64 (seed 000)" and data["gradient_permille"] == grade
+    assert data["consist"] == "HXD1-C64 (two-stage Gauss paper)" and data["gradient_permille"] == grade
     assert (data["control_nodes"], data["state_nodes"]) == (17, 34)  # stage 1 as in the seed
     assert data["stages"][0]["control_nodes"] == 17 and data["final_control_nodes"] < 17
     _, sa, _, sb, exact, cruise_kn = seed000_exact(grade)
@@ -103,7 +103,7 @@ def test_two_stage_json_reaches_the_exact_minimum(two_stage, grade):
 def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
     flat, grade30, train = seed000
     for route, grade in ((flat, 0.0), (grade30, 30.0)):
-        p, ref = train_problem(route, train), seed000_problem(grade)
+        p, ref = train_problem(route, train), gauss_paper_problem(grade)
         assert (p.mass_t, p.f_max_kn, p.b_max_kn, p.length_m, p.speed_limit_kmh, p.gradient_permille) == \
             (ref.mass_t, ref.f_max_kn, ref.b_max_kn, ref.length_m, ref.speed_limit_kmh, ref.gradient_permille)
         assert p.resistance_kn == pytest.approx(ref.resistance_kn, rel=1e-12)
@@ -115,7 +115,7 @@ def test_table_output_and_seed_routes_give_the_seed_problem(app, seed000):
 
 def test_exact_minimum_on_a_route_too_short_for_the_limit():
     ref = seed000_exact(0.0, 60.0)[4]
-    ex = exact_minimum(dataclasses.replace(seed000_problem(0.0), length_m=60.0))
+    ex = exact_minimum(dataclasses.replace(gauss_paper_problem(0.0), length_m=60.0))
     assert ex.time_s == pytest.approx(ref, abs=1e-6) and ex.cruise_s == 0.0 and ex.peak_speed_ms < LIMIT
 
 
@@ -191,12 +191,12 @@ def test_ocp_study(app, tmp_path):
     assert len(rows) == 16
     seen = {(r["table"], r["algorithm"], r["control_nodes"], r["stage2"]) for r in rows}
     for table in (2, 3):
-        for method, nodes in SEED000_TABLES[table]:
+        for method, nodes in PAPER_TABLES[table]:
             assert (table, method, nodes, "hp" if method == "two-stage" else None) in seen
     exact = {2: seed000_exact(0.0)[4], 3: seed000_exact(30.0)[4]}
     for r in rows:
         assert r["gap_to_exact_s"] == pytest.approx(r["objective"] - exact[r["table"]], abs=2e-4)
-        assert r["seed_objective_s"] == SEED000_TABLES[r["table"]][r["algorithm"], r["control_nodes"]][0]
+        assert r["seed_objective_s"] == PAPER_TABLES[r["table"]][r["algorithm"], r["control_nodes"]][0]
         if r["algorithm"] == "two-stage" and r["stage2"] == "hp":
             assert r["feasible"] and abs(r["gap_to_exact_s"]) < 0.02
             assert r["state_nodes"] == 2 * r["control_nodes"]

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from locoplan.errors import InfeasibleError, InputError, LocoplanError
-from locoplan.ocp import MinTimeTrainProblem, resimulate, seed000_problem, solve_min_time
+from locoplan.ocp import MinTimeTrainProblem, resimulate, gauss_paper_problem, solve_min_time
 from locoplan.ocp.cvp import solve_cvp
 from locoplan.ocp.gauss import (
     gauss_interval,
@@ -50,7 +50,7 @@ def test_reference_minimum_times():
 def runs():
     out = {}
     for grade in GRADES:
-        problem = seed000_problem(grade)
+        problem = gauss_paper_problem(grade)
         for method, nodes in RUNS:
             t0 = time.perf_counter()
             sol = solve_min_time(problem, method, nodes)
@@ -60,7 +60,7 @@ def runs():
 
 
 def test_seed_problem_matches_table1():
-    p = seed000_problem(30.0)
+    p = gauss_paper_problem(30.0)
     assert p.mass_t == 284.0 and p.f_max_kn == 532.0 and p.b_max_kn == 461.0 and p.length_m == 1500.0
     assert p.speed_limit_ms == pytest.approx(LIMIT)
     for v in (0.0, 5.0, 11.1):
@@ -96,7 +96,7 @@ def test_two_stage_reaches_exact_minimum(runs, grade, nodes):
 def test_two_stage_on_a_route_too_short_for_the_limit():
     """60 m, level (the limit needs ~71 m): full traction, then full brake from the peak speed."""
     exact = seed000_exact(0.0, 60.0)[4]
-    problem = dataclasses.replace(seed000_problem(0.0), length_m=60.0)
+    problem = dataclasses.replace(gauss_paper_problem(0.0), length_m=60.0)
     sol = solve_min_time(problem, "two-stage", 17)
     assert sol.success and abs(sol.objective_s - exact) < 0.02
     rs = resimulate(problem, sol)
@@ -152,7 +152,7 @@ def test_seed_global_stage2():
     """``stage2="global"`` is the seed's stage 2 on the same global LG mesh: better than stage 1,
     close to the seed's own 141.59-141.75 s, but not within 0.02 s."""
     for grade in GRADES:
-        sol = solve_min_time(seed000_problem(grade), "two-stage", 24, stage2="global")
+        sol = solve_min_time(gauss_paper_problem(grade), "two-stage", 24, stage2="global")
         assert sol.success
         assert len(sol.stages) == 2 and sol.stages[1].segments == 1
         assert sol.objective_s < sol.stages[0].objective_s
@@ -246,7 +246,7 @@ def test_pairing_and_slope_change():
 
 
 def test_bad_node_counts():
-    p = seed000_problem(0.0)
+    p = gauss_paper_problem(0.0)
     for method, nodes in [("gpm", 1), ("cvp", 0), ("two-stage", 1), ("gpm", 2.5)]:
         with pytest.raises(InputError, match="nodes"):
             solve_min_time(p, method, nodes)
@@ -261,7 +261,7 @@ def test_bad_node_counts():
 
 
 def test_infeasible_and_invalid_problems():
-    base = seed000_problem(30.0)
+    base = gauss_paper_problem(30.0)
     with pytest.raises(InfeasibleError, match="cannot start") as err:
         dataclasses.replace(base, f_max_kn=80.0)  # below resistance + 30 per mille grade (~89 kN)
     assert err.value.exit_code == 1
@@ -305,11 +305,11 @@ def test_radau_takes_fixed_end_problems_only():
     from locoplan.ocp.radau import RadauTranscription
 
     with pytest.raises(InputError, match="Gauss transcription"):
-        RadauTranscription(seed000_problem(0.0).to_ocp(), Mesh((Interval(0, 0.0, 1.0, 4),)))
+        RadauTranscription(gauss_paper_problem(0.0).to_ocp(), Mesh((Interval(0, 0.0, 1.0, 4),)))
 
 
 def test_min_time_problem_is_one_free_end_phase():
-    ocp = seed000_problem(30.0).to_ocp()
+    ocp = gauss_paper_problem(30.0).to_ocp()
     assert len(ocp.phases) == 1 and ocp.free_end[0] == pytest.approx(1500.0 / (39.96 / 3.6))
     assert ocp.phase.model.states == ("s", "v") and ocp.phase.model.integrand is None and ocp.mayer is not None
     with pytest.raises(InputError, match="free end"):

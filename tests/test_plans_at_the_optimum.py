@@ -49,7 +49,7 @@ def test_a_line_coasted_from_end_to_end_plans_at_its_optimum(root):
         assert s["traction_energy_kwh"] - e_star <= SMALL_KWH, (factor, s["traction_energy_kwh"], e_star)
 
 
-@pytest.mark.parametrize("options,consist", [(ModelOptions.seeds(), "HXD1-C80x50"), (ModelOptions(), "HXD1-C80x50"),
+@pytest.mark.parametrize("options,consist", [(ModelOptions.papers(), "HXD1-C80x50"), (ModelOptions(), "HXD1-C80x50"),
                                              (ModelOptions(air_brake=False), "HXD1-C80x30")],
                          ids=["point-mass", "default", "no-air-brake"])
 @pytest.mark.slow
@@ -76,7 +76,7 @@ def test_a_departure_that_powers_a_few_metres_is_timed_as_driven():
     blend of forces over a whole 50 m cell (which took 20 s too long on a falling start)."""
     train = load_train("HXD1-C80x50")
     route = hand_made_route([(2000, 60.0)], [(2000, 0.0)])
-    calc = TractionCalculator(route, train, ModelOptions.seeds())
+    calc = TractionCalculator(route, train, ModelOptions.papers())
     plan = parse_sequence("T:0,C:8,B", route.length_m)
     p = calc.evaluate(plan.conditions, plan.switches_m, profile=True).profile
     k = int(np.argmin(np.abs(p.s_m - 100.0)))
@@ -105,7 +105,7 @@ def test_e_min_is_a_lower_bound_of_every_punctual_plan(freight, root):
     every punctual plan of a random batch of the plan's own sequence."""
     cases = [(freight[0], freight[1], ModelOptions(), 1500.0),
              (load_route(root / "tests/data/routes/falling-40km.yaml"), load_train(root / "configs/consists/HXD1-C80x30.yaml"),
-              ModelOptions.seeds(), None),
+              ModelOptions.papers(), None),
              (load_route(root / "routes/real/CH_Fribourg_Bern.yaml"), load_train(root / "configs/consists/HXD1-C80x30.yaml"),
               ModelOptions(air_brake=False), None)]
     for route, train, options, t0 in cases:
@@ -136,7 +136,7 @@ def test_among_punctual_plans_the_fitness_orders_as_the_energy_does(root):
     not (the old failure, shown so that this test can fail)."""
     route = load_route(root / "routes/real/CH_Stadelhofen_Altstetten-leg1.yaml")
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
-    options = ModelOptions.seeds()
+    options = ModelOptions.papers()
     t0 = round(1.1 * TractionCalculator(route, train, options).fastest_time_s, 1)
     ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.05 * t0)
     e_min = ctx.e_min()
@@ -165,7 +165,7 @@ def test_the_table_and_json_say_which_e_min(freight, tmp_path):
     e = ctx.e_min()
     assert ctx.e_min_source == "optimum" and ctx.e_min_time_s == pytest.approx(1530.0)
     assert e == pytest.approx(energy_bound(route, train, ModelOptions(), 1530.0).energy_kwh)
-    seed = make_context(route, train, ModelOptions.seeds(), time_s=1500.0, builder="seed002")
+    seed = make_context(route, train, ModelOptions.papers(), time_s=1500.0, builder="issa-paper")
     seed.e_min()
     assert seed.e_min_source == "energy-saving"
     given = make_context(route, train, ModelOptions(), time_s=1500.0, e_min_kwh=600.0)
@@ -198,7 +198,7 @@ def test_a_burst_over_a_crest_is_held_not_powered(root):
     within 3 % of E* at its own running time, with no run of full traction between 7 and 8 km."""
     route = load_route(root / "tests/data/routes/sawtooth-21km.yaml")
     train = load_train(root / "tests/data/consists/HXD1-C80x33.yaml")
-    options = ModelOptions.seeds()
+    options = ModelOptions.papers()
     t0 = round(1.58 * TractionCalculator(route, train, options).fastest_time_s, 1)
     ctx, run = _proposed(route, train, options, t0)
     s = run.summary

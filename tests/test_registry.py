@@ -38,7 +38,7 @@ def test_traits_are_the_ones_the_runs_used_to_retype():
     assert registry.names(needs_time=False) == ("time-saving", "energy-saving")
     assert registry.names(needs_e_min=True) == registry.names(seeded=True) == ("proposed",)
     assert registry.names(refuses_impossible_time=True) == ("four-stage", "proposed")
-    assert registry.names(source=registry.SEED002) == ("time-saving", "energy-saving", "four-stage", "proposed")
+    assert registry.names(source=registry.ISSA_PAPER) == ("time-saving", "energy-saving", "four-stage", "proposed")
     assert [n for n, _ in registry.STRATEGIES["drivers"].inputs] == ["logs"]
     assert [n for n, _ in registry.STRATEGIES["advice"].inputs] == ["patterns"]
     from locoplan.runs.pareto import ENDS, PLANNED

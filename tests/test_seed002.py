@@ -18,7 +18,7 @@ from locoplan.strategy.sequence import build_sequence, classify_grades, classify
 from routes import hand_made_route
 
 runner = CliRunner()
-SEEDS = ModelOptions.seeds()
+SEEDS = ModelOptions.papers()
 """Seed 002's own train model (point mass, HXD1 electric brake alone): the builder's classification and
 the strategies' order are checked as the seed states them."""
 
@@ -82,7 +82,7 @@ def test_fitness_eq10_by_hand():
 
 def _problem(freight, strict=False):
     route, train = freight
-    calc = TractionCalculator(route, train, ModelOptions.seeds(step_m=100, strict_limits=strict))
+    calc = TractionCalculator(route, train, ModelOptions.papers(step_m=100, strict_limits=strict))
     seq = build_sequence(calc)
     return SwitchingProblem(calc, seq.conditions, seq.lower_m, seq.upper_m, t0_s=1500, e_min_kwh=580)
 
@@ -127,7 +127,7 @@ def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
 @pytest.fixture(scope="module")
 def small_ctx(freight, root):
     route, train = freight
-    return lambda **kw: make_context(route, train, SEEDS, builder="seed002", yardstick=False, params_path=str(root / "tests/data/optimizers/issa.yaml"),
+    return lambda **kw: make_context(route, train, SEEDS, builder="issa-paper", yardstick=False, params_path=str(root / "tests/data/optimizers/issa.yaml"),
                                      e_min_kwh=580.0, **kw)
 
 
@@ -165,7 +165,7 @@ def test_time_below_fastest_is_exit_1_with_the_fastest_time(root, monkeypatch, f
     assert f"below the fastest possible run, {fastest:.1f} s" in res.stderr
 
 
-SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--builder", "seed002", "--no-gap"]
+SMALL = ["--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--builder", "issa-paper", "--no-gap"]
 
 
 def test_optimize_json(root, monkeypatch):
@@ -179,6 +179,21 @@ def test_optimize_json(root, monkeypatch):
     assert len(d["switching_points_m"]) == d["plan"].count(":") - 1
 
 
+def test_builder_alias_gives_the_same_plan(root, monkeypatch):
+    """``--builder seed002`` is the ISSA paper's builder under its earlier name: the same plan, the same numbers."""
+    monkeypatch.chdir(root)
+    out = {}
+    for name in ("issa-paper", "seed002"):
+        res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--json", "--seed", "2", "--e-min", "580",
+                                  "--params", "tests/data/optimizers/issa.yaml", "--point-mass", "--builder", name, "--no-gap"])
+        assert res.exit_code == 0, res.output
+        d = json.loads(res.stdout)
+        out[name] = (d["plan"], d["switching_points_m"], d["running_time_s"], d["traction_energy_kwh"], d["fitness"])
+    assert out["seed002"] == out["issa-paper"]
+    res = runner.invoke(app, ["optimize", "routes/freight-20km.yaml", "--builder", "seed003"])
+    assert res.exit_code == 2 and "unknown sequence builder 'seed003' (one of: general, issa-paper)" in res.stderr
+
+
 @pytest.mark.slow
 def test_compare_explain_and_json(root, monkeypatch, tmp_path):
     monkeypatch.chdir(root)
@@ -189,7 +204,7 @@ def test_compare_explain_and_json(root, monkeypatch, tmp_path):
         assert word in res.stdout
     assert (tmp_path / "c.png").stat().st_size > 10000
     res = runner.invoke(app, ["compare", "routes/freight-20km.yaml", "--json", "--strategies", "time-saving,four-stage",
-                              "--e-min", "580", "--point-mass", "--builder", "seed002", "--no-gap"])
+                              "--e-min", "580", "--point-mass", "--builder", "issa-paper", "--no-gap"])
     d = json.loads(res.stdout)
     assert [r["strategy"] for r in d["results"]] == ["time-saving", "four-stage"]
 
@@ -201,7 +216,7 @@ def test_sweep_and_study(root, monkeypatch):
     rows = json.loads(res.stdout)["results"]
     assert [r["planned_time_s"] for r in rows] == [1470, 1530] and rows[0]["energy_reduction_percent"] == 0
     res = runner.invoke(app, ["study", "routes/freight-20km.yaml", "--algorithms", "issa,pso", "--runs", "2", "--json",
-                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass", "--builder", "seed002", "--no-gap"])
+                              "--e-min", "580", "--params-dir", "tests/data/optimizers", "--point-mass", "--builder", "issa-paper", "--no-gap"])
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     assert [r["algorithm"] for r in d["table"]] == ["issa", "pso"] and len(d["results"]) == 4

@@ -4,7 +4,7 @@
 file and validates them with its ``Params`` model, which lives beside the algorithm (``optimize/``: one
 definition of the defaults and their sources) and is handed in, so that reading stays below the
 algorithms. The shipped files (``default_params_path``: ``locoplan/catalogue/optimizers/<name>.yaml``)
-hold seed 002's Table 5 values, population 50 and 100 iterations, the same as the models' defaults.
+hold the ISSA paper's Table 5 values, population 50 and 100 iterations, the same as the models' defaults.
 ``runner.load_optimizer_params(name, path=None)`` composes the two for callers; the optimisers
 themselves take the parameter object, never a path::
 

@@ -1,4 +1,4 @@
-"""Seed 004: double-layer pattern curves learned from drivers' logs, and the advice they give.
+"""The pattern-curve patent: double-layer pattern curves learned from drivers' logs, and the advice they give.
 
 - ``drivers``: a simulator of human drivers that makes driver logs (labelled synthetic); the format
   (one CSV per run + a YAML manifest) is ``model/logs.py``, read by ``io/logs.py``, written by

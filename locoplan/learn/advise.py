@@ -1,4 +1,4 @@
-"""Advice from learned patterns (seed 004 claim 1 steps 5-6, claim 2): for a route, a train and a
+"""Advice from learned patterns (the pattern-curve patent's claim 1 steps 5-6, claim 2): for a route, a train and a
 running time, the time shares (upper layer), the speed curve section by section (lower layer, each
 division's exit speed the next one's entry), and the operation sequence that follows that curve,
 computed with the physical model and checked by the traction calculator.
@@ -16,8 +16,8 @@ pattern's speed at its end, v_b:
   pattern rather than brake away energy bought with traction);
 - about the same: C where coasting keeps or gains speed, K where it would lose it.
 
-Braking mid-route is left to the calculator's braking envelope (a lower limit ahead), as in seed
-002's energy-saving sequences: a pattern is never followed by braking. With ``--strict-limits``
+Braking mid-route is left to the calculator's braking envelope (a lower limit ahead), as in the
+ISSA paper's energy-saving sequences: a pattern is never followed by braking. With ``--strict-limits``
 (coasting into a limit is infeasible) a coast that would reach a limit becomes K just below it.
 - the last division: coast into the final bare B (the stop's braking curve, as everywhere here).
 

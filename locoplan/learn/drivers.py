@@ -1,4 +1,4 @@
-"""A simulator of human freight-train drivers that makes driver logs (seed 004 needs logs; the
+"""A simulator of human freight-train drivers that makes driver logs (the pattern-curve patent needs logs; the
 project has none, so it makes them, and labels every one ``synthetic: true``); ``simulate_logs``
 returns them as data and ``reporting/logs.py`` writes the log folder.
 

@@ -1,4 +1,4 @@
-"""Seed 004's double-layer pattern curves, learned from good drivers' logs (claims 1-3, eq. I-II).
+"""The pattern-curve patent's double-layer pattern curves, learned from good drivers' logs (claims 1-3, eq. I-II).
 
 **Good drivers** (claim 3): the runs are grouped by route, load class (mass rounded to
 ``load_class_t``) and planned running time — the same job; in each group a driver whose mean traction

@@ -1,4 +1,4 @@
-"""The route split into sections by equivalent gradient (seed 004 claims 4-6).
+"""The route split into sections by equivalent gradient (the pattern-curve patent's claims 4-6).
 
 Equivalent gradient (claim 5) = gradient + curve term + tunnel term, with the curve term of claim 6,
 ``600 Lc / (Rc L_train)`` spread over one train length for a curve shorter than the train (600 / R

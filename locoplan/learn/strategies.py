@@ -1,4 +1,4 @@
-"""Seed 004 in ``locoplan compare``: the strategies ``drivers`` (what the drivers' logs say for the
+"""The pattern-curve patent in ``locoplan compare``: the strategies ``drivers`` (what the drivers' logs say for the
 same route, mass and planned time) and ``advice`` (the learned patterns' operation sequence); their
 entries and traits are in ``strategy/registry.py``, which imports this module when one of them runs.
 
@@ -90,7 +90,7 @@ def drivers(ctx: StrategyContext) -> StrategyOutcome:
 
 
 def advice(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 004's advice from the learned patterns (``--patterns``), checked by the calculator."""
+    """The pattern-curve patent's advice from the learned patterns (``--patterns``), checked by the calculator."""
     path, data = ctx.inputs.get("patterns"), ctx.loaded.get("patterns")
     if not path or data is None:
         raise InputError(Problem("<command line>", "--patterns", "the 'advice' strategy needs learned patterns: --patterns FILE"))

@@ -1,4 +1,4 @@
-"""Driving conditions: seed 002's four things a driver does (T, K, C, B) and the electric brake alone (E), and their
+"""Driving conditions: the ISSA paper's four things a driver does (T, K, C, B) and the electric brake alone (E), and their
 codes in every array."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ CONDITIONS = ("T", "K", "C", "B", "E")
 braking), E the electric brake alone (at full; the wagons' air brake is not applied for it, only where the
 train must follow a limit or a braking curve the electric brake cannot: a heavy train slowing for a lower limit
 ahead, or for a neutral section on a descent, without an application and its least hold. Where the model has no
-separate air brake (the seeds' point mass, ``--no-air-brake``) it is B). Index = the code used in arrays (the
+separate air brake (the papers' point mass, ``--no-air-brake``) it is B). Index = the code used in arrays (the
 calculator's profile, its compiled kernel, the DP)."""
 CODE = {c: i for i, c in enumerate(CONDITIONS)}
 T, K, C, B, E = 0, 1, 2, 3, 4

@@ -51,7 +51,7 @@ from .train import Train
 
 REQUIRED_COLUMNS = ("time_s", "position_m", "speed_kmh", "force_kn")
 OPTIONAL_COLUMNS = ("notch", "action")
-ACTIONS = CONDITIONS[:4]  # what the driver did: seed 002's four conditions (a log tells no brake apart)
+ACTIONS = CONDITIONS[:4]  # what the driver did: the ISSA paper's four conditions (a log tells no brake apart)
 
 
 # ------------------------------------------------------------------------------------------ manifest

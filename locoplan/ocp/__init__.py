@@ -1,5 +1,5 @@
-"""Optimal control of a train run: one framework for seed 000's minimum time (Gauss pseudospectral,
-two-stage re-collocation, CVP) and seed 001's multi-phase minimum energy (Radau, hp refinement).
+"""Optimal control of a train run: one framework for the two-stage Gauss paper's minimum time (Gauss pseudospectral,
+two-stage re-collocation, CVP) and the MPOC paper's multi-phase minimum energy (Radau, hp refinement).
 
 Layers, each using only the ones before it:
 
@@ -9,11 +9,11 @@ Layers, each using only the ones before it:
 * :mod:`~locoplan.ocp.mesh`: the mesh (intervals with collocation points, hp refinement);
 * transcriptions, each a module taking a problem and a mesh: :mod:`~locoplan.ocp.radau` (LGR,
   multi-phase), :mod:`~locoplan.ocp.gauss` (LG, free end); the method :mod:`~locoplan.ocp.cvp`
-  (control vector parameterisation); :mod:`~locoplan.ocp.recollocation` (seed 000's stage 2);
-* train problems: :mod:`~locoplan.ocp.min_time` (seed 000) and :mod:`~locoplan.ocp.train_energy`
-  (seed 001), both on ``physics``' formulas (``physics.motion`` for the equation of motion);
+  (control vector parameterisation); :mod:`~locoplan.ocp.recollocation` (the two-stage Gauss paper's stage 2);
+* train problems: :mod:`~locoplan.ocp.min_time` (the two-stage Gauss paper) and :mod:`~locoplan.ocp.train_energy`
+  (the MPOC paper), both on ``physics``' formulas (``physics.motion`` for the equation of motion);
 * solving: :mod:`~locoplan.ocp.solve` (``solve_min_time``, ``resimulate``),
-  :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.seed000`
+  :mod:`~locoplan.ocp.min_time_run` (a run on a route and train, checked), :mod:`~locoplan.ocp.min_time_study`
   (Tables 2-3); :mod:`~locoplan.ocp.energy` (refinement loop) -> :mod:`~locoplan.ocp.to_plan`
   (drivable plan, checked by the traction calculator) -> :mod:`~locoplan.ocp.mpoc` (end to end) and
   :mod:`~locoplan.ocp.bound` (the yardstick E*).
@@ -23,7 +23,7 @@ Rendering lives in :mod:`locoplan.reporting.ocp_study`.
 
 import importlib
 
-_LAZY = {"MinTimeTrainProblem": "min_time", "davis_resistance_kn": "min_time", "seed000_problem": "min_time",
+_LAZY = {"MinTimeTrainProblem": "min_time", "davis_resistance_kn": "min_time", "gauss_paper_problem": "min_time",
          "METHODS": "solve", "OcpSolution": "solve", "Resimulation": "solve", "resimulate": "solve",
          "solve_min_time": "solve"}
 
@@ -42,6 +42,6 @@ __all__ = [
     "Resimulation",
     "davis_resistance_kn",
     "resimulate",
-    "seed000_problem",
+    "gauss_paper_problem",
     "solve_min_time",
 ]

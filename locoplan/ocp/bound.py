@@ -1,6 +1,6 @@
 """The yardstick: the least traction energy E* a train can use on a route in a running time.
 
-E* is seed 001's minimum-energy problem (neutral sections included) of the same train model the
+E* is the MPOC paper's minimum-energy problem (neutral sections included) of the same train model the
 calculator runs, solved on the calculator's own cells by a structured interior-point method
 (``ocp/cells.py``, ``ocp/ipm.py``) on successively halved grids until two agree to ``E_STAR_TOL``: the
 finer grid's optimum is E*, their difference its stated accuracy. Every plan's

@@ -493,7 +493,7 @@ def cell_calculator(route, train, options: ModelOptions, step_m: float, coarser:
 
 def initial_speeds(calc: TractionCalculator, time_s: float) -> np.ndarray:
     """A run slightly faster than ``time_s`` from the calculator: full traction up to a cruise speed, held
-    there (braking where it must), and the braking curves (seed 002's four-stage drive), the cruise speed
+    there (braking where it must), and the braking curves (the ISSA paper's four-stage drive), the cruise speed
     the highest of a batch that still takes more than ``time_s`` less 1 %: node speeds [m/s]."""
     top = float(np.max(calc.limit_kmh))
     cruise = np.linspace(5.0, top, 60)

@@ -1,4 +1,4 @@
-"""Control vector parameterisation (CVP): the baseline of seed 000 (section 5, Tables 2-3).
+"""Control vector parameterisation (CVP): the baseline of the two-stage Gauss paper (section 5, Tables 2-3).
 
 A method of its own, on the same free-end single-phase problem as the Gauss transcription
 (:class:`~locoplan.ocp.phase.MultiPhaseProblem` with ``free_end``): ``M`` control values on a uniform

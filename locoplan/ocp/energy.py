@@ -1,4 +1,4 @@
-"""Solve seed 001's minimum-energy problem with hp mesh refinement (the MPOC solver).
+"""Solve the MPOC paper's minimum-energy problem with hp mesh refinement (the MPOC solver).
 
 Layer 4 of the multi-phase stack. :func:`solve_energy` takes a
 :class:`~locoplan.ocp.train_energy.TrainEnergyProblem`, starts from a plan the traction calculator

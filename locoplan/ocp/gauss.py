@@ -1,4 +1,4 @@
-"""Gauss pseudospectral (LG) transcription of a free-end single-phase problem (seed 000, eq. 15-24).
+"""Gauss pseudospectral (LG) transcription of a free-end single-phase problem (the two-stage Gauss paper, eq. 15-24).
 
 The second transcription beside :mod:`~locoplan.ocp.radau`: it takes the same problem notion
 (:class:`~locoplan.ocp.phase.MultiPhaseProblem` with one phase and ``free_end``, the model's
@@ -8,7 +8,7 @@ callables on CasADi symbols) and the same :class:`~locoplan.ocp.mesh.Mesh`, laid
 Transcription (Benson / Huntington's GPM):
 
 * ``t0 = 0`` and the final time ``t_f`` is a decision variable. The mesh cuts ``[0, 1]`` into ``K``
-  intervals (``K = 1`` is the classical global GPM of the seed; ``K > 1`` an hp mesh). Interval
+  intervals (``K = 1`` is the classical global GPM of the paper; ``K > 1`` an hp mesh). Interval
   ``k`` covers ``[sigma_{k-1} t_f, sigma_k t_f]`` and is mapped to ``tau in [-1, 1]`` by eq. 15. Its
   start is fixed or, with ``free_start``, a decision variable in those bounds (a moving mesh that
   lets the NLP put a break point on a control switch).
@@ -20,7 +20,7 @@ Transcription (Benson / Huntington's GPM):
   unknowns). It is the final state of the last interval and the initial state of the next otherwise.
 * Controls live only at the LG points: ``U = C P`` with ``P`` the interval's control *parameters* and
   ``C`` its ``control_map`` (``n x m``). The identity is the classical GPM; a 0/1 grouping matrix ties
-  neighbouring LG points to one value (seed eq. 26-27 pairing and the eq. 31 merging); an
+  neighbouring LG points to one value (the paper's eq. 26-27 pairing and the eq. 31 merging); an
   interpolation matrix puts the control on its own, smaller node set (:func:`lagrange_control_map`).
 * The Lagrange term of the objective is Gauss quadrature (eq. 23), path constraints ``g <= 0`` are
   imposed at the LG points, state bounds at every support point and at ``tau = +1``.
@@ -91,9 +91,9 @@ def grouped_control_map(group_sizes: Sequence[int]) -> np.ndarray:
 
 
 def paired_control_map(n_lg: int) -> np.ndarray:
-    """Stage-1 map of the two-stage method (seed eq. 26-27): ``U_{2l-1} = U_{2l}``.
+    """Stage-1 map of the two-stage method (the paper's eq. 26-27): ``U_{2l-1} = U_{2l}``.
 
-    The seed numbers the ``N + 1`` points of a degree-``N`` polynomial and asks for odd ``N``; that is
+    The paper numbers the ``N + 1`` points of a degree-``N`` polynomial and asks for odd ``N``; that is
     an *even* number ``n_lg = N + 1`` of LG points here, giving ``n_lg / 2`` control parameters.
     """
     n_lg = _nodes._check_n(n_lg, "paired control nodes")
@@ -228,7 +228,7 @@ class SegmentSolution:
         return self.controls @ e.T
 
     def state_polynomial(self, t) -> np.ndarray:
-        """Degree-``n`` state interpolant on ``(-1, tau_1..tau_n)`` (seed eq. 17), ``n_x x len(t)``."""
+        """Degree-``n`` state interpolant on ``(-1, tau_1..tau_n)`` (the paper's eq. 17), ``n_x x len(t)``."""
         support = _nodes.gauss_support_points(len(self.tau))
         e = _nodes.interpolation_matrix(support, np.atleast_1d(self._tau_of(t)))
         return self.support_states @ e.T

@@ -1,4 +1,4 @@
-"""Meshes of a multi-phase problem and their hp refinement (GPOPS-II's ph idea, seed 001 Fig. 4).
+"""Meshes of a multi-phase problem and their hp refinement (GPOPS-II's ph idea, the MPOC paper's Fig. 4).
 
 A :class:`Mesh` is a flat, ordered list of :class:`Interval` s covering the problem; every interval
 lies in one phase and carries its number of Legendre-Gauss-Radau (LGR) collocation points ``n``
@@ -15,7 +15,7 @@ is linear in ``sqrt(s)``, so in ``tau`` the states are smooth again.
 
 Refinement (:func:`refine`): where an interval above the tolerance (see ``radau.interval_errors``)
 holds a control switch, a moving mesh point goes onto it, with the arcs either side held (our
-extension, as seed 000's two-stage hp stage); elsewhere the degree is raised by
+extension, as the two-stage Gauss paper's two-stage hp stage); elsewhere the degree is raised by
 ``P = ceil(log(e / tol) / log(n))`` (GPOPS-II eq. 29) up to ``max_degree``, beyond which the interval is
 cut into pieces of ``min_degree``, or cut at a kink where raising did not help.
 """
@@ -53,7 +53,7 @@ class Interval:
     regime: tuple[str | None, ...] | None = None
     """Per control: ``"lower"`` (held at its lower bound), ``"upper"`` (at its upper or speed-dependent
     bound) or ``None`` (free) on the whole interval: the arc the solution showed next to a switch,
-    so that the switch has to sit on the moving point between the arcs (seed 000's merging, eq. 31)."""
+    so that the switch has to sit on the moving point between the arcs (the two-stage Gauss paper's merging, eq. 31)."""
     control_map: np.ndarray | None = field(default=None, compare=False, repr=False)
     """Gauss transcription only: the ``n x m`` matrix ``C`` giving the control at the ``n`` collocation
     points from the interval's ``m`` control parameters, ``U = C P`` (``None``: one value per point; see

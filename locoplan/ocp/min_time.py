@@ -1,4 +1,4 @@
-"""The minimum-running-time train problem of seed 000 (eq. 1-4, 34), its exact optimum, and the
+"""The minimum-running-time train problem of the two-stage Gauss paper (eq. 1-4, 34), its exact optimum, and the
 problem of a loaded route and train.
 
 :class:`MinTimeTrainProblem` holds numbers only and turns them into a single-phase free-end
@@ -6,7 +6,7 @@ problem of a loaded route and train.
 it never sees a node or a differentiation matrix. Its physics are ``physics``' functions (resistance,
 gradient force, the equation of motion of ``physics.motion``, units), shared with the energy problem.
 
-Model (seed eq. 1-3, point mass, ideal tractive effort):
+Model (the paper's eq. 1-3, point mass, ideal tractive effort):
 
     ds/dt = v,     dv/dt = (F_u - R(v) - G) / M
 
@@ -40,7 +40,7 @@ from .nlp import Guess
 from .phase import MultiPhaseProblem, Phase, PhaseModel
 
 __all__ = ["ExactMinimum", "MinTimeTrainProblem", "bounds_note", "davis_resistance_kn", "exact_minimum",
-           "exact_minimum_time", "seed000_problem", "train_problem"]
+           "exact_minimum_time", "gauss_paper_problem", "train_problem"]
 
 
 def davis_resistance_kn(vehicles) -> tuple[float, float, float]:
@@ -174,7 +174,7 @@ class MinTimeTrainProblem:
 
     def to_ocp(self) -> MultiPhaseProblem:
         """One phase in time with a free end ``t_f``: states ``(s [m], v [m/s])``, control ``F_u [kN]``,
-        objective ``t_f`` (seed eq. 34). The phase's nominal end (the time scale of the NLP) is the
+        objective ``t_f`` (the paper's eq. 34). The phase's nominal end (the time scale of the NLP) is the
         lower bound of ``t_f``: running at the limit all the way."""
         vlim = self.speed_limit_ms
         t_lo = self.length_m / vlim  # cannot be faster than running at the limit all the way
@@ -195,7 +195,7 @@ class MinTimeTrainProblem:
 
     def initial_guess(self, m: int = 41) -> Guess:
         """A trapezoidal speed profile (accelerate / run / brake at the physical rates, cruise at
-        the limit or the balancing speed) and zero force, as the seed's "initial control 0"."""
+        the limit or the balancing speed) and zero force, as the paper's "initial control 0"."""
         vlim = self.speed_limit_ms
         a = max(self.acceleration(0.5 * vlim, self.f_max_kn), 1e-3)
         b = max(-self.acceleration(0.5 * vlim, -self.b_max_kn), 1e-3)
@@ -212,8 +212,8 @@ class MinTimeTrainProblem:
         return Guess(sigma=t / tf, states=np.vstack([s, speed]), controls=np.zeros((1, m)), final_time=tf)
 
 
-def seed000_problem(gradient_permille: float = 0.0) -> MinTimeTrainProblem:
-    """Seed 000, Table 1: HXD1 (200 t, w0 = 2.23 + 0.0053 V + 0.000675 V^2 N/kN) + C64 (84 t,
+def gauss_paper_problem(gradient_permille: float = 0.0) -> MinTimeTrainProblem:
+    """The two-stage Gauss paper, Table 1: HXD1 (200 t, w0 = 2.23 + 0.0053 V + 0.000675 V^2 N/kN) + C64 (84 t,
     w0 = 0.92 + 0.0048 V + 0.000125 V^2 N/kN), -461 kN <= F_u <= 532 kN, 1500 m, 0 <= v <= 11.1 m/s
     (39.96 km/h). Test 1 is level track, test 2 a 30 per mille grade."""
     return MinTimeTrainProblem(
@@ -259,17 +259,17 @@ def train_problem(route, train, route_file: str | Path | None = None) -> MinTime
     terms of a curve / tunnel that covers the whole route) and its one speed limit [km/h], capped by
     the train's ``max_speed_kmh``.
 
-    Force bounds: the problem has constant bounds ``-b_max <= F_u <= f_max`` (seed 000 eq. 34 uses
+    Force bounds: the problem has constant bounds ``-b_max <= F_u <= f_max`` (the two-stage Gauss paper's eq. 34 uses
     -461..532 kN). From a consist's speed-dependent curves they are the *minimum* of the traction /
     brake curve over ``[0, limit]``: a conservative constant that the locomotive can always deliver,
-    so a plan is drivable, but slower than one using the full curve where it is higher. The seed-000
+    so a plan is drivable, but slower than one using the full curve where it is higher. The two-stage Gauss paper's
     consist has flat curves, for which this is exact. (Speed-dependent bounds would be a path
     constraint ``F_u <= F_max(v)`` in the problem layer and a different exact optimum; not built.)
 
     ``route_file`` names the route in error messages. Raises :class:`InputError` (file and field)
     when the route has more than one gradient or speed-limit section after merging equal neighbours,
     a curve or tunnel covering only part of it, or a neutral section: the single-phase problem needs
-    a constant grade and limit (seed 001's multi-phase problem is a later issue).
+    a constant grade and limit (the MPOC paper's multi-phase problem is a later issue).
     """
     name = str(route_file) if route_file is not None else route.name
     why = ("the single-phase minimum-time problem needs one constant gradient and one speed "

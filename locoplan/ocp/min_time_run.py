@@ -167,7 +167,7 @@ def solve_ocp(route, train, method: str = "two-stage", nodes: int | None = None,
               consist_name: str | None = None, problem: MinTimeTrainProblem | None = None) -> OcpRun:
     """Solve the optimal control problem of ``train`` on ``route`` and check it by re-simulation.
 
-    ``method`` is a key of :data:`OCP_METHODS`, ``nodes`` its control-node count (default: the seed's
+    ``method`` is a key of :data:`OCP_METHODS`, ``nodes`` its control-node count (default: the paper's
     first count, 17 / 34 / 20), ``state_nodes`` the LG points of the states (two-stage: ``2 * nodes``,
     must be even; GPM: ``nodes``), ``stage2`` a key of :data:`STAGE2_MODES`, ``objective`` a key of
     :data:`OBJECTIVES` (only ``"time"`` is built). ``problem`` overrides :func:`train_problem`.

@@ -1,4 +1,4 @@
-"""Seed 001 end to end: the minimum-energy run (MPOC), its drivable plan, and the SPEC summary.
+"""The MPOC paper end to end: the minimum-energy run (MPOC), its drivable plan, and the SPEC summary.
 
 :func:`run_mpoc` builds the multi-phase problem (``train_energy``), solves it with hp refinement
 (``energy``), turns the optimum into a condition plan and re-simulates it with the traction
@@ -43,7 +43,7 @@ class MpocRun:
 
 
 def without_neutral(route: Route) -> Route:
-    """The route with its neutral sections removed (seed 001's MPOC-N)."""
+    """The route with its neutral sections removed (the MPOC paper's MPOC-N)."""
     return route.model_copy(update={"neutral_sections": []})
 
 
@@ -154,7 +154,7 @@ def run_mpoc(route: Route, train: Train, options: ModelOptions | None = None, ti
              warm=None, strategy: str = "mpoc") -> MpocRun:
     """Minimum traction energy of ``train`` over ``route`` in ``time_s`` [s], checked by re-simulation.
 
-    ``energy.ignore_neutral`` solves seed 001's MPOC-N: the route without its neutral sections (its
+    ``energy.ignore_neutral`` solves the MPOC paper's MPOC-N: the route without its neutral sections (its
     plan is checked on that route, since the real one cannot drive it). Raises ``InfeasibleError``
     when the consist cannot run the route, ``time_s`` is below the fastest run or IPOPT finds no
     solution; an unconfirmed plan is *returned* with ``summary["feasible"] = False``."""

@@ -4,21 +4,21 @@ Layer 1 of the optimal-control stack (nodes -> transcription -> problem -> solve
 pure: the functions keyed on an integer ``n`` are cached with :func:`functools.lru_cache` and return
 *read-only* NumPy arrays, so a caller can never corrupt the cache.
 
-* Legendre-Gauss (LG) nodes and weights by the Golub-Welsch eigenvalue method, exactly as in seed
-  000, Theorem 1 and eq. 32-33: the symmetric tridiagonal Jacobi matrix has ``alpha_n = 0`` on the
+* Legendre-Gauss (LG) nodes and weights by the Golub-Welsch eigenvalue method, exactly as in the
+  paper's Theorem 1 and eq. 32-33: the symmetric tridiagonal Jacobi matrix has ``alpha_n = 0`` on the
   diagonal and ``beta_n = n / sqrt(4 n^2 - 1)`` beside it; its eigenvalues are the roots of ``P_n``
   and the weights are ``w_k = mu_0 v_{1k}^2 = 2 v_{1k}^2`` (``v_{1k}`` = first component of the k-th
-  normalised eigenvector). Eq. 33 of the seed quotes the equivalent closed form
+  normalised eigenvector). Eq. 33 of the paper quotes the equivalent closed form
   ``2 / ((1 - tau_k^2) P_n'(tau_k)^2)``.
 * Legendre-Gauss-Radau (LGR) nodes and weights (left end point ``-1`` included) by Golub's
   modification of the same Jacobi matrix (the last diagonal entry is changed so that ``-1`` is an
   eigenvalue), so the LGR rule comes from one symmetric eigenproblem too.
-* Lagrange differentiation matrices (seed eq. 19-20) in barycentric form with the "negative sum
+* Lagrange differentiation matrices (the paper's eq. 19-20) in barycentric form with the "negative sum
   trick" on the diagonal, which is the numerically stable way of writing eq. 20.
 
 Conventions for the pseudospectral methods:
 
-* Gauss pseudospectral method (Benson / Huntington, seed eq. 17-24): the state is interpolated on the
+* Gauss pseudospectral method (Benson / Huntington, the paper's eq. 17-24): the state is interpolated on the
   ``n + 1`` support points ``(-1, tau_1, ..., tau_n)`` and collocated at the ``n`` LG points, so
   :func:`gauss_differentiation_matrix` is ``n x (n + 1)``.
 * Radau pseudospectral method (Garg et al.): the state is interpolated on ``(tau_1 = -1, ..., tau_n,
@@ -88,10 +88,10 @@ def _as_points(points, what: str) -> np.ndarray:
 
 @lru_cache(maxsize=None)
 def legendre_jacobi_matrix(n: int) -> np.ndarray:
-    """The ``n x n`` symmetric tridiagonal matrix ``H`` of seed Theorem 1 for the Legendre weight.
+    """The ``n x n`` symmetric tridiagonal matrix ``H`` of the paper's Theorem 1 for the Legendre weight.
 
     Diagonal ``alpha_k = 0``; off-diagonal ``beta_k = k / sqrt(4 k^2 - 1)``, ``k = 1 .. n-1``
-    (seed eq. 32). Its eigenvalues are the roots of the degree-``n`` Legendre polynomial.
+    (the paper's eq. 32). Its eigenvalues are the roots of the degree-``n`` Legendre polynomial.
     """
     n = _check_n(n, "Legendre-Gauss nodes")
     k = np.arange(1, n, dtype=float)
@@ -102,7 +102,7 @@ def legendre_jacobi_matrix(n: int) -> np.ndarray:
 
 def _golub_welsch(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lam, vec = np.linalg.eigh(h)
-    # mu_0 = int_{-1}^{1} 1 dtau = 2 (seed eq. 33 in its eigenvector form)
+    # mu_0 = int_{-1}^{1} 1 dtau = 2 (the paper's eq. 33 in its eigenvector form)
     w = 2.0 * vec[0, :] ** 2
     return lam, w
 
@@ -233,7 +233,7 @@ def gauss_support_points(n: int) -> np.ndarray:
 @lru_cache(maxsize=None)
 def gauss_differentiation_matrix(n: int) -> np.ndarray:
     """GPM differentiation matrix, ``n x (n + 1)``: rows = the ``n`` LG collocation points, columns =
-    the support points ``(-1, tau_1, ..., tau_n)`` (seed eq. 19-20, Benson's form)."""
+    the support points ``(-1, tau_1, ..., tau_n)`` (the paper's eq. 19-20, Benson's form)."""
     d = differentiation_matrix(gauss_support_points(n))[1:, :]
     return _readonly(np.ascontiguousarray(d))
 

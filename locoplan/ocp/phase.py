@@ -14,7 +14,7 @@ shaped like dymos' and yapss' phases:
   next (the linkage), the first phase starts from ``initial_state``, the last ends in
   ``final_lower .. final_upper``; the objective is the sum of the phases' integrals.
 
-Free end (seed 000). With ``free_end = (lo, hi)`` the end of the single phase is a decision
+Free end (the two-stage Gauss paper). With ``free_end = (lo, hi)`` the end of the single phase is a decision
 variable in ``[lo, hi]`` (a free final time): ``phases[0].s1`` is then only its nominal value, which
 scales it in the NLP. ``mayer(x0, xf, s_end)`` adds a terminal term to the objective (the running
 time ``t_f`` of the minimum-time problem). The Gauss and CVP transcriptions (:mod:`~locoplan.ocp.gauss`,

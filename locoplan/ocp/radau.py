@@ -1,4 +1,4 @@
-"""Legendre-Gauss-Radau (LGR) collocation of a multi-phase problem, solved by IPOPT (seed 001 section 3).
+"""Legendre-Gauss-Radau (LGR) collocation of a multi-phase problem, solved by IPOPT (the MPOC paper's section 3).
 
 Layer 3 of the multi-phase stack. On a :class:`~locoplan.ocp.mesh.Mesh`, every interval with ``n``
 LGR points carries the states as a degree-``n`` polynomial through its ``n`` points and its end

@@ -1,8 +1,8 @@
-"""The two-stage adaptive Gauss re-collocation of the control (seed 000 section 3, eq. 26-31, Fig. 3-4).
+"""The two-stage adaptive Gauss re-collocation of the control (the two-stage Gauss paper's section 3, eq. 26-31, Fig. 3-4).
 
 Stage 1 solves the Gauss transcription with the control paired on the LG points
 (:func:`~locoplan.ocp.gauss.paired_control_map`); :func:`recollocate` reads its slope changes and
-returns the stage-2 :class:`~locoplan.ocp.mesh.Mesh` (the seed's single-interval re-grouping, or our
+returns the stage-2 :class:`~locoplan.ocp.mesh.Mesh` (the paper's single-interval re-grouping, or our
 hp extension with moving break points on the detected switches).
 """
 
@@ -20,10 +20,10 @@ __all__ = ["recollocate", "recollocated_groups", "slope_changes"]
 
 
 def slope_changes(params: np.ndarray, tau: np.ndarray, u_range: float) -> np.ndarray:
-    """Seed eq. 28 for one control after the paired stage 1:
+    """The paper's eq. 28 for one control after the paired stage 1:
     ``S_{l+1} = (U_{l+1} - U_l) / (tau_{2l+1} - tau_{2l-1})``, ``l = 1 .. L-1``.
 
-    ``params`` are the ``L`` paired values, ``tau`` the ``2 L`` LG points. The seed's thresholds
+    ``params`` are the ``L`` paired values, ``tau`` the ``2 L`` LG points. The paper's thresholds
     (``eps = 0.04``) only make sense for a dimensionless control, so the values are divided by
     ``u_range`` (the width of the control bounds) and the magnitude ``|S|`` is returned (a drop is as
     much a jump as a rise).
@@ -48,7 +48,7 @@ def _groups_from_ties(tied: np.ndarray) -> list[int]:
 
 
 def recollocated_groups(s: np.ndarray, eps_upper: float, eps_lower: float) -> list[int]:
-    """Stage-2 control groups on the *same* LG points (the seed's single-interval stage 2).
+    """Stage-2 control groups on the *same* LG points (the paper's single-interval stage 2).
 
     Start from the pairs ``U_{2l-1} = U_{2l}``. Where ``S_{l+1} <= eps_L`` (eq. 30) the next pair is
     merged into the current group (``U_{l+1} = U_l``, eq. 31). Where ``S_{l+1} >= eps_U`` (eq. 29) the
@@ -82,7 +82,7 @@ def recollocate(
 ) -> Mesh:
     """Stage-2 mesh from a paired stage-1 solution (single segment, paired control map).
 
-    ``mode="global"`` is the seed's stage 2: same LG points, control groups from
+    ``mode="global"`` is the paper's stage 2: same LG points, control groups from
     :func:`recollocated_groups`. ``mode="hp"`` (our extension, needed for a bang-bang optimum to be
     resolved to ~0.01 s) uses the same eq. 28-31 classification to cut the *state* mesh as well:
 
@@ -139,7 +139,7 @@ def recollocate(
             kinds.extend(["ramp", "flat"])
     k = len(kinds)
     sizes = [n // k + (1 if i < n % k else 0) for i in range(k)]
-    if min(sizes) < 3:  # too many jumps for the nodes: keep the seed's single interval
+    if min(sizes) < 3:  # too many jumps for the nodes: keep the paper's single interval
         return single_mesh(n, grouped_control_map(recollocated_groups(s, eps_upper, eps_lower)))
     segments = tuple(
         gauss_interval(m, np.ones((m, 1)) if kind == "flat" else lagrange_control_map(m, (-1.0, 1.0)))

@@ -10,7 +10,7 @@ from ..catalogue import DEFAULT_CONSIST_FILE
 from ..errors import InputError, Problem
 
 DEFAULT_OCP_CONSIST = "configs/consists/HXD1-C64-seed000.yaml"
-"""The seed 000 test train: the default of ``--objective time``."""
+"""The two-stage Gauss paper test train: the default of ``--objective time``."""
 DEFAULT_ENERGY_CONSIST = DEFAULT_CONSIST_FILE
 """The project's freight train: the default of ``--objective energy``."""
 
@@ -19,14 +19,14 @@ DEFAULT_ENERGY_CONSIST = DEFAULT_CONSIST_FILE
 class OcpMethod:
     """One transcription of the minimum-time problem (see :mod:`locoplan.ocp.solve`).
 
-    ``seed_nodes``: the two control-node counts of the seed's Tables 2-3 (the first is the default).
+    ``paper_nodes``: the two control-node counts of the paper's Tables 2-3 (the first is the default).
     ``has_stage2``: the method reads ``stage2``; ``has_state_nodes``: ``state_nodes`` may be given;
     ``objectives``: the objectives it solves.
     """
 
     key: str
     label: str
-    seed_nodes: tuple[int, int]
+    paper_nodes: tuple[int, int]
     description: str
     has_stage2: bool = False
     has_state_nodes: bool = False
@@ -63,7 +63,7 @@ DEFAULT_METHOD = {"time": "two-stage", "energy": "radau"}
 """The method ``--method`` defaults to, per objective."""
 
 STUDY_ROUTES: dict[int, str] = {2: "routes/seed000-flat.yaml", 3: "routes/seed000-grade30.yaml"}
-"""The routes of seed 000's Table 2 (level, test 1) and Table 3 (30 per mille, test 2)."""
+"""The routes of the two-stage Gauss paper's Table 2 (level, test 1) and Table 3 (30 per mille, test 2)."""
 
 
 def study_route_file(rel: str):
@@ -88,7 +88,7 @@ SOURCE = "ocp"  # the 'file' of a Problem about a command-line option rather tha
 
 def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective: str = "time") -> tuple[int, int | None]:
     """Validate the options of :func:`solve_ocp` before any file is read or NLP built; returns the
-    control-node count (the method's seed default if ``None``) and the state-node count (or ``None``).
+    control-node count (the method's default from the paper if ``None``) and the state-node count (or ``None``).
     Every problem is reported at once as an :class:`InputError` naming the option."""
     from . import nodes as _nodes  # numpy: loaded when a command runs, not for its help
 
@@ -143,7 +143,7 @@ def check_options(method: str, nodes, state_nodes, stage2: str = "hp", objective
         if method == "two-stage" and m is not None and n is None:
             n = m // 2
         if n is None:
-            n = spec.seed_nodes[0]
+            n = spec.paper_nodes[0]
     if stage2 not in STAGE2_MODES:
         problems.append(Problem(SOURCE, "--stage2", f"unknown stage-2 mode {stage2!r}; choose one of {', '.join(STAGE2_MODES)}"))
     if problems:

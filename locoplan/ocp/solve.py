@@ -1,16 +1,16 @@
 """Solve the minimum-time train problem and check the answer by re-simulation.
 
 On the shared machinery (problem: ``phase.MultiPhaseProblem``, mesh: ``mesh.Mesh``, transcriptions:
-``gauss``, method ``cvp``); one function per method in :data:`METHOD_SOLVERS`. Methods (seed 000
+``gauss``, method ``cvp``); one function per method in :data:`METHOD_SOLVERS`. Methods (the two-stage Gauss paper's
 section 5, Tables 2-3):
 
 * ``"gpm"``: the classical Gauss pseudospectral method, one global interval, ``nodes`` LG points for
   both the states and the control.
-* ``"two-stage"``: the seed's two-stage adaptive Gauss re-collocation. Stage 1: ``2 * nodes`` LG
+* ``"two-stage"``: the paper's two-stage adaptive Gauss re-collocation. Stage 1: ``2 * nodes`` LG
   points for the states, the control paired ``U_{2l-1} = U_{2l}`` (``nodes`` control values, eq.
   26-27). Stage 2: slope change ``S`` (eq. 28) with ``eps_U = eps_L = eps`` (0.04), subdivide where
   ``S >= eps_U``, merge where ``S <= eps_L`` (eq. 29-31), then re-solve warm-started from stage 1.
-  ``stage2="global"`` keeps the single global interval exactly as in the seed; ``stage2="hp"``
+  ``stage2="global"`` keeps the single global interval exactly as in the paper; ``stage2="hp"``
   (default, our extension) also cuts the *state* mesh at the detected jumps into segments whose
   break points are NLP variables (a moving hp mesh, see
   :func:`~locoplan.ocp.recollocation.recollocate`), and merges the control to one value per smooth
@@ -241,10 +241,10 @@ def solve_min_time(
     """Minimum running time of ``problem`` by ``method`` in ``("gpm", "two-stage", "cvp")``.
 
     ``nodes`` is the number of control parameters of the (first) NLP, as the "u(t) nodes" column of
-    the seed's Tables 2-3: GPM 34 / 48 (= LG points), two-stage 17 / 24 (stage 1; the states then use
+    the paper's Tables 2-3: GPM 34 / 48 (= LG points), two-stage 17 / 24 (stage 1; the states then use
     ``2 * nodes`` LG points), CVP 20 / 40. For the two-stage method ``state_nodes`` may be given
-    instead; it must be even (odd ``N`` in the seed's eq. 26). ``eps`` / ``eps_lower`` are the
-    slope-change thresholds ``eps_U`` / ``eps_L`` (``eps_lower`` defaults to ``eps`` as in the seed);
+    instead; it must be even (odd ``N`` in the paper's eq. 26). ``eps`` / ``eps_lower`` are the
+    slope-change thresholds ``eps_U`` / ``eps_L`` (``eps_lower`` defaults to ``eps`` as in the paper);
     ``stage2`` is ``"hp"`` or ``"global"``; ``substeps`` is the number of RK4 steps per CVP grid
     interval; ``ipopt_options`` go to CasADi's ``nlpsol`` (e.g. ``{"ipopt.tol": 1e-8}``). Raises :class:`InputError` for bad arguments and :class:`InfeasibleError` when IPOPT
     finds the problem infeasible; other solver failures are reported in ``status`` / ``success``.
@@ -310,7 +310,7 @@ def _solve_gpm(problem: MinTimeTrainProblem, ocp, guess, nodes: int, st: _Settin
 
 
 def _solve_two_stage(problem: MinTimeTrainProblem, ocp, guess, nodes: int | None, st: _Settings) -> OcpSolution:
-    """Seed 000's two-stage method: paired stage 1, then the re-collocated stage 2
+    """The two-stage Gauss paper's two-stage method: paired stage 1, then the re-collocated stage 2
     (:mod:`~locoplan.ocp.recollocation`) warm-started from it."""
     state_nodes, ipopt_options = st.state_nodes, st.ipopt_options
     if state_nodes is None:
@@ -399,7 +399,7 @@ def _control_function(solution: OcpSolution, interpolation: str, clip: bool):
     if interpolation == "method":
         return lambda t: solution.control_at(t, clip=clip)
     if interpolation == "linear":
-        # piecewise linear through the NLP's control values (the seed's Fig. 5 plots)
+        # piecewise linear through the NLP's control values (the paper's Fig. 5 plots)
         if solution.method == "cvp":
             tn, un = solution.time_s, solution.control_kn
         else:

@@ -2,12 +2,12 @@
 
 The optimum's controls are read at its collocation points: full traction (``F`` on its speed-
 dependent bound) is T, partial traction or partial braking (holding a speed: at a limit, or a cruise
-speed on a grade) is K, no force is C, full braking is B (seed 001 Fig. 7 shows such plans). Runs of
+speed on a grade) is K, no force is C, full braking is B (the MPOC paper's Fig. 7 shows such plans). Runs of
 equal conditions become a condition sequence with switching points for the calculator
 (``sim.calculator``): its T is full traction held at the limit, its K holds the speed at which it
 starts, its braking curves brake for every limit drop and the stop by themselves (so braking runs in
 mid-route become coasting into those curves, and the last B is the stop's). The last coasting point
-is then moved so that the plan runs in the asked time (seed 001 section 1.2 does the same for its
+is then moved so that the plan runs in the asked time (the MPOC paper's section 1.2 does the same for its
 MPOC-C), and the plan is re-simulated: its time, energy, limits, stop and the neutral sections'
 coasting margins are what gets reported, not the NLP's claim.
 """
@@ -289,7 +289,7 @@ def fit_switches(calc: TractionCalculator, plan: Plan, sol: RadauSolution, max_m
 
 def tune_coasting_point(calc: TractionCalculator, plan: Plan, time_s: float, tol_s: float = TIME_TOL_S / 2,
                         least_energy: bool = False) -> tuple[Plan, float]:
-    """Seed 001's 'move the last coasting point so that T is still met', made sure to work: the last
+    """The MPOC paper's 'move the last coasting point so that T is still met', made sure to work: the last
     coasting point first, over its whole run; if the time cannot be met there, the one before it, and
     so on. With ``least_energy`` every coasting point is tried and, of the plans that meet the time, the
     one of least energy kept (on a descent where the air brake cycles, moving the last coasting point

@@ -1,4 +1,4 @@
-"""Seed 001's minimum-energy train problem as a multi-phase optimal control problem (numbers only).
+"""The MPOC paper's minimum-energy train problem as a multi-phase optimal control problem (numbers only).
 
 Independent variable: distance ``s`` [m]. States: ``e = v^2 / 2`` [m^2/s^2] and time ``t`` [s];
 controls: traction ``F`` and braking ``B`` [kN] (with a regenerative credit and the wagons' air
@@ -16,16 +16,16 @@ Path constraints: ``0 <= F <= Fmax(v)``, ``0 <= B <= Bmax(v)`` with the consist'
 curves (``physics.traction.max_force_kn``, a hinge sum on symbols), ``e <= e_limit`` of the phase,
 optionally ``|a| <= comfort_ms2``; in a neutral-section phase ``F = 0`` and the electric brake is cut
 with it (the main breaker is open), so ``B`` is the wagons' air brake alone, and ``F = B = 0`` without
-one (seed 001 eq. 5; the calculator's ``brake_kn_at`` is the same);
+one (the MPOC paper's eq. 5; the calculator's ``brake_kn_at`` is the same);
 rest to rest; ``t_f <= T``. Objective: ``physics.energy.energy_rate_kn`` integrated over ``s``
 (the traction work at the wheel by default).
 
-Phases (seed 001 section 2.1): a new phase at every change of speed limit, equivalent gradient and
+Phases (the MPOC paper's section 2.1): a new phase at every change of speed limit, equivalent gradient and
 neutral-section span. In the default train-length-aware model the gradient under the train is
 piecewise *linear* between its knots (every gradient / curve / tunnel boundary ``b`` and ``b + L``,
 ``physics.gradient``), the limit changes where the head reaches a drop and where the tail clears a
 rise (``sim.calculator.limit_kmh_at``), and traction is cut over ``sim.calculator.neutral_spans_m``;
-with ``point_mass`` the seeds' point model (constant gradient per section, head limits, spans
+with ``point_mass`` the papers' point model (constant gradient per section, head limits, spans
 without the train length).
 """
 
@@ -66,7 +66,7 @@ PHASE_MERGE_M = 1e-3
 @dataclass(frozen=True)
 class EnergyOptions:
     """What the energy problem adds to the train model: the energy counted, the comfort bound and
-    whether neutral sections are honoured (``ignore_neutral`` = seed 001's MPOC-N)."""
+    whether neutral sections are honoured (``ignore_neutral`` = the MPOC paper's MPOC-N)."""
 
     energy: EnergyModel = WHEEL_WORK
     comfort_ms2: float | None = None
@@ -218,7 +218,7 @@ def breakpoints_m(route: Route, train: Train, options: ModelOptions, energy: Ene
     if strip:
         pts += [b + L for b in x] + [b + L for b in lim]
     else:
-        pts += [c.from_m + L for c in route.curves]  # seed 004 claim 6: a short curve over one train length
+        pts += [c.from_m + L for c in route.curves]  # the pattern-curve patent's claim 6: a short curve over one train length
     if not energy.ignore_neutral:
         for a, b in neutral_spans_m(route, L if strip else 0.0):
             pts += [a, b]

@@ -5,7 +5,7 @@ positions of the driving-regime switching points along the route, in metres. It 
 population in ONE call (the traction calculation is vectorised over candidates) and says, per candidate,
 whether it passed the traction calculation (``feasible``).
 
-Infeasible candidates are handled as in seed 002 section 3.2:
+Infeasible candidates are handled as in the ISSA paper's section 3.2:
 
 * step 2: the initial population holds only feasible individuals -- random samples are drawn and
   batch-evaluated, feasible ones kept, until the population is full;
@@ -59,7 +59,7 @@ __all__ = [
 class Evaluation:
     """Evaluation of ``n`` candidates.
 
-    fitness:  (n,) float, dimensionless objective (seed 002 eq. 10: weighted time/energy deviation); lower is better.
+    fitness:  (n,) float, dimensionless objective (the ISSA paper's eq. 10: weighted time/energy deviation); lower is better.
     feasible: (n,) bool, True if the candidate passed the traction calculation (speed limits, arrival, ...).
     """
 
@@ -101,7 +101,7 @@ class Result:
     history:               (n_iterations,) best fitness after each completed iteration (non-increasing).
     n_evaluations:         candidate rows evaluated in total, including the initial fill and replacements.
     n_infeasible_replaced: individuals removed after a position update for failing the traction
-                           calculation and replaced by fresh feasible samples (seed 002 sec. 3.2 step 5).
+                           calculation and replaced by fresh feasible samples (the ISSA paper's sec. 3.2 step 5).
     """
 
     best_x: np.ndarray
@@ -150,7 +150,7 @@ def _evaluate(problem: Problem, X: np.ndarray) -> Evaluation:
 def sample_feasible(
     problem: Problem, rng: np.random.Generator, n: int, max_batches: int = 20
 ) -> tuple[np.ndarray, Evaluation, int]:
-    """Draw ``n`` feasible candidates by rejection sampling in batches (seed 002 sec. 3.2 steps 2 and 5).
+    """Draw ``n`` feasible candidates by rejection sampling in batches (the ISSA paper's sec. 3.2 steps 2 and 5).
 
     Each batch is sampled with ``problem.sample`` and evaluated in ONE ``problem.evaluate`` call. The batch
     size follows the feasible rate seen so far (so a 10 % feasible region needs few batches), capped at
@@ -193,7 +193,7 @@ def replace_infeasible(
 ) -> tuple[np.ndarray, Evaluation, np.ndarray, int]:
     """Remove the infeasible rows of an updated population and refill them with fresh feasible samples.
 
-    Seed 002 sec. 3.2 step 5. Inputs: X (n, n_var) and its evaluation. Returns ``(X_new, evaluation_new,
+    The ISSA paper's sec. 3.2 step 5. Inputs: X (n, n_var) and its evaluation. Returns ``(X_new, evaluation_new,
     replaced, n_evaluated)``: new arrays (inputs untouched) where every row is feasible, the (n,) bool mask
     of the rows that were replaced, and the number of rows evaluated while sampling.
     """
@@ -216,14 +216,14 @@ LIMITS = {
     "pop_size": (2, 1_000),
     "max_iter": (1, 10_000),
     "max_sample_batches": (1, 1_000),
-    "evaluations": 1_000_000,  # pop_size x max_iter: 200x seed 002's 5,000
+    "evaluations": 1_000_000,  # pop_size x max_iter: 200x the ISSA paper's 5,000
 }
 """Bounds of every optimiser's parameter file: generous for studies, finite so that a typo
 (``pop_size: 100000000``) is refused at once instead of running for days or filling the memory."""
 
 
 class OptimizerParams(BaseModel):
-    """Parameters common to every algorithm; subclasses add the algorithm's own (seed 002 Table 5).
+    """Parameters common to every algorithm; subclasses add the algorithm's own (the ISSA paper's Table 5).
 
     Unknown keys are rejected (``extra="forbid"``): a typo in a parameter file never passes silently.
     """
@@ -279,7 +279,7 @@ class Optimizer(ABC):
 
     or drive it by hand: ``while not opt.done: X = opt.ask(); opt.tell(X, problem.evaluate(X))``.
     One iteration may take more than one ask/tell round (ISSA evaluates the Levy-perturbed candidates
-    separately, seed 002 step 6); ``iteration`` counts completed iterations.
+    separately, the ISSA paper's step 6); ``iteration`` counts completed iterations.
 
     Subclasses set ``name`` and ``Params`` and implement ``_init_state``, ``_ask`` and ``_tell``; ``_tell``
     calls ``_replace_infeasible`` after a position update and ``_end_iteration`` when an iteration is done.
@@ -416,7 +416,7 @@ class Optimizer(ABC):
         return np.asarray(self.problem.repair(X), dtype=float)
 
     def _replace_infeasible(self, X: np.ndarray, ev: Evaluation) -> tuple[np.ndarray, Evaluation, np.ndarray]:
-        """Seed 002 step 5 on an evaluated updated population; keeps the counters. Returns (X, ev, replaced)."""
+        """The ISSA paper's step 5 on an evaluated updated population; keeps the counters. Returns (X, ev, replaced)."""
         X, ev, replaced, n_eval = replace_infeasible(self.problem, self.rng, X, ev, self.params.max_sample_batches)
         self.n_evaluations += n_eval
         self.n_infeasible_replaced += int(replaced.sum())

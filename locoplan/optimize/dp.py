@@ -12,7 +12,7 @@ force that keeps it, traction or braking, if the consist has it). Backward pass:
 every grid speed of every node and for each condition of the previous cell, interpolated linearly in
 speed between grid points; forward pass: from rest, each cell's best control at the train's actual
 speed. Costs: traction work [kWh] + lambda x time + a small penalty per change of condition. A run may
-end only once it is half a train long (seed 002 eq. 3: the sequence's runs respect it by construction);
+end only once it is half a train long (the ISSA paper's eq. 3: the sequence's runs respect it by construction);
 the state therefore also holds the condition in progress and its length so far (in buckets). The
 departure run is exempt: on a falling start the least energy may power for a few tens of metres and
 coast (CH_Stadelhofen_Altstetten: 60 m of traction, then coasting to the stop), and a driver can do so.
@@ -46,7 +46,7 @@ HINT_CLOSE = 1.005
 it, doubling, at most ``HINT_WALK`` of them, until the drive's time crosses the target; then bisection
 until the two prices that bracket it are within 0.5 % of each other."""
 SWITCH_PENALTY_SHARE = 0.002
-"""A change of condition costs this share of the fastest run's energy in the DP: drivers (and seed 002's
+"""A change of condition costs this share of the fastest run's energy in the DP: drivers (and the ISSA paper's
 eq. 3) do not switch every few metres, and the drive's runs become the sequence's conditions."""
 
 

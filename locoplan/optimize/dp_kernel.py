@@ -231,7 +231,7 @@ def _backward(dp, fo, price, penalty, min_run, cost_to_go, e_low):  # e_low: _st
     """cost_to_go[k, c, b, j]: least E + price T [kWh] (+ ``penalty`` per change of condition) from node k
     at speed v_grid[j] (j = len(v_grid): at the node's cap, the limit or braking curve), the run in
     progress being condition c, its length so far in bucket b (``_run_bucket``), to the stop (inf =
-    none). A run may end only once it is ``min_run`` long (seed 002 eq. 3), except the final braking."""
+    none). A run may end only once it is ``min_run`` long (the ISSA paper's eq. 3), except the final braking."""
     h, e_cap, v_grid = dp.h, dp.e_cap, dp.v_grid
     n = h.shape[0]
     nv = v_grid.shape[0]

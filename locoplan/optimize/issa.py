@@ -1,4 +1,4 @@
-"""Improved sparrow search algorithm (ISSA) of seed 002, section 3: adaptive weight + Levy flight + greedy.
+"""Improved sparrow search algorithm (ISSA) of the ISSA paper, section 3: adaptive weight + Levy flight + greedy.
 
 Changes to the standard SSA (``ssa.py``; followers and scouts are unchanged):
 
@@ -11,7 +11,7 @@ Changes to the standard SSA (``ssa.py``; followers and scouts are unchanged):
   eta = 1.5, sigma_mu from eq. 8);
 * eq. 9 greedy acceptance: the perturbed position replaces the sparrow only if its fitness is not worse.
 
-Iteration order (seed 002 sec. 3.2 steps 4-7): SSA roles update -> evaluate -> remove infeasible and refill
+Iteration order (the ISSA paper's sec. 3.2 steps 4-7): SSA roles update -> evaluate -> remove infeasible and refill
 with feasible samples (step 5) -> Levy perturbation of the chosen sparrows -> evaluate them -> greedy
 acceptance (an infeasible perturbed position is never accepted) -> update the global best. So an ISSA
 iteration is two ask/tell rounds; the second only evaluates the perturbed rows.
@@ -56,7 +56,7 @@ __all__ = [
 
 
 class ISSAParams(SSAParams):
-    """ISSA parameters (seed 002 Table 5: PD = 20 %, SD = 10 %, ST = 0.8, w_max = 0.9, w_min = 0.4; eta = 1.5)."""
+    """ISSA parameters (the ISSA paper's Table 5: PD = 20 %, SD = 10 %, ST = 0.8, w_max = 0.9, w_min = 0.4; eta = 1.5)."""
 
     w_max: float = Field(0.9, ge=0.0, description="adaptive weight at the first iteration (eq. 5)")
     w_min: float = Field(0.4, ge=0.0, description="adaptive weight at the last iteration (eq. 5)")
@@ -71,7 +71,7 @@ class ISSAParams(SSAParams):
 
 
 def adaptive_weight(t: float, t_max: float, w_max: float, w_min: float) -> float:
-    """Non-linear adaptive weight of seed 002 eq. 5: ``w_max - (w_max - w_min) * (t / t_max)^2``.
+    """Non-linear adaptive weight of the ISSA paper's eq. 5: ``w_max - (w_max - w_min) * (t / t_max)^2``.
 
     t: current iteration, t_max: iterations of the run (same unit). Returns the dimensionless weight,
     w_max at t = 0 falling quadratically to w_min at t = t_max.
@@ -82,7 +82,7 @@ def adaptive_weight(t: float, t_max: float, w_max: float, w_min: float) -> float
 def producer_update(
     X: np.ndarray, X_best: np.ndarray, w: float, r: np.ndarray, R2: float, ST: float, Q: np.ndarray
 ) -> np.ndarray:
-    """ISSA producer update, seed 002 eq. 5.
+    """ISSA producer update, the ISSA paper's eq. 5.
 
     X: (k, d) producers' positions (e.g. m). X_best: (d,) best position found. w: adaptive weight.
     r: (k,) U[0, 1) draws (or (k, d) for one per coordinate). R2: alarm value, ST: safety threshold.
@@ -98,7 +98,7 @@ def producer_update(
 
 
 def mantegna_sigma(eta: float) -> float:
-    """Standard deviation sigma_mu of the numerator in Mantegna's algorithm (seed 002 eq. 8).
+    """Standard deviation sigma_mu of the numerator in Mantegna's algorithm (the ISSA paper's eq. 8).
 
     ``[Gamma(1 + eta) sin(pi eta / 2) / (eta Gamma((1 + eta) / 2) 2^((eta - 1) / 2))]^(1 / eta)``;
     0.6966 for eta = 1.5. Dimensionless.
@@ -109,7 +109,7 @@ def mantegna_sigma(eta: float) -> float:
 
 
 def levy_step(u: np.ndarray, v: np.ndarray, eta: float) -> np.ndarray:
-    """Levy-distributed steps by Mantegna's algorithm (seed 002 eq. 7).
+    """Levy-distributed steps by Mantegna's algorithm (the ISSA paper's eq. 7).
 
     u, v: arrays of standard normal N(0, 1) draws, same shape. eta: Levy exponent (1.5).
     Returns ``sigma_mu * u / |v|^(1 / eta)`` (dimensionless, same shape): mu = sigma_mu * u ~ N(0, sigma_mu^2),
@@ -122,12 +122,12 @@ def levy_step(u: np.ndarray, v: np.ndarray, eta: float) -> np.ndarray:
 
 
 def levy_probability(t: float, t_max: float) -> float:
-    """Adaptive selection probability P of seed 002 eq. 6: ``1 - t / t_max`` (perturb when rand > P)."""
+    """Adaptive selection probability P of the ISSA paper's eq. 6: ``1 - t / t_max`` (perturb when rand > P)."""
     return 1.0 - t / t_max
 
 
 def levy_perturb(X: np.ndarray, X_best: np.ndarray, step: np.ndarray, scale: float = 0.1) -> np.ndarray:
-    """Levy-flight perturbation of seed 002 eq. 6: ``X + scale * (X - X_best) * step`` (entry-wise).
+    """Levy-flight perturbation of the ISSA paper's eq. 6: ``X + scale * (X - X_best) * step`` (entry-wise).
 
     X: (k, d) positions, X_best: (d,) best position, step: (k, d) Levy steps, scale: the 0.1 of
     ``l = 0.1 (X - X_best)``. Returns new (k, d) positions in the unit of X.
@@ -144,7 +144,7 @@ def greedy_accept(
     feasible_old: np.ndarray | None = None,
     feasible_new: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Greedy acceptance of seed 002 eq. 9, row by row.
+    """Greedy acceptance of the ISSA paper's eq. 9, row by row.
 
     X_old, X_new: (k, d) positions before/after the perturbation; f_old, f_new: (k,) their fitness.
     feasible_old, feasible_new: optional (k,) bool (default all True). A new row is accepted if it is
@@ -161,7 +161,7 @@ def greedy_accept(
 
 
 class ISSA(SSA):
-    """Seed 002's improved SSA: eq. 5 producers, Levy perturbation with greedy acceptance (eq. 6-9)."""
+    """The ISSA paper's improved SSA: eq. 5 producers, Levy perturbation with greedy acceptance (eq. 6-9)."""
 
     name = "issa"
     Params = ISSAParams

@@ -1,7 +1,7 @@
-"""Seed 002's optimisation problem: switching points of a fixed condition sequence (section 3.2).
+"""The ISSA paper's optimisation problem: switching points of a fixed condition sequence (section 3.2).
 
 Decision vector: the positions [m] where conditions 2.. of the sequence begin (Fig. 8), the final
-braking point excluded (it comes from the stop's braking curve, as in the seed); on a line where the air
+braking point excluded (it comes from the stop's braking curve, as in the paper); on a line where the air
 brake cycles, then one release margin per descent (where its cycles release: ``regions_m``). Fitness
 (eq. 10-11):
 
@@ -9,7 +9,7 @@ brake cycles, then one release margin per descent (where its cycles release: ``r
 
 Infeasible plans (a limit broken, stalled, stopped short) get an infinite fitness and are replaced by
 the optimiser (step 5). Consecutive switching points keep at least half the train's length apart
-(seed 002 eq. 3, S >= L/2).
+(the ISSA paper's eq. 3, S >= L/2).
 
 The punctuality window of eq. 3, T in T0 +- eps_t, is a constraint handled by ranking (Deb's rule):
 with ``tolerance_s`` set, every plan inside the window ranks before every plan outside it, and plans
@@ -55,7 +55,7 @@ def energy_scale_kwh(e_min_kwh: float) -> float:
 
 
 def fitness_eq10(time_s, energy_kwh, t0_s: float, e_min_kwh: float, w_time: float, w_energy: float):
-    """Seed 002 eq. 10-11: w1 |T - T0| / T0 + w2 |E - E_min| / E_min (dimensionless; arrays welcome); the
+    """The ISSA paper's eq. 10-11: w1 |T - T0| / T0 + w2 |E - E_min| / E_min (dimensionless; arrays welcome); the
     divisor is |E_min|, at least ``E_SCALE_FLOOR_KWH`` (:func:`energy_scale_kwh`)."""
     return (w_time * np.abs(time_s - t0_s) / t0_s
             + w_energy * np.abs(energy_kwh - e_min_kwh) / energy_scale_kwh(e_min_kwh))
@@ -69,7 +69,7 @@ E_MIN_RUN_M = 50.0
 class SwitchingProblem:
     """Box-bounded switching-point problem over one calculator; ``evaluate`` takes the whole population.
 
-    objective: "eq10" (seed 002 fitness) or "energy" (the energy alone [kWh], the energy-saving strategy
+    objective: "eq10" (the ISSA paper's fitness) or "energy" (the energy alone [kWh], the energy-saving strategy
     that ignores the timetable). energy: what E counts in either (``physics.energy.OBJECTIVES``): the
     traction work (default) or the net energy, traction less what the electric brake recovers.
     """

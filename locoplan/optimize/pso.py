@@ -1,4 +1,4 @@
-"""Inertia-weight particle swarm optimisation (PSO), the second baseline of seed 002 (Table 5).
+"""Inertia-weight particle swarm optimisation (PSO), the second baseline of the ISSA paper (Table 5).
 
 Standard global-best PSO (Shi & Eberhart 1998) per particle i and coordinate j:
 
@@ -19,7 +19,7 @@ which is scale-free (the same behaviour for any route length or unit) and a cust
 velocity limit. Both numbers are parameters (``pso.yaml``).
 
 Initial velocities are U(-v_clamp, v_clamp). After each move the swarm is evaluated, infeasible particles
-are replaced by fresh feasible samples (seed 002 sec. 3.2 step 5, shared with SSA/ISSA); a replaced
+are replaced by fresh feasible samples (the ISSA paper's sec. 3.2 step 5, shared with SSA/ISSA); a replaced
 particle keeps its personal best and restarts with zero velocity. Personal bests only ever hold feasible
 positions. Positions are ``repair``-ed (clipped/sorted) after the move; velocities are not altered.
 
@@ -38,7 +38,7 @@ __all__ = ["PSO", "PSOParams", "inertia_weight", "pso_move", "pso_velocity", "ve
 
 
 class PSOParams(OptimizerParams):
-    """PSO parameters (seed 002 Table 5: c1 = c2 = 2, Vmax = 4; inertia 0.9 -> 0.4 is our choice)."""
+    """PSO parameters (the ISSA paper's Table 5: c1 = c2 = 2, Vmax = 4; inertia 0.9 -> 0.4 is our choice)."""
 
     c1: float = Field(2.0, ge=0.0, description="cognitive learning factor")
     c2: float = Field(2.0, ge=0.0, description="social learning factor")

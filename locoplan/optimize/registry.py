@@ -1,6 +1,6 @@
 """Optimiser registry: ``ALGORITHMS`` maps a name to its class.
 
-``get_algorithm(name)`` looks one up; ``default_params(name)`` gives its parameters as seed 002 states them
+``get_algorithm(name)`` looks one up; ``default_params(name)`` gives its parameters as the ISSA paper states them
 (Table 5, population 50, 100 iterations: the class's ``Params`` defaults). The optimisers take parameter
 objects; reading a parameter file is :func:`locoplan.runner.load_optimizer_params`'s job (``io.optimizer_params`` reads)::
 

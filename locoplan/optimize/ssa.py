@@ -1,4 +1,4 @@
-"""Sparrow search algorithm (SSA) of Xue & Shen (2020), the baseline of seed 002 (Table 5).
+"""Sparrow search algorithm (SSA) of Xue & Shen (2020), the baseline of the ISSA paper (Table 5).
 
 The population is sorted by fitness each iteration and split into three roles:
 
@@ -25,7 +25,7 @@ Choices where the published description leaves room (documented so results can b
   start of the iteration (the last evaluated ones), ``X_P`` is the updated position of the rank-1 producer and ``X_worst``/``f_worst`` are the
   worst of the current population; ``X_best``/``f_best`` are the best ever found (elitist).
 * R2 is drawn once per iteration (one alarm for the whole flock); alpha and Q once per producer.
-* seed 002 Table 5 prints "R2 = 0.8": R2 is a random alarm value in SSA, so 0.8 is read as the safety
+* the ISSA paper's Table 5 prints "R2 = 0.8": R2 is a random alarm value in SSA, so 0.8 is read as the safety
   threshold ST (the paper itself calls it the "warning threshold").
 * the roles are applied in the unit box ``z = (x - lower) / (upper - lower)`` and mapped back. SSA's rules
   hold absolute constants -- a flight of ``Q ~ N(0, 1)``, shrinking towards the origin, ``Q * exp(...)`` --
@@ -59,7 +59,7 @@ _EXP_LIMIT = 700.0  # exp(709) is the largest finite float64
 
 
 class SSAParams(OptimizerParams):
-    """SSA parameters (seed 002 Table 5: PD = 20 %, SD = 10 %, "R2" = 0.8 read as ST)."""
+    """SSA parameters (the ISSA paper's Table 5: PD = 20 %, SD = 10 %, "R2" = 0.8 read as ST)."""
 
     producer_fraction: float = Field(0.2, gt=0.0, lt=1.0, description="PD: share of producers (discoverers)")
     scout_fraction: float = Field(0.1, ge=0.0, le=1.0, description="SD: share of scouts (vigilant sparrows)")
@@ -153,7 +153,7 @@ def scout_update(
 
 
 class SSA(Optimizer):
-    """Standard sparrow search algorithm with seed 002's feasible initialisation and infeasible replacement.
+    """Standard sparrow search algorithm with the ISSA paper's feasible initialisation and infeasible replacement.
 
     One ask/tell round per iteration (pop_size evaluations plus any replacement samples).
     """
@@ -206,7 +206,7 @@ class SSA(Optimizer):
         return self._repair(self._ssa_update())
 
     def _accept_update(self, X: np.ndarray, ev: Evaluation) -> None:
-        """Seed 002 step 5 (replace infeasible), then adopt the population and update the best."""
+        """The ISSA paper's step 5 (replace infeasible), then adopt the population and update the best."""
         X, ev, _ = self._replace_infeasible(X, ev)
         self.X, self.fitness = X, ev.fitness
         self._update_best(X, ev)

@@ -1,7 +1,7 @@
 """Traction energy: work at the wheel, or energy drawn with an efficiency and a regenerative credit.
 
-The default objective of every planner here is the traction work at the wheel, sum F ds [kWh] (seed
-002 eq. 1, SPEC). :class:`EnergyModel` adds two options of seed 001's objective:
+The default objective of every planner here is the traction work at the wheel, sum F ds [kWh] (the ISSA
+paper's eq. 1, SPEC). :class:`EnergyModel` adds two options of the MPOC paper's objective:
 
 * ``efficiency``: wheel power / drawn power of the traction chain, a constant or a curve over speed
   (``[[speed_kmh, eta], ...]``, linear between points); drawn energy = sum F / eta(v) ds;
@@ -56,7 +56,7 @@ WHEEL_WORK = EnergyModel()
 
 OBJECTIVES = ("traction", "net")
 """What a planner's energy term counts (``--objective``): ``traction``, the traction work at the wheel
-sum F ds (seed 002 eq. 1, the default); ``net``, that work less the energy the electric brake returns
+sum F ds (the ISSA paper's eq. 1, the default); ``net``, that work less the energy the electric brake returns
 to the line, eta x sum B_e ds (:func:`recovered_energy_kwh`)."""
 
 

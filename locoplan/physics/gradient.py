@@ -1,7 +1,7 @@
 """Equivalent (additional-resistance-inclusive) gradient along a route [per mille = N/kN].
 
-Equivalent gradient = gradient + curve term + tunnel term (TB/T 1407; seed 004 claims 5-6):
-curve 600 / R, tunnel 0.00013 * L_tunnel. For a curve shorter than the train, seed 004 claim 6
+Equivalent gradient = gradient + curve term + tunnel term (TB/T 1407; the pattern-curve patent's claims 5-6):
+curve 600 / R, tunnel 0.00013 * L_tunnel. For a curve shorter than the train, the pattern-curve patent's claim 6
 spreads it over the train: 600 * Lc / (Rc * L_train).
 """
 
@@ -25,7 +25,7 @@ class Track(Protocol):
 
 def curve_gradient_permille(radius_m, curve_length_m=None, train_length_m=None):
     """Curve additional resistance [N/kN]: 600 / R, or 600 Lc / (R L_train) when the curve is shorter
-    than the train (seed 004 claim 6, eq. IV)."""
+    than the train (the pattern-curve patent's claim 6, eq. IV)."""
     r = np.asarray(radius_m, dtype=float)
     if curve_length_m is None or train_length_m is None:
         return 600.0 / r
@@ -34,7 +34,7 @@ def curve_gradient_permille(radius_m, curve_length_m=None, train_length_m=None):
 
 
 def tunnel_gradient_permille(tunnel_length_m):
-    """Tunnel additional resistance [N/kN] = 0.00013 * tunnel length [m] (seed 004 claim 6, eq. V)."""
+    """Tunnel additional resistance [N/kN] = 0.00013 * tunnel length [m] (the pattern-curve patent's claim 6, eq. V)."""
     return 0.00013 * np.asarray(tunnel_length_m, dtype=float)
 
 
@@ -51,7 +51,7 @@ def point_gradient_permille(route: Track, s_m, train_length_m: float | None = No
     """Equivalent gradient at the train's head position ``s_m`` for a point-mass train [per mille].
 
     A curve longer than the train counts 600/R over its own extent; a shorter one counts
-    600 Lc / (R L_train) while the head runs one train length from the curve's start (seed 004
+    600 Lc / (R L_train) while the head runs one train length from the curve's start (the pattern-curve patent's
     claim 6). Both give the same work as the train passing the curve. ``train_length_m=None`` uses
     600/R over each curve's own extent.
     """

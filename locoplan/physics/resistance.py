@@ -1,4 +1,4 @@
-"""Basic running resistance (Davis form, TB/T 1407; seed 002 Tables 2-3, seed 000 eq. 2-3).
+"""Basic running resistance (Davis form, TB/T 1407; the ISSA paper's Tables 2-3, the two-stage Gauss paper's eq. 2-3).
 
 Plain arithmetic: numbers, numpy arrays, CasADi symbols and (through ``numba.njit``) the compiled
 kernels all take these functions, so the traction calculator, its kernel, the DP and the optimal

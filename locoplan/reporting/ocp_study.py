@@ -1,7 +1,7 @@
-"""Rendering and writing of the optimal-control results of seed 000: the study's table cells and
+"""Rendering and writing of the optimal-control results of the two-stage Gauss paper: the study's table cells and
 markdown, and the files of ``ocp --out`` and ``ocp-study --out``.
 
-The library (:mod:`locoplan.ocp.min_time_run`, :mod:`locoplan.ocp.seed000`) computes and returns
+The library (:mod:`locoplan.ocp.min_time_run`, :mod:`locoplan.ocp.min_time_study`) computes and returns
 objects; this module turns them into text and files (written whole or not at all).
 """
 
@@ -12,7 +12,7 @@ from pathlib import Path
 from .files import atomic_write_text, check_output_path
 from .writers import rows_csv, to_json, with_provenance
 from ..ocp.min_time_run import PROFILE_COLUMNS, OcpRun
-from ..ocp.seed000 import Study
+from ..ocp.min_time_study import Study
 
 __all__ = ["STUDY_COLUMNS", "check_output_path", "study_cells", "study_markdown", "write_ocp_output",
            "write_study_output"]

@@ -1,5 +1,5 @@
 """Tables of the optimal-control commands: ``ocp`` (minimum time, minimum energy and its mesh),
-``ocp-study`` (seed 000 Tables 2-3 and the solve-time ratios) and ``bound`` (the energy-time curve)."""
+``ocp-study`` (the two-stage Gauss paper's Tables 2-3 and the solve-time ratios) and ``bound`` (the energy-time curve)."""
 
 from __future__ import annotations
 

@@ -48,7 +48,7 @@ def plot_profiles(path: str | Path, profiles: list[tuple[str, Profile]], title: 
                   histories: list[tuple] | None = None, route=None, coupler_limit_kn: float | None = None,
                   form: str = "km") -> None:
     """Draw one or more speed profiles (label, one-plan Profile) against the speed limit, with the
-    equivalent gradient underneath (seed 002 Fig. 15) and, if given, optimiser convergence curves
+    equivalent gradient underneath (the ISSA paper's Fig. 15) and, if given, optimiser convergence curves
     (best value per iteration, Fig. 17: items (label, history) for a fitness, or (label, history,
     quantity) e.g. :data:`ENERGY`, or (label, history, quantity, reported value): the value the table
     reports, drawn at the curve's end; one panel per quantity); ``.png``, ``.svg`` or ``.pdf`` by extension,

@@ -1,4 +1,4 @@
-"""Plots of seed 004: the learned pattern curves against the good drivers' data, and an advice."""
+"""Plots of the pattern-curve patent: the learned pattern curves against the good drivers' data, and an advice."""
 
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
 """Figures of the optimal-control runs (matplotlib, Agg backend, written atomically).
 
-* :func:`plot_run`: one solution as the seed's Fig. 5/7 (traction / brake force ``F_u`` against time
+* :func:`plot_run`: one solution as the paper's Fig. 5/7 (traction / brake force ``F_u`` against time
   with the force bounds) and Fig. 6/8 (distance ``s`` and speed ``v`` against time with the limit),
   with the NLP's node values, the re-simulated run and the exact optimum for reference.
-* :func:`plot_study`: the seed-000 study: control curves of CVP, GPM and two-stage for each test (as
-  the seed's Fig. 5/7, node values joined by straight lines) and the measured solve times.
+* :func:`plot_study`: the two-stage Gauss paper's study: control curves of CVP, GPM and two-stage for each test (as
+  the paper's Fig. 5/7, node values joined by straight lines) and the measured solve times.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from .files import atomic_write
 __all__ = ["plot_energy_run", "plot_energy_time", "plot_run", "plot_study"]
 
 _COLOURS = {"cvp": "#2ca02c", "gpm": "#d62728", "two-stage": "#1f77b4"}
-_GLOBAL = "#9467bd"  # two-stage with the seed's global stage 2
+_GLOBAL = "#9467bd"  # two-stage with the paper's global stage 2
 
 
 def _figure_path(path) -> tuple[Path, str]:
@@ -123,8 +123,8 @@ def plot_run(path, run, title: str | None = None) -> None:
 
 
 def plot_study(path, study) -> None:
-    """Draw a :class:`~locoplan.ocp.seed000.Study`: for each table the control curves of its first
-    CVP, GPM and two-stage (hp) rows (node values joined by straight lines, as the seed's Fig. 5/7),
+    """Draw a :class:`~locoplan.ocp.min_time_study.Study`: for each table the control curves of its first
+    CVP, GPM and two-stage (hp) rows (node values joined by straight lines, as the paper's Fig. 5/7),
     and the measured median solve times per row (hatched: not confirmed by re-simulation)."""
     path, fmt = _figure_path(path)
     plt = _pyplot()
@@ -184,7 +184,7 @@ def force_axis_kn(traction_kn, brake_kn, traction_cap_kn, brake_cap_kn, margin: 
 
 
 def plot_energy_run(path, run, title: str | None = None, route=None) -> None:
-    """Seed 001 Fig. 6/7 for one MPOC run: speed over distance (the optimum, its re-simulated plan and
+    """The MPOC paper's Fig. 6/7 for one MPOC run: speed over distance (the optimum, its re-simulated plan and
     the limit, the spans where traction is cut under a neutral section shaded), the optimum's traction
     and braking forces with the consist's speed-dependent bounds, and the mesh (interval boundaries, LGR
     points per interval, moving points on switches). With ``route``: the limit as the route file gives it

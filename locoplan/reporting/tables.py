@@ -209,7 +209,7 @@ def _punctuality(summary: dict) -> str:
 
 
 def e_min_origin(summary: dict) -> str:
-    """What eq. 11's E_min is, for the fitness row: E* at the punctuality window's end, seed 002's energy-saving
+    """What eq. 11's E_min is, for the fitness row: E* at the punctuality window's end, the ISSA paper's energy-saving
     run, or the user's value."""
     src = summary.get("e_min_source")
     if src == "optimum" and summary.get("e_min_time_s") is not None:
@@ -378,7 +378,7 @@ def _wrap_sequence(conds: list[str], room: int = 17) -> str:
 
 
 def compare_tables(rows: list[dict], title: str, width: int = 80, route=None, form: str = "km") -> list:
-    """Seed 002 Table 8 (each strategy's planned sequence and switching points; the final B begins
+    """The ISSA paper's Table 8 (each strategy's planned sequence and switching points; the final B begins
     where the stop's braking curve does) and Table 9 (time and energy, re-simulated at the report grid),
     then why any strategy has no plan, and each plan whole (to give ``simulate --sequence``). With a
     ``route`` that has a chainage, the switching points are its kilometre posts (written in ``form``); its
@@ -445,7 +445,7 @@ def compare_tables(rows: list[dict], title: str, width: int = 80, route=None, fo
 
 
 def explain_tables(seq, width: int = 80) -> list:
-    """The limit and grade classification behind the proposed sequence (seed 002 Fig. 2, step 2), and
+    """The limit and grade classification behind the proposed sequence (the ISSA paper's Fig. 2, step 2), and
     the sequence with its nominal switching points (a ``strategy.sequence.build_sequence`` result)."""
     out = []
     t = Table(title="speed-limit sections and their types", title_justify="left")
@@ -466,7 +466,7 @@ def explain_tables(seq, width: int = 80) -> list:
 
 
 def sweep_table(rows: list[dict], title: str, by_weights: bool, width: int = 80) -> list:
-    """Seed 002 Table 6 (``by_weights``) or Table 7 (planned times, with the energy reduction)."""
+    """The ISSA paper's Table 6 (``by_weights``) or Table 7 (planned times, with the energy reduction)."""
     table = Table(title=escape(title), title_justify="left")
     cols = (["w_time", "w_energy"] if by_weights else ["T0 [s]"]) + ["time [s]", "energy [kWh]", "|T-T0| [s]", "fitness", "vs E* [%]"]
     cols += [] if by_weights else ["energy reduction [%]"]
@@ -487,7 +487,7 @@ def sweep_table(rows: list[dict], title: str, by_weights: bool, width: int = 80)
 
 
 def study_table(rows: list[dict], title: str, width: int = 80) -> list:
-    """Seed 002 Tables 10-12 from ``runner.study_table`` rows: per optimiser the best and the worst run
+    """The ISSA paper's Tables 10-12 from ``runner.study_table`` rows: per optimiser the best and the worst run
     **by fitness** (eq. 10, what the optimisers minimise; the table shows each one's fitness, energy and
     time), means, punctual runs and the punctual run with the least energy."""
     table = Table(title=escape(title + "; best / worst: by fitness"), title_justify="left")

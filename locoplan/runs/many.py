@@ -3,10 +3,10 @@
 1. :func:`~locoplan.runs.spec.load_inputs` loads every route, consist and parameter file once (bad
    input stops everything here, before any work) and keys every spec.
 2. With a store, the keys it already holds are taken from it and not run again.
-3. E_min (the energy-saving strategy's energy, seed 002 eq. 11) is computed once per group (route,
+3. E_min (the energy-saving strategy's energy, the ISSA paper's eq. 11) is computed once per group (route,
    train, options, builder) on the executor, kept in the store, and handed to every run of the group.
    A run's result therefore depends on its spec alone, not on the executor, the number of workers or
-   which other runs share the batch (a journey run's legs find their own E_min, from the same fixed seed) (the optional gap to seed 001's optimum, ``RunSpec.yardstick``,
+   which other runs share the batch (a journey run's legs find their own E_min, from the same fixed seed) (the optional gap to the MPOC paper's optimum, ``RunSpec.yardstick``,
    excepted in its last digits: the bound warm-starts from its process's previous solve).
 4. The runs go to the executor, longest route first (a scheduling choice only); each finished run is
    committed to the store as it arrives.
@@ -56,11 +56,11 @@ class Batch:
 
 def needs_e_min(spec: RunSpec) -> bool:
     """The run needs its group's E_min, computed once for the group before the runs: a strategy ranked by eq.
-    10-11 is built on it (``StrategyEntry.needs_e_min``), and any fitness reports it. Only seed 002's builder
+    10-11 is built on it (``StrategyEntry.needs_e_min``), and any fitness reports it. Only the ISSA paper's builder
     shares one (its energy-saving run's, whatever the time); with the general builder E_min is E* at the run's
     own window's end, which each run finds (from E*'s cache); a journey run's legs find their own."""
     entry = registry.lookup(spec.strategy)
-    return (spec.journey is None and spec.e_min_kwh is None and spec.resolved_builder == "seed002"
+    return (spec.journey is None and spec.e_min_kwh is None and spec.resolved_builder == "issa-paper"
             and (spec.fitness or (entry is not None and entry.needs_e_min)))
 
 

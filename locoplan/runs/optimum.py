@@ -2,7 +2,7 @@
 
 A provider is a function ``(route, train, options, time_s) -> E* [kWh] or None`` registered with
 :func:`register_optimum`; ``pareto`` asks :func:`optimum_energy_kwh` at each planned time. The one
-registered here is seed 001's minimum-energy optimal control (``ocp.bound.energy_bound``, the
+registered here is the MPOC paper's minimum-energy optimal control (``ocp.bound.energy_bound``, the
 ``bound`` command). Where no provider knows E* (none registered, or the solve fails) the answer is
 None, and ``pareto`` and the store's summary say it is not known rather than inventing one.
 """
@@ -40,7 +40,7 @@ def optimum_energy_kwh(route, train, options, time_s: float) -> float | None:
 
 
 @register_optimum("minimum-energy optimal control (the bound command)")
-def _seed001_bound(route, train, options, time_s: float) -> float | None:
+def _mpoc_bound(route, train, options, time_s: float) -> float | None:
     from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
 
     try:

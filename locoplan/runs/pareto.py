@@ -1,10 +1,10 @@
 """``locoplan pareto ROUTE``: the energy-time front of a route and train.
 
-At each planned time of a grid (factors of the fastest run, or seconds) seed 002's timetabled strategies
+At each planned time of a grid (factors of the fastest run, or seconds) the ISSA paper's timetabled strategies
 (four-stage, proposed) plan, the seeded one over several seeds; its two that ignore the timetable
 (time-saving, energy-saving) add the two ends. The lists come from :mod:`locoplan.strategy.registry`. The
 result has, per planned time, the best on-time plan found and the optimum's energy E* at that plan's
-own running time (:mod:`locoplan.runs.optimum`, seed 001's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
+own running time (:mod:`locoplan.runs.optimum`, the MPOC paper's ``bound``) with the gap to it; and the non-dominated set of every feasible plan found (less time or less energy than any
 other). Until E* is known the front is *the best plans found*, an upper bound of the true front, and
 the result says so (``front_kind``).
 
@@ -31,10 +31,10 @@ from .spec import RunSpec
 
 DEFAULT_FACTORS = tuple(round(1.05 + 0.05 * i, 2) for i in range(12))
 """1.05 .. 1.6 times the fastest run: from a tight timetable to one with a third more time."""
-PLANNED = registry.names(source=registry.SEED002, timetabled=True)
-"""The strategies planned at each time by default: seed 002's timetabled ones (four-stage, proposed)."""
-ENDS = registry.names(source=registry.SEED002, needs_time=False)
-"""The two ends of the front: seed 002's strategies that ignore the timetable (time-saving, energy-saving)."""
+PLANNED = registry.names(source=registry.ISSA_PAPER, timetabled=True)
+"""The strategies planned at each time by default: the ISSA paper's timetabled ones (four-stage, proposed)."""
+ENDS = registry.names(source=registry.ISSA_PAPER, needs_time=False)
+"""The two ends of the front: the ISSA paper's strategies that ignore the timetable (time-saving, energy-saving)."""
 
 
 def time_grid(fastest_s: float, factors=None, times_s=None) -> list[tuple[float, float]]:
@@ -67,7 +67,7 @@ def pareto(base: RunSpec, *, factors=None, times_s=None, strategies=PLANNED, see
     """The front of ``base.route`` with ``base.consist`` under ``base.options`` (see the module doc).
 
     ``strategies``: the strategies planned at each time (a seeded one, ``StrategyEntry.seeded``, once per seed).
-    ``optimum``: ask the registered providers for E* at each planned time (seed 001's bound: seconds
+    ``optimum``: ask the registered providers for E* at each planned time (the MPOC paper's bound: seconds
     per time, solved in this process, each warm-started from the previous one).
     Returns a JSON-ready dict: route, consist, fastest_time_s, front_kind, grid (per planned time: the
     best on-time plan, E*, gap), points (every plan), front (the non-dominated plans)."""

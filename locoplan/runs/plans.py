@@ -23,7 +23,7 @@ from .spec import RunSpec
 
 
 def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
-    """Seed 002 Tables 8-9: one run per strategy, all with the same E_min (run_many computes it once)."""
+    """The ISSA paper's Tables 8-9: one run per strategy, all with the same E_min (run_many computes it once)."""
     if not strategies:
         raise InputError(Problem("", "strategies", "name at least one strategy"))
     for n in strategies:
@@ -32,7 +32,7 @@ def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
 
 
 def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
-    """Seed 002 Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
+    """The ISSA paper's Table 6: the proposed strategy for each time weight (energy weight = 1 - time weight)."""
     for w in w_time:  # every value checked before the first run
         bounds.finite(w, "weights", 0.0, 1.0, why="a time weight")
     bounds.runs(len(w_time), "weights", "time weights")
@@ -40,7 +40,7 @@ def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
 
 
 def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
-    """Seed 002 Table 7: the proposed strategy for each planned running time (E_min is the same for all)."""
+    """The ISSA paper's Table 7: the proposed strategy for each planned running time (E_min is the same for all)."""
     for t in times_s:  # every value checked before the first run
         bounds.planned_time(t, "times_s")
     bounds.runs(len(times_s), "times_s", "running times")
@@ -48,7 +48,7 @@ def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
 
 
 def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str | Path | None = None) -> list[RunSpec]:
-    """Seed 002 Tables 10-12: each algorithm ``runs`` times on the proposed strategy, seeds
+    """The ISSA paper's Tables 10-12: each algorithm ``runs`` times on the proposed strategy, seeds
     base.seed .. base.seed + runs - 1, parameters from ``params_dir/<algorithm>.yaml`` if given."""
     if not algorithms:
         raise InputError(Problem("", "algorithms", "name at least one optimiser"))
@@ -106,7 +106,7 @@ def energies_at_planned_time(rows: list[dict], route, train, options, objective:
     """Every plan's energy also at the planned time T0, so that plans that arrive at different times
     (an optimiser spends its window: 917.9 s against four-stage's 901.0 s for T0 = 900 s) compare at one
     running time: ``energy_at_t0_kwh = E*(T0) + (E - E*(T))``, the plan's gap over the least energy at its
-    own time T (seed 001's optimum, ``ocp.bound``) carried to T0, for the plans inside the punctuality
+    own time T (the MPOC paper's optimum, ``ocp.bound``) carried to T0, for the plans inside the punctuality
     window (None for the others: time-saving's gap at 1227 s says nothing about 1500 s). Needs each row's gap (--gap); returns
     E*(T0) [kWh], or None when there is none (no T0, no gaps, or no optimum at T0)."""
     from ..ocp.bound import energy_bound  # CasADi: imported when an optimum is asked for
@@ -127,7 +127,7 @@ def energies_at_planned_time(rows: list[dict], route, train, options, objective:
 
 
 def energy_reduction(rows: list[dict]) -> list[dict]:
-    """Seed 002 Table 7's derived column: each row's energy saved against the first row's, in per cent."""
+    """The ISSA paper's Table 7's derived column: each row's energy saved against the first row's, in per cent."""
     base = rows[0]["traction_energy_kwh"] if rows else None
     for x in rows:
         e = x["traction_energy_kwh"]

@@ -64,8 +64,8 @@ class RunSpec:
     ``time_s`` its total running time, dwells excluded (None: the journey's own). consist: catalogue name or consist file. strategy: a name of
     ``strategy.registry.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
     parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
-    schedule). weights: (w_time, w_energy) of seed 002 eq. 10. tolerance_s: punctuality window +- [s]
-    (None: the route's, else 1 % of T0). window: rank inside the window (seed 002 eq. 3). builder:
+    schedule). weights: (w_time, w_energy) of the ISSA paper's eq. 10. tolerance_s: punctuality window +- [s]
+    (None: the route's, else 1 % of T0). window: rank inside the window (the ISSA paper's eq. 3). builder:
     sequence builder (None: the default for the options). e_min_kwh: E_min of eq. 11 given by the
     user (None: the energy-saving strategy's, computed once per route, consist and options and passed
     to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window
@@ -118,8 +118,8 @@ class RunSpec:
 
     @property
     def resolved_builder(self) -> str:
-        """The builder the run uses: the general one unless seed 002's is named (runner.make_context)."""
-        return self.builder or "general"
+        """The builder the run uses: the general one unless the ISSA paper's is named (runner.make_context)."""
+        return registry.builder_name(self.builder) or "general"
 
 
 def _plain(value: Any) -> Any:
@@ -291,7 +291,7 @@ def group_key(spec: RunSpec, inputs: Inputs) -> str:
     parameters (E_min does not depend on the planned time, the seed or the algorithm studied)."""
     return canonical_hash({
         "what": "e_min", "route": inputs.route_hash(spec), "train": inputs.train_hash(spec),
-        "options": _options_dict(spec.options), "builder": spec.resolved_builder,
+        "options": _options_dict(spec.options), "builder": registry.builder_key(spec.resolved_builder),
         "params": inputs.params_of[(ENERGY_SAVING_ALGORITHM, _e_min_params(spec))], "format": RESULTS_FORMAT,
         **({} if spec.objective == "traction" else {"objective": spec.objective}),
     })
@@ -305,8 +305,8 @@ def spec_key(spec: RunSpec, inputs: Inputs) -> str:
     if d["objective"] == "traction":  # the default: the keys of runs stored before the field existed
         d.pop("objective")
     d.update(route=inputs.route_hash(spec), train=inputs.train_hash(spec),
-             params=inputs.params_of[(spec.algorithm, spec.params)], builder=spec.resolved_builder,
-             e_min_group=None if spec.e_min_kwh is not None or spec.resolved_builder != "seed002"
+             params=inputs.params_of[(spec.algorithm, spec.params)], builder=registry.builder_key(spec.resolved_builder),
+             e_min_group=None if spec.e_min_kwh is not None or spec.resolved_builder != "issa-paper"
              else group_key(spec, inputs), format=RESULTS_FORMAT)
     if spec.journey is not None:
         # the journey's content, not its file; its legs find their own E_min (with these parameters), and its

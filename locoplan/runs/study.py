@@ -14,7 +14,7 @@ algorithms: [issa, ssa, pso]      # default: issa
 seeds: [1, 2, 3, 4, 5]            # default: 1
 ```
 Optional settings shared by every run: ``weights`` ([w_time, w_energy]), ``tolerance_s``, ``window``,
-``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, seed 001's bound at
+``builder``, ``stock_dir``, ``gap`` (true: each record's ``gap_to_optimum_percent``, the MPOC paper's bound at
 the plan's own running time, seconds per run), ``objective`` (``traction``, the default, or ``net``: what
 the energy terms count, as ``--objective``), and ``model`` (``step_m``, ``point_mass``, ``air_brake``,
 ``rotating_mass``, ``strict_limits``: the options every model-running command has).
@@ -190,7 +190,7 @@ def load_study(path: str | Path) -> Study:
         if a not in ALGORITHMS:
             problems.append(Problem(name, f"algorithms[{i}]", f"unknown optimiser {a!r} (one of: {', '.join(ALGORITHMS)})",
                                     where("algorithms", i)))
-    if study.builder is not None and study.builder not in registry.BUILDERS:
+    if study.builder is not None and registry.builder_name(study.builder) not in registry.BUILDERS:
         problems.append(Problem(name, "builder", registry.builder_message(study.builder), where("builder")))
     if study.objective not in OBJECTIVES:
         problems.append(Problem(name, "objective", f"unknown objective {study.objective!r}: use one of "

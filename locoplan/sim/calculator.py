@@ -1,4 +1,4 @@
-"""Batch traction calculator: integrates many plans at once along distance (seed 002 section 1; DESIGN).
+"""Batch traction calculator: integrates many plans at once along distance (the ISSA paper's section 1; DESIGN).
 
 Train dynamics in distance form, with e = v^2 / 2 [m^2/s^2]:
 
@@ -63,13 +63,13 @@ class ModelOptions:
     """Switches of the train model.
 
     step_m: grid spacing [m].
-    point_mass: the seeds' point mass at the head. By default the train is a strip of its real
+    point_mass: the papers' point mass at the head. By default the train is a strip of its real
     length: the equivalent gradient is averaged over the train, a speed limit holds until the tail
     has cleared it, and a neutral section cuts traction until the tail has left it.
     air_brake: brake with the wagons' air brakes (at the consist's service coefficient) on top of the
-    locomotives' electric brake; False = electric brake alone, as the seeds do.
+    locomotives' electric brake; False = electric brake alone, as the papers do.
     rotating_mass: gamma, a uniform rotating-mass allowance (inertial mass = M (1 + gamma)); None =
-    each vehicle's own ``rotating_mass_factor`` (1 when the file gives none, as in the seeds).
+    each vehicle's own ``rotating_mass_factor`` (1 when the file gives none, as in the papers).
     strict_limits: a plan that coasts (or cruises) up to a limit is infeasible, instead of being held
     at the limit by braking as a driver or speed supervision would (the default). Either way a plan is
     infeasible where even full braking cannot hold the limit.
@@ -91,8 +91,8 @@ class ModelOptions:
         return not self.point_mass
 
     @classmethod
-    def seeds(cls, **kw) -> "ModelOptions":
-        """The seeds' train model: point mass, electric brake alone."""
+    def papers(cls, **kw) -> "ModelOptions":
+        """The papers' train model (``--point-mass``): point mass, electric brake alone."""
         return cls(point_mass=True, air_brake=False, **kw)
 
 
@@ -170,7 +170,7 @@ def _section_ends_m(route: Route, train: Train, options: ModelOptions) -> np.nda
     and tunnels, a short curve's spread over one train length, and in strip mode each of these one train length on."""
     points = [x for sections in (route.gradients, route.curves, route.tunnels) for sec in sections
               for x in (sec.from_m, sec.to_m)]
-    points += [c.from_m + train.length_m for c in route.curves]  # the ISSA paper's claim: a short curve is spread
+    points += [c.from_m + train.length_m for c in route.curves]  # the pattern-curve patent's claim 6: a short curve is spread
     if options.strip:  # over one train length
         points += [p + train.length_m for p in list(points)]
     return np.unique(np.clip(points, 0.0, route.length_m))
@@ -607,7 +607,7 @@ class TractionCalculator:
 
         conditions: sequence of 'T' | 'K' | 'C' | 'B', shared by every plan; the first starts at 0 m.
         switches_m: (n_plans, len(conditions) - 1) positions [m] where conditions 2.. begin, rising.
-        cruise_kmh: optional (n_plans,) cruise speed [km/h] (seed 002's four-stage): traction stops at it
+        cruise_kmh: optional (n_plans,) cruise speed [km/h] (the ISSA paper's four-stage): traction stops at it
         and cruise holds it, braking if need be (below the limits); coasting is not held to it.
         recovered: compute the energy the electric brake recovers (and so the net energy) without the profile.
         release_margin: optional, where the air brake's cycles release (with ``air_cycle``): the release speed lies

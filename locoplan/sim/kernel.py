@@ -256,7 +256,7 @@ def run_plans(ce_, fo, pl, out):
     forces ``fo`` (``Forces``), into ``out`` (``Outputs``): per plan its time, work and the first cell
     where each failure happens (-1 = never).
 
-    The cruise speed (``pl.cruise_e`` with ``has_cruise``): the seeds' cruise, T and K capped at that speed
+    The cruise speed (``pl.cruise_e`` with ``has_cruise``): the papers' cruise, T and K capped at that speed
     and held there by braking if need be. The electric brake is cut with traction where ``allowed`` is 0
     (a neutral section's span). ``brake_holds`` (per cell): full braking holds the limit there (else the
     envelope, which the train follows under full braking, lies below it).
@@ -339,7 +339,7 @@ def run_plans(ce_, fo, pl, out):
                 slope = max((fT * f0 - fB * b0 - fE * _interp(0.0, fo.ev, fo.ef) * allowed[0] + fK * hold0 - l0) / m, 0.0)
             e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1))
             ce = np.inf
-            if has_cruise and fC == 0.0:  # the seeds' cruise speed caps T and K, not C
+            if has_cruise and fC == 0.0:  # the papers' cruise speed caps T and K, not C
                 ce = cruise_e[i]
             if ce < c0:
                 c0 = ce

@@ -1,7 +1,7 @@
-"""The general condition-sequence builder: seed 002's method (a condition sequence, switching points by
+"""The general condition-sequence builder: the ISSA paper's method (a condition sequence, switching points by
 ISSA), with the sequence read off the drive that is optimal at a price of time.
 
-Seed 002 section 2 classifies grades at each section's speed limit and copies the fastest run's
+The ISSA paper's section 2 classifies grades at each section's speed limit and copies the fastest run's
 conditions elsewhere. On hilly real lines that misjudges the grades (a heavy train runs well below the
 limit: on a 5200 t train's climb the optimum lets the speed sag from 80 to 45 km/h and coasts over the
 crest) and confines the switching points to windows that miss the optimum's, so the plans were far from
@@ -48,8 +48,8 @@ class DriveSequence:
 
 def sequence_from_drive(calc: TractionCalculator, drive, min_run_m: float | None = None,
                         keep_force: bool = False) -> DriveSequence:
-    """Runs of the drive's per-cell controls as a seed 002 condition sequence: holding the speed is K
-    (the calculator's K holds the speed at which it starts); runs shorter than half the train (seed 002
+    """Runs of the drive's per-cell controls as a condition sequence of the ISSA paper: holding the speed is K
+    (the calculator's K holds the speed at which it starts); runs shorter than half the train (the ISSA paper's
     eq. 3) join their predecessor; the last run of braking is the stop's (a bare B).
     Each switching point may move as far as its neighbours' nominal positions (less half a train): the
     drive is optimal on a coarse grid, its plan on the exact calculator may want them anywhere between.

@@ -1,14 +1,14 @@
-"""Seed 001's comparisons (its Tables 3-5) as strategies of ``compare``: mpoc, mpoc-n, mpoc-c, sfs
+"""The MPOC paper's comparisons (its Tables 3-5) as strategies of ``compare``: mpoc, mpoc-n, mpoc-c, sfs
 (their entries and traits: ``strategy/registry.py``).
 
 - ``mpoc``: the multi-phase minimum-energy optimum with the neutral sections inside the model
   (``locoplan.ocp.mpoc``), as a drivable plan;
 - ``mpoc-n``: the same with the neutral sections ignored: a lower bound the train cannot drive (its
   plan is run on the route without its neutral sections);
-- ``mpoc-c``: ``mpoc-n`` made drivable (seed 001 Fig. 2): coast through each neutral section's span,
+- ``mpoc-c``: ``mpoc-n`` made drivable (the MPOC paper's Fig. 2): coast through each neutral section's span,
   re-accelerate after it to the speed the plan held, and move the last coasting point so that the
   planned time is still met;
-- ``sfs``: the standard four-stage method with neutral-section coasting (seed 001 section 3): full
+- ``sfs``: the standard four-stage method with neutral-section coasting (the MPOC paper's section 3): full
   traction to the allowed speed and held there (the calculator's T coasts through every neutral
   span and re-accelerates after it), coast, brake; the coasting point found by brute force at 1 m
   steps, the earliest one that keeps the planned time.
@@ -29,7 +29,7 @@ from ..sim.calculator import TractionCalculator, neutral_spans_m
 from .strategies import StrategyContext, StrategyOutcome
 
 SFS_STEP_M = 1.0
-"""Seed 001's brute-force step for the SFS coasting point [m]."""
+"""The MPOC paper's brute-force step for the SFS coasting point [m]."""
 SFS_COARSE_M = 100.0
 
 
@@ -53,13 +53,13 @@ def _outcome(run, t0: float, calc=None) -> StrategyOutcome:
 
 
 def mpoc(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 001's MPOC: the least-energy run with the neutral sections in the model."""
+    """The MPOC paper's MPOC: the least-energy run with the neutral sections in the model."""
     t0 = time.perf_counter()
     return _outcome(_mpoc_run(ctx, ignore_neutral=False), t0)
 
 
 def mpoc_n(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 001's MPOC-N: neutral sections ignored; run on the route without them (not drivable)."""
+    """The MPOC paper's MPOC-N: neutral sections ignored; run on the route without them (not drivable)."""
     t0 = time.perf_counter()
     run = _mpoc_run(ctx, ignore_neutral=True)
     return _outcome(run, t0, calc=run.calc)
@@ -74,7 +74,7 @@ def _condition_at(plan: Plan, x: float) -> int:
 def coast_through_neutral(calc, plan: Plan, spans, route_calc=None) -> Plan:
     """``plan`` with every neutral span coasted and, after it, the plan's own condition again; where
     that is a cruise (K holds the speed at which it starts), traction first until the speed the plan
-    held there, then the cruise (seed 001 Fig. 2). ``route_calc`` ran ``plan`` (the route without its
+    held there, then the cruise (the MPOC paper's Fig. 2). ``route_calc`` ran ``plan`` (the route without its
     neutral sections) and gives the speeds to get back to."""
     ref = (route_calc or calc).evaluate(plan.conditions, plan.switches_m, profile=True).profile
     entries = list(zip(plan.conditions, plan.starts_m))
@@ -106,7 +106,7 @@ def coast_through_neutral(calc, plan: Plan, spans, route_calc=None) -> Plan:
 
 
 def mpoc_c(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 001's MPOC-C: the MPOC-N plan with coasting through every neutral span, re-acceleration
+    """The MPOC paper's MPOC-C: the MPOC-N plan with coasting through every neutral span, re-acceleration
     after it, and the last coasting point moved so that the planned time is met."""
     from ..ocp.to_plan import tune_coasting_point
 

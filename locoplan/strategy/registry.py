@@ -69,32 +69,45 @@ def _resolve(target):
     return getattr(importlib.import_module(module), attr)
 
 
-SEED002, SEED001, SEED004 = "seed 002", "seed 001", "seed 004"
+ISSA_PAPER, MPOC_PAPER, PATTERN_PATENT = "the ISSA paper", "the MPOC paper", "the pattern-curve patent"
 
 BUILT_IN: tuple[StrategyEntry, ...] = (
-    # seed 002 (Tables 8-9): the fastest run, the least energy, four-stage and the proposed method
-    StrategyEntry("time-saving", "locoplan.strategy.strategies:time_saving", SEED002, needs_time=False),
-    StrategyEntry("energy-saving", "locoplan.strategy.strategies:energy_saving", SEED002, needs_time=False),
-    StrategyEntry("four-stage", "locoplan.strategy.strategies:four_stage", SEED002, timetabled=True,
+    # the ISSA paper (Tables 8-9): the fastest run, the least energy, four-stage and the proposed method
+    StrategyEntry("time-saving", "locoplan.strategy.strategies:time_saving", ISSA_PAPER, needs_time=False),
+    StrategyEntry("energy-saving", "locoplan.strategy.strategies:energy_saving", ISSA_PAPER, needs_time=False),
+    StrategyEntry("four-stage", "locoplan.strategy.strategies:four_stage", ISSA_PAPER, timetabled=True,
                   refuses_impossible_time=True),
-    StrategyEntry("proposed", "locoplan.strategy.strategies:proposed", SEED002, timetabled=True, needs_e_min=True,
+    StrategyEntry("proposed", "locoplan.strategy.strategies:proposed", ISSA_PAPER, timetabled=True, needs_e_min=True,
                   seeded=True, refuses_impossible_time=True),
-    # seed 001 (Tables 3-5): the multi-phase optimum three ways, and standard four-stage with neutral sections
-    StrategyEntry("mpoc", "locoplan.strategy.optimal:mpoc", SEED001, timetabled=True),
-    StrategyEntry("mpoc-n", "locoplan.strategy.optimal:mpoc_n", SEED001, timetabled=True),
-    StrategyEntry("mpoc-c", "locoplan.strategy.optimal:mpoc_c", SEED001, timetabled=True),
-    StrategyEntry("sfs", "locoplan.strategy.optimal:sfs", SEED001, timetabled=True),
-    # seed 004: what the drivers' logs say, and the learned patterns' advice
-    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", SEED004, inputs=(("logs", "locoplan.io.logs:load_logs"),)),
-    StrategyEntry("advice", "locoplan.learn.strategies:advice", SEED004, timetabled=True,
+    # the MPOC paper (Tables 3-5): the multi-phase optimum three ways, and standard four-stage with neutral sections
+    StrategyEntry("mpoc", "locoplan.strategy.optimal:mpoc", MPOC_PAPER, timetabled=True),
+    StrategyEntry("mpoc-n", "locoplan.strategy.optimal:mpoc_n", MPOC_PAPER, timetabled=True),
+    StrategyEntry("mpoc-c", "locoplan.strategy.optimal:mpoc_c", MPOC_PAPER, timetabled=True),
+    StrategyEntry("sfs", "locoplan.strategy.optimal:sfs", MPOC_PAPER, timetabled=True),
+    # the pattern-curve patent: what the drivers' logs say, and the learned patterns' advice
+    StrategyEntry("drivers", "locoplan.learn.strategies:drivers", PATTERN_PATENT, inputs=(("logs", "locoplan.io.logs:load_logs"),)),
+    StrategyEntry("advice", "locoplan.learn.strategies:advice", PATTERN_PATENT, timetabled=True,
                   inputs=(("patterns", "locoplan.io.patterns:read_patterns_file"),)),
 )
 
 STRATEGIES: dict[str, StrategyEntry] = {e.name: e for e in BUILT_IN}
 """Every known strategy by name, in the order the help and the error messages list them."""
 
-BUILDERS = ("general", "seed002")
+BUILDERS = ("general", "issa-paper")
 """The condition-sequence builders (``StrategyContext.builder``; strategy/strategies.py)."""
+
+BUILDER_ALIASES = {"seed002": "issa-paper"}
+"""Other names a builder is accepted by (``--builder``, a study file's ``builder``): its first name."""
+
+
+def builder_name(builder: str | None) -> str | None:
+    """The builder's own name for ``builder`` (an alias resolved; None and unknown names unchanged)."""
+    return BUILDER_ALIASES.get(builder, builder)
+
+
+def builder_key(builder: str) -> str:
+    """The name a store's keys give ``builder``: its first one, so that runs stored before a rename are found."""
+    return {v: k for k, v in BUILDER_ALIASES.items()}.get(builder, builder)
 
 
 def register(entry: StrategyEntry) -> StrategyEntry:
@@ -127,7 +140,7 @@ def get(name: str, file: str = "", field: str = "strategy") -> StrategyEntry:
 
 
 def check_builder(builder: str, field: str = "builder") -> None:
-    if builder not in BUILDERS:
+    if builder_name(builder) not in BUILDERS:
         raise InputError(Problem("", field, builder_message(builder)))
 
 
@@ -142,4 +155,5 @@ def is_timetabled(name: str) -> bool:
 
 
 __all__ = ["StrategyEntry", "BUILT_IN", "STRATEGIES", "BUILDERS", "register", "names", "lookup", "get",
-           "is_timetabled", "unknown_message", "check_builder", "builder_message"]
+           "is_timetabled", "unknown_message", "check_builder", "builder_message", "BUILDER_ALIASES", "builder_name",
+           "builder_key"]

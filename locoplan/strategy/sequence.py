@@ -1,4 +1,4 @@
-"""Condition-sequence builder of seed 002 section 2 (Figs. 2-6).
+"""Condition-sequence builder of the ISSA paper's section 2 (Figs. 2-6).
 
 1. Speed limits are classified (Fig. 2): each change is *rising* or *falling*; a section whose two
    neighbours are both higher is *concave* (a dip), both lower *convex* (a hump); the start and the
@@ -9,7 +9,7 @@
    ``threshold_kmh``), *ordinary* otherwise (Fig. 5, step 2).
 3. The sequence (Fig. 6, step 3): the fastest run's conditions on ordinary grades, traction before
    and on long up-grades, coasting before and on long down-grades; braking mid-route is left to the
-   braking curves (the energy-saving plans of seed 002 Table 8 brake only at the end), so the
+   braking curves (the energy-saving plans of the ISSA paper's Table 8 brake only at the end), so the
    fastest run's mid-route B becomes C. The switching points into a long grade are free to move
    before its start, which is what the optimiser then decides.
 """
@@ -67,7 +67,7 @@ class SequencePlan:
 
 
 def classify_limits(calc: TractionCalculator) -> tuple[LimitSection, ...]:
-    """Seed 002 Fig. 2 types of every speed-limit section (the start and stop are 0 km/h neighbours)."""
+    """The ISSA paper's Fig. 2 types of every speed-limit section (the start and stop are 0 km/h neighbours)."""
     sl = calc.route.speed_limits
     out = []
     for i, sec in enumerate(sl):
@@ -107,7 +107,7 @@ def speed_change_kmh(calc: TractionCalculator, from_m: float, to_m: float, v0_km
 
 
 def classify_grades(calc: TractionCalculator, threshold_kmh: float = 2.0) -> tuple[GradeSection, ...]:
-    """Seed 002 step 2: long up-grade / long down-grade / ordinary for every gradient section.
+    """The ISSA paper's step 2: long up-grade / long down-grade / ordinary for every gradient section.
 
     The reference speed is the lowest limit on the section: a long up-grade is one where full
     traction from that speed loses more than ``threshold_kmh`` by the end, a long down-grade one where
@@ -132,15 +132,15 @@ def classify_grades(calc: TractionCalculator, threshold_kmh: float = 2.0) -> tup
 
 
 def fastest_runs(calc: TractionCalculator) -> list[dict]:
-    """The fastest run's condition runs (seed 002 step 1)."""
+    """The fastest run's condition runs (the ISSA paper's step 1)."""
     prof = calc.evaluate(("T",), np.zeros((1, 0)), profile=True).profile
     return runs_from_profile(prof.s_m, prof.condition[0], 1.0, prof.event_m[0])
 
 
 def build_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0, min_run_m: float | None = None) -> SequencePlan:
-    """Seed 002 section 2: the energy-saving, on-time condition sequence with nominal switching points.
+    """The ISSA paper's section 2: the energy-saving, on-time condition sequence with nominal switching points.
 
-    Runs shorter than ``min_run_m`` (default half the train's length, seed 002 eq. 3) are absorbed.
+    Runs shorter than ``min_run_m`` (default half the train's length, the ISSA paper's eq. 3) are absorbed.
     Each switching point may move between the midpoints to its neighbours; a switch into a long grade
     may move back as far as the previous switch may, and not past the grade's start (the
     pre-positioning of Fig. 5: traction before long up-grades, coasting before long down-grades); the

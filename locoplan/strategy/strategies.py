@@ -1,4 +1,4 @@
-"""Built-in driving strategies of seed 002 (section 4.2.3, Tables 8-9), and the context every strategy gets.
+"""Built-in driving strategies of the ISSA paper (section 4.2.3, Tables 8-9), and the context every strategy gets.
 
 Each strategy takes a ``StrategyContext`` and returns a ``StrategyOutcome`` (a condition sequence,
 its switching points and, for four-stage, a cruise speed). The CLI's ``--strategy`` and
@@ -17,10 +17,10 @@ Two sequence builders (``StrategyContext.builder``):
   price of time (``optimize/dp.py``, bisected to the planned time); energy-saving is the same drive at
   the lowest price (deterministic: E_min does not depend on the seed), four-stage may coast from
   anywhere. Works on any line (issue 8, docs/real-lines.md).
-- ``seed002``: seed 002 section 2 to the letter (``strategy/sequence.py``): grades classified at the
+- ``issa-paper``: the ISSA paper's section 2 to the letter (``strategy/sequence.py``): grades classified at the
   limit speed, the fastest run's conditions elsewhere; energy-saving alternates traction and coasting;
-  four-stage coasts in the second half. With the seeds' train model (``--point-mass``) it reproduces
-  the seed 002 tables as this project first measured them.
+  four-stage coasts in the second half. With the papers' train model (``--point-mass``) it reproduces
+  the ISSA paper's tables as this project first measured them.
 """
 
 from __future__ import annotations
@@ -56,12 +56,12 @@ class StrategyContext:
     algorithm: str = "issa"
     seed: int = 1
     params: OptimizerParams | None = None
-    """The parameters of ``algorithm`` (None: its defaults, seed 002 Table 5); read from a file by the caller."""
+    """The parameters of ``algorithm`` (None: its defaults, the ISSA paper's Table 5); read from a file by the caller."""
     callback: Callable[[int, float], None] | None = None
     tolerance_s: float | None = None
     use_window: bool = True
     yardstick: bool = False
-    """Report each plan's gap to the optimum E* (seed 001) at its own running time."""
+    """Report each plan's gap to the optimum E* (the MPOC paper) at its own running time."""
     builder: str = "general"
     objective: str = "traction"
     """What the energy terms count (``physics.energy.OBJECTIVES``): the optimisers' eq. 10, E_min, E* and the
@@ -88,13 +88,13 @@ class StrategyContext:
     def e_min(self) -> float:
         """E_min of eq. 11 [kWh]: the user's value; else, with the general builder and a planned time, the least
         energy of any punctual plan, E*(T0 + tolerance) (E* falls with the running time, so every plan on time
-        has E >= E_min and eq. 10's |E - E_min| is its excess over the optimum); else (seed 002's builder, no
-        planned time, or no E* there) the energy-saving strategy's energy, seed 002's own E_min (traction, or
+        has E >= E_min and eq. 10's |E - E_min| is its excess over the optimum); else (the ISSA paper's builder, no
+        planned time, or no E* there) the energy-saving strategy's energy, the ISSA paper's own E_min (traction, or
         net with the ``net`` objective). ``e_min_source`` says which."""
         if self.e_min_kwh is not None:
             return self.e_min_kwh
         if "e" not in self._e_min_cache:
-            e = self._e_min_optimum() if self.builder != "seed002" else None
+            e = self._e_min_optimum() if self.builder != "issa-paper" else None
             if e is not None:
                 self._e_min_cache["e"], self._e_min_cache["source"] = e, "optimum"
             else:
@@ -104,7 +104,7 @@ class StrategyContext:
     @property
     def e_min_source(self) -> str | None:
         """Where E_min came from: ``given`` (--e-min), ``optimum`` (E* at the window's end) or ``energy-saving``
-        (seed 002's); None before it is known."""
+        (the ISSA paper's); None before it is known."""
         if self.e_min_kwh is not None:
             return "given"
         return self._e_min_cache.get("source")
@@ -136,7 +136,7 @@ class StrategyContext:
         return b.energy_kwh if self.objective != "traction" else max(b.energy_kwh, 0.0)
 
     def _e_min_energy_saving(self) -> float:
-        """Seed 002's E_min: the energy-saving strategy's energy, floored at ``E_MIN_FLOOR_SHARE`` of the fastest
+        """The ISSA paper's E_min: the energy-saving strategy's energy, floored at ``E_MIN_FLOOR_SHARE`` of the fastest
         run's (a falling line may be coasted from end to end, and eq. 11 divides by E_min)."""
         out = energy_saving(self)
         res = evaluate_outcome(self.calc, out, recovered=self.objective == "net")
@@ -193,7 +193,7 @@ def _cycles(ctx: StrategyContext) -> dict:
 
 
 ENERGY_SAVING_ALGORITHM = "issa"
-"""The energy-saving baseline is always searched by ISSA (seed 002's own optimiser, which also finds the
+"""The energy-saving baseline is always searched by ISSA (the ISSA paper's own optimiser, which also finds the
 lowest energies here), so that E_min does not change with the --algorithm being studied."""
 E_MIN_SEED = 1
 """...nor with --seed: its search always starts from this seed, so that fitness values (eq. 10-11) of
@@ -230,14 +230,14 @@ def _confirmed(ctx: StrategyContext, problem: SwitchingProblem, result, prefer_b
 
 
 def time_saving(ctx: StrategyContext) -> StrategyOutcome:
-    """The fastest run (seed 002 Fig. 4): max traction everywhere, held at each limit, braking only
+    """The fastest run (the ISSA paper's Fig. 4): max traction everywhere, held at each limit, braking only
     where the braking curves of the limit drops and of the stop demand it. In the calculator this is
     the single condition T: the braking envelope supplies every brake application."""
     return StrategyOutcome(Plan(("T",), (0.0,)))
 
 
 def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0):
-    """Seed 002 builder: T, C alternating: traction to start and before each long up-grade, coasting
+    """The ISSA paper's builder: T, C alternating: traction to start and before each long up-grade, coasting
     after; windows halfway to the neighbouring nominal switches (a traction run may start well before
     its grade)."""
     L, gap = calc.route.length_m, calc.train.length_m / 2
@@ -261,14 +261,14 @@ def energy_saving_sequence(calc: TractionCalculator, threshold_kmh: float = 2.0)
 
 
 def energy_saving(ctx: StrategyContext) -> StrategyOutcome:
-    """The least traction energy, timetable ignored. seed002: traction and coasting only (seed 002's
+    """The least traction energy, timetable ignored. issa-paper: traction and coasting only (the ISSA paper's
     energy-saving strategy), switching points by ISSA; general: the drive at the lowest price of time
     (``optimize/dp.py``), as a condition sequence."""
     cached = ctx._e_min_cache.get("outcome")
     if cached is not None:
         return cached
     t = time.perf_counter()
-    if ctx.builder == "seed002":
+    if ctx.builder == "issa-paper":
         conditions, _, lower, upper = energy_saving_sequence(ctx.search)
         problem = SwitchingProblem(ctx.search, conditions, lower, upper, objective="energy", energy=ctx.objective)
         result = _optimise(ctx, problem, salt=2, algorithm=ENERGY_SAVING_ALGORITHM, seed=E_MIN_SEED)
@@ -326,14 +326,14 @@ def no_drive_message(ctx: StrategyContext) -> str:
 def four_stage(ctx: StrategyContext) -> StrategyOutcome:
     """Traction to a cruise speed, cruise (re-accelerating where limits or grades pulled it down),
     coast, brake. Cruise speed and coasting point come from a grid search, refined once: the least
-    energy among plans within 1 s of the planned time, else the plan closest to it. The seed002 builder
+    energy among plans within 1 s of the planned time, else the plan closest to it. The issa-paper builder
     coasts in the second half of the route and refines on the search grid, as first measured; the
     general one may coast from anywhere and refines on the reporting grid (its plan is confirmed there)."""
     t = time.perf_counter()
     calc = ctx.search
     L = calc.route.length_m
     v_top = float(calc.limit_kmh.max())
-    general = ctx.builder != "seed002"
+    general = ctx.builder != "issa-paper"
     v_grid = np.arange(10.0 if general else 30.0, v_top + 0.5, 1.0)
     x_grid = np.arange(100.0 if general else L / 2, L - 50.0, 100.0)
     best = span = None
@@ -389,12 +389,12 @@ def _punctual(ctx: StrategyContext, problem: SwitchingProblem, x) -> bool:
 
 
 def proposed(ctx: StrategyContext) -> StrategyOutcome:
-    """Seed 002's method: a condition sequence from the route, switching points minimising eq. 10."""
+    """The ISSA paper's method: a condition sequence from the route, switching points minimising eq. 10."""
     e_min = ctx.e_min()
     t = time.perf_counter()
     common = dict(t0_s=ctx.t0_s, e_min_kwh=e_min, weights=ctx.weights, tolerance_s=ctx.ranking_tolerance_s,
                   energy=ctx.objective)
-    if ctx.builder == "seed002":
+    if ctx.builder == "issa-paper":
         seq = build_sequence(ctx.search)
         problem = _problem(ctx, ctx.search, seq, common, centred=False)
         result = _optimise(ctx, problem, salt=1)
@@ -587,8 +587,8 @@ more than this share of the window, at most ``CALIBRATION_STEPS`` times."""
 
 
 MIN_RUN_M = 100.0
-"""The general builder's shortest run of one condition [m]: half the train (seed 002 eq. 3), at most this.
-Eq. 3 is seed 002's own rule (``--builder seed002`` keeps it); on a line of short pitches a long train's
+"""The general builder's shortest run of one condition [m]: half the train (the ISSA paper's eq. 3), at most this.
+Eq. 3 is the ISSA paper's own rule (``--builder issa-paper`` keeps it); on a line of short pitches a long train's
 optimum climbs each pitch in traction and coasts down the next, and half a 1,270 m heavy-haul train (635 m)
 forbids it: on a generated 32 km sawtooth line with HXD1 x 2 + 100 x C80 the best plan found with runs of at
 least 635 m lay 12 % over E*, with 100 m runs 0.2 %. 100 m is a few seconds of driving at line speed."""

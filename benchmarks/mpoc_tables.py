@@ -1,7 +1,7 @@
-"""Seed 001 Tables 3-5, our analogues: MPOC-N, MPOC-C, MPOC and SFS on a freight line with neutral
+"""The MPOC paper's Tables 3-5, our analogues: MPOC-N, MPOC-C, MPOC and SFS on a freight line with neutral
 sections and on the two legs of the high-speed reconstruction (CRH380A).
 
-    python benchmarks/seed001_tables.py
+    python benchmarks/mpoc_tables.py
 
 Every energy is the traction calculator's re-simulation of the strategy's plan (MPOC-N's on the route
 without its neutral sections: a lower bound the train cannot drive); the NLP optima of MPOC-N and

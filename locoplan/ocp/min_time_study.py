@@ -1,5 +1,5 @@
-"""Seed 000's Tables 2-3 on this machine: CVP 20 / 40, GPM 34 / 48 and two-stage 17 / 24 (stage 2
-"hp" and the seed's "global") on the level and the 30 per-mille route, with the solve-time ratios
+"""The two-stage Gauss paper's Tables 2-3 on this machine: CVP 20 / 40, GPM 34 / 48 and two-stage 17 / 24 (stage 2
+"hp" and the paper's "global") on the level and the 30 per-mille route, with the solve-time ratios
 measured in the same run.
 
 Library code: :func:`run_study` takes the loaded train and routes (the command line and
@@ -19,11 +19,11 @@ from .min_time_run import SOURCE, solve_ocp
 from .registry import OCP_METHODS
 from .solve import solve_min_time
 
-__all__ = ["SEED000_CLAIMS", "SEED000_TABLES", "STUDY_RUNS", "Study", "run_study"]
+__all__ = ["PAPER_CLAIMS", "PAPER_TABLES", "STUDY_RUNS", "Study", "run_study"]
 
 
 # --------------------------------------------------------------------------------------------------
-# seed 000 Tables 2-3
+# the two-stage Gauss paper's Tables 2-3
 # --------------------------------------------------------------------------------------------------
 
 STUDY_RUNS: tuple[tuple[str, int, str | None], ...] = (
@@ -32,9 +32,9 @@ STUDY_RUNS: tuple[tuple[str, int, str | None], ...] = (
     ("two-stage", 17, "hp"), ("two-stage", 24, "hp"),
     ("two-stage", 17, "global"), ("two-stage", 24, "global"),
 )
-"""(method, control nodes, stage 2) of every row, per experiment, in the seed's order."""
+"""(method, control nodes, stage 2) of every row, per experiment, in the paper's order."""
 
-SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, int] | None]]] = {
+PAPER_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, int] | None]]] = {
     # table -> (method, nodes) -> (objective [s], solve time [s], stage-2 (control, state) nodes)
     2: {("cvp", 20): (142.25, 50.41, None), ("cvp", 40): (141.81, 210.63, None),
         ("gpm", 34): (141.81, 8.12, None), ("gpm", 48): (141.62, 19.19, None),
@@ -43,16 +43,16 @@ SEED000_TABLES: dict[int, dict[tuple[str, int], tuple[float, float, tuple[int, i
         ("gpm", 34): (141.97, 8.10, None), ("gpm", 48): (141.76, 21.47, None),
         ("two-stage", 17): (141.75, 5.66, (15, 34)), ("two-stage", 24): (141.67, 12.60, (15, 48))},
 }
-"""Seed 000 Tables 2 (level, test 1) and 3 (30 per mille, test 2) as printed."""
+"""The two-stage Gauss paper's Tables 2 (level, test 1) and 3 (30 per mille, test 2) as printed."""
 
-SEED000_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
-"""The seed's abstract / conclusion: two-stage solve time lower than CVP / GPM by this many per cent."""
+PAPER_CLAIMS = {"cvp": 91.93, "gpm": 33.88}
+"""The paper's abstract / conclusion: two-stage solve time lower than CVP / GPM by this many per cent."""
 
 @dataclass(frozen=True)
 class Study:
     """Result of :func:`run_study`: ``rows`` (one SPEC object per run, with ``table``, ``test``,
-    ``label``, the seed's values and the median ``solve_time_s``), ``ratios`` (solve-time reductions
-    of two-stage vs CVP / GPM, measured and as in the seed), ``exact`` (table -> exact minimum [s]),
+    ``label``, the paper's values and the median ``solve_time_s``), ``ratios`` (solve-time reductions
+    of two-stage vs CVP / GPM, measured and as in the paper), ``exact`` (table -> exact minimum [s]),
     ``runs`` ((table, method, nodes, stage2) -> :class:`OcpRun`, for plots), ``repeats``."""
 
     rows: list[dict]
@@ -78,9 +78,9 @@ def _reduction(ts: float, other: float) -> float:
 
 def run_study(train, routes: dict, *, runs=STUDY_RUNS, repeats: int = 1, warmup: bool = True,
               progress: Callable[[str], None] | None = None) -> Study:
-    """Reproduce seed 000 Tables 2-3 on this machine.
+    """Reproduce the two-stage Gauss paper's Tables 2-3 on this machine.
 
-    ``train``: the loaded consist (the seed's HXD1 + C64); ``routes``: table number -> loaded
+    ``train``: the loaded consist (the paper's HXD1 + C64); ``routes``: table number -> loaded
     :class:`~locoplan.model.route.Route`, or ``(route, name)`` where ``name`` (its file) labels error
     messages (the defaults: :data:`~locoplan.ocp.registry.STUDY_ROUTES`). Each of ``runs``
     ((method, control nodes, stage 2)) is solved ``repeats`` times and its ``solve_time_s`` is the
@@ -90,7 +90,7 @@ def run_study(train, routes: dict, *, runs=STUDY_RUNS, repeats: int = 1, warmup:
 
     Ratios: for each table and test (CVP 20 / GPM 34 / two-stage 17 is test 1, CVP 40 / GPM 48 /
     two-stage 24 test 2) the reduction ``1 - t_two-stage / t_other`` in per cent, and their mean over
-    the four pairs; the same from the seed's printed times, and the seed's claimed 91.93 % / 33.88 %.
+    the four pairs; the same from the paper's printed times, and the paper's claimed 91.93 % / 33.88 %.
     """
     if not isinstance(repeats, int) or repeats < 1:
         raise InputError(Problem(SOURCE, "--repeats", f"must be a whole number >= 1, got {repeats!r}"))
@@ -116,7 +116,7 @@ def run_study(train, routes: dict, *, runs=STUDY_RUNS, repeats: int = 1, warmup:
                 times.append(solve_min_time(problem, method, nodes, **kwargs).solve_time_s)
             row = dict(first.summary)
             row.pop("sequence", None)
-            seed = SEED000_TABLES.get(table, {}).get((method, nodes))
+            seed = PAPER_TABLES.get(table, {}).get((method, nodes))
             row.update({
                 "table": table, "test": test, "label": _label(method, stage2),
                 "solve_time_s": round(statistics.median(times), 4),
@@ -142,7 +142,7 @@ def _ratios(rows: list[dict]) -> list[dict]:
                     b = by.get((table, other, n_other, None))
                     if a is None or b is None:
                         continue
-                    seed_t = SEED000_TABLES.get(table, {})
+                    seed_t = PAPER_TABLES.get(table, {})
                     seed_pct = None
                     if ("two-stage", n_ts) in seed_t and (other, n_other) in seed_t:
                         seed_pct = round(_reduction(seed_t["two-stage", n_ts][1], seed_t[other, n_other][1]), 2)
@@ -158,6 +158,6 @@ def _ratios(rows: list[dict]) -> list[dict]:
                 "per_test": per_test,
                 "mean_percent": round(statistics.fmean(p["percent"] for p in per_test), 2),
                 "seed_tables_mean_percent": round(statistics.fmean(seeds), 2) if seeds else None,
-                "seed_claim_percent": SEED000_CLAIMS[other],
+                "seed_claim_percent": PAPER_CLAIMS[other],
             })
     return out

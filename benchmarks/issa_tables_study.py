@@ -1,8 +1,8 @@
-"""Seed 002 on routes/freight-20km.yaml with HXD1-C80x50: the 10-run study of ISSA, SSA and PSO
+"""The ISSA paper on routes/freight-20km.yaml with HXD1-C80x50: the 10-run study of ISSA, SSA and PSO
 (Tables 10-12) and the acceptance check: in every run the proposed plan is within the
 schedule's +-30 s and uses less traction energy than four-stage and than time-saving.
 
-    python benchmarks/study_seed002.py [--runs 10] [--workers 2]
+    python benchmarks/issa_tables_study.py [--runs 10] [--workers 2]
 
 Prints markdown tables (pasted into the README).
 """
@@ -34,12 +34,12 @@ def main() -> None:
     ap.add_argument("--algorithms", default="issa,ssa,pso")
     ap.add_argument("--workers", type=int, default=1, help="Worker processes (the results do not depend on it).")
     ap.add_argument("--point-mass", action="store_true",
-                    help="the seeds' model and seed 002's own builder (reproduces the study as first measured)")
+                    help="the papers' model and the ISSA paper's own builder (reproduces the study as first measured)")
     args = ap.parse_args()
     route = load_route(ROOT / "routes/freight-20km.yaml")
-    options = ModelOptions.seeds() if args.point_mass else ModelOptions()
+    options = ModelOptions.papers() if args.point_mass else ModelOptions()
     spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options,
-                   builder="seed002" if args.point_mass else None)
+                   builder="issa-paper" if args.point_mass else None)
     t0 = time.perf_counter()
     baselines = run_many(compare_specs(spec, ["time-saving", "four-stage", "energy-saving"]))
     base = {r.summary["strategy"]: r.summary for r in baselines.records}
