@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.4.0"
+__version__ = "0.5.0"
 """The one place the version is written (pyproject.toml reads it): it moves whenever results change (CHANGELOG.md),
 so that ``locoplan_version`` in every JSON output and a store's version check mean something."""
 
