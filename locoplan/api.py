@@ -247,13 +247,15 @@ def simulate(route, train, options: ModelOptions, *, strategy: Optional[str] = N
     """``simulate``: the traction calculation of a ``sequence`` ("T:0,K:2200,C:9000,B") or of a built-in
     ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window."""
     from .runner import make_context, run_sequence, run_strategy
+    from .settings import RunSettings
 
     from .strategy.registry import lookup
 
     one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     entry = lookup(strategy) if strategy else None  # a strategy that plans to a time needs one (the schedule's)
-    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed, algorithm=algorithm,
-                       need_time=bool(entry and entry.needs_time), builder=builder, yardstick=False)
+    ctx = make_context(route, train, RunSettings(options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed,
+                                                 algorithm=algorithm, need_time=bool(entry and entry.needs_time),
+                                                 builder=builder, yardstick=False))
     run = (run_sequence(ctx, sequence) if sequence is not None
            else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min_kwh is not None))
     return Plan(route, train, ctx, run)
@@ -269,11 +271,13 @@ def optimize(route, train, options: ModelOptions, *, time_s: Optional[float] = N
     ``objective``: what its energy terms count (traction, or net of what the electric brake recovers)."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
+    from .settings import RunSettings
 
     get_algorithm(algorithm)
-    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights, algorithm=algorithm,
-                       seed=seed, params_path=params, callback=callback, tolerance_s=tolerance_s, window=window,
-                       builder=builder, yardstick=gap, objective=objective)
+    ctx = make_context(route, train, RunSettings(options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights,
+                                                 algorithm=algorithm, seed=seed, params_path=params,
+                                                 tolerance_s=tolerance_s, window=window, builder=builder,
+                                                 yardstick=gap, objective=objective), callback=callback)
     if e_min_kwh is None:
         ctx.e_min()  # the energy-saving run first, so that a progress bar then shows the proposed run alone
     run = run_strategy(ctx, "proposed")

@@ -327,6 +327,7 @@ def test_a_leg_plan_that_ends_outside_its_bounds_is_made_again_with_the_time_mov
     import dataclasses
 
     from locoplan.runner import make_context
+    from locoplan.settings import RunSettings
     from locoplan.strategy import registry
     from locoplan.strategy.strategies import evaluate_outcome, four_stage
 
@@ -341,8 +342,9 @@ def test_a_leg_plan_that_ends_outside_its_bounds_is_made_again_with_the_time_mov
     b = j.stations[1]
     allocated = total / 2  # two identical legs
     # asked for the allocation's time, it would end past B's window
-    first = late(make_context(legs[0].route, train, ModelOptions(), time_s=allocated, tolerance_s=1.0))
-    assert float(evaluate_outcome(make_context(legs[0].route, train, ModelOptions(), time_s=allocated).calc,
+    first = late(make_context(legs[0].route, train, RunSettings(ModelOptions(), time_s=allocated, tolerance_s=1.0)))
+    assert float(evaluate_outcome(make_context(legs[0].route, train, RunSettings(ModelOptions(),
+                                                                                 time_s=allocated)).calc,
                                   first).running_time_s[0]) > b.latest_s + 1.0
     res = plan_journey(j, route, train, ModelOptions(), time_s=total, strategies=("late",))
     s = res.summary

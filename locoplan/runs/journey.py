@@ -418,6 +418,7 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
     (calculators, priced-drive DP) of the strategies planned before, reused (a DP solve rewrites its work arrays,
     so reuse cannot change a result)."""
     from ..runner import DEFAULT_TOLERANCE_SHARE, make_context, run_strategy, summarize
+    from ..settings import RunSettings
     from ..strategy import registry
 
     steer = registry.is_timetabled(name)
@@ -438,17 +439,19 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
         calcs, dp = shared.get(k, (None, None))  # the leg's calculators and DP, as another strategy left them
         w, best = first, None
         for attempt in range(1 + (MAX_REPLANS if steer else 0)):
-            ctx = make_context(leg.route, train, options, time_s=w.t0_s, tolerance_s=w.tolerance_s, seed=settings["seed"],
-                               algorithm=settings["algorithm"], params=settings["params"], weights=settings["weights"],
-                               window=settings["window"], builder=settings["builder"], yardstick=False, calculators=calcs)
+            ctx = make_context(leg.route, train, RunSettings(options, time_s=w.t0_s, tolerance_s=w.tolerance_s,
+                                                             seed=settings["seed"], algorithm=settings["algorithm"],
+                                                             params=settings["params"], weights=settings["weights"],
+                                                             window=settings["window"], builder=settings["builder"],
+                                                             yardstick=False), calculators=calcs)
             calcs = (ctx.calc, ctx.search)
             if dp is not None:
-                ctx._e_min_cache["dp"] = dp
+                ctx.priced_drive = dp
             ctx.inputs.update(dict(settings["inputs"]))
             if b.slope_kwh_per_s is not None and b.slope_kwh_per_s < 0:  # the leg's price of time: where its drive is
                 ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
             run = run_strategy(ctx, name, with_fitness=settings["with_fitness"])
-            dp = ctx._e_min_cache.get("dp", dp)
+            dp = ctx.priced_drive if ctx.priced_drive is not None else dp
             tol = max(MIN_LEG_TOLERANCE_S, w.tolerance_s / 2)  # the window of a plan made again
             miss, shift = _leg_misses(leg, run, first, run_clock, wins, margin_s=tol)
             if best is None or miss < best[0]:

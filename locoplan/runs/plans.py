@@ -18,6 +18,7 @@ from .. import bounds
 from ..errors import InputError, LocoplanError, Problem
 from ..io.load import load_route_and_train
 from ..runner import check_time_possible as check, make_context, planned_time
+from ..settings import RunSettings
 from ..strategy import registry
 from .spec import RunSpec
 
@@ -75,8 +76,8 @@ def check_time_possible(specs: list[RunSpec]) -> None:
         k = (s.route, s.consist, s.stock_dir, s.options, s.resolved_builder)
         if k not in contexts:
             route, train = load_route_and_train(s.route, s.consist, s.stock_dir)
-            contexts[k] = make_context(route, train, s.options, need_time=False,
-                                       builder=s.resolved_builder)
+            contexts[k] = make_context(route, train, RunSettings(s.options, need_time=False,
+                                                                 builder=s.resolved_builder))
         ctx = contexts[k]
         check(replace(ctx, t0_s=planned_time(ctx.calc.route, s.time_s)))
 

@@ -44,6 +44,7 @@ from ..io.load import load_journey, load_route, load_train, resolve_consist_path
 from ..runner import load_optimizer_params
 from ..optimize.registry import ALGORITHMS
 from ..runner import make_context, planned_time, run_strategy, schedule_verdict
+from ..settings import RunSettings
 from ..model.train import shorter_than_train
 from ..sim.calculator import ModelOptions
 from ..strategy import registry
@@ -407,8 +408,8 @@ def _base_context(task: Task):
     if ctx is None:
         if len(_CONTEXTS) >= _CONTEXTS_MAX:
             _CONTEXTS.pop(next(iter(_CONTEXTS)))
-        ctx = make_context(task.route, task.train, spec.options, need_time=False, builder=spec.resolved_builder,
-                           yardstick=False)
+        ctx = make_context(task.route, task.train, RunSettings(spec.options, need_time=False,
+                                                               builder=spec.resolved_builder, yardstick=False))
         _CONTEXTS[k] = ctx
     return ctx
 
@@ -418,14 +419,13 @@ def context_for(task: Task):
     spec = task.spec
     base = _base_context(task)
     # validate the settings exactly as a single run would (same errors, same defaults)
-    ctx = make_context(task.route, task.train, spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh,
-                       weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params=task.params,
-                       need_time=needs_time(spec),
-                       tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
-                       yardstick=spec.yardstick, calculators=(base.calc, base.search), objective=spec.objective)
-    dp = base._e_min_cache.get("dp")
-    if dp is not None:
-        ctx._e_min_cache["dp"] = dp
+    settings = RunSettings(spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh, weights=spec.weights,
+                           algorithm=spec.algorithm, seed=spec.seed, params=task.params, need_time=needs_time(spec),
+                           tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
+                           yardstick=spec.yardstick, objective=spec.objective)
+    ctx = make_context(task.route, task.train, settings, calculators=(base.calc, base.search))
+    if base.priced_drive is not None:
+        ctx.priced_drive = base.priced_drive
     ctx.inputs.update(dict(spec.inputs))
     return ctx, base
 
@@ -461,8 +461,8 @@ def execute(task: Task) -> RunRecord:
         summary = infeasible_summary(ctx, spec, str(exc))
         verdict = f"{spec.strategy}: {exc}"
     else:
-        if "dp" in ctx._e_min_cache and "dp" not in base._e_min_cache:
-            base._e_min_cache["dp"] = ctx._e_min_cache["dp"]
+        if ctx.priced_drive is not None and base.priced_drive is None:
+            base.priced_drive = ctx.priced_drive
         summary = dict(run.summary)
         verdict = schedule_verdict(ctx, run, strict=spec.strict)
         if task.keep_profile:
@@ -541,8 +541,9 @@ class EMinTask:
 def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
     (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
-    ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params=task.params, yardstick=False, objective=task.objective)
+    ctx = make_context(task.route, task.train, RunSettings(task.options, need_time=False, builder=task.builder,
+                                                           params=task.params, yardstick=False,
+                                                           objective=task.objective))
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:
