@@ -151,12 +151,14 @@ def simulate(route: Path = ROUTE,
     whether inside the window, is reported (the table, --json "punctual"), with exit 0."""
     from .reporting.plot import plot_profiles, run_title
     from .reporting.tables import sequence_table, show, summary_table
+    from .settings import RunSettings
 
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot, plot_td=plot_td)
     r, train, opts = _load(route, consist, stock_dir, model)
-    plan = api.simulate(r, train, opts, strategy=strategy, sequence=sequence, e_min_kwh=e_min, seed=seed,
-                        algorithm=algorithm, builder=builder, time_s=_time(time_s, (r, train), options=opts, quiet=as_json))
+    settings = RunSettings(opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), e_min_kwh=e_min,
+                           seed=seed, algorithm=algorithm, builder=builder)
+    plan = api.simulate(r, train, settings, strategy=strategy, sequence=sequence)
     summary = plan.summary
     with all_or_none():
         _emit(summary, as_json, out_file, plan.run.result.profile, r)
@@ -192,6 +194,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     from .optimize.registry import get_algorithm
     from .reporting.plot import plot_profiles, run_title
     from .reporting.tables import sequence_table, show, summary_table
+    from .settings import RunSettings
 
     get_algorithm(algorithm)
     w = api.weights(weights)
@@ -200,9 +203,10 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
-        plan = api.optimize(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
-                            params=str(params) if params else None, callback=cb, tolerance_s=tolerance, window=window,
-                            builder=builder, gap=gap, objective=objective)
+        settings = RunSettings(opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
+                               params_path=str(params) if params else None, tolerance_s=tolerance, window=window,
+                               builder=builder, yardstick=gap, objective=objective)
+        plan = api.optimize(r, train, settings, callback=cb)
     summary, run = plan.summary, plan.run
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)

@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from .optimize.base import OptimizerParams
 from .sim.calculator import ModelOptions
+
+if TYPE_CHECKING:
+    from .optimize.base import OptimizerParams
 
 
 @dataclass(frozen=True)

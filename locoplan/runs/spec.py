@@ -491,11 +491,11 @@ def execute_journey(task: Task) -> RunRecord:
     t, cpu = time.perf_counter(), time.process_time()
     spec = task.spec
     try:
-        result = plan_journey(task.journey, task.route, task.train, spec.options, time_s=spec.time_s,
-                              strategies=(spec.strategy,), seed=spec.seed, algorithm=spec.algorithm, params=task.params,
-                              weights=spec.weights, tolerance_s=spec.tolerance_s, window=spec.window,
-                              builder=spec.builder, strict=spec.strict, inputs=spec.inputs, with_fitness=spec.fitness,
-                              source=spec.journey)
+        settings = RunSettings(spec.options, time_s=spec.time_s, seed=spec.seed, algorithm=spec.algorithm,
+                               params=task.params, weights=spec.weights, tolerance_s=spec.tolerance_s,
+                               window=spec.window, builder=spec.builder)
+        result = plan_journey(task.journey, task.route, task.train, settings, strategies=(spec.strategy,),
+                              strict=spec.strict, inputs=spec.inputs, with_fitness=spec.fitness, source=spec.journey)
     except InfeasibleError as exc:
         summary = infeasible_journey_summary(task.journey, task.route, task.train, spec.strategy, spec.time_s, str(exc))
         verdict = f"{spec.strategy}: {exc}"
