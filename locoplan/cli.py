@@ -72,12 +72,13 @@ def _root(version: bool = typer.Option(False, "--version", "-V", callback=_versi
     pass
 
 
-def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **settings):
-    """The spec every run of a multi-run command starts from (runs.plans varies it)."""
+def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], settings, **fields):
+    """The spec every run of a multi-run command starts from (runs.plans varies it): ``settings`` a
+    ``RunSettings``, ``fields`` the spec's others (``inputs``)."""
     from .runs.spec import RunSpec
 
-    return RunSpec(str(route), str(consist), stock_dir=None if stock_dir is None else str(stock_dir), options=options,
-                   **settings)
+    return RunSpec(str(route), str(consist), settings=settings, stock_dir=None if stock_dir is None else str(stock_dir),
+                   **fields)
 
 
 # ------------------------------------------------------------------------------------------ validate
@@ -271,10 +272,12 @@ def compare(route: Path = ROUTE,
     _check_outputs(out_file, plot, plot_td=plot_td)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
-                      tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
-                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap,
-                      objective=objective)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w, tolerance_s=tolerance,
+                           window=window, builder=builder, e_min_kwh=e_min, params_path=str(params) if params else None,
+                           yardstick=gap, objective=objective)
+    base = _base_spec(route, consist, stock_dir, settings, inputs=(("logs", logs), ("patterns", patterns)))
     specs = compare_specs(base, names)
     if "proposed" not in names and e_min is None:  # E_min (an energy-saving run) only when a requested strategy needs it
         specs = [replace(x, fitness=False) for x in specs]
@@ -350,9 +353,12 @@ def sweep(route: Path = ROUTE,
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     values = values if weights else _times(asked, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
-                      params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
-                      yardstick=gap)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
+                           params_path=str(params) if params else None, tolerance_s=tolerance, window=window,
+                           builder=builder, yardstick=gap)
+    base = _base_spec(route, consist, stock_dir, settings)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
     with run_progress("sweep runs", len(specs), not as_json) as progress:
@@ -402,8 +408,11 @@ def study(route: Path = ROUTE,
     _check_outputs(out_file, plot)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
-                      tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min, tolerance_s=tolerance,
+                           window=window, builder=builder, yardstick=gap)
+    base = _base_spec(route, consist, stock_dir, settings)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
     with run_progress("study runs", len(specs), not as_json) as progress:

@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from fastest_oracle import FastestOracle
 from locoplan.cli import app
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.sim.result import IMPOSSIBLE
 from routes import hand_made_route
@@ -150,7 +151,6 @@ def test_every_model_plans_the_hand_case(root, monkeypatch, options):
     monkeypatch.chdir(root)
     from locoplan.io.load import load_train
     from locoplan.runner import make_context, run_strategy
-    from locoplan.settings import RunSettings
 
     route = hand_made_route([(12000, 60)], [(3000, 0.0), (5000, -12.0), (12000, 0.0)], 12000,
                             schedule={"run_time_s": 1000, "tolerance_s": 10})
@@ -171,17 +171,16 @@ def test_point_mass_chooses_the_model_not_the_method(freight):
     """--point-mass is the papers' train model; the sequence builder stays the general one unless the ISSA
     paper's own is named (it cannot run most real lines), in a context and in a batch run alike."""
     from locoplan.runner import make_context
-    from locoplan.settings import RunSettings
     from locoplan.runs.spec import RunSpec
 
     route, train = freight
     assert make_context(route, train, RunSettings(SEEDS)).builder == "general"
     assert make_context(route, train, RunSettings(SEEDS, builder="issa-paper")).builder == "issa-paper"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS).resolved_builder == "general"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="issa-paper").resolved_builder == "issa-paper"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS)).resolved_builder == "general"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS, builder="issa-paper")).resolved_builder == "issa-paper"
     # the builder's earlier name is an alias: the same context, the same resolved builder, the same store key name
     assert make_context(route, train, RunSettings(SEEDS, builder="seed002")).builder == "issa-paper"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "issa-paper"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS, builder="seed002")).resolved_builder == "issa-paper"
     from locoplan.strategy import registry
     assert registry.builder_key("issa-paper") == "seed002" and registry.builder_key("general") == "general"
 
