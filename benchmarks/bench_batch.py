@@ -34,6 +34,7 @@ import locoplan.runs.spec, locoplan.runner
 t1 = time.perf_counter()
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context
+from locoplan.settings import RunSettings
 ctx = make_context(load_route(sys.argv[1]), load_train('HXD1-C80x30'), need_time=False)
 ctx.calc.fastest_time_s          # the calculator's compiled kernel: loaded from the cache (locoplan.sim.native)
 t2 = time.perf_counter()
@@ -58,6 +59,7 @@ def one_by_one(specs) -> list[dict]:
     """Each run alone, as `locoplan optimize ROUTE --time T --algorithm A --seed S` computes it."""
     from locoplan.io.load import load_route, load_train
     from locoplan.runner import make_context, run_strategy
+    from locoplan.settings import RunSettings
 
     routes, trains, out = {}, {}, []
     for s in specs:
@@ -65,9 +67,11 @@ def one_by_one(specs) -> list[dict]:
             routes[s.route] = load_route(s.route)
         if s.consist not in trains:
             trains[s.consist] = load_train(s.consist)
-        ctx = make_context(routes[s.route], trains[s.consist], s.options, time_s=s.time_s, algorithm=s.algorithm,
-                           seed=s.seed, weights=s.weights, tolerance_s=s.tolerance_s, builder=s.builder,
-                           yardstick=s.yardstick)
+        ctx = make_context(routes[s.route], trains[s.consist], RunSettings(s.options, time_s=s.time_s,
+                                                                           algorithm=s.algorithm, seed=s.seed,
+                                                                           weights=s.weights,
+                                                                           tolerance_s=s.tolerance_s,
+                                                                           builder=s.builder, yardstick=s.yardstick))
         summary = run_strategy(ctx, s.strategy).summary
         summary.pop("solve_time_s")
         out.append(summary)

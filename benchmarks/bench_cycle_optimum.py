@@ -112,9 +112,10 @@ def run_case(label, route, train, factor, proposed: bool) -> dict:
                        plan_over_estar_percent=100 * (ep / energy_bound(route, train, options, tp).energy_kwh - 1))
     if proposed:
         from locoplan.runner import make_context, run_strategy
+        from locoplan.settings import RunSettings
 
         start = time.perf_counter()
-        ctx = make_context(route, train, options, time_s=t, yardstick=True, calculators=None)
+        ctx = make_context(route, train, RunSettings(options, time_s=t, yardstick=True), calculators=None)
         s = run_strategy(ctx, "proposed").summary
         row.update(proposed_wall_s=time.perf_counter() - start, proposed_time_s=s["running_time_s"],
                    proposed_kwh=s["traction_energy_kwh"], proposed_over_estar_percent=s["gap_to_optimum_percent"],

@@ -33,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 from locoplan.errors import InfeasibleError  # noqa: E402
 from locoplan.io.load import load_journey, load_train  # noqa: E402
 from locoplan.runs.journey import WINDOW_SLACK_S, legs_of, plan_journey  # noqa: E402
+from locoplan.settings import RunSettings  # noqa: E402
 from locoplan.sim.calculator import ModelOptions  # noqa: E402
 
 LINES = ["CN_Songjiazhuang_Yizhuang", "CH_Stadelhofen_Altstetten"]
@@ -92,7 +93,7 @@ def main() -> None:
                 j = with_windows(j0, legs, total)
                 t0 = time.perf_counter()
                 marks = {}
-                res = plan_journey(j, route, train, options, time_s=total, strategies=strategies,
+                res = plan_journey(j, route, train, RunSettings(options, time_s=total), strategies=strategies,
                                    step=lambda s: marks.setdefault(s.split(":")[0], time.perf_counter()))
                 wall = time.perf_counter() - t0
                 t_eq, t_plans = marks.get("equal supplements", t0), marks.get("leg 1", t0 + wall)

@@ -21,6 +21,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +32,8 @@ XI_TRAINRUNS = (1.09 * 80 + 10 * 1.03 * 25) / (80 + 10 * 25)
 
 
 def fastest(route, train, options: ModelOptions) -> str:
-    run = run_strategy(make_context(route, train, options, need_time=False), "time-saving", with_fitness=False)
+    run = run_strategy(make_context(route, train, RunSettings(options, need_time=False)), "time-saving",
+                       with_fitness=False)
     return f"{run.summary['running_time_s']:.1f}" if run.result.feasible[0] else f"infeasible: {run.result.reason(0)}"
 
 

@@ -23,6 +23,7 @@ from locoplan.io.load import load_route
 from locoplan.runner import study_table
 from locoplan.runs import RunSpec, make_executor, run_many
 from locoplan.runs.plans import compare_specs, study_specs
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,8 +39,8 @@ def main() -> None:
     args = ap.parse_args()
     route = load_route(ROOT / "routes/freight-20km.yaml")
     options = ModelOptions.papers() if args.point_mass else ModelOptions()
-    spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"), options=options,
-                   builder="issa-paper" if args.point_mass else None)
+    spec = RunSpec(str(ROOT / "routes/freight-20km.yaml"), str(ROOT / "configs/consists/HXD1-C80x50.yaml"),
+                   settings=RunSettings(options, builder="issa-paper" if args.point_mass else None))
     t0 = time.perf_counter()
     baselines = run_many(compare_specs(spec, ["time-saving", "four-stage", "energy-saving"]))
     base = {r.summary["strategy"]: r.summary for r in baselines.records}

@@ -29,6 +29,7 @@ from locoplan.learn.drivers import SimulationSpec, consist_for_mass  # noqa: E40
 from locoplan.learn.patterns import LearnSettings, learn  # noqa: E402
 from locoplan.reporting.logs import simulate_drivers  # noqa: E402
 from locoplan.runner import make_context, run_strategy  # noqa: E402
+from locoplan.settings import RunSettings  # noqa: E402
 from locoplan.sim.calculator import ModelOptions  # noqa: E402
 
 TRAIN = [("routes/freight-20km.yaml", (3200, 4200, 5200), (1450, 1550)),
@@ -98,7 +99,7 @@ def main() -> None:
         for mass in masses:
             train = build_train(consist_for_mass(consist, vehicles, mass), vehicles)
             for t in times:
-                ctx = make_context(r, train, options, time_s=float(t))
+                ctx = make_context(r, train, RunSettings(options, time_s=float(t)))
                 ctx.inputs.update(logs=[logs], patterns=work / "patterns.json")
                 drv = run_strategy(ctx, "drivers").summary
                 adv = run_strategy(ctx, "advice").summary

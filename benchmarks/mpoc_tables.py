@@ -23,6 +23,7 @@ from locoplan.io.load import load_route, load_train  # noqa: E402
 from locoplan.ocp.mpoc import run_mpoc  # noqa: E402
 from locoplan.ocp.train_energy import EnergyOptions  # noqa: E402
 from locoplan.runner import make_context, run_strategy  # noqa: E402
+from locoplan.settings import RunSettings  # noqa: E402
 from locoplan.sim.calculator import ModelOptions  # noqa: E402
 
 CASES = [("routes/freight-20km-ns.yaml", "HXD1-C80x50"),
@@ -39,7 +40,7 @@ def main() -> None:
     for path, consist in CASES:
         route = load_route(ROOT / path)
         train = load_train(ROOT / f"configs/consists/{consist}.yaml")
-        ctx = make_context(route, train, ModelOptions(), yardstick=False)
+        ctx = make_context(route, train, RunSettings(ModelOptions(), yardstick=False))
         res = {n: run_strategy(ctx, n).summary for n in NAMES}
         nlp = {n: run_mpoc(route, train, ModelOptions(), ctx.t0_s, energy=EnergyOptions(ignore_neutral=(n == "mpoc-n")),
                            calc=None).summary["objective"] for n in ("mpoc-n", "mpoc")}

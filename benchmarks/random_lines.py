@@ -38,6 +38,7 @@ from locoplan.errors import LocoplanError  # noqa: E402
 from locoplan.io.load import load_train  # noqa: E402
 from locoplan.model.route import Route  # noqa: E402
 from locoplan.runner import make_context, run_strategy, schedule_verdict  # noqa: E402
+from locoplan.settings import RunSettings  # noqa: E402
 from locoplan.sim.calculator import ModelOptions, TractionCalculator  # noqa: E402
 _sys.path.insert(0, str(_Path(__file__).resolve().parent))  # fastest_check, beside this file
 
@@ -195,7 +196,7 @@ def run_case(route, train, options, factor: float, no_gap: bool) -> dict:
         return {**row, "status": "impossible", "reason": fastest.reason(0)}
     t0 = round(factor * float(fastest.running_time_s[0]), 1)
     try:
-        ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.01 * t0, yardstick=not no_gap)
+        ctx = make_context(route, train, RunSettings(options, time_s=t0, tolerance_s=0.01 * t0, yardstick=not no_gap))
         start = time.perf_counter()
         run = run_strategy(ctx, "proposed")
         solve = time.perf_counter() - start

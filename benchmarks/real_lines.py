@@ -38,6 +38,7 @@ import numpy as np
 
 from locoplan.io.load import load_route, load_train
 from locoplan.runner import make_context, run_strategy, schedule_verdict
+from locoplan.settings import RunSettings
 from locoplan.ocp.bound import percent_floor_kwh
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
@@ -99,7 +100,7 @@ def main() -> None:
                 continue
             for factor in (float(x) for x in args.factors.split(",")):
                 t0 = round(factor * fastest, 1)
-                ctx = make_context(route, train, args.options, time_s=t0, tolerance_s=0.01 * t0)
+                ctx = make_context(route, train, RunSettings(args.options, time_s=t0, tolerance_s=0.01 * t0))
                 start = time.perf_counter()
                 run = run_strategy(ctx, "proposed")
                 solve = time.perf_counter() - start

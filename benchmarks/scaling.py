@@ -25,6 +25,7 @@ _sys.path.insert(0, str(_Path(__file__).resolve().parents[1]))  # this checkout'
 from locoplan.io.load import load_route, load_train
 from locoplan.model.route import Route
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import TractionCalculator
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,7 +84,8 @@ def main() -> None:
         calc = TractionCalculator(route, train)
         setup = time.perf_counter() - t
         plan = per_plan_s(calc, tuple("TKTCTCKCB"), args.repeat)
-        ctx = make_context(route, train, time_s=round(1.15 * calc.fastest_time_s), tolerance_s=0.01 * 1.15 * calc.fastest_time_s)
+        ctx = make_context(route, train, RunSettings(time_s=round(1.15 * calc.fastest_time_s),
+                                                     tolerance_s=0.01 * 1.15 * calc.fastest_time_s))
         t = time.perf_counter()
         run = run_strategy(ctx, "proposed")
         opt = time.perf_counter() - t

@@ -23,7 +23,8 @@ _API = {
     "load_route": "locoplan.io.load", "load_train": "locoplan.io.load", "ModelOptions": "locoplan.sim.calculator",
     "TractionCalculator": "locoplan.sim.calculator",
     # one run
-    "make_context": "locoplan.runner", "run_strategy": "locoplan.runner", "run_sequence": "locoplan.runner",
+    "RunSettings": "locoplan.settings", "make_context": "locoplan.runner", "run_strategy": "locoplan.runner",
+    "run_sequence": "locoplan.runner",
     "summarize": "locoplan.runner", "STRATEGIES": "locoplan.strategy.registry",
     # many runs
     "RunSpec": "locoplan.runs.spec", "RunRecord": "locoplan.runs.spec", "run_many": "locoplan.runs.many",

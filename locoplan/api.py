@@ -16,6 +16,7 @@ from . import bounds
 from .runner import punctuality_tolerance  # noqa: F401  (the window of a re-plan: cli_replan)
 from .errors import InputError, LocoplanError, Problem
 from .errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INVALID, EXIT_OK, EXIT_RULE, VERDICTS
+from .settings import RunSettings
 from .sim.calculator import DEFAULT_STEP_M, ModelOptions
 
 
@@ -241,40 +242,36 @@ class Plan:
         return [schedule_verdict(self.context, self.run)]
 
 
-def simulate(route, train, options: ModelOptions, *, strategy: Optional[str] = None, sequence: Optional[str] = None,
-             time_s: Optional[float] = None, e_min_kwh: Optional[float] = None, seed: int = 1,
-             algorithm: str = "issa", builder: Optional[str] = None) -> Plan:
+def simulate(route, train, settings: RunSettings, *, strategy: Optional[str] = None,
+             sequence: Optional[str] = None) -> Plan:
     """``simulate``: the traction calculation of a ``sequence`` ("T:0,K:2200,C:9000,B") or of a built-in
-    ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window."""
+    ``strategy`` (default time-saving); a measured plan's punctuality is reported, not held to a window.
+    ``settings`` (:class:`locoplan.settings.RunSettings`): the model, the planned time, E_min, the seed and
+    algorithm and the builder; the planned time is needed only by a strategy that plans to it, and the gap to E*
+    is not computed."""
     from .runner import make_context, run_sequence, run_strategy
 
     from .strategy.registry import lookup
 
     one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     entry = lookup(strategy) if strategy else None  # a strategy that plans to a time needs one (the schedule's)
-    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, seed=seed, algorithm=algorithm,
-                       need_time=bool(entry and entry.needs_time), builder=builder, yardstick=False)
+    ctx = make_context(route, train, settings.replace(need_time=bool(entry and entry.needs_time), yardstick=False))
     run = (run_sequence(ctx, sequence) if sequence is not None
-           else run_strategy(ctx, strategy or "time-saving", with_fitness=e_min_kwh is not None))
+           else run_strategy(ctx, strategy or "time-saving", with_fitness=settings.e_min_kwh is not None))
     return Plan(route, train, ctx, run)
 
 
-def optimize(route, train, options: ModelOptions, *, time_s: Optional[float] = None,
-             weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa", seed: int = 1,
-             e_min_kwh: Optional[float] = None, params: Optional[str] = None, tolerance_s: Optional[float] = None,
-             window: bool = True, builder: Optional[str] = None, gap: bool = True,
-             callback: Optional[Callable[[int, float], None]] = None, objective: str = "traction") -> Plan:
-    """``optimize``: the proposed strategy (condition sequence + optimised switching points); E_min, when
-    not given, from the energy-saving run first. ``callback(iteration, best)`` follows the search;
-    ``objective``: what its energy terms count (traction, or net of what the electric brake recovers)."""
+def optimize(route, train, settings: RunSettings, *,
+             callback: Optional[Callable[[int, float], None]] = None) -> Plan:
+    """``optimize``: the proposed strategy (condition sequence + optimised switching points) with ``settings``
+    (:class:`locoplan.settings.RunSettings`; ``yardstick``: the gap to E*); E_min, when not given, from the
+    energy-saving run first. ``callback(iteration, best)`` follows the search."""
     from .optimize.registry import get_algorithm
     from .runner import make_context, run_strategy
 
-    get_algorithm(algorithm)
-    ctx = make_context(route, train, options, time_s=time_s, e_min_kwh=e_min_kwh, weights=weights, algorithm=algorithm,
-                       seed=seed, params_path=params, callback=callback, tolerance_s=tolerance_s, window=window,
-                       builder=builder, yardstick=gap, objective=objective)
-    if e_min_kwh is None:
+    get_algorithm(settings.algorithm)
+    ctx = make_context(route, train, settings, callback=callback)
+    if settings.e_min_kwh is None:
         ctx.e_min()  # the energy-saving run first, so that a progress bar then shows the proposed run alone
     run = run_strategy(ctx, "proposed")
     run.summary["solve_time_s"] = round(run.outcome.solve_time_s, 3)

@@ -72,12 +72,13 @@ def _root(version: bool = typer.Option(False, "--version", "-V", callback=_versi
     pass
 
 
-def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], options, **settings):
-    """The spec every run of a multi-run command starts from (runs.plans varies it)."""
+def _base_spec(route: Path, consist: str, stock_dir: Optional[Path], settings, **fields):
+    """The spec every run of a multi-run command starts from (runs.plans varies it): ``settings`` a
+    ``RunSettings``, ``fields`` the spec's others (``inputs``)."""
     from .runs.spec import RunSpec
 
-    return RunSpec(str(route), str(consist), stock_dir=None if stock_dir is None else str(stock_dir), options=options,
-                   **settings)
+    return RunSpec(str(route), str(consist), settings=settings, stock_dir=None if stock_dir is None else str(stock_dir),
+                   **fields)
 
 
 # ------------------------------------------------------------------------------------------ validate
@@ -151,12 +152,14 @@ def simulate(route: Path = ROUTE,
     whether inside the window, is reported (the table, --json "punctual"), with exit 0."""
     from .reporting.plot import plot_profiles, run_title
     from .reporting.tables import sequence_table, show, summary_table
+    from .settings import RunSettings
 
     api.one_of(strategy or None, sequence or None, "--sequence", "give either --strategy or --sequence, not both")
     _check_outputs(out_file, plot, plot_td=plot_td)
     r, train, opts = _load(route, consist, stock_dir, model)
-    plan = api.simulate(r, train, opts, strategy=strategy, sequence=sequence, e_min_kwh=e_min, seed=seed,
-                        algorithm=algorithm, builder=builder, time_s=_time(time_s, (r, train), options=opts, quiet=as_json))
+    settings = RunSettings(opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), e_min_kwh=e_min,
+                           seed=seed, algorithm=algorithm, builder=builder)
+    plan = api.simulate(r, train, settings, strategy=strategy, sequence=sequence)
     summary = plan.summary
     with all_or_none():
         _emit(summary, as_json, out_file, plan.run.result.profile, r)
@@ -192,6 +195,7 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     from .optimize.registry import get_algorithm
     from .reporting.plot import plot_profiles, run_title
     from .reporting.tables import sequence_table, show, summary_table
+    from .settings import RunSettings
 
     get_algorithm(algorithm)
     w = api.weights(weights)
@@ -200,9 +204,10 @@ def optimize(route: Path = ROUTE, algorithm: str = ALGO, time_s: Optional[str] =
     r, train, opts = _load(route, consist, stock_dir, model)
     time_s = _time(time_s, (r, train), options=opts, quiet=as_json)
     with _progress(not as_json)(f"{algorithm} iterations", _iterations(algorithm, params)) as cb:
-        plan = api.optimize(r, train, opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
-                            params=str(params) if params else None, callback=cb, tolerance_s=tolerance, window=window,
-                            builder=builder, gap=gap, objective=objective)
+        settings = RunSettings(opts, time_s=time_s, e_min_kwh=e_min, weights=w, algorithm=algorithm, seed=seed,
+                               params_path=str(params) if params else None, tolerance_s=tolerance, window=window,
+                               builder=builder, yardstick=gap, objective=objective)
+        plan = api.optimize(r, train, settings, callback=cb)
     summary, run = plan.summary, plan.run
     with all_or_none():
         _emit(summary, as_json, out_file, run.result.profile, r)
@@ -267,10 +272,12 @@ def compare(route: Path = ROUTE,
     _check_outputs(out_file, plot, plot_td=plot_td)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w,
-                      tolerance_s=tolerance, window=window, builder=builder, e_min_kwh=e_min,
-                      params=str(params) if params else None, inputs=(("logs", logs), ("patterns", patterns)), yardstick=gap,
-                      objective=objective)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, algorithm=algorithm, seed=seed, time_s=time_s, weights=w, tolerance_s=tolerance,
+                           window=window, builder=builder, e_min_kwh=e_min, params_path=str(params) if params else None,
+                           yardstick=gap, objective=objective)
+    base = _base_spec(route, consist, stock_dir, settings, inputs=(("logs", logs), ("patterns", patterns)))
     specs = compare_specs(base, names)
     if "proposed" not in names and e_min is None:  # E_min (an energy-saving run) only when a requested strategy needs it
         specs = [replace(x, fitness=False) for x in specs]
@@ -346,9 +353,12 @@ def sweep(route: Path = ROUTE,
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
     values = values if weights else _times(asked, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
-                      params=str(params) if params else None, tolerance_s=tolerance, window=window, builder=builder,
-                      yardstick=gap)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, algorithm=algorithm, seed=seed, time_s=time_s, e_min_kwh=e_min,
+                           params_path=str(params) if params else None, tolerance_s=tolerance, window=window,
+                           builder=builder, yardstick=gap)
+    base = _base_spec(route, consist, stock_dir, settings)
     specs = weight_specs(base, values) if weights else time_specs(base, values)
     check_time_possible(specs)
     with run_progress("sweep runs", len(specs), not as_json) as progress:
@@ -398,8 +408,11 @@ def study(route: Path = ROUTE,
     _check_outputs(out_file, plot)
     opts = model.options()
     time_s = _time(time_s, route, consist, stock_dir, opts, quiet=as_json)
-    base = _base_spec(route, consist, stock_dir, opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min,
-                      tolerance_s=tolerance, window=window, builder=builder, yardstick=gap)
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, seed=seed, time_s=time_s, weights=w, e_min_kwh=e_min, tolerance_s=tolerance,
+                           window=window, builder=builder, yardstick=gap)
+    base = _base_spec(route, consist, stock_dir, settings)
     specs = study_specs(base, algs, runs, params_dir)
     check_time_possible(specs)
     with run_progress("study runs", len(specs), not as_json) as progress:

@@ -104,7 +104,7 @@ def batch(study_file: Path = typer.Argument(..., metavar="STUDY.yaml", help="Stu
         bounds.objective(objective)
     study = load_study(study_file)
     if objective is not None:
-        study = replace(study, specs=[replace(s, objective=objective) for s in study.specs])
+        study = replace(study, specs=[s.replace(objective=objective) for s in study.specs])
     with Store(store_path) as store:
         store.check_writer()
         executor = make_executor(workers, scheduler)
@@ -238,8 +238,11 @@ def pareto(route: Path = typer.Argument(..., metavar="ROUTE|JOURNEY", help="Rout
     opts = model.options()
     journey = route if file_schema(route) == JOURNEY_SCHEMA else None
     ts = _times(asked, route, consist, stock_dir, opts, quiet=as_json, journey=journey)
-    base = RunSpec(None if journey else str(route), str(consist), algorithm=algorithm, options=opts, tolerance_s=tolerance,
-                   window=window, builder=builder, stock_dir=None if stock_dir is None else str(stock_dir),
+    from .settings import RunSettings
+
+    settings = RunSettings(opts, algorithm=algorithm, tolerance_s=tolerance, window=window, builder=builder)
+    base = RunSpec(None if journey else str(route), str(consist), settings=settings,
+                   stock_dir=None if stock_dir is None else str(stock_dir),
                    journey=None if journey is None else str(journey))
     executor = make_executor(workers)
     cb, close = _progress_printer(err, not as_json and err.is_terminal, "pareto runs")

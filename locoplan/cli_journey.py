@@ -47,6 +47,7 @@ def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A 
     from .reporting.tables import fit, show
     from .reporting.writers import with_provenance, write_json
     from .runs.journey import dwell_before, legs_of, plan_journey
+    from .settings import RunSettings
     from .strategy.registry import STRATEGIES
     from .errors import InputError, Problem
     from .cli_common import step_progress
@@ -84,8 +85,8 @@ def journey(journey_file: Path = typer.Argument(..., metavar="JOURNEY", help="A 
                           highlight=False, markup=False, soft_wrap=True)
     n_steps = 3 + len(j.stops) * len(names)
     with step_progress("journey", n_steps, not as_json) as step:
-        result = plan_journey(j, route, train, opts, time_s=total, strategies=names, seed=seed, algorithm=algorithm,
-                              source=str(journey_file), step=step)
+        result = plan_journey(j, route, train, RunSettings(opts, time_s=total, seed=seed, algorithm=algorithm),
+                              strategies=names, source=str(journey_file), step=step)
     s = with_posts(result.summary, route)
     with all_or_none():
         if out_file is not None:

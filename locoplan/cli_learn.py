@@ -126,6 +126,7 @@ def advise(route: Path = ROUTE,
     from .io.patterns import read_patterns_file
     from .learn.patterns import Patterns
     from .runner import make_context, schedule_verdict, summarize, RunResult
+    from .settings import RunSettings
     from .reporting.learn_tables import sections_table
     from .reporting.tables import fit, sequence_table, show, summary_table
     from .strategy.strategies import StrategyOutcome
@@ -144,7 +145,8 @@ def advise(route: Path = ROUTE,
         train = build_train(consist_for_mass(base, vehicles, mass), vehicles, "--mass")
     from .cli_common import _time
 
-    ctx = make_context(r, train, opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json), tolerance_s=tolerance)
+    ctx = make_context(r, train, RunSettings(opts, time_s=_time(time_s, (r, train), options=opts, quiet=as_json),
+                                             tolerance_s=tolerance))
     a = run_advise(pat, r, train, ctx.t0_s, opts, calc=ctx.calc)
     outcome = StrategyOutcome(a.plan, solve_time_s=a.solve_time_s)
     summary = summarize(ctx, "advice", outcome, a.result, with_fitness=False)

@@ -20,10 +20,10 @@ from .model.route import Route
 from .io.optimizer_params import read_optimizer_params
 from .model.train import Train
 from .optimize import registry as optimizer_registry
-from .optimize.base import OptimizerParams
 from .optimize.problem import fitness_eq10
 from .physics.units import KMH_PER_MS, S_PER_H
 from .sim.calculator import ModelOptions, TractionCalculator
+from .settings import RunSettings
 from .sim.result import BatchResult
 from .strategy import registry
 from .strategy.sequence import build_sequence
@@ -56,24 +56,20 @@ def planned_time(route: Route, time_s: float | None) -> float:
     return float(route.schedule.run_time_s)
 
 
-def make_context(route: Route, train: Train, options: ModelOptions | None = None, *, time_s: float | None = None,
-                 e_min_kwh: float | None = None, weights: tuple[float, float] = (0.5, 0.5), algorithm: str = "issa",
-                 seed: int = 1, params_path: str | None = None, params: OptimizerParams | None = None,
-                 callback: Callable[[int, float], None] | None = None, need_time: bool = True,
-                 tolerance_s: float | None = None, window: bool = True, builder: str | None = None,
-                 yardstick: bool = False,
-                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None,
-                 objective: str = "traction") -> StrategyContext:
-    """Calculators (reporting grid and search grid) and the optimisation settings.
+def make_context(route: Route, train: Train, settings: RunSettings | None = None, *,
+                 callback: Callable[[int, float], None] | None = None,
+                 calculators: tuple[TractionCalculator, TractionCalculator] | None = None) -> StrategyContext:
+    """Calculators (reporting grid and search grid) and the optimisation settings (:class:`RunSettings`,
+    default all defaults).
 
     The punctuality window is T0 +- ``tolerance_s`` (default: the route's schedule tolerance); with
     ``window=False`` the optimiser ranks by eq. 10 alone, as the ISSA paper's own tables evidently did.
     ``calculators``: (reporting, search) calculators of an earlier context of the same route, train and
-    options, to reuse (a batch's runs share them). ``params``: the optimiser's parameters, or
-    ``params_path`` a file to read them from (neither: the algorithm's defaults, the ISSA paper's Table 5).
-    ``objective``: what the energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
-    Errors name the argument (``time_s``, ``e_min_kwh``...)."""
-    options = options or ModelOptions()
+    options, to reuse (a batch's runs share them). ``callback(iteration, best)`` follows the search.
+    Errors name the setting (``time_s``, ``e_min_kwh``...)."""
+    s = settings if settings is not None else RunSettings()
+    options, time_s, e_min_kwh, tolerance_s = s.options, s.time_s, s.e_min_kwh, s.tolerance_s
+    objective, seed, builder, params = s.objective, s.seed, s.builder, s.params
     bounds.objective(objective, "objective")
     bounds.seed(seed, "seed")
     if e_min_kwh is not None:
@@ -91,7 +87,7 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
             # a climb the train barely makes (a few km/h at the top) can stall on the coarser grid alone:
             # then the search grid would refuse every plan the reporting grid accepts, so search on that
             search = calc
-    t0 = planned_time(route, time_s) if need_time or time_s is not None or route.schedule else float("nan")
+    t0 = planned_time(route, time_s) if s.need_time or time_s is not None or route.schedule else float("nan")
     if e_min_kwh is not None and not (math.isfinite(e_min_kwh) and e_min_kwh > 0):
         raise InputError(Problem("", "e_min_kwh", f"must be a finite number > 0 kWh (got {e_min_kwh:g})"))
     if tolerance_s is not None and not (math.isfinite(tolerance_s) and tolerance_s >= 0):
@@ -107,10 +103,10 @@ def make_context(route: Route, train: Train, options: ModelOptions | None = None
         builder = "general"
     registry.check_builder(builder)
     builder = registry.builder_name(builder)
-    if params is None and params_path is not None:
-        params = load_optimizer_params(algorithm, params_path)
-    return StrategyContext(calc, search, t0, e_min_kwh, tuple(weights), algorithm, seed, params, callback,
-                           tol, window, yardstick, builder, objective)
+    if params is None and s.params_path is not None:
+        params = load_optimizer_params(s.algorithm, s.params_path)
+    return StrategyContext(calc, search, t0, e_min_kwh, tuple(s.weights), s.algorithm, seed, params, callback,
+                           tol, s.window, s.yardstick, builder, objective)
 
 
 
@@ -188,7 +184,7 @@ def summarize(ctx: StrategyContext, name: str, outcome: StrategyOutcome, res: Ba
              else float(res.energy_kwh(ctx.objective)[0]))
     t0 = ctx.t0_s
     prof = res.profile
-    e_min = next((e for e in (outcome.e_min_kwh, ctx.e_min_kwh, ctx._e_min_cache.get("e")) if e is not None), None)
+    e_min = next((e for e in (outcome.e_min_kwh, ctx.e_min_known) if e is not None), None)
     fit = None
     if with_fitness and e_min is not None and res.feasible[0] and not math.isnan(t0) and not math.isnan(e_obj):
         fit = round(float(fitness_eq10(t, e_obj, t0, e_min, *ctx.weights)), 5)
@@ -354,7 +350,7 @@ def run_sequence(ctx: StrategyContext, text: str) -> RunResult:
 def proposed_sequence(route: Route, train: Train, options: ModelOptions | None = None, builder: str | None = None):
     """The limit and grade classification behind the ISSA paper's proposed sequence, with its nominal switching
     points (``compare --explain``), on the optimisers' search grid."""
-    return build_sequence(make_context(route, train, options, need_time=False, builder=builder).search)
+    return build_sequence(make_context(route, train, RunSettings(options, need_time=False, builder=builder)).search)
 
 
 def study_table(results: dict[str, list[RunResult]], tolerance_s: float | None) -> list[dict]:

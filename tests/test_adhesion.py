@@ -11,6 +11,7 @@ from locoplan.io.load import load_route, load_train
 from locoplan.ocp.bound import energy_bound
 from locoplan.physics.adhesion import adhesion_force_kn, adhesion_limited
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 
 G = 9.81
@@ -94,7 +95,7 @@ def test_estar_honours_the_adhesion_and_stays_below_every_plan(wet, dry, options
     e_wet = energy_bound(route, train, options, t0)
     e_dry = energy_bound(route, dry, options, t0)
     assert e_wet.energy_kwh > e_dry.energy_kwh * (1 + e_dry.accuracy)
-    ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.01 * t0)
+    ctx = make_context(route, train, RunSettings(options, time_s=t0, tolerance_s=0.01 * t0))
     kept = 0
     for name in ("time-saving", "energy-saving", "four-stage", "proposed"):
         s = run_strategy(ctx, name).summary

@@ -333,9 +333,10 @@ def test_heavy_haul_optimize_respects_the_recharge_and_the_couplers(heavy_haul):
     its cycles each at least the 90 s recharge apart, its couplers within 2,250 kN, and E* (the air brake
     relaxed to a continuous force) below it."""
     from locoplan.runner import make_context, run_strategy
+    from locoplan.settings import RunSettings
 
     route, train = heavy_haul
-    ctx = make_context(route, train, ModelOptions(), yardstick=True)
+    ctx = make_context(route, train, RunSettings(ModelOptions(), yardstick=True))
     out = run_strategy(ctx, "proposed")
     s = out.summary
     assert s["feasible"] and s["punctual"], s["reason"]
@@ -408,10 +409,11 @@ def test_every_strategy_plans_drivable_cycles(c80x50, strategy):
     """Every strategy's plan down the 7 km at -15 per mille is accepted by the calculator, so its air brake keeps
     the recharge (each application at least 60 s after the release before it) and the limit."""
     from locoplan.runner import make_context, run_strategy
+    from locoplan.settings import RunSettings
 
     route = hand_made_route([(10000, 60.0)], [(2000, 0.0), (9000, -15.0), (10000, 0.0)], 10000,
                             schedule={"run_time_s": 900, "tolerance_s": 30})
-    ctx = make_context(route, c80x50, ModelOptions(), yardstick=False)
+    ctx = make_context(route, c80x50, RunSettings(ModelOptions(), yardstick=False))
     out = run_strategy(ctx, strategy)
     s = out.summary
     assert s["feasible"], s["reason"]

@@ -50,12 +50,14 @@ def reference(study_file):
     """The study's runs one by one, as `locoplan optimize` does them (make_context + run_strategy)."""
     from locoplan.io.load import load_route, load_train
     from locoplan.runner import make_context, run_strategy
+    from locoplan.settings import RunSettings
 
     specs = load_study(study_file).specs
     route, train = load_route(ROUTE), load_train("HXD1-C80x30")
     out = []
     for s in specs:
-        ctx = make_context(route, train, time_s=s.time_s, algorithm=s.algorithm, seed=s.seed, yardstick=False)
+        ctx = make_context(route, train, RunSettings(time_s=s.time_s, algorithm=s.algorithm, seed=s.seed,
+                                                     yardstick=False))
         summary = run_strategy(ctx, "proposed").summary
         summary.pop("solve_time_s")
         out.append(summary)
@@ -275,10 +277,11 @@ def test_pareto_with_the_optimum_never_beats_it():
 def test_library_errors_name_arguments_and_the_cli_names_flags(freight):
     from locoplan.errors import InputError
     from locoplan.runner import make_context
+    from locoplan.settings import RunSettings
 
     route, train = freight
     with pytest.raises(InputError) as exc:
-        make_context(route, train, time_s=-3)
+        make_context(route, train, RunSettings(time_s=-3))
     assert exc.value.problems[0].field == "time_s" and "--" not in str(exc.value)
     res = cli.invoke(app, ["compare", str(ROOT / "routes/freight-20km.yaml"), "--time", "-3"])
     assert res.exit_code == 2 and "<command line>: --time: must be in [1, 604,800] s (got -3)" in res.stderr, res.stderr

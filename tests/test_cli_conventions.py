@@ -295,9 +295,10 @@ def test_validate_json_has_the_verdict_too(tmp_path):
 def test_library_errors_name_the_argument_not_the_command_line(freight):
     from locoplan.errors import InputError
     from locoplan.runner import make_context
+    from locoplan.settings import RunSettings
 
     with pytest.raises(InputError) as exc:
-        make_context(*freight, time_s=-5)
+        make_context(*freight, RunSettings(time_s=-5))
     assert str(exc.value).startswith("time_s: must be in") and "<command line>" not in str(exc.value)
 
 

@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from locoplan.cli import app
 from locoplan.reporting.writers import PROFILE_COLUMNS, RUN_COLUMNS
 from locoplan.runner import make_context
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions
 
 runner = CliRunner()
@@ -30,8 +31,8 @@ def test_e_min_does_not_depend_on_the_seed(freight, builder, point_mass):
     opts = ModelOptions.papers() if point_mass else ModelOptions()
     values = set()
     for seed in (1, 2, 3):
-        ctx = make_context(route, train, opts, seed=seed, algorithm="pso" if seed == 3 else "issa", builder=builder,
-                           yardstick=False)
+        ctx = make_context(route, train, RunSettings(opts, seed=seed, algorithm="pso" if seed == 3 else "issa",
+                                                     builder=builder, yardstick=False))
         values.add(round(ctx.e_min(), 6))
     assert len(values) == 1, values
     e = values.pop()

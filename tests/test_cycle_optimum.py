@@ -371,10 +371,11 @@ def test_summary_gives_the_bracket(descent, c80x50):
     """A plan's summary puts it in the bracket: E* <= the cycle optimum, both at its own running time, and its gap
     to the latter (None without the cycle: the same plan with the air brake a continuous force)."""
     from locoplan.runner import make_context, run_sequence
+    from locoplan.settings import RunSettings
 
     route, calc, t, co = descent
     plan = plan_from_cycle_drive(calc, co.drive)
-    ctx = make_context(route, c80x50, POINT_MASS, time_s=t, yardstick=True)
+    ctx = make_context(route, c80x50, RunSettings(POINT_MASS, time_s=t, yardstick=True))
     s = run_sequence(ctx, plan.text()).summary
     assert s["feasible"] and s["optimum_with_cycle_kwh"] is not None
     assert s["optimum_with_cycle_kwh"] >= s["optimum_kwh"]
@@ -383,7 +384,8 @@ def test_summary_gives_the_bracket(descent, c80x50):
     assert s["gap_to_cycle_optimum_percent"] == pytest.approx(100 * (e - e_cyc) / e_cyc,
                                                              abs=0.005 + 0.5 * (1 / e_cyc + e / e_cyc**2))
     assert s["optimum_with_cycle_accuracy_percent"] > 0
-    ctx = make_context(route, c80x50, ModelOptions(point_mass=True, air_cycle=False), time_s=t, yardstick=True)
+    ctx = make_context(route, c80x50, RunSettings(ModelOptions(point_mass=True, air_cycle=False), time_s=t,
+                                                  yardstick=True))
     s = run_sequence(ctx, plan.text()).summary
     assert s["feasible"] and s["optimum_kwh"] is not None
     assert s["optimum_with_cycle_kwh"] is None and s["gap_to_cycle_optimum_percent"] is None

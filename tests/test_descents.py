@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from fastest_oracle import FastestOracle
 from locoplan.cli import app
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.sim.result import IMPOSSIBLE
 from routes import hand_made_route
@@ -153,7 +154,7 @@ def test_every_model_plans_the_hand_case(root, monkeypatch, options):
 
     route = hand_made_route([(12000, 60)], [(3000, 0.0), (5000, -12.0), (12000, 0.0)], 12000,
                             schedule={"run_time_s": 1000, "tolerance_s": 10})
-    ctx = make_context(route, load_train("HXD1-C80x50"), options, yardstick=True)
+    ctx = make_context(route, load_train("HXD1-C80x50"), RunSettings(options, yardstick=True))
     out = run_strategy(ctx, "proposed")
     s = out.summary
     assert s["feasible"], s
@@ -173,13 +174,13 @@ def test_point_mass_chooses_the_model_not_the_method(freight):
     from locoplan.runs.spec import RunSpec
 
     route, train = freight
-    assert make_context(route, train, SEEDS).builder == "general"
-    assert make_context(route, train, SEEDS, builder="issa-paper").builder == "issa-paper"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS).resolved_builder == "general"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="issa-paper").resolved_builder == "issa-paper"
+    assert make_context(route, train, RunSettings(SEEDS)).builder == "general"
+    assert make_context(route, train, RunSettings(SEEDS, builder="issa-paper")).builder == "issa-paper"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS)).resolved_builder == "general"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS, builder="issa-paper")).resolved_builder == "issa-paper"
     # the builder's earlier name is an alias: the same context, the same resolved builder, the same store key name
-    assert make_context(route, train, SEEDS, builder="seed002").builder == "issa-paper"
-    assert RunSpec("r.yaml", "c.yaml", options=SEEDS, builder="seed002").resolved_builder == "issa-paper"
+    assert make_context(route, train, RunSettings(SEEDS, builder="seed002")).builder == "issa-paper"
+    assert RunSpec("r.yaml", "c.yaml", settings=RunSettings(SEEDS, builder="seed002")).resolved_builder == "issa-paper"
     from locoplan.strategy import registry
     assert registry.builder_key("issa-paper") == "seed002" and registry.builder_key("general") == "general"
 

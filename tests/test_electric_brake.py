@@ -115,12 +115,13 @@ def test_the_proposed_plan_brakes_on_the_electric_brake_before_a_drop(root):
     the brake is all it needs: E runs may be as short as ``E_MIN_RUN_M`` (50 m), and the plan's is shorter than
     100 m (with E runs of at least 100 m the plan lay 1.3 % over the cycle optimum)."""
     from locoplan.runner import make_context, run_strategy, schedule_verdict
+    from locoplan.settings import RunSettings
 
     route = load_route(root / "tests/data/routes/falling-drops-37km.yaml")
     train = load_train(root / "tests/data/consists/HXD1-C64x25.yaml")
     calc = TractionCalculator(route, train)
     t0 = round(1.23 * calc.fastest_time_s, 1)
-    ctx = make_context(route, train, ModelOptions(), time_s=t0, tolerance_s=0.01 * t0, yardstick=True)
+    ctx = make_context(route, train, RunSettings(ModelOptions(), time_s=t0, tolerance_s=0.01 * t0, yardstick=True))
     run = run_strategy(ctx, "proposed")
     s = run.summary
     assert schedule_verdict(ctx, run) is None, s

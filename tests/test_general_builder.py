@@ -11,6 +11,7 @@ from locoplan.io.load import load_route, load_train
 from locoplan.model.conditions import CONDITIONS
 from locoplan.optimize.dp import PricedDriveSolver
 from locoplan.runner import make_context, run_strategy, schedule_verdict
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.general_builder import sequence_from_drive
 from routes import hand_made_route
@@ -121,7 +122,8 @@ def test_proposed_on_a_line_the_seed_builder_could_not_drive(root):
     train = load_train(root / "configs/consists/HXD1-C80x30.yaml")
     fastest = TractionCalculator(route, train).fastest_time_s
     t0 = round(1.2 * fastest)
-    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0, params_path=str(root / "tests/data/optimizers/issa.yaml"))
+    ctx = make_context(route, train, RunSettings(time_s=t0, tolerance_s=0.01 * t0,
+                                                 params_path=str(root / "tests/data/optimizers/issa.yaml")))
     prop = run_strategy(ctx, "proposed")
     four = run_strategy(ctx, "four-stage")
     assert schedule_verdict(ctx, prop) is None
@@ -138,7 +140,7 @@ def test_a_falling_line_slower_than_its_least_energy(root):
     train = load_train(root / "configs/consists/HXD1-C80x30.yaml")
     fastest = TractionCalculator(route, train).fastest_time_s
     t0 = round(1.6 * fastest, 1)
-    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+    ctx = make_context(route, train, RunSettings(time_s=t0, tolerance_s=0.01 * t0))
     prop = run_strategy(ctx, "proposed")
     assert schedule_verdict(ctx, prop) is None, prop.summary
 
@@ -167,7 +169,7 @@ def test_dp_drives_a_heavy_train_through_neutral_sections_near_its_top_speed(roo
     # that relaxation's fastest run; the calculator's own, cycling the air brake down the descent, is slower)
     relaxed = TractionCalculator(route, train, ModelOptions(step_m=100, air_cycle=False))
     assert times[0] < times[1] < times[2] and times[0] >= relaxed.fastest_time_s - 1.0
-    ctx = make_context(route, train, time_s=1500.0)
+    ctx = make_context(route, train, RunSettings(time_s=1500.0))
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
 
@@ -181,7 +183,7 @@ def test_a_heavy_train_that_barely_climbs_a_steep_grade(root, leg):
     route = load_route(root / f"routes/real/{leg}.yaml")
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
     fastest = TractionCalculator(route, train).fastest_time_s
-    ctx = make_context(route, train, time_s=round(1.15 * fastest, 1))
+    ctx = make_context(route, train, RunSettings(time_s=round(1.15 * fastest, 1)))
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
     least = run_strategy(ctx, "energy-saving").summary
@@ -205,7 +207,7 @@ def test_a_climb_a_weak_train_crawls_over(root):
         assert r.feasible[0] and np.nanmin(r.profile.v_kmh[0][crest]) < 5.0  # it crawls, and makes it
     assert runs[50.0].running_time_s[0] == pytest.approx(runs[25.0].running_time_s[0], rel=5e-4)
     fastest = float(runs[50.0].running_time_s[0])
-    ctx = make_context(route, train, time_s=round(1.15 * fastest, 1))
+    ctx = make_context(route, train, RunSettings(time_s=round(1.15 * fastest, 1)))
     assert ctx.search.evaluate(("T",), np.zeros((1, 0))).feasible[0]
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
@@ -236,7 +238,7 @@ def test_a_falling_line_with_rises_spends_its_spare_time_braking_not_pulling(roo
     coast = calc.evaluate(("C", "B"), np.array([[np.nan]]))
     assert coast.feasible[0] and coast.traction_energy_kwh[0] == 0.0  # it coasts the line from rest
     t0 = round(float(coast.running_time_s[0]) * 1.03, 1)
-    ctx = make_context(route, train, time_s=t0, tolerance_s=0.01 * t0)
+    ctx = make_context(route, train, RunSettings(time_s=t0, tolerance_s=0.01 * t0))
     run = run_strategy(ctx, "proposed")
     assert schedule_verdict(ctx, run) is None, run.summary
     assert run.summary["traction_energy_kwh"] < 0.01 * calc.evaluate(("T",), np.zeros((1, 0))).traction_energy_kwh[0]
@@ -266,7 +268,8 @@ def test_neutral_sections_near_the_stop_have_a_drive(root):
     from locoplan.strategy.strategies import drive_solver
 
     for kmh, length, before_stop, coast_s in NEAR_STOP:
-        ctx = make_context(_near_stop(kmh, length, before_stop, coast_s), train, time_s=300.0, yardstick=False)
+        ctx = make_context(_near_stop(kmh, length, before_stop, coast_s), train, RunSettings(time_s=300.0,
+                                                                                             yardstick=False))
         assert ctx.calc.evaluate(("T",), np.zeros((1, 0))).feasible[0]
         case = (kmh, length, before_stop, coast_s)
         solver = drive_solver(ctx)
@@ -276,7 +279,7 @@ def test_neutral_sections_near_the_stop_have_a_drive(root):
 
 def test_optimize_on_time_with_a_neutral_section_before_the_stop():
     """The issue's case: a 50 m neutral section ending 150 m before the stop (10 s margins), T0 = 300 s."""
-    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), time_s=300.0)
+    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), RunSettings(time_s=300.0))
     run = run_strategy(ctx, "proposed")
     assert run.summary["feasible"] and schedule_verdict(ctx, run) is None
 
@@ -287,7 +290,8 @@ def test_stall_boundary_below_a_cap_too_fast_to_hold():
     still can, and the boundary is among them, not 'none' (inf)."""
     from locoplan.optimize import dp_kernel
 
-    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), time_s=300.0, yardstick=False)
+    ctx = make_context(_near_stop(60, 50, 150, 10.0), load_train("HXD1-C64-seed000"), RunSettings(time_s=300.0,
+                                                                                                  yardstick=False))
     from locoplan.strategy.strategies import drive_solver
 
     solver = drive_solver(ctx)
@@ -318,7 +322,7 @@ def test_a_climb_asked_for_just_more_than_its_fastest_run(root, options, consist
     route = legs_of(journey, line, train, options)[10].route
     calc = TractionCalculator(route, train, options)
     fastest = calc.evaluate(("T",), np.zeros((1, 0)))
-    ctx = make_context(route, train, options, time_s=1.02 * calc.fastest_time_s)
+    ctx = make_context(route, train, RunSettings(options, time_s=1.02 * calc.fastest_time_s))
     run = run_strategy(ctx, "proposed")
     assert not schedule_verdict(ctx, run), run.summary
     assert run.summary["traction_energy_kwh"] < float(fastest.traction_energy_kwh[0])

@@ -340,11 +340,12 @@ def test_the_optimum_is_a_lower_bound_where_plans_brake_in_a_neutral_span(freigh
     braking there, random lines showed plans 18 % below their 'optimum')."""
     from locoplan.ocp.bound import energy_bound
     from locoplan.runner import make_context, run_strategy
+    from locoplan.settings import RunSettings
 
     _, train = freight
     route = _neutral_before_a_drop()
     calc = TractionCalculator(route, train)
-    ctx = make_context(route, train, time_s=round(1.05 * calc.fastest_time_s, 1))
+    ctx = make_context(route, train, RunSettings(time_s=round(1.05 * calc.fastest_time_s, 1)))
     run = run_strategy(ctx, "proposed")
     s = run.summary
     prof = run.result.profile

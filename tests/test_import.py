@@ -20,6 +20,7 @@ from locoplan.io.readers.railtoolkit import davis_coefficients
 from locoplan.io.readers.ttobench import mean_abs_curvature
 from locoplan.physics.resistance import basic_resistance_n_per_kn, train_resistance_kn
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +90,7 @@ def test_every_shipped_route_validates_and_its_fastest_run_is_feasible_with_both
         if path.parent.name == "real":
             assert max(x.kmh for x in route.speed_limits) <= 80
         for train in trains:
-            ctx = make_context(route, train, ModelOptions(), need_time=False)
+            ctx = make_context(route, train, RunSettings(ModelOptions(), need_time=False))
             run = run_strategy(ctx, "time-saving", with_fitness=False)
             assert run.result.feasible[0], (path.name, train.name, run.result.reason(0))
 
@@ -204,7 +205,8 @@ TRAINRUNS_S = {"const": 746.6594691660882, "slope": 842.3797947097586, "speed": 
 @pytest.mark.parametrize("path", sorted(TRAINRUNS_S))
 def test_running_times_agree_with_trainruns_within_its_own_tolerance(path):
     route = load_route(ROOT / "routes/railtoolkit" / f"{path}.yaml")
-    ctx = make_context(route, load_train("Fr100"), ModelOptions(step_m=20, point_mass=True, air_brake=True), need_time=False)
+    ctx = make_context(route, load_train("Fr100"), RunSettings(ModelOptions(step_m=20, point_mass=True,
+                                                                            air_brake=True), need_time=False))
     run = run_strategy(ctx, "time-saving", with_fitness=False)
     assert run.result.feasible[0]
     assert run.summary["running_time_s"] == pytest.approx(TRAINRUNS_S[path], rel=0.01)

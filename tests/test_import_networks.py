@@ -25,6 +25,7 @@ from locoplan.importer import run_import
 from locoplan.io.load import load_journey, load_route, load_train, load_vehicle
 from locoplan.io.readers import ImportOptions
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -175,7 +176,7 @@ def test_osrd_neutral_section_is_coasted_by_every_strategy(tmp_path):
     route = load_route(tmp_path / "West_station-Mid_West_station.yaml")
     ns = route.neutral_sections[0]
     train = load_train("HXD1-C80x50")
-    ctx = make_context(route, train, ModelOptions(), time_s=900)
+    ctx = make_context(route, train, RunSettings(ModelOptions(), time_s=900))
     for name in ("time-saving", "energy-saving", "four-stage", "proposed"):
         run = run_strategy(ctx, name, with_fitness=False)
         p = run.result.profile
@@ -216,7 +217,7 @@ def _optimize_all(paths, trains):
     for electric_route, thermal_route in paths:
         for train, thermal in trains:
             route = load_route(thermal_route if thermal else electric_route)
-            ctx0 = make_context(route, train, ModelOptions(step_m=100), need_time=False)
+            ctx0 = make_context(route, train, RunSettings(ModelOptions(step_m=100), need_time=False))
             fast = run_strategy(ctx0, "time-saving", with_fitness=False)
             if not thermal and not bool(fast.result.feasible[0]):
                 at = float(fast.result.failure_m[0])
@@ -224,10 +225,11 @@ def _optimize_all(paths, trains):
                 skipped += 1
                 continue
             fastest = fast.summary["running_time_s"]
-            ctx = make_context(route, train, ModelOptions(step_m=100), time_s=round(1.15 * fastest), params=_fast_params())
+            ctx = make_context(route, train, RunSettings(ModelOptions(step_m=100), time_s=round(1.15 * fastest),
+                                                         params=_fast_params()))
             run = run_strategy(ctx, "proposed", with_fitness=False)
             if not run.summary["punctual"]:  # the small search missed the window: the default search
-                ctx = make_context(route, train, ModelOptions(step_m=100), time_s=round(1.15 * fastest))
+                ctx = make_context(route, train, RunSettings(ModelOptions(step_m=100), time_s=round(1.15 * fastest)))
                 run = run_strategy(ctx, "proposed", with_fitness=False)
             assert bool(run.result.feasible[0]) and run.summary["punctual"], (route.name, train.name, run.summary)
     return skipped
@@ -315,7 +317,8 @@ def test_osrd_train_fastest_run_matches_an_independent_integration(tmp_path, sto
     vmax = min(src["max_speed"], 160 / 3.6)
     route = load_route(_flat_route(tmp_path, round(vmax * 3.6, 6)))
     train = load_train(tmp_path / "consists" / f"{stock}.yaml")
-    run = run_strategy(make_context(route, train, ModelOptions(), need_time=False), "time-saving", with_fitness=False)
+    run = run_strategy(make_context(route, train, RunSettings(ModelOptions(), need_time=False)), "time-saving",
+                       with_fitness=False)
     got = run.summary["running_time_s"]
     # the same physics written out: M_i dv/dt = F(v) - R(v) accelerating, -(M_i gamma + R(v)) braking
     m_i = src["mass"] * src["inertia_coefficient"]

@@ -19,6 +19,7 @@ from locoplan.io.load import load_journey, load_train
 from locoplan.runs.journey import (MIN_LEG_TOLERANCE_S, allocate, allocation_energy, arrival_bounds, fastest_clock,
                                    journey_run_summary, leg_window, legs_of, plan_journey, running_windows)
 from locoplan.sim.calculator import ModelOptions
+from locoplan.settings import RunSettings
 
 runner = CliRunner()
 DATA = "tests/data/journeys"
@@ -305,14 +306,14 @@ def test_a_missed_stop_window_fails_the_strategies_that_keep_time(root, train):
     total = round(1.2 * sum(leg.fastest_s for leg in legs), 1)
     j = _journey_with_windows(j, legs, total, 0.005, 60.0)
     b = j.stations[1]
-    res = plan_journey(j, route, train, ModelOptions(), time_s=total, strategies=("energy-saving",))
+    res = plan_journey(j, route, train, RunSettings(time_s=total), strategies=("energy-saving",))
     arrives = float(res.runs[0]["run"].result.profile.t_s[0, -1])  # leg 1's profile: the clock at B
     assert not (b.earliest_s <= arrives <= b.latest_s)
     s = res.summary
     assert res.failures == [] and s["stations"][1]["plans"]["energy-saving"]["in_window"] is False
     assert s["plans"]["energy-saving"]["windows_missed"] == [f"B at {arrives:.1f} s"]
     assert s["plans"]["energy-saving"]["punctual"] is False
-    res = plan_journey(j, route, train, ModelOptions(), time_s=total, strategies=("energy-saving",), strict=True)
+    res = plan_journey(j, route, train, RunSettings(time_s=total), strategies=("energy-saving",), strict=True)
     assert any(f"arrives at B at {arrives:.1f} s, outside its window" in f for f in res.failures)
     record = journey_run_summary(res, j, "energy-saving")
     assert record["punctual"] is False and record["failures"] == res.failures
@@ -341,10 +342,11 @@ def test_a_leg_plan_that_ends_outside_its_bounds_is_made_again_with_the_time_mov
     b = j.stations[1]
     allocated = total / 2  # two identical legs
     # asked for the allocation's time, it would end past B's window
-    first = late(make_context(legs[0].route, train, ModelOptions(), time_s=allocated, tolerance_s=1.0))
-    assert float(evaluate_outcome(make_context(legs[0].route, train, ModelOptions(), time_s=allocated).calc,
+    first = late(make_context(legs[0].route, train, RunSettings(ModelOptions(), time_s=allocated, tolerance_s=1.0)))
+    assert float(evaluate_outcome(make_context(legs[0].route, train, RunSettings(ModelOptions(),
+                                                                                 time_s=allocated)).calc,
                                   first).running_time_s[0]) > b.latest_s + 1.0
-    res = plan_journey(j, route, train, ModelOptions(), time_s=total, strategies=("late",))
+    res = plan_journey(j, route, train, RunSettings(time_s=total), strategies=("late",))
     s = res.summary
     leg1 = s["legs_table"][0]["plans"]["late"]
     assert leg1["replans"] >= 1 and leg1["planned_time_s"] < allocated - 4.0

@@ -20,6 +20,7 @@ from locoplan.errors import InputError
 from locoplan.runs import RunSpec, Store, run_many
 from locoplan.runs.spec import load_inputs, spec_key
 from locoplan.runs.study import load_study
+from locoplan.settings import RunSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests/data/journeys"
@@ -150,8 +151,10 @@ def test_resume_runs_nothing_again_and_the_key_is_the_journeys_content(batch, tm
     (tmp_path / "dwell.yaml").write_text(TWIN.read_text().replace("dwell_s: 60", "dwell_s: 90").replace(
         "route: twin.yaml", "route: line.yaml"))
     base = load_study(other).specs[0]
-    specs = [base, RunSpec(journey=str(tmp_path / "dwell.yaml"), consist=CONSIST, strategy="four-stage", time_s=base.time_s),
-             RunSpec(journey=base.journey, consist=CONSIST, strategy="four-stage", time_s=base.time_s + 1)]
+    specs = [base, RunSpec(journey=str(tmp_path / "dwell.yaml"), consist=CONSIST, strategy="four-stage",
+                           settings=RunSettings(time_s=base.time_s)),
+             RunSpec(journey=base.journey, consist=CONSIST, strategy="four-stage",
+                     settings=RunSettings(time_s=base.time_s + 1))]
     inputs = load_inputs(specs)
     assert len({spec_key(s, inputs) for s in specs}) == 3
     # a journey run's key is not a route run's of its line, nor does a journey spec name both

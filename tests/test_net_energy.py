@@ -132,7 +132,7 @@ def test_a_batch_with_the_net_objective(tmp_path):
     study.write_text(f"routes: [{route}]\nstrategies: [four-stage]\nobjective: net\n")
     specs = load_study(study).specs
     assert [s.objective for s in specs] == ["net"]
-    traction = dataclasses.replace(specs[0], objective="traction")
+    traction = specs[0].replace(objective="traction")
     inputs = load_inputs([specs[0], traction])
     assert spec_key(specs[0], inputs) != spec_key(traction, inputs)
     assert spec_key(traction, inputs) == spec_key(RunSpec(route, strategy="four-stage"), inputs)

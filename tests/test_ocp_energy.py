@@ -27,6 +27,7 @@ from locoplan.physics.energy import EnergyModel, energy_rate_kn
 from locoplan.physics.resistance import train_resistance_kn
 from locoplan.physics.traction import gradient_force_kn, max_force_kn
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from routes import hand_made_route
 
@@ -162,7 +163,7 @@ def test_orderings_of_seed001_strategies(freight):
     (MPOC-C) and the four-stage method (SFS); every plan is the calculator's re-simulation."""
     _, train = freight
     route = load_route("routes/freight-20km-ns.yaml")
-    ctx = make_context(route, train, ModelOptions(), yardstick=False)
+    ctx = make_context(route, train, RunSettings(ModelOptions(), yardstick=False))
     e = {n: run_strategy(ctx, n).summary for n in ("mpoc", "mpoc-c", "sfs")}
     assert all(s["feasible"] and s["punctual"] for s in e.values())
     assert e["mpoc"]["traction_energy_kwh"] < e["mpoc-c"]["traction_energy_kwh"] < e["sfs"]["traction_energy_kwh"]

@@ -14,6 +14,7 @@ from locoplan.model.plan import parse_sequence
 from locoplan.ocp.bound import energy_bound
 from locoplan.optimize.problem import SwitchingProblem, fitness_eq10
 from locoplan.runner import make_context, run_strategy, schedule_verdict
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from routes import hand_made_route
 
@@ -22,7 +23,8 @@ SMALL_KWH = 0.3
 
 
 def _proposed(route, train, options, t0, tol=None):
-    ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.01 * t0 if tol is None else tol, yardstick=True)
+    ctx = make_context(route, train, RunSettings(options, time_s=t0, tolerance_s=0.01 * t0 if tol is None else tol,
+                                                 yardstick=True))
     run = run_strategy(ctx, "proposed")
     return ctx, run
 
@@ -138,7 +140,7 @@ def test_among_punctual_plans_the_fitness_orders_as_the_energy_does(root):
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
     options = ModelOptions.papers()
     t0 = round(1.1 * TractionCalculator(route, train, options).fastest_time_s, 1)
-    ctx = make_context(route, train, options, time_s=t0, tolerance_s=0.05 * t0)
+    ctx = make_context(route, train, RunSettings(options, time_s=t0, tolerance_s=0.05 * t0))
     e_min = ctx.e_min()
     rng = np.random.default_rng(7)
     X = np.column_stack([np.sort(rng.uniform(0, 60, (300, 1)), axis=1), np.full(300, np.nan)])
@@ -160,15 +162,15 @@ def test_the_table_and_json_say_which_e_min(freight, tmp_path):
     """The general builder's E_min is E* at the window's end; seed 002's builder keeps the energy-saving run's
     (the paper's tables reproduce with it); --e-min overrides both."""
     route, train = freight
-    ctx = make_context(route, train, ModelOptions(), time_s=1500.0)
+    ctx = make_context(route, train, RunSettings(ModelOptions(), time_s=1500.0))
     assert ctx.e_min_source is None
     e = ctx.e_min()
     assert ctx.e_min_source == "optimum" and ctx.e_min_time_s == pytest.approx(1530.0)
     assert e == pytest.approx(energy_bound(route, train, ModelOptions(), 1530.0).energy_kwh)
-    seed = make_context(route, train, ModelOptions.papers(), time_s=1500.0, builder="issa-paper")
+    seed = make_context(route, train, RunSettings(ModelOptions.papers(), time_s=1500.0, builder="issa-paper"))
     seed.e_min()
     assert seed.e_min_source == "energy-saving"
-    given = make_context(route, train, ModelOptions(), time_s=1500.0, e_min_kwh=600.0)
+    given = make_context(route, train, RunSettings(ModelOptions(), time_s=1500.0, e_min_kwh=600.0))
     assert given.e_min() == 600.0 and given.e_min_source == "given"
 
 

@@ -13,6 +13,7 @@ import pytest
 from locoplan.io.load import load_route, load_train
 from locoplan.reporting import plot_ocp
 from locoplan.reporting.plot import FILE_LIMIT, TRAIN_LIMIT
+from locoplan.settings import RunSettings
 
 LINE = ("neutral section", "tunnel", "curve", "station (stop)")
 
@@ -131,11 +132,10 @@ def test_pareto_title_wraps_a_long_name_inside_the_figure(tmp_path, monkeypatch)
 def ns_profiles(root):
     """Plans on freight-20km-ns whose grids differ: mpoc-n refines its grid at its own switching points."""
     from locoplan import api
-    from locoplan.sim.calculator import ModelOptions
 
     route = load_route(root / "routes/freight-20km-ns.yaml")
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
-    profiles = {name: api.simulate(route, train, ModelOptions(), strategy=name, time_s=1500.0).run.result.profile
+    profiles = {name: api.simulate(route, train, RunSettings(time_s=1500.0), strategy=name).run.result.profile
                 for name in ("mpoc-n", "sfs", "time-saving", "four-stage")}
     return route, profiles
 

@@ -19,6 +19,7 @@ from locoplan import bounds
 from locoplan.cli import app
 from locoplan.errors import InputError
 from locoplan.io.load import load_route
+from locoplan.settings import RunSettings
 
 runner = CliRunner()
 POSTS = "tests/data/routes/posts-6km.yaml"
@@ -237,11 +238,10 @@ def test_profile_plot_reads_posts_and_names_the_stations(root):
     from locoplan import api
     from locoplan.io.load import load_train
     from locoplan.reporting.plot import draw_profiles
-    from locoplan.sim.calculator import ModelOptions
 
     route = load_route(root / POSTS)
     train = load_train(root / "configs/consists/HXD1-C80x50.yaml")
-    plan = api.simulate(route, train, ModelOptions(), strategy="time-saving")
+    plan = api.simulate(route, train, RunSettings(), strategy="time-saving")
     fig, (ax, axg) = plt.subplots(2, 1, sharex=True)
     try:
         draw_profiles(ax, axg, [("time-saving", plan.run.result.profile)], "t", route, "plus")

@@ -87,19 +87,21 @@ def logs(tmp_path_factory):
     return out
 
 
-SETTINGS = dict(strategy="drivers", time_s=520.0, fitness=False)
+SETTINGS = dict(strategy="drivers", fitness=False)
 """The run: the drivers' logs for the 6 km line at 520 s (no E_min, so no optimiser: a second or two)."""
 
 
 def _spec_code(logs) -> str:
-    return f"RunSpec({str(LINE)!r}, 'HXD1-C80x50', inputs=(('logs', ({str(logs)!r},)),), **{SETTINGS!r})"
+    return (f"RunSpec({str(LINE)!r}, 'HXD1-C80x50', inputs=(('logs', ({str(logs)!r},)),), "
+            f"settings=RunSettings(time_s=520.0), **{SETTINGS!r})")
 
 
 @pytest.fixture(scope="module")
 def in_process(logs):
-    from locoplan import RunSpec, run_many
+    from locoplan import RunSettings, RunSpec, run_many
 
-    batch = run_many([RunSpec(str(LINE), "HXD1-C80x50", inputs=(("logs", (str(logs),)),), **SETTINGS)])
+    batch = run_many([RunSpec(str(LINE), "HXD1-C80x50", inputs=(("logs", (str(logs),)),),
+                              settings=RunSettings(time_s=520.0), **SETTINGS)])
     record = batch.records[0]
     assert record.summary["feasible"] and record.summary["drivers_runs"] == 2
     return json.loads(json.dumps(record.comparable()))
@@ -113,7 +115,7 @@ def _records(stdout: str) -> list[dict]:
 def test_process_pool_workers_run_drivers_from_a_library_script(logs, in_process):
     res = _fresh(f"""
         import json, os
-        from locoplan import RunSpec, run_many, make_executor
+        from locoplan import RunSettings, RunSpec, run_many, make_executor
         executor = make_executor(2)
         try:
             batch = run_many([{_spec_code(logs)}], executor)
@@ -133,7 +135,7 @@ def test_dask_workers_run_drivers_from_a_library_script(logs, in_process):
     res = _fresh(f"""
         import json, os
         from distributed import Client, LocalCluster
-        from locoplan import RunSpec, run_many, DaskExecutor
+        from locoplan import RunSettings, RunSpec, run_many, DaskExecutor
         with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \\
                 Client(cluster) as client:
             batch = run_many([{_spec_code(logs)}], DaskExecutor(client))

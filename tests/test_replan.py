@@ -20,6 +20,7 @@ from locoplan.io.load import load_route, load_train
 from locoplan.model.disturbance import Disturbance
 from locoplan.optimize.replan import Replanner, TrainState
 from locoplan.sim.calculator import ModelOptions, TractionCalculator, limit_kmh_at
+from locoplan.settings import RunSettings
 
 runner = CliRunner()
 MODELS = {"default": ModelOptions(), "point-mass": ModelOptions(point_mass=True, air_brake=False),
@@ -70,7 +71,7 @@ def test_the_departure_plan_against_the_calculator_and_estar(model):
 
     r, train, opts, t0, tol, rp = _setup("routes/freight-20km.yaml", model)
     plan = rp.replan(TrainState(0.0, 0.0, 0.0))
-    sim = api.simulate(r, train, opts, sequence=plan.plan, time_s=t0).summary
+    sim = api.simulate(r, train, RunSettings(opts, time_s=t0), sequence=plan.plan).summary
     assert sim["feasible"]
     assert sim["running_time_s"] == pytest.approx(plan.arrival_s, rel=0.01)
     assert sim["traction_energy_kwh"] == pytest.approx(plan.remaining_energy_kwh, rel=0.02)

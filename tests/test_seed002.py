@@ -13,6 +13,7 @@ from locoplan.optimize.problem import SwitchingProblem, fitness_eq10
 from locoplan.runner import load_optimizer_params
 from locoplan.optimize.registry import get_algorithm
 from locoplan.runner import make_context, run_strategy
+from locoplan.settings import RunSettings
 from locoplan.sim.calculator import ModelOptions, TractionCalculator
 from locoplan.strategy.sequence import build_sequence, classify_grades, classify_limits
 from routes import hand_made_route
@@ -127,8 +128,9 @@ def test_infeasible_plans_get_infinite_fitness_and_are_replaced(freight):
 @pytest.fixture(scope="module")
 def small_ctx(freight, root):
     route, train = freight
-    return lambda **kw: make_context(route, train, SEEDS, builder="issa-paper", yardstick=False, params_path=str(root / "tests/data/optimizers/issa.yaml"),
-                                     e_min_kwh=580.0, **kw)
+    base = RunSettings(SEEDS, builder="issa-paper", yardstick=False, e_min_kwh=580.0,
+                       params_path=str(root / "tests/data/optimizers/issa.yaml"))
+    return lambda **kw: make_context(route, train, base.replace(**kw))
 
 
 def test_same_seed_same_result_different_seed_differs(small_ctx):

@@ -338,14 +338,14 @@ class Replanner:
         if first != second and b - a == 1 and t_rem - t_b > CLOSE_S and math.isfinite(t_a):
             split = self._split(a, k0, s, h0, g0, e0, prev, hi, lo, t_rem)
             if split is not None:
-                return self._result(st, planned, *split, first, second, float(split[0][a - k0 + 1]), bound, t_start)
+                return self._result(st, planned, split, first, second, float(split[0][a - k0 + 1]), bound, t_start)
         t, w = self._drive(k0, h0, g0, e0, prev, first, second, m)
         if not math.isfinite(t):
             raise InfeasibleError(f"no drive reaches the stop from {s:.1f} m at {st.v_kmh:.1f} km/h")
         arrays = (np.concatenate([[s], self.s_nodes[k0 + 1:]]), np.concatenate([[st.v_kmh], self._speeds[k0 + 1:]]),
                   np.concatenate([[0.0], self._times[k0 + 1:]]), np.concatenate([[0.0], self._works[k0 + 1:]]),
                   self._controls[k0:n].copy())
-        return self._result(st, planned, *arrays, first, second,
+        return self._result(st, planned, arrays, first, second,
                             float(self.s_nodes[m]) if first != second and m < n else None, bound, t_start)
 
     def _replan_cycle(self, st: TrainState, planned: float, t_start: float) -> Replan:
@@ -424,7 +424,7 @@ class Replanner:
         works[-1] = w
         controls = CYCLE_CONDITION[cy.controls[k0:n]]
         events = cy.events(int(n_ev), st.t_s)
-        res = self._result(st, planned, pos, speeds, times, works, controls, first, second,
+        res = self._result(st, planned, (pos, speeds, times, works, controls), first, second,
                            float(cy.s_nodes[m]) if first != second and m < n else None, bound, t_start)
         res.air_events = events
         return res
@@ -527,8 +527,9 @@ class Replanner:
                       np.array([L]), np.array([st.v_kmh]), np.array([st.t_s]), np.array([0.0]),
                       np.zeros(0, dtype=np.int64), (0.0, 0.0), None, time.perf_counter() - t_start)
 
-    def _result(self, st, planned, pos, speeds, times, works, controls, first, second, switch_m, bound,
-                t_start) -> Replan:
+    def _result(self, st, planned, drive, first, second, switch_m, bound, t_start) -> Replan:
+        """The replan of the drive from ``st``: ``drive`` is its (positions, speeds, times, works, controls)."""
+        pos, speeds, times, works, controls = drive
         speeds = np.asarray(speeds, float).copy()
         speeds[0] = st.v_kmh
         runs: list[tuple[str, float]] = []

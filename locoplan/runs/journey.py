@@ -32,6 +32,7 @@ from ..errors import InfeasibleError, InputError, Problem
 from ..model.journey import Journey
 from ..model.route import Route, route_slice
 from ..model.train import Train
+from ..settings import RunSettings
 from ..sim.calculator import ModelOptions, TractionCalculator
 
 ALLOCATION_STEP_M = 40.0
@@ -407,26 +408,43 @@ class StrategyPlans:
                 "gap_to_optimum_percent": None if math.isnan(gap) else pct(e, e - gap)}
 
 
-def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOptions, name: str, times, bounds,
-               fastest: dict[int, float], total_s: float, total_tol_s: float, step, settings: dict,
-               strict: bool | None, shared: dict) -> StrategyPlans:
+@dataclass(frozen=True)
+class _Allocation:
+    """What a journey's legs are planned by: its legs and train, the allocated leg times with their E* bounds
+    (:func:`allocation_energy`), the fastest clock, the total running time and its window +-."""
+
+    journey: Journey
+    legs: list[Leg]
+    train: Train
+    times: object
+    bounds: list[LegBound]
+    fastest: dict[int, float]
+    total_s: float
+    total_tol_s: float
+
+
+def _plan_legs(alloc: _Allocation, name: str, settings: RunSettings, *, inputs, with_fitness: bool,
+               strict: bool | None, shared: dict, step) -> StrategyPlans:
     """Plan every leg with strategy ``name``, one after the other. Each leg's plan is asked for a window inside
     the bounds that keep every station window ahead and the total (:func:`arrival_bounds`), aimed at the
     allocation's clock at the leg's end from where the plans so far have brought the train: what an earlier leg
     ran late or early, the next one makes up, and the windows' slack left is what the next legs' bounds see.
-    A timetabled strategy's plan that misses its bounds is made again (``MAX_REPLANS``). ``shared``: leg index ->
+    A timetabled strategy's plan that misses its bounds is made again (``MAX_REPLANS``). ``settings``: the run's,
+    each leg's at its own planned time and window. ``shared``: leg index ->
     (calculators, priced-drive DP) of the strategies planned before, reused (a DP solve rewrites its work arrays,
     so reuse cannot change a result)."""
     from ..runner import DEFAULT_TOLERANCE_SHARE, make_context, run_strategy, summarize
     from ..strategy import registry
 
+    journey, legs, train, times, bounds = alloc.journey, alloc.legs, alloc.train, alloc.times, alloc.bounds
+    fastest, total_s, total_tol_s = alloc.fastest, alloc.total_s, alloc.total_tol_s
     steer = registry.is_timetabled(name)
-    out = StrategyPlans(name, (steer and settings["window"]) if strict is None else bool(strict))
+    out = StrategyPlans(name, (steer and settings.window) if strict is None else bool(strict))
     wins = {i: (lo, hi) for i, lo, hi in running_windows(journey)}
     alloc_end = np.cumsum(np.asarray(times, dtype=float))
     run_clock, known = 0.0, True  # the running time at the leg's departure; False after a leg without a plan
     out.clock[0] = 0.0
-    given = settings["tolerance_s"]
+    given = settings.tolerance_s
     for leg, b in zip(legs, bounds):
         k = leg.index
         sa, sb = journey.stations[leg.first], journey.stations[leg.last]
@@ -438,17 +456,16 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
         calcs, dp = shared.get(k, (None, None))  # the leg's calculators and DP, as another strategy left them
         w, best = first, None
         for attempt in range(1 + (MAX_REPLANS if steer else 0)):
-            ctx = make_context(leg.route, train, options, time_s=w.t0_s, tolerance_s=w.tolerance_s, seed=settings["seed"],
-                               algorithm=settings["algorithm"], params=settings["params"], weights=settings["weights"],
-                               window=settings["window"], builder=settings["builder"], yardstick=False, calculators=calcs)
+            ctx = make_context(leg.route, train, settings.replace(time_s=w.t0_s, tolerance_s=w.tolerance_s,
+                                                                  yardstick=False), calculators=calcs)
             calcs = (ctx.calc, ctx.search)
             if dp is not None:
-                ctx._e_min_cache["dp"] = dp
-            ctx.inputs.update(dict(settings["inputs"]))
+                ctx.priced_drive = dp
+            ctx.inputs.update(dict(inputs))
             if b.slope_kwh_per_s is not None and b.slope_kwh_per_s < 0:  # the leg's price of time: where its drive is
                 ctx.price_hint_kwh_per_s = -b.slope_kwh_per_s
-            run = run_strategy(ctx, name, with_fitness=settings["with_fitness"])
-            dp = ctx._e_min_cache.get("dp", dp)
+            run = run_strategy(ctx, name, with_fitness=with_fitness)
+            dp = ctx.priced_drive if ctx.priced_drive is not None else dp
             tol = max(MIN_LEG_TOLERANCE_S, w.tolerance_s / 2)  # the window of a plan made again
             miss, shift = _leg_misses(leg, run, first, run_clock, wins, margin_s=tol)
             if best is None or miss < best[0]:
@@ -459,7 +476,7 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
         shared[k] = (calcs, dp)
         miss, run, ctx, w, attempt = best
         ctx.yardstick = True  # the gap to E* of the plan kept only (each is an E* at the plan's own time)
-        run = replace(run, summary=summarize(ctx, name, run.outcome, run.result, settings["with_fitness"]))
+        run = replace(run, summary=summarize(ctx, name, run.outcome, run.result, with_fitness))
         s = run.summary
         departs = run_clock + dwell_before(journey, leg.first) + (sa.dwell_s if leg.first else 0.0) if known else None
         row = {key: s.get(key) for key in ("feasible", "running_time_s", "traction_energy_kwh", "gap_to_optimum_kwh",
@@ -500,23 +517,22 @@ def _plan_legs(journey: Journey, legs: list[Leg], train: Train, options: ModelOp
     return out
 
 
-def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOptions, *, time_s: float | None = None,
-                 strategies: tuple[str, ...] = ("proposed",), seed: int = 1, algorithm: str = "issa",
-                 params=None, weights: tuple[float, float] = (0.5, 0.5), tolerance_s: float | None = None,
-                 window: bool = True, builder: str | None = None, strict: bool | None = None, inputs=(),
+def plan_journey(journey: Journey, route: Route, train: Train, settings: RunSettings | None = None, *,
+                 strategies: tuple[str, ...] = ("proposed",), strict: bool | None = None, inputs=(),
                  with_fitness: bool = True, source: str = "", step=lambda text: None) -> JourneyResult:
-    """Plan ``journey`` (see the module docstring); ``time_s``: the total running time (dwells excluded),
-    default the journey's; ``step(text)`` is told what is being done. The leg plans' settings (``params``,
-    ``weights``, ``window``, ``builder``, ``inputs``, ``with_fitness``) are a single run's
-    (``runner.make_context``), applied to every leg; ``tolerance_s`` is the total's punctuality window +-
-    (default :func:`total_tolerance`) and the widest a leg's plan is asked to keep; ``strict`` as
-    ``runner.schedule_verdict``'s: whether a missed window or total fails every strategy (True), none (False), or
-    the timetabled ones (None)."""
+    """Plan ``journey`` (see the module docstring); ``settings.time_s``: the total running time (dwells excluded),
+    default the journey's; ``step(text)`` is told what is being done. ``settings`` are a single run's
+    (``runner.make_context``), applied to every leg at the leg's planned time and window; ``settings.tolerance_s``
+    is the total's punctuality window +- (default :func:`total_tolerance`) and the widest a leg's plan is asked to
+    keep. ``inputs`` and ``with_fitness`` go to every leg's run; ``strict`` as ``runner.schedule_verdict``'s:
+    whether a missed window or total fails every strategy (True), none (False), or the timetabled ones (None)."""
     from ..ocp.bound import percent_digits, percent_floor_kwh
 
     t_start = _time.perf_counter()
+    settings = settings if settings is not None else RunSettings()
+    options = settings.options
     legs = legs_of(journey, route, train, options)
-    total = total_running_time(journey, time_s, source)
+    total = total_running_time(journey, settings.time_s, source)
     fastest = fastest_clock(journey, legs, train, options)
     check_windows(journey, legs, total, fastest, source)
     step("allocation")
@@ -543,12 +559,11 @@ def plan_journey(journey: Journey, route: Route, train: Train, options: ModelOpt
         e_tt, _ = allocation_energy(journey, legs, train, options, tts)
         comparisons.append(("timetable's leg times" if abs(scale - 1) < 1e-9 else "timetable's shares of the time", tts, e_tt))
     result = JourneyResult({}, legs, [journey.stations[leg.last].dwell_s for leg in legs])
-    total_tol = total_tolerance(total, len(legs), tolerance_s)
+    total_tol = total_tolerance(total, len(legs), settings.tolerance_s)
     shared: dict = {}
-    plans = {name: _plan_legs(journey, legs, train, options, name, times, bounds, fastest, total, total_tol, step,
-                              dict(seed=seed, algorithm=algorithm, params=params, weights=weights,
-                                   tolerance_s=tolerance_s, window=window, builder=builder, inputs=inputs,
-                                   with_fitness=with_fitness), strict, shared)
+    alloc = _Allocation(journey, legs, train, times, bounds, fastest, total, total_tol)
+    plans = {name: _plan_legs(alloc, name, settings, inputs=inputs, with_fitness=with_fitness, strict=strict,
+                              shared=shared, step=step)
              for name in strategies}
     leg_rows = []
     for leg, t, b in zip(legs, times, bounds):

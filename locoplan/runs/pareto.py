@@ -16,7 +16,7 @@ allocation of the plan's total time with each leg's E* (``runs.journey.journey_o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from .. import bounds
@@ -166,4 +166,4 @@ JOURNEY_OPTIMUM = "the journey's least-energy allocation of the time, each leg's
 
 
 def _with(base: RunSpec, **changes) -> RunSpec:
-    return replace(base, **changes)
+    return base.replace(**changes)

@@ -3,7 +3,7 @@
 Each function returns the list of :class:`RunSpec` that :func:`locoplan.runs.run_many` runs, so a
 Python user does what a command does in two lines::
 
-    base = RunSpec("routes/freight-20km.yaml", time_s=1500)
+    base = RunSpec("routes/freight-20km.yaml", settings=RunSettings(time_s=1500))
     batch = run_many(study_specs(base, ["issa", "ssa", "pso"], runs=10))
 
 Errors name the argument (``strategies``, ``weights``, ``times_s``, ``runs``), never a command's flag.
@@ -18,6 +18,7 @@ from .. import bounds
 from ..errors import InputError, LocoplanError, Problem
 from ..io.load import load_route_and_train
 from ..runner import check_time_possible as check, make_context, planned_time
+from ..settings import RunSettings
 from ..strategy import registry
 from .spec import RunSpec
 
@@ -28,7 +29,7 @@ def compare_specs(base: RunSpec, strategies: list[str]) -> list[RunSpec]:
         raise InputError(Problem("", "strategies", "name at least one strategy"))
     for n in strategies:
         registry.get(n, field="strategies")
-    return [replace(base, strategy=n) for n in strategies]
+    return [base.replace(strategy=n) for n in strategies]
 
 
 def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
@@ -36,7 +37,7 @@ def weight_specs(base: RunSpec, w_time: list[float]) -> list[RunSpec]:
     for w in w_time:  # every value checked before the first run
         bounds.finite(w, "weights", 0.0, 1.0, why="a time weight")
     bounds.runs(len(w_time), "weights", "time weights")
-    return [replace(base, strategy="proposed", weights=(float(w), 1.0 - float(w))) for w in w_time]
+    return [base.replace(strategy="proposed", weights=(float(w), 1.0 - float(w))) for w in w_time]
 
 
 def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
@@ -44,7 +45,7 @@ def time_specs(base: RunSpec, times_s: list[float]) -> list[RunSpec]:
     for t in times_s:  # every value checked before the first run
         bounds.planned_time(t, "times_s")
     bounds.runs(len(times_s), "times_s", "running times")
-    return [replace(base, strategy="proposed", time_s=float(t)) for t in times_s]
+    return [base.replace(strategy="proposed", time_s=float(t)) for t in times_s]
 
 
 def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str | Path | None = None) -> list[RunSpec]:
@@ -58,8 +59,8 @@ def study_specs(base: RunSpec, algorithms: list[str], runs: int, params_dir: str
     if last > bounds.LIMITS["seed"][1]:
         raise InputError(Problem("", "seed", f"{runs} runs take the seeds {base.seed} .. {last}, past the largest seed "
                                  f"2**63 - 1: give a --seed at most {bounds.LIMITS['seed'][1] - runs + 1}"))
-    return [replace(base, strategy="proposed", algorithm=a, seed=base.seed + i,
-                    params=str(Path(params_dir) / f"{a}.yaml") if params_dir else base.params)
+    return [base.replace(strategy="proposed", algorithm=a, seed=base.seed + i,
+                         params=str(Path(params_dir) / f"{a}.yaml") if params_dir else base.params)
             for a in algorithms for i in range(runs)]
 
 
@@ -75,8 +76,8 @@ def check_time_possible(specs: list[RunSpec]) -> None:
         k = (s.route, s.consist, s.stock_dir, s.options, s.resolved_builder)
         if k not in contexts:
             route, train = load_route_and_train(s.route, s.consist, s.stock_dir)
-            contexts[k] = make_context(route, train, s.options, need_time=False,
-                                       builder=s.resolved_builder)
+            contexts[k] = make_context(route, train, RunSettings(s.options, need_time=False,
+                                                                 builder=s.resolved_builder))
         ctx = contexts[k]
         check(replace(ctx, t0_s=planned_time(ctx.calc.route, s.time_s)))
 

@@ -25,6 +25,7 @@ which every process knows.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -44,6 +45,7 @@ from ..io.load import load_journey, load_route, load_train, resolve_consist_path
 from ..runner import load_optimizer_params
 from ..optimize.registry import ALGORITHMS
 from ..runner import make_context, planned_time, run_strategy, schedule_verdict
+from ..settings import RunSettings
 from ..model.train import shorter_than_train
 from ..sim.calculator import ModelOptions
 from ..strategy import registry
@@ -55,47 +57,67 @@ TIMING_FIELDS = ("solve_time_s", "wall_time_s", "cpu_time_s")
 """Fields that measure the machine, not the result: left out when records are compared."""
 
 
+SETTING_NAMES = {"algorithm": "algorithm", "seed": "seed", "time_s": "time_s", "weights": "weights",
+                 "tolerance_s": "tolerance_s", "window": "window", "builder": "builder", "e_min_kwh": "e_min_kwh",
+                 "params": "params_path", "options": "options", "yardstick": "yardstick", "objective": "objective"}
+"""A spec's names of its settings (``RunSpec.replace``, the record's spec) -> the ``RunSettings`` fields."""
+SPEC_SETTINGS = tuple(SETTING_NAMES)
+
+
+def _setting(name: str) -> property:
+    return property(lambda self: getattr(self.settings, name), doc=f"``settings.{name}``")
+
+
 @dataclass(frozen=True)
 class RunSpec:
     """One run. Field names are the library's (``time_s``, ``e_min_kwh``), never a command's flags.
 
     route: route file; or journey: a journey file (locoplan/journey@1), one of the two. A journey run plans
     the journey whole (its legs' time shared for the least energy, each leg planned by ``strategy``), with
-    ``time_s`` its total running time, dwells excluded (None: the journey's own). consist: catalogue name or consist file. strategy: a name of
-    ``strategy.registry.STRATEGIES``. algorithm / seed / params: the optimiser, its seed and its
-    parameter file (None: the shipped one). time_s: planned running time [s] (None: the route's
-    schedule). weights: (w_time, w_energy) of the ISSA paper's eq. 10. tolerance_s: punctuality window +- [s]
-    (None: the route's, else 1 % of T0). window: rank inside the window (the ISSA paper's eq. 3). builder:
-    sequence builder (None: the default for the options). e_min_kwh: E_min of eq. 11 given by the
-    user (None: the energy-saving strategy's, computed once per route, consist and options and passed
-    to every run of that group). fitness: report eq. 10's fitness. strict: a plan outside the window
+    ``time_s`` its total running time, dwells excluded (None: the journey's own). consist: catalogue name or
+    consist file. strategy: a name of ``strategy.registry.STRATEGIES``. settings: the run's
+    :class:`~locoplan.settings.RunSettings` (model options, planned time and window, builder, optimiser, seed,
+    weights, E_min, yardstick, objective), read here by their names (``spec.time_s``; ``spec.params`` is the
+    optimiser's parameter file, ``settings.params_path``, None: the shipped one). A given ``e_min_kwh`` is used;
+    None: the energy-saving strategy's, computed once per route, consist and options and passed to every run of
+    that group. fitness: report eq. 10's fitness. strict: a plan outside the window
     fails its job whatever the strategy (None: only the timetabled strategies). inputs: further
     strategy inputs as (name, value) pairs (e.g. compare's logs and patterns). tags: labels carried
-    into the record but not into the key (e.g. the study file's time factor '1.1x'). objective: what the
-    energy terms count, ``traction`` or ``net`` (``physics.energy.OBJECTIVES``).
+    into the record but not into the key (e.g. the study file's time factor '1.1x').
     """
 
     route: str | None = None
     consist: str = DEFAULT_CONSIST
     strategy: str = "proposed"
-    algorithm: str = "issa"
-    seed: int = 1
-    time_s: float | None = None
-    weights: tuple[float, float] = (0.5, 0.5)
-    tolerance_s: float | None = None
-    window: bool = True
-    builder: str | None = None
-    e_min_kwh: float | None = None
-    params: str | None = None
-    options: ModelOptions = field(default_factory=ModelOptions)
+    settings: RunSettings = field(default_factory=RunSettings)
     stock_dir: str | None = None
     fitness: bool = True
     strict: bool | None = None
-    yardstick: bool = False
     inputs: tuple[tuple[str, Any], ...] = ()
     tags: tuple[tuple[str, str], ...] = ()
-    objective: str = "traction"
     journey: str | None = None
+
+    algorithm = _setting("algorithm")
+    seed = _setting("seed")
+    time_s = _setting("time_s")
+    weights = _setting("weights")
+    tolerance_s = _setting("tolerance_s")
+    window = _setting("window")
+    builder = _setting("builder")
+    e_min_kwh = _setting("e_min_kwh")
+    params = _setting("params_path")
+    options = _setting("options")
+    yardstick = _setting("yardstick")
+    objective = _setting("objective")
+
+    def replace(self, **changes) -> RunSpec:
+        """A copy with ``changes`` made: the spec's own fields, or its settings' by their names here (``params``:
+        the parameter file, ``settings.params_path``)."""
+        own = {k: v for k, v in changes.items() if k not in SETTING_NAMES}
+        moved = {SETTING_NAMES[k]: v for k, v in changes.items() if k in SETTING_NAMES}
+        if moved:
+            own["settings"] = self.settings.replace(**moved)
+        return dataclasses.replace(self, **own)
 
     @property
     def kind(self) -> str:
@@ -108,12 +130,15 @@ class RunSpec:
         return self.journey if self.journey is not None else self.route
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        if self.journey is None:  # a route run's dict (and so its key) as before journeys existed
-            d.pop("journey")
+        """The spec as a flat dict, its settings by their names here, in the order (and so the key) specs had
+        before the settings were one value."""
+        d = {"route": self.route, "consist": self.consist, "strategy": self.strategy,
+             **{k: getattr(self, k) for k in SPEC_SETTINGS[:9]}, "options": asdict(self.options),
+             "stock_dir": self.stock_dir, "fitness": self.fitness, "strict": self.strict, "yardstick": self.yardstick,
+             "inputs": {k: _plain(v) for k, v in self.inputs}, "tags": dict(self.tags), "objective": self.objective}
+        if self.journey is not None:  # a route run's dict (and so its key) as before journeys existed
+            d["journey"] = self.journey
         d["weights"] = list(self.weights)
-        d["inputs"] = {k: _plain(v) for k, v in self.inputs}
-        d["tags"] = dict(self.tags)
         return d
 
     @property
@@ -407,8 +432,8 @@ def _base_context(task: Task):
     if ctx is None:
         if len(_CONTEXTS) >= _CONTEXTS_MAX:
             _CONTEXTS.pop(next(iter(_CONTEXTS)))
-        ctx = make_context(task.route, task.train, spec.options, need_time=False, builder=spec.resolved_builder,
-                           yardstick=False)
+        ctx = make_context(task.route, task.train, RunSettings(spec.options, need_time=False,
+                                                               builder=spec.resolved_builder, yardstick=False))
         _CONTEXTS[k] = ctx
     return ctx
 
@@ -418,14 +443,11 @@ def context_for(task: Task):
     spec = task.spec
     base = _base_context(task)
     # validate the settings exactly as a single run would (same errors, same defaults)
-    ctx = make_context(task.route, task.train, spec.options, time_s=spec.time_s, e_min_kwh=task.e_min_kwh,
-                       weights=spec.weights, algorithm=spec.algorithm, seed=spec.seed, params=task.params,
-                       need_time=needs_time(spec),
-                       tolerance_s=spec.tolerance_s, window=spec.window, builder=spec.resolved_builder,
-                       yardstick=spec.yardstick, calculators=(base.calc, base.search), objective=spec.objective)
-    dp = base._e_min_cache.get("dp")
-    if dp is not None:
-        ctx._e_min_cache["dp"] = dp
+    settings = spec.settings.replace(e_min_kwh=task.e_min_kwh, params=task.params, params_path=None,
+                                     need_time=needs_time(spec), builder=spec.resolved_builder)
+    ctx = make_context(task.route, task.train, settings, calculators=(base.calc, base.search))
+    if base.priced_drive is not None:
+        ctx.priced_drive = base.priced_drive
     ctx.inputs.update(dict(spec.inputs))
     return ctx, base
 
@@ -461,8 +483,8 @@ def execute(task: Task) -> RunRecord:
         summary = infeasible_summary(ctx, spec, str(exc))
         verdict = f"{spec.strategy}: {exc}"
     else:
-        if "dp" in ctx._e_min_cache and "dp" not in base._e_min_cache:
-            base._e_min_cache["dp"] = ctx._e_min_cache["dp"]
+        if ctx.priced_drive is not None and base.priced_drive is None:
+            base.priced_drive = ctx.priced_drive
         summary = dict(run.summary)
         verdict = schedule_verdict(ctx, run, strict=spec.strict)
         if task.keep_profile:
@@ -491,11 +513,9 @@ def execute_journey(task: Task) -> RunRecord:
     t, cpu = time.perf_counter(), time.process_time()
     spec = task.spec
     try:
-        result = plan_journey(task.journey, task.route, task.train, spec.options, time_s=spec.time_s,
-                              strategies=(spec.strategy,), seed=spec.seed, algorithm=spec.algorithm, params=task.params,
-                              weights=spec.weights, tolerance_s=spec.tolerance_s, window=spec.window,
-                              builder=spec.builder, strict=spec.strict, inputs=spec.inputs, with_fitness=spec.fitness,
-                              source=spec.journey)
+        settings = spec.settings.replace(params=task.params, params_path=None)  # (the file read by load_inputs)
+        result = plan_journey(task.journey, task.route, task.train, settings, strategies=(spec.strategy,),
+                              strict=spec.strict, inputs=spec.inputs, with_fitness=spec.fitness, source=spec.journey)
     except InfeasibleError as exc:
         summary = infeasible_journey_summary(task.journey, task.route, task.train, spec.strategy, spec.time_s, str(exc))
         verdict = f"{spec.strategy}: {exc}"
@@ -541,8 +561,9 @@ class EMinTask:
 def execute_e_min(task: EMinTask) -> tuple[str, float | None, str | None]:
     """(group key, E_min [kWh] or None, why not). E_min is the energy-saving strategy's energy
     (StrategyContext.e_min), searched from a fixed seed, so it does not depend on where it runs."""
-    ctx = make_context(task.route, task.train, task.options, need_time=False, builder=task.builder,
-                       params=task.params, yardstick=False, objective=task.objective)
+    ctx = make_context(task.route, task.train, RunSettings(task.options, need_time=False, builder=task.builder,
+                                                           params=task.params, yardstick=False,
+                                                           objective=task.objective))
     try:
         return task.key, float(ctx.e_min()), None
     except InfeasibleError as exc:

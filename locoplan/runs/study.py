@@ -48,6 +48,7 @@ from ..io.load import SCHEMAS, _line_for, file_schema, load_journey, load_route,
 from ..model.journey import JOURNEY_SCHEMA
 from ..optimize.registry import ALGORITHMS
 from ..physics.energy import OBJECTIVES
+from ..settings import RunSettings
 from ..sim.calculator import DEFAULT_STEP_M, ModelOptions, TractionCalculator
 from ..strategy import registry
 from .spec import RunSpec
@@ -248,8 +249,8 @@ def load_study(path: str | Path) -> Study:
     stock = None if study.stock_dir is None else str(base / study.stock_dir)
     planned = _planned_times(name, routes, consists, stock, options, times, where, study.tolerance_s)
     planned.update(_journey_times(name, journeys, consists, stock, options, times, where, study.tolerance_s))
-    common = dict(weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
-                  builder=study.builder, options=options, stock_dir=stock, yardstick=study.gap, objective=study.objective)
+    common = RunSettings(options, weights=tuple(study.weights), tolerance_s=study.tolerance_s, window=study.window,
+                         builder=study.builder, yardstick=study.gap, objective=study.objective)
     specs: list[RunSpec] = []
     for kind, files in (("route", routes), ("journey", [j for j, _ in journeys])):
         for f in files:
@@ -259,8 +260,9 @@ def load_study(path: str | Path) -> Study:
                         pairs = [(a, seed) for a in study.algorithms for seed in study.seeds] if registry.STRATEGIES[s].seeded \
                             else [(study.algorithms[0], study.seeds[0])]
                         for a, seed in pairs:
-                            specs.append(RunSpec(**{kind: str(f)}, consist=c, strategy=s, algorithm=a, seed=seed, time_s=t_s,
-                                                 tags=(("time", label),) if label else (), **common))
+                            settings = common.replace(algorithm=a, seed=seed, time_s=t_s)
+                            specs.append(RunSpec(**{kind: str(f)}, consist=c, strategy=s, settings=settings,
+                                                 stock_dir=stock, tags=(("time", label),) if label else ()))
     return Study(path, study, list(dict.fromkeys(specs)))  # a factor that comes to a time also given in seconds: once
 
 

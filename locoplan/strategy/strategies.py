@@ -102,6 +102,24 @@ class StrategyContext:
         return self._e_min_cache["e"]
 
     @property
+    def e_min_known(self) -> float | None:
+        """E_min where known without computing it: the user's, or what ``e_min()`` found (None before)."""
+        return self.e_min_kwh if self.e_min_kwh is not None else self._e_min_cache.get("e")
+
+    @property
+    def priced_drive(self):
+        """The priced-drive DP of this context (:func:`drive_solver`), None before a strategy built one."""
+        return self._e_min_cache.get("dp")
+
+    @priced_drive.setter
+    def priced_drive(self, dp) -> None:
+        """Share another context's DP on the same calculators (a solve rewrites its work arrays: no result changes)."""
+        if dp is None:
+            self._e_min_cache.pop("dp", None)
+        else:
+            self._e_min_cache["dp"] = dp
+
+    @property
     def e_min_source(self) -> str | None:
         """Where E_min came from: ``given`` (--e-min), ``optimum`` (E* at the window's end) or ``energy-saving``
         (the ISSA paper's); None before it is known."""
