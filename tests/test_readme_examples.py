@@ -366,7 +366,7 @@ def _key(e: Example) -> str:
     return f"{e.page}:{e.line}"
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # (once per worker: the examples' group runs on one, with other modules' tests)
 def ran(request, tmp_path_factory):
     """Every example that runs in this session, block by block, two blocks at a time (each command one process)."""
     slow = request.config.getoption("--run-slow")

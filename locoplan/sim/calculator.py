@@ -182,7 +182,7 @@ def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None,
     the departure's graded nodes (``DEPARTURE_GRADING_M``), and ``extra_nodes_m`` if given.
 
     On a line whose gradient, curve and tunnel sections are on average shorter than a fifth of a cell (more
-    than ``MERGED_ENDS_PER_CELL`` section ends per cell: 10 m at the default 50 m step, where validate warns),
+    than ``MERGED_ENDS_PER_CELL`` of their ends per cell: 10 m at the default 50 m step, where validate warns),
     those ends are not made nodes: the cells take the exact mean of the equivalent gradient over them instead
     (returned as the second value, the section ends to integrate over; None: every end is a node), so that the
     grid's size, and every method's cost, stays within a few times the uniform grid's, whatever the number of
@@ -190,7 +190,9 @@ def _grid(route: Route, train: Train, options: ModelOptions, extra_nodes_m=None,
     L = route.length_m
     n = max(1, math.ceil(L / options.step_m - 1e-9))
     ends = _section_ends_m(route, train, options)
-    dense = len(ends) > MERGED_ENDS_PER_CELL * n
+    # (the line's own sections decide, not the train or the model: the same line is merged for every train)
+    own = {x for sections in (route.gradients, route.curves, route.tunnels) for sec in sections for x in (sec.from_m, sec.to_m)}
+    dense = len(own) > MERGED_ENDS_PER_CELL * n
     points = [0.0, L, *(departure_nodes_m(L) if graded else ())]
     for sec in route.speed_limits:
         points += [sec.from_m, sec.to_m]
