@@ -13,8 +13,6 @@ ALLOWED = {
     # The calculator's compiled loop (numba): its air-brake cycle (apply, release, keep on, band) is
     # still one function; splitting it must keep every result bit-identical (tests/test_kernel.py).
     ("sim/kernel.py", "run_plans"),
-    # The air-brake cycle DP's forward pass (numba), the same condition.
-    ("optimize/cycle_kernel.py", "_forward"),
 }
 """(file, function) pairs allowed over MAX_LINES: compiled kernels not split yet. Remove an entry once
 its function is split; the test fails on an entry that no longer needs to be here."""
