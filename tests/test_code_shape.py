@@ -9,15 +9,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1] / "locoplan"
 MAX_LINES = 120
 
-ALLOWED = {
-    # The calculator's compiled loop (numba), ~180 lines: its steps are named njit functions (the cycle's
-    # speeds, release, application, level, caps after a release; the cruise caps, the capped end, time and
-    # work, the profile), but the per-cell state the cycle carries (on, released, its times) is still threaded
-    # through one loop; splitting further must keep every result bit-identical (tests/test_kernel.py).
-    ("sim/kernel.py", "run_plans"),
-}
-"""(file, function) pairs allowed over MAX_LINES: compiled kernels not split yet. Remove an entry once
-its function is split; the test fails on an entry that no longer needs to be here."""
+ALLOWED: set[tuple[str, str]] = set()
+"""(file, function) pairs allowed over MAX_LINES, each with a comment saying why (none today: the compiled
+kernels, ``run_plans`` and the cycle DP's ``_forward``, are split into named njit steps too). The test
+fails on an entry that no longer needs to be here."""
 
 
 def _lengths() -> dict[tuple[str, str], int]:

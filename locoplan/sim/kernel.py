@@ -291,6 +291,26 @@ def _cruise_caps(e, c0, c1, fT, fK, fC, has_cruise, cruise_e_i):
     return c0, c1, fT, fK
 
 
+# The air brake's cycle, the rules run_plans keeps through the helpers below.
+# With ``pl.cycle`` the wagons' air brake is an application of its own (docs/model.md, 'the air brake's cycle'):
+# made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric brake alone cannot
+# hold (``cycle_speeds``), or where following a limit or a braking curve takes more than the electric brake; its
+# force builds up linearly over the cell's ``t_build``; while it is on the train brakes with it and the full
+# electric brake, whatever the plan's condition (and between its release and the apply speed on such a grade, or
+# while it recharges on a descent, with the electric brake alone, holding the speed where that suffices); it is
+# released in full (at a cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release
+# speed, or where the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the
+# distance the train covers in the recharge time (else at that grade's release speed); applied again (in a cycle,
+# or to brake) before ``recharge_s`` has passed since the release, the plan is refused (``air_at``). Holding a
+# limit or following a braking curve is bounded by full braking as without the cycle; such an application is
+# counted, judged by the recharge like any other, and released where the curve ends, not held. Where a braking
+# curve that needs the air brake (``next_air``) lies within the distance covered at the limit in the recharge time,
+# an application is released only under the electric brake's own braking curves (``e_env_el``), or where the
+# electric brake can slow the train enough to reach that curve no sooner than the recharge is over
+# (``late_enough``; it is kept on until then), and until the recharge is over the train is capped by the higher of
+# the two.
+
+
 @njit(cache=True, _nrt=False)
 def _cycle_speeds_at(k, i, short, air_on, v, fC, has_cruise, cruise_e_i, t_rec, margin, mreg, ce_, fo):
     """The cycle's speeds in cell k: (apply speed, release speed, the speed an application is released at now).
@@ -347,6 +367,32 @@ def _air_level(t, hk, v, e_mid, t_app, tb_app):
 
 
 @njit(cache=True, _nrt=False)
+def _cycle_conditions(fT, fK, fC, fB, fE, on_cycle, e, e_rel_now, in_band):
+    """The cell's condition shares (T, K, C, B, E) under the cycle, whatever the plan's: an application of the
+    cycle (``on_cycle``: on, not made for the plan's braking in this cell nor for a curve) brakes the whole cell at full down to its
+    release speed (or where the plan brakes), and below it is kept on (its least hold, or no safe release yet):
+    the speed held, the electric brake eased to the air brake alone; released, ``in_band`` (the cycle's band, or
+    recharging on a descent), the train is held by the electric brake alone (at full where it cannot hold).
+    Returns (the shares, the air brake applied, in the band, kept on)."""
+    if on_cycle:
+        if e > e_rel_now or fB > 0.0:
+            return 0.0, 0.0, 0.0, 1.0, 0.0, True, False, False
+        return 0.0, 1.0, 0.0, 0.0, 0.0, True, False, True
+    if in_band:
+        return 0.0, 1.0, 0.0, 0.0, 0.0, False, True, False
+    return fT, fK, fC, fB, fE, False, False, False
+
+
+@njit(cache=True, _nrt=False)
+def _on_cap(capped, phi, cap_work, hk, b_el):
+    """Following a limit or a braking curve takes more than the electric brake: an application too."""
+    if capped and phi < 1.0:
+        need = -cap_work / (hk * (1.0 - phi))
+        return need > b_el * (1.0 + 1e-9) + 1e-6
+    return False
+
+
+@njit(cache=True, _nrt=False)
 def _recharge_caps(k, e, t, hk, t_rel, t_rec, s_air, a_el, c0, c1, ce_):
     """Recharging, with a braking curve that needs the air brake near at the release: the caps ``c0``, ``c1``
     lowered to the electric brake's own braking curves, or to the speed that reaches that curve (at ``s_air``)
@@ -383,6 +429,51 @@ def _capped_end(i, k, e, e_pred, c0, c1, c1_env, hk, b_max, load, has_cruise, ce
             else:
                 e_new = min(e_fb, c1_env)
     return phi, e_phi, e_new
+
+
+@njit(cache=True, _nrt=False)
+def _advance(i, k, e, hk, fT, fK, fC, fB, fE, f_max, b_use, b_max, el_k, air_k, lvl, kept, band, load, c0, c1, c1_env,
+             strict, last, has_cruise, ce_, fo, out):
+    """Cell k's motion from e under the shares: the holding force (what holding the speed takes, within the
+    brake and traction, or the air brake alone where an application is kept on), the end without a cap, then
+    capped (``_capped_end``) or crawling (``_crawl``); records the first cell over the limit (``strict``) and where
+    the train comes to rest. Returns (holding force, traction force, capped, crawling, phi, e at phi, e and v at
+    the end, the crawl's time and work)."""
+    hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
+    full = fT * f_max
+    tr = full + fK * max(hold, 0.0)
+    e_pred = e + (hk / fo.m) * (full - fB * b_use - fE * el_k * ce_.allowed[k] + fK * hold - load)
+    if strict and out.over_at[i] < 0:
+        if e_pred > ce_.e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
+            out.over_at[i] = k
+    capped = e_pred > c1
+    # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
+    # (in the last cell too: coasting up to the stop must reach it)
+    # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
+    # never braking: an application kept on slows the train by the air brake alone, as at any speed
+    crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+             and out.stop_at[i] < 0 and not band and not kept)
+    t_crawl = 0.0
+    w_crawl = 0.0
+    if crawl:
+        e_pred, t_crawl, w_crawl = _crawl(e, hk, fT, fK, ce_.grav[k], ce_.allowed[k], fo, k == last)
+    phi = 1.0
+    e_phi = e_pred
+    if capped:
+        phi, e_phi, e_new = _capped_end(i, k, e, e_pred, c0, c1, c1_env, hk, b_max, load, has_cruise, ce_, fo,
+                                        out.hold_at)
+    else:
+        e_new = e_pred
+    if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
+        if e_new <= E_FLOOR:
+            if out.stop_at[i] < 0:
+                out.stop_at[i] = k
+                out.fb_at[i] = 2 if kept else (1 if fB + fE > 0.0 else 0)  # (2: an application kept on)
+            e_new = E_FLOOR
+        v_new = ms_from_e(e_new)
+    else:
+        v_new = ms_from_e(max(e_new, 0.0))
+    return hold, tr, capped, crawl, phi, e_phi, e_new, v_new, t_crawl, w_crawl
 
 
 @njit(cache=True, _nrt=False)
@@ -445,28 +536,12 @@ def run_plans(ce_, fo, pl, out):
     (a neutral section's span). ``brake_holds`` (per cell): full braking holds the limit there (else the
     envelope, which the train follows under full braking, lies below it).
 
-    With ``pl.cycle`` the wagons' air brake is an application of its own (docs/model.md, 'the air brake's
-    cycle'): made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric
-    brake alone cannot hold (``cycle_speeds``), or where following a limit or a braking curve takes more than
-    the electric brake; its force builds up linearly over the cell's ``t_build``; while it is on the train
-    brakes with it and the full electric brake, whatever the plan's condition (and between its release and the
-    apply speed on such a grade, or while it recharges on a descent, with the electric brake alone, holding
-    the speed where that suffices); it is released in full (at a
-    cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed, or where
-    the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the distance the
-    train covers in the recharge time (else at that grade's release speed); applied again (in a cycle, or to brake) before ``recharge_s`` has passed
-    since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
-    bounded by full braking as without the cycle; such an application is counted, judged by the recharge like
-    any other, and released where the curve ends, not held. Where a braking curve that needs the air brake
-    (``next_air``) lies within the distance covered at the limit in the recharge time, an application is released
-    only under the electric brake's own braking curves (``e_env_el``), or where the electric brake can slow the
-    train enough to reach that curve no sooner than the recharge is over (``late_enough``; it is kept on until
-    then), and until the recharge is over the train is capped by the higher of the two.
+    With ``pl.cycle`` the wagons' air brake is an application of its own, by the rules written above its
+    helpers (``_cycle_speeds_at`` ...; docs/model.md, 'the air brake's cycle').
     """
     s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
     m, tv, tf = fo.m, fo.tv, fo.tf
     codes, starts, ends, cruise_e, has_cruise, strict = pl.codes, pl.starts, pl.ends, pl.cruise_e, pl.has_cruise, pl.strict
-    over_at, stop_at, fb_at = out.over_at, out.stop_at, out.fb_at
     cycle, t_rec, min_hold, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, ce_.t_build
     air_at, air_wait, air_apps, air_margin = out.air_at, out.air_wait, out.air_apps, out.air_margin
     n_cells = h.shape[0]
@@ -502,6 +577,7 @@ def run_plans(ce_, fo, pl, out):
             b_use = b_max  # what braking and holding may use
             state = AIR_OFF
             ov = band = kept = False
+            lvl = 0.0
             if cycle:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
@@ -532,72 +608,26 @@ def run_plans(ce_, fo, pl, out):
                     curve_kind = False
                     applied_b = fB > 0.0
                     state = AIR_APPLIED
-                lvl = 0.0
                 if air_on:
                     if state != AIR_APPLIED:
                         state = AIR_ON
                     lvl = _air_level(t, hk, v, e_mid, t_app, tb_app)
-                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition:
-                        if e > e_rel_now or fB > 0.0:  # a cycle's application, down to its release speed, or
-                            # the plan's braking: at full
-                            fT, fK, fC, fB, fE = 0.0, 0.0, 0.0, 1.0, 0.0
-                        else:  # keep on (its least hold, or no safe release yet): the speed held, the electric
-                            fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0  # brake eased to the air brake alone
-                            kept = True
-                        ov = True
-                elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
-                    # band: in the cycle's band, or recharging on a descent: held by the electric brake alone (at
-                    # full where it cannot hold), whatever the plan's condition
-                    fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0
-                    band = True
+                fT, fK, fC, fB, fE, ov, band, kept = _cycle_conditions(
+                    fT, fK, fC, fB, fE, air_on and not applied_b and not curve_kind, e, e_rel_now,
+                    not air_on and ((short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0)))
                 b_use = b_el + lvl * air_k
                 if el_cap and released and not air_on and t - t_rel < t_rec:
                     c0, c1 = _recharge_caps(k, e, t, hk, t_rel, t_rec, s_air, a_el, c0, c1, ce_)
-            hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
-            full = fT * f_max
-            tr = full + fK * max(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB * b_use - fE * el_k * allowed[k] + fK * hold - load)
-            if strict and over_at[i] < 0:
-                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
-                    over_at[i] = k
-            capped = e_pred > c1
-            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
-            # (in the last cell too: coasting up to the stop must reach it)
-            # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
-            # never braking: an application kept on slows the train by the air brake alone, as at any speed
-            crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
-                     and stop_at[i] < 0 and not band and not kept)
-            t_crawl = 0.0
-            w_crawl = 0.0
-            if crawl:
-                e_pred, t_crawl, w_crawl = _crawl(e, hk, fT, fK, grav[k], allowed[k], fo, k == last)
-            phi = 1.0
-            e_phi = e_pred
-            if capped:
-                phi, e_phi, e_new = _capped_end(i, k, e, e_pred, c0, c1, c1_env, hk, b_max, load, has_cruise, ce_, fo,
-                                                out.hold_at)
-            else:
-                e_new = e_pred
-            if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
-                if e_new <= E_FLOOR:
-                    if stop_at[i] < 0:
-                        stop_at[i] = k
-                        fb_at[i] = 2 if kept else (1 if fB + fE > 0.0 else 0)  # (2: an application kept on)
-                    e_new = E_FLOOR
-                v_new = ms_from_e(e_new)
-            else:
-                v_new = ms_from_e(max(e_new, 0.0))
+            hold, tr, capped, crawl, phi, e_phi, e_new, v_new, t_crawl, w_crawl = _advance(
+                i, k, e, hk, fT, fK, fC, fB, fE, f_max, b_use, b_max, el_k, air_k, lvl, kept, band, load, c0, c1, c1_env,
+                strict, last, has_cruise, ce_, fo, out)
             t_start = t
             dt, w_tr, cap_work = _time_and_work(capped, crawl, phi, e_phi, e_new, v, v_new, hk, load, tr, t_crawl,
                                                 w_crawl, m)
             t += dt
             work += w_tr
             if cycle:
-                # following a limit or a braking curve with more than the electric brake: an application too
-                on_cap = False
-                if capped and phi < 1.0:
-                    need = -cap_work / (hk * (1.0 - phi))
-                    on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
+                on_cap = _on_cap(capped, phi, cap_work, hk, b_el)
                 if on_cap and not air_on:  # judged by the recharge like any application, held as any
                     t_app, tb_app, hold_app = _apply_air(released, t_start, t_rel, t_rec, i, k, t_build[k], min_hold,
                                                          air_margin, air_at, air_wait, air_apps)
