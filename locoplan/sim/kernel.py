@@ -314,9 +314,9 @@ def _cruise_caps(e, c0, c1, fT, fK, fC, has_cruise, cruise_e_i):
 @njit(cache=True, _nrt=False)
 def _cycle_speeds_at(k, i, short, air_on, v, fC, has_cruise, cruise_e_i, t_rec, margin, mreg, ce_, fo):
     """The cycle's speeds in cell k: (apply speed, release speed, the speed an application is released at now).
-    Where the electric brake alone holds (not ``short``) there is no apply speed, and an application on is
-    released at once, unless a grade it cannot hold lies within the recharge (``next_short``): then it is kept
-    on until that grade's release speed."""
+    Where the electric brake alone holds (not ``short``) there is no apply speed, and an application on may be
+    released at any speed, unless a grade it cannot hold lies within the recharge (``next_short``): then not
+    above that grade's release speed."""
     e_hold = ce_.e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
     if has_cruise and fC == 0.0 and cruise_e_i < e_hold:
         e_hold = cruise_e_i
