@@ -279,149 +279,155 @@ class GaussSolution:
 # --------------------------------------------------------------------------------------------------
 
 
-def solve_gauss(problem: MultiPhaseProblem, mesh: Mesh, guess: Guess, *, ipopt_options: dict | None = None) -> GaussSolution:
-    """Transcribe the free-end single-phase ``problem`` on ``mesh`` (over ``sigma = t / t_f``) with the
-    Gauss pseudospectral method and solve with IPOPT.
+class _NLPParts:
+    """An NLP's decision variables (symbols, bounds, start) and constraints (expressions, bounds) in the
+    order they are added."""
 
-    Never raises for a failed solve: the returned :class:`GaussSolution` carries ``success`` and
-    IPOPT's ``status``; the caller decides what to do.
-    """
-    t_build = _time.perf_counter()
-    phase, dynamics, lagrange, path, n_path, nx, nu, sx, su, ts = phase_functions(problem)
-    ivs = mesh.intervals
-    if any(iv.free_start is not None for iv in ivs[1:]) and not mesh.free_breakpoints:
-        raise InputError("Gauss transcription: either every break point moves or none does")
+    def __init__(self):
+        self.w_parts, self.lbw, self.ubw, self.w0 = [], [], [], []
+        self.g_parts, self.lbg, self.ubg = [], [], []
 
-    # symbolic dynamics / objective / path as CasADi functions (problem layer stays casadi-generic)
-    xs_, us_, ts_ = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t")
-    f_fun = ca.Function("f", [xs_, us_, ts_], [as_column(dynamics(xs_, us_, ts_), nx, "dynamics")])
-    l_fun = None
-    if lagrange is not None:
-        l_fun = ca.Function("l", [xs_, us_, ts_], [as_column(lagrange(xs_, us_, ts_), 1, "lagrange")])
-    p_fun = None
-    if path is not None:
-        p_fun = ca.Function("p", [xs_, us_, ts_], [as_column(path(xs_, us_, ts_), n_path, "path")])
-
-    w_parts, lbw, ubw, w0 = [], [], [], []
-    g_parts, lbg, ubg = [], [], []
-
-    def add_var(sym, lo, hi, init):
-        w_parts.append(ca.vec(sym))
+    def add_var(self, sym, lo, hi, init) -> None:
+        self.w_parts.append(ca.vec(sym))
         size = (sym.numel(),)
-        lbw.append(np.broadcast_to(np.ravel(lo, order="F"), size))
-        ubw.append(np.broadcast_to(np.ravel(hi, order="F"), size))
-        w0.append(np.broadcast_to(np.ravel(init, order="F"), size))
+        self.lbw.append(np.broadcast_to(np.ravel(lo, order="F"), size))
+        self.ubw.append(np.broadcast_to(np.ravel(hi, order="F"), size))
+        self.w0.append(np.broadcast_to(np.ravel(init, order="F"), size))
 
-    def add_con(expr, lo, hi):
+    def add_con(self, expr, lo, hi) -> None:
         expr = ca.vec(expr)
-        g_parts.append(expr)
-        lbg.append(np.broadcast_to(np.ravel(lo, order="F"), (expr.numel(),)))
-        ubg.append(np.broadcast_to(np.ravel(hi, order="F"), (expr.numel(),)))
+        self.g_parts.append(expr)
+        self.lbg.append(np.broadcast_to(np.ravel(lo, order="F"), (expr.numel(),)))
+        self.ubg.append(np.broadcast_to(np.ravel(hi, order="F"), (expr.numel(),)))
 
-    # final time
+
+@dataclass(frozen=True)
+class _GaussPhase:
+    """What every interval of the transcription reads: the problem and its guess, the sizes and scales,
+    the scaled state and control bounds, the model as CasADi functions (``l_fun``, ``p_fun`` None when
+    absent), the final time ``tf`` and the break points ``sig`` (symbolic where they move), ``sig_guess``."""
+
+    problem: MultiPhaseProblem
+    guess: Guess
+    nx: int
+    nu: int
+    sx: np.ndarray
+    su: np.ndarray
+    x_lo: np.ndarray
+    x_hi: np.ndarray
+    u_lo: np.ndarray
+    u_hi: np.ndarray
+    f_fun: ca.Function
+    l_fun: ca.Function | None
+    p_fun: ca.Function | None
+    tf: ca.SX
+    sig: ca.SX | ca.DM
+    sig_guess: np.ndarray
+
+
+def _model_functions(sp) -> tuple:
+    """The dynamics, Lagrange integrand and path constraints of a single phase ``sp`` as CasADi functions
+    of (x, u, t) (None where the model has none)."""
+    nx, nu = sp.nx, sp.nu
+    xs_, us_, ts_ = ca.SX.sym("x", nx), ca.SX.sym("u", nu), ca.SX.sym("t")
+    f_fun = ca.Function("f", [xs_, us_, ts_], [as_column(sp.dynamics(xs_, us_, ts_), nx, "dynamics")])
+    l_fun = None
+    if sp.lagrange is not None:
+        l_fun = ca.Function("l", [xs_, us_, ts_], [as_column(sp.lagrange(xs_, us_, ts_), 1, "lagrange")])
+    p_fun = None
+    if sp.path is not None:
+        p_fun = ca.Function("p", [xs_, us_, ts_], [as_column(sp.path(xs_, us_, ts_), sp.n_path, "path")])
+    return f_fun, l_fun, p_fun
+
+
+def _add_final_time(nlp: _NLPParts, problem: MultiPhaseProblem, guess: Guess, ts: float):
+    """The final time's variable (scaled by ``ts``); the physical final time."""
     tf_lo, tf_hi = (float(v) for v in problem.free_end)
     tf_s = ca.SX.sym("tf")
     tf0 = float(np.clip(guess.final_time, tf_lo, tf_hi))
-    add_var(tf_s, tf_lo / ts, tf_hi / ts, tf0 / ts)
-    tf = tf_s * ts
+    nlp.add_var(tf_s, tf_lo / ts, tf_hi / ts, tf0 / ts)
+    return tf_s * ts
 
-    # break points
-    k_seg = len(ivs)
+
+def _add_breakpoints(nlp: _NLPParts, mesh: Mesh):
+    """The break points ``(0, sigma_1 .. sigma_{K-1}, 1)``: variables kept ``min_fraction`` apart where
+    they move, numbers otherwise."""
     breakpoints = mesh.breakpoints
     if mesh.free_breakpoints:
-        sig_s = ca.SX.sym("sigma", k_seg - 1)
+        sig_s = ca.SX.sym("sigma", len(mesh.intervals) - 1)
         lo = [b[0] for b in mesh.breakpoint_bounds]
         hi = [b[1] for b in mesh.breakpoint_bounds]
-        add_var(sig_s, lo, hi, breakpoints)
+        nlp.add_var(sig_s, lo, hi, breakpoints)
         sig = ca.vertcat(0.0, sig_s, 1.0)
-        add_con(sig[1:] - sig[:-1], mesh.min_fraction, np.inf)
+        nlp.add_con(sig[1:] - sig[:-1], mesh.min_fraction, np.inf)
+        return sig
+    return ca.DM([0.0, *breakpoints, 1.0])
+
+
+def _add_interval_variables(nlp: _NLPParts, ph: _GaussPhase, k: int, iv: Interval):
+    """Interval ``k``'s states at its support points and its control parameters, started from the guess
+    (the initial state fixed in the first); its controls ``U = P C'`` (scaled), bounded through the
+    parameters where the map is convex, by constraints otherwise."""
+    n, nx, nu, sig_guess = iv.n, ph.nx, ph.nu, ph.sig_guess
+    c_np = control_matrix(iv)
+    m_k = c_np.shape[1]
+    tau, _ = _nodes.legendre_gauss(n)
+    support = _nodes.gauss_support_points(n)
+    xk = ca.SX.sym(f"X{k}", nx, n + 1)
+    pk = ca.SX.sym(f"P{k}", nu, m_k)
+    lo_k = np.repeat(ph.x_lo[:, None], n + 1, axis=1)
+    hi_k = np.repeat(ph.x_hi[:, None], n + 1, axis=1)
+    if k == 0:
+        for i, v in enumerate(ph.problem.initial_state):
+            if v is not None:
+                lo_k[i, 0] = hi_k[i, 0] = v / ph.sx[i]
+    s_sup = sig_guess[k] + (support + 1.0) * 0.5 * (sig_guess[k + 1] - sig_guess[k])
+    nlp.add_var(xk, lo_k, hi_k, ph.guess.state_at(s_sup) / ph.sx[:, None])
+    s_lg = sig_guess[k] + (tau + 1.0) * 0.5 * (sig_guess[k + 1] - sig_guess[k])
+    u_guess = ph.guess.control_at(s_lg) / ph.su[:, None]  # nu x n
+    p_guess = np.linalg.lstsq(c_np, u_guess.T, rcond=None)[0].T
+    convex = is_convex(iv)
+    u_lo, u_hi = ph.u_lo[:, None], ph.u_hi[:, None]
+    if convex:
+        nlp.add_var(pk, np.repeat(u_lo, m_k, 1), np.repeat(u_hi, m_k, 1), np.clip(p_guess, u_lo, u_hi))
     else:
-        sig = ca.DM([0.0, *breakpoints, 1.0])
-    sig_guess = np.array([0.0, *breakpoints, 1.0])
+        nlp.add_var(pk, -np.inf, np.inf, p_guess)
+    uk = ca.mtimes(pk, ca.DM(np.asarray(c_np)).T)  # nu x n, scaled
+    if not convex:
+        nlp.add_con(uk, np.repeat(u_lo, n, 1), np.repeat(u_hi, n, 1))
+    return xk, pk, uk
 
-    x_lo = np.array(phase.state_lower, dtype=float) / sx
-    x_hi = np.array(phase.state_upper, dtype=float) / sx
-    u_lo = np.array(phase.control_lower, dtype=float) / su
-    u_hi = np.array(phase.control_upper, dtype=float) / su
 
-    objective = 0
-    seg_syms = []
-    x_start = None  # scaled state at the start of the current interval (symbolic)
-    for k, iv in enumerate(ivs):
-        n = iv.n
-        c_np = control_matrix(iv)
-        m_k = c_np.shape[1]
-        tau, w = _nodes.legendre_gauss(n)
-        d = _nodes.gauss_differentiation_matrix(n)
-        support = _nodes.gauss_support_points(n)
-        xk = ca.SX.sym(f"X{k}", nx, n + 1)
-        pk = ca.SX.sym(f"P{k}", nu, m_k)
-        lo_k = np.repeat(x_lo[:, None], n + 1, axis=1)
-        hi_k = np.repeat(x_hi[:, None], n + 1, axis=1)
-        if k == 0:
-            for i, v in enumerate(problem.initial_state):
-                if v is not None:
-                    lo_k[i, 0] = hi_k[i, 0] = v / sx[i]
-        s_sup = sig_guess[k] + (support + 1.0) * 0.5 * (sig_guess[k + 1] - sig_guess[k])
-        add_var(xk, lo_k, hi_k, guess.state_at(s_sup) / sx[:, None])
-        s_lg = sig_guess[k] + (tau + 1.0) * 0.5 * (sig_guess[k + 1] - sig_guess[k])
-        u_guess = guess.control_at(s_lg) / su[:, None]  # nu x n
-        p_guess = np.linalg.lstsq(c_np, u_guess.T, rcond=None)[0].T
-        convex = is_convex(iv)
-        if convex:
-            add_var(pk, np.repeat(u_lo[:, None], m_k, 1), np.repeat(u_hi[:, None], m_k, 1),
-                    np.clip(p_guess, u_lo[:, None], u_hi[:, None]))
-        else:
-            add_var(pk, -np.inf, np.inf, p_guess)
-        c_map = ca.DM(np.asarray(c_np))
-        uk = ca.mtimes(pk, c_map.T)  # nu x n, scaled
-        if not convex:
-            add_con(uk, np.repeat(u_lo[:, None], n, 1), np.repeat(u_hi[:, None], n, 1))
+def _add_interval_constraints(nlp: _NLPParts, ph: _GaussPhase, k: int, iv: Interval, xk, uk, x_start):
+    """Interval ``k``'s continuity with the one before (``x_start`` its end, None for the first), the
+    collocated dynamics (eq. 22) and the path constraints at the LG points: (its Gauss quadrature of the
+    Lagrange term, eq. 23, or None; its state at ``tau = +1``, eq. 24)."""
+    n, sx, sig, tf = iv.n, ph.sx, ph.sig, ph.tf
+    tau, w = _nodes.legendre_gauss(n)
+    d = _nodes.gauss_differentiation_matrix(n)
+    if x_start is not None:
+        nlp.add_con(xk[:, 0] - x_start, 0.0, 0.0)  # continuity with the previous interval
+    h = (sig[k + 1] - sig[k]) * tf
+    t_lg = sig[k] * tf + (ca.DM(tau) + 1.0) * 0.5 * h  # n x 1
+    x_phys = ca.diag(ca.DM(sx)) @ xk[:, 1:]
+    u_phys = ca.diag(ca.DM(ph.su)) @ uk
+    f_val = ph.f_fun.map(n)(x_phys, u_phys, t_lg.T)  # nx x n (physical)
+    defect = ca.mtimes(xk, ca.DM(d).T) - (h / 2.0) * (ca.diag(ca.DM(1.0 / sx)) @ f_val)
+    nlp.add_con(defect, 0.0, 0.0)
+    if ph.p_fun is not None:
+        nlp.add_con(ph.p_fun.map(n)(x_phys, u_phys, t_lg.T), -np.inf, 0.0)
+    term = None
+    if ph.l_fun is not None:
+        term = (h / 2.0) * ca.mtimes(ph.l_fun.map(n)(x_phys, u_phys, t_lg.T), ca.DM(w))
+    # eq. 24: X(+1) = X(-1) + sum_k w_k sum_i D_ki X_i  (linear)
+    return term, xk[:, 0] + ca.mtimes(xk, ca.DM(np.asarray(w) @ np.asarray(d)))
 
-        if x_start is not None:
-            add_con(xk[:, 0] - x_start, 0.0, 0.0)  # continuity with the previous interval
 
-        h = (sig[k + 1] - sig[k]) * tf
-        t_lg = sig[k] * tf + (ca.DM(tau) + 1.0) * 0.5 * h  # n x 1
-        x_phys = ca.diag(ca.DM(sx)) @ xk[:, 1:]
-        u_phys = ca.diag(ca.DM(su)) @ uk
-        f_val = f_fun.map(n)(x_phys, u_phys, t_lg.T)  # nx x n (physical)
-        defect = ca.mtimes(xk, ca.DM(d).T) - (h / 2.0) * (ca.diag(ca.DM(1.0 / sx)) @ f_val)
-        add_con(defect, 0.0, 0.0)
-        if p_fun is not None:
-            add_con(p_fun.map(n)(x_phys, u_phys, t_lg.T), -np.inf, 0.0)
-        if l_fun is not None:
-            objective = objective + (h / 2.0) * ca.mtimes(l_fun.map(n)(x_phys, u_phys, t_lg.T), ca.DM(w))
-        # eq. 24: X(+1) = X(-1) + sum_k w_k sum_i D_ki X_i  (linear)
-        x_start = xk[:, 0] + ca.mtimes(xk, ca.DM(np.asarray(w) @ np.asarray(d)))
-        seg_syms.append((xk, pk, uk))
-
-    xf = ca.SX.sym("Xf", nx)
-    f_lo, f_hi = final_bounds(problem)
-    add_var(xf, f_lo / sx, f_hi / sx, guess.state_at(1.0).ravel() / sx)
-    add_con(xf - x_start, 0.0, 0.0)
-
-    if problem.mayer is not None:
-        x0_phys = ca.diag(ca.DM(sx)) @ seg_syms[0][0][:, 0]
-        xf_phys = ca.diag(ca.DM(sx)) @ xf
-        objective = objective + as_column(problem.mayer(x0_phys, xf_phys, tf), 1, "mayer")
-
-    wv = ca.vertcat(*w_parts)
-    gv = ca.vertcat(*g_parts)
-    nlp = {"x": wv, "f": objective / problem.objective_scale, "g": gv}
-    solver = ipopt_solver("gpm", nlp, ipopt_options)
-    build_time = _time.perf_counter() - t_build
-
-    lbw_v, ubw_v, w0_v = (np.concatenate(a) for a in (lbw, ubw, w0))
-    w0_v = np.clip(w0_v, lbw_v, ubw_v)
-    t_solve = _time.perf_counter()
-    sol = solve_nlp(solver, x0=w0_v, lbx=lbw_v, ubx=ubw_v, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
-    solve_time = _time.perf_counter() - t_solve
-    stats = solver.stats()
-
-    # unpack
-    out = ca.Function("out", [wv], [tf, sig] + [a for trip in seg_syms for a in trip] + [xf])
-    vals = [np.asarray(v, dtype=float) for v in out(sol["x"])]
+def _unpack_segments(ph: _GaussPhase, mesh: Mesh, vals: list) -> tuple[float, np.ndarray, list]:
+    """The final time, the break points (as fractions) and each interval's :class:`SegmentSolution` from
+    the solution's values of (tf, sig, each interval's X, P, U, the final state)."""
+    nx, nu, sx, su = ph.nx, ph.nu, ph.sx, ph.su
+    ivs, k_seg = mesh.intervals, len(mesh.intervals)
     tf_v = float(np.ravel(vals[0])[0])
     sig_v = np.ravel(vals[1])
     segs = []
@@ -443,6 +449,66 @@ def solve_gauss(problem: MultiPhaseProblem, mesh: Mesh, guess: Guess, *, ipopt_o
                 control_map=control_matrix(iv),
             )
         )
+    return tf_v, sig_v, segs
+
+
+def solve_gauss(problem: MultiPhaseProblem, mesh: Mesh, guess: Guess, *, ipopt_options: dict | None = None) -> GaussSolution:
+    """Transcribe the free-end single-phase ``problem`` on ``mesh`` (over ``sigma = t / t_f``) with the
+    Gauss pseudospectral method and solve with IPOPT.
+
+    Never raises for a failed solve: the returned :class:`GaussSolution` carries ``success`` and
+    IPOPT's ``status``; the caller decides what to do.
+    """
+    t_build = _time.perf_counter()
+    sp = phase_functions(problem)
+    phase, nx, nu, sx, su = sp.phase, sp.nx, sp.nu, sp.state_scale, sp.control_scale
+    ivs = mesh.intervals
+    if any(iv.free_start is not None for iv in ivs[1:]) and not mesh.free_breakpoints:
+        raise InputError("Gauss transcription: either every break point moves or none does")
+    # symbolic dynamics / objective / path as CasADi functions (problem layer stays casadi-generic)
+    f_fun, l_fun, p_fun = _model_functions(sp)
+    nlp = _NLPParts()
+    tf = _add_final_time(nlp, problem, guess, sp.length)
+    sig = _add_breakpoints(nlp, mesh)
+    ph = _GaussPhase(problem, guess, nx, nu, sx, su, np.array(phase.state_lower, dtype=float) / sx,
+                     np.array(phase.state_upper, dtype=float) / sx, np.array(phase.control_lower, dtype=float) / su,
+                     np.array(phase.control_upper, dtype=float) / su, f_fun, l_fun, p_fun, tf, sig,
+                     np.array([0.0, *mesh.breakpoints, 1.0]))
+
+    objective = 0
+    seg_syms = []
+    x_start = None  # scaled state at the start of the current interval (symbolic)
+    for k, iv in enumerate(ivs):
+        xk, pk, uk = _add_interval_variables(nlp, ph, k, iv)
+        term, x_start = _add_interval_constraints(nlp, ph, k, iv, xk, uk, x_start)
+        if term is not None:
+            objective = objective + term
+        seg_syms.append((xk, pk, uk))
+
+    xf = ca.SX.sym("Xf", nx)
+    f_lo, f_hi = final_bounds(problem)
+    nlp.add_var(xf, f_lo / sx, f_hi / sx, guess.state_at(1.0).ravel() / sx)
+    nlp.add_con(xf - x_start, 0.0, 0.0)
+
+    if problem.mayer is not None:
+        x0_phys = ca.diag(ca.DM(sx)) @ seg_syms[0][0][:, 0]
+        xf_phys = ca.diag(ca.DM(sx)) @ xf
+        objective = objective + as_column(problem.mayer(x0_phys, xf_phys, tf), 1, "mayer")
+
+    wv = ca.vertcat(*nlp.w_parts)
+    gv = ca.vertcat(*nlp.g_parts)
+    solver = ipopt_solver("gpm", {"x": wv, "f": objective / problem.objective_scale, "g": gv}, ipopt_options)
+    build_time = _time.perf_counter() - t_build
+
+    lbw_v, ubw_v, w0_v = (np.concatenate(a) for a in (nlp.lbw, nlp.ubw, nlp.w0))
+    w0_v = np.clip(w0_v, lbw_v, ubw_v)
+    t_solve = _time.perf_counter()
+    sol = solve_nlp(solver, x0=w0_v, lbx=lbw_v, ubx=ubw_v, lbg=np.concatenate(nlp.lbg), ubg=np.concatenate(nlp.ubg))
+    solve_time = _time.perf_counter() - t_solve
+    stats = solver.stats()
+
+    out = ca.Function("out", [wv], [tf, sig] + [a for trip in seg_syms for a in trip] + [xf])
+    tf_v, sig_v, segs = _unpack_segments(ph, mesh, [np.asarray(v, dtype=float) for v in out(sol["x"])])
     return GaussSolution(
         success=bool(stats.get("success", False)),
         status=str(stats.get("return_status", "unknown")),

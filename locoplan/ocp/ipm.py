@@ -180,24 +180,56 @@ class CellIPM:
             return self._solve(x0, mu_init, warm)
 
     def _solve(self, x0: np.ndarray, mu_init: float | None, warm: "IPMResult | None") -> IPMResult:
-        S, p, N, n = self.set, self.p, self.N, self.n
-        has_l, has_u, fixed = self.has_l, self.has_u, self.fixed
-        lb, ub = self._lb, self._ub
+        return _Solve(self, x0, mu_init, warm).run()
+
+
+class _Solve:
+    """One solve of a :class:`CellIPM`: the iterate (``x``, the slacks ``s``, ``sc``, the multipliers ``y``, ``z``,
+    ``zc``, ``zl``, ``zu``, the distances to the bounds ``dl``, ``du``), the barrier parameter ``mu``, the filter,
+    and the iteration's work arrays. Each step of the method is one method here."""
+
+    def __init__(self, ipm: CellIPM, x0: np.ndarray, mu_init: float | None, warm: "IPMResult | None"):
+        self.ipm, self.S, self.p, self.lay = ipm, ipm.set, ipm.p, ipm.layout
+        self.N, self.n = ipm.N, ipm.n
+        self.x = self._initial_point(x0, warm)
+        self.mu = float(mu_init if mu_init is not None else self.S.mu_init)
+        self.val = self.p.values(self.x)
+        self._initial_slacks_and_multipliers(warm)
+        self._bind_kernels()
+        self._work_arrays()
+        self.filt, self.filter_mu, self.theta_max, self.theta_min = [], None, math.inf, 0.0
+        self.delta_w_last, self.needed_last = 0.0, False
+        self.status, self.trace, self.it, self.err0 = "max_iter", [], 0, math.inf
+        self.rejected = 0
+        self.acceptable, self.f_prev = 0, math.inf
+        self.adaptive = self.S.mu_strategy == "adaptive"
+        self.errs: list[float] = []
+
+    # ------------------------------------------------------------------ the start
+    def _initial_point(self, x0: np.ndarray, warm: "IPMResult | None") -> np.ndarray:
+        """``x0`` pushed inside its bounds (IPOPT's bound_push; barely for a warm start), fixed variables at
+        their value."""
+        ipm = self.ipm
+        has_l, has_u, lb, ub = ipm.has_l, ipm.has_u, ipm._lb, ipm._ub
         x = np.array(x0, dtype=float)
-        push = S.bound_push if warm is None else 1e-9
-        with np.errstate(invalid="ignore"):  # push the start inside the bounds (IPOPT's bound_push)
+        push = self.S.bound_push if warm is None else 1e-9
+        with np.errstate(invalid="ignore"):
             span = np.where(has_l & has_u, ub - lb, np.inf)
         x = np.where(has_l, np.maximum(x, lb + np.minimum(push * np.maximum(1.0, np.abs(lb)), 0.49 * span)), x)
         x = np.where(has_u, np.minimum(x, ub - np.minimum(push * np.maximum(1.0, np.abs(ub)), 0.49 * span)), x)
-        x = np.ascontiguousarray(np.where(fixed, p.lb, x))
-        mu = float(mu_init if mu_init is not None else S.mu_init)
-        val = p.values(x)
+        return np.ascontiguousarray(np.where(ipm.fixed, self.p.lb, x))
+
+    def _initial_slacks_and_multipliers(self, warm: "IPMResult | None") -> None:
+        """Slacks at least a floor off zero; multipliers on the central path (mu / slack) from a cold start,
+        a warm solution's (kept off zero) from a warm one."""
+        ipm, mu, val = self.ipm, self.mu, self.val
+        has_l, has_u = ipm.has_l, ipm.has_u
         floor = 1e-2 if warm is None else mu
         s = np.maximum(-val.g, floor)
         sc = np.maximum(-val.c, floor)
-        dl, du = self._dist(x)
+        dl, du = ipm._dist(self.x)
         if warm is None:
-            z, zc, y = mu / s, mu / sc, np.zeros(N)
+            z, zc, y = mu / s, mu / sc, np.zeros(self.N)
             zl = np.where(has_l, mu / dl, 0.0)
             zu = np.where(has_u, mu / du, 0.0)
         else:
@@ -206,200 +238,296 @@ class CellIPM:
             zc = np.maximum(warm.zc, mu / sc * 1e-2)
             zl = np.where(has_l, np.maximum(warm.zl, mu / dl * 1e-2), 0.0)
             zu = np.where(has_u, np.maximum(warm.zu, mu / du * 1e-2), 0.0)
-        y, z, zc, zl, zu = (np.ascontiguousarray(v, dtype=float) for v in (y, z, zc, zl, zu))
-        q, m = s.shape[1], sc.shape[0]
-        filt, filter_mu, theta_max, theta_min = [], None, math.inf, 0.0
-        delta_w_last, needed_last = 0.0, False
-        full = np.empty((self.size, 3 * self.bw + 1))
-        piv = np.empty(self.size, dtype=np.int64)
+        self.y, self.z, self.zc, self.zl, self.zu = (np.ascontiguousarray(v, dtype=float) for v in (y, z, zc, zl, zu))
+        self.s, self.sc, self.dl, self.du = s, sc, dl, du
+        self.q, self.m = s.shape[1], sc.shape[0]
+
+    def _bind_kernels(self) -> None:
+        """The compiled kernels, without their entry points' argument checks (the arrays are made here)."""
         K = kernels()
-        # the solver's own calls skip the entry points' argument checks (its arrays are made right here)
-        factor, solve_b, assemble = _raw(K.band_factor), _raw(K.band_solve), _raw(K.band_assemble)
-        errors_k, newton_k, rhs_k = _raw(K.ipm_errors), _raw(K.ipm_newton), _raw(K.ipm_rhs)
-        curvature_k, steps_k, merit_k = _raw(K.ipm_curvature), _raw(K.ipm_steps), _raw(K.ipm_merit)
-        mean_k, update_k = _raw(K.ipm_mean_complementarity), _raw(K.ipm_update)
-        lay = self.layout
-        # the iteration's work arrays, made once
-        r_d = np.empty(n)
-        sig, sig_c, sig_x = np.empty((N, q)), np.empty(m), np.empty(n)
-        grad_f, base_x, bound_x = np.empty(n), np.empty(n), np.empty(n)
-        grad_c, a_mat = np.empty((m, n)), np.empty((self.size, m))
-        diag_y = np.empty(N)
-        status, trace, it, err0 = "max_iter", [], 0, math.inf
-        rejected = 0
-        acceptable, f_prev = 0, math.inf
-        adaptive = S.mu_strategy == "adaptive"
-        errs: list[float] = []
+        self.factor, self.solve_b, self.assemble = _raw(K.band_factor), _raw(K.band_solve), _raw(K.band_assemble)
+        self.errors_k, self.newton_k, self.rhs_k = _raw(K.ipm_errors), _raw(K.ipm_newton), _raw(K.ipm_rhs)
+        self.curvature_k, self.steps_k, self.merit_k = _raw(K.ipm_curvature), _raw(K.ipm_steps), _raw(K.ipm_merit)
+        self.mean_k, self.update_k = _raw(K.ipm_mean_complementarity), _raw(K.ipm_update)
 
-        def steps(d, r_g, r_c, mu_, tau_, dual=True):
-            """(dx, dy, ds, dsc, dz, dzc, dzl, dzu, primal step, dual step, the barrier function's slope)."""
-            out = (np.empty(n), np.empty(N), np.empty((N, q)), np.empty(m), np.empty((N, q)), np.empty(m),
-                   np.empty(n), np.empty(n))
-            a_p_, a_d_, dphi_ = steps_k(lay, d, der.grad_g, r_g, r_c, grad_c, s, sc, z, zc, zl, zu, dl, du, sig, sig_c,
-                                        grad_f, mu_, tau_, dual, *out)
-            return (*out, a_p_, a_d_, dphi_)
+    def _work_arrays(self) -> None:
+        """The iteration's work arrays, made once."""
+        n, N, q, m, size = self.n, self.N, self.q, self.m, self.ipm.size
+        self.full = np.empty((size, 3 * self.ipm.bw + 1))
+        self.piv = np.empty(size, dtype=np.int64)
+        self.r_d = np.empty(n)
+        self.sig, self.sig_c, self.sig_x = np.empty((N, q)), np.empty(m), np.empty(n)
+        self.grad_f, self.base_x, self.bound_x = np.empty(n), np.empty(n), np.empty(n)
+        self.grad_c, self.a_mat = np.empty((m, n)), np.empty((size, m))
+        self.diag_y = np.empty(N)
 
-        for it in range(1, S.max_iter + 1):  # noqa: B007 (the count is returned after the loop)
-            der = p.derivatives(x)
-            e_dual, e_prim, p_max, p_min, s_c, mean_c = errors_k(
-                lay, der.grad_f, der.grad_e, y, der.grad_g, z, der.grad_c, zc, zl, zu, val.e, val.g, s, val.c, sc,
-                dl, du, r_d)
-
-            def err_at(mu_):
-                """The barrier problem's optimality error for ``mu_``."""
-                return max(e_dual, e_prim, max(p_max - mu_, mu_ - p_min) / s_c)
-
-            err0, err_mu = max(e_dual, e_prim, p_max / s_c), err_at(mu)
-            if not (np.isfinite(err0) and np.all(np.isfinite(x))):  # lost: say so at once
-                status = "not finite"
+    # ------------------------------------------------------------------ the iteration
+    def run(self) -> IPMResult:
+        """Iterate until converged, stuck, or out of iterations."""
+        for it in range(1, self.S.max_iter + 1):
+            self.it = it
+            status = self._iteration()
+            if status is not None:
+                self.status = status
                 break
-            if err0 <= S.tol:
-                status = "converged"
-                break
-            settled = abs(val.f - f_prev) <= S.acceptable_obj_change * max(1.0, abs(val.f))
-            acceptable = acceptable + 1 if err0 <= S.acceptable_tol and (mu <= S.tol or adaptive) and settled else 0
-            f_prev = val.f
-            if acceptable >= S.acceptable_iter:
-                status = "acceptable"
-                break
-            errs.append(err0)
-            if adaptive and len(errs) > 12 and err0 > 0.9999 * errs[-5]:  # no progress: the monotone rule
-                adaptive = False
-                mu = max(S.tol / 10, 0.8 * mean_c)
-                err_mu = err_at(mu)
-            while not adaptive and err_mu <= S.kappa_eps * mu and mu > S.tol / 10:
-                mu = max(S.tol / 10, min(S.kappa_mu * mu, mu ** S.theta_mu))
-                err_mu = err_at(mu)
-            # ---- the Newton system: W dx + A' dy = rhs_x, A dx = -e (slacks and bound multipliers eliminated)
-            newton_k(lay, der.grad_f, der.grad_e, y, der.grad_c, s, z, sc, zc, dl, du, zl, zu, sig, sig_c, sig_x,
-                     grad_f, base_x, bound_x, grad_c, a_mat)
-            hess = p.hessian(x, y, z, zc)
+        return IPMResult(self.x, self.y, self.z, self.zc, self.zl, self.zu, float(self.val.f),
+                         self.status in ("converged", "acceptable"), self.it, float(self.err0), self.status, self.trace)
 
-            def rhs(r_e, r_g, r_c, mu_):
-                """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc, and the
-                barrier parameter mu_."""
-                out = np.empty(self.size)
-                rhs_k(lay, base_x, bound_x, der.grad_g, s, sig, r_g, grad_c, sc, sig_c, r_c, r_e, mu_, out)
-                return out
+    def _iteration(self) -> str | None:
+        """One Newton step with its line search; the status when the solve stops here."""
+        self.der = self.p.derivatives(self.x)
+        self._errors()
+        status = self._convergence()
+        if status is not None:
+            return status
+        self._update_barrier()
+        self._newton_system()
+        d = self._regularised_direction()
+        if d is None:
+            return "singular"
+        return self._step(d)
 
-            r_g0, r_c0 = val.g + s, val.c + sc
-            first = rhs(val.e, r_g0, r_c0, 0.0 if adaptive else mu)
-            # where the last step needed a regularisation, start from a third of it (IPOPT tries 0 first:
-            # here the reduced Hessian stays indefinite for many iterations in a row, and each try costs a
-            # factorisation)
-            delta_w, delta_c = (delta_w_last / 3 if delta_w_last > 0 and needed_last else 0.0), 0.0
-            for _attempt in range(25):
-                diag_y.fill(-delta_c)
-                assemble(full, self.bw, self.pos, hess, der.grad_g, sig, der.grad_e, self.pos_x, sig_x + delta_w,
-                         self.pos_y, diag_y, self.fixed_pos)
-                if factor(full, self.bw, self.bw, piv) == 0:
-                    sol = np.empty((self.size, 1 + m))
-                    sol[:, 0] = first
-                    sol[:, 1:] = a_mat
-                    solve_b(full, self.bw, self.bw, piv, sol)
-                    qm = sol[:, 1:].copy()  # K_b^-1 A
-                    small = np.diag(1.0 / sig_c) + np.einsum("nj,nk->jk", a_mat, qm)
+    def _errors(self) -> None:
+        """The optimality error's terms (dual, primal, complementarity and its scaling), the mean
+        complementarity, and the unscaled error ``err0``."""
+        der, val = self.der, self.val
+        e_dual, e_prim, p_max, p_min, s_c, self.mean_c = self.errors_k(
+            self.lay, der.grad_f, der.grad_e, self.y, der.grad_g, self.z, der.grad_c, self.zc, self.zl, self.zu,
+            val.e, val.g, self.s, val.c, self.sc, self.dl, self.du, self.r_d)
+        self.terms = (e_dual, e_prim, p_max, p_min, s_c)
+        self.err0 = max(e_dual, e_prim, p_max / s_c)
 
-                    def direction(rv, sol=None):
-                        """The Newton step for a right-hand side (the global inequalities' low-rank term
-                        by Sherman-Morrison-Woodbury on the factored banded part)."""
-                        if sol is None:
-                            sol = rv.reshape(-1, 1).copy()
-                            solve_b(full, self.bw, self.bw, piv, sol)
-                        pv = sol[:, 0]
-                        if m == 1:  # the running time alone: a division (what LAPACK does for 1 x 1)
-                            return pv - qm[:, 0] * (_dot(a_mat[:, 0], pv) / small[0, 0])
-                        return pv - np.einsum("nj,j->n", qm, np.linalg.solve(small, np.einsum("nj,n->j", a_mat, pv)))
+    def _err_at(self, mu_: float) -> float:
+        """The barrier problem's optimality error for ``mu_``."""
+        e_dual, e_prim, p_max, p_min, s_c = self.terms
+        return max(e_dual, e_prim, max(p_max - mu_, mu_ - p_min) / s_c)
 
-                    d = direction(first, sol)
-                    if np.all(np.isfinite(d)):
-                        dx = d[self.pos_x]
-                        curv, dxdx = curvature_k(lay, dx, hess, der.grad_g, sig, sig_x, delta_w, sig_c, grad_c)
-                        if curv >= S.curvature * dxdx:
-                            break
-                else:  # a zero pivot: regularise the equality block too, more each time
-                    delta_c = 10 * delta_c if delta_c > 0 else 1e-8 * mu ** 0.25
-                delta_w = (max(1e-20, delta_w_last / 3) if delta_w == 0 and delta_w_last > 0
-                           else 1e-4 if delta_w == 0 else 8.0 * delta_w)
-            else:
-                status = "singular"
-                break
-            needed_last = delta_w > 0
-            delta_w_last = delta_w if delta_w > 0 else delta_w_last
+    def _convergence(self) -> str | None:
+        """The convergence test: "not finite", "converged", "acceptable" (IPOPT's acceptable level held for
+        ``acceptable_iter`` iterations with the objective settled), or None to go on."""
+        S, err0, f = self.S, self.err0, self.val.f
+        if not (np.isfinite(err0) and np.all(np.isfinite(self.x))):  # lost: say so at once
+            return "not finite"
+        if err0 <= S.tol:
+            return "converged"
+        settled = abs(f - self.f_prev) <= S.acceptable_obj_change * max(1.0, abs(f))
+        self.acceptable = (self.acceptable + 1 if err0 <= S.acceptable_tol and (self.mu <= S.tol or self.adaptive)
+                           and settled else 0)
+        self.f_prev = f
+        if self.acceptable >= S.acceptable_iter:
+            return "acceptable"
+        return None
 
-            if adaptive:  # Mehrotra's probing: how far the affine-scaling step (mu = 0) gets
-                dx_a, _, ds_a, dsc_a, dz_a, dzc_a, dzl_a, dzu_a, ap, ad, _ = steps(d, r_g0, r_c0, 0.0, 1.0)
-                mu_aff = mean_k(lay, ap, ad, x, dx_a, s, ds_a, sc, dsc_a, z, dz_a, zc, dzc_a, zl, dzl_a, zu, dzu_a)
-                mu = max(S.tol / 10, min(max((mu_aff / mean_c) ** 3, 0.1), 1.0) * mean_c)
-                d = direction(rhs(val.e, r_g0, r_c0, mu))
-            tau = max(S.tau_min, 1.0 - mu)
-            dx, dy, ds, dsc, dz, dzc, dzl, dzu, a_p, a_d, dphi = steps(d, r_g0, r_c0, mu, tau)
-            # ---- filter line search with second-order corrections
-            logs0, theta0 = merit_k(lay, x, s, sc, val.e, val.g, val.c)
-            phi0 = val.f - mu * logs0
-            if mu != filter_mu:  # a new barrier problem: a new filter
-                filt, filter_mu = [], mu
-                theta_max, theta_min = 1e4 * max(1.0, theta0), 1e-4 * max(1.0, theta0)
+    def _update_barrier(self) -> None:
+        """The adaptive rule falls back to the monotone one when the error stops falling; the monotone rule
+        lowers mu while the barrier problem is solved to kappa_eps mu."""
+        S = self.S
+        err_mu = self._err_at(self.mu)
+        self.errs.append(self.err0)
+        if self.adaptive and len(self.errs) > 12 and self.err0 > 0.9999 * self.errs[-5]:  # no progress
+            self.adaptive = False
+            self.mu = max(S.tol / 10, 0.8 * self.mean_c)
+            err_mu = self._err_at(self.mu)
+        while not self.adaptive and err_mu <= S.kappa_eps * self.mu and self.mu > S.tol / 10:
+            self.mu = max(S.tol / 10, min(S.kappa_mu * self.mu, self.mu ** S.theta_mu))
+            err_mu = self._err_at(self.mu)
 
-            def judge(v_t: CellValues, x_t, s_t, sc_t, alpha) -> tuple[bool, bool, float]:
-                """(accepted, f-type, the violation): acceptable to the filter, and either an Armijo decrease
-                of the barrier function (when the step is mostly an objective step) or a sufficient decrease
-                of the violation or of the barrier function."""
-                if not v_t.finite():
-                    return False, False, math.inf
-                logs_t, theta_t = merit_k(lay, x_t, s_t, sc_t, v_t.e, v_t.g, v_t.c)
-                phi_t = v_t.f - mu * logs_t
-                if not np.isfinite(phi_t) or theta_t > theta_max:
-                    return False, False, theta_t
-                if any(theta_t >= th and phi_t >= ph for th, ph in filt):
-                    return False, False, theta_t
-                if dphi < 0 and alpha * (-dphi) ** 2.3 > theta0 ** 1.1 and theta0 <= theta_min:
-                    return bool(phi_t <= phi0 + 1e-8 * alpha * dphi + 1e-14 * abs(phi0)), True, theta_t
-                return bool(theta_t <= (1 - 1e-5) * theta0 or phi_t <= phi0 - 1e-8 * theta0), False, theta_t
+    def _newton_system(self) -> None:
+        """The Newton system's parts: W dx + A' dy = rhs_x, A dx = -e, with the slacks and bound multipliers
+        eliminated; the Hessian; the residuals and the first right-hand side."""
+        der, val = self.der, self.val
+        self.newton_k(self.lay, der.grad_f, der.grad_e, self.y, der.grad_c, self.s, self.z, self.sc, self.zc,
+                      self.dl, self.du, self.zl, self.zu, self.sig, self.sig_c, self.sig_x, self.grad_f, self.base_x,
+                      self.bound_x, self.grad_c, self.a_mat)
+        self.hess = self.p.hessian(self.x, self.y, self.z, self.zc)
+        self.r_g0, self.r_c0 = val.g + self.s, val.c + self.sc
+        self.first = self._rhs(val.e, self.r_g0, self.r_c0, 0.0 if self.adaptive else self.mu)
 
-            alpha, accepted, f_type = a_p, False, False
-            for trial in range(40):
-                xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
-                vn = p.values(xn)
-                accepted, f_type, theta_n = judge(vn, xn, sn, scn, alpha)
-                if accepted:
-                    break
-                if trial == 0 and S.max_soc > 0 and theta_n >= theta0 and vn.finite():
-                    c_e, c_g, c_c = alpha * val.e + vn.e, alpha * r_g0 + (vn.g + sn), alpha * r_c0 + (vn.c + scn)
-                    theta_soc = theta0
-                    for _ in range(S.max_soc):  # second-order corrections of the full step
-                        d_soc = direction(rhs(c_e, c_g, c_c, mu))
-                        dx_s, dy_s, ds_s, dsc_s, *_, a_s, _, _ = steps(d_soc, c_g, c_c, mu, tau, False)
-                        xs_, ss_, scs_ = x + a_s * dx_s, s + a_s * ds_s, sc + a_s * dsc_s
-                        vs = p.values(xs_)
-                        accepted, f_type, theta_new = judge(vs, xs_, ss_, scs_, alpha)
-                        if accepted:
-                            xn, sn, scn, vn = xs_, ss_, scs_, vs
-                            dy = dy_s
-                            break
-                        if theta_new > 0.99 * theta_soc:
-                            break
-                        theta_soc = theta_new
-                        c_e, c_g, c_c = a_s * c_e + vs.e, a_s * c_g + (vs.g + ss_), a_s * c_c + (vs.c + scs_)
-                    if accepted:
+    def _rhs(self, r_e, r_g, r_c, mu_: float) -> np.ndarray:
+        """The right-hand side for the residuals r_e (equalities), r_g = g + s, r_c = c + sc, and the barrier
+        parameter mu_."""
+        out = np.empty(self.ipm.size)
+        self.rhs_k(self.lay, self.base_x, self.bound_x, self.der.grad_g, self.s, self.sig, r_g, self.grad_c, self.sc,
+                   self.sig_c, r_c, r_e, mu_, out)
+        return out
+
+    def _regularised_direction(self) -> np.ndarray | None:
+        """The Newton step for the first right-hand side, the Hessian regularised (delta_w) until the step's
+        curvature is positive and the equality block (delta_c) while a pivot is zero; None after 25 tries.
+        Where the last step needed delta_w, start from a third of it (IPOPT tries 0 first: here the reduced
+        Hessian stays indefinite for many iterations in a row, and each try costs a factorisation)."""
+        S, ipm = self.S, self.ipm
+        delta_w, delta_c = (self.delta_w_last / 3 if self.delta_w_last > 0 and self.needed_last else 0.0), 0.0
+        for _attempt in range(25):
+            sol = self._factor(delta_w, delta_c)
+            if sol is not None:
+                d = self._direction(self.first, sol)
+                if np.all(np.isfinite(d)):
+                    dx = d[ipm.pos_x]
+                    curv, dxdx = self.curvature_k(self.lay, dx, self.hess, self.der.grad_g, self.sig, self.sig_x,
+                                                  delta_w, self.sig_c, self.grad_c)
+                    if curv >= S.curvature * dxdx:
                         break
-                alpha *= 0.5
-            if not accepted and adaptive:  # the adaptive rule lost its way: the monotone one from here
-                adaptive = False
-                mu = max(S.tol / 10, 0.8 * mean_c)
-            rejected = 0 if accepted else rejected + 1
-            if rejected > S.max_rejected:  # the line search has found nothing for a while: give up
-                status = "stalled"
+            else:  # a zero pivot: regularise the equality block too, more each time
+                delta_c = 10 * delta_c if delta_c > 0 else 1e-8 * self.mu ** 0.25
+            delta_w = (max(1e-20, self.delta_w_last / 3) if delta_w == 0 and self.delta_w_last > 0
+                       else 1e-4 if delta_w == 0 else 8.0 * delta_w)
+        else:
+            return None
+        self.needed_last = delta_w > 0
+        self.delta_w_last = delta_w if delta_w > 0 else self.delta_w_last
+        self.delta_w = delta_w
+        return d
+
+    def _factor(self, delta_w: float, delta_c: float) -> np.ndarray | None:
+        """Assemble and factor the banded KKT matrix with the regularisations; solve it for the first
+        right-hand side and the global inequalities' columns A (kept with the Woodbury matrix); None at a
+        zero pivot."""
+        ipm, m = self.ipm, self.m
+        self.diag_y.fill(-delta_c)
+        self.assemble(self.full, ipm.bw, ipm.pos, self.hess, self.der.grad_g, self.sig, self.der.grad_e, ipm.pos_x,
+                      self.sig_x + delta_w, ipm.pos_y, self.diag_y, ipm.fixed_pos)
+        if self.factor(self.full, ipm.bw, ipm.bw, self.piv) != 0:
+            return None
+        sol = np.empty((ipm.size, 1 + m))
+        sol[:, 0] = self.first
+        sol[:, 1:] = self.a_mat
+        self.solve_b(self.full, ipm.bw, ipm.bw, self.piv, sol)
+        self.qm = sol[:, 1:].copy()  # K_b^-1 A
+        self.small = np.diag(1.0 / self.sig_c) + np.einsum("nj,nk->jk", self.a_mat, self.qm)
+        return sol
+
+    def _direction(self, rv: np.ndarray, sol: np.ndarray | None = None) -> np.ndarray:
+        """The Newton step for a right-hand side (the global inequalities' low-rank term by
+        Sherman-Morrison-Woodbury on the factored banded part); ``sol``: the banded solve, when done."""
+        bw, a_mat, qm, small = self.ipm.bw, self.a_mat, self.qm, self.small
+        if sol is None:
+            sol = rv.reshape(-1, 1).copy()
+            self.solve_b(self.full, bw, bw, self.piv, sol)
+        pv = sol[:, 0]
+        if self.m == 1:  # the running time alone: a division (what LAPACK does for 1 x 1)
+            return pv - qm[:, 0] * (_dot(a_mat[:, 0], pv) / small[0, 0])
+        return pv - np.einsum("nj,j->n", qm, np.linalg.solve(small, np.einsum("nj,n->j", a_mat, pv)))
+
+    def _steps(self, d, r_g, r_c, mu_: float, tau_: float, dual: bool = True):
+        """(dx, dy, ds, dsc, dz, dzc, dzl, dzu, primal step, dual step, the barrier function's slope): the
+        step's parts and its lengths by the fraction to the boundary ``tau_``."""
+        n, N, q, m = self.n, self.N, self.q, self.m
+        out = (np.empty(n), np.empty(N), np.empty((N, q)), np.empty(m), np.empty((N, q)), np.empty(m),
+               np.empty(n), np.empty(n))
+        a_p_, a_d_, dphi_ = self.steps_k(self.lay, d, self.der.grad_g, r_g, r_c, self.grad_c, self.s, self.sc,
+                                         self.z, self.zc, self.zl, self.zu, self.dl, self.du, self.sig, self.sig_c,
+                                         self.grad_f, mu_, tau_, dual, *out)
+        return (*out, a_p_, a_d_, dphi_)
+
+    def _probe_mu(self, d: np.ndarray) -> np.ndarray:
+        """Mehrotra's probing: mu from how far the affine-scaling step (mu = 0) gets; the step for it."""
+        S, val = self.S, self.val
+        dx_a, _, ds_a, dsc_a, dz_a, dzc_a, dzl_a, dzu_a, ap, ad, _ = self._steps(d, self.r_g0, self.r_c0, 0.0, 1.0)
+        mu_aff = self.mean_k(self.lay, ap, ad, self.x, dx_a, self.s, ds_a, self.sc, dsc_a, self.z, dz_a, self.zc,
+                             dzc_a, self.zl, dzl_a, self.zu, dzu_a)
+        self.mu = max(S.tol / 10, min(max((mu_aff / self.mean_c) ** 3, 0.1), 1.0) * self.mean_c)
+        return self._direction(self._rhs(val.e, self.r_g0, self.r_c0, self.mu))
+
+    def _step(self, d: np.ndarray) -> str | None:
+        """The step along ``d``: its lengths, the filter line search, and the update of the iterate; "stalled"
+        when no step has been accepted for too long."""
+        S, n = self.S, self.n
+        if self.adaptive:
+            d = self._probe_mu(d)
+        tau = max(S.tau_min, 1.0 - self.mu)
+        dx, dy, ds, dsc, dz, dzc, dzl, dzu, a_p, a_d, self.dphi = self._steps(d, self.r_g0, self.r_c0, self.mu, tau)
+        self._merit_and_filter()
+        accepted, f_type, alpha, trial, dy_soc = self._line_search(dx, ds, dsc, a_p, tau)
+        if dy_soc is not None:
+            dy = dy_soc
+        if not accepted and self.adaptive:  # the adaptive rule lost its way: the monotone one from here
+            self.adaptive = False
+            self.mu = max(S.tol / 10, 0.8 * self.mean_c)
+        self.rejected = 0 if accepted else self.rejected + 1
+        if self.rejected > S.max_rejected:  # the line search has found nothing for a while: give up
+            return "stalled"
+        if not accepted:  # a short step anyway (IPOPT would restore feasibility here)
+            alpha = min(a_p, 1e-3)
+            trial = self._trial(alpha, dx, ds, dsc)
+        if not f_type:  # the filter keeps this point's margin
+            self.filt.append(((1 - 1e-5) * self.theta0, self.phi0 - 1e-8 * self.theta0))
+        self.trace.append((self.err0, self.mu, alpha, a_d, self.delta_w, self.val.f))
+        self.x, self.s, self.sc, self.val = trial
+        self.dl, self.du = np.empty(n), np.empty(n)
+        self.update_k(self.lay, self.x, self.s, self.sc, alpha, dy, a_d, dz, dzc, dzl, dzu, self.mu, self.y, self.z,
+                      self.zc, self.zl, self.zu, self.dl, self.du)
+        return None
+
+    # ------------------------------------------------------------------ the filter line search
+    def _merit_and_filter(self) -> None:
+        """The current point's constraint violation theta0 and barrier function phi0; a new filter for a new
+        barrier problem."""
+        logs0, self.theta0 = self.merit_k(self.lay, self.x, self.s, self.sc, self.val.e, self.val.g, self.val.c)
+        self.phi0 = self.val.f - self.mu * logs0
+        if self.mu != self.filter_mu:  # a new barrier problem: a new filter
+            self.filt, self.filter_mu = [], self.mu
+            self.theta_max, self.theta_min = 1e4 * max(1.0, self.theta0), 1e-4 * max(1.0, self.theta0)
+
+    def _trial(self, alpha: float, dx, ds, dsc) -> tuple:
+        """The trial point (x, s, sc, its values) a step ``alpha`` along (dx, ds, dsc)."""
+        xn, sn, scn = self.x + alpha * dx, self.s + alpha * ds, self.sc + alpha * dsc
+        return xn, sn, scn, self.p.values(xn)
+
+    def _judge(self, v_t: CellValues, x_t, s_t, sc_t, alpha: float) -> tuple[bool, bool, float]:
+        """(accepted, f-type, the violation): acceptable to the filter, and either an Armijo decrease of the
+        barrier function (when the step is mostly an objective step) or a sufficient decrease of the
+        violation or of the barrier function."""
+        theta0, phi0, dphi = self.theta0, self.phi0, self.dphi
+        if not v_t.finite():
+            return False, False, math.inf
+        logs_t, theta_t = self.merit_k(self.lay, x_t, s_t, sc_t, v_t.e, v_t.g, v_t.c)
+        phi_t = v_t.f - self.mu * logs_t
+        if not np.isfinite(phi_t) or theta_t > self.theta_max:
+            return False, False, theta_t
+        if any(theta_t >= th and phi_t >= ph for th, ph in self.filt):
+            return False, False, theta_t
+        if dphi < 0 and alpha * (-dphi) ** 2.3 > theta0 ** 1.1 and theta0 <= self.theta_min:
+            return bool(phi_t <= phi0 + 1e-8 * alpha * dphi + 1e-14 * abs(phi0)), True, theta_t
+        return bool(theta_t <= (1 - 1e-5) * theta0 or phi_t <= phi0 - 1e-8 * theta0), False, theta_t
+
+    def _line_search(self, dx, ds, dsc, a_p: float, tau: float) -> tuple:
+        """Backtracking from the step to the boundary ``a_p``, halving up to 40 times, with second-order
+        corrections of a rejected full step: (accepted, f-type, alpha, the trial point, the corrected dy
+        or None)."""
+        S = self.S
+        alpha, accepted, f_type = a_p, False, False
+        for k in range(40):
+            trial = self._trial(alpha, dx, ds, dsc)
+            vn = trial[3]
+            accepted, f_type, theta_n = self._judge(vn, *trial[:3], alpha)
+            if accepted:
                 break
-            if not accepted:  # a short step anyway (IPOPT would restore feasibility here)
-                alpha = min(a_p, 1e-3)
-                xn, sn, scn = x + alpha * dx, s + alpha * ds, sc + alpha * dsc
-                vn = p.values(xn)
-            if not f_type:  # the filter keeps this point's margin
-                filt.append(((1 - 1e-5) * theta0, phi0 - 1e-8 * theta0))
-            trace.append((err0, mu, alpha, a_d, delta_w, val.f))
-            x, s, sc, val = xn, sn, scn, vn
-            dl, du = np.empty(n), np.empty(n)
-            update_k(lay, x, s, sc, alpha, dy, a_d, dz, dzc, dzl, dzu, mu, y, z, zc, zl, zu, dl, du)
-        return IPMResult(x, y, z, zc, zl, zu, float(val.f), status in ("converged", "acceptable"), it, float(err0),
-                         status, trace)
+            if k == 0 and S.max_soc > 0 and theta_n >= self.theta0 and vn.finite():
+                corrected = self._second_order_corrections(alpha, trial, tau)
+                if corrected is not None:
+                    trial, dy_soc, f_type = corrected
+                    return True, f_type, alpha, trial, dy_soc
+            alpha *= 0.5
+        return accepted, f_type, alpha, trial, None
+
+    def _second_order_corrections(self, alpha: float, trial: tuple, tau: float) -> tuple | None:
+        """Up to ``max_soc`` corrections of the full step for the constraints' curvature (the Maratos effect),
+        while the violation falls: (the accepted point, its dy, f-type), or None."""
+        val, mu = self.val, self.mu
+        _, sn, scn, vn = trial
+        c_e, c_g, c_c = alpha * val.e + vn.e, alpha * self.r_g0 + (vn.g + sn), alpha * self.r_c0 + (vn.c + scn)
+        theta_soc = self.theta0
+        for _ in range(self.S.max_soc):
+            d_soc = self._direction(self._rhs(c_e, c_g, c_c, mu))
+            dx_s, dy_s, ds_s, dsc_s, *_, a_s, _, _ = self._steps(d_soc, c_g, c_c, mu, tau, False)
+            xs_, ss_, scs_ = self.x + a_s * dx_s, self.s + a_s * ds_s, self.sc + a_s * dsc_s
+            vs = self.p.values(xs_)
+            accepted, f_type, theta_new = self._judge(vs, xs_, ss_, scs_, alpha)
+            if accepted:
+                return (xs_, ss_, scs_, vs), dy_s, f_type
+            if theta_new > 0.99 * theta_soc:
+                return None
+            theta_soc = theta_new
+            c_e, c_g, c_c = a_s * c_e + vs.e, a_s * c_g + (vs.g + ss_), a_s * c_c + (vs.c + scs_)
+        return None

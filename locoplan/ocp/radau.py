@@ -240,6 +240,45 @@ def _point_functions(model, names: tuple[str, ...]):
     return entry[2] if fast is None else (fast[0], fast[1], entry[2][2], fast[2])
 
 
+def _check_radau(problem: MultiPhaseProblem, mesh: Mesh) -> None:
+    """An InputError for a problem or mesh the Radau transcription does not take."""
+    if problem.free_end is not None or problem.mayer is not None or problem.model.integrand is None:
+        raise InputError("Radau transcription: needs a fixed end and an integrand objective (a free-end "
+                         "or Mayer problem goes to the Gauss transcription, locoplan.ocp.gauss)")
+    if any(iv.control_map is not None for iv in mesh.intervals):
+        raise InputError("Radau transcription: a control map belongs to the Gauss transcription")
+
+
+@dataclass
+class _Layout:
+    """What the parts of a Radau NLP read: the model, grid, sizes (``n`` collocation points, ``nc``
+    constraints and ``m`` local variables per point, ``n_vars`` NLP variables), scales, the points'
+    affine parameters, and (:meth:`RadauTranscription._local_variables`) the NLP's variables ``w``,
+    the map ``E``, ``c`` onto the local ones ``wloc`` and the point functions' arguments ``call``."""
+
+    model: object
+    grid: Grid
+    nx: int
+    nu: int
+    n: int
+    npath: int
+    nc: int
+    m: int
+    sx: np.ndarray
+    su: np.ndarray
+    names: list
+    p_ref: np.ndarray
+    p_slope: np.ndarray
+    n_vars: int
+    objective_scale: float
+    E_np: object = None
+    c: np.ndarray | None = None
+    E: object = None
+    w: object = None
+    wloc: object = None
+    call: tuple = ()
+
+
 class RadauTranscription:
     """The NLP of ``problem`` on ``mesh``: build once, solve from any initial guess.
 
@@ -257,115 +296,22 @@ class RadauTranscription:
         import casadi as ca
 
         t0 = _time.perf_counter()
-        if problem.free_end is not None or problem.mayer is not None or problem.model.integrand is None:
-            raise InputError("Radau transcription: needs a fixed end and an integrand objective (a free-end "
-                             "or Mayer problem goes to the Gauss transcription, locoplan.ocp.gauss)")
-        if any(iv.control_map is not None for iv in mesh.intervals):
-            raise InputError("Radau transcription: a control map belongs to the Gauss transcription")
+        _check_radau(problem, mesh)
         self.problem, self.mesh = problem, mesh
-        model = problem.model
-        grid = self.grid = Grid(mesh)
-        nx, nu, n = model.n_x, model.n_u, grid.n_col
-        npath = model.n_path if model.path is not None else 0
-        nc = nx + npath  # constraints per point
-        m = nx + nu + 2  # local variables per point
-        sx = np.asarray(model.state_scale, dtype=float)
-        su = np.asarray(model.control_scale, dtype=float)
-        self.sx, self.su = sx, su
-        names, p_ref, p_slope = _affine_params(problem, grid)
-        npar = len(names)
-        nf = len(grid.free)
-        n_vars = nx * (n + 1) + nu * n + nf
-        self.n_x_vars, self.n_u_vars = nx * (n + 1), nu * n
-
+        L = self._layout(problem, mesh)
+        grid, nf, sx, su = L.grid, len(L.grid.free), L.sx, L.su
         # ---- one point: SX functions traced once per model, compiled beside the solve (``jit``)
-        f_con, f_jac, f_obj, f_hess = _point_functions(model, tuple(names))
-
-        # ---- local variables from the NLP's: wloc = E w + c (column k*m + j: variable j of point k)
-        E_np, c = _local_map(grid, nx, nu, sx, su, n_vars)
-        E = _sparse(E_np)
-        w = ca.MX.sym("w", n_vars)
-        wloc = ca.reshape(ca.mtimes(E, w) + ca.DM(c), m, n)
-        call = (wloc, ca.DM(grid.s_col).T, ca.DM(p_ref), ca.DM(p_slope), ca.DM(sx))
-
-        # ---- linear parts: D X / sx in the defect rows; smoothness; lengths next to moving points
-        Dl = sp.kron(grid.D, sp.identity(nx), format="coo")  # rows k*nx + i, cols (state point)*nx + i
-        Lin = sp.csc_matrix((Dl.data, ((Dl.row // nx) * nc + Dl.row % nx, Dl.col)), shape=(nc * n, n_vars))
-        g_parts, j_parts = [], []
-        lbg, ubg = [], []
-        # pointwise constraints
+        f_con, f_jac, f_obj, f_hess = _point_functions(L.model, tuple(L.names))
+        self._local_variables(L)
         xl, xu, ul, uu = _bounds_per_point(problem, grid)
-        path_lo = np.full((max(npath, 1), n), -np.inf)
-        _fix_arcs(mesh, model, grid, ul, uu, path_lo)
-        Lin_dm = _sparse(Lin)
-        con_all = ca.vec(f_con.map(n)(*call)) + ca.mtimes(Lin_dm, w)
-        jac_all = ca.MX(_block_diagonal(nc, m, n), ca.vec(f_jac.map(n)(*call)))
-        jac_all = ca.mtimes(jac_all, E) + Lin_dm
-        lb_pt = np.vstack([np.zeros((nx, n)), path_lo[:npath]])
-        ub_pt = np.zeros((nc, n))
-        small = []  # (expression, lower, upper) of the few constraints that are not pointwise
-        sing_rows = None
-        if grid.singular.any():
-            sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
-            xs0, us0 = ca.SX.sym("x0", nx), ca.SX.sym("u0", nu)
-            s0, fac = ca.SX.sym("s0"), ca.SX.sym("fac")
-            pd0 = {k: pr[i] + pd[i] * (s0 - sref) for i, k in enumerate(names)}
-            x0l, u0l = [xs0[i] for i in range(nx)], [us0[i] for i in range(nu)]
-            rate = ca.vertcat(*_eval_model(model.singular_start, x0l, u0l, s0, pd0, nx))
-            start = ca.Function("start", [xs0, us0, s0, fac, sref, pr, pd],
-                                [-fac * rate / ca.DM(sx),
-                                 ca.vertcat(*_eval_model(model.start_path, x0l, u0l, s0, pd0, model.n_start_path))])
-            w0 = wloc[:, 0]
-            r0, dg0 = self._length_rows(grid, [0], nx + nu + 1, m)
-            fac_expr = ca.sqrt((ca.mtimes(E[int(r0[0]), :], w) + float(c[r0[0]])) / float(dg0[0])) / 2
-            extra, g_start = start(w0[:nx], w0[nx:nx + nu], w0[nx + nu], fac_expr, grid.s_col[0], p_ref[:, 0], p_slope[:, 0])
-            pad = ca.vertcat(extra, ca.MX.zeros(nc * n - nx, 1))
-            con_all = con_all + pad
-            jac_all = jac_all + ca.jacobian(pad, w)
-            sing_rows = (extra, g_start)
-            if model.n_start_path:
-                small.append((g_start, np.full(model.n_start_path, -np.inf), np.zeros(model.n_start_path)))
-        g_parts.append(con_all)
-        j_parts.append(jac_all)
-        lbg.append(lb_pt.ravel(order="F"))
-        ubg.append(ub_pt.ravel(order="F"))
-        for expr, lo_, hi_ in small:
-            g_parts.append(expr)
-            j_parts.append(ca.jacobian(expr, w))
-            lbg.append(lo_)
-            ubg.append(hi_)
-        lin_rows = []  # (matrix, offset, lower, upper) of linear constraints
-        if nf:  # every interval next to a moving point keeps a positive length
-            own = sorted({i for q in grid.free for i in (q - 1, q)})
-            rr, dgr = self._length_rows(grid, own, nx + nu + 1, m)
-            A = sp.csr_matrix(E_np[rr, :].multiply(1.0 / dgr[:, None]))
-            lin_rows.append((A, c[rr] / dgr, np.full(len(own), MIN_INTERVAL_M), np.full(len(own), np.inf)))
-        for A, off, lo_, hi_ in lin_rows:
-            Ad = _sparse(A)
-            g_parts.append(ca.mtimes(Ad, w) + ca.DM(off))
-            j_parts.append(Ad)
-            lbg.append(lo_)
-            ubg.append(hi_)
+        path_lo = np.full((max(L.npath, 1), L.n), -np.inf)
+        _fix_arcs(mesh, L.model, grid, ul, uu, path_lo)
+        g_parts, j_parts, lbg, ubg, sing_rows = self._constraints(L, f_con, f_jac, path_lo)
         g_all = ca.vertcat(*g_parts)
         jac_g = ca.vertcat(*j_parts)
-
-        # ---- objective and Hessian of the Lagrangian
-        wq = np.concatenate([_nodes.legendre_gauss_radau(iv.n)[1] for iv in mesh.intervals])
-        obj_scale = problem.objective_scale
-        obj = ca.mtimes(f_obj.map(n)(*call), ca.DM(wq)) / obj_scale
-        lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", g_all.size1())
-        lam_pt = ca.reshape(lam_g[: nc * n], nc, n)
-        mus = ca.vertcat(lam_f * ca.DM(wq).T / obj_scale, lam_pt)
-        hess_blocks = ca.MX(_block_diagonal(m, m, n), ca.vec(f_hess.map(n)(*call, mus)))
-        H = ca.mtimes(ca.mtimes(_sparse(E_np.T), hess_blocks), E)
-        if sing_rows is not None:  # the rest start's terms (a few variables)
-            extra, g_start = sing_rows
-            lag_small = ca.dot(lam_g[:nx], extra)
-            if model.n_start_path:
-                lag_small = lag_small + ca.dot(lam_g[nc * n: nc * n + model.n_start_path], g_start)
-            H = H + ca.hessian(lag_small, w)[0]
+        obj, lam_f, lam_g, H = self._objective_and_hessian(L, f_obj, f_hess, g_all.size1(), sing_rows)
         p = ca.MX.sym("p", 0, 1)
+        w = L.w
         jac_fun = ca.Function("nlp_jac_g", [w, p], [g_all, jac_g], ["x", "p"], ["g", "jac_g_x"])
         hess_fun = ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [ca.triu(H)],
                                ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
@@ -376,9 +322,131 @@ class RadauTranscription:
         self.xl, self.xu, self.ul, self.uu = xl, xu, ul, uu
         self.lbx = np.concatenate([(xl / sx[:, None]).ravel(order="F"), (ul / su[:, None]).ravel(order="F"), np.zeros(nf)])
         self.ubx = np.concatenate([(xu / sx[:, None]).ravel(order="F"), (uu / su[:, None]).ravel(order="F"), np.ones(nf)])
-        self.n_path = npath
+        self.n_path = L.npath
         self.n_g = g_all.size1()
         self.build_time_s = _time.perf_counter() - t0
+
+    def _layout(self, problem: MultiPhaseProblem, mesh: Mesh) -> "_Layout":
+        """The grid, the sizes, the scales and the points' affine parameters; sets ``grid``, ``sx``, ``su``
+        and the state and control variables' counts."""
+        model = problem.model
+        grid = self.grid = Grid(mesh)
+        nx, nu, n = model.n_x, model.n_u, grid.n_col
+        npath = model.n_path if model.path is not None else 0
+        sx = np.asarray(model.state_scale, dtype=float)
+        su = np.asarray(model.control_scale, dtype=float)
+        self.sx, self.su = sx, su
+        names, p_ref, p_slope = _affine_params(problem, grid)
+        n_vars = nx * (n + 1) + nu * n + len(grid.free)
+        self.n_x_vars, self.n_u_vars = nx * (n + 1), nu * n
+        # nc: constraints per point; m: local variables per point
+        return _Layout(model, grid, nx, nu, n, npath, nx + npath, nx + nu + 2, sx, su, names, p_ref, p_slope, n_vars,
+                       problem.objective_scale)
+
+    @staticmethod
+    def _local_variables(L: "_Layout") -> None:
+        """The NLP's variables ``w`` and the points' local ones, ``wloc = E w + c`` (column k*m + j: variable
+        j of point k), with the arguments of the mapped point functions."""
+        import casadi as ca
+
+        L.E_np, L.c = _local_map(L.grid, L.nx, L.nu, L.sx, L.su, L.n_vars)
+        L.E = _sparse(L.E_np)
+        L.w = ca.MX.sym("w", L.n_vars)
+        L.wloc = ca.reshape(ca.mtimes(L.E, L.w) + ca.DM(L.c), L.m, L.n)
+        L.call = (L.wloc, ca.DM(L.grid.s_col).T, ca.DM(L.p_ref), ca.DM(L.p_slope), ca.DM(L.sx))
+
+    def _constraints(self, L: "_Layout", f_con, f_jac, path_lo: np.ndarray) -> tuple:
+        """The constraints with their Jacobian and bounds, in blocks: the pointwise ones (defects with the
+        linear D X / sx, path), a rest start's start rows, and the lengths next to moving points;
+        (expressions, Jacobians, lower, upper bounds, the rest start's (rate, path) or None)."""
+        import casadi as ca
+
+        grid, nx, nc, n, m, w, E = L.grid, L.nx, L.nc, L.n, L.m, L.w, L.E
+        # ---- linear parts: D X / sx in the defect rows; smoothness; lengths next to moving points
+        Dl = sp.kron(grid.D, sp.identity(nx), format="coo")  # rows k*nx + i, cols (state point)*nx + i
+        Lin = sp.csc_matrix((Dl.data, ((Dl.row // nx) * nc + Dl.row % nx, Dl.col)), shape=(nc * n, L.n_vars))
+        g_parts, j_parts = [], []
+        lbg, ubg = [], []
+        Lin_dm = _sparse(Lin)
+        con_all = ca.vec(f_con.map(n)(*L.call)) + ca.mtimes(Lin_dm, w)
+        jac_all = ca.MX(_block_diagonal(nc, m, n), ca.vec(f_jac.map(n)(*L.call)))
+        jac_all = ca.mtimes(jac_all, E) + Lin_dm
+        lb_pt = np.vstack([np.zeros((nx, n)), path_lo[:L.npath]])
+        ub_pt = np.zeros((nc, n))
+        small = []  # (expression, lower, upper) of the few constraints that are not pointwise
+        sing_rows = None
+        if grid.singular.any():
+            extra, g_start = self._rest_start(L)
+            pad = ca.vertcat(extra, ca.MX.zeros(nc * n - nx, 1))
+            con_all = con_all + pad
+            jac_all = jac_all + ca.jacobian(pad, w)
+            sing_rows = (extra, g_start)
+            if L.model.n_start_path:
+                k = L.model.n_start_path
+                small.append((g_start, np.full(k, -np.inf), np.zeros(k)))
+        g_parts.append(con_all)
+        j_parts.append(jac_all)
+        lbg.append(lb_pt.ravel(order="F"))
+        ubg.append(ub_pt.ravel(order="F"))
+        for expr, lo_, hi_ in small:
+            g_parts.append(expr)
+            j_parts.append(ca.jacobian(expr, w))
+            lbg.append(lo_)
+            ubg.append(hi_)
+        if grid.free:  # every interval next to a moving point keeps a positive length
+            own = sorted({i for q in grid.free for i in (q - 1, q)})
+            rr, dgr = self._length_rows(grid, own, nx + L.nu + 1, m)
+            A = sp.csr_matrix(L.E_np[rr, :].multiply(1.0 / dgr[:, None]))
+            Ad = _sparse(A)
+            g_parts.append(ca.mtimes(Ad, w) + ca.DM(L.c[rr] / dgr))
+            j_parts.append(Ad)
+            lbg.append(np.full(len(own), MIN_INTERVAL_M))
+            ubg.append(np.full(len(own), np.inf))
+        return g_parts, j_parts, lbg, ubg, sing_rows
+
+    def _rest_start(self, L: "_Layout") -> tuple:
+        """A start from rest (a singular first point): the first point's rate of the states, scaled, and
+        the model's start path constraints, as MX expressions of the NLP's variables."""
+        import casadi as ca
+
+        nx, nu, npar, model = L.nx, L.nu, len(L.names), L.model
+        sref, pr, pd = ca.SX.sym("sref"), ca.SX.sym("pref", npar), ca.SX.sym("pslope", npar)
+        xs0, us0 = ca.SX.sym("x0", nx), ca.SX.sym("u0", nu)
+        s0, fac = ca.SX.sym("s0"), ca.SX.sym("fac")
+        pd0 = {k: pr[i] + pd[i] * (s0 - sref) for i, k in enumerate(L.names)}
+        x0l, u0l = [xs0[i] for i in range(nx)], [us0[i] for i in range(nu)]
+        rate = ca.vertcat(*_eval_model(model.singular_start, x0l, u0l, s0, pd0, nx))
+        start = ca.Function("start", [xs0, us0, s0, fac, sref, pr, pd],
+                            [-fac * rate / ca.DM(L.sx),
+                             ca.vertcat(*_eval_model(model.start_path, x0l, u0l, s0, pd0, model.n_start_path))])
+        w0 = L.wloc[:, 0]
+        r0, dg0 = self._length_rows(L.grid, [0], nx + nu + 1, L.m)
+        fac_expr = ca.sqrt((ca.mtimes(L.E[int(r0[0]), :], L.w) + float(L.c[r0[0]])) / float(dg0[0])) / 2
+        return start(w0[:nx], w0[nx:nx + nu], w0[nx + nu], fac_expr, L.grid.s_col[0], L.p_ref[:, 0], L.p_slope[:, 0])
+
+    @staticmethod
+    def _objective_and_hessian(L: "_Layout", f_obj, f_hess, n_g: int, sing_rows) -> tuple:
+        """The objective (LGR quadrature of the integrand, scaled) and the Lagrangian's Hessian
+        ``E' blockdiag(d2L_k/dw_k2) E`` plus a rest start's terms: (objective, lam_f, lam_g, H)."""
+        import casadi as ca
+
+        nx, nc, n, m, w, E = L.nx, L.nc, L.n, L.m, L.w, L.E
+        wq = np.concatenate([_nodes.legendre_gauss_radau(iv.n)[1] for iv in L.grid.mesh.intervals])
+        obj_scale = L.objective_scale
+        obj = ca.mtimes(f_obj.map(n)(*L.call), ca.DM(wq)) / obj_scale
+        lam_f = ca.MX.sym("lam_f")
+        lam_g = ca.MX.sym("lam_g", n_g)
+        lam_pt = ca.reshape(lam_g[: nc * n], nc, n)
+        mus = ca.vertcat(lam_f * ca.DM(wq).T / obj_scale, lam_pt)
+        hess_blocks = ca.MX(_block_diagonal(m, m, n), ca.vec(f_hess.map(n)(*L.call, mus)))
+        H = ca.mtimes(ca.mtimes(_sparse(L.E_np.T), hess_blocks), E)
+        if sing_rows is not None:  # the rest start's terms (a few variables)
+            extra, g_start = sing_rows
+            lag_small = ca.dot(lam_g[:nx], extra)
+            if L.model.n_start_path:
+                lag_small = lag_small + ca.dot(lam_g[nc * n: nc * n + L.model.n_start_path], g_start)
+            H = H + ca.hessian(lag_small, w)[0]
+        return obj, lam_f, lam_g, H
 
     @staticmethod
     def _length_rows(grid: Grid, intervals, j_row: int, m: int) -> tuple[np.ndarray, np.ndarray]:

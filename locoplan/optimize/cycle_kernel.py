@@ -1126,6 +1126,117 @@ def _recharge_rest(e, k, x0, tau, price, V, tb, cc, fo, rec, controls, air, v_no
     return c, j2 + 1, e1, tr + dt, wr + w, s1, n_ev
 
 
+@njit(cache=True, _nrt=False)
+def _record_first_part(o, k, x0, s, t, e, cc, controls, air, ev, ev_k, n_ev):
+    """The rest of cell k from ``x0`` [m] under control ``o`` from air state s, recorded: its control, its air
+    state, and a release or an application at the state. Returns the events recorded."""
+    controls[k] = o
+    on = o == U_B or o == U_K
+    if cc.relaxed or not on:
+        air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
+        if s == AF and not cc.relaxed:  # released at the state
+            n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_RELEASE, cc)
+    else:
+        air[k] = AIR_CYCLE
+        if s == CH:  # applied at the state
+            n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_APPLY, cc)
+    return n_ev
+
+
+@njit(cache=True, _nrt=False)
+def _node_air_state(k, s, tau, t, e, cc, ev, ev_k, n_ev):
+    """The air state a drive has at node k: none outside a zone, charged where a zone starts or where the
+    recharge is over (recorded). Returns (state, events recorded)."""
+    if cc.relaxed or cc.zone[k] == 0:
+        s = NA
+    elif s == NA and _zone_start(k, cc):
+        s = CH
+    elif s == R0 and tau >= cc.t_rec - 1e-9:
+        s = CH
+        n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CHARGED, cc)
+    return s, n_ev
+
+
+@njit(cache=True, _nrt=False)
+def _best_cell(e, k, s, tau, held, cc, fo, price, V, tb, se, sw, st, sok):
+    """The best step of one cell from node k at e in air state s (``tau`` [s] since the release; ``held``: an
+    application whose least hold is not over) among the cells' outcomes ``se``, ``sw``, ``st``, ``sok``
+    (``_cells_at``), under the air brake's rules: (cost [kWh] incl. the cost-to-go, control, next state);
+    control -1 where none is allowed."""
+    c_best = np.inf
+    o = -1
+    s_next = NA
+    zone = cc.zone[k] != 0 and not cc.relaxed
+    must_apply = zone and e >= cc.e_app[k]
+    desc = zone and _descending(e, k, cc, fo)
+    keep = zone and e <= cc.e_keep[k] * (1.0 + 1e-9)
+    for u in range(N_U):
+        if sok[u] == NO or (cc.relaxed and (u == U_E or u == U_K)):
+            continue
+        on = u == U_B or u == U_K  # (the air brake applied through the cell)
+        if must_apply and not (s == AF and u == U_B):
+            continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
+        if held and not on:
+            continue
+        rec = s == R0 or (s == AF and not on)  # (recharging through the cell)
+        if desc and rec and u != U_H:
+            continue
+        if zone and not on and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
+            continue  # (released, it would pass the apply speed within the cell)
+        if zone and rec and (e >= cc.e_rec[k] or se[u] > cc.e_rec[k] * (1.0 + 1e-9)):
+            continue  # (recharging, it would come near the apply speed: the calculator would not release)
+        s1, value, _ = _successor(V, tb, cc, k, s, u, sok[u], keep, False, se[u], tau, st[u])
+        c = sw[u] / KJ_PER_KWH + price * st[u] + value
+        if s1 >= 0 and c < c_best:
+            c_best, o, s_next = c, u, s1
+    return c_best, o, s_next
+
+
+@njit(cache=True, _nrt=False)
+def _best_path(k, cc, price, V, tb, pj, pe, pt, pw, pq, c_best, o, s_next):
+    """The best of (cost, option, next state) so far and the air brake's paths from node k (``_paths_at``: path m
+    as option ``N_U + m``)."""
+    for m in range(N_P):
+        if pj[m] < 0:
+            continue
+        c = pw[m] / KJ_PER_KWH + price * pt[m]
+        i0, wx = _land(pe[m], pj[m], cc)
+        if m == P_AX_H or m == P_AX_C or m == P_AX_E:
+            c += _value_rec(V, pj[m], pq[m], i0, wx, cc, tb)
+            s1 = R0
+        else:
+            s1 = _arrive(pj[m], _path_state(m), cc)
+            c += _value(V, pj[m], s1, i0, wx, tb)
+        if c < c_best:
+            c_best, o, s_next = c, N_U + m, s1
+    return c_best, o, s_next
+
+
+@njit(cache=True, _nrt=False)
+def _take_cell(o, k, s, s_next, e, t, tau, work, se, sw, st, cc, controls, air, v_nodes, t_nodes, w_nodes, ev, ev_k,
+               n_ev):
+    """Cell k driven under control ``o`` from air state s to ``s_next``, recorded: its control and air state, a
+    release at the node; the speed, time and work at node k + 1. Returns (e, t, tau, work, k + 1, events)."""
+    controls[k] = o
+    if cc.relaxed or not (o == U_B or o == U_K):
+        air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
+        if s == AF and not cc.relaxed:  # released at this node
+            n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_RELEASE, cc)
+            tau = 0.0
+        if s_next == R0:
+            tau += st[o]
+    else:
+        air[k] = AIR_CYCLE
+    t += st[o]
+    work += sw[o]
+    e = se[o]
+    k += 1
+    v_nodes[k] = kmh_from_e(max(e, 0.0))
+    t_nodes[k] = t
+    w_nodes[k] = work
+    return e, t, tau, work, k, n_ev
+
+
 @njit(cache=True)
 def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0, tau0, hold0, at_node, controls, air,
              v_nodes, t_nodes, w_nodes, nodes, ev, ev_k):
@@ -1183,16 +1294,7 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
         if o == -1:
             return np.inf, np.inf, float(n_ev)
     if o >= 0:
-        controls[k] = o
-        on = o == U_B or o == U_K
-        if cc.relaxed or not on:
-            air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
-            if s == AF and not cc.relaxed:  # released at the state
-                n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_RELEASE, cc)
-        else:
-            air[k] = AIR_CYCLE
-            if s == CH:  # applied at the state
-                n_ev = _event(True, ev, ev_k, n_ev, k, x0, t, e, EV_APPLY, cc)
+        n_ev = _record_first_part(o, k, x0, s, t, e, cc, controls, air, ev, ev_k, n_ev)
         tau, hold_until = tau1, hold1
         t += dt1
         work += w1
@@ -1210,79 +1312,22 @@ def _forward(cc, fo, price1, V1, tb1, price2, V2, tb2, m_switch, k0, x0, e0, s0,
         nodes[k, 1] = tau
         nodes[k, 2] = hold_until
         nodes[k, 3] = e
-        if cc.relaxed or cc.zone[k] == 0:
-            s = NA
-        elif s == NA and _zone_start(k, cc):
-            s = CH
-        elif s == R0 and tau >= cc.t_rec - 1e-9:
-            s = CH
-            n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_CHARGED, cc)
+        s, n_ev = _node_air_state(k, s, tau, t, e, cc, ev, ev_k, n_ev)
         held = s == AF and t < hold_until - 1e-9  # (an application at the state: its least hold not over)
         _cells_at(e, k, cc, fo, se, sw, st, sok)
         for m in range(N_P):
             pj[m] = -1
-        if cc.zone[k] != 0 and not cc.relaxed and (s == CH or (s == AF and not held)):
-            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
-        c_best = np.inf
-        o = -1
-        s_next = NA
         zone = cc.zone[k] != 0 and not cc.relaxed
-        must_apply = zone and e >= cc.e_app[k]
-        desc = zone and _descending(e, k, cc, fo)
-        keep = zone and e <= cc.e_keep[k] * (1.0 + 1e-9)
-        for u in range(N_U):
-            if sok[u] == NO or (cc.relaxed and (u == U_E or u == U_K)):
-                continue
-            on = u == U_B or u == U_K  # (the air brake applied through the cell)
-            if must_apply and not (s == AF and u == U_B):
-                continue  # (at the apply speed a released brake is applied: a path from CH, or AF staying on)
-            if held and not on:
-                continue
-            rec = s == R0 or (s == AF and not on)  # (recharging through the cell)
-            if desc and rec and u != U_H:
-                continue
-            if zone and not on and sok[u] == OK and se[u] > cc.e_app[k] * (1.0 + 1e-9):
-                continue  # (released, it would pass the apply speed within the cell)
-            if zone and rec and (e >= cc.e_rec[k] or se[u] > cc.e_rec[k] * (1.0 + 1e-9)):
-                continue  # (recharging, it would come near the apply speed: the calculator would not release)
-            s1, value, _ = _successor(V, tb, cc, k, s, u, sok[u], keep, False, se[u], tau, st[u])
-            c = sw[u] / KJ_PER_KWH + price * st[u] + value
-            if s1 >= 0 and c < c_best:
-                c_best, o, s_next = c, u, s1
+        if zone and (s == CH or (s == AF and not held)):
+            _paths_at(e, k, s, cc, fo, tb, False, pj, pe, pt, pw, pq, none_i, none_f, none_f2, part)
+        c_best, o, s_next = _best_cell(e, k, s, tau, held, cc, fo, price, V, tb, se, sw, st, sok)
         if zone:
-            for m in range(N_P):
-                if pj[m] < 0:
-                    continue
-                c = pw[m] / KJ_PER_KWH + price * pt[m]
-                i0, wx = _land(pe[m], pj[m], cc)
-                if m == P_AX_H or m == P_AX_C or m == P_AX_E:
-                    c += _value_rec(V, pj[m], pq[m], i0, wx, cc, tb)
-                    s1 = R0
-                else:
-                    s1 = _arrive(pj[m], _path_state(m), cc)
-                    c += _value(V, pj[m], s1, i0, wx, tb)
-                if c < c_best:
-                    c_best, o, s_next = c, N_U + m, s1
+            c_best, o, s_next = _best_path(k, cc, price, V, tb, pj, pe, pt, pw, pq, c_best, o, s_next)
         if o < 0 or not math.isfinite(c_best) or n_ev > ev.shape[0] - 4:
             return np.inf, np.inf, float(n_ev)
         if o < N_U:
-            controls[k] = o
-            if cc.relaxed or not (o == U_B or o == U_K):
-                air[k] = AIR_RECHARGE if (s == R0 or (s == AF and not cc.relaxed)) else AIR_OFF
-                if s == AF and not cc.relaxed:  # released at this node
-                    n_ev = _event(True, ev, ev_k, n_ev, k, 0.0, t, e, EV_RELEASE, cc)
-                    tau = 0.0
-                if s_next == R0:
-                    tau += st[o]
-            else:
-                air[k] = AIR_CYCLE
-            t += st[o]
-            work += sw[o]
-            e = se[o]
-            k += 1
-            v_nodes[k] = kmh_from_e(max(e, 0.0))
-            t_nodes[k] = t
-            w_nodes[k] = work
+            e, t, tau, work, k, n_ev = _take_cell(o, k, s, s_next, e, t, tau, work, se, sw, st, cc, controls, air,
+                                                  v_nodes, t_nodes, w_nodes, ev, ev_k, n_ev)
         else:
             m = o - N_U
             n_ev = run_path(e, k, m, cc, fo, tb, controls, air, v_nodes, t_nodes, t, ev, ev_k, n_ev, pj, pe, pt, pw, pq,

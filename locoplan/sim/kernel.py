@@ -250,6 +250,281 @@ def _shares(s0, s1, codes, starts, ends, j0, out):
     return j0
 
 
+@njit(cache=True, _nrt=False)
+def _start_plan(i, out):
+    """A plan's outputs before its run: no failure yet, no application, no recharge judged."""
+    out.over_at[i] = -1
+    out.stop_at[i] = -1
+    out.hold_at[i] = -1
+    out.fb_at[i] = 0
+    out.air_at[i] = -1
+    out.air_wait[i] = np.nan
+    out.air_apps[i] = 0
+    out.air_margin[i] = np.inf
+
+
+@njit(cache=True, _nrt=False)
+def _start_slope(fT, fK, fB, fE, allowed_0, g_0, fo):
+    """de/ds at the start, from rest, to extrapolate the first cell's mid-speed."""
+    f0 = _interp(0.0, fo.tv, fo.tf) * allowed_0
+    b0 = brake_kn(0.0, allowed_0, fo)
+    l0 = load_kn(0.0, g_0, fo)
+    hold0 = min(max(l0, -b0), f0)
+    return max((fT * f0 - fB * b0 - fE * _interp(0.0, fo.ev, fo.ef) * allowed_0 + fK * hold0 - l0) / fo.m, 0.0)
+
+
+@njit(cache=True, _nrt=False)
+def _cruise_caps(e, c0, c1, fT, fK, fC, has_cruise, cruise_e_i):
+    """The cell's caps at its two ends (``c0``, ``c1``: the envelope) under the papers' cruise speed, which caps T
+    and K, not C; and traction or cruise sharing the cell with coasting at the cruise speed already: they hold it
+    (the cap that would keep them there is off for the coasting share). Returns (c0, c1, fT, fK)."""
+    ce = np.inf
+    if has_cruise and fC == 0.0:
+        ce = cruise_e_i
+    if ce < c0:
+        c0 = ce
+    if ce < c1:
+        c1 = ce
+    if has_cruise and fC > 0.0 and fT + fK > 0.0 and e >= cruise_e_i * (1.0 - 1e-9):
+        fK += fT
+        fT = 0.0
+    return c0, c1, fT, fK
+
+
+# The air brake's cycle, the rules run_plans keeps through the helpers below.
+# With ``pl.cycle`` the wagons' air brake is an application of its own (docs/model.md, 'the air brake's cycle'):
+# made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric brake alone cannot
+# hold (``cycle_speeds``), or where following a limit or a braking curve takes more than the electric brake; its
+# force builds up linearly over the cell's ``t_build``; while it is on the train brakes with it and the full
+# electric brake, whatever the plan's condition (and between its release and the apply speed on such a grade, or
+# while it recharges on a descent, with the electric brake alone, holding the speed where that suffices); it is
+# released in full (at a cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release
+# speed, or where the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the
+# distance the train covers in the recharge time (else at that grade's release speed); applied again (in a cycle,
+# or to brake) before ``recharge_s`` has passed since the release, the plan is refused (``air_at``). Holding a
+# limit or following a braking curve is bounded by full braking as without the cycle; such an application is
+# counted, judged by the recharge like any other, and released where the curve ends, not held. Where a braking
+# curve that needs the air brake (``next_air``) lies within the distance covered at the limit in the recharge time,
+# an application is released only under the electric brake's own braking curves (``e_env_el``), or where the
+# electric brake can slow the train enough to reach that curve no sooner than the recharge is over
+# (``late_enough``; it is kept on until then), and until the recharge is over the train is capped by the higher of
+# the two.
+
+
+@njit(cache=True, _nrt=False)
+def _cycle_speeds_at(k, i, short, air_on, v, fC, has_cruise, cruise_e_i, t_rec, margin, mreg, ce_, fo):
+    """The cycle's speeds in cell k: (apply speed, release speed, the speed an application is released at now).
+    Where the electric brake alone holds (not ``short``) there is no apply speed, and an application on may be
+    released at any speed, unless a grade it cannot hold lies within the recharge (``next_short``): then not
+    above that grade's release speed."""
+    e_hold = ce_.e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
+    if has_cruise and fC == 0.0 and cruise_e_i < e_hold:
+        e_hold = cruise_e_i
+    e_app = np.inf
+    e_r = 0.0
+    if short:
+        e_app, e_r = cycle_speeds(e_hold, ce_.grav[k], ce_.allowed[k], ce_.t_build[k], t_rec, margin[i, mreg[k]], fo)
+    e_rel_now = e_r if short else np.inf
+    j = ce_.next_short[k]
+    if not short and air_on and j >= 0 and ce_.s[j] - ce_.s[k] < v * t_rec:
+        e_hold_j = ce_.e_limit_cell[j]
+        if has_cruise and fC == 0.0 and cruise_e_i < e_hold_j:
+            e_hold_j = cruise_e_i
+        e_rel_now = cycle_speeds(e_hold_j, ce_.grav[j], ce_.allowed[j], ce_.t_build[j], t_rec, margin[i, mreg[j]],
+                                 fo)[1]
+    return e_app, e_r, e_rel_now
+
+
+@njit(cache=True, _nrt=False)
+def _may_release(k, e, t, fB, curve_prev, t_app, hold_app, e_rel_now, near, late, s_near, t_rec, ce_, fo, codes,
+                 starts_i, ends_i, j0_cell, cruise_e_i, ahead):
+    """An application on may be released at the start of cell k: the plan does not brake, a braking curve's
+    application is past its curve (released as soon as the envelope needs no air brake, not a cell later), its
+    least hold is over, the speed is at most the release speed, under the electric brake's own braking curves
+    where a curve that needs the air brake is ``near`` (or the electric brake reaches it ``late`` enough), and
+    the run ahead is safe without it (``release_safe``; ``s_near`` that curve's start)."""
+    return (fB == 0.0 and (not curve_prev or ce_.next_air[k] != k) and t - t_app >= hold_app - 1e-9
+            and e <= e_rel_now
+            and (not near or (e <= ce_.e_env_el[k] and e <= ce_.e_env_el[k + 1]) or late)
+            and release_safe(k, e, t_rec, ce_, fo, codes, starts_i, ends_i, j0_cell, cruise_e_i, ahead, s_near))
+
+
+@njit(cache=True, _nrt=False)
+def _apply_air(released, t_x, t_rel, t_rec, i, k, tb_k, min_hold, air_margin, air_at, air_wait, air_apps):
+    """An application at ``t_x`` [s] in cell k, judged by the recharge since the last release and counted:
+    (its time, its build-up time, its least hold)."""
+    if released:
+        _judge_recharge(t_x - t_rel, t_rec, i, k, air_margin, air_at, air_wait)
+    air_apps[i] += 1
+    return t_x, tb_k, (min_hold if min_hold >= 0.0 else tb_k)
+
+
+@njit(cache=True, _nrt=False)
+def _air_level(t, hk, v, e_mid, t_app, tb_app):
+    """The applied air brake's share of its full force at the cell's middle (built up over ``tb_app`` [s])."""
+    t_mid = t + hk / (v + ms_from_e(max(e_mid, 0.0)) + 1e-12)
+    return 1.0 if tb_app <= 0.0 else min(max((t_mid - t_app) / tb_app, 0.0), 1.0)
+
+
+@njit(cache=True, _nrt=False)
+def _cycle_conditions(fT, fK, fC, fB, fE, on_cycle, e, e_rel_now, in_band):
+    """The cell's condition shares (T, K, C, B, E) under the cycle, whatever the plan's: an application of the
+    cycle (``on_cycle``: on, not made for the plan's braking in this cell nor for a curve) brakes the whole cell at full down to its
+    release speed (or where the plan brakes), and below it is kept on (its least hold, or no safe release yet):
+    the speed held, the electric brake eased to the air brake alone; released, ``in_band`` (the cycle's band, or
+    recharging on a descent), the train is held by the electric brake alone (at full where it cannot hold).
+    Returns (the shares, the air brake applied, in the band, kept on)."""
+    if on_cycle:
+        if e > e_rel_now or fB > 0.0:
+            return 0.0, 0.0, 0.0, 1.0, 0.0, True, False, False
+        return 0.0, 1.0, 0.0, 0.0, 0.0, True, False, True
+    if in_band:
+        return 0.0, 1.0, 0.0, 0.0, 0.0, False, True, False
+    return fT, fK, fC, fB, fE, False, False, False
+
+
+@njit(cache=True, _nrt=False)
+def _on_cap(capped, phi, cap_work, hk, b_el):
+    """Following a limit or a braking curve takes more than the electric brake: an application too."""
+    if capped and phi < 1.0:
+        need = -cap_work / (hk * (1.0 - phi))
+        return need > b_el * (1.0 + 1e-9) + 1e-6
+    return False
+
+
+@njit(cache=True, _nrt=False)
+def _recharge_caps(k, e, t, hk, t_rel, t_rec, s_air, a_el, c0, c1, ce_):
+    """Recharging, with a braking curve that needs the air brake near at the release: the caps ``c0``, ``c1``
+    lowered to the electric brake's own braking curves, or to the speed that reaches that curve (at ``s_air``)
+    no sooner than the recharge is over, slowed to it by the electric brake (whichever is higher)."""
+    e_time = 0.0
+    if s_air > ce_.s[k]:
+        e_time = 0.5 * ((s_air - ce_.s[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2
+    cap0 = max(ce_.e_env_el[k], max(e_time, e))
+    cap1 = max(ce_.e_env_el[k + 1], max(e_time, e - hk * a_el))
+    if cap0 < c0:
+        c0 = cap0
+    if cap1 < c1:
+        c1 = cap1
+    return c0, c1
+
+
+@njit(cache=True, _nrt=False)
+def _capped_end(i, k, e, e_pred, c0, c1, c1_env, hk, b_max, load, has_cruise, ce_, fo, hold_at):
+    """A step that meets the cap: (the share phi of the cell before it, e there, e at the cell's end). The train
+    follows the cap, unless full braking cannot hold it (where the cell holds the limit, or under a cruise
+    cap): then full braking where it holds the limit (``hold_at`` records a slip over the envelope), else
+    capped by the envelope, under which full braking keeps every limit ahead."""
+    gap = max(c0 - e, 0.0)
+    phi = gap / (e_pred - c1 + gap)
+    e_phi = e + (e_pred - e) * phi
+    e_new = c1
+    if ce_.holds_limit[k] or has_cruise:
+        e_fb = e_phi + (hk * (1.0 - phi) / fo.m) * (-b_max - load)
+        if e_fb > c1 and (ce_.holds_limit[k] or c1 < c1_env):
+            if ce_.brake_holds[k]:
+                e_new = e_fb
+                if hold_at[i] < 0 and e_fb > ce_.e_env[k + 1] * (1 + 1e-9) + 1e-9:
+                    hold_at[i] = k
+            else:
+                e_new = min(e_fb, c1_env)
+    return phi, e_phi, e_new
+
+
+@njit(cache=True, _nrt=False)
+def _advance(i, k, e, hk, fT, fK, fC, fB, fE, f_max, b_use, b_max, el_k, air_k, lvl, kept, band, load, c0, c1, c1_env,
+             strict, last, has_cruise, ce_, fo, out):
+    """Cell k's motion from e under the shares: the holding force (what holding the speed takes, within the
+    brake and traction, or the air brake alone where an application is kept on), the end without a cap, then
+    capped (``_capped_end``) or crawling (``_crawl``); records the first cell over the limit (``strict``) and where
+    the train comes to rest. Returns (holding force, traction force, capped, crawling, phi, e at phi, e and v at
+    the end, the crawl's time and work)."""
+    hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
+    full = fT * f_max
+    tr = full + fK * max(hold, 0.0)
+    e_pred = e + (hk / fo.m) * (full - fB * b_use - fE * el_k * ce_.allowed[k] + fK * hold - load)
+    if strict and out.over_at[i] < 0:
+        if e_pred > ce_.e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
+            out.over_at[i] = k
+    capped = e_pred > c1
+    # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
+    # (in the last cell too: coasting up to the stop must reach it)
+    # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
+    # never braking: an application kept on slows the train by the air brake alone, as at any speed
+    crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
+             and out.stop_at[i] < 0 and not band and not kept)
+    t_crawl = 0.0
+    w_crawl = 0.0
+    if crawl:
+        e_pred, t_crawl, w_crawl = _crawl(e, hk, fT, fK, ce_.grav[k], ce_.allowed[k], fo, k == last)
+    phi = 1.0
+    e_phi = e_pred
+    if capped:
+        phi, e_phi, e_new = _capped_end(i, k, e, e_pred, c0, c1, c1_env, hk, b_max, load, has_cruise, ce_, fo,
+                                        out.hold_at)
+    else:
+        e_new = e_pred
+    if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
+        if e_new <= E_FLOOR:
+            if out.stop_at[i] < 0:
+                out.stop_at[i] = k
+                out.fb_at[i] = 2 if kept else (1 if fB + fE > 0.0 else 0)  # (2: an application kept on)
+            e_new = E_FLOOR
+        v_new = ms_from_e(e_new)
+    else:
+        v_new = ms_from_e(max(e_new, 0.0))
+    return hold, tr, capped, crawl, phi, e_phi, e_new, v_new, t_crawl, w_crawl
+
+
+@njit(cache=True, _nrt=False)
+def _time_and_work(capped, crawl, phi, e_phi, e_new, v, v_new, hk, load, tr, t_crawl, w_crawl, m):
+    """The cell's time [s], traction work [kJ] and the work done holding the cap (negative where braking)."""
+    if capped:
+        om = 1.0 - phi
+        v_phi = ms_from_e(max(e_phi, 0.0))
+        dt = (2.0 * hk) * (phi / (v + v_phi + 1e-12) + om / (v_phi + v_new + 1e-12))
+        cap_work = m * (e_new - e_phi) + (hk * om) * load
+        return dt, (tr * hk) * phi + max(cap_work, 0.0), cap_work
+    if crawl:
+        return t_crawl, w_crawl, 0.0
+    return (2.0 * hk) / (v + v_new + 1e-12), tr * hk, 0.0
+
+
+@njit(cache=True, _nrt=False)
+def _record_cell(out, i, k, t, v_new, w_tr, hk, fK, fB, fE, b_use, el_k, allowed_k, hold, phi, cap_work, shares, ov,
+                 band, capped, c0, c1, brake_holds_k, s_k):
+    """The profile of plan i in cell k: time and speed at its end, traction and braking force, its condition
+    (the dominant share; B where the air brake is applied; K in a cycle's band, on a level cap; B on a falling
+    braking curve), and where it meets a cap."""
+    out.t_nodes[i, k + 1] = t
+    out.v_nodes[i, k + 1] = kmh(v_new)
+    out.trac[i, k] = w_tr / hk
+    out.brk[i, k] = (fB * b_use + fE * el_k * allowed_k - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
+    dom = 0
+    best = shares[0]
+    for c in range(1, N_CONDITIONS):
+        if shares[c] > best:
+            best = shares[c]
+            dom = c
+    if allowed_k == 0.0 and dom == T:  # no traction in a neutral section: coasting
+        dom = C
+    if ov:  # the air brake applied: braking
+        dom = B
+    elif band and allowed_k > 0.0:  # in a cycle's band, held by the electric brake: cruise
+        dom = K
+    if capped and phi < 0.5:
+        # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
+        # (B); on a level cap it holds the limit (K)
+        braking = c1 < c0 - 1e-5 * max(c0, 1.0) or not brake_holds_k
+        out.cond[i, k] = B if braking else K
+    else:
+        out.cond[i, k] = dom
+    if capped and 0.0 < phi < 1.0:
+        out.event[i, k] = s_k + phi * hk
+    else:
+        out.event[i, k] = np.nan
+
+
 @njit(cache=True)
 def run_plans(ce_, fo, pl, out):
     """Integrate every plan of ``pl`` (``Plans``) over the grid ``ce_`` (``Cells``) with the train's
@@ -261,95 +536,38 @@ def run_plans(ce_, fo, pl, out):
     (a neutral section's span). ``brake_holds`` (per cell): full braking holds the limit there (else the
     envelope, which the train follows under full braking, lies below it).
 
-    With ``pl.cycle`` the wagons' air brake is an application of its own (docs/model.md, 'the air brake's
-    cycle'): made where a plan brakes (B), where the speed reaches the apply speed on a grade the electric
-    brake alone cannot hold (``cycle_speeds``), or where following a limit or a braking curve takes more than
-    the electric brake; its force builds up linearly over the cell's ``t_build``; while it is on the train
-    brakes with it and the full electric brake, whatever the plan's condition (and between its release and the
-    apply speed on such a grade, or while it recharges on a descent, with the electric brake alone, holding
-    the speed where that suffices); it is released in full (at a
-    cell's start, held at least ``min_hold_s``, no longer braking nor on a cap) at the release speed, or where
-    the electric brake alone holds and no grade it cannot hold (``next_short``) lies within the distance the
-    train covers in the recharge time (else at that grade's release speed); applied again (in a cycle, or to brake) before ``recharge_s`` has passed
-    since the release, the plan is refused (``air_at``). Holding a limit or following a braking curve is
-    bounded by full braking as without the cycle; such an application is counted, judged by the recharge like
-    any other, and released where the curve ends, not held. Where a braking curve that needs the air brake
-    (``next_air``) lies within the distance covered at the limit in the recharge time, an application is released
-    only under the electric brake's own braking curves (``e_env_el``), or where the electric brake can slow the
-    train enough to reach that curve no sooner than the recharge is over (``late_enough``; it is kept on until
-    then), and until the recharge is over the train is capped by the higher of the two.
+    With ``pl.cycle`` the wagons' air brake is an application of its own, by the rules written above its
+    helpers (``_cycle_speeds_at`` ...; docs/model.md, 'the air brake's cycle').
     """
     s, h, e_env, e_limit_cell, allowed, grav = ce_.s, ce_.h, ce_.e_env, ce_.e_limit_cell, ce_.allowed, ce_.grav
-    holds_limit, brake_holds, e_env_el, next_air = ce_.holds_limit, ce_.brake_holds, ce_.e_env_el, ce_.next_air
     m, tv, tf = fo.m, fo.tv, fo.tf
-    codes, starts, ends, cruise_e = pl.codes, pl.starts, pl.ends, pl.cruise_e
-    has_cruise, strict, want_profile = pl.has_cruise, pl.strict, pl.want_profile
-    t_out, work_out, over_at, stop_at, hold_at, fb_at = out.t, out.work, out.over_at, out.stop_at, out.hold_at, out.fb_at
-    t_nodes, v_nodes, cond, trac, brk, event = out.t_nodes, out.v_nodes, out.cond, out.trac, out.brk, out.event
-    cycle, t_rec, min_hold, margin, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, pl.release_margin, ce_.t_build
-    mreg = pl.margin_region
-    next_short = ce_.next_short
-    air_at, air_wait, air_apps, air_margin, air_state = out.air_at, out.air_wait, out.air_apps, out.air_margin, out.air
-    n = starts.shape[0]
+    codes, starts, ends, cruise_e, has_cruise, strict = pl.codes, pl.starts, pl.ends, pl.cruise_e, pl.has_cruise, pl.strict
+    cycle, t_rec, min_hold, t_build = pl.cycle, pl.recharge_s, pl.min_hold_s, ce_.t_build
+    air_at, air_wait, air_apps, air_margin = out.air_at, out.air_wait, out.air_apps, out.air_margin
     n_cells = h.shape[0]
     last = n_cells - 1
     shares = np.zeros(N_CONDITIONS)
     ahead = np.zeros(N_CONDITIONS)
-    for i in range(n):
-        e = 0.0
-        v = 0.0
-        t = 0.0
-        work = 0.0
+    for i in range(starts.shape[0]):
+        e = v = t = work = slope = 0.0
         j0 = 0
-        over_at[i] = -1
-        stop_at[i] = -1
-        hold_at[i] = -1
-        fb_at[i] = 0
-        slope = 0.0
-        air_at[i] = -1
-        air_wait[i] = np.nan
-        air_apps[i] = 0
-        air_margin[i] = np.inf
-        air_on = False
-        released = False
-        el_cap = False
-        s_air = 0.0
-        t_app = 0.0
-        t_rel = 0.0
-        tb_app = 0.0
-        hold_app = 0.0
-        curve_prev = False
-        curve_kind = False
-        b_el = 0.0
-        e_r = 0.0
+        _start_plan(i, out)
+        cruise_e_i = cruise_e[i] if has_cruise else np.inf
+        # the air brake's cycle: on, released (once), capped by the electric brake's curves after a release near
+        # one that needs the air brake (el_cap, that curve at s_air), its times of application and release, its
+        # build-up time and least hold, the last cell's application on a curve, an application for a curve
+        air_on = released = el_cap = curve_prev = curve_kind = False
+        s_air = t_app = t_rel = tb_app = hold_app = b_el = 0.0
         for k in range(n_cells):
             j0_cell = j0
             j0 = _shares(s[k], s[k + 1], codes, starts[i], ends[i], j0, shares)
             fT, fK, fC, fB, fE = shares[T], shares[K], shares[C], shares[B], shares[E]
             hk = h[k]
-            c0 = e_env[k]
-            c1 = e_env[k + 1]
-            c1_env = c1
+            c1_env = e_env[k + 1]
             if k == 0:
-                # de/ds at the start, from rest, to extrapolate the first cell's mid-speed
-                f0 = _interp(0.0, tv, tf) * allowed[0]
-                b0 = brake_kn(0.0, allowed[0], fo)
-                l0 = load_kn(0.0, grav[0], fo)
-                hold0 = min(max(l0, -b0), f0)
-                slope = max((fT * f0 - fB * b0 - fE * _interp(0.0, fo.ev, fo.ef) * allowed[0] + fK * hold0 - l0) / m, 0.0)
-            e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1))
-            ce = np.inf
-            if has_cruise and fC == 0.0:  # the papers' cruise speed caps T and K, not C
-                ce = cruise_e[i]
-            if ce < c0:
-                c0 = ce
-            if ce < c1:
-                c1 = ce
-            if has_cruise and fC > 0.0 and fT + fK > 0.0 and e >= cruise_e[i] * (1.0 - 1e-9):
-                # traction or cruise sharing a cell with coasting, at the cruise speed already: they hold it (the
-                # cap that would keep them there is off for the coasting share)
-                fK += fT
-                fT = 0.0
+                slope = _start_slope(fT, fK, fB, fE, allowed[0], grav[0], fo)
+            e_mid = min(e + (0.5 * hk) * slope, 0.5 * (e + c1_env))
+            c0, c1, fT, fK = _cruise_caps(e, e_env[k], c1_env, fT, fK, fC, has_cruise, cruise_e_i)
             v_kmh = math.sqrt(max(e_mid, 0.0) * KMH2_PER_E)
             f_max = _interp(v_kmh, tv, tf) * allowed[k]
             el_k = _interp(v_kmh, fo.ev, fo.ef)
@@ -358,39 +576,22 @@ def run_plans(ce_, fo, pl, out):
             load = load_kn(v_kmh, grav[k], fo)
             b_use = b_max  # what braking and holding may use
             state = AIR_OFF
-            ov = False
-            band = False
-            kept = False
+            ov = band = kept = False
+            lvl = 0.0
             if cycle:
                 b_el = el_k * allowed[k]
                 short = b_el + load < 0.0  # the electric brake alone cannot hold the speed here
-                e_hold = e_limit_cell[k]  # the speed the cycle keeps: the limit, or the plan's cruise speed
-                if has_cruise and fC == 0.0 and cruise_e[i] < e_hold:
-                    e_hold = cruise_e[i]
-                e_app = np.inf
-                e_r = 0.0
-                if short:
-                    e_app, e_r = cycle_speeds(e_hold, grav[k], allowed[k], t_build[k], t_rec, margin[i, mreg[k]], fo)
-                e_rel_now = e_r if short else np.inf
-                j = next_short[k]
-                if not short and air_on and j >= 0 and s[j] - s[k] < v * t_rec:
-                    # a grade it cannot hold within the recharge: kept on until its release speed there
-                    e_hold_j = e_limit_cell[j]
-                    if has_cruise and fC == 0.0 and cruise_e[i] < e_hold_j:
-                        e_hold_j = cruise_e[i]
-                    e_rel_now = cycle_speeds(e_hold_j, grav[j], allowed[j], t_build[j], t_rec, margin[i, mreg[j]], fo)[1]
+                e_app, e_r, e_rel_now = _cycle_speeds_at(k, i, short, air_on, v, fC, has_cruise, cruise_e_i, t_rec,
+                                                         pl.release_margin, pl.margin_region, ce_, fo)
                 # a braking curve that needs the air brake within reach of the recharge (at the limit's speed):
                 # released only under the electric brake's own curves, which the train then follows
-                ja = next_air[k]
+                ja = ce_.next_air[k]
                 near = ja >= 0 and s[ja] - s[k] < ms_from_e(e_limit_cell[k]) * t_rec
                 a_el = (ELECTRIC_CURVE_SHARE * b_el + load) / m  # -de/ds under the electric brake's share
                 late = near and late_enough(v, s[ja] - s[k], a_el, t_rec + ARRIVE_AFTER_S)
-                # (after a braking curve, released as soon as the envelope needs no air brake: not a cell later)
-                if (air_on and fB == 0.0 and (not curve_prev or next_air[k] != k) and t - t_app >= hold_app - 1e-9
-                        and e <= e_rel_now
-                        and (not near or (e <= e_env_el[k] and e <= e_env_el[k + 1]) or late)
-                        and release_safe(k, e, t_rec, ce_, fo, codes, starts[i], ends[i], j0_cell,
-                                         cruise_e[i] if has_cruise else np.inf, ahead, s[ja] if near else np.inf)):
+                if air_on and _may_release(k, e, t, fB, curve_prev, t_app, hold_app, e_rel_now, near, late,
+                                           s[ja] if near else np.inf, t_rec, ce_, fo, codes, starts[i], ends[i],
+                                           j0_cell, cruise_e_i, ahead):  # release
                     air_on = False
                     released = True
                     t_rel = t
@@ -400,163 +601,50 @@ def run_plans(ce_, fo, pl, out):
                 elif air_on and curve_kind and not curve_prev:  # past its curve and still needed: a cycle's now
                     curve_kind = False
                 applied_b = False
-                if not air_on and (fB > 0.0 or e >= e_app):
-                    if released:
-                        _judge_recharge(t - t_rel, t_rec, i, k, air_margin, air_at, air_wait)
-                    air_apps[i] += 1
+                if not air_on and (fB > 0.0 or e >= e_app):  # apply: the plan brakes, or the apply speed
+                    t_app, tb_app, hold_app = _apply_air(released, t, t_rel, t_rec, i, k, t_build[k], min_hold,
+                                                         air_margin, air_at, air_wait, air_apps)
                     air_on = True
                     curve_kind = False
                     applied_b = fB > 0.0
-                    t_app = t
-                    tb_app = t_build[k]
-                    hold_app = min_hold if min_hold >= 0.0 else tb_app
                     state = AIR_APPLIED
-                lvl = 0.0
                 if air_on:
                     if state != AIR_APPLIED:
                         state = AIR_ON
-                    t_mid = t + hk / (v + ms_from_e(max(e_mid, 0.0)) + 1e-12)
-                    lvl = 1.0 if tb_app <= 0.0 else min(max((t_mid - t_app) / tb_app, 0.0), 1.0)
-                    if not applied_b and not curve_kind:  # it brakes the whole cell, whatever the plan's condition:
-                        if e > e_rel_now or fB > 0.0:  # a cycle's application, down to its release speed, or
-                            # the plan's braking: at full
-                            fT, fK, fC, fB, fE = 0.0, 0.0, 0.0, 1.0, 0.0
-                        else:  # kept on (its least hold, or no safe release yet): the speed held, the electric
-                            fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0  # brake eased to the air brake alone
-                            kept = True
-                        ov = True
-                elif (short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0):
-                    # in the cycle's band, or recharging on a descent: held by the electric brake alone (at
-                    # full where it cannot hold), whatever the plan's condition
-                    fT, fK, fC, fB, fE = 0.0, 1.0, 0.0, 0.0, 0.0
-                    band = True
+                    lvl = _air_level(t, hk, v, e_mid, t_app, tb_app)
+                fT, fK, fC, fB, fE, ov, band, kept = _cycle_conditions(
+                    fT, fK, fC, fB, fE, air_on and not applied_b and not curve_kind, e, e_rel_now,
+                    not air_on and ((short and e >= e_r) or (released and t - t_rel < t_rec and load < 0.0)))
                 b_use = b_el + lvl * air_k
                 if el_cap and released and not air_on and t - t_rel < t_rec:
-                    # recharging, and a braking curve that needs the air brake was near at the release: capped by
-                    # the electric brake's own braking curves, or by the speed that reaches that curve no sooner
-                    # than the recharge is over, slowed to it by the electric brake (whichever is higher)
-                    e_time = 0.0
-                    if s_air > s[k]:
-                        e_time = 0.5 * ((s_air - s[k]) / (t_rel + t_rec + ARRIVE_AFTER_S - t)) ** 2
-                    cap0 = max(e_env_el[k], max(e_time, e))
-                    cap1 = max(e_env_el[k + 1], max(e_time, e - hk * a_el))
-                    if cap0 < c0:
-                        c0 = cap0
-                    if cap1 < c1:
-                        c1 = cap1
-            hold = min(max(load, -b_use), -lvl * air_k if kept else f_max)
-            full = fT * f_max
-            tr = full + fK * max(hold, 0.0)
-            e_pred = e + (hk / m) * (full - fB * b_use - fE * el_k * allowed[k] + fK * hold - load)
-            if strict and over_at[i] < 0:
-                if e_pred > e_limit_cell[k] * (1 + 1e-9) + 1e-9 and (fC + fK > 0.0) and fT == 0.0 and not band:
-                    over_at[i] = k
-            capped = e_pred > c1
-            # crawling: slowing at low speed under traction, cruise or coasting (a weak train over a crest)
-            # (in the last cell too: coasting up to the stop must reach it)
-            # (not for a plan already at rest: its verdict is made, the rest of its run only kept finite)
-            # never braking: an application kept on slows the train by the air brake alone, as at any speed
-            crawl = ((not capped) and k > 0 and fB == 0.0 and fE == 0.0 and e_pred < e and min(e, e_pred) < E_CRAWL
-                     and stop_at[i] < 0 and not band and not kept)
-            t_crawl = 0.0
-            w_crawl = 0.0
-            if crawl:
-                e_pred, t_crawl, w_crawl = _crawl(e, hk, fT, fK, grav[k], allowed[k], fo, k == last)
-            phi = 1.0
-            e_phi = e_pred
-            if capped:
-                gap = max(c0 - e, 0.0)
-                phi = gap / (e_pred - c1 + gap)
-                e_phi = e + (e_pred - e) * phi
-                e_new = c1
-                if holds_limit[k] or has_cruise:
-                    e_fb = e_phi + (hk * (1.0 - phi) / m) * (-b_max - load)
-                    if e_fb > c1 and (holds_limit[k] or c1 < c1_env):
-                        if brake_holds[k]:
-                            e_new = e_fb
-                            if hold_at[i] < 0 and e_fb > e_env[k + 1] * (1 + 1e-9) + 1e-9:
-                                hold_at[i] = k
-                        else:  # under the envelope full braking keeps every limit ahead: it caps the slip
-                            e_new = min(e_fb, c1_env)
-            else:
-                e_new = e_pred
-            if k < last or (crawl and e_new == E_FLOOR):  # (at rest before the end of the last cell too)
-                if e_new <= E_FLOOR:
-                    if stop_at[i] < 0:
-                        stop_at[i] = k
-                        fb_at[i] = 2 if kept else (1 if fB + fE > 0.0 else 0)  # (2: an application kept on)
-                    e_new = E_FLOOR
-                v_new = ms_from_e(e_new)
-            else:
-                v_new = ms_from_e(max(e_new, 0.0))
+                    c0, c1 = _recharge_caps(k, e, t, hk, t_rel, t_rec, s_air, a_el, c0, c1, ce_)
+            hold, tr, capped, crawl, phi, e_phi, e_new, v_new, t_crawl, w_crawl = _advance(
+                i, k, e, hk, fT, fK, fC, fB, fE, f_max, b_use, b_max, el_k, air_k, lvl, kept, band, load, c0, c1, c1_env,
+                strict, last, has_cruise, ce_, fo, out)
             t_start = t
-            if capped:
-                om = 1.0 - phi
-                v_phi = ms_from_e(max(e_phi, 0.0))
-                t += (2.0 * hk) * (phi / (v + v_phi + 1e-12) + om / (v_phi + v_new + 1e-12))
-                cap_work = m * (e_new - e_phi) + (hk * om) * load
-                w_tr = (tr * hk) * phi + max(cap_work, 0.0)
-            elif crawl:
-                cap_work = 0.0
-                t += t_crawl
-                w_tr = w_crawl
-            else:
-                cap_work = 0.0
-                t += (2.0 * hk) / (v + v_new + 1e-12)
-                w_tr = tr * hk
+            dt, w_tr, cap_work = _time_and_work(capped, crawl, phi, e_phi, e_new, v, v_new, hk, load, tr, t_crawl,
+                                                w_crawl, m)
+            t += dt
             work += w_tr
             if cycle:
-                # following a limit or a braking curve with more than the electric brake: an application too
-                on_cap = False
-                if capped and phi < 1.0:
-                    need = -cap_work / (hk * (1.0 - phi))
-                    on_cap = need > b_el * (1.0 + 1e-9) + 1e-6
-                if on_cap and not air_on:  # judged by the recharge like any application
-                    if released:
-                        _judge_recharge(t_start - t_rel, t_rec, i, k, air_margin, air_at, air_wait)
-                    air_apps[i] += 1
+                on_cap = _on_cap(capped, phi, cap_work, hk, b_el)
+                if on_cap and not air_on:  # judged by the recharge like any application, held as any
+                    t_app, tb_app, hold_app = _apply_air(released, t_start, t_rel, t_rec, i, k, t_build[k], min_hold,
+                                                         air_margin, air_at, air_wait, air_apps)
                     air_on = True
                     curve_kind = True
-                    t_app = t_start
-                    tb_app = t_build[k]
-                    hold_app = min_hold if min_hold >= 0.0 else tb_app  # held at least as any application
                     state = AIR_APPLIED
                 curve_prev = on_cap
-                if want_profile:
-                    air_state[i, k] = state
-            if want_profile:
-                t_nodes[i, k + 1] = t
-                v_nodes[i, k + 1] = kmh(v_new)
-                trac[i, k] = w_tr / hk
-                brk[i, k] = (fB * b_use + fE * el_k * allowed[k] - fK * min(hold, 0.0)) * phi + max(-cap_work, 0.0) / hk
-                dom = 0
-                best = shares[0]
-                for c in range(1, N_CONDITIONS):
-                    if shares[c] > best:
-                        best = shares[c]
-                        dom = c
-                if allowed[k] == 0.0 and dom == T:  # no traction in a neutral section: coasting
-                    dom = C
-                if ov:  # the air brake applied: braking
-                    dom = B
-                elif band and allowed[k] > 0.0:  # in a cycle's band, held by the electric brake: cruise
-                    dom = K
-                if capped and phi < 0.5:
-                    # on a falling braking curve, or on a descent full braking cannot hold, the train brakes
-                    # (B); on a level cap it holds the limit (K)
-                    braking = c1 < c0 - 1e-5 * max(c0, 1.0) or not brake_holds[k]
-                    cond[i, k] = B if braking else K
-                else:
-                    cond[i, k] = dom
-                if capped and 0.0 < phi < 1.0:
-                    event[i, k] = s[k] + phi * hk
-                else:
-                    event[i, k] = np.nan
+                if pl.want_profile:
+                    out.air[i, k] = state
+            if pl.want_profile:
+                _record_cell(out, i, k, t, v_new, w_tr, hk, fK, fB, fE, b_use, el_k, allowed[k], hold, phi, cap_work,
+                             shares, ov, band, capped, c0, c1, ce_.brake_holds[k], s[k])
             slope = (e_new - e) / hk
             e = e_new
             v = v_new
-        t_out[i] = t
-        work_out[i] = work
+        out.t[i] = t
+        out.work[i] = work
 
 
 @njit(cache=True)
