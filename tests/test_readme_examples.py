@@ -45,6 +45,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import pickle
 import re
 import shlex
 import shutil
@@ -366,8 +367,7 @@ def _key(e: Example) -> str:
     return f"{e.page}:{e.line}"
 
 
-@pytest.fixture(scope="session")  # (once per worker: the examples' group runs on one, with other modules' tests)
-def ran(request, tmp_path_factory):
+def _run_chosen(request, tmp_path_factory) -> dict[str, subprocess.CompletedProcess]:
     """Every example that runs in this session, block by block, two blocks at a time (each command one process)."""
     slow = request.config.getoption("--run-slow")
     chosen = {(x.callspec.params["example"].page, x.callspec.params["example"].block) for x in request.session.items
@@ -390,9 +390,28 @@ def ran(request, tmp_path_factory):
     return results
 
 
+@pytest.fixture(scope="session")
+def ran(request, tmp_path_factory):
+    """The examples' results, run once per test session: under pytest-xdist the first worker to need them runs them
+    and leaves them in the run's shared temporary folder, the others wait for that and read them (each worker
+    running them all cost a worker the whole run of the examples again)."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return _run_chosen(request, tmp_path_factory)
+    shared = tmp_path_factory.getbasetemp().parent  # this run's, shared by its workers
+    done = shared / "examples-ran.pickle"
+    with open(shared / "examples-ran.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if done.exists():
+            return pickle.loads(done.read_bytes())
+        results = _run_chosen(request, tmp_path_factory)
+        part = done.with_suffix(".part")
+        part.write_bytes(pickle.dumps(results))
+        os.replace(part, done)
+        return results
+
+
 @pytest.mark.parametrize("example", [pytest.param(e, marks=pytest.mark.slow) if e.slow else e for e in EXAMPLES],
                          ids=lambda e: f"{e.page}:{e.line}:{e.command[:50]}")
-@pytest.mark.xdist_group("examples")  # one worker runs them all: ``ran`` runs every chosen block where it is set up
 def test_example(example, ran, request):
     if example.slow and not request.config.getoption("--run-slow"):
         pytest.skip("a slow example (# slow): python -m pytest --run-slow runs it")
