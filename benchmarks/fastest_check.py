@@ -36,21 +36,13 @@ MODELS = {"point-mass": ModelOptions.papers(), "no-air-brake": ModelOptions(air_
 TARGET_PERCENT = 0.05
 
 
-def oracle_for(calc: TractionCalculator, ds_m: float = 1.0) -> FastestOracle:
-    """The independent computation over the calculator's line tables (cells, gravity, limits, spans)."""
-    tr = calc.train
-    return FastestOracle(calc.s_m, calc.gravity_kn, calc.limit_kmh, calc.traction_allowed,
-                         (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
-                         (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, ds_m)
-
-
 def check(calc: TractionCalculator, ds_m: float = 1.0) -> dict:
     """One case: both fastest times [s], their difference [%], and how far below the limit the envelope goes
     on descents full braking cannot hold [km/h]."""
     res = calc.evaluate(("T",), np.zeros((1, 0)))
     t_calc = float(res.running_time_s[0]) if res.feasible[0] else math.nan
     start = time.perf_counter()
-    t_ref, _ = oracle_for(calc, ds_m).fastest()
+    t_ref, _ = FastestOracle.of(calc, ds_m).fastest()
     ref_s = time.perf_counter() - start
     steep = ~calc.brake_holds_limit
     below = 0.0

@@ -55,6 +55,15 @@ class FastestOracle:
             n = max(1, math.ceil((b - a) / ds_m - 1e-9))
             self.pieces += [(k, (b - a) / n)] * n
 
+    @classmethod
+    def of(cls, calc, ds_m: float = 1.0) -> "FastestOracle":
+        """Over a traction calculator's line tables (its cells, gravity, limits and catenary) and its train's force
+        curves, read as plain arrays: what the line and the train are, not how locoplan integrates them."""
+        tr = calc.train
+        return cls(calc.s_m, calc.gravity_kn, calc.limit_kmh, calc.traction_allowed,
+                   (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
+                   (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, ds_m)
+
     def _resistance(self, v_kmh: float) -> float:
         a, b, c = self.davis
         return a + v_kmh * (b + c * v_kmh)

@@ -92,10 +92,7 @@ def test_e_against_a_fine_step_integration(level, options):
     plan = parse_sequence("T:0,E:2500,K:2900,E:4000,C:4300,B", route.length_m)
     calc = TractionCalculator(route, train, replace(options, air_cycle=False))
     res = calc.evaluate(plan.conditions, plan.switches_m)
-    tr = calc.train
-    oracle = FastestOracle(calc.s_m, calc.gravity_kn, calc.limit_kmh, calc.traction_allowed,
-                           (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
-                           (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, 2.0)
+    oracle = FastestOracle.of(calc, 2.0)
     t_ref, w_ref = oracle.drive(plan.conditions, plan.switches_m[0])
     assert res.feasible[0], res.reason(0)
     assert res.running_time_s[0] == pytest.approx(t_ref, rel=1e-3)

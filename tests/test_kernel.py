@@ -32,14 +32,6 @@ def _hilly(freight):
     return Route.model_validate(data)
 
 
-def oracle_for(calc: TractionCalculator, ds_m: float) -> FastestOracle:
-    """The independent integration over the calculator's line tables (cells, gravity, limits, spans)."""
-    tr = calc.train
-    return FastestOracle(calc.s_m, calc.gravity_kn, calc.limit_kmh, calc.traction_allowed,
-                         (tr.traction_speed_kmh, tr.traction_kn), (calc.electric_brake_speed_kmh, calc.electric_brake_kn),
-                         (calc.air_brake_speed_kmh, calc.air_brake_kn), tr.resistance_kn, calc.m_eff_t, ds_m)
-
-
 CASES = [("seeds", ModelOptions.papers()), ("no-air-brake", ModelOptions(air_brake=False)),
          ("air-brake-modulated", ModelOptions(air_cycle=False))]
 
@@ -51,7 +43,7 @@ def test_plans_agree_with_a_fine_step_integration(freight, name, options, hilly)
     if hilly:
         route = _hilly(freight)
     calc = TractionCalculator(route, train, options)
-    oracle = oracle_for(calc, 5.0)
+    oracle = FastestOracle.of(calc, 5.0)
     rng = np.random.default_rng(3)
     arrived = stopped = 0
     for seq, n_sw, cruise in ((tuple("TCTKCB"), 4, None), (("T", "C", "B"), 1, 60.0), (tuple("TKCTCB"), 4, None)):

@@ -97,19 +97,6 @@ class RunSpec:
     tags: tuple[tuple[str, str], ...] = ()
     journey: str | None = None
 
-    algorithm = _setting("algorithm")
-    seed = _setting("seed")
-    time_s = _setting("time_s")
-    weights = _setting("weights")
-    tolerance_s = _setting("tolerance_s")
-    window = _setting("window")
-    builder = _setting("builder")
-    e_min_kwh = _setting("e_min_kwh")
-    params = _setting("params_path")
-    options = _setting("options")
-    yardstick = _setting("yardstick")
-    objective = _setting("objective")
-
     def replace(self, **changes) -> RunSpec:
         """A copy with ``changes`` made: the spec's own fields, or its settings' by their names here (``params``:
         the parameter file, ``settings.params_path``)."""
@@ -145,6 +132,10 @@ class RunSpec:
     def resolved_builder(self) -> str:
         """The builder the run uses: the general one unless the ISSA paper's is named (runner.make_context)."""
         return registry.builder_name(self.builder) or "general"
+
+
+for _name, _field in SETTING_NAMES.items():  # spec.time_s, spec.params ... read its settings (SETTING_NAMES)
+    setattr(RunSpec, _name, _setting(_field))
 
 
 def _plain(value: Any) -> Any:
